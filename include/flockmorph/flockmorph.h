@@ -1,0 +1,231 @@
+/* flockmorph — turn one 3D shape into another as a flock.
+ *
+ * The public C API. One umbrella header; everything under src/ and kernels/ is internal.
+ *
+ * The flow follows MuJoCo's model/data split:
+ *   fm_scene_def   parameters (from a scene file or fm_default_scene_def())
+ *   fm_model       everything immutable after preprocessing: tets, orders, path, bounding sphere
+ *   fm_state       everything the step mutates: the agent store, the clock, counters
+ *   fm_step(model, state) advances one time step; fm_state_tet_vertices() gives a frame.
+ *
+ * Every fallible call takes an fm_error* and returns an fm_status (or NULL for constructors);
+ * on failure err->message says what went wrong and names the file, line, key or element.
+ */
+#ifndef FLOCKMORPH_H
+#define FLOCKMORPH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define FM_VERSION_STRING "0.1.0"
+
+/* Status codes double as the CLI's exit codes. */
+typedef enum fm_status {
+    FM_OK = 0,
+    FM_ERR_USAGE = 1,    /* bad command line */
+    FM_ERR_INPUT = 2,    /* bad scene file, mesh or parameter */
+    FM_ERR_IO = 3,       /* cannot read or write a file */
+    FM_ERR_MEMORY = 4,   /* allocation failed */
+    FM_ERR_INTERNAL = 5  /* a library failed in a way the input does not explain */
+} fm_status;
+
+typedef struct fm_error {
+    fm_status status;
+    char message[2048];
+} fm_error;
+
+/* ---------------------------------------------------------------- scene */
+
+#define FM_PATH_MAX 4096
+#define FM_MAX_PATH_POINTS 256
+
+typedef enum fm_curve { FM_CURVE_POLYLINE = 0, FM_CURVE_CATMULL_ROM = 1 } fm_curve;
+
+/* A mesh placed in the world: x_world = R(rotate_deg) * (scale * x_file) + translate.
+ * Rotations are applied about X, then Y, then Z, in degrees. */
+typedef struct fm_mesh_ref {
+    char path[FM_PATH_MAX];
+    double translate[3];
+    double scale;
+    double rotate_deg[3];
+} fm_mesh_ref;
+
+/* Every parameter of a run; docs/scene.md documents each with its default and unit. */
+typedef struct fm_scene_def {
+    char scene_path[FM_PATH_MAX]; /* where it was read from (for messages); "" if built in code */
+    fm_mesh_ref source;
+    fm_mesh_ref target;
+    int64_t n;                  /* agents = tets after subdivision; 0 = max(n1, n2) (FM §4) */
+    double tet_quality;         /* TetGen radius-edge bound (-q), default 2.0 */
+    double tet_max_volume;      /* TetGen volume bound (-a), 0 = none */
+    double speed0;              /* base speed, units per second (FM eq 3) */
+    double omega1;              /* weight of the global velocity in V_grn (FM eq 6) */
+    double frame_rate;          /* frames per second of animation time */
+    double time_step;           /* seconds per step; must divide 1/frame_rate; 0 = 1/frame_rate */
+    int32_t frame_limit;        /* stop after this many frames even if agents are still flying */
+    double path_points[FM_MAX_PATH_POINTS][3]; /* user control points between C_S and C_T */
+    int32_t path_point_count;
+    int32_t path_key_points;    /* m: key points sampled on the curve (FM eq 3) */
+    fm_curve path_curve;
+    double launch_rate;         /* agents launched per second in D1 order; 0 = n / 2 s */
+    double shrink;              /* linear scale a tet shrinks to when launched (FM §6: 1/2) */
+    double shrink_time;         /* seconds the launch shrink takes */
+    double morph_fraction;      /* fraction of phase 2 spent on A(t); the rest enlarges */
+    uint64_t seed;              /* random seed */
+    int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
+    char cache_name[256];       /* file name of the cache inside the output directory */
+} fm_scene_def;
+
+fm_scene_def fm_default_scene_def(void);
+
+/* Reads and validates a JSON scene file. Relative mesh paths are resolved against the scene
+ * file's directory. Unknown keys, wrong types and out-of-range values fail with
+ * "FILE:LINE:COLUMN: ..." in err->message. */
+fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err);
+
+/* Checks a definition built in code (fm_scene_load calls it too). */
+fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err);
+
+/* ---------------------------------------------------------------- model */
+
+typedef struct fm_model fm_model;
+
+/* Progress of long preprocessing stages; may be NULL. fraction is in [0, 1]. */
+typedef void (*fm_progress_fn)(const char *stage, double fraction, void *user);
+
+fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
+                         fm_error *err);
+void fm_model_destroy(fm_model *model);
+
+typedef struct fm_model_info {
+    int64_t agents;             /* n */
+    int64_t source_tets;        /* n1: TetGen's count before subdivision */
+    int64_t target_tets;        /* n2 */
+    double source_volume;       /* total volume of the source tets after subdivision */
+    double target_volume;
+    double source_centroid[3];  /* C_S */
+    double target_centroid[3];  /* C_T */
+    double sphere_center[3];    /* exact minimal bounding sphere of the target (phase switch) */
+    double sphere_radius;
+    int32_t key_points;         /* m + 2 key points Q_0..Q_{m+1} */
+    double time_step;           /* seconds per step */
+    int32_t steps_per_frame;
+    double launch_rate;         /* agents per second, after the default is applied */
+} fm_model_info;
+
+fm_model_info fm_model_get_info(const fm_model *model);
+
+/* Target tet j's four vertices (12 floats, x y z per vertex) in world units. */
+const float *fm_model_target_tet(const fm_model *model, int64_t j);
+
+/* ---------------------------------------------------------------- state */
+
+typedef struct fm_state fm_state;
+
+typedef enum fm_phase {
+    FM_PHASE_WAITING = 0,  /* not launched yet, at rest in the source */
+    FM_PHASE_FLYING = 1,   /* phase 1: following the path (FM eq 8) */
+    FM_PHASE_HOMING = 2,   /* phase 2: flying straight to its target tet (FM eq 9) */
+    FM_PHASE_ARRIVED = 3
+} fm_phase;
+
+/* threads <= 0 uses OpenMP's default. Results do not depend on the thread count. */
+fm_state *fm_state_create(const fm_model *model, int threads, fm_error *err);
+void fm_state_destroy(fm_state *state);
+
+void fm_step(const fm_model *model, fm_state *state);
+
+typedef struct fm_state_info {
+    int64_t step;
+    double time;               /* seconds of animation time */
+    int64_t count[4];          /* agents per fm_phase */
+    int all_arrived;
+    int64_t morph_fallbacks;   /* agents whose correspondence needed the safe A(t) form */
+} fm_state_info;
+
+fm_state_info fm_state_get_info(const fm_state *state);
+
+/* Writes every agent's tet, 12 floats per agent (4 vertices × xyz), agents in id order.
+ * Computes the morph (FM §6) for agents in phase 2. */
+void fm_state_tet_vertices(const fm_model *model, const fm_state *state, float *out);
+
+/* Target tet index each agent holds (-1 while it has none), agents in id order. */
+void fm_state_targets(const fm_state *state, int64_t *out);
+
+/* ---------------------------------------------------------------- cache */
+
+/* The native frame cache (docs/cache-format.md): one zstd-compressed chunk per frame, an index
+ * for random access. Written as PATH.partial and renamed to PATH only by finish(). */
+typedef struct fm_cache_writer fm_cache_writer;
+
+fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, double frame_rate,
+                                        int compression_level, fm_error *err);
+/* verts: agents × 12 floats. */
+fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err);
+fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err); /* frees w */
+void fm_cache_writer_abort(fm_cache_writer *w);                       /* frees w, deletes file */
+
+typedef struct fm_cache_reader fm_cache_reader;
+
+fm_cache_reader *fm_cache_open(const char *path, fm_error *err);
+uint64_t fm_cache_agents(const fm_cache_reader *r);
+uint32_t fm_cache_frames(const fm_cache_reader *r);
+double fm_cache_frame_rate(const fm_cache_reader *r);
+fm_status fm_cache_read_frame(fm_cache_reader *r, uint32_t frame, float *out, fm_error *err);
+void fm_cache_close(fm_cache_reader *r);
+
+/* ---------------------------------------------------------------- run */
+
+typedef struct fm_run_stats {
+    int64_t frames;                 /* frames written, frame 0 (the rest state) included */
+    int64_t steps;
+    double simulate_seconds;        /* time spent in fm_step */
+    double output_seconds;          /* time spent computing and writing frames */
+    int all_arrived;
+    int stopped_at_frame_limit;
+    int64_t inverted_tet_frames;    /* tet-frames with signed volume <= 0 */
+    double final_max_vertex_error;  /* last frame vs the target tets (ground truth, double) */
+    int target_tets_filled_once;    /* every target tet taken by exactly one agent */
+    int64_t morph_fallbacks;
+} fm_run_stats;
+
+/* Called after every frame; may be NULL. */
+typedef void (*fm_run_progress_fn)(const fm_state_info *info, int64_t frame, void *user);
+
+/* Steps until every agent has arrived or def.frame_limit frames are written, writing each frame
+ * to `cache` (may be NULL) and measuring the run. */
+fm_status fm_run(const fm_model *model, fm_state *state, fm_cache_writer *cache,
+                 fm_run_progress_fn progress, void *user, fm_run_stats *stats, fm_error *err);
+
+/* Number of tets (n × 12 floats) with signed volume <= 0. */
+int64_t fm_count_inverted_tets(const float *verts, size_t n);
+
+/* ---------------------------------------------------------------- export and preview */
+
+/* Writes tets (n × 12 floats) as a triangle mesh, 4 triangles per tet; the format comes from
+ * the extension: .ply (binary little-endian) or .obj. */
+fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_error *err);
+
+typedef struct fm_render_opts {
+    int width, height;      /* pixels */
+    double view_dir[3];     /* direction the camera looks along (world units) */
+    double up[3];           /* world up */
+    double margin;          /* fraction of the image left around the fitted bounds */
+    const double *bounds;   /* optional fixed [minx miny minz maxx maxy maxz]; NULL fits the tets */
+} fm_render_opts;
+
+fm_render_opts fm_default_render_opts(void);
+
+/* Orthographic, z-buffered, flat Lambert-shaded rendering of the tets' faces to a PNG. */
+fm_status fm_render_tets_png(const float *verts, size_t n, const fm_render_opts *opts,
+                             const char *path, fm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FLOCKMORPH_H */

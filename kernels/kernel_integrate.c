@@ -1,0 +1,19 @@
+/* Phase 1 integration and the switch into phase 2 (FM §5.5). */
+#include "kernels.h"
+
+int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
+                                   int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                   uint8_t *entered)
+{
+    const float r2 = sphere.r * sphere.r;
+    int64_t count = 0;
+    for (int64_t a = begin; a < end; a++) {
+        entered[a] = 0;
+        if (phase[a] != 1) continue;
+        float x = p[0][a] + v[0][a] * dt, y = p[1][a] + v[1][a] * dt, z = p[2][a] + v[2][a] * dt;
+        p[0][a] = x, p[1][a] = y, p[2][a] = z;
+        float dx = x - sphere.c[0], dy = y - sphere.c[1], dz = z - sphere.c[2];
+        if (dx * dx + dy * dy + dz * dz < r2) entered[a] = 1, count++;
+    }
+    return count;
+}

@@ -1,0 +1,42 @@
+/* The step's hot loops: pure functions over structure-of-arrays data, one agent range each.
+ * No allocation, no I/O, no globals; every agent writes only its own entries, so any split of
+ * the range across threads gives the same bits. */
+#ifndef FM_KERNELS_H
+#define FM_KERNELS_H
+
+#include <stdint.h>
+
+/* Key points Q_i and unit directions f_i of the global path (FM eq 3), SoA. */
+typedef struct fm_path_view {
+    const float *q[3];
+    const float *f[3];
+    int32_t count;
+} fm_path_view;
+
+typedef struct fm_sphere_view {
+    float c[3];
+    float r;
+} fm_sphere_view;
+
+/* FM eq 3 weighted by omega1 (eq 6): v = omega1 * speed0 * f_i, i = the nearest key point, for
+ * agents in phase 1; the last key point Q_{m+1} = C_T has no f, agents nearest it head for C_T.
+ * Other agents' velocities are left untouched. */
+void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3],
+                               const uint8_t *phase, int64_t begin, int64_t end, float speed,
+                               float *const v[3]);
+
+/* Phase 1 integration x += v dt, then the phase switch test (FM §5.5): entered[i] = 1 if a flying
+ * agent is now inside the target's bounding sphere. Returns how many entered. */
+int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
+                                   int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                   uint8_t *entered);
+
+/* Phase 2 (FM eq 9): straight flight at speed0 from p2 to the target centroid, evaluated in closed
+ * form at `time` so no error accumulates; agents whose flight time tf has passed arrive. Returns
+ * how many arrived in this call. */
+int64_t fm_kernel_homing(float *const p[3], float *const v[3], uint8_t *phase,
+                         const int64_t *target, const float *const tgt_c[3],
+                         const float *const p2[3], const float *t2, const float *tf,
+                         int64_t begin, int64_t end, double time);
+
+#endif

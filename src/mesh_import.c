@@ -1,0 +1,234 @@
+/* Mesh import through assimp's C API, exact vertex welding, and the closed-manifold check. */
+#include "prep.h"
+
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void fm_mesh_free(fm_mesh *mesh)
+{
+    free(mesh->v);
+    free(mesh->tri);
+    memset(mesh, 0, sizeof *mesh);
+}
+
+static int compare_xyz(const void *a, const void *b, const double *v)
+{
+    const double *p = v + 3 * *(const int64_t *)a, *q = v + 3 * *(const int64_t *)b;
+    for (int k = 0; k < 3; k++) {
+        if (p[k] < q[k]) return -1;
+        if (p[k] > q[k]) return 1;
+    }
+    return 0;
+}
+
+static const double *g_sort_vertices; /* qsort has no context argument in C17 */
+static int compare_vertex_index(const void *a, const void *b)
+{
+    int c = compare_xyz(a, b, g_sort_vertices);
+    if (c) return c;
+    int64_t i = *(const int64_t *)a, j = *(const int64_t *)b;
+    return (i > j) - (i < j);
+}
+
+/* Merges vertices with exactly equal positions (STL and glTF repeat them per face). */
+static fm_status weld_vertices(fm_mesh *mesh, fm_error *err)
+{
+    int64_t n = mesh->nv;
+    int64_t *idx = malloc(sizeof *idx * (size_t)(n ? n : 1));
+    int32_t *remap = malloc(sizeof *remap * (size_t)(n ? n : 1));
+    double *welded = malloc(sizeof *welded * 3 * (size_t)(n ? n : 1));
+    if (!idx || !remap || !welded) {
+        free(idx), free(remap), free(welded);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory welding %lld vertices", (long long)n);
+    }
+    for (int64_t i = 0; i < n; i++) idx[i] = i;
+    g_sort_vertices = mesh->v;
+    qsort(idx, (size_t)n, sizeof *idx, compare_vertex_index);
+    int64_t unique = 0;
+    for (int64_t k = 0; k < n; k++) {
+        if (k == 0 || compare_xyz(&idx[k - 1], &idx[k], mesh->v) != 0) {
+            memcpy(welded + 3 * unique, mesh->v + 3 * idx[k], 3 * sizeof(double));
+            unique++;
+        }
+        remap[idx[k]] = (int32_t)(unique - 1);
+    }
+    for (int64_t t = 0; t < 3 * mesh->nt; t++) mesh->tri[t] = remap[mesh->tri[t]];
+    free(mesh->v);
+    mesh->v = welded;
+    mesh->nv = unique;
+    free(idx);
+    free(remap);
+    return FM_OK;
+}
+
+/* Copies every triangle of every assimp mesh (already in world space) into one mesh. */
+static fm_status gather_triangles(const struct aiScene *scene, const char *path, fm_mesh *out,
+                                  fm_error *err)
+{
+    int64_t nv = 0, nt = 0;
+    for (unsigned m = 0; m < scene->mNumMeshes; m++) {
+        const struct aiMesh *am = scene->mMeshes[m];
+        nv += am->mNumVertices;
+        for (unsigned f = 0; f < am->mNumFaces; f++) nt += am->mFaces[f].mNumIndices == 3;
+    }
+    if (nt == 0) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh has no triangles", path);
+    if (nv > INT32_MAX)
+        return fm_fail(err, FM_ERR_INPUT, "%s: %lld vertices is more than supported (2^31)", path,
+                       (long long)nv);
+    out->v = malloc(sizeof(double) * 3 * (size_t)nv);
+    out->tri = malloc(sizeof(int32_t) * 3 * (size_t)nt);
+    if (!out->v || !out->tri) {
+        fm_mesh_free(out);
+        return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for %lld triangles", path,
+                       (long long)nt);
+    }
+    int64_t vbase = 0, t = 0;
+    for (unsigned m = 0; m < scene->mNumMeshes; m++) {
+        const struct aiMesh *am = scene->mMeshes[m];
+        for (unsigned i = 0; i < am->mNumVertices; i++) {
+            out->v[3 * (vbase + i) + 0] = am->mVertices[i].x;
+            out->v[3 * (vbase + i) + 1] = am->mVertices[i].y;
+            out->v[3 * (vbase + i) + 2] = am->mVertices[i].z;
+        }
+        for (unsigned f = 0; f < am->mNumFaces; f++) {
+            const struct aiFace *face = &am->mFaces[f];
+            if (face->mNumIndices != 3) continue; /* points and lines carry no volume */
+            for (int k = 0; k < 3; k++) out->tri[3 * t + k] = (int32_t)(vbase + face->mIndices[k]);
+            t++;
+        }
+        vbase += am->mNumVertices;
+    }
+    out->nv = nv;
+    out->nt = nt;
+    return FM_OK;
+}
+
+static fm_status check_finite(const fm_mesh *mesh, const char *path, fm_error *err)
+{
+    for (int64_t i = 0; i < 3 * mesh->nv; i++)
+        if (!isfinite(mesh->v[i]))
+            return fm_fail(err, FM_ERR_INPUT, "%s: vertex %lld has a non-finite coordinate", path,
+                           (long long)(i / 3 + 1));
+    return FM_OK;
+}
+
+fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
+{
+    memset(out, 0, sizeof *out);
+    FILE *probe = fopen(path, "rb");
+    if (!probe) return fm_fail(err, FM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    fclose(probe);
+    const struct aiScene *scene =
+        aiImportFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);
+    if (!scene)
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
+                       "STL, OFF, glTF", path, aiGetErrorString());
+    fm_status st = gather_triangles(scene, path, out, err);
+    aiReleaseImport(scene);
+    if (st == FM_OK) st = check_finite(out, path, err);
+    if (st == FM_OK) st = weld_vertices(out, err);
+    if (st != FM_OK) fm_mesh_free(out);
+    return st;
+}
+
+typedef struct directed_edge {
+    int32_t lo, hi;   /* undirected key */
+    int32_t forward;  /* 1 if the face walks lo -> hi */
+    int32_t face;
+} directed_edge;
+
+static int compare_edges(const void *a, const void *b)
+{
+    const directed_edge *e = a, *f = b;
+    if (e->lo != f->lo) return (e->lo > f->lo) - (e->lo < f->lo);
+    if (e->hi != f->hi) return (e->hi > f->hi) - (e->hi < f->hi);
+    return (e->face > f->face) - (e->face < f->face);
+}
+
+static fm_status edge_error(const fm_mesh *mesh, const char *path, const directed_edge *e,
+                            const char *what, fm_error *err)
+{
+    const double *a = mesh->v + 3 * (int64_t)e->lo, *b = mesh->v + 3 * (int64_t)e->hi;
+    return fm_fail(err, FM_ERR_INPUT,
+                   "%s: the mesh is not a closed manifold: the edge (%g, %g, %g)-(%g, %g, %g) "
+                   "of triangle %d %s", path, a[0], a[1], a[2], b[0], b[1], b[2], e->face + 1,
+                   what);
+}
+
+static fm_status check_degenerate(const fm_mesh *mesh, const char *path, fm_error *err)
+{
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        const int32_t *f = mesh->tri + 3 * t;
+        if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2])
+            return fm_fail(err, FM_ERR_INPUT, "%s: triangle %lld is degenerate (two corners at the "
+                           "same position)", path, (long long)t + 1);
+    }
+    return FM_OK;
+}
+
+fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err)
+{
+    fm_status st = check_degenerate(mesh, path, err);
+    if (st != FM_OK) return st;
+    size_t ne = 3 * (size_t)mesh->nt;
+    directed_edge *edges = malloc(sizeof *edges * ne);
+    if (!edges) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory checking edges", path);
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        for (int k = 0; k < 3; k++) {
+            int32_t a = mesh->tri[3 * t + k], b = mesh->tri[3 * t + (k + 1) % 3];
+            edges[3 * t + k] = (directed_edge){FM_MIN(a, b), FM_MAX(a, b), a < b, (int32_t)t};
+        }
+    }
+    qsort(edges, ne, sizeof *edges, compare_edges);
+    for (size_t i = 0; i < ne && st == FM_OK;) {
+        size_t j = i;
+        while (j < ne && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) j++;
+        if (j - i == 1)
+            st = edge_error(mesh, path, &edges[i], "has no neighbour: the surface has a hole there",
+                            err);
+        else if (j - i > 2)
+            st = edge_error(mesh, path, &edges[i], "is shared by more than two triangles", err);
+        else if (edges[i].forward == edges[i + 1].forward)
+            st = edge_error(mesh, path, &edges[i], "runs the same way in both of its triangles: "
+                            "their orientations disagree", err);
+        i = j;
+    }
+    free(edges);
+    return st;
+}
+
+void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref)
+{
+    const double deg = 3.14159265358979323846 / 180.0;
+    double c[3], s[3];
+    for (int k = 0; k < 3; k++) c[k] = cos(ref->rotate_deg[k] * deg), s[k] = sin(ref->rotate_deg[k] * deg);
+    for (int64_t i = 0; i < mesh->nv; i++) {
+        double *p = mesh->v + 3 * i;
+        double x = ref->scale * p[0], y = ref->scale * p[1], z = ref->scale * p[2], t;
+        t = c[0] * y - s[0] * z, z = s[0] * y + c[0] * z, y = t; /* about X */
+        t = c[1] * x + s[1] * z, z = -s[1] * x + c[1] * z, x = t; /* about Y */
+        t = c[2] * x - s[2] * y, y = s[2] * x + c[2] * y, x = t; /* about Z */
+        p[0] = x + ref->translate[0];
+        p[1] = y + ref->translate[1];
+        p[2] = z + ref->translate[2];
+    }
+}
+
+double fm_mesh_signed_volume(const fm_mesh *mesh)
+{
+    double vol = 0;
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        const double *a = mesh->v + 3 * mesh->tri[3 * t], *b = mesh->v + 3 * mesh->tri[3 * t + 1],
+                     *c = mesh->v + 3 * mesh->tri[3 * t + 2];
+        vol += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+               a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    return vol / 6.0;
+}

@@ -1,0 +1,207 @@
+/* fm_model_build: scene -> meshes -> TetGen -> subdivision -> orders -> path -> bounding sphere.
+ * Everything here runs once; the result is immutable (MuJoCo's mjModel). */
+#include "prep.h"
+#include "sim.h"
+#include "fm_math.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void report(fm_progress_fn progress, void *user, const char *stage, double fraction)
+{
+    if (progress) progress(stage, fraction, user);
+}
+
+/* Loads, checks, places and tetrahedralizes one mesh. */
+static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, fm_mesh *mesh,
+                              fm_tets *tets, fm_error *err)
+{
+    fm_status st = fm_mesh_load(ref->path, mesh, err);
+    if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
+    if (st != FM_OK) return st;
+    fm_mesh_place(mesh, ref);
+    return fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err);
+}
+
+static double total_volume(const fm_tets *tets, double centroid[3])
+{
+    double vol = 0, c[3] = {0, 0, 0};
+    for (int64_t i = 0; i < tets->n; i++) {
+        double v = fm_tet_signed_volume(tets->v + 12 * i), tc[3];
+        fm_tet_centroid(tets->v + 12 * i, tc);
+        vol += v;
+        for (int k = 0; k < 3; k++) c[k] += v * tc[k];
+    }
+    for (int k = 0; k < 3; k++) centroid[k] = vol > 0 ? c[k] / vol : 0;
+    return vol;
+}
+
+static fm_status alloc_model_arrays(fm_model *m, fm_error *err)
+{
+    size_t n = (size_t)m->n;
+    m->src_rel = fm_alloc(sizeof(float) * 12 * n);
+    m->tgt = fm_alloc(sizeof(double) * 12 * n);
+    m->tgt_f = fm_alloc(sizeof(float) * 12 * n);
+    int ok = m->src_rel && m->tgt && m->tgt_f;
+    for (int k = 0; k < 3; k++) {
+        m->src_c[k] = fm_alloc(sizeof(float) * n);
+        m->tgt_c[k] = fm_alloc(sizeof(float) * n);
+        ok = ok && m->src_c[k] && m->tgt_c[k];
+    }
+    return ok ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+}
+
+/* Stores source tets in launch order, as centroid + centroid-relative vertices. */
+static void store_sources(fm_model *m, const fm_tets *src, const int64_t *d1)
+{
+    for (int64_t a = 0; a < m->n; a++) {
+        const double *t = src->v + 12 * d1[a];
+        double c[3];
+        fm_tet_centroid(t, c);
+        for (int k = 0; k < 3; k++) m->src_c[k][a] = (float)c[k];
+        for (int i = 0; i < 12; i++) m->src_rel[12 * a + i] = (float)(t[i] - c[i % 3]);
+    }
+}
+
+static void store_targets(fm_model *m, const fm_tets *dst, const int64_t *d2)
+{
+    for (int64_t s = 0; s < m->n; s++) {
+        const double *t = dst->v + 12 * d2[s];
+        double c[3];
+        fm_tet_centroid(t, c);
+        memcpy(m->tgt + 12 * s, t, 12 * sizeof(double));
+        for (int i = 0; i < 12; i++) m->tgt_f[12 * s + i] = (float)t[i];
+        for (int k = 0; k < 3; k++) m->tgt_c[k][s] = (float)c[k];
+    }
+}
+
+static fm_status store_path(fm_model *m, const fm_path *path, fm_error *err)
+{
+    m->key_count = path->count;
+    for (int k = 0; k < 3; k++) {
+        m->key_q[k] = fm_alloc(sizeof(float) * (size_t)path->count);
+        m->key_f[k] = fm_alloc(sizeof(float) * (size_t)path->count);
+        if (!m->key_q[k] || !m->key_f[k]) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the path");
+    }
+    for (int32_t i = 0; i < path->count; i++) {
+        const double *q = path->q + 3 * i;
+        /* f_i runs from Q_i to Q_{i+1}; the last key point has none (the kernel heads for C_T). */
+        const double *next = path->q + 3 * (i + 1 < path->count ? i + 1 : i);
+        double d[3] = {next[0] - q[0], next[1] - q[1], next[2] - q[2]};
+        double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int k = 0; k < 3; k++) {
+            m->key_q[k][i] = (float)q[k];
+            m->key_f[k][i] = len > 0 ? (float)(d[k] / len) : 0.0f;
+        }
+    }
+    return FM_OK;
+}
+
+static fm_status bounding_sphere(fm_model *m, const fm_mesh *target, fm_error *err)
+{
+    double c[3], r;
+    if (fm_min_sphere(target->v, (size_t)target->nv, m->def.seed, c, &r) != 0)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the bounding sphere");
+    for (int k = 0; k < 3; k++) m->info.sphere_center[k] = c[k], m->sphere_c[k] = (float)c[k];
+    m->info.sphere_radius = r;
+    m->sphere_r = (float)r;
+    return FM_OK;
+}
+
+static void set_timing(fm_model *m)
+{
+    double frame = 1.0 / m->def.frame_rate;
+    m->dt = m->def.time_step > 0 ? m->def.time_step : frame;
+    m->steps_per_frame = (int32_t)llround(frame / m->dt);
+    m->launch_rate = m->def.launch_rate > 0 ? m->def.launch_rate : (double)m->n / 2.0;
+    m->info.time_step = m->dt;
+    m->info.steps_per_frame = m->steps_per_frame;
+    m->info.launch_rate = m->launch_rate;
+}
+
+typedef struct prep_scratch {
+    fm_mesh src_mesh, dst_mesh;
+    fm_tets src, dst;
+    fm_path path;
+    int64_t *d1, *d2;
+} prep_scratch;
+
+static void free_scratch(prep_scratch *s)
+{
+    fm_mesh_free(&s->src_mesh), fm_mesh_free(&s->dst_mesh);
+    fm_tets_free(&s->src), fm_tets_free(&s->dst);
+    fm_path_free(&s->path);
+    free(s->d1), free(s->d2);
+}
+
+static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    report(progress, user, "tetrahedralize source", 0.0);
+    fm_status st = prepare_mesh(def, &def->source, &s->src_mesh, &s->src, err);
+    if (st != FM_OK) return st;
+    report(progress, user, "tetrahedralize target", 0.3);
+    if ((st = prepare_mesh(def, &def->target, &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
+    m->info.source_tets = s->src.n;
+    m->info.target_tets = s->dst.n;
+    m->n = def->n > 0 ? def->n : FM_MAX(s->src.n, s->dst.n);
+    report(progress, user, "subdivide", 0.6);
+    if ((st = fm_subdivide_to(&s->src, m->n, err)) != FM_OK) return st;
+    if ((st = fm_subdivide_to(&s->dst, m->n, err)) != FM_OK) return st;
+    m->info.agents = m->n;
+    m->info.source_volume = total_volume(&s->src, m->info.source_centroid);
+    m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
+    report(progress, user, "order", 0.8);
+    if ((st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err)) != FM_OK) return st;
+    m->info.key_points = s->path.count;
+    s->d1 = malloc(sizeof(int64_t) * (size_t)m->n);
+    s->d2 = malloc(sizeof(int64_t) * (size_t)m->n);
+    if (!s->d1 || !s->d2) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+    if ((st = fm_order_d1(&s->src, &s->path, s->d1, err)) != FM_OK) return st;
+    if ((st = fm_order_d2(&s->dst, &s->path, s->d2, err)) != FM_OK) return st;
+    if ((st = alloc_model_arrays(m, err)) != FM_OK) return st;
+    store_sources(m, &s->src, s->d1);
+    store_targets(m, &s->dst, s->d2);
+    if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
+    if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
+    set_timing(m);
+    report(progress, user, "ready", 1.0);
+    return FM_OK;
+}
+
+fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    if (fm_scene_validate(def, err) != FM_OK) return NULL;
+    fm_model *m = calloc(1, sizeof *m);
+    if (!m) {
+        fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        return NULL;
+    }
+    m->def = *def;
+    prep_scratch scratch;
+    memset(&scratch, 0, sizeof scratch);
+    fm_status st = build(m, &scratch, progress, user, err);
+    free_scratch(&scratch);
+    if (st != FM_OK) {
+        fm_model_destroy(m);
+        return NULL;
+    }
+    return m;
+}
+
+void fm_model_destroy(fm_model *m)
+{
+    if (!m) return;
+    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f);
+    for (int k = 0; k < 3; k++) {
+        fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
+        fm_free(m->key_q[k]), fm_free(m->key_f[k]);
+    }
+    free(m);
+}
+
+fm_model_info fm_model_get_info(const fm_model *m) { return m->info; }
+
+const float *fm_model_target_tet(const fm_model *m, int64_t j) { return m->tgt_f + 12 * j; }

@@ -1,0 +1,64 @@
+/* Preprocessing: meshes in, equal-sized tet sets and their orders out (FM §4, §5.1). */
+#ifndef FM_PREP_H
+#define FM_PREP_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+
+/* A closed triangle mesh with welded vertices. */
+typedef struct fm_mesh {
+    double *v;      /* 3 per vertex */
+    int64_t nv;
+    int32_t *tri;   /* 3 per triangle, 0-based */
+    int64_t nt;
+} fm_mesh;
+
+/* A tet soup: 12 doubles per tet (4 vertices × xyz), every tet positively oriented. */
+typedef struct fm_tets {
+    double *v;
+    int64_t n;
+} fm_tets;
+
+/* mesh_import.c */
+fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
+void fm_mesh_free(fm_mesh *mesh);
+/* Every edge shared by exactly two faces with opposite directions; names the first bad edge. */
+fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err);
+void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
+double fm_mesh_signed_volume(const fm_mesh *mesh);
+
+/* tetra_tetgen.cpp: TetGen behind extern "C"; never throws, never exits. */
+#ifdef __cplusplus
+extern "C" {
+#endif
+fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, double max_volume,
+                            const char *name, fm_tets *out, fm_error *err);
+#ifdef __cplusplus
+}
+#endif
+void fm_tets_free(fm_tets *tets);
+
+/* subdivide.c (FM eqs 1-2) */
+double fm_tet_signed_volume(const double *tet);
+void fm_tet_centroid(const double *tet, double c[3]);
+fm_status fm_subdivide_to(fm_tets *tets, int64_t n, fm_error *err);
+/* The individual schemes, exposed for tests: write 4, 3 or 2 tets to out. */
+void fm_split_1to4(const double *tet, double *out);
+void fm_split_1to3(const double *tet, double *out);
+void fm_split_1to2(const double *tet, double *out);
+
+/* path.c: key points Q_0..Q_{m+1} from C_S through the control points to C_T (FM §5.1). */
+typedef struct fm_path {
+    double *q;      /* 3 per key point */
+    int32_t count;  /* m + 2 */
+} fm_path;
+fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
+                        fm_path *out, fm_error *err);
+void fm_path_free(fm_path *path);
+
+/* order.c: FM eq 4. order[k] = index of the tet with the k-th smallest key (ties by index). */
+fm_status fm_order_d1(const fm_tets *src, const fm_path *path, int64_t *order, fm_error *err);
+fm_status fm_order_d2(const fm_tets *dst, const fm_path *path, int64_t *order, fm_error *err);
+
+#endif

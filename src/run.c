@@ -1,0 +1,89 @@
+/* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
+#include "sim.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static double signed_volume6(const float *t)
+{
+    double a[3], b[3], c[3];
+    for (int k = 0; k < 3; k++)
+        a[k] = (double)t[3 + k] - t[k], b[k] = (double)t[6 + k] - t[k], c[k] = (double)t[9 + k] - t[k];
+    return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+}
+
+int64_t fm_count_inverted_tets(const float *verts, size_t n)
+{
+    int64_t count = 0;
+#pragma omp parallel for reduction(+ : count) schedule(static)
+    for (int64_t i = 0; i < (int64_t)n; i++) count += !(signed_volume6(verts + 12 * i) > 0);
+    return count;
+}
+
+/* Largest distance between an agent's vertex and its target tet's matching vertex. */
+static double max_vertex_error(const fm_model *m, const fm_state *s, const float *verts)
+{
+    double worst = 0;
+    for (int64_t a = 0; a < s->n; a++) {
+        if (s->target[a] < 0) return INFINITY;
+        const uint8_t *perm = fm_even_permutations[s->perm[a]];
+        const double *t = m->tgt + 12 * s->target[a];
+        for (int i = 0; i < 4; i++)
+            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)verts[12 * a + 3 * i + k] - t[3 * perm[i] + k]));
+    }
+    return worst;
+}
+
+static int each_target_taken_once(const fm_state *s)
+{
+    uint8_t *taken = calloc((size_t)s->n, 1);
+    if (!taken) return 0;
+    int ok = 1;
+    for (int64_t a = 0; a < s->n && ok; a++) {
+        int64_t t = s->target[a];
+        ok = t >= 0 && t < s->n && !taken[t];
+        if (ok) taken[t] = 1;
+    }
+    free(taken);
+    return ok;
+}
+
+static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, fm_cache_writer *cache,
+                            fm_run_stats *stats, fm_error *err)
+{
+    double t0 = fm_seconds();
+    fm_state_tet_vertices(m, s, verts);
+    stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
+    fm_status st = cache ? fm_cache_writer_add_frame(cache, verts, err) : FM_OK;
+    stats->frames++;
+    stats->output_seconds += fm_seconds() - t0;
+    return st;
+}
+
+fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
+                 void *user, fm_run_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
+    if (!verts) return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    fm_status st = emit_frame(m, s, verts, cache, stats, err);
+    while (st == FM_OK && s->count[FM_PHASE_ARRIVED] < s->n && stats->frames < m->def.frame_limit) {
+        double t0 = fm_seconds();
+        for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
+        stats->simulate_seconds += fm_seconds() - t0;
+        st = emit_frame(m, s, verts, cache, stats, err);
+        if (progress) {
+            fm_state_info info = fm_state_get_info(s);
+            progress(&info, stats->frames - 1, user);
+        }
+    }
+    stats->steps = s->step;
+    stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
+    stats->stopped_at_frame_limit = !stats->all_arrived;
+    stats->final_max_vertex_error = max_vertex_error(m, s, verts);
+    stats->target_tets_filled_once = each_target_taken_once(s);
+    stats->morph_fallbacks = s->morph_fallbacks;
+    fm_free(verts);
+    return st;
+}

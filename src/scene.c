@@ -1,0 +1,401 @@
+/* Scene files (JSON through jansson) and parameter validation.
+ *
+ * One table lists every numeric and string parameter with its key, type, range and place in
+ * fm_scene_def; the loader and fm_scene_validate both walk it, so a range is written once.
+ * Errors name FILE:LINE:COLUMN (found by json_locate.c, since jansson keeps no positions after
+ * parsing) and the key. */
+#define _POSIX_C_SOURCE 200809L
+#include "fm_internal.h"
+#include "json_locate.h"
+
+#include <jansson.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+fm_scene_def fm_default_scene_def(void)
+{
+    fm_scene_def d;
+    memset(&d, 0, sizeof d);
+    d.source.scale = d.target.scale = 1.0;
+    d.tet_quality = 2.0;
+    d.speed0 = 10.0;
+    d.omega1 = 1.0;
+    d.frame_rate = 24.0;
+    d.frame_limit = 10000;
+    d.path_key_points = 32;
+    d.path_curve = FM_CURVE_POLYLINE;
+    d.shrink = 0.5;
+    d.shrink_time = 0.25;
+    d.morph_fraction = 0.75;
+    d.seed = 1;
+    d.compression_level = 3;
+    strcpy(d.cache_name, "frames.fmc");
+    return d;
+}
+
+typedef enum param_type { P_DOUBLE, P_INT32, P_INT64, P_UINT64, P_VEC3, P_MESH, P_NAME, P_CURVE, P_POINTS } param_type;
+
+typedef struct param {
+    const char *key;    /* dotted: "time.frame_rate" */
+    param_type type;
+    size_t offset;
+    double min, max;
+    int min_open;       /* 1: the minimum itself is excluded */
+} param;
+
+#define OFF(field) offsetof(fm_scene_def, field)
+static const param PARAMS[] = {
+    {"source.mesh", P_MESH, OFF(source.path), 0, 0, 0},
+    {"source.translate", P_VEC3, OFF(source.translate), -1e9, 1e9, 0},
+    {"source.scale", P_DOUBLE, OFF(source.scale), 0, 1e9, 1},
+    {"source.rotate_deg", P_VEC3, OFF(source.rotate_deg), -3600, 3600, 0},
+    {"target.mesh", P_MESH, OFF(target.path), 0, 0, 0},
+    {"target.translate", P_VEC3, OFF(target.translate), -1e9, 1e9, 0},
+    {"target.scale", P_DOUBLE, OFF(target.scale), 0, 1e9, 1},
+    {"target.rotate_deg", P_VEC3, OFF(target.rotate_deg), -3600, 3600, 0},
+    {"n", P_INT64, OFF(n), 0, 1e9, 0},
+    {"tetgen.quality", P_DOUBLE, OFF(tet_quality), 1.1, 100, 0},
+    {"tetgen.max_volume", P_DOUBLE, OFF(tet_max_volume), 0, 1e30, 0},
+    {"speed0", P_DOUBLE, OFF(speed0), 0, 1e9, 1},
+    {"omega1", P_DOUBLE, OFF(omega1), 0, 1e3, 1},
+    {"time.frame_rate", P_DOUBLE, OFF(frame_rate), 0, 1e4, 1},
+    {"time.time_step", P_DOUBLE, OFF(time_step), 0, 1e3, 0},
+    {"time.frame_limit", P_INT32, OFF(frame_limit), 1, 1e7, 0},
+    {"path.points", P_POINTS, OFF(path_points), -1e9, 1e9, 0},
+    {"path.key_points", P_INT32, OFF(path_key_points), 1, 1e5, 0},
+    {"path.curve", P_CURVE, OFF(path_curve), 0, 0, 0},
+    {"launch_rate", P_DOUBLE, OFF(launch_rate), 0, 1e12, 0},
+    {"morph.shrink", P_DOUBLE, OFF(shrink), 0, 1, 1},
+    {"morph.shrink_time", P_DOUBLE, OFF(shrink_time), 0, 1e6, 0},
+    {"morph.morph_fraction", P_DOUBLE, OFF(morph_fraction), 0, 1, 0},
+    {"seed", P_UINT64, OFF(seed), 0, 0, 0},
+    {"output.cache", P_NAME, OFF(cache_name), 0, 0, 0},
+    {"output.compression_level", P_INT32, OFF(compression_level), 1, 19, 0},
+};
+#define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
+
+/* Where an error points: the scene text and a JSON path. */
+typedef struct where {
+    const char *file;
+    const char *text;       /* NULL when validating a definition built in code */
+    fm_error *err;
+    fm_json_step steps[4];
+    char names[4][64];
+    int depth;
+    int at_key;             /* point at the key rather than the value */
+} where;
+
+static void where_set_key(where *w, const char *dotted)
+{
+    w->depth = 0;
+    w->at_key = 0;
+    const char *s = dotted;
+    while (*s && w->depth < 3) {
+        size_t len = strcspn(s, ".");
+        snprintf(w->names[w->depth], sizeof w->names[0], "%.*s", (int)len, s);
+        w->steps[w->depth] = (fm_json_step){w->names[w->depth], 0};
+        w->depth++;
+        s += len + (s[len] == '.');
+    }
+}
+
+/* The error message: "FILE:LINE:COL: key: what" (FILE: key: what without a text). */
+static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
+{
+    char what[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    int line = 0, col = 0;
+    if (w->text) fm_json_locate(w->text, w->steps, w->depth, w->at_key, &line, &col);
+    const char *file = w->file && w->file[0] ? w->file : "scene";
+    if (line > 0) return fm_fail(w->err, FM_ERR_INPUT, "%s:%d:%d: %s: %s", file, line, col, key, what);
+    return fm_fail(w->err, FM_ERR_INPUT, "%s: %s: %s", file, key, what);
+}
+
+static const char *json_type_name(const json_t *v)
+{
+    switch (json_typeof(v)) {
+    case JSON_OBJECT: return "an object";
+    case JSON_ARRAY: return "an array";
+    case JSON_STRING: return "a string";
+    case JSON_INTEGER: return "an integer";
+    case JSON_REAL: return "a number";
+    case JSON_TRUE: case JSON_FALSE: return "a boolean";
+    default: return "null";
+    }
+}
+
+static fm_status check_range(const where *w, const param *p, double x)
+{
+    if (!isfinite(x)) return fail_at(w, p->key, "must be a finite number");
+    if (p->min_open ? !(x > p->min) : !(x >= p->min))
+        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, p->min_open ? ">" : ">=", p->min);
+    if (!(x <= p->max)) return fail_at(w, p->key, "%g is out of range: must be <= %g", x, p->max);
+    return FM_OK;
+}
+
+static fm_status read_number(const where *w, const param *p, const json_t *v, double *out)
+{
+    if (!json_is_number(v)) return fail_at(w, p->key, "expected a number, got %s", json_type_name(v));
+    *out = json_number_value(v);
+    return check_range(w, p, *out);
+}
+
+static fm_status read_integer(const where *w, const param *p, const json_t *v, int64_t *out)
+{
+    if (!json_is_integer(v)) return fail_at(w, p->key, "expected an integer, got %s", json_type_name(v));
+    *out = json_integer_value(v);
+    if (p->type == P_UINT64) {
+        if (*out < 0) return fail_at(w, p->key, "must be >= 0");
+        return FM_OK;
+    }
+    return check_range(w, p, (double)*out);
+}
+
+/* [x, y, z] with each component in range; w points at the array and is extended per element. */
+static fm_status read_vec3(where *w, const param *p, const json_t *v, double *out)
+{
+    if (!json_is_array(v) || json_array_size(v) != 3)
+        return fail_at(w, p->key, "expected an array of 3 numbers, got %s%s", json_type_name(v),
+                       json_is_array(v) ? " of another length" : "");
+    for (int k = 0; k < 3; k++) {
+        w->steps[w->depth++] = (fm_json_step){NULL, k};
+        fm_status st = read_number(w, p, json_array_get(v, (size_t)k), &out[k]);
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene_def *def)
+{
+    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of [x, y, z] points, got %s", json_type_name(v));
+    if (json_array_size(v) > FM_MAX_PATH_POINTS)
+        return fail_at(w, p->key, "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
+    def->path_point_count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < def->path_point_count; i++) {
+        w->steps[w->depth++] = (fm_json_step){NULL, i};
+        fm_status st = read_vec3(w, p, json_array_get(v, (size_t)i), def->path_points[i]);
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+/* A mesh path, resolved against the scene file's directory when relative. */
+static fm_status read_mesh_path(const where *w, const param *p, const json_t *v, char *out)
+{
+    if (!json_is_string(v)) return fail_at(w, p->key, "expected a file name, got %s", json_type_name(v));
+    const char *name = json_string_value(v);
+    if (!name[0]) return fail_at(w, p->key, "the mesh file name is empty");
+    const char *slash = strrchr(w->file, '/');
+    int dir_len = (name[0] != '/' && slash) ? (int)(slash - w->file + 1) : 0;
+    if ((size_t)dir_len + strlen(name) + 1 > FM_PATH_MAX) return fail_at(w, p->key, "the path is too long");
+    snprintf(out, FM_PATH_MAX, "%.*s%s", dir_len, w->file, name);
+    return FM_OK;
+}
+
+static fm_status read_name(const where *w, const param *p, const json_t *v, char *out)
+{
+    if (!json_is_string(v)) return fail_at(w, p->key, "expected a file name, got %s", json_type_name(v));
+    const char *name = json_string_value(v);
+    if (!name[0] || strchr(name, '/') || strlen(name) >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
+        return fail_at(w, p->key, "'%s' is not a plain file name (no '/', at most 255 bytes)", name);
+    strcpy(out, name);
+    return FM_OK;
+}
+
+static fm_status read_curve(const where *w, const param *p, const json_t *v, fm_curve *out)
+{
+    const char *s = json_is_string(v) ? json_string_value(v) : "";
+    if (!strcmp(s, "polyline")) *out = FM_CURVE_POLYLINE;
+    else if (!strcmp(s, "catmull_rom")) *out = FM_CURVE_CATMULL_ROM;
+    else return fail_at(w, p->key, "expected \"polyline\" or \"catmull_rom\"");
+    return FM_OK;
+}
+
+static fm_status read_param(where *w, const param *p, const json_t *v, fm_scene_def *def)
+{
+    char *field = (char *)def + p->offset;
+    int64_t i = 0;
+    fm_status st;
+    switch (p->type) {
+    case P_DOUBLE: return read_number(w, p, v, (double *)field);
+    case P_INT32: st = read_integer(w, p, v, &i); *(int32_t *)field = (int32_t)i; return st;
+    case P_INT64: return read_integer(w, p, v, (int64_t *)field);
+    case P_UINT64: st = read_integer(w, p, v, &i); *(uint64_t *)field = (uint64_t)i; return st;
+    case P_VEC3: return read_vec3(w, p, v, (double *)field);
+    case P_MESH: return read_mesh_path(w, p, v, field);
+    case P_NAME: return read_name(w, p, v, field);
+    case P_CURVE: return read_curve(w, p, v, (fm_curve *)field);
+    case P_POINTS: return read_points(w, p, v, def);
+    }
+    return FM_OK;
+}
+
+/* The value at a dotted key, or NULL. A group that is not an object is an error. */
+static fm_status lookup(where *w, const json_t *root, const char *dotted, const json_t **out)
+{
+    *out = NULL;
+    where_set_key(w, dotted);
+    const json_t *v = root;
+    for (int d = 0; d < w->depth; d++) {
+        if (!json_is_object(v)) {
+            int depth = w->depth;
+            w->depth = d;
+            fm_status st = fail_at(w, w->names[d - 1], "expected an object, got %s", json_type_name(v));
+            w->depth = depth;
+            return st;
+        }
+        v = json_object_get(v, w->names[d]);
+        if (!v) return FM_OK;
+    }
+    *out = v;
+    return FM_OK;
+}
+
+/* Is `key` (inside group `prefix`, "" for the top) a parameter or a group of parameters? */
+static int known_key(const char *prefix, const char *key)
+{
+    char full[160];
+    snprintf(full, sizeof full, "%s%s%s", prefix, prefix[0] ? "." : "", key);
+    size_t len = strlen(full);
+    for (size_t i = 0; i < PARAM_COUNT; i++)
+        if (!strncmp(PARAMS[i].key, full, len) && (PARAMS[i].key[len] == 0 || PARAMS[i].key[len] == '.')) return 1;
+    return 0;
+}
+
+static fm_status check_unknown_keys(where *w, const json_t *obj, const char *prefix)
+{
+    const char *key;
+    json_t *value;
+    json_object_foreach((json_t *)obj, key, value) {
+        char full[160];
+        snprintf(full, sizeof full, "%s%s%s", prefix, prefix[0] ? "." : "", key);
+        if (!known_key(prefix, key)) {
+            where_set_key(w, prefix);
+            if (!prefix[0]) w->depth = 0;
+            w->steps[w->depth++] = (fm_json_step){key, 0};
+            w->at_key = 1;
+            return fail_at(w, full, "unknown key (docs/scene.md lists the keys)");
+        }
+        if (json_is_object(value)) {
+            fm_status st = check_unknown_keys(w, value, full);
+            if (st != FM_OK) return st;
+        }
+    }
+    return FM_OK;
+}
+
+static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
+{
+    if (!json_is_object(root)) {
+        w->depth = 0;
+        return fail_at(w, "scene", "the scene must be a JSON object");
+    }
+    fm_status st = check_unknown_keys(w, root, "");
+    for (size_t i = 0; i < PARAM_COUNT && st == FM_OK; i++) {
+        const json_t *v;
+        st = lookup(w, root, PARAMS[i].key, &v);
+        if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def);
+        else if (st == FM_OK && PARAMS[i].type == P_MESH) {
+            where_set_key(w, PARAMS[i].key);
+            w->depth = 0;
+            st = fail_at(w, PARAMS[i].key, "required key is missing");
+        }
+    }
+    return st;
+}
+
+/* Checks that span several parameters. */
+static fm_status check_consistency(where *w, const fm_scene_def *def)
+{
+    if (def->time_step > 0) {
+        double steps = (1.0 / def->frame_rate) / def->time_step;
+        if (steps < 0.999999 || fabs(steps - floor(steps + 0.5)) > 1e-6 * steps) {
+            where_set_key(w, "time.time_step");
+            return fail_at(w, "time.time_step", "%g s does not divide the frame interval 1/%g s "
+                           "into whole steps", def->time_step, def->frame_rate);
+        }
+    }
+    return FM_OK;
+}
+
+fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
+{
+    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0};
+    if (!def->source.path[0] || !def->target.path[0])
+        return fail_at(&w, def->source.path[0] ? "target.mesh" : "source.mesh", "no mesh given");
+    for (size_t i = 0; i < PARAM_COUNT; i++) {
+        const param *p = &PARAMS[i];
+        const char *field = (const char *)def + p->offset;
+        fm_status st = FM_OK;
+        if (p->type == P_DOUBLE) st = check_range(&w, p, *(const double *)field);
+        else if (p->type == P_INT32) st = check_range(&w, p, *(const int32_t *)field);
+        else if (p->type == P_INT64) st = check_range(&w, p, (double)*(const int64_t *)field);
+        else if (p->type == P_VEC3)
+            for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(&w, p, ((const double *)field)[k]);
+        if (st != FM_OK) return st;
+    }
+    if (def->path_point_count < 0 || def->path_point_count > FM_MAX_PATH_POINTS)
+        return fail_at(&w, "path.points", "between 0 and %d points", FM_MAX_PATH_POINTS);
+    return check_consistency(&w, def);
+}
+
+static char *read_text(const char *path, fm_error *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fm_fail(err, errno == ENOENT ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open the scene file: %s", path, strerror(errno));
+        return NULL;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *text = malloc(cap);
+    while (text) {
+        len += fread(text + len, 1, cap - len - 1, f);
+        if (len < cap - 1) break;
+        char *bigger = realloc(text, cap *= 2);
+        if (!bigger) free(text);
+        text = bigger;
+    }
+    int bad = ferror(f);
+    fclose(f);
+    if (!text || bad) {
+        free(text);
+        fm_fail(err, bad ? FM_ERR_IO : FM_ERR_MEMORY, "%s: cannot read the scene file", path);
+        return NULL;
+    }
+    text[len] = 0;
+    return text;
+}
+
+fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
+{
+    *def = fm_default_scene_def();
+    snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
+    char *text = read_text(path, err);
+    if (!text) return err ? err->status : FM_ERR_IO;
+    json_error_t jerr;
+    json_t *root = json_loads(text, JSON_REJECT_DUPLICATES, &jerr);
+    fm_status st;
+    if (!root) {
+        st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", path, jerr.line, jerr.column, jerr.text);
+    } else {
+        where w = {path, text, err, {{0}}, {{0}}, 0, 0};
+        st = read_scene(&w, root, def);
+        if (st == FM_OK) st = check_consistency(&w, def);
+        json_decref(root);
+    }
+    free(text);
+    return st;
+}

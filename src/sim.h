@@ -1,0 +1,73 @@
+/* The prepared model and the agent store (internal layout of fm_model and fm_state). */
+#ifndef FM_SIM_H
+#define FM_SIM_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+
+enum { FM_BLOCK = 4096 }; /* agents per scheduler block */
+
+/* Immutable after fm_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
+ * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
+struct fm_model {
+    fm_scene_def def;
+    fm_model_info info;
+    int64_t n;
+    float *src_rel;          /* 12 per agent: rest vertices minus rest centroid */
+    float *src_c[3];         /* rest centroid, SoA */
+    double *tgt;             /* 12 per slot: target tet vertices (ground truth) */
+    float *tgt_f;            /* 12 per slot: the same in float, written once an agent arrives */
+    float *tgt_c[3];         /* target tet centroids, SoA */
+    float *key_q[3];         /* path key points Q_i, SoA */
+    float *key_f[3];         /* unit direction f_i from Q_i to Q_{i+1} (FM eq 3) */
+    int32_t key_count;
+    float sphere_c[3];
+    float sphere_r;
+    double dt;
+    int32_t steps_per_frame;
+    double launch_rate;
+};
+
+/* Per-agent morph parameters (FM §6), set when the agent enters phase 2. */
+enum { FM_MORPH_FLOATS = 10 }; /* axis n (3), theta, S (xx yy zz xy xz yz) */
+
+typedef struct block_counts {
+    int64_t entered, arrived, fallbacks;
+} block_counts;
+
+/* Everything the step mutates. Arrays are 64-byte aligned and indexed by agent id. */
+struct fm_state {
+    int64_t n;
+    int64_t step;
+    double time;
+    int threads;
+    float *p[3];             /* tet centroid */
+    float *v[3];             /* velocity of the last step */
+    uint8_t *phase;          /* fm_phase */
+    int64_t *target;         /* target slot, -1 before phase 2 */
+    float *t2;               /* time the agent entered phase 2 */
+    float *p2[3];            /* centroid when it entered phase 2 */
+    float *tf;               /* eq 9 flight time to its target */
+    float *morph;            /* FM_MORPH_FLOATS per agent */
+    uint8_t *perm;           /* vertex correspondence: index into fm_even_permutations */
+    uint8_t *morph_safe;     /* 1: uses the always-invertible A(t) form (see morph.c) */
+    uint8_t *entered;        /* scratch: entered the target sphere this step */
+    int64_t launched;        /* agents 0..launched-1 have left the source */
+    int64_t next_slot;       /* target slots handed out so far */
+    int64_t count[4];        /* agents per phase */
+    int64_t morph_fallbacks;
+    block_counts *blocks;    /* per-block scratch, one per FM_BLOCK agents */
+};
+
+/* morph.c */
+extern const uint8_t fm_even_permutations[12][4];
+/* Chooses the correspondence and A = RS for one agent: src and dst are 12 floats each, relative
+ * to their centroids, both positively oriented. Returns 1 if the safe form had to be used. */
+int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *perm);
+/* A(t) as a row-major 3x3 in out (FM §6: (1-t)I + t R(n, t theta) S, or the safe form). */
+void fm_morph_matrix(const float *morph, int safe, double t, double out[9]);
+/* Linear scale of a tet `tau` seconds after its launch (FM §6 shrink). */
+double fm_shrink_scale(const fm_scene_def *def, double tau);
+
+#endif

@@ -1,0 +1,143 @@
+/* The agent store (structure of arrays) and the frame: every tet's four vertices (FM §6). */
+#include "sim.h"
+
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int alloc_arrays(fm_state *s)
+{
+    size_t n = (size_t)s->n;
+    int ok = 1;
+    for (int k = 0; k < 3; k++) {
+        ok &= (s->p[k] = fm_alloc(sizeof(float) * n)) != NULL;
+        ok &= (s->v[k] = fm_alloc(sizeof(float) * n)) != NULL;
+        ok &= (s->p2[k] = fm_alloc(sizeof(float) * n)) != NULL;
+    }
+    ok &= (s->phase = fm_alloc(n)) != NULL;
+    ok &= (s->target = fm_alloc(sizeof(int64_t) * n)) != NULL;
+    ok &= (s->t2 = fm_alloc(sizeof(float) * n)) != NULL;
+    ok &= (s->tf = fm_alloc(sizeof(float) * n)) != NULL;
+    ok &= (s->morph = fm_alloc(sizeof(float) * FM_MORPH_FLOATS * n)) != NULL;
+    ok &= (s->perm = fm_alloc(n)) != NULL;
+    ok &= (s->morph_safe = fm_alloc(n)) != NULL;
+    ok &= (s->entered = fm_alloc(n)) != NULL;
+    ok &= (s->blocks = fm_alloc(sizeof(block_counts) * (n / FM_BLOCK + 1))) != NULL;
+    return ok;
+}
+
+fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
+{
+    fm_state *s = calloc(1, sizeof *s);
+    if (!s) {
+        fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        return NULL;
+    }
+    s->n = m->n;
+    s->threads = threads > 0 ? threads : omp_get_max_threads();
+    if (!alloc_arrays(s)) {
+        fm_state_destroy(s);
+        fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
+        return NULL;
+    }
+    for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
+    for (int64_t a = 0; a < s->n; a++) s->target[a] = -1;
+    s->count[FM_PHASE_WAITING] = s->n;
+    return s;
+}
+
+void fm_state_destroy(fm_state *s)
+{
+    if (!s) return;
+    for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
+    fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
+    fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
+    fm_free(s->blocks);
+    free(s);
+}
+
+fm_state_info fm_state_get_info(const fm_state *s)
+{
+    fm_state_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks};
+    memcpy(info.count, s->count, sizeof info.count);
+    info.all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
+    return info;
+}
+
+void fm_state_targets(const fm_state *s, int64_t *out)
+{
+    memcpy(out, s->target, sizeof(int64_t) * (size_t)s->n);
+}
+
+/* out[i] = c + scale * M * rel[i] for the four vertices (M row-major, NULL = identity). */
+static void place_tet(const float *c, double scale, const double *mat, const float *rel, float *out)
+{
+    for (int i = 0; i < 4; i++) {
+        const float *r = rel + 3 * i;
+        for (int k = 0; k < 3; k++) {
+            double x = mat ? mat[3 * k] * r[0] + mat[3 * k + 1] * r[1] + mat[3 * k + 2] * r[2] : r[k];
+            out[3 * i + k] = (float)(c[k] + scale * x);
+        }
+    }
+}
+
+/* Target tet slot's vertices relative to its centroid, in the agent's vertex order. */
+static void target_relative(const fm_model *m, int64_t slot, const uint8_t *perm, float *rel)
+{
+    for (int i = 0; i < 4; i++)
+        for (int k = 0; k < 3; k++)
+            rel[3 * i + k] = m->tgt_f[12 * slot + 3 * perm[i] + k] - m->tgt_c[k][slot];
+}
+
+/* Phase 2 shape (FM §6): A(t) on the shrunk tet for the first morph_fraction of the flight, then
+ * the shrunk target tet enlarges to full size as it reaches its place. */
+static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double time, float *out)
+{
+    const fm_scene_def *def = &m->def;
+    double launch = (double)a / m->launch_rate, tf = s->tf[a];
+    double u = tf > 0 ? (time - s->t2[a]) / tf : 1.0;
+    u = u < 0 ? 0 : u > 1 ? 1 : u;
+    const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
+    double um = def->morph_fraction;
+    if (u < um) {
+        double mat[9];
+        fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], u / um, mat);
+        place_tet(c, fm_shrink_scale(def, time - launch), mat, m->src_rel + 12 * a, out);
+        return;
+    }
+    double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
+    float rel[12];
+    target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rel);
+    place_tet(c, sm + e * (1 - sm), NULL, rel, out);
+}
+
+static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *out)
+{
+    const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
+    switch (s->phase[a]) {
+    case FM_PHASE_WAITING:
+        place_tet(c, 1.0, NULL, m->src_rel + 12 * a, out);
+        break;
+    case FM_PHASE_FLYING:
+        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)a / m->launch_rate), NULL,
+                  m->src_rel + 12 * a, out);
+        break;
+    case FM_PHASE_HOMING:
+        homing_tet(m, s, a, s->time, out);
+        break;
+    default: { /* arrived: exactly the target tet, in this agent's vertex order */
+        const uint8_t *perm = fm_even_permutations[s->perm[a]];
+        for (int i = 0; i < 4; i++) memcpy(out + 3 * i, m->tgt_f + 12 * s->target[a] + 3 * perm[i], 3 * sizeof(float));
+    }
+    }
+}
+
+void fm_state_tet_vertices(const fm_model *m, const fm_state *s, float *out)
+{
+    int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t b = 0; b < blocks; b++) {
+        int64_t end = FM_MIN((b + 1) * FM_BLOCK, s->n);
+        for (int64_t a = b * FM_BLOCK; a < end; a++) agent_tet(m, s, a, out + 12 * a);
+    }
+}

@@ -1,0 +1,49 @@
+/* Minimal test macros in the style of Box2D's test/test_macros.h: each failed check prints
+ * where and why and marks the test failed; the test's main returns test_result(). */
+#ifndef FM_TEST_MACROS_H
+#define FM_TEST_MACROS_H
+
+#include <math.h>
+#include <stdio.h>
+
+static int fm_test_failures = 0;
+
+#define ENSURE(cond)                                                                       \
+    do {                                                                                   \
+        if (!(cond)) {                                                                     \
+            fprintf(stderr, "%s:%d: ENSURE(%s) failed\n", __FILE__, __LINE__, #cond);      \
+            fm_test_failures++;                                                            \
+        }                                                                                  \
+    } while (0)
+
+#define ENSURE_MSG(cond, ...)                                                              \
+    do {                                                                                   \
+        if (!(cond)) {                                                                     \
+            fprintf(stderr, "%s:%d: ENSURE(%s) failed: ", __FILE__, __LINE__, #cond);      \
+            fprintf(stderr, __VA_ARGS__);                                                  \
+            fputc('\n', stderr);                                                           \
+            fm_test_failures++;                                                            \
+        }                                                                                  \
+    } while (0)
+
+/* |a - b| <= tol */
+#define ENSURE_NEAR(a, b, tol)                                                             \
+    do {                                                                                   \
+        double fm_a_ = (double)(a), fm_b_ = (double)(b), fm_t_ = (double)(tol);            \
+        if (!(fabs(fm_a_ - fm_b_) <= fm_t_)) {                                             \
+            fprintf(stderr, "%s:%d: ENSURE_NEAR(%s, %s, %s) failed: %.17g vs %.17g\n",     \
+                    __FILE__, __LINE__, #a, #b, #tol, fm_a_, fm_b_);                       \
+            fm_test_failures++;                                                            \
+        }                                                                                  \
+    } while (0)
+
+#define RUN_TEST(fn)                                                                       \
+    do {                                                                                   \
+        int fm_before_ = fm_test_failures;                                                 \
+        fn();                                                                              \
+        printf("%-40s %s\n", #fn, fm_test_failures == fm_before_ ? "ok" : "FAILED");       \
+    } while (0)
+
+static inline int test_result(void) { return fm_test_failures == 0 ? 0 : 1; }
+
+#endif

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Sets up (installs what is missing, builds) and runs the whole test suite with ctest.
+#   tools/run-tests.sh                 Release build in build/
+#   FM_SANITIZE=1 tools/run-tests.sh   AddressSanitizer + UndefinedBehaviorSanitizer build in build-asan/
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ "${FM_SANITIZE:-0}" = 1 ]; then
+  FM_BUILD_TYPE=Debug tools/setup.sh build-asan -DFM_SANITIZE=ON -DFM_WERROR=ON
+  dir=build-asan
+else
+  tools/setup.sh build -DFM_WERROR=ON
+  dir=build
+fi
+ctest --test-dir "$dir" --output-on-failure -j"$(nproc)"

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs the Debian packages flockmorph needs (only those missing), then configures and builds.
+#   tools/setup.sh [BUILD_DIR [extra cmake arguments...]]      default BUILD_DIR: build
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build_dir=${1:-build}
+shift || true
+
+packages=(build-essential cmake pkg-config libtet1.5-dev libassimp-dev libjansson-dev libzstd-dev libpng-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "flockmorph setup: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo=sudo
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="${FM_BUILD_TYPE:-Release}" "$@" > "$build_dir.cmake.log" 2>&1 \
+  || { cat "$build_dir.cmake.log"; exit 1; }
+cmake --build "$build_dir" -j"$(nproc)"
