@@ -10,7 +10,11 @@
  * with R_t S v = lambda v, and v.R_t v >= |v|^2 cos(t theta) > 0. For larger angles the candidate is
  * checked on a fine grid of t; if no correspondence passes, the agent uses the safe form
  *     A(t) = R(n, t theta) ((1 - t) I + t S),
- * whose determinant is positive for every t because (1 - t) I + t S is positive definite. */
+ * whose determinant is positive for every t because (1 - t) I + t S is positive definite.
+ *
+ * Only n and theta are stored per agent. A is rebuilt from the two tets' vertices in double each
+ * time it is needed and S = R(n, theta)^T A, so A(1) = A to double precision however
+ * ill-conditioned S is (a float copy of S would not be: its error scales with |S|). */
 #include "sim.h"
 #include "fm_math.h"
 
@@ -44,38 +48,44 @@ static fm_mat3 edge_matrix(const float *rel, const uint8_t *order)
     return e;
 }
 
-static void pack_morph(const double axis[3], double theta, fm_mat3 s, float *morph)
+/* A with A (src_i - src_0) = dst_order(i) - dst_order(0); identity if the source is degenerate. */
+static fm_mat3 affine_map(const float *src, const float *dst, const uint8_t *order)
 {
-    for (int k = 0; k < 3; k++) morph[k] = (float)axis[k];
-    morph[3] = (float)theta;
-    morph[4] = (float)s.m[0][0], morph[5] = (float)s.m[1][1], morph[6] = (float)s.m[2][2];
-    morph[7] = (float)(0.5 * (s.m[0][1] + s.m[1][0]));
-    morph[8] = (float)(0.5 * (s.m[0][2] + s.m[2][0]));
-    morph[9] = (float)(0.5 * (s.m[1][2] + s.m[2][1]));
+    static const uint8_t identity[4] = {0, 1, 2, 3};
+    fm_mat3 es_inv;
+    if (fm_mat3_inverse(edge_matrix(src, identity), &es_inv) != 0) return fm_mat3_identity();
+    return fm_mat3_mul(edge_matrix(dst, order), es_inv);
 }
 
-void fm_morph_matrix(const float *morph, int safe, double t, double out[9])
+void fm_morph_affine(const float *src, const float *dst, double a[9])
 {
-    const double axis[3] = {morph[0], morph[1], morph[2]};
-    fm_mat3 r = fm_rotation_axis_angle(axis, t * morph[3]);
-    fm_mat3 s = {{{morph[4], morph[7], morph[8]}, {morph[7], morph[5], morph[9]}, {morph[8], morph[9], morph[6]}}};
-    fm_mat3 a;
-    if (safe) { /* R(t theta) ((1-t) I + t S) */
-        a = fm_mat3_mul(r, fm_mat3_add(fm_mat3_scale(fm_mat3_identity(), 1 - t), fm_mat3_scale(s, t)));
-    } else {    /* (1-t) I + t R(t theta) S */
-        a = fm_mat3_add(fm_mat3_scale(fm_mat3_identity(), 1 - t), fm_mat3_scale(fm_mat3_mul(r, s), t));
-    }
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) out[3 * i + j] = a.m[i][j];
+    static const uint8_t identity[4] = {0, 1, 2, 3};
+    fm_mat3 m = affine_map(src, dst, identity);
+    memcpy(a, m.m, sizeof m.m);
 }
 
-static int det_stays_positive(const float *morph)
+void fm_morph_matrix(const float *morph, int safe, const double a_full[9], double t, double out[9])
+{
+    double axis[3] = {morph[0], morph[1], morph[2]};
+    double len = sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+    for (int k = 0; k < 3; k++) axis[k] = len > 0 ? axis[k] / len : (k == 0); /* float n is not unit */
+    fm_mat3 a, r = fm_rotation_axis_angle(axis, morph[3]), rt = fm_rotation_axis_angle(axis, t * morph[3]);
+    memcpy(a.m, a_full, sizeof a.m);
+    fm_mat3 s = fm_mat3_mul(fm_mat3_transpose(r), a), i_t = fm_mat3_scale(fm_mat3_identity(), 1 - t), m;
+    if (safe) /* R(t theta) ((1-t) I + t S) */
+        m = fm_mat3_mul(rt, fm_mat3_add(i_t, fm_mat3_scale(s, t)));
+    else      /* (1-t) I + t R(t theta) S */
+        m = fm_mat3_add(i_t, fm_mat3_scale(fm_mat3_mul(rt, s), t));
+    memcpy(out, m.m, sizeof m.m);
+}
+
+static int det_stays_positive(const float *morph, const double a[9])
 {
     for (int k = 1; k <= DET_CHECK_SAMPLES; k++) {
-        double a[9];
-        fm_morph_matrix(morph, 0, (double)k / DET_CHECK_SAMPLES, a);
+        double out[9];
+        fm_morph_matrix(morph, 0, a, (double)k / DET_CHECK_SAMPLES, out);
         fm_mat3 m;
-        memcpy(m.m, a, sizeof a);
+        memcpy(m.m, out, sizeof out);
         if (!(fm_mat3_det(m) > 0)) return 0;
     }
     return 1;
@@ -83,20 +93,20 @@ static int det_stays_positive(const float *morph)
 
 int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *perm)
 {
-    static const uint8_t identity[4] = {0, 1, 2, 3};
-    fm_mat3 es = edge_matrix(src, identity), es_inv;
     double theta[12];
     float cand[12][FM_MORPH_FLOATS];
+    fm_mat3 a[12];
     int ok[12] = {0};
-    if (fm_mat3_inverse(es, &es_inv) != 0) es_inv = fm_mat3_identity(); /* degenerate source */
     for (int p = 0; p < 12; p++) {
-        fm_mat3 a = fm_mat3_mul(edge_matrix(dst, fm_even_permutations[p]), es_inv), r, s;
+        fm_mat3 r, s;
+        a[p] = affine_map(src, dst, fm_even_permutations[p]);
         theta[p] = 1e300;
-        if (fm_polar_decompose(a, &r, &s) != 0) continue;
+        if (fm_polar_decompose(a[p], &r, &s) != 0) continue;
         double q[4], axis[3];
         fm_quat_from_rotation(r, q);
         fm_quat_to_axis_angle(q, axis, &theta[p]);
-        pack_morph(axis, theta[p], s, cand[p]);
+        for (int k = 0; k < 3; k++) cand[p][k] = (float)axis[k];
+        cand[p][3] = (float)theta[p];
         ok[p] = 1;
     }
     for (int tries = 0; tries < 12; tries++) { /* smallest rotation first */
@@ -104,7 +114,9 @@ int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *pe
         for (int p = 0; p < 12; p++)
             if (ok[p] && (best < 0 || theta[p] < theta[best])) best = p;
         if (best < 0) break;
-        if (theta[best] < HALF_PI || det_stays_positive(cand[best])) {
+        double flat[9];
+        memcpy(flat, a[best].m, sizeof flat);
+        if (theta[best] < HALF_PI || det_stays_positive(cand[best], flat)) {
             memcpy(morph, cand[best], sizeof cand[best]);
             *perm = (uint8_t)best;
             return 0;
@@ -114,8 +126,8 @@ int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *pe
     int best = 0; /* no candidate passed: the safe form with the smallest rotation */
     for (int p = 1; p < 12; p++)
         if (theta[p] < theta[best]) best = p;
-    if (theta[best] >= 1e300) { /* degenerate tets: no A at all; keep the shape, scale only */
-        static const float still[FM_MORPH_FLOATS] = {1, 0, 0, 0, 1, 1, 1, 0, 0, 0};
+    if (theta[best] >= 1e300) { /* degenerate tets: no rotation; A(t) only blends the shapes */
+        static const float still[FM_MORPH_FLOATS] = {1, 0, 0, 0};
         memcpy(cand[best], still, sizeof still);
     }
     memcpy(morph, cand[best], sizeof cand[best]);

@@ -30,7 +30,7 @@ struct fm_model {
 };
 
 /* Per-agent morph parameters (FM §6), set when the agent enters phase 2. */
-enum { FM_MORPH_FLOATS = 10 }; /* axis n (3), theta, S (xx yy zz xy xz yz) */
+enum { FM_MORPH_FLOATS = 4 }; /* rotation axis n (3) and angle theta of A = RS */
 
 typedef struct block_counts {
     int64_t entered, arrived, fallbacks;
@@ -65,8 +65,12 @@ extern const uint8_t fm_even_permutations[12][4];
 /* Chooses the correspondence and A = RS for one agent: src and dst are 12 floats each, relative
  * to their centroids, both positively oriented. Returns 1 if the safe form had to be used. */
 int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *perm);
-/* A(t) as a row-major 3x3 in out (FM §6: (1-t)I + t R(n, t theta) S, or the safe form). */
-void fm_morph_matrix(const float *morph, int safe, double t, double out[9]);
+/* A (row-major) mapping src onto dst, both 12 floats relative to their centroids, dst already in
+ * the agent's vertex order. */
+void fm_morph_affine(const float *src, const float *dst, double a[9]);
+/* A(t) (row-major) from the stored n, theta and A (FM §6: (1-t)I + t R(n, t theta) S with
+ * S = R(n, theta)^T A, or the safe form). */
+void fm_morph_matrix(const float *morph, int safe, const double a[9], double t, double out[9]);
 /* Linear scale of a tet `tau` seconds after its launch (FM §6 shrink). */
 double fm_shrink_scale(const fm_scene_def *def, double tau);
 

@@ -99,15 +99,16 @@ static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double t
     u = u < 0 ? 0 : u > 1 ? 1 : u;
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
     double um = def->morph_fraction;
+    float rel[12];
+    target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rel);
     if (u < um) {
-        double mat[9];
-        fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], u / um, mat);
+        double full[9], mat[9];
+        fm_morph_affine(m->src_rel + 12 * a, rel, full);
+        fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], full, u / um, mat);
         place_tet(c, fm_shrink_scale(def, time - launch), mat, m->src_rel + 12 * a, out);
         return;
     }
     double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
-    float rel[12];
-    target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rel);
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
 }
 

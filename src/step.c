@@ -83,7 +83,7 @@ static int64_t setup_morphs(const fm_model *m, fm_state *s, int64_t begin, int64
 
 void fm_step(const fm_model *m, fm_state *s)
 {
-    const double t_end = s->time + m->dt;
+    const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
     block_counts *bc = s->blocks;
     launch_due_agents(m, s);

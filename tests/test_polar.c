@@ -81,12 +81,16 @@ static fm_mat3 svd_compose(fm_mat3 u, const double s[3], fm_mat3 v)
     return fm_mat3_mul(fm_mat3_mul(u, diag(s[0], s[1], s[2])), fm_mat3_transpose(v));
 }
 
+/* Frobenius norm, scaled so that entries near 1e200 do not overflow the squares. */
 static double frob(fm_mat3 a)
 {
-    double t = 0.0;
+    double big = 0.0, t = 0.0;
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) t += a.m[i][j] * a.m[i][j];
-    return sqrt(t);
+        for (int j = 0; j < 3; ++j) big = fmax(big, fabs(a.m[i][j]));
+    if (big == 0.0) return 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) t += (a.m[i][j] / big) * (a.m[i][j] / big);
+    return big * sqrt(t);
 }
 
 static double max_abs_diff(fm_mat3 a, fm_mat3 b)
@@ -141,6 +145,8 @@ static int check_polar(fm_mat3 a, double resid_tol, polar_stats *st, fm_mat3 *r_
     ENSURE_MSG(orth < 1e-10, "R not orthonormal: %g", orth);
     ENSURE_MSG(det < 1e-10, "det R - 1 = %g", det);
     ENSURE_MSG(sym <= 1e-12, "S not symmetric: %g", sym);
+    /* The header promises R^T A symmetrised, i.e. averaged with its transpose: exact. */
+    ENSURE_MSG(sym == 0.0, "S not symmetrised: %g", sym);
     ENSURE_MSG(is_positive_definite(s), "S not positive definite");
     ENSURE_MSG(resid < resid_tol, "|RS - A| / |A| = %g (tolerance %g)", resid, resid_tol);
     st->orth = fmax(st->orth, orth);
@@ -230,13 +236,14 @@ static void test_polar_near_singular(void)
     /* One singular value 1e-6..1e-8 of the largest (condition 1e6..1e8; nearly rank 2). R's
      * sensitivity to relative perturbations of A is ~2/(s2 + s3) (Higham), which stays O(1)
      * while only s3 is small, so R and S must come out as accurately as for a random matrix.
-     * The residual bound is relaxed from 1e-12 to 1e-11 only because A itself is built from
-     * U diag(s) V^T in floating point and is then a rotation off its exact factors by ~1e-16
-     * per product; the measured residual is printed below and stays far under both. */
+     * No tolerance needs relaxing: the residual |RS - A| / |A| measures backward error, and
+     * the iteration stays backward stable because fm_math computes the minors of X (hence
+     * X^-T) to full relative accuracy. (With plain products the nearly rank-1 matrices below
+     * reached ~1e-12.) The measured errors are printed. */
     polar_stats st = {0};
     for (int t = 0; t < 300; ++t) {
         double s[3] = {1.0, rng_uniform(0.05, 1.0), pow(10.0, rng_uniform(-8.0, -6.0))};
-        check_polar_svd(s, 1e-11, 1e-12, &st);
+        check_polar_svd(s, 1e-12, 1e-12, &st);
     }
     stats_print("one tiny singular value", &st);
 }
@@ -268,14 +275,15 @@ static void test_polar_nearly_rank2(void)
 
 static void test_polar_nearly_rank1(void)
 {
-    /* Two small singular values (condition 1e8): R is now genuinely ill-conditioned, its error
-     * bounded by ~eps * 2/(s2 + s3) ~ 1e-12, so R and S are compared with U V^T and V S V^T to
-     * 1e-9 only. The decomposition must still be orthonormal, positive definite and reproduce
-     * A to rounding (the iteration is backward stable): those checks keep their tolerances. */
+    /* Two small singular values (condition 1e8). R is now genuinely ill-conditioned: A itself
+     * is only U diag(s) V^T rounded, and that rounding (~eps |A|) moves the exact R by up to
+     * ~eps * 2/(s2 + s3), i.e. up to ~1e-8 when s2 = s3 = 1e-8. So R and S are compared with
+     * U V^T and V S V^T to 20 eps / (s2 + s3) only. Orthonormality, positive definiteness and
+     * the backward error |RS - A| / |A| keep their full tolerances. */
     polar_stats st = {0};
     for (int t = 0; t < 300; ++t) {
-        double s[3] = {1.0, pow(10.0, rng_uniform(-5.0, -3.0)), 1e-8};
-        check_polar_svd(s, 1e-12, 1e-9, &st);
+        double s[3] = {1.0, pow(10.0, rng_uniform(-8.0, -3.0)), 1e-8};
+        check_polar_svd(s, 1e-12, 20.0 * DBL_EPSILON / (s[1] + s[2]), &st);
     }
     stats_print("two small singular values", &st);
 }
@@ -394,8 +402,8 @@ static void test_quat_known(void)
     ENSURE_NEAR(y[1], 1, 1e-16);
     ENSURE_NEAR(y[2], 0, 1e-16);
     fm_quat_from_rotation(rz, q);
-    ENSURE_NEAR(q[0], sqrt(0.5), 1e-16);
-    ENSURE_NEAR(q[3], sqrt(0.5), 1e-16);
+    ENSURE_NEAR(q[0], sqrt(0.5), 1e-15);
+    ENSURE_NEAR(q[3], sqrt(0.5), 1e-15);
 
     /* 180 degrees about x: w = 0, the x-branch of Shepperd. */
     fm_quat_from_rotation(diag(1, -1, -1), q);
@@ -418,8 +426,8 @@ static void check_round_trip(const double n[3], double theta_in)
 {
     fm_mat3 r = axis_angle_matrix(n, theta_in);
     /* Rodrigues against the independent quaternion formula. */
-    ENSURE_MSG(max_abs_diff(fm_rotation_axis_angle(n, theta_in), r) < 1e-15,
-               "Rodrigues at theta %.17g", theta_in);
+    double rod = max_abs_diff(fm_rotation_axis_angle(n, theta_in), r);
+    ENSURE_MSG(rod < 4e-15, "Rodrigues at theta %.17g: %g", theta_in, rod);
     double q[4], axis[3], theta;
     fm_quat_from_rotation(r, q);
     ENSURE(q[0] >= 0.0);

@@ -1,0 +1,384 @@
+/* fm_scene_load and fm_scene_validate: values and defaults, mesh paths resolved against the
+ * scene's directory, and errors that point at FILE:LINE:COL of the offending key or value.
+ *
+ * Scene texts mark the expected error position with '@'; the marker is removed before the text is
+ * written, and the expected line and column are computed from where it was. */
+#define _POSIX_C_SOURCE 200809L
+#include "flockmorph/flockmorph.h"
+#include "test_macros.h"
+
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define MESHES "\"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}"
+
+static char *tmp_path(char *buf, const char *name)
+{
+    snprintf(buf, FM_PATH_MAX, "%s/scene_%s", FM_TEST_TMP, name);
+    return buf;
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "wb");
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    if (!f) return;
+    fputs(text, f);
+    fclose(f);
+}
+
+/* Removes the '@' marker from marked into out and returns its 1-based line and column. */
+static void strip_marker(const char *marked, char *out, int *line, int *col)
+{
+    *line = 0, *col = 0;
+    int ln = 1, cl = 1;
+    for (; *marked; marked++) {
+        if (*marked == '@') {
+            *line = ln, *col = cl;
+            continue;
+        }
+        *out++ = *marked;
+        if (*marked == '\n') ln++, cl = 1;
+        else cl++;
+    }
+    *out = 0;
+    ENSURE_MSG(*line > 0, "the scene text has no '@' marker");
+}
+
+/* Loads the marked scene and expects FM_ERR_INPUT, "FILE:LINE:COL: " at the marker, and `what`. */
+static void expect_error_at(const char *name, const char *marked, const char *what)
+{
+    char path[FM_PATH_MAX], text[4096], prefix[FM_PATH_MAX + 64];
+    int line, col;
+    strip_marker(marked, text, &line, &col);
+    write_text(tmp_path(path, name), text);
+    fm_scene_def def;
+    fm_error err = {0};
+    fm_status st = fm_scene_load(path, &def, &err);
+    ENSURE_MSG(st == FM_ERR_INPUT && err.status == FM_ERR_INPUT, "%s: status %d", name, (int)st);
+    snprintf(prefix, sizeof prefix, "%s:%d:%d: ", path, line, col);
+    ENSURE_MSG(strncmp(err.message, prefix, strlen(prefix)) == 0, "%s: expected '%s...', got '%s'",
+               name, prefix, err.message);
+    ENSURE_MSG(strstr(err.message, what) != NULL, "%s: '%s' not in '%s'", name, what, err.message);
+}
+
+/* Loads an unmarked scene text; returns the status. */
+static fm_status load_text(const char *name, const char *text, fm_scene_def *def, fm_error *err)
+{
+    char path[FM_PATH_MAX];
+    write_text(tmp_path(path, name), text);
+    return fm_scene_load(path, def, err);
+}
+
+static int same_vec3(const double a[3], const double b[3])
+{
+    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+}
+
+/* ---------------------------------------------------------------- valid scenes */
+
+static void test_valid_scene_fields(void)
+{
+    const char *text =
+        "{\n"
+        "  \"source\": {\"mesh\": \"a.obj\", \"translate\": [-1.5, 2, 300], \"scale\": 0.5,\n"
+        "             \"rotate_deg\": [10, 20, 30]},\n"
+        "  \"target\": {\"mesh\": \"/abs/dir/b.ply\", \"translate\": [4, 5, 6]},\n"
+        "  \"n\": 1234,\n"
+        "  \"tetgen\": {\"quality\": 1.5, \"max_volume\": 0.25},\n"
+        "  \"speed0\": 7.5, \"omega1\": 0.5,\n"
+        "  \"time\": {\"frame_rate\": 30, \"time_step\": 0.008333333333333333, \"frame_limit\": 500},\n"
+        "  \"path\": {\"points\": [[1, 2, 3], [-4, -5.5, 6]], \"key_points\": 12, \"curve\": \"catmull_rom\"},\n"
+        "  \"launch_rate\": 100,\n"
+        "  \"morph\": {\"shrink\": 0.25, \"shrink_time\": 0.5, \"morph_fraction\": 0.6},\n"
+        "  \"seed\": 9007199254740993,\n"
+        "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19}\n"
+        "}\n";
+    char path[FM_PATH_MAX], expect[FM_PATH_MAX + 16];
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(load_text("valid.json", text, &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(strcmp(d.scene_path, tmp_path(path, "valid.json")) == 0);
+    snprintf(expect, sizeof expect, "%s/a.obj", FM_TEST_TMP);
+    ENSURE_MSG(strcmp(d.source.path, expect) == 0, "source path '%s'", d.source.path);
+    ENSURE_MSG(strcmp(d.target.path, "/abs/dir/b.ply") == 0, "target path '%s'", d.target.path);
+    ENSURE(same_vec3(d.source.translate, (double[3]){-1.5, 2, 300}));
+    ENSURE(same_vec3(d.source.rotate_deg, (double[3]){10, 20, 30}));
+    ENSURE(d.source.scale == 0.5);
+    ENSURE(same_vec3(d.target.translate, (double[3]){4, 5, 6}));
+    ENSURE(same_vec3(d.target.rotate_deg, (double[3]){0, 0, 0}));
+    ENSURE(d.target.scale == 1.0);
+    ENSURE(d.n == 1234);
+    ENSURE(d.tet_quality == 1.5 && d.tet_max_volume == 0.25);
+    ENSURE(d.speed0 == 7.5 && d.omega1 == 0.5);
+    ENSURE(d.frame_rate == 30 && d.time_step == 0.008333333333333333 && d.frame_limit == 500);
+    ENSURE(d.path_point_count == 2);
+    ENSURE(same_vec3(d.path_points[0], (double[3]){1, 2, 3}));
+    ENSURE(same_vec3(d.path_points[1], (double[3]){-4, -5.5, 6}));
+    ENSURE(d.path_key_points == 12 && d.path_curve == FM_CURVE_CATMULL_ROM);
+    ENSURE(d.launch_rate == 100);
+    ENSURE(d.shrink == 0.25 && d.shrink_time == 0.5 && d.morph_fraction == 0.6);
+    ENSURE(d.seed == 9007199254740993ull);
+    ENSURE(strcmp(d.cache_name, "run.fmc") == 0 && d.compression_level == 19);
+}
+
+static void test_defaults_for_left_out_keys(void)
+{
+    fm_scene_def d, e = fm_default_scene_def();
+    fm_error err = {0};
+    ENSURE_MSG(load_text("minimal.json", "{" MESHES "}", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(same_vec3(d.source.translate, e.source.translate) && d.source.scale == 1.0);
+    ENSURE(same_vec3(d.target.rotate_deg, e.target.rotate_deg) && d.target.scale == 1.0);
+    ENSURE(d.n == e.n && d.tet_quality == e.tet_quality && d.tet_max_volume == e.tet_max_volume);
+    ENSURE(d.speed0 == e.speed0 && d.omega1 == e.omega1);
+    ENSURE(d.frame_rate == e.frame_rate && d.time_step == e.time_step && d.frame_limit == e.frame_limit);
+    ENSURE(d.path_point_count == 0 && d.path_key_points == e.path_key_points);
+    ENSURE(d.path_curve == FM_CURVE_POLYLINE && d.launch_rate == e.launch_rate);
+    ENSURE(d.shrink == e.shrink && d.shrink_time == e.shrink_time && d.morph_fraction == e.morph_fraction);
+    ENSURE(d.seed == e.seed && d.compression_level == e.compression_level);
+    ENSURE(strcmp(d.cache_name, e.cache_name) == 0);
+    /* the documented defaults themselves */
+    ENSURE(e.speed0 == 10.0 && e.frame_rate == 24.0 && e.compression_level == 3 && e.shrink == 0.5);
+}
+
+static void test_boundary_values_accepted(void)
+{
+    fm_scene_def d;
+    fm_error err = {0};
+    const char *text = "{" MESHES ", \"morph\": {\"shrink\": 1, \"morph_fraction\": 0},"
+                       " \"output\": {\"compression_level\": 1}, \"time\": {\"time_step\": 0.020833333333333332}}";
+    ENSURE_MSG(load_text("bounds.json", text, &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.shrink == 1 && d.morph_fraction == 0 && d.compression_level == 1);
+}
+
+/* A scene given by a relative path: its meshes are relative to the scene's directory. */
+static void test_relative_scene_path(void)
+{
+    char cwd[FM_PATH_MAX], path[FM_PATH_MAX];
+    ENSURE(getcwd(cwd, sizeof cwd) != NULL);
+    mkdir(tmp_path(path, "sub"), 0777);
+    ENSURE(chdir(FM_TEST_TMP) == 0);
+    write_text("scene_sub/rel.json", "{\"source\": {\"mesh\": \"m/a.obj\"}, \"target\": {\"mesh\": \"../b.obj\"}}");
+    write_text("scene_plain.json", "{" MESHES "}");
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(fm_scene_load("scene_sub/rel.json", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(strcmp(d.source.path, "scene_sub/m/a.obj") == 0, "'%s'", d.source.path);
+    ENSURE_MSG(strcmp(d.target.path, "scene_sub/../b.obj") == 0, "'%s'", d.target.path);
+    ENSURE_MSG(fm_scene_load("scene_plain.json", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(strcmp(d.source.path, "a.obj") == 0, "'%s'", d.source.path);
+    ENSURE(chdir(cwd) == 0);
+}
+
+/* ---------------------------------------------------------------- errors with positions */
+
+static void test_unknown_key_top_level(void)
+{
+    expect_error_at("unknown_top.json",
+                    "{\n  " MESHES ",\n  \"speed0\": 5,\n  @\"speeed0\": 5\n}\n", "speeed0");
+    expect_error_at("unknown_top2.json", "{" MESHES ", \"n\": 10,   @\"colour\": \"red\"}", "colour");
+}
+
+static void test_unknown_key_nested(void)
+{
+    /* "fram_rate" also appears earlier as a value: the position must be the key's. */
+    expect_error_at("unknown_nested.json",
+                    "{\n  " MESHES ",\n  \"output\": {\"cache\": \"fram_rate\"},\n"
+                    "  \"time\": {\"frame_rate\": 24,\n\t    @\"fram_rate\": 24}\n}\n",
+                    "time.fram_rate");
+    expect_error_at("unknown_deep.json",
+                    "{\"source\": {\"mesh\": \"a.obj\",\n \"translate\": {@\"x\": 1}}, \"target\": {\"mesh\": \"b.obj\"}}",
+                    "source.translate.x");
+}
+
+/* A top-level key spelled with a dot is not the nested parameter: it is an unknown key. */
+static void test_dotted_key_is_unknown(void)
+{
+    expect_error_at("dotted.json", "{" MESHES ",\n  @\"time.frame_rate\": 30\n}", "time.frame_rate");
+}
+
+/* A key written with a \u escape must still be located in the text. */
+static void test_escaped_key_located(void)
+{
+    expect_error_at("escaped.json", "{" MESHES ",\n  @\"fr\\u0061me\": 1\n}", "frame");
+}
+
+static void test_wrong_types(void)
+{
+    expect_error_at("type_speed.json", "{" MESHES ",\n  \"speed0\": @\"fast\"\n}", "speed0");
+    expect_error_at("type_limit.json", "{" MESHES ",\n  \"time\": {\"frame_rate\": 24,\n    \"frame_limit\": @2.5}}",
+                    "time.frame_limit");
+    expect_error_at("type_translate.json",
+                    "{\"source\": {\"mesh\": \"a.obj\", \"translate\": @[1, 2]},\n \"target\": {\"mesh\": \"b.obj\"}}",
+                    "source.translate");
+    expect_error_at("type_point.json", "{" MESHES ",\n  \"path\": {\"points\": [[0, 0, 0],\n    [1, @\"y\", 2]]}}",
+                    "path.points");
+    expect_error_at("type_group.json", "{" MESHES ", \"time\": @24}", "time");
+    expect_error_at("type_mesh.json", "{\"source\": {\"mesh\": @42}, \"target\": {\"mesh\": \"b.obj\"}}", "source.mesh");
+    expect_error_at("type_n.json", "{" MESHES ", \"n\": @true}", "n");
+    expect_error_at("type_curve.json", "{" MESHES ", \"path\": {\"curve\": @\"bezier\"}}", "path.curve");
+}
+
+static void test_out_of_range(void)
+{
+    expect_error_at("range_speed.json", "{" MESHES ",\n  \"speed0\": @0\n}", "speed0");
+    expect_error_at("range_shrink.json", "{" MESHES ",\n  \"morph\": {\"shrink\": @-0.5}}", "morph.shrink");
+    expect_error_at("range_level.json", "{" MESHES ",\n  \"output\": {\"compression_level\": @25}}",
+                    "output.compression_level");
+    expect_error_at("range_fraction.json", "{" MESHES ",\n  \"morph\": {\"morph_fraction\": @1.5}}",
+                    "morph.morph_fraction");
+    expect_error_at("range_rotate.json", "{\"source\": {\"mesh\": \"a.obj\", \"rotate_deg\": [0, @4000, 0]}, "
+                    "\"target\": {\"mesh\": \"b.obj\"}}", "source.rotate_deg");
+    expect_error_at("range_seed.json", "{" MESHES ", \"seed\": @-1}", "seed");
+    expect_error_at("range_cache.json", "{" MESHES ", \"output\": {\"cache\": @\"../x.fmc\"}}", "output.cache");
+}
+
+static void test_time_step_must_divide_frame(void)
+{
+    expect_error_at("step_bad.json", "{" MESHES ",\n \"time\": {\"frame_rate\": 24, \"time_step\": @0.03}}",
+                    "time.time_step");
+    expect_error_at("step_long.json", "{" MESHES ",\n \"time\": {\"time_step\": @0.125}}", "time.time_step");
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(load_text("step_ok.json", "{" MESHES ", \"time\": {\"frame_rate\": 25, \"time_step\": 0.01}}",
+                         &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.time_step == 0.01);
+}
+
+/* jansson's own position for a syntax error, checked against the line we broke. */
+static void expect_syntax_error(const char *name, const char *text, int broken_line)
+{
+    char path[FM_PATH_MAX], prefix[FM_PATH_MAX + 64];
+    json_error_t jerr;
+    json_t *root = json_loads(text, JSON_REJECT_DUPLICATES, &jerr);
+    ENSURE(root == NULL);
+    json_decref(root);
+    ENSURE_MSG(jerr.line == broken_line, "%s: jansson says line %d", name, jerr.line);
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE(load_text(name, text, &d, &err) == FM_ERR_INPUT);
+    snprintf(prefix, sizeof prefix, "%s:%d:%d: ", tmp_path(path, name), jerr.line, jerr.column);
+    ENSURE_MSG(strncmp(err.message, prefix, strlen(prefix)) == 0, "expected '%s...', got '%s'", prefix, err.message);
+    ENSURE_MSG(strstr(err.message, jerr.text) != NULL, "'%s' lacks jansson's '%s'", err.message, jerr.text);
+}
+
+static void test_syntax_error(void)
+{
+    expect_syntax_error("syntax_comma.json",
+                        "{\n  \"source\": {\"mesh\": \"a.obj\"}\n  \"target\": {\"mesh\": \"b.obj\"}\n}\n", 3);
+    expect_syntax_error("syntax_trailing.json", "{" MESHES ",\n  \"n\": 5,\n}\n", 3);
+    expect_syntax_error("syntax_empty.json", "", 1);
+}
+
+static void test_duplicate_keys(void)
+{
+    expect_syntax_error("dup_top.json", "{" MESHES ",\n  \"speed0\": 1,\n  \"speed0\": 2\n}\n", 3);
+    expect_syntax_error("dup_nested.json", "{" MESHES ",\n  \"time\": {\"frame_rate\": 24,\n  \"frame_rate\": 25}}", 3);
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE(load_text("dup_msg.json", "{" MESHES ", \"n\": 1, \"n\": 2}", &d, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "duplicate") != NULL, "'%s'", err.message);
+}
+
+static void test_missing_mesh(void)
+{
+    expect_error_at("no_source.json", "@{\"target\": {\"mesh\": \"b.obj\"}}", "source.mesh");
+    expect_error_at("no_target.json", "\n  @{\"source\": {\"mesh\": \"a.obj\"}, \"target\": {}}", "target.mesh");
+    expect_error_at("empty_mesh.json", "{\"source\": {\"mesh\": @\"\"}, \"target\": {\"mesh\": \"b.obj\"}}",
+                    "source.mesh");
+    expect_error_at("not_object.json", "@[1, 2, 3]", "object");
+}
+
+static void test_missing_scene_file(void)
+{
+    char path[FM_PATH_MAX];
+    fm_scene_def d;
+    fm_error err = {0};
+    fm_status st = fm_scene_load(tmp_path(path, "does_not_exist.json"), &d, &err);
+    ENSURE(st == FM_ERR_INPUT && err.status == st);
+    ENSURE_MSG(strstr(err.message, path) && strstr(err.message, "cannot open"), "'%s'", err.message);
+    /* a directory is not a scene file either */
+    mkdir(tmp_path(path, "dir.json"), 0777);
+    st = fm_scene_load(path, &d, &err);
+    ENSURE(st != FM_OK && err.status == st);
+    ENSURE_MSG(strstr(err.message, path) != NULL, "'%s'", err.message);
+    /* no error struct: still a status, no crash */
+    ENSURE(fm_scene_load(tmp_path(path, "does_not_exist.json"), &d, NULL) == FM_ERR_INPUT);
+}
+
+/* ---------------------------------------------------------------- fm_scene_validate */
+
+static fm_scene_def def_with_meshes(void)
+{
+    fm_scene_def d = fm_default_scene_def();
+    strcpy(d.source.path, "a.obj");
+    strcpy(d.target.path, "b.obj");
+    return d;
+}
+
+static void expect_invalid(const fm_scene_def *d, const char *what)
+{
+    fm_error err = {0};
+    fm_status st = fm_scene_validate(d, &err);
+    ENSURE_MSG(st == FM_ERR_INPUT && err.status == FM_ERR_INPUT, "%s: status %d", what, (int)st);
+    ENSURE_MSG(strstr(err.message, what) != NULL, "'%s' not in '%s'", what, err.message);
+}
+
+static void test_validate(void)
+{
+    fm_scene_def d = def_with_meshes();
+    fm_error err = {0};
+    ENSURE_MSG(fm_scene_validate(&d, &err) == FM_OK, "%s", err.message);
+    d.speed0 = -1;
+    expect_invalid(&d, "speed0");
+    d = def_with_meshes();
+    d.source.path[0] = 0;
+    expect_invalid(&d, "source.mesh");
+    d = def_with_meshes();
+    d.omega1 = NAN;
+    expect_invalid(&d, "omega1");
+    d = def_with_meshes();
+    d.time_step = 0.03;
+    expect_invalid(&d, "time.time_step");
+    d = def_with_meshes();
+    d.target.translate[2] = 1e10;
+    expect_invalid(&d, "target.translate");
+}
+
+/* A cache name built in code must pass the same check as one from a scene file: a plain,
+ * non-empty file name that cannot leave the output directory. */
+static void test_validate_cache_name(void)
+{
+    fm_scene_def d = def_with_meshes();
+    strcpy(d.cache_name, "../escape.fmc");
+    expect_invalid(&d, "output.cache");
+    d = def_with_meshes();
+    d.cache_name[0] = 0;
+    expect_invalid(&d, "output.cache");
+}
+
+int main(void)
+{
+    RUN_TEST(test_valid_scene_fields);
+    RUN_TEST(test_defaults_for_left_out_keys);
+    RUN_TEST(test_boundary_values_accepted);
+    RUN_TEST(test_relative_scene_path);
+    RUN_TEST(test_unknown_key_top_level);
+    RUN_TEST(test_unknown_key_nested);
+    RUN_TEST(test_dotted_key_is_unknown);
+    RUN_TEST(test_escaped_key_located);
+    RUN_TEST(test_wrong_types);
+    RUN_TEST(test_out_of_range);
+    RUN_TEST(test_time_step_must_divide_frame);
+    RUN_TEST(test_syntax_error);
+    RUN_TEST(test_duplicate_keys);
+    RUN_TEST(test_missing_mesh);
+    RUN_TEST(test_missing_scene_file);
+    RUN_TEST(test_validate);
+    RUN_TEST(test_validate_cache_name);
+    return test_result();
+}
