@@ -211,10 +211,12 @@ static fm_status read_at(fm_cache_reader *r, uint64_t pos, void *buf, size_t n, 
 
 static fm_status read_header(fm_cache_reader *r, fm_error *err)
 {
-    unsigned char h[HEADER_BYTES];
-    fm_status st = read_at(r, 0, h, sizeof h, err);
-    if (st != FM_OK) return st;
-    if (memcmp(h, MAGIC, 8) != 0) return fm_fail(err, FM_ERR_INPUT, "%s: not a flockmorph cache (bad magic)", r->path);
+    unsigned char h[HEADER_BYTES] = {0};
+    size_t got = fread(h, 1, sizeof h, r->f);
+    if (memcmp(h, MAGIC, got < 8 ? got : 8) != 0)
+        return fm_fail(err, FM_ERR_INPUT, "%s: not a flockmorph cache (bad magic)", r->path);
+    if (got < sizeof h)
+        return fm_fail(err, FM_ERR_INPUT, "%s: truncated: %zu bytes, shorter than the cache header", r->path, got);
     if (get_u32(h + 8) != CACHE_VERSION)
         return fm_fail(err, FM_ERR_INPUT, "%s: cache version %u is not supported (this build reads %d)", r->path, get_u32(h + 8), CACHE_VERSION);
     if (get_u32(h + 24) != FLOATS_PER_AGENT || get_u32(h + 28) != FILTER_SHUFFLE4 || get_u32(h + 32) != CODEC_ZSTD)

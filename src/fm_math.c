@@ -317,7 +317,7 @@ fm_mat3 fm_rotation_axis_angle(const double axis[3], double theta)
  * Points on the surface of the current sphere (cube corners, points sampled on a sphere) must
  * not count as outside because of rounding: each false "outside" rebuilds the sphere from a
  * (near-)degenerate support set. Final containment is restored exactly by the last pass. */
-#define FM_SPHERE_TOL 1e-12
+#define FM_SPHERE_TOL 1e-13
 #define FM_SPHERE_TOL_ABS 1e-15
 
 /* A sphere in working coordinates; lim2 is the squared radius of the inside test. */
@@ -346,15 +346,22 @@ static int fm_ball_misses(const fm_ball *b, const double q[3])
     return fm_dist2(b->c, q) > b->lim2;
 }
 
-/* Radius = largest distance from the centre to the m points, so they are all inside however
- * the centre was rounded; also sets the inside-test limit. */
-static void fm_ball_fit(const fm_msph *ms, fm_ball *b, double (*p)[3], int m)
+/* Grows b's radius to the largest distance from its centre to the m points, so they are all
+ * inside however the centre was rounded; also sets the inside-test limit. */
+static void fm_ball_grow(const fm_msph *ms, fm_ball *b, double (*p)[3], int m)
 {
-    double r2 = 0.0;
+    double r2 = b->r * b->r;
     for (int i = 0; i < m; ++i) r2 = fmax(r2, fm_dist2(b->c, p[i]));
     b->r = sqrt(r2);
     double lim = b->r * (1.0 + FM_SPHERE_TOL) + ms->tol_abs;
     b->lim2 = lim * lim;
+}
+
+/* Radius = largest distance from the (already set) centre to the m points. */
+static void fm_ball_fit(const fm_msph *ms, fm_ball *b, double (*p)[3], int m)
+{
+    b->r = 0.0;
+    fm_ball_grow(ms, b, p, m);
 }
 
 /* A circumsphere is accepted only if its centre is finite and its radius within the bound:
@@ -411,39 +418,60 @@ static int fm_ball_tetra(const fm_msph *ms, fm_ball *b, double (*p)[3])
     return fm_ball_accept(ms, b, p, 4);
 }
 
-/* Fallback for a degenerate (collinear or coplanar) support set p[0..m-1], m = 3 or 4: the
- * smallest sphere of a pair or (for m = 4) a triangle of it that contains the other points.
- * Exact Welzl never meets such a set; it appears when rounding calls a point on the current
- * sphere "outside". Each candidate's radius is grown to reach all m points, so one always
- * qualifies and the choice is the smallest containing one when containment holds exactly. */
-static void fm_ball_subset(const fm_msph *ms, fm_ball *b, double (*p)[3], int m)
+/* Grows cand to contain the m support points and the points at positions [0, end), and makes
+ * it the best fallback if it is then still smaller. */
+static void fm_ball_consider(const fm_msph *ms, fm_ball *best, fm_ball *cand, double (*p)[3],
+                             int m, size_t end)
 {
-    fm_ball cand;
-    b->r = INFINITY;
+    fm_ball_grow(ms, cand, p, m);
+    for (size_t i = 0; i < end && cand->r < best->r; ++i) {
+        double q[1][3];
+        fm_msph_point(ms, i, q[0]);
+        if (fm_ball_misses(cand, q[0])) fm_ball_grow(ms, cand, q, 1);
+    }
+    if (cand->r < best->r) *best = *cand;
+}
+
+/* Fallback when the support set p[0..m-1] (m = 3 or 4, p[m-1] the point found outside b) has
+ * no usable circumsphere: collinear or coplanar points, or a rounding-sized determinant. Exact
+ * Welzl never gets here (such a point would lie on b, not outside it); rounding that puts a
+ * point on b's surface just outside could. The result is the smallest of the spheres of a pair
+ * or (m = 4) a triangle of p, and b itself, each grown just enough to contain all of p and the
+ * points [0, end) the new sphere must enclose: when a subset's sphere contains the others it
+ * wins unchanged, and whatever happens, no enclosed point is lost. The O(end) scans cost no
+ * more than the loop that found the point, and this path is rare. */
+static void fm_ball_fallback(const fm_msph *ms, fm_ball *b, double (*p)[3], int m, size_t end)
+{
+    fm_ball best = *b, cand;
+    fm_ball_grow(ms, &best, p, m); /* b already contains [0, end) */
     for (int i = 0; i < m; ++i)
         for (int j = i + 1; j < m; ++j) {
             fm_ball_pair(ms, &cand, p, i, j);
-            fm_ball_fit(ms, &cand, p, m);
-            if (cand.r < b->r) *b = cand;
+            fm_ball_consider(ms, &best, &cand, p, m, end);
         }
     for (int skip = 0; m == 4 && skip < 4; ++skip) {
         double tri[3][3];
         for (int i = 0, k = 0; i < 4; ++i)
             if (i != skip) memcpy(tri[k++], p[i], sizeof tri[0]);
-        if (fm_ball_circle(ms, &cand, tri) != 0) continue;
-        fm_ball_fit(ms, &cand, p, m);
-        if (cand.r < b->r) *b = cand;
+        if (fm_ball_circle(ms, &cand, tri) == 0) fm_ball_consider(ms, &best, &cand, p, m, end);
     }
+    *b = best;
 }
 
-static void fm_ball_through3(const fm_msph *ms, fm_ball *b, double (*p)[3])
+/* b becomes the smallest sphere through p[0..2] (through p[0..3] for the 4-point version), or
+ * the fallback if that does not exist; it must contain the points [0, end). */
+static void fm_ball_through3(const fm_msph *ms, fm_ball *b, double (*p)[3], size_t end)
 {
-    if (fm_ball_circle(ms, b, p) != 0) fm_ball_subset(ms, b, p, 3);
+    fm_ball circ;
+    if (fm_ball_circle(ms, &circ, p) == 0) *b = circ;
+    else fm_ball_fallback(ms, b, p, 3, end);
 }
 
-static void fm_ball_through4(const fm_msph *ms, fm_ball *b, double (*p)[3])
+static void fm_ball_through4(const fm_msph *ms, fm_ball *b, double (*p)[3], size_t end)
 {
-    if (fm_ball_tetra(ms, b, p) != 0) fm_ball_subset(ms, b, p, 4);
+    fm_ball sph;
+    if (fm_ball_tetra(ms, &sph, p) == 0) *b = sph;
+    else fm_ball_fallback(ms, b, p, 4, end);
 }
 
 /* A point that forced a new sphere is likely to do so again in a later pass: move it to the
@@ -465,7 +493,7 @@ static void fm_msph_loop3(const fm_msph *ms, fm_ball *b, double (*bnd)[3], size_
         fm_msph_point(ms, l, p[3]);
         if (!fm_ball_misses(b, p[3])) continue;
         memcpy(p, bnd, 3 * sizeof p[0]);
-        fm_ball_through4(ms, b, p);
+        fm_ball_through4(ms, b, p, l);
         fm_move_to_front(ms->idx, l);
     }
 }
@@ -477,7 +505,7 @@ static void fm_msph_loop2(const fm_msph *ms, fm_ball *b, double (*bnd)[3], size_
         fm_msph_point(ms, k, p[2]);
         if (!fm_ball_misses(b, p[2])) continue;
         memcpy(p, bnd, 2 * sizeof p[0]);
-        fm_ball_through3(ms, b, p);
+        fm_ball_through3(ms, b, p, k);
         fm_msph_loop3(ms, b, p, k);
         fm_move_to_front(ms->idx, k);
     }

@@ -1,5 +1,6 @@
 #include "json_locate.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 typedef struct cursor {
@@ -12,25 +13,58 @@ static void skip_ws(cursor *c)
     while (c->s[c->i] == ' ' || c->s[c->i] == '\t' || c->s[c->i] == '\n' || c->s[c->i] == '\r') c->i++;
 }
 
-/* Reads a string token into buf (escapes resolved for ASCII; others replaced by '?'). */
-static void read_string(cursor *c, char *buf, int cap)
+/* Appends code point cp to buf as UTF-8 (jansson gives keys as UTF-8). */
+static int put_utf8(char *buf, int n, unsigned cp)
 {
+    if (cp < 0x80) buf[n++] = (char)cp;
+    else if (cp < 0x800) buf[n++] = (char)(0xC0 | cp >> 6), buf[n++] = (char)(0x80 | (cp & 0x3F));
+    else if (cp < 0x10000)
+        buf[n++] = (char)(0xE0 | cp >> 12), buf[n++] = (char)(0x80 | (cp >> 6 & 0x3F)), buf[n++] = (char)(0x80 | (cp & 0x3F));
+    else
+        buf[n++] = (char)(0xF0 | cp >> 18), buf[n++] = (char)(0x80 | (cp >> 12 & 0x3F)),
+        buf[n++] = (char)(0x80 | (cp >> 6 & 0x3F)), buf[n++] = (char)(0x80 | (cp & 0x3F));
+    return n;
+}
+
+static unsigned read_hex4(cursor *c)
+{
+    unsigned v = 0;
+    for (int k = 0; k < 4 && c->s[c->i]; k++) {
+        char h = c->s[c->i++];
+        v = v * 16 + (unsigned)(h >= 'a' ? h - 'a' + 10 : h >= 'A' ? h - 'A' + 10 : h - '0');
+    }
+    return v;
+}
+
+/* Reads a string token and returns it decoded (escapes resolved, \u as UTF-8) in a malloc'd
+ * buffer, or NULL when out of memory (the cursor still moves past the token). */
+static char *read_string(cursor *c)
+{
+    long start = c->i + 1, end = start;
+    while (c->s[end] && c->s[end] != '"') end += c->s[end] == '\\' && c->s[end + 1] ? 2 : 1;
+    char *buf = malloc((size_t)(end - start) * 2 + 8); /* \uXXXX (6 bytes) never decodes to more than 4 */
     int n = 0;
-    c->i++; /* opening quote */
+    c->i = start;
     while (c->s[c->i] && c->s[c->i] != '"') {
         char ch = c->s[c->i++];
-        if (ch == '\\') {
-            char e = c->s[c->i++];
-            ch = e == 'n' ? '\n' : e == 't' ? '\t' : e == 'r' ? '\r' : e == 'b' ? '\b' : e == 'f' ? '\f' : e;
-            if (e == 'u') {
-                ch = '?';
-                for (int k = 0; k < 4 && c->s[c->i]; k++) c->i++;
+        if (ch != '\\') {
+            if (buf) buf[n++] = ch;
+            continue;
+        }
+        char e = c->s[c->i++];
+        unsigned cp = e == 'n' ? '\n' : e == 't' ? '\t' : e == 'r' ? '\r' : e == 'b' ? '\b' : e == 'f' ? '\f' : (unsigned char)e;
+        if (e == 'u') {
+            cp = read_hex4(c);
+            if (cp >= 0xD800 && cp < 0xDC00 && c->s[c->i] == '\\' && c->s[c->i + 1] == 'u') { /* surrogate pair */
+                c->i += 2;
+                cp = 0x10000 + ((cp - 0xD800) << 10) + (read_hex4(c) - 0xDC00);
             }
         }
-        if (n + 1 < cap) buf[n++] = ch;
+        if (buf) n = put_utf8(buf, n, cp);
     }
     if (c->s[c->i] == '"') c->i++;
-    buf[n] = 0;
+    if (buf) buf[n] = 0;
+    return buf;
 }
 
 static void skip_value(cursor *c);
@@ -41,8 +75,7 @@ static void skip_container(cursor *c, char close)
     skip_ws(c);
     while (c->s[c->i] && c->s[c->i] != close) {
         if (close == '}') {
-            char key[8];
-            read_string(c, key, sizeof key);
+            free(read_string(c));
             skip_ws(c);
             c->i++; /* ':' */
         }
@@ -59,10 +92,8 @@ static void skip_value(cursor *c)
     char ch = c->s[c->i];
     if (ch == '{') skip_container(c, '}');
     else if (ch == '[') skip_container(c, ']');
-    else if (ch == '"') {
-        char tmp[2];
-        read_string(c, tmp, sizeof tmp);
-    } else
+    else if (ch == '"') free(read_string(c));
+    else
         while (c->s[c->i] && !strchr(",]} \t\r\n", c->s[c->i])) c->i++;
 }
 
@@ -75,12 +106,13 @@ static int enter_member(cursor *c, const char *key, int stop_at_key)
     skip_ws(c);
     while (c->s[c->i] == '"') {
         long key_pos = c->i;
-        char name[256];
-        read_string(c, name, sizeof name);
+        char *name = read_string(c);
+        int match = name && strcmp(name, key) == 0;
+        free(name);
         skip_ws(c);
         c->i++; /* ':' */
         skip_ws(c);
-        if (strcmp(name, key) == 0) {
+        if (match) {
             if (stop_at_key) c->i = key_pos;
             return 0;
         }

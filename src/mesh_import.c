@@ -123,7 +123,9 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
     memset(out, 0, sizeof *out);
     FILE *probe = fopen(path, "rb");
-    if (!probe) return fm_fail(err, FM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!probe)
+        return fm_fail(err, errno == ENOENT || errno == ENOTDIR ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open: %s",
+                       path, strerror(errno));
     fclose(probe);
     const struct aiScene *scene =
         aiImportFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);

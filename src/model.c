@@ -14,15 +14,38 @@ static void report(fm_progress_fn progress, void *user, const char *stage, doubl
     if (progress) progress(stage, fraction, user);
 }
 
+/* Prefixes err's message with the scene key that named the mesh ("source.mesh: ..."). */
+static fm_status name_key(fm_status st, const char *key, fm_error *err)
+{
+    if (st != FM_OK && err) {
+        char msg[sizeof err->message];
+        snprintf(msg, sizeof msg, "%s", err->message);
+        fm_fail(err, st, "%s: %s", key, msg);
+    }
+    return st;
+}
+
 /* Loads, checks, places and tetrahedralizes one mesh. */
-static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, fm_mesh *mesh,
+static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
                               fm_tets *tets, fm_error *err)
 {
     fm_status st = fm_mesh_load(ref->path, mesh, err);
     if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
-    if (st != FM_OK) return st;
+    if (st != FM_OK) return name_key(st, key, err);
     fm_mesh_place(mesh, ref);
-    return fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err);
+    return name_key(fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
+}
+
+/* FM §4: n >= max(n1, n2); say which mesh needs more. */
+static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, fm_error *err)
+{
+    int64_t most = FM_MAX(src->n, dst->n);
+    m->n = m->def.n > 0 ? m->def.n : most;
+    if (m->n >= most) return FM_OK;
+    return fm_fail(err, FM_ERR_INPUT, "%s: n: %lld is smaller than the %lld tets TetGen made for %s; use n >= %lld "
+                   "or leave n out (default max(n1, n2))", m->def.scene_path[0] ? m->def.scene_path : "scene",
+                   (long long)m->n, (long long)most, src->n >= dst->n ? m->def.source.path : m->def.target.path,
+                   (long long)most);
 }
 
 static double total_volume(const fm_tets *tets, double centroid[3])
@@ -113,8 +136,9 @@ static fm_status bounding_sphere(fm_model *m, const fm_mesh *target, fm_error *e
 static void set_timing(fm_model *m)
 {
     double frame = 1.0 / m->def.frame_rate;
-    m->dt = m->def.time_step > 0 ? m->def.time_step : frame;
-    m->steps_per_frame = (int32_t)llround(frame / m->dt);
+    /* the scene's time_step divides the frame interval (validated); snap it so frames land on k/frame_rate */
+    m->steps_per_frame = m->def.time_step > 0 ? (int32_t)llround(frame / m->def.time_step) : 1;
+    m->dt = frame / m->steps_per_frame;
     m->launch_rate = m->def.launch_rate > 0 ? m->def.launch_rate : (double)m->n / 2.0;
     m->info.time_step = m->dt;
     m->info.steps_per_frame = m->steps_per_frame;
@@ -140,13 +164,13 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
-    fm_status st = prepare_mesh(def, &def->source, &s->src_mesh, &s->src, err);
+    fm_status st = prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, err);
     if (st != FM_OK) return st;
     report(progress, user, "tetrahedralize target", 0.3);
-    if ((st = prepare_mesh(def, &def->target, &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
+    if ((st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
     m->info.source_tets = s->src.n;
     m->info.target_tets = s->dst.n;
-    m->n = def->n > 0 ? def->n : FM_MAX(s->src.n, s->dst.n);
+    if ((st = choose_n(m, &s->src, &s->dst, err)) != FM_OK) return st;
     report(progress, user, "subdivide", 0.6);
     if ((st = fm_subdivide_to(&s->src, m->n, err)) != FM_OK) return st;
     if ((st = fm_subdivide_to(&s->dst, m->n, err)) != FM_OK) return st;

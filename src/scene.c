@@ -40,12 +40,14 @@ fm_scene_def fm_default_scene_def(void)
 
 typedef enum param_type { P_DOUBLE, P_INT32, P_INT64, P_UINT64, P_VEC3, P_MESH, P_NAME, P_CURVE, P_POINTS } param_type;
 
+enum { OPEN_MIN = 1, OPEN_MAX = 2 };
+
 typedef struct param {
     const char *key;    /* dotted: "time.frame_rate" */
     param_type type;
     size_t offset;
     double min, max;
-    int min_open;       /* 1: the minimum itself is excluded */
+    int open;           /* OPEN_MIN / OPEN_MAX: that bound itself is excluded */
 } param;
 
 #define OFF(field) offsetof(fm_scene_def, field)
@@ -72,7 +74,7 @@ static const param PARAMS[] = {
     {"launch_rate", P_DOUBLE, OFF(launch_rate), 0, 1e12, 0},
     {"morph.shrink", P_DOUBLE, OFF(shrink), 0, 1, 1},
     {"morph.shrink_time", P_DOUBLE, OFF(shrink_time), 0, 1e6, 0},
-    {"morph.morph_fraction", P_DOUBLE, OFF(morph_fraction), 0, 1, 0},
+    {"morph.morph_fraction", P_DOUBLE, OFF(morph_fraction), 0, 1, OPEN_MIN | OPEN_MAX},
     {"seed", P_UINT64, OFF(seed), 0, 0, 0},
     {"output.cache", P_NAME, OFF(cache_name), 0, 0, 0},
     {"output.compression_level", P_INT32, OFF(compression_level), 1, 19, 0},
@@ -138,9 +140,11 @@ static const char *json_type_name(const json_t *v)
 static fm_status check_range(const where *w, const param *p, double x)
 {
     if (!isfinite(x)) return fail_at(w, p->key, "must be a finite number");
-    if (p->min_open ? !(x > p->min) : !(x >= p->min))
-        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, p->min_open ? ">" : ">=", p->min);
-    if (!(x <= p->max)) return fail_at(w, p->key, "%g is out of range: must be <= %g", x, p->max);
+    int open_min = p->open & OPEN_MIN, open_max = p->open & OPEN_MAX;
+    if (open_min ? !(x > p->min) : !(x >= p->min))
+        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, open_min ? ">" : ">=", p->min);
+    if (open_max ? !(x < p->max) : !(x <= p->max))
+        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, open_max ? "<" : "<=", p->max);
     return FM_OK;
 }
 
@@ -267,6 +271,7 @@ static fm_status lookup(where *w, const json_t *root, const char *dotted, const 
 /* Is `key` (inside group `prefix`, "" for the top) a parameter or a group of parameters? */
 static int known_key(const char *prefix, const char *key)
 {
+    if (strchr(key, '.')) return 0; /* "time.frame_rate" must be written as a nested object */
     char full[160];
     snprintf(full, sizeof full, "%s%s%s", prefix, prefix[0] ? "." : "", key);
     size_t len = strlen(full);
@@ -349,14 +354,19 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     }
     if (def->path_point_count < 0 || def->path_point_count > FM_MAX_PATH_POINTS)
         return fail_at(&w, "path.points", "between 0 and %d points", FM_MAX_PATH_POINTS);
+    if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
+        return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
+    if (!def->cache_name[0] || strchr(def->cache_name, '/') || !strcmp(def->cache_name, ".") || !strcmp(def->cache_name, ".."))
+        return fail_at(&w, "output.cache", "'%s' is not a plain file name", def->cache_name);
     return check_consistency(&w, def);
 }
 
-static char *read_text(const char *path, fm_error *err)
+static char *read_text(const char *path, fm_status *st, fm_error *err)
 {
     FILE *f = fopen(path, "rb");
     if (!f) {
-        fm_fail(err, errno == ENOENT ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open the scene file: %s", path, strerror(errno));
+        *st = fm_fail(err, errno == ENOENT || errno == ENOTDIR ? FM_ERR_INPUT : FM_ERR_IO,
+                      "%s: cannot open the scene file: %s", path, strerror(errno));
         return NULL;
     }
     size_t cap = 1 << 16, len = 0;
@@ -372,7 +382,7 @@ static char *read_text(const char *path, fm_error *err)
     fclose(f);
     if (!text || bad) {
         free(text);
-        fm_fail(err, bad ? FM_ERR_IO : FM_ERR_MEMORY, "%s: cannot read the scene file", path);
+        *st = fm_fail(err, bad ? FM_ERR_IO : FM_ERR_MEMORY, "%s: cannot read the scene file", path);
         return NULL;
     }
     text[len] = 0;
@@ -383,11 +393,11 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
-    char *text = read_text(path, err);
-    if (!text) return err ? err->status : FM_ERR_IO;
+    fm_status st = FM_OK;
+    char *text = read_text(path, &st, err);
+    if (!text) return st;
     json_error_t jerr;
     json_t *root = json_loads(text, JSON_REJECT_DUPLICATES, &jerr);
-    fm_status st;
     if (!root) {
         st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", path, jerr.line, jerr.column, jerr.text);
     } else {

@@ -1,13 +1,17 @@
 // TetGen adapter (FM §4): the only C++ in the tetrahedralization path, behind extern "C".
 // TetGen 1.5 reports failures by throwing an int (with TETLIBRARY defined) and crashes on
 // self-intersecting input, so a detect-only pass ("d") runs first; every exception is caught
-// here and turned into an fm_status with a message.
+// here and turned into an fm_status with a message. Regions TetGen fills that lie outside the
+// solid (cavities) are dropped by a winding-number test.
 #define TETLIBRARY
 #include <tetgen.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <new>
+#include <vector>
 
 extern "C" {
 #include "prep.h"
@@ -48,6 +52,50 @@ const char *tetgen_reason(int code)
     }
 }
 
+// Generalised winding number of the closed surface around p (Van Oosterom & Strackee solid
+// angles): ~1 inside an outward-facing surface, ~0 outside and inside cavities.
+double winding_number(const fm_mesh *mesh, const double p[3])
+{
+    double total = 0;
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        double a[3], b[3], c[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = mesh->v[3 * mesh->tri[3 * t] + k] - p[k];
+            b[k] = mesh->v[3 * mesh->tri[3 * t + 1] + k] - p[k];
+            c[k] = mesh->v[3 * mesh->tri[3 * t + 2] + k] - p[k];
+        }
+        double la = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        double lb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        double lc = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        double dot = la * lb * lc + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) * lc +
+                     (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) * la + (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]) * lb;
+        total += 2 * std::atan2(det, dot);
+    }
+    return total / (4 * 3.14159265358979323846);
+}
+
+// TetGen fills every region its facets enclose, cavities included. With the "A" switch each
+// region gets its own attribute; keep the regions whose first tet lies inside the solid.
+std::vector<char> solid_regions(const tetgenio &out, const fm_mesh *mesh, double orientation)
+{
+    std::vector<char> keep(out.numberoftetrahedra, 1);
+    if (out.numberoftetrahedronattributes < 1) return keep;
+    std::map<double, char> inside; // region attribute -> inside the solid?
+    for (int t = 0; t < out.numberoftetrahedra; t++) {
+        double region = out.tetrahedronattributelist[t * out.numberoftetrahedronattributes];
+        auto it = inside.find(region);
+        if (it == inside.end()) {
+            double c[3] = {0, 0, 0};
+            for (int k = 0; k < 4; k++)
+                for (int i = 0; i < 3; i++) c[i] += 0.25 * out.pointlist[3 * out.tetrahedronlist[t * out.numberofcorners + k] + i];
+            it = inside.emplace(region, orientation * winding_number(mesh, c) > 0.5).first;
+        }
+        keep[t] = it->second;
+    }
+    return keep;
+}
+
 // Runs TetGen's self-intersection detection; non-zero count means the surface intersects itself.
 int count_intersecting_faces(tetgenio &in)
 {
@@ -56,16 +104,20 @@ int count_intersecting_faces(tetgenio &in)
     return check.numberoftrifaces;
 }
 
-fm_status copy_tets(const tetgenio &out, const char *name, fm_tets *tets, fm_error *err)
+fm_status copy_tets(const tetgenio &out, const std::vector<char> &keep, const char *name, fm_tets *tets,
+                    fm_error *err)
 {
-    if (out.numberoftetrahedra <= 0 || out.numberofcorners < 4)
+    int64_t count = 0;
+    for (char k : keep) count += k;
+    if (out.numberofcorners < 4 || count == 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: TetGen produced no tetrahedra (is the surface "
                        "closed and non-degenerate?)", name);
-    tets->n = out.numberoftetrahedra;
+    tets->n = count;
     tets->v = (double *)std::malloc(sizeof(double) * 12 * (size_t)tets->n);
     if (!tets->v) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for tets", name);
-    for (int64_t t = 0; t < tets->n; t++) {
-        double *dst = tets->v + 12 * t;
+    for (int64_t t = 0, j = 0; t < out.numberoftetrahedra; t++) {
+        if (!keep[t]) continue;
+        double *dst = tets->v + 12 * j++;
         for (int k = 0; k < 4; k++) {
             int p = out.tetrahedronlist[t * out.numberofcorners + k];
             std::memcpy(dst + 3 * k, out.pointlist + 3 * p, 3 * sizeof(double));
@@ -96,12 +148,13 @@ extern "C" fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, doub
                            "involved); TetGen cannot mesh it", name, bad);
         char switches[96];
         if (max_volume > 0)
-            std::snprintf(switches, sizeof switches, "pq%.6ga%.9gzQ", quality, max_volume);
+            std::snprintf(switches, sizeof switches, "pq%.6ga%.9gAzQ", quality, max_volume);
         else
-            std::snprintf(switches, sizeof switches, "pq%.6gzQ", quality);
+            std::snprintf(switches, sizeof switches, "pq%.6gAzQ", quality);
         tetgenio result;
         tetrahedralize(switches, &in, &result);
-        return copy_tets(result, name, out, err);
+        double orientation = fm_mesh_signed_volume(mesh) < 0 ? -1.0 : 1.0; // inside-out meshes are fine
+        return copy_tets(result, solid_regions(result, mesh, orientation), name, out, err);
     } catch (int code) {
         return fm_fail(err, code == 1 ? FM_ERR_MEMORY : FM_ERR_INPUT,
                        "%s: tetrahedralization failed: %s (TetGen code %d)", name,

@@ -124,12 +124,26 @@ static int parse_run(int argc, char **argv, run_options *o)
     return 0;
 }
 
+/* mkdir -p: creates dir and any missing parents. */
+static int make_dirs(const char *dir)
+{
+    char path[FM_PATH_MAX];
+    if (snprintf(path, sizeof path, "%s", dir) >= (int)sizeof path) return errno = ENAMETOOLONG, -1;
+    for (char *p = path + 1; *p; p++) {
+        if (*p != '/') continue;
+        *p = 0;
+        if (mkdir(path, 0777) != 0 && errno != EEXIST) return -1;
+        *p = '/';
+    }
+    return mkdir(path, 0777) != 0 && errno != EEXIST ? -1 : 0;
+}
+
 static int make_outdir(const char *dir, fm_error *err)
 {
     struct stat st;
     if (stat(dir, &st) == 0) {
         if (!S_ISDIR(st.st_mode)) return fprintf(stderr, "flockmorph: error: %s exists and is not a directory\n", dir), FM_ERR_IO;
-    } else if (mkdir(dir, 0777) != 0) {
+    } else if (make_dirs(dir) != 0) {
         fprintf(stderr, "flockmorph: error: cannot create the output directory %s: %s\n", dir, strerror(errno));
         return FM_ERR_IO;
     }
@@ -231,7 +245,7 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi.agents, (long long)rs.frames,
            (long long)rs.steps, rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0);
     if (!rs.all_arrived)
-        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents still on their way; "
+        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
                 "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
     printf("cache: %s\nstats: %s\n", cache_path, stats_path);
     return 0;

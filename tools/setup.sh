@@ -19,6 +19,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="${FM_BUILD_TYPE:-Release}" "$@" > "$build_dir.cmake.log" 2>&1 \
-  || { cat "$build_dir.cmake.log"; exit 1; }
+mkdir -p "$build_dir"
+cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="${FM_BUILD_TYPE:-Release}" "$@" > "$build_dir/cmake-configure.log" 2>&1 \
+  || { cat "$build_dir/cmake-configure.log"; exit 1; }
 cmake --build "$build_dir" -j"$(nproc)"
