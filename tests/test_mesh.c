@@ -1,5 +1,5 @@
 /* Mesh import through the public API: fm_model_build on small meshes written here in OBJ, PLY,
- * STL and OFF, and the closed-manifold and self-intersection checks with their messages. */
+ * STL, OFF and glTF, and the closed-manifold and self-intersection checks with their messages. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
@@ -105,6 +105,53 @@ static void write_off(const char *path, const tmesh *m)
     fclose(f);
 }
 
+static void base64(const unsigned char *in, size_t n, char *out)
+{
+    static const char alphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    size_t o = 0;
+    for (size_t i = 0; i < n; i += 3) {
+        unsigned v = (unsigned)in[i] << 16 | (i + 1 < n ? (unsigned)in[i + 1] << 8 : 0) | (i + 2 < n ? in[i + 2] : 0);
+        out[o++] = alphabet[v >> 18 & 63];
+        out[o++] = alphabet[v >> 12 & 63];
+        out[o++] = i + 1 < n ? alphabet[v >> 6 & 63] : '=';
+        out[o++] = i + 2 < n ? alphabet[v & 63] : '=';
+    }
+    out[o] = 0;
+}
+
+/* glTF 2.0 with one triangle mesh; the buffer (float32 positions, uint32 indices) is embedded. */
+static void write_gltf(const char *path, const tmesh *m)
+{
+    unsigned char buf[64 * 12 + 64 * 12];
+    size_t vbytes = (size_t)m->nv * 12, ibytes = (size_t)m->nf * 12;
+    float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+    for (int i = 0; i < m->nv; i++)
+        for (int k = 0; k < 3; k++) {
+            float x = (float)m->v[i][k];
+            memcpy(buf + 12 * i + 4 * k, &x, 4);
+            lo[k] = x < lo[k] ? x : lo[k], hi[k] = x > hi[k] ? x : hi[k];
+        }
+    for (int t = 0; t < m->nf; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t idx = (uint32_t)m->f[t][k];
+            memcpy(buf + vbytes + 12 * t + 4 * k, &idx, 4);
+        }
+    char b64[2200];
+    base64(buf, vbytes + ibytes, b64);
+    FILE *f = create(path);
+    if (!f) return;
+    fprintf(f, "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}], \"nodes\": [{\"mesh\": 0}],\n"
+               " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1}]}],\n"
+               " \"buffers\": [{\"byteLength\": %zu, \"uri\": \"data:application/octet-stream;base64,%s\"}],\n"
+               " \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": %zu},"
+               " {\"buffer\": 0, \"byteOffset\": %zu, \"byteLength\": %zu}],\n"
+               " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": %d, \"type\": \"VEC3\","
+               " \"min\": [%g, %g, %g], \"max\": [%g, %g, %g]},"
+               " {\"bufferView\": 1, \"componentType\": 5125, \"count\": %d, \"type\": \"SCALAR\"}]}\n",
+            vbytes + ibytes, b64, vbytes, vbytes, ibytes, m->nv, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], 3 * m->nf);
+    fclose(f);
+}
+
 static void write_raw(const char *path, const char *text)
 {
     FILE *f = create(path);
@@ -166,6 +213,14 @@ static void expect_mesh_error(const char *bad, int as_target, fm_status status, 
 }
 
 /* ---------------------------------------------------------------- formats */
+
+static void test_cube_gltf(void)
+{
+    char path[FM_PATH_MAX];
+    tmesh c = cube();
+    write_gltf(tmp_path(path, "cube.gltf"), &c);
+    expect_cube_builds(path);
+}
 
 static void test_cube_obj(void)
 {
@@ -346,6 +401,7 @@ int main(void)
     RUN_TEST(test_cube_ply_ascii);
     RUN_TEST(test_cube_stl_ascii);
     RUN_TEST(test_cube_off);
+    RUN_TEST(test_cube_gltf);
     RUN_TEST(test_hole);
     RUN_TEST(test_non_manifold_edge);
     RUN_TEST(test_flipped_face);
