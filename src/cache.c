@@ -17,7 +17,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 enum {
     CACHE_VERSION = 1,
@@ -50,9 +49,7 @@ static void unshuffle4(const unsigned char *in, size_t count, unsigned char *out
 }
 
 struct fm_cache_writer {
-    FILE *f;
-    char path[FM_PATH_MAX];
-    char partial[FM_PATH_MAX + 16];
+    fm_output_file out;      /* PATH.partial until finish() */
     uint64_t agents;
     size_t raw_bytes;
     unsigned char *shuffled, *packed;
@@ -65,8 +62,8 @@ struct fm_cache_writer {
 
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
-    if (fwrite(data, 1, n, w->f) != n)
-        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s", w->partial, strerror(errno));
+    if (fwrite(data, 1, n, w->out.f) != n)
+        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s", w->out.partial, strerror(errno));
     w->pos += n;
     return FM_OK;
 }
@@ -90,8 +87,6 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
 {
     fm_cache_writer *w = calloc(1, sizeof *w);
     if (!w) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
-    snprintf(w->path, sizeof w->path, "%s", path);
-    snprintf(w->partial, sizeof w->partial, "%s.partial", path);
     w->agents = agents;
     w->raw_bytes = (size_t)agents * FLOATS_PER_AGENT * sizeof(float);
     w->packed_cap = ZSTD_compressBound(w->raw_bytes);
@@ -104,13 +99,7 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
     }
     ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_compressionLevel, level);
     ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_checksumFlag, 1);
-    w->f = fopen(w->partial, "wb");
-    if (!w->f) {
-        fm_fail(err, FM_ERR_IO, "%s: cannot create: %s", w->partial, strerror(errno));
-        fm_cache_writer_abort(w);
-        return NULL;
-    }
-    if (write_header(w, frame_rate, err) != FM_OK) {
+    if (fm_output_open(&w->out, path, err) != FM_OK || write_header(w, frame_rate, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return NULL;
     }
@@ -128,7 +117,7 @@ fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_e
     shuffle4((const unsigned char *)verts, w->raw_bytes / 4, w->shuffled);
     size_t packed = ZSTD_compress2(w->cctx, w->packed, w->packed_cap, w->shuffled, w->raw_bytes);
     if (ZSTD_isError(packed))
-        return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->path, ZSTD_getErrorName(packed));
+        return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->out.path, ZSTD_getErrorName(packed));
     unsigned char h[CHUNK_HEADER_BYTES];
     memcpy(h, "FRAM", 4);
     put_u32(h + 4, w->frames);
@@ -148,7 +137,7 @@ static void free_writer(fm_cache_writer *w)
     free(w);
 }
 
-static fm_status write_index_and_close(fm_cache_writer *w, fm_error *err)
+static fm_status write_index_and_footer(fm_cache_writer *w, fm_error *err)
 {
     uint64_t index_pos = w->pos;
     unsigned char h[8];
@@ -164,19 +153,14 @@ static fm_status write_index_and_close(fm_cache_writer *w, fm_error *err)
     put_u64(footer, index_pos);
     memcpy(footer + 8, END_MAGIC, 8);
     if (st == FM_OK) st = write_bytes(w, footer, sizeof footer, err);
-    if (st == FM_OK && (fflush(w->f) != 0 || fsync(fileno(w->f)) != 0))
-        st = fm_fail(err, FM_ERR_IO, "%s: cannot flush: %s", w->partial, strerror(errno));
-    if (fclose(w->f) != 0 && st == FM_OK) st = fm_fail(err, FM_ERR_IO, "%s: cannot close: %s", w->partial, strerror(errno));
-    w->f = NULL;
     return st;
 }
 
 fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 {
-    fm_status st = write_index_and_close(w, err);
-    if (st == FM_OK && rename(w->partial, w->path) != 0)
-        st = fm_fail(err, FM_ERR_IO, "%s: cannot rename to %s: %s", w->partial, w->path, strerror(errno));
-    if (st != FM_OK) remove(w->partial);
+    fm_status st = write_index_and_footer(w, err);
+    if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
+    else fm_output_discard(&w->out);
     free_writer(w);
     return st;
 }
@@ -184,7 +168,7 @@ fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 void fm_cache_writer_abort(fm_cache_writer *w)
 {
     if (!w) return;
-    if (w->f) fclose(w->f), remove(w->partial);
+    fm_output_discard(&w->out);
     free_writer(w);
 }
 

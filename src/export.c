@@ -123,38 +123,15 @@ fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_erro
                        "cannot export %zu tets to '%s': PLY int indices allow at most %zu", n,
                        path, ((size_t)INT32_MAX + 1) / 4);
 
-    size_t len = strlen(path);
-    char *partial = malloc(len + sizeof ".partial");
-    if (!partial) return fm_fail(err, FM_ERR_MEMORY, "export to '%s': out of memory", path);
-    memcpy(partial, path, len);
-    memcpy(partial + len, ".partial", sizeof ".partial");
-
+    fm_output_file out;
+    fm_status st = fm_output_open(&out, path, err);
+    if (st != FM_OK) return st;
     errno = 0;
-    FILE *f = fopen(partial, "wb");
-    if (!f) {
-        int e = errno;
-        fm_status s = fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e));
-        free(partial);
-        return s;
-    }
-
-    errno = 0;
-    int bad = fmt == FMT_PLY ? write_ply(f, verts, n) : write_obj(f, verts, n);
-    if (!bad && ferror(f)) bad = -1;
-    int e = errno;
-    if (fclose(f) != 0 && !bad) {
-        bad = -1;
-        e = errno;
-    }
-    if (!bad && rename(partial, path) != 0) {
-        bad = -1;
-        e = errno;
-    }
+    int bad = fmt == FMT_PLY ? write_ply(out.f, verts, n) : write_obj(out.f, verts, n);
     if (bad) {
-        remove(partial);
-        free(partial);
+        int e = errno;
+        fm_output_discard(&out);
         return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
     }
-    free(partial);
-    return FM_OK;
+    return fm_output_commit(&out, NULL, err);
 }

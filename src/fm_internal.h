@@ -6,6 +6,7 @@
 
 #include <stdarg.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #define FM_ALIGN 64
 
@@ -16,6 +17,20 @@ fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
 /* 64-byte aligned, zero-filled; size rounded up to a multiple of 64. NULL on failure. */
 void *fm_alloc(size_t bytes);
 void fm_free(void *p);
+
+/* A file written as PATH.partial and renamed to PATH only when complete, so a file under its
+ * final name is never half-written. */
+typedef struct fm_output_file {
+    FILE *f;
+    char path[FM_PATH_MAX];
+    char partial[FM_PATH_MAX + 16];
+} fm_output_file;
+
+fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
+/* Checks for write errors, flushes to disk, closes and renames; on any failure removes the
+ * partial file and reports `detail` (if not NULL or empty) or the errno text. */
+fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
+void fm_output_discard(fm_output_file *o);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);

@@ -4,7 +4,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <errno.h>
 #include <time.h>
+#include <unistd.h>
 
 fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
 {
@@ -34,4 +36,35 @@ double fm_seconds(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err)
+{
+    o->f = NULL;
+    if (strlen(path) >= sizeof o->path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path);
+    snprintf(o->path, sizeof o->path, "%s", path);
+    snprintf(o->partial, sizeof o->partial, "%s.partial", path);
+    errno = 0;
+    o->f = fopen(o->partial, "wb");
+    if (!o->f) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(errno ? errno : EIO));
+    return FM_OK;
+}
+
+fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err)
+{
+    int e = 0, bad = ferror(o->f) || fflush(o->f) != 0 || fsync(fileno(o->f)) != 0;
+    if (bad) e = errno;
+    if (fclose(o->f) != 0 && !bad) bad = 1, e = errno;
+    o->f = NULL;
+    if (!bad && rename(o->partial, o->path) != 0) bad = 1, e = errno;
+    if (!bad) return FM_OK;
+    remove(o->partial);
+    if (detail && detail[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", o->path, detail);
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", o->path, strerror(e ? e : EIO));
+}
+
+void fm_output_discard(fm_output_file *o)
+{
+    if (o->f) fclose(o->f), remove(o->partial);
+    o->f = NULL;
 }

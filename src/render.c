@@ -282,42 +282,18 @@ static int write_png(FILE *f, const image *img, png_failure *pf)
 /* Writes img to path through path.partial and rename(). */
 static fm_status save_png(const image *img, const char *path, fm_error *err)
 {
-    size_t len = strlen(path);
-    char *partial = malloc(len + sizeof ".partial");
-    if (!partial) return fm_fail(err, FM_ERR_MEMORY, "render to '%s': out of memory", path);
-    memcpy(partial, path, len);
-    memcpy(partial + len, ".partial", sizeof ".partial");
-
-    errno = 0;
-    FILE *f = fopen(partial, "wb");
-    if (!f) {
-        int e = errno;
-        fm_status s = fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e));
-        free(partial);
-        return s;
-    }
+    fm_output_file out;
+    fm_status st = fm_output_open(&out, path, err);
+    if (st != FM_OK) return st;
     png_failure pf = {""};
     errno = 0;
-    int bad = write_png(f, img, &pf);
-    if (!bad && ferror(f)) bad = -1;
-    int e = errno;
-    if (fclose(f) != 0 && !bad) {
-        bad = -1;
-        e = errno;
-    }
-    if (!bad && rename(partial, path) != 0) {
-        bad = -1;
-        e = errno;
-    }
-    if (bad) {
-        remove(partial);
-        free(partial);
-        if (e == 0 && pf.message[0])
-            return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, pf.message);
+    if (write_png(out.f, img, &pf) != 0) {
+        int e = errno;
+        fm_output_discard(&out);
+        if (pf.message[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, pf.message);
         return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
     }
-    free(partial);
-    return FM_OK;
+    return fm_output_commit(&out, NULL, err);
 }
 
 /* ---------------------------------------------------------------- entry point */

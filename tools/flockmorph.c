@@ -8,6 +8,7 @@
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "fm_internal.h"
 
 #include <jansson.h>
 #include <omp.h>
@@ -205,18 +206,17 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "threads", json_integer(threads));
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     json_object_set_new(j, "cache", json_string(cache_path));
-    char partial[FM_PATH_MAX + 64];
-    if (snprintf(partial, sizeof partial, "%s.partial", path) >= (int)sizeof partial) {
-        fprintf(stderr, "flockmorph: error: output path too long: %s\n", path);
-        return json_decref(j), FM_ERR_USAGE;
-    }
-    int rc = json_dump_file(j, partial, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && rename(partial, path) == 0 ? 0 : -1;
-    if (rc) {
-        fprintf(stderr, "flockmorph: error: cannot write %s: %s\n", path, strerror(errno));
-        remove(partial);
+    fm_output_file out;
+    fm_error err = {0};
+    fm_status st = fm_output_open(&out, path, &err);
+    if (st == FM_OK) {
+        if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
+            st = fm_output_commit(&out, NULL, &err);
+        else
+            fm_output_discard(&out), st = fm_fail(&err, FM_ERR_IO, "cannot write '%s'", path);
     }
     json_decref(j);
-    return rc ? FM_ERR_IO : 0;
+    return st == FM_OK ? 0 : report(&err);
 }
 
 static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
