@@ -8,13 +8,7 @@
 #include <string.h>
 
 static uint64_t rng_state = 12345;
-static double uniform(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) / 9007199254740992.0;
-}
+static double uniform(void) { return test_uniform(&rng_state); }
 
 static double volume6(const float *t)
 {

@@ -6,13 +6,7 @@
 #include <string.h>
 
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double uniform(void) /* splitmix64 -> [0, 1) */
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) / 9007199254740992.0;
-}
+static double uniform(void) { return test_uniform(&rng_state); }
 
 /* n random positively oriented tets with volumes spread over two orders of magnitude. */
 static fm_tets random_tets(int64_t n)
