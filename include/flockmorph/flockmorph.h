@@ -54,6 +54,36 @@ typedef struct fm_mesh_ref {
     double rotate_deg[3];
 } fm_mesh_ref;
 
+#define FM_MAX_FIELDS 8
+#define FM_MAX_OBSTACLES 16
+
+typedef enum fm_field_kind {
+    FM_FIELD_CURL_NOISE = 0, /* FM eq 5: curl of three Perlin potentials */
+    FM_FIELD_WIND = 1,       /* mean wind plus time-varying curl-noise turbulence */
+    FM_FIELD_GRAVITY = 2,    /* a constant velocity along `direction` */
+    FM_FIELD_VORTEX = 3      /* SCF eqs 7-8: strength * (axis x (x - center)) */
+} fm_field_kind;
+
+/* One style field (FM §5.2). V_l is the sum of the scene's fields; V_grn = omega1 V_g + omega2 V_l
+ * (FM eq 6). Each field is a function of position and time. */
+typedef struct fm_field_def {
+    fm_field_kind kind;
+    double gain;          /* curl noise: magnitude of the potentials P (FM eq 5), units^2/s */
+    double scale;         /* curl noise and wind turbulence: noise length scale, units */
+    double direction[3];  /* wind: mean direction; gravity: direction (any length; normalised) */
+    double speed;         /* wind: WindSpeed; gravity: its speed; units/s */
+    double turbulence;    /* wind: magnitude of the turbulent potentials, units^2/s */
+    double period;        /* wind: seconds for the turbulence to change (0: frozen) */
+    double center[3];     /* vortex: Pos_center (SCF eq 7) */
+    double axis[3];       /* vortex: rotation axis; SCF eq 8 is (0, 1, 0) */
+    double strength;      /* vortex: d of SCF eq 8, 1/s */
+} fm_field_def;
+
+typedef enum fm_phase_switch {
+    FM_SWITCH_SPHERE = 0,   /* FM §5.5: inside the target's minimal bounding sphere */
+    FM_SWITCH_DISTANCE = 1  /* beyond the paper (§8): the target's own signed distance < switch_distance */
+} fm_phase_switch;
+
 /* Every parameter of a run; docs/scene.md documents each with its default and unit. */
 typedef struct fm_scene_def {
     char scene_path[FM_PATH_MAX]; /* where it was read from (for messages); "" if built in code */
@@ -75,6 +105,26 @@ typedef struct fm_scene_def {
     double shrink;              /* linear scale a tet shrinks to when launched (FM §6: 1/2) */
     double shrink_time;         /* seconds the launch shrink takes */
     double morph_fraction;      /* fraction of phase 2 spent on A(t); the rest enlarges */
+    /* style fields (FM §5.2) */
+    double omega2;              /* weight of V_l (FM eq 6) */
+    fm_field_def fields[FM_MAX_FIELDS];
+    int32_t field_count;
+    int32_t field_grid[3];      /* bake fields on this grid over the scene bounds; 0 = evaluate directly */
+    /* obstacles (FM §5.3) */
+    fm_mesh_ref obstacles[FM_MAX_OBSTACLES];
+    int32_t obstacle_count;
+    double k_a;                 /* influence range of eq 7, units */
+    double obstacle_voxel;      /* signed-distance voxel size, units; 0 = automatic */
+    int32_t avoid_in_phase2;    /* beyond the paper (§8): obstacle avoidance also in phase 2 */
+    /* local avoidance, MDE (FM §5.4) */
+    double d_min;               /* minimum distance between tet centroids, units; 0 = off */
+    double mde_speed;           /* push speed of a pair at zero distance, units/s; 0 = speed0 */
+    /* path width (FM §5.1) */
+    double path_width;          /* agents farther than width/2 from the path are pulled back; 0 = off */
+    double path_attraction;     /* pull speed per unit of distance outside the width, 1/s */
+    /* phase switch */
+    fm_phase_switch phase_switch;
+    double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
     char cache_name[256];       /* file name of the cache inside the output directory */
