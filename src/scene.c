@@ -34,11 +34,17 @@ fm_scene_def fm_default_scene_def(void)
     d.morph_fraction = 0.75;
     d.seed = 1;
     d.compression_level = 3;
+    d.omega2 = 1.0;
+    d.k_a = 1.0;
+    d.path_attraction = 1.0;
     strcpy(d.cache_name, "frames.fmc");
     return d;
 }
 
-typedef enum param_type { P_DOUBLE, P_INT32, P_INT64, P_UINT64, P_VEC3, P_MESH, P_NAME, P_CURVE, P_POINTS } param_type;
+typedef enum param_type {
+    P_DOUBLE, P_INT32, P_INT64, P_UINT64, P_BOOL, P_VEC3, P_INT3, P_MESH, P_NAME, P_CURVE, P_SWITCH,
+    P_FIELD_KIND, P_POINTS, P_FIELDS, P_OBSTACLES
+} param_type;
 
 enum { OPEN_MIN = 1, OPEN_MAX = 2 };
 
@@ -78,26 +84,77 @@ static const param PARAMS[] = {
     {"seed", P_UINT64, OFF(seed), 0, 0, 0},
     {"output.cache", P_NAME, OFF(cache_name), 0, 0, 0},
     {"output.compression_level", P_INT32, OFF(compression_level), 1, 19, 0},
+    {"style.omega2", P_DOUBLE, OFF(omega2), 0, 1e3, 0},
+    {"style.grid", P_INT3, OFF(field_grid), 0, 2048, 0},
+    {"style.fields", P_FIELDS, OFF(fields), 0, 0, 0},
+    {"obstacles.meshes", P_OBSTACLES, OFF(obstacles), 0, 0, 0},
+    {"obstacles.k_a", P_DOUBLE, OFF(k_a), 0, 1e9, OPEN_MIN},
+    {"obstacles.voxel", P_DOUBLE, OFF(obstacle_voxel), 0, 1e9, 0},
+    {"obstacles.in_phase2", P_BOOL, OFF(avoid_in_phase2), 0, 0, 0},
+    {"mde.d_min", P_DOUBLE, OFF(d_min), 0, 1e9, 0},
+    {"mde.speed", P_DOUBLE, OFF(mde_speed), 0, 1e9, 0},
+    {"path.width", P_DOUBLE, OFF(path_width), 0, 1e9, 0},
+    {"path.attraction", P_DOUBLE, OFF(path_attraction), 0, 1e6, 0},
+    {"phase2.switch", P_SWITCH, OFF(phase_switch), 0, 0, 0},
+    {"phase2.switch_distance", P_DOUBLE, OFF(switch_distance), -1e9, 1e9, 0},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
+
+/* The keys of one element of obstacles.meshes (source and target share the ranges above). */
+#define MOFF(field) offsetof(fm_mesh_ref, field)
+static const param MESH_PARAMS[] = {
+    {"mesh", P_MESH, MOFF(path), 0, 0, 0},
+    {"translate", P_VEC3, MOFF(translate), -1e9, 1e9, 0},
+    {"scale", P_DOUBLE, MOFF(scale), 0, 1e9, 1},
+    {"rotate_deg", P_VEC3, MOFF(rotate_deg), -3600, 3600, 0},
+};
+
+/* The keys of one element of style.fields; FIELD_KEYS says which apply to each kind. */
+#define FOFF(field) offsetof(fm_field_def, field)
+static const param FIELD_PARAMS[] = {
+    {"type", P_FIELD_KIND, FOFF(kind), 0, 0, 0},
+    {"gain", P_DOUBLE, FOFF(gain), 0, 1e6, 0},
+    {"scale", P_DOUBLE, FOFF(scale), 0, 1e9, OPEN_MIN},
+    {"direction", P_VEC3, FOFF(direction), -1e9, 1e9, 0},
+    {"speed", P_DOUBLE, FOFF(speed), 0, 1e9, 0},
+    {"turbulence", P_DOUBLE, FOFF(turbulence), 0, 1e6, 0},
+    {"period", P_DOUBLE, FOFF(period), 0, 1e9, 0},
+    {"center", P_VEC3, FOFF(center), -1e9, 1e9, 0},
+    {"axis", P_VEC3, FOFF(axis), -1e9, 1e9, 0},
+    {"strength", P_DOUBLE, FOFF(strength), -1e6, 1e6, 0},
+};
+static const char *const FIELD_NAMES[] = {"curl_noise", "wind", "gravity", "vortex"};
+static const char *const FIELD_KEYS[] = {" type gain scale ", " type direction speed turbulence scale period ",
+                                         " type direction speed ", " type center axis strength "};
+
+static fm_field_def default_field(fm_field_kind kind)
+{
+    fm_field_def f = {.kind = kind, .gain = 1, .scale = 1, .speed = 1, .period = 1, .strength = 1};
+    f.direction[kind == FM_FIELD_GRAVITY ? 2 : 0] = kind == FM_FIELD_GRAVITY ? -1 : 1;
+    f.axis[1] = 1;
+    return f;
+}
 
 /* Where an error points: the scene text and a JSON path. */
 typedef struct where {
     const char *file;
     const char *text;       /* NULL when validating a definition built in code */
     fm_error *err;
-    fm_json_step steps[4];
-    char names[4][64];
+    fm_json_step steps[8];
+    char names[8][64];
     int depth;
     int at_key;             /* point at the key rather than the value */
+    char label[160];        /* the key named in messages inside list elements ("style.fields[1].gain") */
 } where;
+
+#define KEY(w, p) ((w)->label[0] ? (w)->label : (p)->key)
 
 static void where_set_key(where *w, const char *dotted)
 {
     w->depth = 0;
     w->at_key = 0;
     const char *s = dotted;
-    while (*s && w->depth < 3) {
+    while (*s && w->depth < 8) {
         size_t len = strcspn(s, ".");
         snprintf(w->names[w->depth], sizeof w->names[0], "%.*s", (int)len, s);
         w->steps[w->depth] = (fm_json_step){w->names[w->depth], 0};
@@ -139,28 +196,28 @@ static const char *json_type_name(const json_t *v)
 
 static fm_status check_range(const where *w, const param *p, double x)
 {
-    if (!isfinite(x)) return fail_at(w, p->key, "must be a finite number");
+    if (!isfinite(x)) return fail_at(w, KEY(w, p), "must be a finite number");
     int open_min = p->open & OPEN_MIN, open_max = p->open & OPEN_MAX;
     if (open_min ? !(x > p->min) : !(x >= p->min))
-        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, open_min ? ">" : ">=", p->min);
+        return fail_at(w, KEY(w, p), "%g is out of range: must be %s %g", x, open_min ? ">" : ">=", p->min);
     if (open_max ? !(x < p->max) : !(x <= p->max))
-        return fail_at(w, p->key, "%g is out of range: must be %s %g", x, open_max ? "<" : "<=", p->max);
+        return fail_at(w, KEY(w, p), "%g is out of range: must be %s %g", x, open_max ? "<" : "<=", p->max);
     return FM_OK;
 }
 
 static fm_status read_number(const where *w, const param *p, const json_t *v, double *out)
 {
-    if (!json_is_number(v)) return fail_at(w, p->key, "expected a number, got %s", json_type_name(v));
+    if (!json_is_number(v)) return fail_at(w, KEY(w, p), "expected a number, got %s", json_type_name(v));
     *out = json_number_value(v);
     return check_range(w, p, *out);
 }
 
 static fm_status read_integer(const where *w, const param *p, const json_t *v, int64_t *out)
 {
-    if (!json_is_integer(v)) return fail_at(w, p->key, "expected an integer, got %s", json_type_name(v));
+    if (!json_is_integer(v)) return fail_at(w, KEY(w, p), "expected an integer, got %s", json_type_name(v));
     *out = json_integer_value(v);
     if (p->type == P_UINT64) {
-        if (*out < 0) return fail_at(w, p->key, "must be >= 0");
+        if (*out < 0) return fail_at(w, KEY(w, p), "must be >= 0");
         return FM_OK;
     }
     return check_range(w, p, (double)*out);
@@ -170,7 +227,7 @@ static fm_status read_integer(const where *w, const param *p, const json_t *v, i
 static fm_status read_vec3(where *w, const param *p, const json_t *v, double *out)
 {
     if (!json_is_array(v) || json_array_size(v) != 3)
-        return fail_at(w, p->key, "expected an array of 3 numbers, got %s%s", json_type_name(v),
+        return fail_at(w, KEY(w, p), "expected an array of 3 numbers, got %s%s", json_type_name(v),
                        json_is_array(v) ? " of another length" : "");
     for (int k = 0; k < 3; k++) {
         w->steps[w->depth++] = (fm_json_step){NULL, k};
@@ -183,9 +240,9 @@ static fm_status read_vec3(where *w, const param *p, const json_t *v, double *ou
 
 static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene_def *def)
 {
-    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of [x, y, z] points, got %s", json_type_name(v));
+    if (!json_is_array(v)) return fail_at(w, KEY(w, p), "expected an array of [x, y, z] points, got %s", json_type_name(v));
     if (json_array_size(v) > FM_MAX_PATH_POINTS)
-        return fail_at(w, p->key, "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
+        return fail_at(w, KEY(w, p), "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
     def->path_point_count = (int32_t)json_array_size(v);
     for (int32_t i = 0; i < def->path_point_count; i++) {
         w->steps[w->depth++] = (fm_json_step){NULL, i};
@@ -199,39 +256,160 @@ static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene
 /* A mesh path, resolved against the scene file's directory when relative. */
 static fm_status read_mesh_path(const where *w, const param *p, const json_t *v, char *out)
 {
-    if (!json_is_string(v)) return fail_at(w, p->key, "expected a file name, got %s", json_type_name(v));
+    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", json_type_name(v));
     const char *name = json_string_value(v);
-    if (!name[0]) return fail_at(w, p->key, "the mesh file name is empty");
+    if (!name[0]) return fail_at(w, KEY(w, p), "the mesh file name is empty");
     const char *slash = strrchr(w->file, '/');
     int dir_len = (name[0] != '/' && slash) ? (int)(slash - w->file + 1) : 0;
-    if ((size_t)dir_len + strlen(name) + 1 > FM_PATH_MAX) return fail_at(w, p->key, "the path is too long");
+    if ((size_t)dir_len + strlen(name) + 1 > FM_PATH_MAX) return fail_at(w, KEY(w, p), "the path is too long");
     snprintf(out, FM_PATH_MAX, "%.*s%s", dir_len, w->file, name);
     return FM_OK;
 }
 
 static fm_status read_name(const where *w, const param *p, const json_t *v, char *out)
 {
-    if (!json_is_string(v)) return fail_at(w, p->key, "expected a file name, got %s", json_type_name(v));
+    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", json_type_name(v));
     const char *name = json_string_value(v);
     if (!name[0] || strchr(name, '/') || strlen(name) >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
-        return fail_at(w, p->key, "'%s' is not a plain file name (no '/', at most 255 bytes)", name);
+        return fail_at(w, KEY(w, p), "'%s' is not a plain file name (no '/', at most 255 bytes)", name);
     strcpy(out, name);
     return FM_OK;
 }
 
-static fm_status read_curve(const where *w, const param *p, const json_t *v, fm_curve *out)
+/* One of `count` names; *out = its index. */
+static fm_status read_enum(const where *w, const param *p, const json_t *v, const char *const *names, int count, int *out)
 {
     const char *s = json_is_string(v) ? json_string_value(v) : "";
-    if (!strcmp(s, "polyline")) *out = FM_CURVE_POLYLINE;
-    else if (!strcmp(s, "catmull_rom")) *out = FM_CURVE_CATMULL_ROM;
-    else return fail_at(w, p->key, "expected \"polyline\" or \"catmull_rom\"");
+    for (int i = 0; i < count; i++)
+        if (!strcmp(s, names[i])) return *out = i, FM_OK;
+    char list[256] = "";
+    for (int i = 0; i < count; i++)
+        snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"%s\"", i ? (i + 1 == count ? " or " : ", ") : "", names[i]);
+    return fail_at(w, KEY(w, p), "expected %s", list);
+}
+
+static fm_status read_bool(const where *w, const param *p, const json_t *v, int32_t *out)
+{
+    if (!json_is_boolean(v)) return fail_at(w, KEY(w, p), "expected true or false, got %s", json_type_name(v));
+    *out = json_is_true(v);
     return FM_OK;
 }
 
-static fm_status read_param(where *w, const param *p, const json_t *v, fm_scene_def *def)
+/* [nx, ny, nz] integers in range. */
+static fm_status read_int3(where *w, const param *p, const json_t *v, int32_t *out)
 {
-    char *field = (char *)def + p->offset;
+    if (!json_is_array(v) || json_array_size(v) != 3)
+        return fail_at(w, KEY(w, p), "expected an array of 3 integers, got %s", json_type_name(v));
+    for (int k = 0; k < 3; k++) {
+        int64_t x = 0;
+        w->steps[w->depth++] = (fm_json_step){NULL, k};
+        fm_status st = read_integer(w, p, json_array_get(v, (size_t)k), &x);
+        w->depth--;
+        if (st != FM_OK) return st;
+        out[k] = (int32_t)x;
+    }
+    return FM_OK;
+}
+
+static fm_status read_param(where *w, const param *p, const json_t *v, void *base, fm_scene_def *def);
+
+/* Reads the keys of one list element (an object) into base through its table; unknown keys, and
+ * keys not in `allowed` (" key key ... ", NULL = all), are errors. */
+static fm_status read_element(where *w, const json_t *obj, const param *table, int count, void *base,
+                              const char *label, const char *allowed, fm_scene_def *def)
+{
+    if (!json_is_object(obj)) return fail_at(w, label, "expected an object, got %s", json_type_name(obj));
+    const char *key;
+    json_t *value;
+    json_object_foreach((json_t *)obj, key, value) {
+        char spaced[80];
+        snprintf(spaced, sizeof spaced, " %s ", key);
+        int known = 0;
+        for (int i = 0; i < count; i++) known |= !strcmp(table[i].key, key);
+        if (known && (!allowed || strstr(allowed, spaced))) continue;
+        w->steps[w->depth++] = (fm_json_step){key, 0};
+        w->at_key = 1;
+        snprintf(w->label, sizeof w->label, "%s.%s", label, key);
+        fm_status st = fail_at(w, w->label, known ? "does not apply here (this element takes:%s)" : "unknown key%s",
+                               known ? allowed : " (docs/scene.md lists the keys)");
+        w->label[0] = 0;
+        return st;
+    }
+    for (int i = 0; i < count; i++) {
+        const json_t *v = json_object_get(obj, table[i].key);
+        if (!v) continue;
+        w->steps[w->depth++] = (fm_json_step){table[i].key, 0};
+        snprintf(w->label, sizeof w->label, "%s.%s", label, table[i].key);
+        fm_status st = read_param(w, &table[i], v, base, def);
+        w->label[0] = 0;
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+/* style.fields: [{"type": "curl_noise", ...}, ...]; each element starts from its kind's defaults. */
+static fm_status read_fields(where *w, const param *p, const json_t *v, fm_scene_def *def)
+{
+    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of field objects, got %s", json_type_name(v));
+    if (json_array_size(v) > FM_MAX_FIELDS) return fail_at(w, p->key, "at most %d fields", FM_MAX_FIELDS);
+    def->field_count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < def->field_count; i++) {
+        const json_t *e = json_array_get(v, (size_t)i);
+        char label[64];
+        snprintf(label, sizeof label, "style.fields[%d]", i);
+        w->steps[w->depth++] = (fm_json_step){NULL, i};
+        int kind = 0;
+        const json_t *type = json_is_object(e) ? json_object_get(e, "type") : NULL;
+        fm_status st = FM_OK;
+        if (json_is_object(e) && !type) st = fail_at(w, label, "every field needs a \"type\"");
+        if (st == FM_OK && type) {
+            w->steps[w->depth++] = (fm_json_step){"type", 0};
+            snprintf(w->label, sizeof w->label, "%s.type", label);
+            st = read_enum(w, &FIELD_PARAMS[0], type, FIELD_NAMES, 4, &kind);
+            w->label[0] = 0;
+            w->depth--;
+        }
+        def->fields[i] = default_field((fm_field_kind)kind);
+        if (st == FM_OK) st = read_element(w, e, FIELD_PARAMS, (int)(sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0]),
+                                           &def->fields[i], label, FIELD_KEYS[kind], def);
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+/* obstacles.meshes: [{"mesh": "king.obj", "translate": [...]}, ...] */
+static fm_status read_obstacles(where *w, const param *p, const json_t *v, fm_scene_def *def)
+{
+    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of mesh objects, got %s", json_type_name(v));
+    if (json_array_size(v) > FM_MAX_OBSTACLES) return fail_at(w, p->key, "at most %d obstacles", FM_MAX_OBSTACLES);
+    def->obstacle_count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < def->obstacle_count; i++) {
+        const json_t *e = json_array_get(v, (size_t)i);
+        char label[64];
+        snprintf(label, sizeof label, "obstacles.meshes[%d]", i);
+        fm_mesh_ref *ref = &def->obstacles[i];
+        memset(ref, 0, sizeof *ref);
+        ref->scale = 1;
+        w->steps[w->depth++] = (fm_json_step){NULL, i};
+        fm_status st = read_element(w, e, MESH_PARAMS, (int)(sizeof MESH_PARAMS / sizeof MESH_PARAMS[0]), ref, label, NULL, def);
+        if (st == FM_OK && !ref->path[0]) st = fail_at(w, label, "every obstacle needs a \"mesh\"");
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+static const char *const CURVE_NAMES[] = {"polyline", "catmull_rom"};
+static const char *const SWITCH_NAMES[] = {"sphere", "distance"};
+
+/* Reads one value into the field at base + p->offset (base: the scene, or a list element). */
+static fm_status read_param(where *w, const param *p, const json_t *v, void *base, fm_scene_def *def)
+{
+    char *field = (char *)base + p->offset;
     int64_t i = 0;
+    int e = 0;
     fm_status st;
     switch (p->type) {
     case P_DOUBLE: return read_number(w, p, v, (double *)field);
@@ -241,8 +419,14 @@ static fm_status read_param(where *w, const param *p, const json_t *v, fm_scene_
     case P_VEC3: return read_vec3(w, p, v, (double *)field);
     case P_MESH: return read_mesh_path(w, p, v, field);
     case P_NAME: return read_name(w, p, v, field);
-    case P_CURVE: return read_curve(w, p, v, (fm_curve *)field);
+    case P_CURVE: st = read_enum(w, p, v, CURVE_NAMES, 2, &e); *(fm_curve *)field = (fm_curve)e; return st;
+    case P_SWITCH: st = read_enum(w, p, v, SWITCH_NAMES, 2, &e); *(fm_phase_switch *)field = (fm_phase_switch)e; return st;
+    case P_FIELD_KIND: st = read_enum(w, p, v, FIELD_NAMES, 4, &e); *(fm_field_kind *)field = (fm_field_kind)e; return st;
+    case P_BOOL: return read_bool(w, p, v, (int32_t *)field);
+    case P_INT3: return read_int3(w, p, v, (int32_t *)field);
     case P_POINTS: return read_points(w, p, v, def);
+    case P_FIELDS: return read_fields(w, p, v, def);
+    case P_OBSTACLES: return read_obstacles(w, p, v, def);
     }
     return FM_OK;
 }
@@ -312,7 +496,7 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
     for (size_t i = 0; i < PARAM_COUNT && st == FM_OK; i++) {
         const json_t *v;
         st = lookup(w, root, PARAMS[i].key, &v);
-        if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def);
+        if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
         else if (st == FM_OK && PARAMS[i].type == P_MESH) {
             where_set_key(w, PARAMS[i].key);
             w->depth = 0;
@@ -336,22 +520,58 @@ static fm_status check_consistency(where *w, const fm_scene_def *def)
     return FM_OK;
 }
 
-fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
+/* Range checks of every numeric entry of a table over the struct at base. */
+static fm_status check_table(where *w, const param *table, size_t count, const void *base, const char *prefix)
 {
-    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0};
-    if (!def->source.path[0] || !def->target.path[0])
-        return fail_at(&w, def->source.path[0] ? "target.mesh" : "source.mesh", "no mesh given");
-    for (size_t i = 0; i < PARAM_COUNT; i++) {
-        const param *p = &PARAMS[i];
-        const char *field = (const char *)def + p->offset;
+    for (size_t i = 0; i < count; i++) {
+        const param *p = &table[i];
+        const char *field = (const char *)base + p->offset;
+        if (prefix) snprintf(w->label, sizeof w->label, "%s.%s", prefix, p->key);
         fm_status st = FM_OK;
-        if (p->type == P_DOUBLE) st = check_range(&w, p, *(const double *)field);
-        else if (p->type == P_INT32) st = check_range(&w, p, *(const int32_t *)field);
-        else if (p->type == P_INT64) st = check_range(&w, p, (double)*(const int64_t *)field);
-        else if (p->type == P_VEC3)
-            for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(&w, p, ((const double *)field)[k]);
+        if (p->type == P_DOUBLE) st = check_range(w, p, *(const double *)field);
+        else if (p->type == P_INT32) st = check_range(w, p, *(const int32_t *)field);
+        else if (p->type == P_INT64) st = check_range(w, p, (double)*(const int64_t *)field);
+        else if (p->type == P_VEC3 || p->type == P_INT3)
+            for (int k = 0; k < 3 && st == FM_OK; k++)
+                st = check_range(w, p, p->type == P_VEC3 ? ((const double *)field)[k] : ((const int32_t *)field)[k]);
+        w->label[0] = 0;
         if (st != FM_OK) return st;
     }
+    return FM_OK;
+}
+
+/* The list parameters of a definition built in code. */
+static fm_status check_lists(where *w, const fm_scene_def *def)
+{
+    if (def->field_count < 0 || def->field_count > FM_MAX_FIELDS)
+        return fail_at(w, "style.fields", "between 0 and %d fields", FM_MAX_FIELDS);
+    if (def->obstacle_count < 0 || def->obstacle_count > FM_MAX_OBSTACLES)
+        return fail_at(w, "obstacles.meshes", "between 0 and %d obstacles", FM_MAX_OBSTACLES);
+    char label[64];
+    for (int32_t i = 0; i < def->field_count; i++) {
+        snprintf(label, sizeof label, "style.fields[%d]", i);
+        if ((unsigned)def->fields[i].kind > FM_FIELD_VORTEX) return fail_at(w, label, "unknown field type");
+        fm_status st = check_table(w, FIELD_PARAMS, sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0], &def->fields[i], label);
+        if (st != FM_OK) return st;
+    }
+    for (int32_t i = 0; i < def->obstacle_count; i++) {
+        snprintf(label, sizeof label, "obstacles.meshes[%d]", i);
+        if (!def->obstacles[i].path[0]) return fail_at(w, label, "no mesh given");
+        fm_status st = check_table(w, MESH_PARAMS, sizeof MESH_PARAMS / sizeof MESH_PARAMS[0], &def->obstacles[i], label);
+        if (st != FM_OK) return st;
+    }
+    if ((unsigned)def->phase_switch > FM_SWITCH_DISTANCE) return fail_at(w, "phase2.switch", "unknown switch");
+    return FM_OK;
+}
+
+fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
+{
+    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, ""};
+    if (!def->source.path[0] || !def->target.path[0])
+        return fail_at(&w, def->source.path[0] ? "target.mesh" : "source.mesh", "no mesh given");
+    fm_status st = check_table(&w, PARAMS, PARAM_COUNT, def, NULL);
+    if (st == FM_OK) st = check_lists(&w, def);
+    if (st != FM_OK) return st;
     if (def->path_point_count < 0 || def->path_point_count > FM_MAX_PATH_POINTS)
         return fail_at(&w, "path.points", "between 0 and %d points", FM_MAX_PATH_POINTS);
     if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
@@ -401,7 +621,7 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
     if (!root) {
         st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", path, jerr.line, jerr.column, jerr.text);
     } else {
-        where w = {path, text, err, {{0}}, {{0}}, 0, 0};
+        where w = {path, text, err, {{0}}, {{0}}, 0, 0, ""};
         st = read_scene(&w, root, def);
         if (st == FM_OK) st = check_consistency(&w, def);
         json_decref(root);

@@ -291,6 +291,25 @@ static void test_small_on_sphere(void)
     stats_print("on a sphere", &st);
 }
 
+static void test_small_near_sphere(void)
+{
+    /* Radii jittered by up to 1e-8: the answer is fixed by the outermost points, and a
+     * sphere through any 4 points misses the others by ~1e-8, so a sloppy inside test (or a
+     * wrong support point) shows up as a radius error far above 1e-9. */
+    small_stats st = {0};
+    double p[12 * 3];
+    for (int t = 0; t < 80; ++t) {
+        int n = rng_count(5, 12);
+        for (int i = 0; i < n; ++i) {
+            double u[3], r = 1.0 + 1e-8 * rng_uniform(-1, 1);
+            rng_unit_vector(u);
+            for (int k = 0; k < 3; ++k) p[3 * i + k] = r * u[k];
+        }
+        check_small(p, n, "near a sphere", &st);
+    }
+    stats_print("near a sphere", &st);
+}
+
 static void test_small_all_equal(void)
 {
     small_stats st = {0};
@@ -532,6 +551,15 @@ static void test_large_degenerate(void)
     double r = check_large(p, n, "on a sphere");
     ENSURE_NEAR(r, 2.0, 2e-9);
 
+    /* Near that sphere, radii jittered by 1e-8 (relative): the outermost points decide. */
+    for (size_t i = 0; i < n; ++i) {
+        double u[3], rr = 2.0 * (1.0 + 1e-8 * rng_uniform(-1, 1));
+        rng_unit_vector(u);
+        for (int k = 0; k < 3; ++k) p[3 * i + k] = c[k] + rr * u[k];
+    }
+    r = check_large(p, n, "near a sphere");
+    ENSURE(r <= 2.0 * (1.0 + 1e-8) + 1e-14 && r >= 2.0 * (1.0 - 1e-8));
+
     /* On a circle of radius 1.5: all 4-point subsets degenerate. */
     double u[3], v[3];
     rng_plane(u, v);
@@ -586,6 +614,7 @@ int main(void)
     RUN_TEST(test_cube_corners);
     RUN_TEST(test_small_random);
     RUN_TEST(test_small_on_sphere);
+    RUN_TEST(test_small_near_sphere);
     RUN_TEST(test_small_all_equal);
     RUN_TEST(test_small_collinear);
     RUN_TEST(test_small_coplanar);
