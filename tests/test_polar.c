@@ -12,18 +12,7 @@
 /* splitmix64: deterministic, so failures reproduce. */
 static uint64_t rng_state = 0x1234567887654321u;
 
-static uint64_t rng_next(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15u);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-    return z ^ (z >> 31);
-}
-
-static double rng_uniform(double lo, double hi)
-{
-    return lo + (hi - lo) * ((double)(rng_next() >> 11) * 0x1p-53);
-}
+static double rng_uniform(double lo, double hi) { return lo + (hi - lo) * test_uniform(&rng_state); }
 
 static double rng_gauss(void)
 {

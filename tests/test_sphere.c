@@ -21,18 +21,7 @@ static const uint64_t seeds[3] = {1u, 0x9E3779B97F4A7C15u, 12345u};
 /* splitmix64: deterministic, so failures reproduce. */
 static uint64_t rng_state = 0xC0FFEE1234567u;
 
-static uint64_t rng_next(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15u);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-    return z ^ (z >> 31);
-}
-
-static double rng_uniform(double lo, double hi)
-{
-    return lo + (hi - lo) * ((double)(rng_next() >> 11) * 0x1p-53);
-}
+static double rng_uniform(double lo, double hi) { return lo + (hi - lo) * test_uniform(&rng_state); }
 
 static double rng_gauss(void)
 {
@@ -258,7 +247,7 @@ static void stats_print(const char *what, const small_stats *st)
            st->radius, st->centre, st->seeds);
 }
 
-static int rng_count(int lo, int hi) { return lo + (int)(rng_next() % (uint64_t)(hi - lo + 1)); }
+static int rng_count(int lo, int hi) { return lo + (int)(test_uniform(&rng_state) * (hi - lo + 1)); }
 
 static void test_small_random(void)
 {
@@ -572,7 +561,7 @@ static void test_large_degenerate(void)
 
     /* On a segment of length 4, many duplicates. */
     for (size_t i = 0; i < n; ++i) {
-        double t = (double)(rng_next() % 1000) / 999.0 * 4.0 - 2.0;
+        double t = (double)(int)(test_uniform(&rng_state) * 1000) / 999.0 * 4.0 - 2.0;
         for (int k = 0; k < 3; ++k) p[3 * i + k] = c[k] + t * u[k];
     }
     r = check_large(p, n, "on a segment");
