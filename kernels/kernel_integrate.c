@@ -3,6 +3,7 @@
 
 int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
                                    int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                   const fm_sdf_view *target_sdf, float switch_distance,
                                    uint8_t *entered)
 {
     const float r2 = sphere.r * sphere.r;
@@ -12,8 +13,10 @@ int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], c
         if (phase[a] != 1) continue;
         float x = p[0][a] + v[0][a] * dt, y = p[1][a] + v[1][a] * dt, z = p[2][a] + v[2][a] * dt;
         p[0][a] = x, p[1][a] = y, p[2][a] = z;
-        float dx = x - sphere.c[0], dy = y - sphere.c[1], dz = z - sphere.c[2];
-        if (dx * dx + dy * dy + dz * dz < r2) entered[a] = 1, count++;
+        float dx = x - sphere.c[0], dy = y - sphere.c[1], dz = z - sphere.c[2], g[3];
+        int inside = target_sdf ? fm_sdf_sample(target_sdf, x, y, z, g) < switch_distance
+                                : dx * dx + dy * dy + dz * dz < r2;
+        if (inside) entered[a] = 1, count++;
     }
     return count;
 }

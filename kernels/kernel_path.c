@@ -16,6 +16,22 @@ static int32_t nearest_key(const fm_path_view *path, float x, float y, float z)
     return best;
 }
 
+/* FM §5.1 path width: pull back toward segment Q_i Q_{i+1} when farther than half_width. */
+static void add_path_attraction(const fm_path_view *path, int32_t i, float x, float y, float z,
+                                float *const v[3], int64_t a)
+{
+    float q[3] = {path->q[0][i], path->q[1][i], path->q[2][i]};
+    float e[3] = {path->q[0][i + 1] - q[0], path->q[1][i + 1] - q[1], path->q[2][i + 1] - q[2]};
+    float len2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+    float s = len2 > 0 ? ((x - q[0]) * e[0] + (y - q[1]) * e[1] + (z - q[2]) * e[2]) / len2 : 0;
+    s = s < 0 ? 0 : s > 1 ? 1 : s;
+    float d[3] = {q[0] + s * e[0] - x, q[1] + s * e[1] - y, q[2] + s * e[2] - z};
+    float dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (dist <= path->half_width) return;
+    float pull = path->attraction * (dist - path->half_width) / dist;
+    for (int k = 0; k < 3; k++) v[k][a] += pull * d[k];
+}
+
 void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3],
                                const uint8_t *phase, int64_t begin, int64_t end, float speed,
                                float *const v[3])
@@ -33,5 +49,6 @@ void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3]
             f[0] *= inv, f[1] *= inv, f[2] *= inv;
         }
         for (int k = 0; k < 3; k++) v[k][a] = speed * f[k];
+        if (path->half_width > 0 && i < last) add_path_attraction(path, i, x, y, z, v, a);
     }
 }

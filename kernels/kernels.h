@@ -4,6 +4,8 @@
 #ifndef FM_KERNELS_H
 #define FM_KERNELS_H
 
+#include "kernel_sdf.h"
+
 #include <stdint.h>
 
 /* Key points Q_i and unit directions f_i of the global path (FM eq 3), SoA. */
@@ -11,6 +13,8 @@ typedef struct fm_path_view {
     const float *q[3];
     const float *f[3];
     int32_t count;
+    float half_width;   /* path width / 2; 0 = no width constraint */
+    float attraction;   /* pull speed per unit of distance beyond half_width, 1/s */
 } fm_path_view;
 
 typedef struct fm_sphere_view {
@@ -20,15 +24,20 @@ typedef struct fm_sphere_view {
 
 /* FM eq 3 weighted by omega1 (eq 6): v = omega1 * speed0 * f_i, i = the nearest key point, for
  * agents in phase 1; the last key point Q_{m+1} = C_T has no f, agents nearest it head for C_T.
+ * With a path width (FM §5.1), an agent farther than half_width from the path segment at its
+ * nearest key point also gets attraction * (excess distance) toward the path.
  * Other agents' velocities are left untouched. */
 void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3],
                                const uint8_t *phase, int64_t begin, int64_t end, float speed,
                                float *const v[3]);
 
 /* Phase 1 integration x += v dt, then the phase switch test (FM §5.5): entered[i] = 1 if a flying
- * agent is now inside the target's bounding sphere. Returns how many entered. */
+ * agent is now inside the target's bounding sphere, or, when target_sdf is not NULL (beyond the
+ * paper, §8), closer to the target than switch_distance by the target's own signed distance.
+ * Returns how many entered. */
 int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
                                    int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                   const fm_sdf_view *target_sdf, float switch_distance,
                                    uint8_t *entered);
 
 /* Phase 2 (FM eq 9): straight flight at speed0 from p2 to the target centroid, evaluated in closed
@@ -38,5 +47,15 @@ int64_t fm_kernel_homing(float *const p[3], float *const v[3], uint8_t *phase,
                          const int64_t *target, const float *const tgt_c[3],
                          const float *const p2[3], const float *t2, const float *tf,
                          int64_t begin, int64_t end, double time);
+
+/* Phase 2 with obstacle avoidance (beyond the paper, §8): the straight flight of eq 9 becomes a
+ * steered one. Velocity: speed0 toward the target centroid (the avoidance kernel may then bend it);
+ * move: x += v dt, arriving when the target is within one step. Returns arrivals. */
+void fm_kernel_homing_aim(const float *const p[3], float *const v[3], const uint8_t *phase,
+                          const int64_t *target, const float *const tgt_c[3], int64_t begin,
+                          int64_t end, float speed0);
+int64_t fm_kernel_homing_steered(float *const p[3], const float *const v[3], uint8_t *phase,
+                                 const int64_t *target, const float *const tgt_c[3], int64_t begin,
+                                 int64_t end, float dt);
 
 #endif

@@ -14,6 +14,13 @@ static void report(fm_progress_fn progress, void *user, const char *stage, doubl
     if (progress) progress(stage, fraction, user);
 }
 
+typedef struct prep_scratch {
+    fm_mesh src_mesh, dst_mesh;
+    fm_tets src, dst;
+    fm_path path;
+    int64_t *d1, *d2;
+} prep_scratch;
+
 /* Prefixes err's message with the scene key that named the mesh ("source.mesh: ..."). */
 static fm_status name_key(fm_status st, const char *key, fm_error *err)
 {
@@ -133,6 +140,80 @@ static fm_status bounding_sphere(fm_model *m, const fm_mesh *target, fm_error *e
     return FM_OK;
 }
 
+/* R_X of FM eq 8: the radius of each source tet's minimal bounding sphere, at rest. */
+static fm_status tet_radii(fm_model *m, float *max_radius, fm_error *err)
+{
+    m->src_radius = fm_alloc(sizeof(float) * (size_t)m->n);
+    if (!m->src_radius) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+    *max_radius = 0;
+    for (int64_t a = 0; a < m->n; a++) {
+        double pts[12], c[3], r;
+        for (int i = 0; i < 12; i++) pts[i] = m->src_rel[12 * a + i];
+        if (fm_min_sphere(pts, 4, (uint64_t)a, c, &r) != 0) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        m->src_radius[a] = (float)r;
+        if ((float)r > *max_radius) *max_radius = (float)r;
+    }
+    return FM_OK;
+}
+
+static void grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count)
+{
+    for (int64_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
+}
+
+/* The scene's extent (source, target, path), padded: the style-field grid spans it. */
+static void scene_bounds(fm_model *m, const prep_scratch *s)
+{
+    for (int k = 0; k < 3; k++) m->scene_lo[k] = INFINITY, m->scene_hi[k] = -INFINITY;
+    grow_bounds(m->scene_lo, m->scene_hi, s->src_mesh.v, s->src_mesh.nv);
+    grow_bounds(m->scene_lo, m->scene_hi, s->dst_mesh.v, s->dst_mesh.nv);
+    grow_bounds(m->scene_lo, m->scene_hi, s->path.q, s->path.count);
+    double pad = 0;
+    for (int k = 0; k < 3; k++) pad = fmax(pad, 0.15 * (m->scene_hi[k] - m->scene_lo[k]));
+    for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
+}
+
+/* Loads, checks and places the obstacle meshes; builds d_t (FM §5.3) with a band covering k_a
+ * plus the largest tet radius, so the look-ahead of eq 8 always reads real distances. */
+static fm_status build_obstacles(fm_model *m, float max_radius, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    int count = def->obstacle_count;
+    fm_mesh *meshes = calloc((size_t)count, sizeof *meshes);
+    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles");
+    fm_status st = FM_OK;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int i = 0; i < count && st == FM_OK; i++) {
+        char key[48];
+        snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
+        st = name_key(fm_mesh_load(def->obstacles[i].path, &meshes[i], err), key, err);
+        if (st == FM_OK) st = name_key(fm_mesh_check_closed(&meshes[i], def->obstacles[i].path, err), key, err);
+        if (st == FM_OK) fm_mesh_place(&meshes[i], &def->obstacles[i]), grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
+    }
+    if (st == FM_OK) {
+        double reach = def->k_a + max_radius, extent = 0;
+        for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
+        double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
+        m->obstacles = fm_obstacles_build(meshes, count, voxel, reach + 2 * voxel, err);
+        if (!m->obstacles) st = err ? err->status : FM_ERR_INPUT;
+    }
+    for (int i = 0; i < count; i++) fm_mesh_free(&meshes[i]);
+    free(meshes);
+    return st;
+}
+
+/* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
+static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *err)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
+    grow_bounds(lo, hi, target->v, target->nv);
+    for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);
+    double voxel = extent / 160, band = fabs(m->def.switch_distance) + 3 * voxel;
+    m->target_sdf = fm_obstacles_build(target, 1, voxel, band, err);
+    return m->target_sdf ? FM_OK : name_key(err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
+}
+
 static void set_timing(fm_model *m)
 {
     double frame = 1.0 / m->def.frame_rate;
@@ -144,13 +225,6 @@ static void set_timing(fm_model *m)
     m->info.steps_per_frame = m->steps_per_frame;
     m->info.launch_rate = m->launch_rate;
 }
-
-typedef struct prep_scratch {
-    fm_mesh src_mesh, dst_mesh;
-    fm_tets src, dst;
-    fm_path path;
-    int64_t *d1, *d2;
-} prep_scratch;
 
 static void free_scratch(prep_scratch *s)
 {
@@ -190,6 +264,13 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     store_targets(m, &s->dst, s->d2);
     if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
     if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
+    scene_bounds(m, s);
+    float max_radius = 0;
+    if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
+    m->max_radius = max_radius;
+    report(progress, user, "obstacles", 0.9);
+    if (def->obstacle_count > 0 && (st = build_obstacles(m, max_radius, err)) != FM_OK) return st;
+    if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
     set_timing(m);
     report(progress, user, "ready", 1.0);
     return FM_OK;
@@ -218,7 +299,9 @@ fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void 
 void fm_model_destroy(fm_model *m)
 {
     if (!m) return;
-    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f);
+    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius);
+    if (m->obstacles) fm_obstacles_destroy(m->obstacles);
+    if (m->target_sdf) fm_obstacles_destroy(m->target_sdf);
     for (int k = 0; k < 3; k++) {
         fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
         fm_free(m->key_q[k]), fm_free(m->key_f[k]);

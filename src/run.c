@@ -61,18 +61,41 @@ static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, 
     return st;
 }
 
+void fm_run_stats_free(fm_run_stats *stats)
+{
+    free(stats->mde_fraction);
+    stats->mde_fraction = NULL;
+}
+
+/* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
+static void record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
+                       int64_t *frames_with_flyers)
+{
+    int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
+    double f = flying > 0 ? (double)mde / (double)flying : NAN;
+    stats->mde_fraction[stats->frames - 2] = f;
+    if (flying > 0) stats->mde_fraction_mean += f, ++*frames_with_flyers;
+    *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
+}
+
 fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
                  void *user, fm_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
     float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    if (!verts) return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    stats->mde_fraction = malloc(sizeof(double) * (size_t)m->def.frame_limit);
+    if (!verts || !stats->mde_fraction) {
+        fm_free(verts), fm_run_stats_free(stats);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    }
+    int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps, frames_with_flyers = 0;
     fm_status st = emit_frame(m, s, verts, cache, stats, err);
     while (st == FM_OK && s->count[FM_PHASE_ARRIVED] < s->n && stats->frames < m->def.frame_limit) {
         double t0 = fm_seconds();
         for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
         stats->simulate_seconds += fm_seconds() - t0;
         st = emit_frame(m, s, verts, cache, stats, err);
+        record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers);
         if (progress) {
             fm_state_info info = fm_state_get_info(s);
             progress(&info, stats->frames - 1, user);
@@ -84,6 +107,8 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
     stats->final_max_vertex_error = max_vertex_error(m, s, verts);
     stats->target_tets_filled_once = each_target_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
+    stats->mde_fraction_mean = frames_with_flyers ? stats->mde_fraction_mean / (double)frames_with_flyers : 0.0;
+    stats->min_obstacle_clearance = s->min_clearance;
     fm_free(verts);
     return st;
 }

@@ -127,7 +127,7 @@ static const char *const FIELD_NAMES[] = {"curl_noise", "wind", "gravity", "vort
 static const char *const FIELD_KEYS[] = {" type gain scale ", " type direction speed turbulence scale period ",
                                          " type direction speed ", " type center axis strength "};
 
-static fm_field_def default_field(fm_field_kind kind)
+fm_field_def fm_default_field_def(fm_field_kind kind)
 {
     fm_field_def f = {.kind = kind, .gain = 1, .scale = 1, .speed = 1, .period = 1, .strength = 1};
     f.direction[kind == FM_FIELD_GRAVITY ? 2 : 0] = kind == FM_FIELD_GRAVITY ? -1 : 1;
@@ -370,7 +370,7 @@ static fm_status read_fields(where *w, const param *p, const json_t *v, fm_scene
             w->label[0] = 0;
             w->depth--;
         }
-        def->fields[i] = default_field((fm_field_kind)kind);
+        def->fields[i] = fm_default_field_def((fm_field_kind)kind);
         if (st == FM_OK) st = read_element(w, e, FIELD_PARAMS, (int)(sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0]),
                                            &def->fields[i], label, FIELD_KEYS[kind], def);
         w->depth--;

@@ -3,6 +3,9 @@
 #define FM_SIM_H
 
 #include "fm_internal.h"
+#include "fields.h"
+#include "grid.h"
+#include "obstacles.h"
 
 #include <stdint.h>
 
@@ -24,6 +27,11 @@ struct fm_model {
     int32_t key_count;
     float sphere_c[3];
     float sphere_r;
+    float *src_radius;       /* R_X at rest: radius of each source tet's minimal bounding sphere */
+    float max_radius;        /* the largest R_X */
+    fm_obstacles *obstacles; /* FM §5.3 d_t (OpenVDB grid + Embree); NULL without obstacles */
+    fm_obstacles *target_sdf;/* the target's own signed distance, for FM_SWITCH_DISTANCE */
+    double scene_lo[3], scene_hi[3]; /* bounds of source, target and path: the field grid spans them */
     double dt;
     int32_t steps_per_frame;
     double launch_rate;
@@ -34,6 +42,8 @@ enum { FM_MORPH_FLOATS = 4 }; /* rotation axis n (3) and angle theta of A = RS *
 
 typedef struct block_counts {
     int64_t entered, arrived, fallbacks;
+    int64_t flying, mde;      /* agents in phase 1, and of those the ones MDE pushed */
+    float clearance;          /* smallest d_t - R_X in phase 1 */
 } block_counts;
 
 /* Everything the step mutates. Arrays are 64-byte aligned and indexed by agent id. */
@@ -58,6 +68,15 @@ struct fm_state {
     int64_t count[4];        /* agents per phase */
     int64_t morph_fallbacks;
     block_counts *blocks;    /* per-block scratch, one per FM_BLOCK agents */
+    fm_fields *fields;       /* style fields (FM §5.2), NULL without any; owns the baked grid */
+    fm_grid grid;            /* neighbour grid for MDE (FM §5.4), built when d_min > 0 */
+    int grid_ready;          /* grid initialised (to be freed) */
+    uint8_t *member;         /* scratch: flying this step (the grid's members) */
+    float *vla[3];           /* scratch: MDE velocities */
+    uint8_t *mde_needed;     /* scratch */
+    int64_t mde_agent_steps; /* since the last frame: phase-1 agent-steps that needed MDE ... */
+    int64_t flying_agent_steps; /* ... out of all phase-1 agent-steps */
+    float min_clearance;     /* smallest d_t - R_X seen in phase 1 (INFINITY without obstacles) */
 };
 
 /* morph.c */

@@ -1,6 +1,7 @@
 /* The agent store (structure of arrays) and the frame: every tet's four vertices (FM §6). */
 #include "sim.h"
 
+#include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,7 +24,28 @@ static int alloc_arrays(fm_state *s)
     ok &= (s->morph_safe = fm_alloc(n)) != NULL;
     ok &= (s->entered = fm_alloc(n)) != NULL;
     ok &= (s->blocks = fm_alloc(sizeof(block_counts) * (n / FM_BLOCK + 1))) != NULL;
+    ok &= (s->member = fm_alloc(n)) != NULL;
+    ok &= (s->mde_needed = fm_alloc(n)) != NULL;
+    for (int k = 0; k < 3; k++) ok &= (s->vla[k] = fm_alloc(sizeof(float) * n)) != NULL;
     return ok;
+}
+
+/* The parts of the store only some scenes need: style fields and the MDE grid. */
+static fm_status create_velocity_model(const fm_model *m, fm_state *s, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    if (def->field_count > 0) {
+        int baked = def->field_grid[0] > 0 && def->field_grid[1] > 0 && def->field_grid[2] > 0;
+        s->fields = fm_fields_create(def->fields, def->field_count, def->seed, baked ? def->field_grid : NULL,
+                                     m->scene_lo, m->scene_hi, err);
+        if (!s->fields) return err ? err->status : FM_ERR_INPUT;
+    }
+    if (def->d_min > 0) {
+        fm_status st = fm_grid_init(&s->grid, s->n, err);
+        s->grid_ready = st == FM_OK;
+        return st;
+    }
+    return FM_OK;
 }
 
 fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
@@ -40,9 +62,14 @@ fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
         return NULL;
     }
+    if (create_velocity_model(m, s, err) != FM_OK) {
+        fm_state_destroy(s);
+        return NULL;
+    }
     for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
     for (int64_t a = 0; a < s->n; a++) s->target[a] = -1;
     s->count[FM_PHASE_WAITING] = s->n;
+    s->min_clearance = INFINITY;
     return s;
 }
 
@@ -52,13 +79,18 @@ void fm_state_destroy(fm_state *s)
     for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
     fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
     fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
-    fm_free(s->blocks);
+    fm_free(s->blocks), fm_free(s->member), fm_free(s->mde_needed);
+    for (int k = 0; k < 3; k++) fm_free(s->vla[k]);
+    if (s->fields) fm_fields_destroy(s->fields);
+    if (s->grid_ready) fm_grid_free(&s->grid);
     free(s);
 }
 
 fm_state_info fm_state_get_info(const fm_state *s)
 {
-    fm_state_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks};
+    fm_state_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks,
+                          .flying_agent_steps = s->flying_agent_steps, .mde_agent_steps = s->mde_agent_steps,
+                          .min_obstacle_clearance = s->min_clearance};
     memcpy(info.count, s->count, sizeof info.count);
     info.all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     return info;

@@ -2,19 +2,24 @@
  *
  * The pipeline, in order:
  *   1. launch       agents whose launch time has come leave the source, in D1 order (eq 4)
- *   2. velocities   phase 1: V_grn = omega1 * V_g (eqs 3, 6)
- *                   [the velocity-model issue adds here: style fields V_l (eqs 5-6), the obstacle
- *                    velocity V_oa with the look-ahead test (eqs 7-8) and MDE V_la (§5.4) on a
- *                    neighbour grid rebuilt before this stage]
- *   3. integrate    phase 1 agents move; those now inside the target's bounding sphere are flagged
- *   4. homing       phase 2 agents move on their straight line (eq 9) and may arrive
- *   5. hand-out     flagged agents take the next target tet in D2 order, in agent-id order (serial)
+ *   2. prepare      the style-field grid for this time (if baked and time-varying); the MDE
+ *                   neighbour grid over the flying agents (counting sort)
+ *   3. velocities   phase 1: V_grn = omega1 V_g (eq 3, with the path-width pull) + omega2 V_l
+ *                   (eqs 5-6); the look-ahead test and V_oa (eqs 7-8); plus V_la from MDE (§5.4).
+ *                   Phase 2 with avoidance on: aimed at the target, then eqs 7-8.
+ *   4. move         phase 1 integrates and tests the phase switch; phase 2 flies its straight
+ *                   line in closed form (eq 9), or integrates when steered; arrivals
+ *   5. hand-out     agents that entered phase 2 take the next target tet in D2 order, in
+ *                   agent-id order (serial)
  *   6. morph setup  each new phase-2 agent gets its correspondence and A = RS (§6)
- * Stages 2-4 and 6 run over fixed blocks of agents on OpenMP threads; every agent writes only
- * its own entries and per-block counts are combined in block order, so the result is the same
- * for any thread count. */
+ * Stages 3, 4 and 6 run over fixed blocks of agents on OpenMP threads. Stage 3 only reads
+ * positions and stage 4 only moves an agent itself, with a barrier between them, so every agent
+ * sees the same neighbours whatever the thread count; per-block counts are combined in block
+ * order. */
 #include "sim.h"
 #include "kernels.h"
+#include "kernel_avoid.h"
+#include "kernel_mde.h"
 
 #include <math.h>
 
@@ -28,18 +33,80 @@ static void launch_due_agents(const fm_model *m, fm_state *s)
     s->launched = FM_MAX(s->launched, due);
 }
 
+/* Exact signed distance for the avoidance kernel (Embree through fm_obstacles_closest). */
+static double exact_distance(const void *ctx, const double p[3], double normal[3])
+{
+    return fm_obstacles_closest((const fm_obstacles *)ctx, p, NULL, normal);
+}
+
+/* d_t from the grid, but exact (Embree) wherever the eq 8 look-ahead decides contact: within the
+ * largest tet radius plus two voxels of the surface, since the grid errs by up to a voxel there. */
+static fm_obstacle_view obstacle_view(const fm_model *m)
+{
+    fm_sdf_view sdf = fm_obstacles_sdf(m->obstacles);
+    return (fm_obstacle_view){sdf, (float)m->def.k_a, (float)m->def.speed0, exact_distance, m->obstacles,
+                              m->max_radius + 2.0f * sdf.voxel};
+}
+
+/* Stage 2: the neighbour grid over this step's flying agents. */
+static void build_neighbour_grid(const fm_model *m, fm_state *s)
+{
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
+    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->n, (float)m->def.d_min, s->threads);
+}
+
+/* Stage 3 for one block: velocities from positions at the start of the step. */
+static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_t end, block_counts *bc)
+{
+    const fm_scene_def *def = &m->def;
+    const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]}, {m->key_f[0], m->key_f[1], m->key_f[2]},
+                               m->key_count, (float)(0.5 * def->path_width), (float)def->path_attraction};
+    const float *const *p = (const float *const *)s->p;
+    fm_kernel_global_velocity(&path, p, s->phase, begin, end, (float)(def->omega1 * def->speed0), s->v);
+    if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
+    bc->clearance = INFINITY;
+    if (m->obstacles) {
+        const fm_obstacle_view o = obstacle_view(m);
+        const fm_radius_view r = {m->src_radius, (float)def->shrink, (float)def->shrink_time, m->launch_rate};
+        bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, (float)m->dt);
+        if (def->avoid_in_phase2) {
+            fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, begin, end, (float)def->speed0);
+            fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, (float)m->dt);
+        }
+    }
+    bc->flying = 0;
+    for (int64_t a = begin; a < end; a++) bc->flying += s->phase[a] == FM_PHASE_FLYING;
+    bc->mde = 0;
+    if (def->d_min > 0) {
+        float push = (float)(def->mde_speed > 0 ? def->mde_speed : def->speed0);
+        bc->mde = fm_kernel_mde(&s->grid, p, s->member, begin, end, (float)def->d_min, push, s->vla, s->mde_needed);
+        for (int64_t a = begin; a < end; a++)
+            if (s->member[a]) s->v[0][a] += s->vla[0][a], s->v[1][a] += s->vla[1][a], s->v[2][a] += s->vla[2][a];
+    }
+    if (m->obstacles) {
+        const fm_obstacle_view o = obstacle_view(m);
+        const fm_radius_view r = {m->src_radius, (float)def->shrink, (float)def->shrink_time, m->launch_rate};
+        fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, (float)m->dt);
+    }
+}
+
+/* Stage 4 for one block: each agent moves only itself. */
 static void move_block(const fm_model *m, fm_state *s, int64_t begin, int64_t end, double t_end,
                        block_counts *bc)
 {
-    const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]},
-                               {m->key_f[0], m->key_f[1], m->key_f[2]}, m->key_count};
     const fm_sphere_view sphere = {{m->sphere_c[0], m->sphere_c[1], m->sphere_c[2]}, m->sphere_r};
-    const float speed = (float)(m->def.omega1 * m->def.speed0);
-    fm_kernel_global_velocity(&path, (const float *const *)s->p, s->phase, begin, end, speed, s->v);
-    bc->entered = fm_kernel_integrate_flying(s->p, (const float *const *)s->v, s->phase, begin, end,
-                                             (float)m->dt, sphere, s->entered);
-    bc->arrived = fm_kernel_homing(s->p, s->v, s->phase, s->target, (const float *const *)m->tgt_c,
-                                   (const float *const *)s->p2, s->t2, s->tf, begin, end, t_end);
+    fm_sdf_view target_sdf;
+    if (m->target_sdf) target_sdf = fm_obstacles_sdf(m->target_sdf);
+    const float *const *v = (const float *const *)s->v, *const *tgt_c = (const float *const *)m->tgt_c;
+    bc->entered = fm_kernel_integrate_flying(s->p, v, s->phase, begin, end, (float)m->dt, sphere,
+                                             m->target_sdf ? &target_sdf : NULL,
+                                             (float)m->def.switch_distance, s->entered);
+    if (m->obstacles && m->def.avoid_in_phase2)
+        bc->arrived = fm_kernel_homing_steered(s->p, v, s->phase, s->target, tgt_c, begin, end, (float)m->dt);
+    else
+        bc->arrived = fm_kernel_homing(s->p, s->v, s->phase, s->target, tgt_c, (const float *const *)s->p2,
+                                       s->t2, s->tf, begin, end, t_end);
 }
 
 /* Stage 5 (FM §5.5): the k-th agent to enter phase 2 takes target slot k (D2 order). */
@@ -87,11 +154,16 @@ void fm_step(const fm_model *m, fm_state *s)
     const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
     block_counts *bc = s->blocks;
     launch_due_agents(m, s);
+    if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
+    if (m->def.d_min > 0) build_neighbour_grid(m, s);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
-        bc[b] = (block_counts){0, 0, 0};
-        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), t_end, &bc[b]);
+        bc[b] = (block_counts){0, 0, 0, 0, 0, INFINITY};
+        velocity_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), &bc[b]);
     }
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t b = 0; b < blocks; b++)
+        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), t_end, &bc[b]);
     hand_out_targets(m, s, bc, blocks, t_end);
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
     for (int64_t b = 0; b < blocks; b++)
@@ -101,6 +173,9 @@ void fm_step(const fm_model *m, fm_state *s)
         s->count[FM_PHASE_HOMING] += bc[b].entered - bc[b].arrived;
         s->count[FM_PHASE_ARRIVED] += bc[b].arrived;
         s->morph_fallbacks += bc[b].fallbacks;
+        s->flying_agent_steps += bc[b].flying;
+        s->mde_agent_steps += bc[b].mde;
+        s->min_clearance = fminf(s->min_clearance, bc[b].clearance);
     }
     s->time = t_end;
     s->step++;

@@ -42,6 +42,7 @@ static void run_to_cache(int threads, const char *path, fm_run_stats *rs)
     fm_cache_writer *w = fm_cache_writer_create(path, (uint64_t)fm_model_get_info(model).agents, 24, 3, &err);
     ENSURE(state && w);
     ENSURE_MSG(fm_run(model, state, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
+    fm_run_stats_free(rs);
     ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
     fm_state_destroy(state);
 }

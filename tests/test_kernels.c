@@ -9,7 +9,7 @@ static const float FX[3] = {1, 0, 0}, FY[3] = {0, 1, 0}, FZ[3] = {0, 0, 0};
 
 static void test_global_velocity_follows_nearest_key_point(void)
 {
-    const fm_path_view path = {{QX, QY, QZ}, {FX, FY, FZ}, 3};
+    const fm_path_view path = {{QX, QY, QZ}, {FX, FY, FZ}, 3, 0, 0};
     float x[5] = {1, 9, 11, 12, 3}, y[5] = {1, 1, 2, 13, 0}, z[5] = {0, 0, 0, 0, 5};
     float vx[5] = {7, 7, 7, 7, 7}, vy[5] = {7, 7, 7, 7, 7}, vz[5] = {7, 7, 7, 7, 7};
     uint8_t phase[5] = {1, 1, 1, 1, 0}; /* the last agent is waiting: untouched */
@@ -33,7 +33,7 @@ static void test_integrate_flags_sphere_entry(void)
     float *p[3] = {x, y, z};
     const float *v[3] = {vx, vy, vz};
     fm_sphere_view sphere = {{3, 0, 0}, 1.5f};
-    int64_t n = fm_kernel_integrate_flying(p, v, phase, 0, 3, 0.25f, sphere, entered);
+    int64_t n = fm_kernel_integrate_flying(p, v, phase, 0, 3, 0.25f, sphere, NULL, 0, entered);
     ENSURE(x[0] == 2.5f && entered[0] == 1);  /* moved to 2.5: inside */
     ENSURE(x[1] == 0 && entered[1] == 0);     /* phase 2: not integrated here */
     ENSURE(x[2] == 7.5f && entered[2] == 0);  /* moved to 7.5: outside */
@@ -58,10 +58,64 @@ static void test_homing_closed_form_and_arrival(void)
     ENSURE(x[1] == 5 && phase[1] == 3); /* past tf: exactly at the target, arrived */
 }
 
+/* FM §5.1 path width: inside the width nothing changes; outside, a pull toward the path
+ * proportional to the excess distance. */
+static void test_path_width_attraction(void)
+{
+    const fm_path_view path = {{QX, QY, QZ}, {FX, FY, FZ}, 3, 1.0f, 2.0f}; /* width 2, attraction 2/s */
+    float x[2] = {3, 3}, y[2] = {0.5f, -4}, z[2] = {0, 0}, vx[2], vy[2], vz[2];
+    uint8_t phase[2] = {1, 1};
+    const float *p[3] = {x, y, z};
+    float *v[3] = {vx, vy, vz};
+    fm_kernel_global_velocity(&path, p, phase, 0, 2, 1.0f, v);
+    ENSURE(vx[0] == 1 && vy[0] == 0);          /* within the width: eq 3 only */
+    ENSURE(vx[1] == 1);
+    ENSURE_NEAR(vy[1], 2.0 * (4 - 1), 1e-5);   /* 3 units outside: pulled toward y = 0 at 6/s */
+}
+
+/* A one-voxel-per-unit SDF of the plane x = 5 (d = x - 5): the distance switch fires below the
+ * threshold instead of at the sphere. */
+static void test_distance_switch(void)
+{
+    float d[8 * 2 * 2];
+    for (int k = 0; k < 2; k++)
+        for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 8; i++) d[i + 8 * (j + 2 * k)] = (float)i - 5;
+    fm_sdf_view sdf = {d, {8, 2, 2}, {0, 0, 0}, 1.0f, 100.0f};
+    float x[2] = {3.6f, 4.5f}, y[2] = {0.5f, 0.5f}, z[2] = {0.5f, 0.5f}, vx[2] = {0, 0}, vy[2] = {0}, vz[2] = {0};
+    uint8_t phase[2] = {1, 1}, entered[2];
+    float *p[3] = {x, y, z};
+    const float *v[3] = {vx, vy, vz};
+    fm_sphere_view far_sphere = {{100, 100, 100}, 1};
+    int64_t n = fm_kernel_integrate_flying(p, v, phase, 0, 2, 0.1f, far_sphere, &sdf, -1.0f, entered);
+    ENSURE(n == 1 && entered[0] == 1 && entered[1] == 0); /* d = -1.4 < -1 enters; d = -0.5 does not */
+}
+
+/* Steered phase 2: aimed at the target at speed0; arrives when within one step. */
+static void test_steered_homing(void)
+{
+    float x[1] = {0}, y[1] = {0}, z[1] = {0}, vx[1], vy[1], vz[1];
+    float cx[1] = {3}, cy[1] = {4}, cz[1] = {0};
+    int64_t target[1] = {0};
+    uint8_t phase[1] = {2};
+    float *p[3] = {x, y, z}, *v[3] = {vx, vy, vz};
+    const float *tc[3] = {cx, cy, cz};
+    fm_kernel_homing_aim((const float *const *)p, v, phase, target, tc, 0, 1, 10.0f);
+    ENSURE_NEAR(vx[0], 6, 1e-5);
+    ENSURE_NEAR(vy[0], 8, 1e-5);
+    ENSURE(fm_kernel_homing_steered(p, (const float *const *)v, phase, target, tc, 0, 1, 0.25f) == 0);
+    ENSURE_NEAR(x[0], 1.5, 1e-5); /* moved 2.5 of the 5 units */
+    ENSURE(fm_kernel_homing_steered(p, (const float *const *)v, phase, target, tc, 0, 1, 0.25f) == 1);
+    ENSURE(x[0] == 3 && y[0] == 4 && phase[0] == 3);
+}
+
 int main(void)
 {
     RUN_TEST(test_global_velocity_follows_nearest_key_point);
     RUN_TEST(test_integrate_flags_sphere_entry);
     RUN_TEST(test_homing_closed_form_and_arrival);
+    RUN_TEST(test_path_width_attraction);
+    RUN_TEST(test_distance_switch);
+    RUN_TEST(test_steered_homing);
     return test_result();
 }

@@ -14,6 +14,7 @@
 #include <omp.h>
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -177,6 +178,47 @@ static void frame_progress(const fm_state_info *info, int64_t frame, void *user)
             (long long)info->count[2], 100 * done, now_seconds() - p->start);
 }
 
+static json_t *vec3_json(const double v[3])
+{
+    return json_pack("[fff]", v[0], v[1], v[2]);
+}
+
+/* The velocity-model settings of the run (FM Table I's parameters, grid and style columns). */
+static json_t *velocity_json(const fm_scene_def *def)
+{
+    static const char *const kinds[] = {"curl_noise", "wind", "gravity", "vortex"};
+    json_t *fields = json_array();
+    for (int i = 0; i < def->field_count; i++) {
+        const fm_field_def *f = &def->fields[i];
+        json_t *o = json_pack("{ss}", "type", kinds[f->kind]);
+        if (f->kind == FM_FIELD_CURL_NOISE) json_object_set_new(o, "gain", json_real(f->gain)), json_object_set_new(o, "scale", json_real(f->scale));
+        if (f->kind == FM_FIELD_WIND || f->kind == FM_FIELD_GRAVITY)
+            json_object_set_new(o, "direction", vec3_json(f->direction)), json_object_set_new(o, "speed", json_real(f->speed));
+        if (f->kind == FM_FIELD_WIND)
+            json_object_set_new(o, "turbulence", json_real(f->turbulence)), json_object_set_new(o, "scale", json_real(f->scale)),
+            json_object_set_new(o, "period", json_real(f->period));
+        if (f->kind == FM_FIELD_VORTEX)
+            json_object_set_new(o, "center", vec3_json(f->center)), json_object_set_new(o, "axis", vec3_json(f->axis)),
+            json_object_set_new(o, "strength", json_real(f->strength));
+        json_array_append_new(fields, o);
+    }
+    json_t *grid = def->field_grid[0] > 0 ? json_pack("[iii]", def->field_grid[0], def->field_grid[1], def->field_grid[2]) : json_null();
+    return json_pack("{sfsfsosososisfsfsbsfsfsfsfss}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
+                     "field_grid", grid, "field_evaluation", json_string(def->field_grid[0] > 0 ? "baked" : "direct"),
+                     "obstacles", def->obstacle_count, "k_a", def->k_a, "obstacle_voxel", def->obstacle_voxel,
+                     "avoid_in_phase2", def->avoid_in_phase2 != 0, "d_min", def->d_min, "mde_speed", def->mde_speed,
+                     "path_width", def->path_width, "path_attraction", def->path_attraction,
+                     "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere");
+}
+
+static json_t *mde_frames_json(const fm_run_stats *rs)
+{
+    json_t *a = json_array();
+    for (int64_t f = 0; f + 1 < rs->frames; f++)
+        json_array_append_new(a, isnan(rs->mde_fraction[f]) ? json_null() : json_real(rs->mde_fraction[f]));
+    return a;
+}
+
 static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
                        int threads, double preprocess_seconds, const char *cache_path)
 {
@@ -200,6 +242,11 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "target_tets_filled_once", json_boolean(rs->target_tets_filled_once));
     json_object_set_new(j, "inverted_tet_frames", json_integer(rs->inverted_tet_frames));
     json_object_set_new(j, "morph_fallbacks", json_integer(rs->morph_fallbacks));
+    json_object_set_new(j, "mde_fraction_mean", json_real(rs->mde_fraction_mean));
+    json_object_set_new(j, "mde_fraction_per_frame", mde_frames_json(rs));
+    json_object_set_new(j, "min_obstacle_clearance",
+                        isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
+    json_object_set_new(j, "velocity_model", velocity_json(def));
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
@@ -238,9 +285,10 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     if (show) fprintf(stderr, "\n");
     int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
     fm_state_destroy(state);
-    if (st != FM_OK) return fm_cache_writer_abort(cache), report(&err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return report(&err);
+    if (st != FM_OK) return fm_cache_writer_abort(cache), fm_run_stats_free(&rs), report(&err);
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(&rs), report(&err);
     int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path);
+    fm_run_stats_free(&rs);
     if (rc) return rc;
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi.agents, (long long)rs.frames,
            (long long)rs.steps, rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0);

@@ -79,6 +79,9 @@ typedef struct fm_field_def {
     double strength;      /* vortex: d of SCF eq 8, 1/s */
 } fm_field_def;
 
+/* A field of the given kind with the documented defaults (docs/scene.md). */
+fm_field_def fm_default_field_def(fm_field_kind kind);
+
 typedef enum fm_phase_switch {
     FM_SWITCH_SPHERE = 0,   /* FM §5.5: inside the target's minimal bounding sphere */
     FM_SWITCH_DISTANCE = 1  /* beyond the paper (§8): the target's own signed distance < switch_distance */
@@ -195,6 +198,9 @@ typedef struct fm_state_info {
     int64_t count[4];          /* agents per fm_phase */
     int all_arrived;
     int64_t morph_fallbacks;   /* agents whose correspondence needed the safe A(t) form */
+    int64_t flying_agent_steps;/* phase-1 agent-steps so far ... */
+    int64_t mde_agent_steps;   /* ... and those among them that MDE pushed (FM §5.4) */
+    double min_obstacle_clearance; /* smallest d_t - R_X seen in phase 1; +inf without obstacles */
 } fm_state_info;
 
 fm_state_info fm_state_get_info(const fm_state *state);
@@ -241,7 +247,13 @@ typedef struct fm_run_stats {
     double final_max_vertex_error;  /* last frame vs the target tets (ground truth, double) */
     int target_tets_filled_once;    /* every target tet taken by exactly one agent */
     int64_t morph_fallbacks;
+    double *mde_fraction;           /* per frame after frame 0: MDE agent-steps / phase-1 agent-steps,
+                                       NaN for frames with nobody in phase 1; free with fm_run_stats_free */
+    double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */
+    double min_obstacle_clearance;  /* smallest d_t - R_X in phase 1; +inf without obstacles */
 } fm_run_stats;
+
+void fm_run_stats_free(fm_run_stats *stats);
 
 /* Called after every frame; may be NULL. */
 typedef void (*fm_run_progress_fn)(const fm_state_info *info, int64_t frame, void *user);

@@ -1,0 +1,125 @@
+/* FM eqs 7-8: obstacle avoidance by sliding along the obstacle's level sets.
+ *   V_oa = (c / k_a) V_grn + (1 - c / k_a) D speed0      where c < k_a,  V_grn beyond,
+ * D the unit projection of V_grn on the plane normal to grad d_t (any unit vector on that plane,
+ * chosen deterministically, if the projection vanishes; we always add a small sideways nudge so
+ * nearly head-on agents do not stall in concave corners).
+ * Our reading: c = d_t - R_X, the clearance of the tet's bounding sphere, rather than the
+ * centroid's d_t, so a tet in contact (c = 0) moves only tangentially and its body never enters
+ * the obstacle; a tet that is already in (c < 0, e.g. pushed by MDE) is also moved back out along
+ * grad d_t at up to speed0. */
+#include "kernel_avoid.h"
+
+#include <math.h>
+
+/* Weight of the sideways nudge in D relative to |V_grn|: decides head-on cases (where the paper
+ * allows any direction) and barely turns glancing ones. */
+#define SIDE_BIAS 0.3f
+/* Contact keeps tets this many voxels clear of the surface, above float round-off. */
+#define CONTACT_MARGIN 0.02f
+
+float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z, float g[3])
+{
+    float d = fm_sdf_sample(&o->sdf, x, y, z, g);
+    if (o->exact && fabsf(d) < o->exact_band) {
+        double p[3] = {x, y, z}, n[3] = {0, 0, 0};
+        d = (float)o->exact(o->exact_ctx, p, n);
+        g[0] = (float)n[0], g[1] = (float)n[1], g[2] = (float)n[2];
+    }
+    float len = sqrtf(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (len > 0) g[0] /= len, g[1] /= len, g[2] /= len;
+    return d;
+}
+
+/* A unit vector perpendicular to the unit vector g, the same for the same g: horizontal (g x z)
+ * where possible, so flocks pass upright obstacles at the side rather than into the floor or a
+ * concave corner; `flip` reverses it, so odd and even agents go opposite ways round a head-on
+ * obstacle instead of piling up. */
+static void any_perpendicular(const float g[3], int flip, float out[3])
+{
+    out[0] = g[1], out[1] = -g[0], out[2] = 0; /* g x (0, 0, 1) */
+    float len = sqrtf(out[0] * out[0] + out[1] * out[1]);
+    if (len < 1e-3f) out[0] = 1, out[1] = 0, len = 1; /* g is vertical: any horizontal direction */
+    float sign = flip ? -1.0f : 1.0f;
+    for (int k = 0; k < 3; k++) out[k] *= sign / len;
+}
+
+/* Eq 7 at clearance c with unit gradient g: writes V_oa over vg in place. */
+static void slide_velocity(const fm_obstacle_view *o, float c, float dt, const float g[3], int flip, float vg[3])
+{
+    if (c >= o->k_a) return;
+    float w = c > 0 ? c / o->k_a : 0.0f, along = vg[0] * g[0] + vg[1] * g[1] + vg[2] * g[2];
+    float speed = sqrtf(vg[0] * vg[0] + vg[1] * vg[1] + vg[2] * vg[2]), side[3];
+    /* D: the projection of V_grn, nudged sideways so a nearly head-on agent does not stall */
+    any_perpendicular(g, flip, side);
+    float t[3];
+    for (int k = 0; k < 3; k++) t[k] = vg[k] - along * g[k] + SIDE_BIAS * speed * side[k];
+    float len = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    if (len > 1e-6f * (o->speed0 + 1e-30f)) t[0] /= len, t[1] /= len, t[2] /= len;
+    else t[0] = side[0], t[1] = side[1], t[2] = side[2];
+    float out = c < 0 ? fminf(-c / dt, o->speed0) : 0.0f; /* back out of the obstacle */
+    for (int k = 0; k < 3; k++) vg[k] = w * vg[k] + (1 - w) * t[k] * o->speed0 + out * g[k];
+}
+
+static float radius_now(const fm_radius_view *r, int64_t a, double time)
+{
+    double tau = time - (double)a / r->launch_rate;
+    double s = r->shrink_time > 0 ? tau / r->shrink_time : 1.0;
+    s = s < 0 ? 0 : s > 1 ? 1 : s;
+    return r->rest[a] * (float)(1.0 - (1.0 - r->shrink) * s);
+}
+
+float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                      float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                      int64_t end, double time, float dt)
+{
+    float clearance = INFINITY;
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
+        float rx = radius_now(r, a, time);
+        float d = fm_obstacle_distance(o, x, y, z, g);
+        clearance = fminf(clearance, d - rx);
+        float g_ahead[3];
+        float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
+        if (!(d_ahead < rx)) continue; /* eq 8, second case: V_syn */
+        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
+        v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
+    }
+    return clearance;
+}
+
+void fm_kernel_contact(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                       float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                       int64_t end, double time, float dt)
+{
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        float x = p[0][a], y = p[1][a], z = p[2][a], vv[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
+        float rx = radius_now(r, a, time);
+        float reach = sqrtf(vv[0] * vv[0] + vv[1] * vv[1] + vv[2] * vv[2]) * dt;
+        if (fm_sdf_sample(&o->sdf, x, y, z, g) - rx > 2 * reach + 2 * o->sdf.voxel) continue; /* far: cheap exit */
+        /* Project the end point out along grad d_t; a few passes, since sliding into a concave
+         * corner or past a thin feature meets another face. */
+        float target = rx + CONTACT_MARGIN * o->sdf.voxel; /* a hair outside, against round-off */
+        int inside = 1;
+        for (int pass = 0; pass < 3 && inside; pass++) {
+            float d_ahead = fm_obstacle_distance(o, x + vv[0] * dt, y + vv[1] * dt, z + vv[2] * dt, g);
+            inside = d_ahead < target;
+            float out = inside ? (target - d_ahead) / dt : 0.0f; /* however deep */
+            for (int k = 0; k < 3; k++) vv[k] += out * g[k];
+        }
+        if (inside) { /* still not clear: slide along the surface where the agent stands ... */
+            float gc[3], vt[3] = {v[0][a], v[1][a], v[2][a]};
+            fm_obstacle_distance(o, x, y, z, gc);
+            float into = vt[0] * gc[0] + vt[1] * gc[1] + vt[2] * gc[2];
+            for (int k = 0; k < 3; k++) vv[k] = vt[k] - (into < 0 ? into : 0) * gc[k];
+        }
+        /* ... shortening the step if need be (the agent is clear where it stands), down to none */
+        for (int halve = 0; halve < 8 && inside; halve++) {
+            inside = fm_obstacle_distance(o, x + vv[0] * dt, y + vv[1] * dt, z + vv[2] * dt, g) < target;
+            if (inside) vv[0] *= 0.5f, vv[1] *= 0.5f, vv[2] *= 0.5f;
+        }
+        if (inside) vv[0] = vv[1] = vv[2] = 0;
+        v[0][a] = vv[0], v[1][a] = vv[1], v[2][a] = vv[2];
+    }
+}

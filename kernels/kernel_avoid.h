@@ -1,0 +1,49 @@
+/* Obstacle avoidance (FM §5.3, eqs 7-8) over a signed distance grid, refined near the surface by
+ * an exact distance callback (Embree in the engine). */
+#ifndef FM_KERNEL_AVOID_H
+#define FM_KERNEL_AVOID_H
+
+#include "kernel_sdf.h"
+
+#include <stdint.h>
+
+typedef struct fm_obstacle_view {
+    fm_sdf_view sdf;      /* d_t: signed distance to the obstacles, negative inside */
+    float k_a;            /* influence range of eq 7 */
+    float speed0;
+    /* Exact signed distance and outward normal, used where |d_t| < exact_band (the grid is too
+     * coarse there); NULL to use the grid everywhere. Must be thread-safe. */
+    double (*exact)(const void *ctx, const double p[3], double normal[3]);
+    const void *exact_ctx;
+    float exact_band;
+} fm_obstacle_view;
+
+/* The tets' bounding radius R_X at a given moment: rest radius times the launch shrink. */
+typedef struct fm_radius_view {
+    const float *rest;    /* per agent: radius of the tet's minimal bounding sphere at rest */
+    float shrink;         /* FM §6 shrink factor and its duration */
+    float shrink_time;
+    double launch_rate;   /* agent a launched at a / launch_rate */
+} fm_radius_view;
+
+/* d_t and its unit gradient at (x, y, z): the grid, or the exact callback near the surface. */
+float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z, float g[3]);
+
+/* FM eq 8 for agents a in [begin, end) with phase[a] == phase_sel: with V_grn = v(a), if
+ * d_t(x + V_grn dt) < R_X the velocity becomes V_oa of eq 7, else it stays V_grn. Returns the
+ * smallest clearance d_t(x) - R_X over those agents (INFINITY if none). */
+float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                      float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                      int64_t end, double time, float dt);
+
+/* Contact (beyond the paper): after V_la is added (eq 8), an agent whose tet would end the step
+ * inside an obstacle (d_t(x + v dt) < R_X) is turned so that it ends the step at d_t = R_X,
+ * along grad d_t at that end point (up to three times, for concave corners), and if that does
+ * not clear it, its step is shortened (down to none: it is clear where it stands). Eq 7 slides along the surface
+ * at the agent's position, which a concave corner or an MDE push can still carry into the
+ * obstacle. */
+void fm_kernel_contact(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                       float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                       int64_t end, double time, float dt);
+
+#endif

@@ -1,0 +1,47 @@
+/* Minimum distance enforcement (FM §5.4) over the hash grid of src/grid.h. Same rules as
+ * kernels.h: a pure function over an agent range, no allocation, each agent writes only its own
+ * entries, so any split of the range across threads gives the same bits. */
+#ifndef FM_KERNEL_MDE_H
+#define FM_KERNEL_MDE_H
+
+#include "grid.h"
+
+#include <stdint.h>
+
+/* MDE by gathering: for each agent a in [begin, end) with member[a],
+ *
+ *     v_la(a) = sum over members b != a with |x_a - x_b| < d_min of
+ *               push * (1 - |x_a - x_b| / d_min) * unit(x_a - x_b)
+ *
+ * where "|x_a - x_b| < d_min" is the float test dx*dx + dy*dy + dz*dz < d_min*d_min. A pair whose
+ * dx*dx + dy*dy + dz*dz is 0 (coincident) gets magnitude `push` along fm_mde_coincident_dir of the
+ * two indices, + for the lower index and - for the higher. Every pair thus gets equal and opposite
+ * contributions (bit for bit). Writes (does not add) v_la, zero for agents with no close neighbour
+ * or not members, and needed[a] = 1 if the agent had at least one pair closer than d_min, else 0.
+ * Returns how many agents of the range needed it. d_min <= 0 turns MDE off (all zero).
+ *
+ * Requires g built from these p and member with cell >= d_min, and end <= the build's n. Walks the
+ * 27 cells around each agent (as 9 rows of 3 consecutive slots), skipping cells whose box is farther
+ * than d_min when cells are larger, and visiting a slot once even when hashing maps two of the
+ * cells to it. The sums are the same for any thread count and any split of the range. No
+ * allocation, no calls into the grid. */
+int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *member,
+                      int64_t begin, int64_t end, float d_min, float push,
+                      float *const v_la[3], uint8_t *needed);
+
+/* The direction a coincident pair (lo < hi) is pushed along: + for lo, - for hi. One of the 26
+ * directions of {-1,0,1}^3 \ {0}, chosen by a hash of the indices, normalized. */
+static inline void fm_mde_coincident_dir(int32_t lo, int32_t hi, float d[3])
+{
+    uint64_t h = (uint64_t)(uint32_t)lo * 0x9E3779B97F4A7C15ull ^ (uint64_t)(uint32_t)hi * 0xC2B2AE3D27D4EB4Full;
+    h ^= h >> 29;
+    h *= 0xBF58476D1CE4E5B9ull;
+    int c = (int)((h >> 32) % 26);
+    if (c >= 13) c++; /* skip (0,0,0) */
+    int dx = c % 3 - 1, dy = c / 3 % 3 - 1, dz = c / 9 - 1;
+    int nz = (dx != 0) + (dy != 0) + (dz != 0);
+    float s = nz == 1 ? 1.0f : nz == 2 ? 0.70710678f : 0.57735027f;
+    d[0] = (float)dx * s, d[1] = (float)dy * s, d[2] = (float)dz * s;
+}
+
+#endif

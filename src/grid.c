@@ -1,0 +1,176 @@
+/* The MDE hash grid: a deterministic two-level counting sort of agents by slot.
+ *
+ * Pass 1 (parallel over agent blocks): each member's slot, and per-block counts of coarse buckets
+ *         (a bucket is `fine` consecutive slots; counts fit in L1/L2, unlike per-slot histograms).
+ * Offsets: bucket by bucket, block by block, so block t's agents of a bucket follow block t-1's.
+ * Pass 2 (parallel over agent blocks): each block scatters its members, in index order, to its
+ *         part of their bucket in tmp: tmp is grouped by bucket and in index order inside one.
+ * Pass 3 (parallel over buckets): a counting sort of one bucket's agents by slot, stable, inside
+ *         the bucket's own part of start[] and quad[] (cache resident).
+ * Every write position follows from counts alone, so the result is the same for any thread count. */
+#include "grid.h"
+
+#include <assert.h>
+
+static void grid_zero(fm_grid *g)
+{
+    *g = (fm_grid){0};
+}
+
+fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err)
+{
+    grid_zero(g);
+    if (capacity < 0 || capacity > FM_GRID_MAX_CAPACITY)
+        return fm_fail(err, FM_ERR_INPUT, "grid capacity %lld out of range [0, %lld]", (long long)capacity,
+                       (long long)FM_GRID_MAX_CAPACITY);
+    int log2_table = 6;
+    while ((INT64_C(1) << log2_table) < 2 * capacity) log2_table++;
+    int64_t table = INT64_C(1) << log2_table;
+    /* slots per coarse bucket: 2048 (8 KB of counts), more for huge tables so that buckets stay
+     * <= 4096 (pass 2 then scatters to at most 4096 streams) */
+    int log2_fine = 11;
+    while (log2_fine < log2_table && (table >> log2_fine) > 4096) log2_fine++;
+    if (log2_fine > log2_table) log2_fine = log2_table;
+
+    g->capacity = capacity;
+    g->mask = (uint32_t)(table - 1);
+    g->log2_table = log2_table;
+    g->log2_fine = log2_fine;
+    g->coarse = (int32_t)(table >> log2_fine);
+    size_t cap = (size_t)(capacity > 0 ? capacity : 1);
+    g->start = fm_alloc(sizeof(int32_t) * (size_t)(table + 1));
+    g->quad = fm_alloc(sizeof(fm_grid_quad) * ((cap + FM_GRID_PAD + 3) / 4));
+    g->slot = fm_alloc(sizeof(uint32_t) * cap);
+    g->hist = fm_alloc(sizeof(int32_t) * (size_t)FM_GRID_MAX_BLOCKS * (size_t)g->coarse);
+    g->tmp = fm_alloc(sizeof(fm_grid_rec) * cap);
+    g->tmp_slot = fm_alloc(sizeof(uint32_t) * cap);
+    if (!g->start || !g->quad || !g->slot || !g->hist || !g->tmp || !g->tmp_slot) {
+        fm_grid_free(g);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a grid of %lld agents", (long long)capacity);
+    }
+    for (int64_t a = 0; a < capacity; a++) g->slot[a] = FM_GRID_NONE;
+    return FM_OK;
+}
+
+void fm_grid_free(fm_grid *g)
+{
+    fm_free(g->start);
+    fm_free(g->quad);
+    fm_free(g->slot);
+    fm_free(g->hist);
+    fm_free(g->tmp);
+    fm_free(g->tmp_slot);
+    grid_zero(g);
+}
+
+/* Slots of agents [lo, hi): members get theirs, the others FM_GRID_NONE; h counts coarse buckets. */
+static void slots_block(const fm_grid *g, const float *px, const float *py, const float *pz,
+                        const uint8_t *member, int64_t lo, int64_t hi, uint32_t *slot, int32_t *h)
+{
+    const fm_grid gl = *g; /* locals: the stores below cannot alias them */
+    const int log2_fine = gl.log2_fine;
+    for (int64_t a = lo; a < hi; a++) {
+        int32_t cx = fm_grid_coord(fm_grid_scaled(&gl, px[a]));
+        int32_t cy = fm_grid_coord(fm_grid_scaled(&gl, py[a]));
+        int32_t cz = fm_grid_coord(fm_grid_scaled(&gl, pz[a]));
+        uint32_t s = fm_grid_slot(&gl, cx, cy, cz);
+        if (member[a]) {
+            slot[a] = s;
+            h[s >> log2_fine]++;
+        } else {
+            slot[a] = FM_GRID_NONE;
+        }
+    }
+}
+
+void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
+                   int threads)
+{
+    assert(n >= 0 && n <= g->capacity);
+    assert(cell > 0);
+    g->cell = cell;
+    g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
+    if (threads < 1) threads = 1;
+
+    const int32_t coarse = g->coarse;
+    const int log2_fine = g->log2_fine;
+    const int64_t fine = INT64_C(1) << log2_fine;
+    /* agent blocks: at most one per thread, and not tiny */
+    int64_t nblocks = (n + 16383) / 16384;
+    if (nblocks > threads) nblocks = threads;
+    if (nblocks > FM_GRID_MAX_BLOCKS) nblocks = FM_GRID_MAX_BLOCKS;
+    if (nblocks < 1) nblocks = 1;
+    const int nthreads = (int)nblocks;
+    const float *px = p[0], *py = p[1], *pz = p[2];
+    uint32_t *slot = g->slot;
+    int32_t *hist = g->hist;
+
+    /* pass 1: slots and per-block bucket counts */
+#pragma omp parallel for num_threads(nthreads) schedule(static, 1)
+    for (int64_t t = 0; t < nblocks; t++) {
+        int64_t lo = n * t / nblocks, hi = n * (t + 1) / nblocks;
+        int32_t *h = hist + t * coarse;
+        for (int32_t c = 0; c < coarse; c++) h[c] = 0;
+        slots_block(g, px, py, pz, member, lo, hi, slot, h);
+    }
+    for (int64_t a = n; a < g->n; a++) slot[a] = FM_GRID_NONE; /* a larger previous build's tail */
+    g->n = n;
+
+    /* offsets: bucket-major, block-minor; hist becomes each block's first position per bucket */
+    int32_t run = 0;
+    for (int32_t c = 0; c < coarse; c++)
+        for (int64_t t = 0; t < nblocks; t++) {
+            int32_t k = hist[t * coarse + c];
+            hist[t * coarse + c] = run;
+            run += k;
+        }
+    const int32_t total = run;
+    g->count = total;
+
+    /* pass 2: scatter to buckets, each block in index order */
+    fm_grid_rec *tmp = g->tmp;
+    uint32_t *tmp_slot = g->tmp_slot;
+#pragma omp parallel for num_threads(nthreads) schedule(static, 1)
+    for (int64_t t = 0; t < nblocks; t++) {
+        int64_t lo = n * t / nblocks, hi = n * (t + 1) / nblocks;
+        int32_t *h = hist + t * coarse;
+        for (int64_t a = lo; a < hi; a++) {
+            uint32_t s = slot[a];
+            if (s == FM_GRID_NONE) continue;
+            int32_t k = h[s >> log2_fine]++;
+            tmp[k] = (fm_grid_rec){px[a], py[a], pz[a], (int32_t)a};
+            tmp_slot[k] = s;
+        }
+    }
+    /* after pass 2 the last block's offsets are the bucket ends */
+    const int32_t *ends = hist + (nblocks - 1) * coarse;
+
+    /* pass 3: per bucket, a stable counting sort by slot inside its part of start[] and the
+     * sorted arrays */
+    int32_t *start = g->start;
+    fm_grid_quad *quad = g->quad;
+    start[0] = 0;
+    int nthreads3 = threads;
+    if (nthreads3 > coarse) nthreads3 = coarse;
+    if (total < 16384) nthreads3 = 1;
+#pragma omp parallel for num_threads(nthreads3) schedule(static)
+    for (int32_t c = 0; c < coarse; c++) {
+        const int32_t kb = c > 0 ? ends[c - 1] : 0, ke = ends[c];
+        const int64_t s0 = (int64_t)c << log2_fine;
+        int32_t *cnt = start + s0 + 1; /* cnt[j]: slot s0 + j; start[s0] is the bucket before's */
+        for (int64_t j = 0; j < fine; j++) cnt[j] = 0;
+        for (int32_t k = kb; k < ke; k++) cnt[tmp_slot[k] - s0]++;
+        int32_t pos = kb;
+        for (int64_t j = 0; j < fine; j++) {
+            int32_t k = cnt[j];
+            cnt[j] = pos;
+            pos += k;
+        }
+        for (int32_t k = kb; k < ke; k++) {
+            int32_t d = cnt[tmp_slot[k] - s0]++;
+            fm_grid_quad *q = &quad[d >> 2];
+            q->x[d & 3] = tmp[k].x, q->y[d & 3] = tmp[k].y, q->z[d & 3] = tmp[k].z, q->i[d & 3] = tmp[k].i;
+        }
+        /* now cnt[j] = end of slot s0 + j = start of slot s0 + j + 1 */
+    }
+}

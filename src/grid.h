@@ -1,0 +1,113 @@
+/* A uniform hash grid over agent centroids for the MDE neighbour search (FM §5.4).
+ *
+ * Rebuilt every step by a counting sort: no linked lists, no allocation after fm_grid_init. Cells
+ * are cubes of edge `cell`; the integer cell coordinates (cx, cy, cz) are hashed into a power-of-two
+ * table of at least 2x the capacity. The hash keeps a row of cells together:
+ *
+ *     slot(cx, cy, cz) = (cx + row(cy, cz)) & mask
+ *
+ * so the three cells (cx-1 .. cx+1, cy, cz) are three consecutive slots (mod the table size) and
+ * their agents one contiguous range of the sorted arrays: a 27-cell neighbourhood is 9 ranges.
+ * Distinct cells can share a slot (the table is a hash), so a slot lists every agent of every cell
+ * hashed there: callers filter by distance.
+ *
+ * Agents are listed by slot, and inside a slot in increasing agent index, whatever the thread count:
+ * the whole grid (start, quad, slot) is bitwise the same for any `threads`.
+ *
+ * Limits: capacity <= 2^29 agents; cell coordinates are clamped to +-2^30 (points that far out, or
+ * NaN, land in the clamp cells and are merely listed there). */
+#ifndef FM_GRID_H
+#define FM_GRID_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+
+#define FM_GRID_NONE UINT32_MAX      /* slot[a] of an agent the last build did not list */
+#define FM_GRID_MAX_CAPACITY (INT64_C(1) << 29)
+#define FM_GRID_MAX_BLOCKS 64        /* agent blocks of the parallel build (more threads: idle) */
+#define FM_GRID_PAD 12               /* quad holds capacity + FM_GRID_PAD entries (SIMD tails) */
+#define FM_GRID_COORD_LIMIT 1073741824.0 /* 2^30 */
+
+/* The listed agents, 4 to a 64-byte line: entry k is lane k & 3 of quad k >> 2 (a copy of its
+ * centroid and its index). A run of a few agents is one or two cache lines, and SIMD loads of 4
+ * coordinates are aligned. */
+typedef struct fm_grid_quad {
+    float x[4], y[4], z[4];
+    int32_t i[4];
+} fm_grid_quad;
+
+/* Build scratch: one agent. */
+typedef struct fm_grid_rec {
+    float x, y, z;
+    int32_t i;
+} fm_grid_rec;
+
+typedef struct fm_grid {
+    int64_t capacity;      /* agents the arrays hold */
+    int64_t n;             /* agents a < n were considered by the last build */
+    int64_t count;         /* agents listed by the last build */
+    uint32_t mask;         /* table size - 1 */
+    int log2_table;        /* table size = 1 << log2_table, 6 .. 31 */
+    float cell;            /* cell edge of the last build (as requested) */
+    double inv_cell;       /* 1 / (cell * (1 + 2^-20)): see fm_grid_scaled */
+    int32_t *start;        /* table size + 1: slot s lists entries start[s] .. start[s+1]-1 */
+    fm_grid_quad *quad;    /* (capacity + FM_GRID_PAD) / 4: entries by slot, then by agent index */
+    uint32_t *slot;        /* capacity: each agent's slot, FM_GRID_NONE if it was not listed */
+
+    /* build scratch: a two-level counting sort (coarse buckets of 1 << log2_fine slots, then slots) */
+    int log2_fine;
+    int32_t coarse;        /* coarse buckets = table size >> log2_fine */
+    int32_t *hist;         /* FM_GRID_MAX_BLOCKS * coarse: per-block bucket counts, then offsets */
+    fm_grid_rec *tmp;      /* capacity: agents grouped by coarse bucket */
+    uint32_t *tmp_slot;    /* capacity: their slots */
+} fm_grid;
+
+fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err); /* all allocation is here */
+void fm_grid_free(fm_grid *g);                                       /* g may be zeroed or freed */
+
+/* Lists the agents a < n (n <= capacity) with member[a] != 0; the others get slot FM_GRID_NONE.
+ * cell > 0. threads: OpenMP threads for the parallel passes; the result does not depend on it. */
+void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
+                   int threads);
+
+/* The pieces a neighbourhood walk needs, shared with the build so both place a point alike. */
+
+/* Scaled coordinate x / cell, in double with the cell enlarged by 2^-20: two points whose float
+ * distance test passes for a d_min <= cell are then at most one cell apart on every axis. */
+static inline double fm_grid_scaled(const fm_grid *g, float x) { return (double)x * g->inv_cell; }
+
+/* floor(q) clamped to +-2^30 (NaN goes to -2^30); no libm call. */
+static inline int32_t fm_grid_coord(double q)
+{
+    if (!(q >= -FM_GRID_COORD_LIMIT)) q = -FM_GRID_COORD_LIMIT;
+    if (q > FM_GRID_COORD_LIMIT) q = FM_GRID_COORD_LIMIT;
+    int32_t t = (int32_t)q;
+    return t - ((double)t > q);
+}
+
+/* Row hash factors: row(cy, cz) = mix(cy * FM_GRID_HY ^ cz * FM_GRID_HZ) >> (32 - log2_table). */
+#define FM_GRID_HY 0x9E3779B1u
+#define FM_GRID_HZ 0x85EBCA77u
+
+static inline uint32_t fm_grid_row_mix(const fm_grid *g, uint32_t hy, uint32_t hz)
+{
+    uint32_t h = hy ^ hz;
+    h ^= h >> 15;
+    h *= 0x2C1B3C6Du;
+    h ^= h >> 12;
+    h *= 0x297A2D39u;
+    return h >> (32 - g->log2_table);
+}
+
+static inline uint32_t fm_grid_row(const fm_grid *g, int32_t cy, int32_t cz)
+{
+    return fm_grid_row_mix(g, (uint32_t)cy * FM_GRID_HY, (uint32_t)cz * FM_GRID_HZ);
+}
+
+static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, int32_t cz)
+{
+    return ((uint32_t)cx + fm_grid_row(g, cy, cz)) & g->mask;
+}
+
+#endif

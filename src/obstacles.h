@@ -1,0 +1,63 @@
+/* Obstacles (FM §5.3): the potential d_t as a dense signed-distance grid built with OpenVDB, and
+ * exact closest-point queries with an Embree BVH.
+ *
+ * Several obstacles form one solid, their union: the signed distance is the minimum over the
+ * obstacles of each one's signed distance (negative inside). Outside every obstacle that is the
+ * exact distance to the nearest obstacle triangle; inside overlapping obstacles the grid (OpenVDB
+ * removes the buried surfaces) and fm_obstacles_closest (the deepest containing obstacle) may
+ * differ in magnitude, never in sign. */
+#ifndef FM_OBSTACLES_H
+#define FM_OBSTACLES_H
+
+#include "kernel_sdf.h"
+#include "prep.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* The dense grid refused beyond this many voxels (2^27: 512 MiB of floats). */
+#define FM_OBSTACLE_MAX_VOXELS ((int64_t)1 << 27)
+
+typedef struct fm_obstacles fm_obstacles;
+
+/* meshes: count closed meshes in world space (every edge shared by exactly two triangles running
+   opposite ways; either orientation). Builds
+   (a) a signed distance grid (inside negative) with OpenVDB (meshToVolume, a narrow band of
+       ceil(band / voxel) + 1 voxels on each side), as one dense float array over the band's
+       bounding box plus a one-voxel border, voxel size `voxel` (> 0), far = band, values clamped
+       to [-far, far]; every node OpenVDB puts inside the band is then replaced by the exact signed
+       distance from (b), so the nodes are exact to float precision and only interpolation errs;
+       refuses with FM_ERR_INPUT if the dense grid would exceed FM_OBSTACLE_MAX_VOXELS, naming the
+       voxel size and suggesting a larger one;
+   (b) an Embree BVH over all triangles for exact closest-point queries.
+   NULL on failure, with err set. */
+fm_obstacles *fm_obstacles_build(const fm_mesh *meshes, int count, double voxel, double band, fm_error *err);
+void fm_obstacles_destroy(fm_obstacles *o); /* NULL is fine */
+/* The grid; valid until fm_obstacles_destroy. */
+fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
+
+/* Exact signed distance from p to the obstacles (negative inside), with rtcPointQuery and the
+   closest point computed in double. The sign comes from the angle-weighted pseudo-normal of the
+   closest feature (face, edge or vertex; Baerentzen & Aanaes 2005), which is exact for closed
+   meshes. closest (may be NULL) receives the closest surface point; normal (may be NULL) the unit
+   direction of increasing signed distance: sign * (p - closest) / |p - closest|, or the
+   pseudo-normal of the closest feature when p is on the surface. A non-finite p (or one beyond
+   1e30) gives NaN. The grid's value at p, when inside the band, seeds the search radius; the result
+   does not depend on it. Thread-safe: callable from OpenMP threads concurrently. */
+double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double closest[3], double normal[3]);
+
+/* Internal: obstacles_vdb.cpp, OpenVDB behind extern "C" (never throws). Builds the clamped dense
+   grid of the closed triangle soup (v: 3 doubles per vertex; tri: 3 indices per triangle) and
+   stores it in *d (allocated with fm_alloc; the caller frees it with fm_free), n and origin.
+   Refuses with FM_ERR_INPUT if it would exceed max_voxels. */
+#ifdef __cplusplus
+extern "C" {
+#endif
+fm_status fm_obstacles_vdb_grid(const double *v, int64_t nv, const int32_t *tri, int64_t nt,
+                                double voxel, double band, int64_t max_voxels, float **d,
+                                int32_t n[3], float origin[3], fm_error *err);
+#ifdef __cplusplus
+}
+#endif
+
+#endif
