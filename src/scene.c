@@ -313,6 +313,18 @@ static fm_status read_int3(where *w, const param *p, const json_t *v, int32_t *o
 
 static fm_status read_param(where *w, const param *p, const json_t *v, void *base, fm_scene_def *def);
 
+/* Reads member p->key of a list element, naming it "<label>.<key>" in messages. */
+static fm_status read_member(where *w, const char *label, const param *p, const json_t *v, void *base,
+                             fm_scene_def *def)
+{
+    w->steps[w->depth++] = (fm_json_step){p->key, 0};
+    snprintf(w->label, sizeof w->label, "%s.%s", label, p->key);
+    fm_status st = read_param(w, p, v, base, def);
+    w->label[0] = 0;
+    w->depth--;
+    return st;
+}
+
 /* Reads the keys of one list element (an object) into base through its table; unknown keys, and
  * keys not in `allowed` (" key key ... ", NULL = all), are errors. */
 static fm_status read_element(where *w, const json_t *obj, const param *table, int count, void *base,
@@ -337,12 +349,7 @@ static fm_status read_element(where *w, const json_t *obj, const param *table, i
     }
     for (int i = 0; i < count; i++) {
         const json_t *v = json_object_get(obj, table[i].key);
-        if (!v) continue;
-        w->steps[w->depth++] = (fm_json_step){table[i].key, 0};
-        snprintf(w->label, sizeof w->label, "%s.%s", label, table[i].key);
-        fm_status st = read_param(w, &table[i], v, base, def);
-        w->label[0] = 0;
-        w->depth--;
+        fm_status st = v ? read_member(w, label, &table[i], v, base, def) : FM_OK;
         if (st != FM_OK) return st;
     }
     return FM_OK;
@@ -363,13 +370,9 @@ static fm_status read_fields(where *w, const param *p, const json_t *v, fm_scene
         const json_t *type = json_is_object(e) ? json_object_get(e, "type") : NULL;
         fm_status st = FM_OK;
         if (json_is_object(e) && !type) st = fail_at(w, label, "every field needs a \"type\"");
-        if (st == FM_OK && type) {
-            w->steps[w->depth++] = (fm_json_step){"type", 0};
-            snprintf(w->label, sizeof w->label, "%s.type", label);
-            st = read_enum(w, &FIELD_PARAMS[0], type, FIELD_NAMES, 4, &kind);
-            w->label[0] = 0;
-            w->depth--;
-        }
+        fm_field_def probe = {.kind = FM_FIELD_CURL_NOISE};
+        if (st == FM_OK && type) st = read_member(w, label, &FIELD_PARAMS[0], type, &probe, def); /* "type" */
+        kind = (int)probe.kind;
         def->fields[i] = fm_default_field_def((fm_field_kind)kind);
         if (st == FM_OK) st = read_element(w, e, FIELD_PARAMS, (int)(sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0]),
                                            &def->fields[i], label, FIELD_KEYS[kind], def);

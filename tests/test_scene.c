@@ -175,6 +175,36 @@ static void test_relative_scene_path(void)
 
 /* ---------------------------------------------------------------- errors with positions */
 
+/* The velocity model's keys (FM §5.2-5.4): lists of fields and obstacles with per-type keys. */
+static void test_velocity_model_keys(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    fm_status st = load_text("velocity.json",
+        "{" MESHES ", \"style\": {\"omega2\": 0.3, \"grid\": [8, 9, 10], \"fields\": ["
+        "{\"type\": \"wind\", \"speed\": 2, \"turbulence\": 0.5}, {\"type\": \"vortex\", \"strength\": -1}]},"
+        " \"obstacles\": {\"meshes\": [{\"mesh\": \"k.obj\", \"scale\": 2}], \"k_a\": 0.5, \"in_phase2\": true},"
+        " \"mde\": {\"d_min\": 0.1}, \"path\": {\"width\": 3}, \"phase2\": {\"switch\": \"distance\", \"switch_distance\": 0.2}}",
+        &def, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    ENSURE(def.omega2 == 0.3 && def.field_grid[0] == 8 && def.field_grid[2] == 10 && def.field_count == 2);
+    ENSURE(def.fields[0].kind == FM_FIELD_WIND && def.fields[0].speed == 2 && def.fields[0].turbulence == 0.5);
+    ENSURE(def.fields[0].direction[0] == 1 && def.fields[0].period == 1);    /* wind defaults */
+    ENSURE(def.fields[1].kind == FM_FIELD_VORTEX && def.fields[1].strength == -1 && def.fields[1].axis[1] == 1);
+    ENSURE(def.obstacle_count == 1 && def.obstacles[0].scale == 2 && strstr(def.obstacles[0].path, "k.obj"));
+    ENSURE(def.k_a == 0.5 && def.avoid_in_phase2 == 1 && def.d_min == 0.1 && def.path_width == 3);
+    ENSURE(def.phase_switch == FM_SWITCH_DISTANCE && def.switch_distance == 0.2);
+    expect_error_at("field_key.json", "{" MESHES ",\n \"style\": {\"fields\": [{\"type\": \"curl_noise\", @\"speed\": 1}]}}",
+                    "style.fields[0].speed: does not apply");
+    expect_error_at("field_type.json", "{" MESHES ",\n \"style\": {\"fields\": [{\"type\": @\"breeze\"}]}}", "\"wind\"");
+    expect_error_at("field_untyped.json", "{" MESHES ",\n \"style\": {\"fields\": [@{\"gain\": 1}]}}", "needs a \"type\"");
+    expect_error_at("obstacle_key.json", "{" MESHES ",\n \"obstacles\": {\"meshes\": [{\"mesh\": \"k.obj\", @\"sclae\": 2}]}}",
+                    "obstacles.meshes[0].sclae");
+    expect_error_at("obstacle_mesh.json", "{" MESHES ",\n \"obstacles\": {\"meshes\": [@{\"scale\": 2}]}}", "needs a \"mesh\"");
+    expect_error_at("switch.json", "{" MESHES ",\n \"phase2\": {\"switch\": @\"box\"}}", "\"sphere\" or \"distance\"");
+    expect_error_at("k_a.json", "{" MESHES ",\n \"obstacles\": {\"k_a\": @0}}", "obstacles.k_a");
+}
+
 static void test_unknown_key_top_level(void)
 {
     expect_error_at("unknown_top.json",
@@ -361,6 +391,7 @@ int main(void)
     RUN_TEST(test_defaults_for_left_out_keys);
     RUN_TEST(test_boundary_values_accepted);
     RUN_TEST(test_relative_scene_path);
+    RUN_TEST(test_velocity_model_keys);
     RUN_TEST(test_unknown_key_top_level);
     RUN_TEST(test_unknown_key_nested);
     RUN_TEST(test_unusual_keys_located);
