@@ -68,14 +68,21 @@ void fm_run_stats_free(fm_run_stats *stats)
 }
 
 /* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
-static void record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
-                       int64_t *frames_with_flyers)
+static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
+                            int64_t *frames_with_flyers, int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
     double f = flying > 0 ? (double)mde / (double)flying : NAN;
-    stats->mde_fraction[stats->frames - 2] = f;
+    int64_t slot = stats->frames - 2;
+    if (slot >= *capacity) { /* grows by doubling */
+        double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)(2 * *capacity));
+        if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
+        stats->mde_fraction = grown, *capacity *= 2;
+    }
+    stats->mde_fraction[slot] = f;
     if (flying > 0) stats->mde_fraction_mean += f, ++*frames_with_flyers;
     *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
+    return FM_OK;
 }
 
 fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
@@ -83,7 +90,8 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
 {
     memset(stats, 0, sizeof *stats);
     float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    stats->mde_fraction = malloc(sizeof(double) * (size_t)m->def.frame_limit);
+    int64_t capacity = 1024;
+    stats->mde_fraction = malloc(sizeof(double) * (size_t)capacity);
     if (!verts || !stats->mde_fraction) {
         fm_free(verts), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
@@ -95,7 +103,7 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
         for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
         stats->simulate_seconds += fm_seconds() - t0;
         st = emit_frame(m, s, verts, cache, stats, err);
-        record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers);
+        if (st == FM_OK) st = record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers, &capacity, err);
         if (progress) {
             fm_state_info info = fm_state_get_info(s);
             progress(&info, stats->frames - 1, user);
