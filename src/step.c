@@ -56,39 +56,50 @@ static void build_neighbour_grid(const fm_model *m, fm_state *s)
     fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->n, (float)m->def.d_min, s->threads);
 }
 
-/* Stage 3 for one block: velocities from positions at the start of the step. */
+static fm_radius_view radius_view(const fm_model *m)
+{
+    return (fm_radius_view){m->src_radius, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
+}
+
+/* MDE (FM §5.4): V_la gathered from the grid's neighbours and added to the flying agents. */
+static int64_t add_mde(const fm_model *m, fm_state *s, int64_t begin, int64_t end)
+{
+    const fm_scene_def *def = &m->def;
+    float push = (float)(def->mde_speed > 0 ? def->mde_speed : def->speed0);
+    int64_t needed = fm_kernel_mde(&s->grid, (const float *const *)s->p, s->member, begin, end, (float)def->d_min,
+                                   push, s->vla, s->mde_needed);
+    for (int64_t a = begin; a < end; a++)
+        if (s->member[a]) s->v[0][a] += s->vla[0][a], s->v[1][a] += s->vla[1][a], s->v[2][a] += s->vla[2][a];
+    return needed;
+}
+
+/* Stage 3 for one block: velocities from positions at the start of the step (FM eq 8). */
 static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_t end, block_counts *bc)
 {
     const fm_scene_def *def = &m->def;
     const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]}, {m->key_f[0], m->key_f[1], m->key_f[2]},
                                m->key_count, (float)(0.5 * def->path_width), (float)def->path_attraction};
     const float *const *p = (const float *const *)s->p;
+    const float dt = (float)m->dt;
     fm_kernel_global_velocity(&path, p, s->phase, begin, end, (float)(def->omega1 * def->speed0), s->v);
     if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
+    fm_obstacle_view o;
+    fm_radius_view r;
+    int steer_phase2 = m->obstacles && def->avoid_in_phase2;
     bc->clearance = INFINITY;
-    if (m->obstacles) {
-        const fm_obstacle_view o = obstacle_view(m);
-        const fm_radius_view r = {m->src_radius, (float)def->shrink, (float)def->shrink_time, m->launch_rate};
-        bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, (float)m->dt);
-        if (def->avoid_in_phase2) {
-            fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, begin, end, (float)def->speed0);
-            fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, (float)m->dt);
-        }
+    if (m->obstacles) { /* V_grn -> V_oa where the look-ahead collides (eqs 7-8) */
+        o = obstacle_view(m), r = radius_view(m);
+        bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt);
+    }
+    if (steer_phase2) {
+        fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, begin, end, (float)def->speed0);
+        fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt);
     }
     bc->flying = 0;
     for (int64_t a = begin; a < end; a++) bc->flying += s->phase[a] == FM_PHASE_FLYING;
-    bc->mde = 0;
-    if (def->d_min > 0) {
-        float push = (float)(def->mde_speed > 0 ? def->mde_speed : def->speed0);
-        bc->mde = fm_kernel_mde(&s->grid, p, s->member, begin, end, (float)def->d_min, push, s->vla, s->mde_needed);
-        for (int64_t a = begin; a < end; a++)
-            if (s->member[a]) s->v[0][a] += s->vla[0][a], s->v[1][a] += s->vla[1][a], s->v[2][a] += s->vla[2][a];
-    }
-    if (m->obstacles) {
-        const fm_obstacle_view o = obstacle_view(m);
-        const fm_radius_view r = {m->src_radius, (float)def->shrink, (float)def->shrink_time, m->launch_rate};
-        fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, (float)m->dt);
-    }
+    bc->mde = def->d_min > 0 ? add_mde(m, s, begin, end) : 0; /* + V_la */
+    if (m->obstacles) fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt);
+    if (steer_phase2) fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt);
 }
 
 /* Stage 4 for one block: each agent moves only itself. */
