@@ -177,6 +177,7 @@ void fm_cache_writer_abort(fm_cache_writer *w)
 struct fm_cache_reader {
     FILE *f;
     char path[FM_PATH_MAX];
+    char warning[FM_PATH_MAX + 160]; /* non-empty when the cache was recovered without its index */
     uint64_t agents;
     double frame_rate;
     uint32_t frames;
@@ -212,20 +213,53 @@ static fm_status read_header(fm_cache_reader *r, fm_error *err)
     return FM_OK;
 }
 
+static fm_status grow_offsets(fm_cache_reader *r, uint32_t *cap, fm_error *err)
+{
+    if (r->frames < *cap) return FM_OK;
+    *cap = *cap ? 2 * *cap : 256;
+    uint64_t *grown = realloc(r->offsets, sizeof *grown * *cap);
+    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
+    r->offsets = grown;
+    return FM_OK;
+}
+
+/* Without a valid index (a run that was killed, a file cut short) the chunks are walked from the
+ * header; every complete one is a readable frame. Contents are still checked when read. */
+static fm_status scan_chunks(fm_cache_reader *r, uint64_t size, const char *why, fm_error *err)
+{
+    uint64_t pos = HEADER_BYTES, packed_cap = ZSTD_compressBound(r->raw_bytes);
+    uint32_t cap = 0;
+    r->frames = 0;
+    for (;;) {
+        unsigned char h[CHUNK_HEADER_BYTES];
+        fm_error ignored;
+        if (pos + CHUNK_HEADER_BYTES > size || read_at(r, pos, h, sizeof h, &ignored) != FM_OK) break;
+        uint64_t packed = get_u64(h + 8);
+        if (memcmp(h, "FRAM", 4) != 0 || get_u32(h + 4) != r->frames || get_u64(h + 16) != r->raw_bytes ||
+            packed > packed_cap || pos + CHUNK_HEADER_BYTES + packed > size)
+            break;
+        fm_status st = grow_offsets(r, &cap, err);
+        if (st != FM_OK) return st;
+        r->offsets[r->frames++] = pos;
+        pos += CHUNK_HEADER_BYTES + packed;
+    }
+    snprintf(r->warning, sizeof r->warning, "%s: %s; recovered the %u complete frames before byte %llu",
+             r->path, why, r->frames, (unsigned long long)pos);
+    return FM_OK;
+}
+
 static fm_status read_index(fm_cache_reader *r, fm_error *err)
 {
     unsigned char footer[16], h[8];
     if (fseeko(r->f, 0, SEEK_END) != 0) return fm_fail(err, FM_ERR_IO, "%s: cannot seek", r->path);
-    off_t size = ftello(r->f);
-    if (size < HEADER_BYTES + 24 || read_at(r, (uint64_t)size - 16, footer, 16, err) != FM_OK ||
-        memcmp(footer + 8, END_MAGIC, 8) != 0)
-        return fm_fail(err, FM_ERR_INPUT, "%s: the cache has no footer: it is incomplete (was the run interrupted?)", r->path);
+    uint64_t size = (uint64_t)ftello(r->f);
+    if (size < HEADER_BYTES + 24 || read_at(r, size - 16, footer, 16, err) != FM_OK || memcmp(footer + 8, END_MAGIC, 8) != 0)
+        return scan_chunks(r, size, "incomplete cache (no index: the run did not finish or the file was cut short)", err);
     uint64_t index_pos = get_u64(footer);
-    if (index_pos + 8 > (uint64_t)size - 16 || read_at(r, index_pos, h, 8, err) != FM_OK || memcmp(h, "FIDX", 4) != 0)
-        return fm_fail(err, FM_ERR_INPUT, "%s: the frame index is damaged", r->path);
+    if (index_pos + 8 > size - 16 || read_at(r, index_pos, h, 8, err) != FM_OK || memcmp(h, "FIDX", 4) != 0 ||
+        (uint64_t)get_u32(h + 4) * 8 != size - 16 - index_pos - 8)
+        return scan_chunks(r, size, "the frame index is damaged", err);
     r->frames = get_u32(h + 4);
-    if ((uint64_t)r->frames * 8 != (uint64_t)size - 16 - index_pos - 8)
-        return fm_fail(err, FM_ERR_INPUT, "%s: the frame index is damaged (size mismatch)", r->path);
     r->offsets = malloc(sizeof *r->offsets * (r->frames ? r->frames : 1));
     if (!r->offsets) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
     for (uint32_t i = 0; i < r->frames; i++) {
@@ -264,6 +298,7 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
 }
 
 uint64_t fm_cache_agents(const fm_cache_reader *r) { return r->agents; }
+const char *fm_cache_warning(const fm_cache_reader *r) { return r->warning; }
 uint32_t fm_cache_frames(const fm_cache_reader *r) { return r->frames; }
 double fm_cache_frame_rate(const fm_cache_reader *r) { return r->frame_rate; }
 

@@ -357,6 +357,7 @@ static int load_frame(const frame_options *o, fm_cache_reader **reader, float **
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(o->cache, &err);
     if (!r) return report(&err);
+    if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
     long frames = (long)fm_cache_frames(r), k = o->has_frame ? o->frame : -1;
     if (k < 0) k += frames;
     if (k < 0 || k >= frames) {
@@ -462,8 +463,10 @@ static int cmd_info(int argc, char **argv)
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(o.cache, &err);
     if (!r) return report(&err);
-    printf("{\"agents\": %llu, \"frames\": %u, \"frame_rate\": %g}\n", (unsigned long long)fm_cache_agents(r),
-           fm_cache_frames(r), fm_cache_frame_rate(r));
+    if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
+    printf("{\"agents\": %llu, \"frames\": %u, \"frame_rate\": %g, \"complete\": %s}\n",
+           (unsigned long long)fm_cache_agents(r), fm_cache_frames(r), fm_cache_frame_rate(r),
+           fm_cache_warning(r)[0] ? "false" : "true");
     fm_cache_close(r);
     return 0;
 }

@@ -227,7 +227,11 @@ void fm_cache_writer_abort(fm_cache_writer *w);                       /* frees w
 
 typedef struct fm_cache_reader fm_cache_reader;
 
+/* Opens a cache for random access by frame. A cache without a valid index (the run was killed,
+ * the file was cut short) is opened up to its last complete frame, and fm_cache_warning says so. */
 fm_cache_reader *fm_cache_open(const char *path, fm_error *err);
+/* "" for a complete cache; otherwise what was wrong and how many frames were recovered. */
+const char *fm_cache_warning(const fm_cache_reader *r);
 uint64_t fm_cache_agents(const fm_cache_reader *r);
 uint32_t fm_cache_frames(const fm_cache_reader *r);
 double fm_cache_frame_rate(const fm_cache_reader *r);
