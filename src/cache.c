@@ -14,6 +14,7 @@
 #include <zstd.h>
 
 #include <errno.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +27,7 @@ enum {
     FILTER_SHUFFLE4 = 1,
     CODEC_ZSTD = 1,
 };
+enum { ZSTD_WORKERS = 2 };
 static const char MAGIC[8] = {'F', 'M', 'C', 'A', 'C', 'H', 'E', '1'};
 static const char END_MAGIC[8] = {'F', 'M', 'C', 'E', 'N', 'D', 0, 0};
 
@@ -48,6 +50,9 @@ static void unshuffle4(const unsigned char *in, size_t count, unsigned char *out
         for (int k = 0; k < 4; k++) out[4 * i + k] = in[k * count + i];
 }
 
+/* Frames are compressed and written by a worker thread, so the step loop only pays for a copy:
+ * add_frame hands the frame over (waiting while the previous one is still being written) and
+ * returns. The file's bytes do not depend on the timing. */
 struct fm_cache_writer {
     fm_output_file out;      /* PATH.partial until finish() */
     uint64_t agents;
@@ -58,7 +63,18 @@ struct fm_cache_writer {
     uint64_t *offsets;
     uint32_t frames, offsets_cap;
     uint64_t pos;
+    /* the worker */
+    pthread_t thread;
+    int thread_started;
+    pthread_mutex_t lock;
+    pthread_cond_t changed;
+    unsigned char *pending;  /* the frame handed over, raw floats */
+    int has_pending, stop;
+    fm_status worker_status; /* the first failure, reported by the next call */
+    fm_error worker_err;
 };
+
+static void *worker_main(void *arg);
 
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
@@ -91,22 +107,36 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
     w->raw_bytes = (size_t)agents * FLOATS_PER_AGENT * sizeof(float);
     w->packed_cap = ZSTD_compressBound(w->raw_bytes);
     w->shuffled = malloc(w->raw_bytes ? w->raw_bytes : 1);
+    w->pending = malloc(w->raw_bytes ? w->raw_bytes : 1);
     w->packed = malloc(w->packed_cap);
     w->cctx = ZSTD_createCCtx();
-    if (!w->shuffled || !w->packed || !w->cctx) {
+    pthread_mutex_init(&w->lock, NULL);
+    pthread_cond_init(&w->changed, NULL);
+    if (!w->shuffled || !w->pending || !w->packed || !w->cctx) {
         fm_cache_writer_abort(w);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)agents), NULL;
     }
     ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_compressionLevel, level);
     ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_checksumFlag, 1);
+    /* zstd's own workers, a fixed number whatever the run's thread count: the compressed bytes
+     * depend on nbWorkers, so fixing it keeps caches identical for any --threads. Ignored (one
+     * thread) where libzstd lacks multithreading. */
+    ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_nbWorkers, ZSTD_WORKERS);
     if (fm_output_open(&w->out, path, err) != FM_OK || write_header(w, frame_rate, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return NULL;
     }
+    if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+        fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", path);
+        fm_cache_writer_abort(w);
+        return NULL;
+    }
+    w->thread_started = 1;
     return w;
 }
 
-fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err)
+/* Compresses and appends one frame (the worker's job). */
+static fm_status write_frame(fm_cache_writer *w, const unsigned char *raw, fm_error *err)
 {
     if (w->frames == w->offsets_cap) {
         uint32_t cap = w->offsets_cap ? 2 * w->offsets_cap : 256;
@@ -114,7 +144,7 @@ fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_e
         if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
         w->offsets = grown, w->offsets_cap = cap;
     }
-    shuffle4((const unsigned char *)verts, w->raw_bytes / 4, w->shuffled);
+    shuffle4(raw, w->raw_bytes / 4, w->shuffled);
     size_t packed = ZSTD_compress2(w->cctx, w->packed, w->packed_cap, w->shuffled, w->raw_bytes);
     if (ZSTD_isError(packed))
         return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->out.path, ZSTD_getErrorName(packed));
@@ -130,9 +160,66 @@ fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_e
     return st;
 }
 
+static void *worker_main(void *arg)
+{
+    fm_cache_writer *w = arg;
+    pthread_mutex_lock(&w->lock);
+    for (;;) {
+        while (!w->has_pending && !w->stop) pthread_cond_wait(&w->changed, &w->lock);
+        if (!w->has_pending) break;
+        pthread_mutex_unlock(&w->lock);
+        fm_error err = {0};
+        fm_status st = w->worker_status == FM_OK ? write_frame(w, w->pending, &err) : FM_OK;
+        pthread_mutex_lock(&w->lock);
+        if (st != FM_OK) w->worker_status = st, w->worker_err = err;
+        w->has_pending = 0;
+        pthread_cond_broadcast(&w->changed);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+/* Waits until the worker holds no frame; returns its first failure. Called with the lock held. */
+static fm_status wait_idle(fm_cache_writer *w, fm_error *err)
+{
+    while (w->has_pending) pthread_cond_wait(&w->changed, &w->lock);
+    if (w->worker_status != FM_OK && err) *err = w->worker_err;
+    return w->worker_status;
+}
+
+fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    if (st == FM_OK) {
+        memcpy(w->pending, verts, w->raw_bytes);
+        w->has_pending = 1;
+        pthread_cond_broadcast(&w->changed);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return st;
+}
+
+/* Lets the worker finish what it holds and ends it; returns its first failure. */
+static fm_status stop_worker(fm_cache_writer *w, fm_error *err)
+{
+    if (!w->thread_started) return w->worker_status;
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    w->stop = 1;
+    pthread_cond_broadcast(&w->changed);
+    pthread_mutex_unlock(&w->lock);
+    pthread_join(w->thread, NULL);
+    w->thread_started = 0;
+    return st;
+}
+
 static void free_writer(fm_cache_writer *w)
 {
-    free(w->shuffled), free(w->packed), free(w->offsets);
+    stop_worker(w, NULL);
+    pthread_mutex_destroy(&w->lock);
+    pthread_cond_destroy(&w->changed);
+    free(w->shuffled), free(w->packed), free(w->offsets), free(w->pending);
     ZSTD_freeCCtx(w->cctx);
     free(w);
 }
@@ -158,7 +245,8 @@ static fm_status write_index_and_footer(fm_cache_writer *w, fm_error *err)
 
 fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 {
-    fm_status st = write_index_and_footer(w, err);
+    fm_status st = stop_worker(w, err);
+    if (st == FM_OK) st = write_index_and_footer(w, err);
     if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
     else fm_output_discard(&w->out);
     free_writer(w);
@@ -168,6 +256,7 @@ fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 void fm_cache_writer_abort(fm_cache_writer *w)
 {
     if (!w) return;
+    stop_worker(w, NULL);
     fm_output_discard(&w->out);
     free_writer(w);
 }

@@ -33,7 +33,7 @@ fm_scene_def fm_default_scene_def(void)
     d.shrink_time = 0.25;
     d.morph_fraction = 0.75;
     d.seed = 1;
-    d.compression_level = 3;
+    d.compression_level = 1; /* zstd level 1: twice as fast as 3 on frames, about 10 % larger */
     d.omega2 = 1.0;
     d.k_a = 1.0;
     d.path_attraction = 1.0;

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 static uint64_t rng_state = 0x2545f4914f6cdd1dull;
 
@@ -373,8 +374,38 @@ static void test_bad_version(void)
     expect_open_fails(path, "version 7");
 }
 
+/* A write that fails on the writer thread (the partial file is a symlink to /dev/full, which
+ * takes the open and fails every write) is reported by a later call, and nothing is left under
+ * the final name. */
+static void test_write_failure_on_the_writer_thread(void)
+{
+    struct stat st;
+    if (stat("/dev/full", &st) != 0) return;
+    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    tmp_path(path, "full.fmc");
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    remove(path), remove(partial);
+    if (symlink("/dev/full", partial) != 0) return;
+    fm_error err = {0};
+    /* the 64-byte header is buffered by stdio, so creation succeeds */
+    fm_cache_writer *w = fm_cache_writer_create(path, 100000, 24, 1, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return remove(partial), (void)0;
+    float *frame = calloc(12 * 100000, sizeof(float));
+    fm_status status = FM_OK;
+    for (int f = 0; f < 4 && status == FM_OK; f++) status = fm_cache_writer_add_frame(w, frame, &err);
+    if (status == FM_OK) status = fm_cache_writer_finish(w, &err);
+    else fm_cache_writer_abort(w);
+    ENSURE_MSG(status == FM_ERR_IO, "status %d: %s", (int)status, err.message);
+    ENSURE(strstr(err.message, path) != NULL);
+    ENSURE(stat(path, &st) != 0); /* no cache under the final name */
+    free(frame);
+    remove(partial);
+}
+
 int main(void)
 {
+    RUN_TEST(test_write_failure_on_the_writer_thread);
     RUN_TEST(test_round_trip_bitwise);
     RUN_TEST(test_zero_frames);
     RUN_TEST(test_read_past_end);

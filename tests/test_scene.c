@@ -139,7 +139,7 @@ static void test_defaults_for_left_out_keys(void)
     ENSURE(d.seed == e.seed && d.compression_level == e.compression_level);
     ENSURE(strcmp(d.cache_name, e.cache_name) == 0);
     /* the documented defaults themselves */
-    ENSURE(e.speed0 == 10.0 && e.frame_rate == 24.0 && e.compression_level == 3 && e.shrink == 0.5);
+    ENSURE(e.speed0 == 10.0 && e.frame_rate == 24.0 && e.compression_level == 1 && e.shrink == 0.5);
 }
 
 static void test_boundary_values_accepted(void)
