@@ -15,14 +15,7 @@
 
 static uint64_t rng_state = 0x2545f4914f6cdd1dull;
 
-static uint64_t rng_next(void)
-{
-    uint64_t x = rng_state;
-    x ^= x << 13;
-    x ^= x >> 7;
-    x ^= x << 17;
-    return rng_state = x;
-}
+static uint64_t rng_next(void) { return test_next_u64(&rng_state); }
 
 static char *tmp_path(char *buf, const char *name)
 {

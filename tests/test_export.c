@@ -21,14 +21,7 @@
 
 static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
 
-static uint64_t rng_next(void)
-{
-    uint64_t x = rng_state;
-    x ^= x << 13;
-    x ^= x >> 7;
-    x ^= x << 17;
-    return rng_state = x;
-}
+static uint64_t rng_next(void) { return test_next_u64(&rng_state); }
 
 /* Uniform in [-1, 1) with a full 24-bit mantissa once rounded to float. */
 static double rng_unit(void) { return (double)(rng_next() >> 11) * 0x1p-52 - 1.0; }

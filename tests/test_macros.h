@@ -45,13 +45,19 @@ static int fm_test_failures = 0;
         printf("%-40s %s\n", #fn, fm_test_failures == fm_before_ ? "ok" : "FAILED");       \
     } while (0)
 
-/* splitmix64 mapped to [0, 1): deterministic, so a failure reproduces. */
-static inline double test_uniform(uint64_t *state)
+/* splitmix64: deterministic, so a failure reproduces. */
+static inline uint64_t test_next_u64(uint64_t *state)
 {
     uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) / 9007199254740992.0;
+    return z ^ (z >> 31);
+}
+
+/* test_next_u64 mapped to [0, 1). */
+static inline double test_uniform(uint64_t *state)
+{
+    return (double)(test_next_u64(state) >> 11) / 9007199254740992.0;
 }
 
 static inline int test_result(void) { return fm_test_failures == 0 ? 0 : 1; }

@@ -1,0 +1,71 @@
+/* The bundled examples, run as a user runs them: `flockmorph run examples/NAME/scene.json`.
+ *   words:    the foundation issue's definition of done: every agent arrives, the last frame is
+ *             the target within 1e-5, no tet ever inverts, every target tet is taken exactly once.
+ *   castling: the rook's tets fly past the king standing in their path (FM Figure 8 bottom):
+ *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0). */
+#include "flockmorph/flockmorph.h"
+#include "test_macros.h"
+
+#include <jansson.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+
+/* Runs the example, checks the end state every scene must reach, and returns its stats.json
+ * (NULL if the run failed). */
+static json_t *run_example(const char *name)
+{
+    char out[FM_PATH_MAX], cmd[4 * FM_PATH_MAX], stats_path[FM_PATH_MAX + 16];
+    snprintf(out, sizeof out, "%s/example_%s", FM_TEST_TMP, name);
+    snprintf(cmd, sizeof cmd, "'%s' run '%s/examples/%s/scene.json' -o '%s' --threads 2 --quiet > '%s.log' 2>&1",
+             FM_CLI, FM_SOURCE_DIR, name, out, out);
+    int rc = system(cmd);
+    ENSURE_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "%s: exit status %d (see %s.log)", name, WEXITSTATUS(rc), out);
+    snprintf(stats_path, sizeof stats_path, "%s/stats.json", out);
+    json_error_t jerr;
+    json_t *stats = json_load_file(stats_path, 0, &jerr);
+    ENSURE_MSG(stats != NULL, "%s: %s", stats_path, jerr.text);
+    if (!stats) return NULL;
+    ENSURE_MSG(json_is_true(json_object_get(stats, "all_arrived")), "%s: not every agent arrived", name);
+    ENSURE(json_is_true(json_object_get(stats, "target_tets_filled_once")));
+    ENSURE(json_integer_value(json_object_get(stats, "inverted_tet_frames")) == 0);
+    double error = json_number_value(json_object_get(stats, "final_max_vertex_error"));
+    ENSURE_MSG(json_is_number(json_object_get(stats, "final_max_vertex_error")) && error <= 1e-5, "%s: error %g", name, error);
+    ENSURE(json_integer_value(json_object_get(stats, "frames")) > 10);
+    ENSURE(json_number_value(json_object_get(stats, "agent_steps_per_second")) > 0);
+
+    char cache[FM_PATH_MAX + 16];
+    snprintf(cache, sizeof cache, "%s/frames.fmc", out);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err);
+    ENSURE_MSG(r != NULL && fm_cache_warning(r)[0] == 0, "%s", err.message);
+    if (r) ENSURE(fm_cache_agents(r) == (uint64_t)json_integer_value(json_object_get(stats, "agents")));
+    if (r) ENSURE(fm_cache_frames(r) == (uint32_t)json_integer_value(json_object_get(stats, "frames")));
+    fm_cache_close(r);
+    return stats;
+}
+
+static void test_words_example_completes(void)
+{
+    json_t *stats = run_example("words");
+    if (stats) ENSURE(json_integer_value(json_object_get(stats, "agents")) == 13818); /* the paper's n */
+    json_decref(stats);
+}
+
+static void test_castling_example_passes_the_king(void)
+{
+    json_t *stats = run_example("castling");
+    if (!stats) return;
+    double clearance = json_number_value(json_object_get(stats, "min_obstacle_clearance"));
+    ENSURE_MSG(json_is_number(json_object_get(stats, "min_obstacle_clearance")) && clearance >= 0,
+               "a tet entered the king: clearance %g", clearance);
+    ENSURE_MSG(clearance < 0.3, "the flock never came near the king (clearance %g)", clearance);
+    ENSURE(json_number_value(json_object_get(stats, "mde_fraction_mean")) > 0);
+    json_decref(stats);
+}
+
+int main(void)
+{
+    RUN_TEST(test_words_example_completes);
+    RUN_TEST(test_castling_example_passes_the_king);
+    return test_result();
+}
