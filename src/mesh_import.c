@@ -142,8 +142,8 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 
 typedef struct directed_edge {
     int32_t lo, hi;   /* undirected key */
-    int32_t forward;  /* 1 if the face walks lo -> hi */
-    int32_t face;
+    int32_t forward;  /* 1 if the triangle walks lo -> hi */
+    int64_t half;     /* 3 * triangle + corner: the edge from corner k to corner k + 1 */
 } directed_edge;
 
 static int compare_edges(const void *a, const void *b)
@@ -151,59 +151,66 @@ static int compare_edges(const void *a, const void *b)
     const directed_edge *e = a, *f = b;
     if (e->lo != f->lo) return (e->lo > f->lo) - (e->lo < f->lo);
     if (e->hi != f->hi) return (e->hi > f->hi) - (e->hi < f->hi);
-    return (e->face > f->face) - (e->face < f->face);
+    return (e->half > f->half) - (e->half < f->half);
 }
 
-static fm_status edge_error(const fm_mesh *mesh, const char *path, const directed_edge *e,
+static fm_status edge_error(const fm_mesh *mesh, const char *name, const directed_edge *e,
                             const char *what, fm_error *err)
 {
     const double *a = mesh->v + 3 * (int64_t)e->lo, *b = mesh->v + 3 * (int64_t)e->hi;
     return fm_fail(err, FM_ERR_INPUT,
                    "%s: the mesh is not a closed manifold: the edge (%g, %g, %g)-(%g, %g, %g) "
-                   "of triangle %d %s", path, a[0], a[1], a[2], b[0], b[1], b[2], e->face + 1,
-                   what);
+                   "of triangle %lld %s", name, a[0], a[1], a[2], b[0], b[1], b[2],
+                   (long long)(e->half / 3 + 1), what);
 }
 
-static fm_status check_degenerate(const fm_mesh *mesh, const char *path, fm_error *err)
+static fm_status check_degenerate(const fm_mesh *mesh, const char *name, fm_error *err)
 {
     for (int64_t t = 0; t < mesh->nt; t++) {
         const int32_t *f = mesh->tri + 3 * t;
         if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2])
             return fm_fail(err, FM_ERR_INPUT, "%s: triangle %lld is degenerate (two corners at the "
-                           "same position)", path, (long long)t + 1);
+                           "same position)", name, (long long)t + 1);
     }
     return FM_OK;
+}
+
+fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair_fn pair, void *user,
+                             fm_error *err)
+{
+    size_t ne = 3 * (size_t)mesh->nt;
+    directed_edge *edges = malloc(sizeof *edges * (ne ? ne : 1));
+    if (!edges) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory checking edges", name);
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        for (int k = 0; k < 3; k++) {
+            int32_t a = mesh->tri[3 * t + k], b = mesh->tri[3 * t + (k + 1) % 3];
+            edges[3 * t + k] = (directed_edge){FM_MIN(a, b), FM_MAX(a, b), a < b, 3 * t + k};
+        }
+    }
+    qsort(edges, ne, sizeof *edges, compare_edges);
+    fm_status st = FM_OK;
+    for (size_t i = 0; i < ne && st == FM_OK;) {
+        size_t j = i;
+        while (j < ne && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) j++;
+        if (j - i == 1)
+            st = edge_error(mesh, name, &edges[i], "has no neighbour: the surface has a hole there", err);
+        else if (j - i > 2)
+            st = edge_error(mesh, name, &edges[i], "is shared by more than two triangles", err);
+        else if (edges[i].forward == edges[i + 1].forward)
+            st = edge_error(mesh, name, &edges[i], "runs the same way in both of its triangles: "
+                            "their orientations disagree", err);
+        else if (pair)
+            pair(edges[i].half, edges[i + 1].half, user);
+        i = j;
+    }
+    free(edges);
+    return st;
 }
 
 fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err)
 {
     fm_status st = check_degenerate(mesh, path, err);
-    if (st != FM_OK) return st;
-    size_t ne = 3 * (size_t)mesh->nt;
-    directed_edge *edges = malloc(sizeof *edges * ne);
-    if (!edges) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory checking edges", path);
-    for (int64_t t = 0; t < mesh->nt; t++) {
-        for (int k = 0; k < 3; k++) {
-            int32_t a = mesh->tri[3 * t + k], b = mesh->tri[3 * t + (k + 1) % 3];
-            edges[3 * t + k] = (directed_edge){FM_MIN(a, b), FM_MAX(a, b), a < b, (int32_t)t};
-        }
-    }
-    qsort(edges, ne, sizeof *edges, compare_edges);
-    for (size_t i = 0; i < ne && st == FM_OK;) {
-        size_t j = i;
-        while (j < ne && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) j++;
-        if (j - i == 1)
-            st = edge_error(mesh, path, &edges[i], "has no neighbour: the surface has a hole there",
-                            err);
-        else if (j - i > 2)
-            st = edge_error(mesh, path, &edges[i], "is shared by more than two triangles", err);
-        else if (edges[i].forward == edges[i + 1].forward)
-            st = edge_error(mesh, path, &edges[i], "runs the same way in both of its triangles: "
-                            "their orientations disagree", err);
-        i = j;
-    }
-    free(edges);
-    return st;
+    return st == FM_OK ? fm_mesh_pair_edges(mesh, path, NULL, NULL, err) : st;
 }
 
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref)

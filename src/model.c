@@ -300,8 +300,8 @@ void fm_model_destroy(fm_model *m)
 {
     if (!m) return;
     fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius);
-    if (m->obstacles) fm_obstacles_destroy(m->obstacles);
-    if (m->target_sdf) fm_obstacles_destroy(m->target_sdf);
+    fm_obstacles_destroy(m->obstacles); /* NULL-safe */
+    fm_obstacles_destroy(m->target_sdf);
     for (int k = 0; k < 3; k++) {
         fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
         fm_free(m->key_q[k]), fm_free(m->key_f[k]);

@@ -287,58 +287,28 @@ static double closest_hinted(const fm_obstacles *o, const double p[3], double hi
 
 /* ------------------------------------------------------------------ build */
 
-typedef struct half_edge {
-    int32_t lo, hi;
-    int32_t forward; /* lo -> hi in its triangle */
-    int32_t slot;    /* 3 * (local triangle) + edge */
-} half_edge;
+/* The edge pseudo-normal of an edge is the sum of its two triangles' face normals. */
+typedef struct edge_link {
+    fm_obstacles *o;
+    int64_t t0; /* the mesh's first triangle in o */
+} edge_link;
 
-static int compare_half_edges(const void *pa, const void *pb)
+static void link_edge(int64_t half_a, int64_t half_b, void *user)
 {
-    const half_edge *a = pa, *b = pb;
-    if (a->lo != b->lo) return a->lo < b->lo ? -1 : 1;
-    if (a->hi != b->hi) return a->hi < b->hi ? -1 : 1;
-    return (a->slot > b->slot) - (a->slot < b->slot);
+    const edge_link *l = user;
+    int64_t ta = l->t0 + half_a / 3, tb = l->t0 + half_b / 3;
+    double *ea = l->o->en + 9 * ta + 3 * (half_a % 3), *eb = l->o->en + 9 * tb + 3 * (half_b % 3);
+    for (int k = 0; k < 3; k++) ea[k] = eb[k] = l->o->fn[3 * ta + k] + l->o->fn[3 * tb + k];
 }
 
-/* Obstacle m: indices in range, finite vertices, no repeated corner, and closed: every edge in
-   exactly two triangles, running opposite ways. Fills the edge pseudo-normals of its triangles
-   (face normals must be set). */
+/* Obstacle m must be closed (every edge in exactly two triangles, running opposite ways: the
+   check mesh import uses); fills its edge pseudo-normals (face normals must be set). */
 static fm_status check_and_link_edges(fm_obstacles *o, const fm_mesh *mesh, int m, fm_error *err)
 {
-    int64_t t0 = o->tri_start[m];
-    size_t ne = 3 * (size_t)mesh->nt;
-    half_edge *edges = malloc(sizeof *edges * ne);
-    if (!edges) return fm_fail(err, FM_ERR_MEMORY, "out of memory checking obstacle %d", m);
-    for (int64_t t = 0; t < mesh->nt; t++) {
-        for (int k = 0; k < 3; k++) {
-            int32_t a = mesh->tri[3 * t + k], b = mesh->tri[3 * t + (k + 1) % 3];
-            edges[3 * t + k] = (half_edge){FM_MIN(a, b), FM_MAX(a, b), a < b, (int32_t)(3 * t + k)};
-        }
-    }
-    qsort(edges, ne, sizeof *edges, compare_half_edges);
-    fm_status st = FM_OK;
-    for (size_t i = 0; i < ne && st == FM_OK;) {
-        size_t j = i;
-        while (j < ne && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) j++;
-        const char *why = j - i == 1   ? "has no neighbour: the surface has a hole there"
-                          : j - i > 2 ? "is shared by more than two triangles"
-                          : edges[i].forward == edges[i + 1].forward
-                              ? "runs the same way in both of its triangles: their orientations disagree"
-                              : NULL;
-        if (why) {
-            st = fm_fail(err, FM_ERR_INPUT, "obstacle %d is not a closed surface: the edge between "
-                         "vertices %d and %d (triangle %d) %s", m, edges[i].lo, edges[i].hi,
-                         edges[i].slot / 3, why);
-            break;
-        }
-        int64_t ta = t0 + edges[i].slot / 3, tb = t0 + edges[i + 1].slot / 3;
-        double *ea = o->en + 9 * ta + 3 * (edges[i].slot % 3), *eb = o->en + 9 * tb + 3 * (edges[i + 1].slot % 3);
-        for (int k = 0; k < 3; k++) ea[k] = eb[k] = o->fn[3 * ta + k] + o->fn[3 * tb + k];
-        i = j;
-    }
-    free(edges);
-    return st;
+    char name[48];
+    snprintf(name, sizeof name, "obstacle %d", m);
+    edge_link link = {o, o->tri_start[m]};
+    return fm_mesh_pair_edges(mesh, name, link_edge, &link, err);
 }
 
 static void on_embree_error(void *user, enum RTCError code, const char *str)

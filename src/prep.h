@@ -25,6 +25,11 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
 void fm_mesh_free(fm_mesh *mesh);
 /* Every edge shared by exactly two faces with opposite directions; names the first bad edge. */
 fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err);
+/* The edge check alone, calling pair (if not NULL) for every edge with its two half-edges, each
+ * numbered 3 * triangle + corner (the edge from corner k to corner k + 1). */
+typedef void (*fm_edge_pair_fn)(int64_t half_a, int64_t half_b, void *user);
+fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair_fn pair, void *user,
+                             fm_error *err);
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
 double fm_mesh_signed_volume(const fm_mesh *mesh);
 
