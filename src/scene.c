@@ -355,53 +355,49 @@ static fm_status read_element(where *w, const json_t *obj, const param *table, i
     return FM_OK;
 }
 
-/* style.fields: [{"type": "curl_noise", ...}, ...]; each element starts from its kind's defaults. */
-static fm_status read_fields(where *w, const param *p, const json_t *v, fm_scene_def *def)
+typedef fm_status (*element_reader)(where *w, const json_t *e, int32_t i, const char *label, fm_scene_def *def);
+
+/* A list of objects (style.fields, obstacles.meshes): each element read by read_one, with
+ * messages naming "<key>[i]". */
+static fm_status read_list(where *w, const param *p, const json_t *v, int max, int32_t *count,
+                           element_reader read_one, fm_scene_def *def)
 {
-    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of field objects, got %s", json_type_name(v));
-    if (json_array_size(v) > FM_MAX_FIELDS) return fail_at(w, p->key, "at most %d fields", FM_MAX_FIELDS);
-    def->field_count = (int32_t)json_array_size(v);
-    for (int32_t i = 0; i < def->field_count; i++) {
-        const json_t *e = json_array_get(v, (size_t)i);
+    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of objects, got %s", json_type_name(v));
+    if (json_array_size(v) > (size_t)max) return fail_at(w, p->key, "at most %d entries", max);
+    *count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < *count; i++) {
         char label[64];
-        snprintf(label, sizeof label, "style.fields[%d]", i);
+        snprintf(label, sizeof label, "%s[%d]", p->key, i);
         w->steps[w->depth++] = (fm_json_step){NULL, i};
-        int kind = 0;
-        const json_t *type = json_is_object(e) ? json_object_get(e, "type") : NULL;
-        fm_status st = FM_OK;
-        if (json_is_object(e) && !type) st = fail_at(w, label, "every field needs a \"type\"");
-        fm_field_def probe = {.kind = FM_FIELD_CURL_NOISE};
-        if (st == FM_OK && type) st = read_member(w, label, &FIELD_PARAMS[0], type, &probe, def); /* "type" */
-        kind = (int)probe.kind;
-        def->fields[i] = fm_default_field_def((fm_field_kind)kind);
-        if (st == FM_OK) st = read_element(w, e, FIELD_PARAMS, (int)(sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0]),
-                                           &def->fields[i], label, FIELD_KEYS[kind], def);
+        fm_status st = read_one(w, json_array_get(v, (size_t)i), i, label, def);
         w->depth--;
         if (st != FM_OK) return st;
     }
     return FM_OK;
 }
 
-/* obstacles.meshes: [{"mesh": "king.obj", "translate": [...]}, ...] */
-static fm_status read_obstacles(where *w, const param *p, const json_t *v, fm_scene_def *def)
+/* One style field: {"type": "curl_noise", ...}, starting from its kind's defaults. */
+static fm_status read_field(where *w, const json_t *e, int32_t i, const char *label, fm_scene_def *def)
 {
-    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of mesh objects, got %s", json_type_name(v));
-    if (json_array_size(v) > FM_MAX_OBSTACLES) return fail_at(w, p->key, "at most %d obstacles", FM_MAX_OBSTACLES);
-    def->obstacle_count = (int32_t)json_array_size(v);
-    for (int32_t i = 0; i < def->obstacle_count; i++) {
-        const json_t *e = json_array_get(v, (size_t)i);
-        char label[64];
-        snprintf(label, sizeof label, "obstacles.meshes[%d]", i);
-        fm_mesh_ref *ref = &def->obstacles[i];
-        memset(ref, 0, sizeof *ref);
-        ref->scale = 1;
-        w->steps[w->depth++] = (fm_json_step){NULL, i};
-        fm_status st = read_element(w, e, MESH_PARAMS, (int)(sizeof MESH_PARAMS / sizeof MESH_PARAMS[0]), ref, label, NULL, def);
-        if (st == FM_OK && !ref->path[0]) st = fail_at(w, label, "every obstacle needs a \"mesh\"");
-        w->depth--;
-        if (st != FM_OK) return st;
-    }
-    return FM_OK;
+    const json_t *type = json_is_object(e) ? json_object_get(e, "type") : NULL;
+    if (json_is_object(e) && !type) return fail_at(w, label, "every field needs a \"type\"");
+    fm_field_def probe = {.kind = FM_FIELD_CURL_NOISE};
+    fm_status st = type ? read_member(w, label, &FIELD_PARAMS[0], type, &probe, def) : FM_OK;
+    if (st != FM_OK) return st;
+    def->fields[i] = fm_default_field_def(probe.kind);
+    return read_element(w, e, FIELD_PARAMS, (int)(sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0]), &def->fields[i],
+                        label, FIELD_KEYS[probe.kind], def);
+}
+
+/* One obstacle: {"mesh": "king.obj", "translate": [...], ...}. */
+static fm_status read_obstacle(where *w, const json_t *e, int32_t i, const char *label, fm_scene_def *def)
+{
+    fm_mesh_ref *ref = &def->obstacles[i];
+    memset(ref, 0, sizeof *ref);
+    ref->scale = 1;
+    fm_status st = read_element(w, e, MESH_PARAMS, (int)(sizeof MESH_PARAMS / sizeof MESH_PARAMS[0]), ref, label, NULL, def);
+    if (st == FM_OK && !ref->path[0]) st = fail_at(w, label, "every obstacle needs a \"mesh\"");
+    return st;
 }
 
 static const char *const CURVE_NAMES[] = {"polyline", "catmull_rom"};
@@ -428,8 +424,8 @@ static fm_status read_param(where *w, const param *p, const json_t *v, void *bas
     case P_BOOL: return read_bool(w, p, v, (int32_t *)field);
     case P_INT3: return read_int3(w, p, v, (int32_t *)field);
     case P_POINTS: return read_points(w, p, v, def);
-    case P_FIELDS: return read_fields(w, p, v, def);
-    case P_OBSTACLES: return read_obstacles(w, p, v, def);
+    case P_FIELDS: return read_list(w, p, v, FM_MAX_FIELDS, &def->field_count, read_field, def);
+    case P_OBSTACLES: return read_list(w, p, v, FM_MAX_OBSTACLES, &def->obstacle_count, read_obstacle, def);
     }
     return FM_OK;
 }
