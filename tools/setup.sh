@@ -6,8 +6,22 @@ cd "$(dirname "$0")/.."
 build_dir=${1:-build}
 shift || true
 
-packages=(build-essential cmake pkg-config libtet1.5-dev libassimp-dev libjansson-dev libzstd-dev libpng-dev
-          libembree-dev libopenvdb-dev libtbb-dev libblosc-dev libboost-iostreams-dev)
+# One package a line, so additions merge cleanly.
+packages=(
+  build-essential
+  cmake
+  pkg-config
+  libtet1.5-dev
+  libassimp-dev
+  libjansson-dev
+  libzstd-dev
+  libpng-dev
+  libembree-dev
+  libopenvdb-dev
+  libtbb-dev
+  libblosc-dev
+  libboost-iostreams-dev
+)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

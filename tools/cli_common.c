@@ -1,0 +1,131 @@
+/* Helpers shared by the commands: errors, option parsing, output directories, cache frames. */
+#define _POSIX_C_SOURCE 200809L
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+double cli_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int cli_usage_error(const char *usage, const char *fmt, const char *arg)
+{
+    fprintf(stderr, "flockmorph: ");
+    fprintf(stderr, fmt, arg);
+    fprintf(stderr, "\n\n%s", usage);
+    return FM_ERR_USAGE;
+}
+
+int cli_report(const fm_error *err)
+{
+    fprintf(stderr, "flockmorph: error: %s\n", err->message);
+    return err->status ? (int)err->status : FM_ERR_INTERNAL;
+}
+
+int cli_wants_help(int argc, char **argv)
+{
+    for (int i = 0; i < argc; i++)
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) return 1;
+    return 0;
+}
+
+int cli_parse_int(const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) return -1;
+    *out = v;
+    return 0;
+}
+
+/* mkdir -p: creates dir and any missing parents. */
+static int make_dirs(const char *dir)
+{
+    char path[FM_PATH_MAX];
+    if (snprintf(path, sizeof path, "%s", dir) >= (int)sizeof path) return errno = ENAMETOOLONG, -1;
+    for (char *p = path + 1; *p; p++) {
+        if (*p != '/') continue;
+        *p = 0;
+        if (mkdir(path, 0777) != 0 && errno != EEXIST) return -1;
+        *p = '/';
+    }
+    return mkdir(path, 0777) != 0 && errno != EEXIST ? -1 : 0;
+}
+
+int cli_make_outdir(const char *dir, fm_error *err)
+{
+    struct stat st;
+    if (stat(dir, &st) == 0) {
+        if (!S_ISDIR(st.st_mode)) return fprintf(stderr, "flockmorph: error: %s exists and is not a directory\n", dir), FM_ERR_IO;
+    } else if (make_dirs(dir) != 0) {
+        fprintf(stderr, "flockmorph: error: cannot create the output directory %s: %s\n", dir, strerror(errno));
+        return FM_ERR_IO;
+    }
+    if (access(dir, W_OK) != 0) {
+        fprintf(stderr, "flockmorph: error: cannot write to the output directory %s: %s\n", dir, strerror(errno));
+        return FM_ERR_IO;
+    }
+    (void)err;
+    return 0;
+}
+
+int cli_parse_frame_options(int argc, char **argv, const char *usage, int optional_out, cli_frame_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->width = 960, o->height = 540, o->view = "front";
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i];
+        if ((!strcmp(a, "-o") || !strcmp(a, "--output")) && i + 1 < argc) o->out = argv[++i];
+        else if (!strcmp(a, "--frame") && i + 1 < argc) {
+            if (cli_parse_int(argv[++i], -2000000000L, 2000000000L, &o->frame)) return cli_usage_error(usage, "--frame wants a whole number, not '%s'", argv[i]);
+            o->has_frame = 1;
+        } else if (!strcmp(a, "--size") && i + 1 < argc) {
+            if (sscanf(argv[++i], "%dx%d", &o->width, &o->height) != 2 || o->width < 16 || o->height < 16 || o->width > 16384 || o->height > 16384)
+                return cli_usage_error(usage, "--size wants WIDTHxHEIGHT between 16 and 16384, not '%s'", argv[i]);
+        } else if (!strcmp(a, "--view") && i + 1 < argc) o->view = argv[++i];
+        else if (a[0] == '-' && a[1]) return cli_usage_error(usage, "unknown or incomplete option '%s'", a);
+        else if (!o->cache) o->cache = a;
+        else return cli_usage_error(usage, "unexpected argument '%s'", a);
+    }
+    if (!o->cache) return cli_usage_error(usage, "%s", "no cache file given");
+    if (!o->out && !optional_out) return cli_usage_error(usage, "%s", "no output file given (-o FILE)");
+    return 0;
+}
+
+/* Opens the cache and reads the chosen frame (default last). */
+int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float **verts, uint32_t *frame)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(o->cache, &err);
+    if (!r) return cli_report(&err);
+    if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
+    long frames = (long)fm_cache_frames(r), k = o->has_frame ? o->frame : -1;
+    if (k < 0) k += frames;
+    if (k < 0 || k >= frames) {
+        fprintf(stderr, "flockmorph: error: %s has %ld frames (0..%ld); there is no frame %ld\n", o->cache, frames, frames - 1, o->frame);
+        fm_cache_close(r);
+        return FM_ERR_USAGE;
+    }
+    *verts = malloc(sizeof(float) * 12 * (fm_cache_agents(r) ? fm_cache_agents(r) : 1));
+    if (!*verts) return fm_cache_close(r), fprintf(stderr, "flockmorph: error: out of memory\n"), FM_ERR_MEMORY;
+    if (fm_cache_read_frame(r, (uint32_t)k, *verts, &err) != FM_OK) {
+        free(*verts);
+        fm_cache_close(r);
+        return cli_report(&err);
+    }
+    *reader = r;
+    *frame = (uint32_t)k;
+    return 0;
+}
+
