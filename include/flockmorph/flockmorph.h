@@ -235,8 +235,69 @@ const char *fm_cache_warning(const fm_cache_reader *r);
 uint64_t fm_cache_agents(const fm_cache_reader *r);
 uint32_t fm_cache_frames(const fm_cache_reader *r);
 double fm_cache_frame_rate(const fm_cache_reader *r);
+/* The tet vertices of one frame (agents × 12 floats); an error if the cache has no tet vertices. */
 fm_status fm_cache_read_frame(fm_cache_reader *r, uint32_t frame, float *out, fm_error *err);
 void fm_cache_close(fm_cache_reader *r);
+
+/* ---------------------------------------------------------------- cache attributes (format 2)
+ *
+ * A cache holds, per frame, one array per attribute, agents in id order. The tetra morph writes
+ * tet vertices and phase; point flocks (the shape-constrained flock) write position, velocity and
+ * orientation. fm_cache_writer_create above is the tetra morph's shorthand for
+ * {FM_ATTR_TET_VERTICES} with default options. */
+typedef enum fm_cache_attr {
+    FM_ATTR_TET_VERTICES = 1, /* 12 × f32: 4 vertices × xyz */
+    FM_ATTR_POSITION = 2,     /* 3 × f32 */
+    FM_ATTR_VELOCITY = 3,     /* 3 × f32 */
+    FM_ATTR_ORIENTATION = 4,  /* 4 × f32: unit quaternion w x y z, the agent's frame (x along velocity) */
+    FM_ATTR_ID = 5,           /* 1 × u32: stable agent id */
+    FM_ATTR_PHASE = 6         /* 1 × u8: fm_phase (tetra morph) or the flock's own phase */
+} fm_cache_attr;
+
+typedef enum fm_cache_scalar { FM_SCALAR_F32 = 1, FM_SCALAR_U32 = 2, FM_SCALAR_U8 = 3 } fm_cache_scalar;
+
+typedef struct fm_cache_attr_info {
+    fm_cache_attr attr;
+    const char *name;        /* "tet_vertices", "position", ... as in docs/cache-format.md */
+    int components;          /* values per agent */
+    fm_cache_scalar scalar;
+    size_t bytes_per_agent;  /* components × scalar size */
+} fm_cache_attr_info;
+
+/* Fixed facts about an attribute kind; NULL for an unknown one. */
+const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr);
+
+typedef struct fm_cache_options {
+    int compression_level;   /* zstd 1..19 */
+    int delta;               /* 1: f32 attributes stored as the XOR of their bits with the previous
+                                frame's (lossless); every key_interval-th frame is stored whole */
+    int key_interval;        /* frames between whole frames when delta is on (default 16) */
+    double quantum;          /* > 0: f32 attributes rounded to multiples of quantum (lossy, error
+                                <= quantum / 2, documented); 0: lossless (the default) */
+} fm_cache_options;
+
+fm_cache_options fm_default_cache_options(void);
+
+fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents, double frame_rate,
+                                              const fm_cache_attr *attrs, int attr_count,
+                                              const fm_cache_options *opts, fm_error *err);
+/* data[i] points at agents × attribute i's values, in the order given to create_attrs. */
+fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err);
+/* Reopens PATH.partial left by an interrupted run, keeps its first `frames` frames, drops anything
+ * after them, and continues writing (checkpoint / resume). Fails if fewer frames are readable. */
+fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
+uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
+
+int fm_cache_attr_count(const fm_cache_reader *r);
+const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
+int fm_cache_has_attr(const fm_cache_reader *r, fm_cache_attr attr);
+/* Reads one attribute of one frame into out (agents × bytes_per_agent bytes). */
+fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr attr, void *out,
+                             fm_error *err);
+/* Sizes for `inspect`: the file, and the raw and compressed bytes of all frames. */
+uint64_t fm_cache_file_bytes(const fm_cache_reader *r);
+uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
+uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */
 
