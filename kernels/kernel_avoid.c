@@ -62,10 +62,11 @@ static void slide_velocity(const fm_obstacle_view *o, float c, float dt, const f
 
 static float radius_now(const fm_radius_view *r, int64_t a, double time)
 {
-    double tau = time - (double)a / r->launch_rate;
+    const int32_t i = r->id[a];
+    double tau = time - (double)i / r->launch_rate;
     double s = r->shrink_time > 0 ? tau / r->shrink_time : 1.0;
     s = s < 0 ? 0 : s > 1 ? 1 : s;
-    return r->rest[a] * (float)(1.0 - (1.0 - r->shrink) * s);
+    return r->rest[i] * (float)(1.0 - (1.0 - r->shrink) * s);
 }
 
 float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],

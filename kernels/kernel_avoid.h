@@ -20,10 +20,11 @@ typedef struct fm_obstacle_view {
 
 /* The tets' bounding radius R_X at a given moment: rest radius times the launch shrink. */
 typedef struct fm_radius_view {
-    const float *rest;    /* per agent: radius of the tet's minimal bounding sphere at rest */
+    const float *rest;    /* per agent id: radius of the tet's minimal bounding sphere at rest */
+    const int32_t *id;    /* agent id of each store slot (the store is re-sorted) */
     float shrink;         /* FM §6 shrink factor and its duration */
     float shrink_time;
-    double launch_rate;   /* agent a launched at a / launch_rate */
+    double launch_rate;   /* agent id i launched at i / launch_rate */
 } fm_radius_view;
 
 /* d_t and its unit gradient at (x, y, z): the grid, or the exact callback near the surface. */

@@ -30,6 +30,10 @@ typedef struct fm_sphere_view {
 void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3],
                                const uint8_t *phase, int64_t begin, int64_t end, float speed,
                                float *const v[3]);
+/* Its scalar reference twin (the SIMD variants match it bit for bit). */
+void fm_kernel_global_velocity_ref(const fm_path_view *path, const float *const p[3],
+                                   const uint8_t *phase, int64_t begin, int64_t end, float speed,
+                                   float *const v[3]);
 
 /* Phase 1 integration x += v dt, then the phase switch test (FM §5.5): entered[i] = 1 if a flying
  * agent is now inside the target's bounding sphere, or, when target_sdf is not NULL (beyond the

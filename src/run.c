@@ -25,12 +25,13 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 static double max_vertex_error(const fm_model *m, const fm_state *s, const float *verts)
 {
     double worst = 0;
-    for (int64_t a = 0; a < s->n; a++) {
+    for (int64_t a = 0; a < s->n; a++) { /* slot a holds agent id[a]; verts are in id order */
         if (s->target[a] < 0) return INFINITY;
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         const double *t = m->tgt + 12 * s->target[a];
+        const float *v = verts + 12 * (size_t)s->id[a];
         for (int i = 0; i < 4; i++)
-            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)verts[12 * a + 3 * i + k] - t[3 * perm[i] + k]));
+            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - t[3 * perm[i] + k]));
     }
     return worst;
 }

@@ -9,7 +9,8 @@
 
 #include <stdint.h>
 
-enum { FM_BLOCK = 4096 }; /* agents per scheduler block */
+enum { FM_BLOCK = 4096 };        /* agents per scheduler block */
+enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
 
 /* Immutable after fm_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
@@ -46,9 +47,27 @@ typedef struct block_counts {
     float clearance;          /* smallest d_t - R_X in phase 1 */
 } block_counts;
 
-/* Everything the step mutates. Arrays are 64-byte aligned and indexed by agent id. */
+/* Stages of fm_step, timed into fm_state.stage_seconds for the benchmarks. */
+typedef enum fm_stage {
+    FM_STAGE_RESORT, FM_STAGE_LAUNCH, FM_STAGE_FIELDS, FM_STAGE_GRID, FM_STAGE_VELOCITY, FM_STAGE_MOVE,
+    FM_STAGE_HANDOUT, FM_STAGE_MORPH, FM_STAGE_COUNT
+} fm_stage;
+extern const char *const fm_stage_names[FM_STAGE_COUNT];
+
+/* Everything the step mutates. Arrays are 64-byte aligned and indexed by store slot; id[slot] is
+ * the agent's id (its launch rank, the index of the model's per-agent arrays). Every
+ * FM_RESORT_INTERVAL steps the in-flight agents are re-sorted by the Morton code of their position
+ * (resort.c), so neighbours in space are neighbours in memory. The slots are laid out as
+ *
+ *     [0, active_begin)            arrived before the last re-sort
+ *     [active_begin, active_end)   in flight (and agents that arrived since the last re-sort)
+ *     [active_end, n)              waiting to launch, in id order
+ *
+ * so the step only visits the active range: idle agents cost nothing. */
 struct fm_state {
     int64_t n;
+    int32_t *id;             /* agent id of each slot */
+    int64_t active_begin, active_end;
     int64_t step;
     double time;
     int threads;
@@ -63,7 +82,10 @@ struct fm_state {
     uint8_t *perm;           /* vertex correspondence: index into fm_even_permutations */
     uint8_t *morph_safe;     /* 1: uses the always-invertible A(t) form (see morph.c) */
     uint8_t *entered;        /* scratch: entered the target sphere this step */
-    int64_t launched;        /* agents 0..launched-1 have left the source */
+    void *sort_scratch;      /* scratch for the re-sort: 16 bytes per agent */
+    uint32_t *sort_keys;     /* scratch: 2 × n keys and 2 × n slots */
+    int32_t *sort_slots;
+    int64_t launched;        /* agents with id < launched have left the source */
     int64_t next_slot;       /* target slots handed out so far */
     int64_t count[4];        /* agents per phase */
     int64_t morph_fallbacks;
@@ -77,7 +99,25 @@ struct fm_state {
     int64_t mde_agent_steps; /* since the last frame: phase-1 agent-steps that needed MDE ... */
     int64_t flying_agent_steps; /* ... out of all phase-1 agent-steps */
     float min_clearance;     /* smallest d_t - R_X seen in phase 1 (INFINITY without obstacles) */
+    double stage_seconds[FM_STAGE_COUNT]; /* wall time per stage, summed over steps */
 };
+
+/* resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
+ * agent's id and state. */
+void fm_state_resort(const fm_model *m, fm_state *s);
+fm_status fm_state_alloc_sort(fm_state *s);
+void fm_state_free_sort(fm_state *s);
+
+/* Slots of scheduler block b of the active range. */
+static inline int64_t fm_active_blocks(const fm_state *s)
+{
+    return (s->active_end - s->active_begin + FM_BLOCK - 1) / FM_BLOCK;
+}
+static inline void fm_active_block(const fm_state *s, int64_t b, int64_t *begin, int64_t *end)
+{
+    *begin = s->active_begin + b * FM_BLOCK;
+    *end = FM_MIN(*begin + FM_BLOCK, s->active_end);
+}
 
 /* morph.c */
 extern const uint8_t fm_even_permutations[12][4];

@@ -15,6 +15,7 @@ static int alloc_arrays(fm_state *s)
         ok &= (s->v[k] = fm_alloc(sizeof(float) * n)) != NULL;
         ok &= (s->p2[k] = fm_alloc(sizeof(float) * n)) != NULL;
     }
+    ok &= (s->id = fm_alloc(sizeof(int32_t) * n)) != NULL;
     ok &= (s->phase = fm_alloc(n)) != NULL;
     ok &= (s->target = fm_alloc(sizeof(int64_t) * n)) != NULL;
     ok &= (s->t2 = fm_alloc(sizeof(float) * n)) != NULL;
@@ -27,7 +28,7 @@ static int alloc_arrays(fm_state *s)
     ok &= (s->member = fm_alloc(n)) != NULL;
     ok &= (s->mde_needed = fm_alloc(n)) != NULL;
     for (int k = 0; k < 3; k++) ok &= (s->vla[k] = fm_alloc(sizeof(float) * n)) != NULL;
-    return ok;
+    return ok && fm_state_alloc_sort(s) == FM_OK;
 }
 
 /* The parts of the store only some scenes need: style fields and the MDE grid. */
@@ -56,6 +57,11 @@ fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
         return NULL;
     }
     s->n = m->n;
+    if (m->n > INT32_MAX) {
+        free(s);
+        fm_fail(err, FM_ERR_INPUT, "n = %lld agents: the store holds at most %d", (long long)m->n, INT32_MAX);
+        return NULL;
+    }
     s->threads = threads > 0 ? threads : omp_get_max_threads();
     if (!alloc_arrays(s)) {
         fm_state_destroy(s);
@@ -67,7 +73,7 @@ fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
         return NULL;
     }
     for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
-    for (int64_t a = 0; a < s->n; a++) s->target[a] = -1;
+    for (int64_t a = 0; a < s->n; a++) s->target[a] = -1, s->id[a] = (int32_t)a;
     s->count[FM_PHASE_WAITING] = s->n;
     s->min_clearance = INFINITY;
     return s;
@@ -77,10 +83,11 @@ void fm_state_destroy(fm_state *s)
 {
     if (!s) return;
     for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
-    fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
+    fm_free(s->id), fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
     fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
     fm_free(s->blocks), fm_free(s->member), fm_free(s->mde_needed);
     for (int k = 0; k < 3; k++) fm_free(s->vla[k]);
+    fm_state_free_sort(s);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     free(s);
@@ -98,7 +105,7 @@ fm_state_info fm_state_get_info(const fm_state *s)
 
 void fm_state_targets(const fm_state *s, int64_t *out)
 {
-    memcpy(out, s->target, sizeof(int64_t) * (size_t)s->n);
+    for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->target[a];
 }
 
 /* out[i] = c + scale * M * rel[i] for the four vertices (M row-major, NULL = identity). */
@@ -126,7 +133,9 @@ static void target_relative(const fm_model *m, int64_t slot, const uint8_t *perm
 static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double time, float *out)
 {
     const fm_scene_def *def = &m->def;
-    double launch = (double)a / m->launch_rate, tf = s->tf[a];
+    const int32_t i = s->id[a];
+    const float *rest = m->src_rel + 12 * (size_t)i;
+    double launch = (double)i / m->launch_rate, tf = s->tf[a];
     double u = tf > 0 ? (time - s->t2[a]) / tf : 1.0;
     u = u < 0 ? 0 : u > 1 ? 1 : u;
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
@@ -135,9 +144,9 @@ static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double t
     target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rel);
     if (u < um) {
         double full[9], mat[9];
-        fm_morph_affine(m->src_rel + 12 * a, rel, full);
+        fm_morph_affine(rest, rel, full);
         fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], full, u / um, mat);
-        place_tet(c, fm_shrink_scale(def, time - launch), mat, m->src_rel + 12 * a, out);
+        place_tet(c, fm_shrink_scale(def, time - launch), mat, rest, out);
         return;
     }
     double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
@@ -147,13 +156,14 @@ static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double t
 static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *out)
 {
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
+    const int32_t i = s->id[a];
     switch (s->phase[a]) {
     case FM_PHASE_WAITING:
-        place_tet(c, 1.0, NULL, m->src_rel + 12 * a, out);
+        place_tet(c, 1.0, NULL, m->src_rel + 12 * (size_t)i, out);
         break;
     case FM_PHASE_FLYING:
-        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)a / m->launch_rate), NULL,
-                  m->src_rel + 12 * a, out);
+        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)i / m->launch_rate), NULL,
+                  m->src_rel + 12 * (size_t)i, out);
         break;
     case FM_PHASE_HOMING:
         homing_tet(m, s, a, s->time, out);
@@ -165,12 +175,13 @@ static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *ou
     }
 }
 
+/* Slot order in, id order out: each tet is written where its agent id says. */
 void fm_state_tet_vertices(const fm_model *m, const fm_state *s, float *out)
 {
     int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         int64_t end = FM_MIN((b + 1) * FM_BLOCK, s->n);
-        for (int64_t a = b * FM_BLOCK; a < end; a++) agent_tet(m, s, a, out + 12 * a);
+        for (int64_t a = b * FM_BLOCK; a < end; a++) agent_tet(m, s, a, out + 12 * (size_t)s->id[a]);
     }
 }

@@ -1,6 +1,7 @@
 /* fm_step: one time step of the tetra flock morph (FM §5).
  *
  * The pipeline, in order:
+ *   0. re-sort      every FM_RESORT_INTERVAL steps, the in-flight agents by position (resort.c)
  *   1. launch       agents whose launch time has come leave the source, in D1 order (eq 4)
  *   2. prepare      the style-field grid for this time (if baked and time-varying); the MDE
  *                   neighbour grid over the flying agents (counting sort)
@@ -12,7 +13,7 @@
  *   5. hand-out     agents that entered phase 2 take the next target tet in D2 order, in
  *                   agent-id order (serial)
  *   6. morph setup  each new phase-2 agent gets its correspondence and A = RS (§6)
- * Stages 3, 4 and 6 run over fixed blocks of agents on OpenMP threads. Stage 3 only reads
+ * Stages 3, 4 and 6 run over fixed blocks of the active range (sim.h) on OpenMP threads. Stage 3 only reads
  * positions and stage 4 only moves an agent itself, with a barrier between them, so every agent
  * sees the same neighbours whatever the thread count; per-block counts are combined in block
  * order. */
@@ -23,14 +24,18 @@
 
 #include <math.h>
 
+/* Waiting agents are the slots from active_end on, in id order: launching moves the boundary. */
 static void launch_due_agents(const fm_model *m, fm_state *s)
 {
-    int64_t due = (int64_t)floor(m->launch_rate * s->time) + 1; /* agent a launches at a / rate */
+    int64_t due = (int64_t)floor(m->launch_rate * s->time) + 1; /* agent id i launches at i / rate */
     if (due > s->n) due = s->n;
-    for (int64_t a = s->launched; a < due; a++) s->phase[a] = FM_PHASE_FLYING;
-    s->count[FM_PHASE_WAITING] -= due - s->launched;
-    s->count[FM_PHASE_FLYING] += due - s->launched;
-    s->launched = FM_MAX(s->launched, due);
+    if (due <= s->launched) return;
+    int64_t count = due - s->launched;
+    for (int64_t a = s->active_end; a < s->active_end + count; a++) s->phase[a] = FM_PHASE_FLYING;
+    s->active_end += count;
+    s->count[FM_PHASE_WAITING] -= count;
+    s->count[FM_PHASE_FLYING] += count;
+    s->launched = due;
 }
 
 /* Exact signed distance for the avoidance kernel (Embree through fm_obstacles_closest). */
@@ -48,17 +53,28 @@ static fm_obstacle_view obstacle_view(const fm_model *m)
                               m->max_radius + 2.0f * sdf.voxel};
 }
 
+/* The MDE grid's cell edge: at least d_min (the search reaches one cell), and no smaller than the
+ * agents' spacing at rest, cbrt(source volume / n). With cells much smaller than the spacing, almost
+ * every cell holds one agent or none and each of an agent's 9 rows is a random place in the table:
+ * a cache miss each, whatever the store's order. With cells about the spacing, agents next to each
+ * other in the (re-sorted) store share rows, and the walk trims the rows to those within d_min. */
+static float mde_cell(const fm_model *m)
+{
+    double spacing = cbrt(m->info.source_volume / (double)m->n);
+    return (float)fmax(m->def.d_min, spacing);
+}
+
 /* Stage 2: the neighbour grid over this step's flying agents. */
 static void build_neighbour_grid(const fm_model *m, fm_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
-    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->n, (float)m->def.d_min, s->threads);
+    for (int64_t a = 0; a < s->active_end; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
+    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end, mde_cell(m), s->threads);
 }
 
-static fm_radius_view radius_view(const fm_model *m)
+static fm_radius_view radius_view(const fm_model *m, const fm_state *s)
 {
-    return (fm_radius_view){m->src_radius, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
+    return (fm_radius_view){m->src_radius, s->id, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
 }
 
 /* MDE (FM §5.4): V_la gathered from the grid's neighbours and added to the flying agents. */
@@ -88,7 +104,7 @@ static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_
     int steer_phase2 = m->obstacles && def->avoid_in_phase2;
     bc->clearance = INFINITY;
     if (m->obstacles) { /* V_grn -> V_oa where the look-ahead collides (eqs 7-8) */
-        o = obstacle_view(m), r = radius_view(m);
+        o = obstacle_view(m), r = radius_view(m, s);
         bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt);
     }
     if (steer_phase2) {
@@ -126,8 +142,9 @@ static void hand_out_targets(const fm_model *m, fm_state *s, const block_counts 
 {
     for (int64_t b = 0; b < blocks; b++) {
         if (bc[b].entered == 0) continue;
-        int64_t end = FM_MIN((b + 1) * FM_BLOCK, s->n);
-        for (int64_t a = b * FM_BLOCK; a < end; a++) {
+        int64_t begin, end;
+        fm_active_block(s, b, &begin, &end);
+        for (int64_t a = begin; a < end; a++) {
             if (!s->entered[a]) continue;
             int64_t slot = s->next_slot++;
             s->target[a] = slot;
@@ -152,33 +169,62 @@ static int64_t setup_morphs(const fm_model *m, fm_state *s, int64_t begin, int64
         const int64_t slot = s->target[a];
         float dst[12];
         for (int i = 0; i < 12; i++) dst[i] = m->tgt_f[12 * slot + i] - m->tgt_c[i % 3][slot];
-        s->morph_safe[a] = (uint8_t)fm_morph_setup(m->src_rel + 12 * a, dst,
+        s->morph_safe[a] = (uint8_t)fm_morph_setup(m->src_rel + 12 * (size_t)s->id[a], dst,
                                                    s->morph + FM_MORPH_FLOATS * a, &s->perm[a]);
         fallbacks += s->morph_safe[a];
     }
     return fallbacks;
 }
 
+const char *const fm_stage_names[FM_STAGE_COUNT] = {"resort", "launch", "fields", "grid", "velocity", "move",
+                                                     "handout", "morph"};
+
+/* Adds the time since *t to stage k and restarts *t. */
+static void lap(fm_state *s, fm_stage k, double *t)
+{
+    double now = fm_seconds();
+    s->stage_seconds[k] += now - *t;
+    *t = now;
+}
+
 void fm_step(const fm_model *m, fm_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
-    const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
     block_counts *bc = s->blocks;
+    double t = fm_seconds();
+    if (s->step % FM_RESORT_INTERVAL == 0) fm_state_resort(m, s);
+    lap(s, FM_STAGE_RESORT, &t);
     launch_due_agents(m, s);
+    const int64_t blocks = fm_active_blocks(s);
+    lap(s, FM_STAGE_LAUNCH, &t);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
+    lap(s, FM_STAGE_FIELDS, &t);
     if (m->def.d_min > 0) build_neighbour_grid(m, s);
+    lap(s, FM_STAGE_GRID, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
+        int64_t begin, end;
+        fm_active_block(s, b, &begin, &end);
         bc[b] = (block_counts){0, 0, 0, 0, 0, INFINITY};
-        velocity_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), &bc[b]);
+        velocity_block(m, s, begin, end, &bc[b]);
     }
+    lap(s, FM_STAGE_VELOCITY, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t b = 0; b < blocks; b++)
-        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), t_end, &bc[b]);
+    for (int64_t b = 0; b < blocks; b++) {
+        int64_t begin, end;
+        fm_active_block(s, b, &begin, &end);
+        move_block(m, s, begin, end, t_end, &bc[b]);
+    }
+    lap(s, FM_STAGE_MOVE, &t);
     hand_out_targets(m, s, bc, blocks, t_end);
+    lap(s, FM_STAGE_HANDOUT, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
-    for (int64_t b = 0; b < blocks; b++)
-        if (bc[b].entered) bc[b].fallbacks = setup_morphs(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n));
+    for (int64_t b = 0; b < blocks; b++) {
+        int64_t begin, end;
+        fm_active_block(s, b, &begin, &end);
+        if (bc[b].entered) bc[b].fallbacks = setup_morphs(m, s, begin, end);
+    }
+    lap(s, FM_STAGE_MORPH, &t);
     for (int64_t b = 0; b < blocks; b++) { /* combine in block order */
         s->count[FM_PHASE_FLYING] -= bc[b].entered;
         s->count[FM_PHASE_HOMING] += bc[b].entered - bc[b].arrived;

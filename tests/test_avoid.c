@@ -17,11 +17,12 @@ static fm_obstacle_view plane_view(float k_a)
 }
 
 static const float zero_radius[4] = {0, 0, 0, 0};
+static const int32_t identity_ids[4] = {0, 1, 2, 3};
 
 static void test_outside_influence_keeps_v_grn(void)
 {
     fm_obstacle_view o = plane_view(1.0f);
-    fm_radius_view r = {zero_radius, 1.0f, 0.0f, 1.0};
+    fm_radius_view r = {zero_radius, identity_ids, 1.0f, 0.0f, 1.0};
     float x[1] = {2.0f}, y[1] = {0.4f}, z[1] = {0.4f}, vx[1] = {1.5f}, vy[1] = {0.5f}, vz[1] = {0};
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
@@ -34,7 +35,7 @@ static void test_outside_influence_keeps_v_grn(void)
 static void test_on_the_surface_v_oa_is_tangent(void)
 {
     fm_obstacle_view o = plane_view(1.0f);
-    fm_radius_view r = {zero_radius, 1.0f, 0.0f, 1.0};
+    fm_radius_view r = {zero_radius, identity_ids, 1.0f, 0.0f, 1.0};
     float x[2] = {5.0f, 5.0f}, y[2] = {0.4f, 0.4f}, z[2] = {0.4f, 0.4f};
     float vx[2] = {1.5f, 2.0f}, vy[2] = {0.5f, 0}, vz[2] = {0, 0}; /* agent 1 hits head-on */
     uint8_t phase[2] = {1, 1};
@@ -52,7 +53,7 @@ static void test_on_the_surface_v_oa_is_tangent(void)
 static void test_eq7_blend(void)
 {
     fm_obstacle_view o = plane_view(1.0f);
-    fm_radius_view r = {zero_radius, 1.0f, 0.0f, 1.0};
+    fm_radius_view r = {zero_radius, identity_ids, 1.0f, 0.0f, 1.0};
     float x[1] = {4.5f}, y[1] = {0.4f}, z[1] = {0.4f}, vx[1] = {10.0f}, vy[1] = {0}, vz[1] = {1.0f};
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
@@ -66,7 +67,7 @@ static void test_eq7_blend(void)
 static void test_no_look_ahead_collision_keeps_v_grn(void)
 {
     fm_obstacle_view o = plane_view(1.0f);
-    fm_radius_view r = {zero_radius, 1.0f, 0.0f, 1.0};
+    fm_radius_view r = {zero_radius, identity_ids, 1.0f, 0.0f, 1.0};
     float x[1] = {4.5f}, y[1] = {0.4f}, z[1] = {0.4f}, vx[1] = {-1.0f}, vy[1] = {0}, vz[1] = {0};
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
@@ -80,7 +81,7 @@ static void test_contact_stops_at_the_surface(void)
 {
     fm_obstacle_view o = plane_view(1.0f);
     const float radius[1] = {0.2f};
-    fm_radius_view r = {radius, 1.0f, 0.0f, 1.0};
+    fm_radius_view r = {radius, identity_ids, 1.0f, 0.0f, 1.0};
     float x[1] = {4.6f}, y[1] = {0.4f}, z[1] = {0.4f}, vx[1] = {3.0f}, vy[1] = {1.0f}, vz[1] = {0};
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};

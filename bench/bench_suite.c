@@ -1,0 +1,261 @@
+/* The throughput benchmark suite (docs/performance.md).
+ *
+ *   bench_suite [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE] [--scenarios 0|1]
+ *               [--machine 0|1]
+ *
+ * For every N: builds the scene (default examples/castling: global path, curl noise baked on a
+ * grid, an obstacle's distance field, MDE) with n = N, launches every agent at t = 0 so all are in
+ * flight, and times S full steps, each followed by the synthesis of every tet's four vertices
+ * (FM §6), with 1 and with T threads. Also measures, in the same run, the machine's STREAM triad
+ * bandwidth and peak fused multiply-add rate, and prints the achieved fraction of each (the
+ * roofline), the SIMD kernels' speedup over their scalar twins, the thread speedup and whether
+ * 1 and T threads gave the same bits. With --scenarios 1 it also runs the four examples (FM
+ * Table I). Prints one JSON document on stdout; progress on stderr. */
+#define _POSIX_C_SOURCE 200809L
+#include "flockmorph/flockmorph.h"
+#include "kernels.h"
+#include "roofline.h"
+#include "sim.h"
+#include "simd.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct options {
+    long agents[8];
+    int agent_count;
+    long steps, threads;
+    int scenarios, machine;
+    char scene[4096];
+} options;
+
+static int parse(int argc, char **argv, options *o)
+{
+    o->agent_count = 0, o->steps = 10, o->threads = omp_get_max_threads(), o->scenarios = 0, o->machine = 1;
+    snprintf(o->scene, sizeof o->scene, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
+    for (int i = 1; i + 1 < argc; i += 2) {
+        const char *k = argv[i], *v = argv[i + 1];
+        if (!strcmp(k, "--agents")) {
+            for (char *s = (char *)v; *s && o->agent_count < 8; s += *s == ',') o->agents[o->agent_count++] = strtol(s, &s, 10);
+        } else if (!strcmp(k, "--steps")) o->steps = atol(v);
+        else if (!strcmp(k, "--threads")) o->threads = atol(v);
+        else if (!strcmp(k, "--scenarios")) o->scenarios = atoi(v);
+        else if (!strcmp(k, "--machine")) o->machine = atoi(v);
+        else if (!strcmp(k, "--scene")) snprintf(o->scene, sizeof o->scene, "%s", v);
+        else return -1;
+    }
+    if (o->agent_count == 0) o->agents[o->agent_count++] = 100000;
+    for (int i = 0; i < o->agent_count; i++)
+        if (o->agents[i] < 1) return -1;
+    return o->steps > 0 && o->threads > 0 ? 0 : -1;
+}
+
+/* FNV-1a over the store, so runs can be compared bit for bit. */
+static uint64_t fnv(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 0x100000001b3ull;
+    return h;
+}
+
+static uint64_t state_hash(const fm_state *s, const float *frame)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    h = fnv(h, frame, sizeof(float) * 12 * (size_t)s->n);
+    h = fnv(h, s->phase, (size_t)s->n);
+    for (int k = 0; k < 3; k++) h = fnv(h, s->v[k], sizeof(float) * (size_t)s->n);
+    return h;
+}
+
+typedef struct step_result {
+    double agent_steps_per_second, ns_per_agent_step, stage_ns[FM_STAGE_COUNT + 1];
+    double path_ns_simd, path_ns_scalar;
+    uint64_t hash;
+    int64_t in_flight;
+} step_result;
+
+/* Times the path kernel (FM eq 3) alone on the state's agents at the given SIMD level. */
+static double time_path_kernel(const fm_model *m, fm_state *s, fm_simd level)
+{
+    fm_simd before = fm_simd_level();
+    fm_simd_set_level(level);
+    const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]}, {m->key_f[0], m->key_f[1], m->key_f[2]},
+                               m->key_count, (float)(0.5 * m->def.path_width), (float)m->def.path_attraction};
+    float speed = (float)(m->def.omega1 * m->def.speed0);
+    double best = INFINITY;
+    for (int rep = 0; rep < 5; rep++) {
+        double t0 = fm_seconds();
+        fm_kernel_global_velocity(&path, (const float *const *)s->p, s->phase, s->active_begin, s->active_end, speed, s->v);
+        best = fmin(best, fm_seconds() - t0);
+    }
+    fm_simd_set_level(before);
+    return 1e9 * best / (double)(s->active_end - s->active_begin);
+}
+
+static int run_steps(const fm_model *m, int threads, long steps, step_result *r)
+{
+    fm_error err = {0};
+    fm_state *s = fm_state_create(m, threads, &err);
+    float *frame = fm_alloc(sizeof(float) * 12 * (size_t)m->n);
+    if (!s || !frame) return fm_state_destroy(s), fm_free(frame), fprintf(stderr, "bench_suite: %s\n", err.message), -1;
+    fm_step(m, s); /* launches everyone, touches every page */
+    memset(s->stage_seconds, 0, sizeof s->stage_seconds);
+    double synth = 0, t0 = fm_seconds();
+    for (long k = 0; k < steps; k++) {
+        fm_step(m, s);
+        double t1 = fm_seconds();
+        fm_state_tet_vertices(m, s, frame);
+        synth += fm_seconds() - t1;
+    }
+    double seconds = fm_seconds() - t0, agent_steps = (double)m->n * (double)steps;
+    r->agent_steps_per_second = agent_steps / seconds;
+    r->ns_per_agent_step = 1e9 * seconds / agent_steps;
+    for (int k = 0; k < FM_STAGE_COUNT; k++) r->stage_ns[k] = 1e9 * s->stage_seconds[k] / agent_steps;
+    r->stage_ns[FM_STAGE_COUNT] = 1e9 * synth / agent_steps;
+    r->hash = state_hash(s, frame);
+    r->in_flight = s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING];
+    r->path_ns_simd = time_path_kernel(m, s, FM_SIMD_AVX2);
+    r->path_ns_scalar = time_path_kernel(m, s, FM_SIMD_SCALAR);
+    fm_free(frame);
+    fm_state_destroy(s);
+    return 0;
+}
+
+/* ns per agent of a step in which every agent waits at the source: what idle agents cost. */
+static double idle_ns_per_agent(fm_model *m, long steps)
+{
+    const double rate = m->launch_rate;
+    m->launch_rate = 1e-9; /* agent 0 launches, nobody else */
+    fm_error err = {0};
+    fm_state *s = fm_state_create(m, 1, &err);
+    double ns = NAN;
+    if (s) {
+        fm_step(m, s);
+        double t0 = fm_seconds();
+        for (long k = 0; k < steps; k++) fm_step(m, s);
+        ns = 1e9 * (fm_seconds() - t0) / ((double)m->n * (double)steps);
+    }
+    fm_state_destroy(s);
+    m->launch_rate = rate;
+    return ns;
+}
+
+static fm_model *build(const options *o, long agents, double *prep)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    if (fm_scene_load(o->scene, &def, &err) != FM_OK) return fprintf(stderr, "bench_suite: %s\n", err.message), NULL;
+    def.n = agents;
+    def.launch_rate = 1e12; /* everyone in flight from the first step */
+    double t0 = fm_seconds();
+    fm_model *m = fm_model_build(&def, NULL, NULL, &err);
+    *prep = fm_seconds() - t0;
+    if (!m) return fprintf(stderr, "bench_suite: %s\n", err.message), NULL;
+    /* MDE's d_min is a distance between neighbouring tets: keep it in proportion to the tet size,
+     * which shrinks as n^(-1/3) from the scene's own count. */
+    fm_model_info mi = fm_model_get_info(m);
+    double scene_n = (double)(mi.source_tets > mi.target_tets ? mi.source_tets : mi.target_tets);
+    if (agents > scene_n) m->def.d_min *= cbrt(scene_n / (double)agents);
+    return m;
+}
+
+static void print_stages(const char *key, const double *ns)
+{
+    printf("\"%s\": {", key);
+    for (int k = 0; k <= FM_STAGE_COUNT; k++)
+        printf("\"%s\": %.2f%s", k < FM_STAGE_COUNT ? fm_stage_names[k] : "synthesis", ns[k], k < FM_STAGE_COUNT ? ", " : "}");
+}
+
+static int bench_size(const options *o, long agents, const fm_machine *mc, int first)
+{
+    double prep;
+    fprintf(stderr, "bench_suite: n = %ld: building\n", agents);
+    fm_model *m = build(o, agents, &prep);
+    if (!m) return -1;
+    step_result one, many;
+    fprintf(stderr, "bench_suite: n = %ld: %ld steps, 1 thread\n", agents, o->steps);
+    if (run_steps(m, 1, o->steps, &one)) return fm_model_destroy(m), -1;
+    many = one;
+    if (o->threads > 1) {
+        fprintf(stderr, "bench_suite: n = %ld: %ld steps, %ld threads\n", agents, o->steps, o->threads);
+        if (run_steps(m, (int)o->threads, o->steps, &many)) return fm_model_destroy(m), -1;
+    }
+    double idle_ns = idle_ns_per_agent(m, o->steps);
+    fm_cost cost = fm_step_cost(m, many.stage_ns);
+    fm_roofline rl = fm_roofline_of(&cost, many.agent_steps_per_second, mc);
+    printf("%s\n    {\"agents\": %ld, \"threads\": %ld, \"steps\": %ld, \"in_flight\": %lld, \"d_min\": %.5g, "
+           "\"preprocess_seconds\": %.2f, \"bytes_per_agent\": %.0f,\n     \"agent_steps_per_second\": %.4g, "
+           "\"steps_per_second\": %.4g, \"ns_per_agent_step\": %.2f, ",
+           first ? "" : ",", agents, o->threads, o->steps, (long long)many.in_flight, m->def.d_min, prep,
+           fm_bytes_per_agent(m), many.agent_steps_per_second, many.agent_steps_per_second / (double)agents,
+           many.ns_per_agent_step);
+    print_stages("stage_ns_per_agent", many.stage_ns);
+    printf(",\n     \"one_thread\": {\"agent_steps_per_second\": %.4g, ", one.agent_steps_per_second);
+    print_stages("stage_ns_per_agent", one.stage_ns);
+    printf("},\n     \"bytes_per_agent_step\": %.0f, \"flops_per_agent_step\": %.0f, \"achieved_gbps\": %.2f, "
+           "\"achieved_gflops\": %.2f, \"roofline_fraction\": %.3f, \"bound\": \"%s\",\n",
+           cost.bytes, cost.flops, rl.gbps, rl.gflops, rl.fraction, rl.bound);
+    printf("     \"simd_speedup\": {\"path\": %.2f, \"path_ns_per_agent\": {\"%s\": %.2f, \"scalar\": %.2f}},\n",
+           many.path_ns_scalar / many.path_ns_simd, fm_simd_name(fm_simd_level()), many.path_ns_simd, many.path_ns_scalar);
+    printf("     \"thread_speedup\": %.2f, \"deterministic\": %s, \"idle_ns_per_agent\": %.3f}",
+           many.agent_steps_per_second / one.agent_steps_per_second, one.hash == many.hash ? "true" : "false", idle_ns);
+    fflush(stdout);
+    fm_model_destroy(m);
+    return 0;
+}
+
+/* FM Table I, for comparison (Core 2 Duo E7500, 2009). */
+static const struct { const char *name; double fps, mde; } TABLE_I[] = {
+    {"words", 185.4, 0.13}, {"moon", 31.3, 0.72}, {"creatures", 178, 0.63}, {"castling", 13.1, 1.27}};
+
+static void bench_scenarios(int threads)
+{
+    printf(",\n  \"scenarios\": [");
+    for (int i = 0; i < 4; i++) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s/examples/%s/scene.json", FM_SOURCE_DIR, TABLE_I[i].name);
+        fm_scene_def def;
+        fm_error err = {0};
+        fprintf(stderr, "bench_suite: scenario %s\n", TABLE_I[i].name);
+        fm_model *m = fm_scene_load(path, &def, &err) == FM_OK ? fm_model_build(&def, NULL, NULL, &err) : NULL;
+        fm_state *s = m ? fm_state_create(m, threads, &err) : NULL;
+        fm_run_stats rs = {0};
+        if (!s || fm_run(m, s, NULL, NULL, NULL, &rs, &err) != FM_OK) {
+            fprintf(stderr, "bench_suite: %s: %s\n", TABLE_I[i].name, err.message);
+        } else {
+            printf("%s\n    {\"scenario\": \"%s\", \"agents\": %lld, \"steps_per_second\": %.1f, \"mde_percent\": %.2f, "
+                   "\"paper_fps\": %.1f, \"paper_mde_percent\": %.2f}",
+                   i ? "," : "", TABLE_I[i].name, (long long)m->n, (double)rs.steps / rs.simulate_seconds,
+                   100 * rs.mde_fraction_mean, TABLE_I[i].fps, TABLE_I[i].mde);
+        }
+        fm_run_stats_free(&rs);
+        fm_state_destroy(s);
+        fm_model_destroy(m);
+    }
+    printf("\n  ]");
+}
+
+int main(int argc, char **argv)
+{
+    options o;
+    if (parse(argc, argv, &o))
+        return fprintf(stderr, "usage: bench_suite [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE] "
+                               "[--scenarios 0|1] [--machine 0|1]\n"), 1;
+    fm_machine mc = {0};
+    if (o.machine) {
+        fprintf(stderr, "bench_suite: measuring the machine (STREAM triad, FMA peak)\n");
+        mc = fm_measure_machine((int)o.threads);
+    }
+    printf("{\n  \"machine\": {\"cpu\": \"%s\", \"threads\": %ld, \"simd\": \"%s\", \"stream_triad_gbps\": %.2f, "
+           "\"peak_gflops\": %.1f},\n  \"runs\": [",
+           mc.cpu, o.threads, fm_simd_name(fm_simd_level()), mc.triad_gbps, mc.peak_gflops);
+    for (int i = 0; i < o.agent_count; i++)
+        if (bench_size(&o, o.agents[i], &mc, i == 0)) return 2;
+    printf("\n  ]");
+    if (o.scenarios) bench_scenarios((int)o.threads);
+    printf("\n}\n");
+    return 0;
+}

@@ -1,0 +1,106 @@
+/* One small wide-vector layer for the kernels: FM_W float lanes of the widest instruction set this
+ * translation unit is compiled for (AVX2: 8, SSE2: 4, otherwise 1).
+ *
+ * A kernel with a SIMD body is compiled twice: kernels/<name>.c for the baseline (SSE2 on x86-64)
+ * and kernels/<name>_avx2.c, which only includes it again under -mavx2 (CMakeLists.txt). Its
+ * entry point picks the variant at run time (fm_simd_level(), from cpuid, overridable with the
+ * environment variable FM_SIMD=scalar|sse2|avx2 or fm_simd_set_level). Every kernel keeps a scalar
+ * reference twin (the _ref functions) that the tests compare with: the vector bodies use the same
+ * IEEE operations in the same order (no FMA contraction: -ffp-contract=off), so they match it bit
+ * for bit.
+ *
+ * Only what the kernels use is here: loads of SoA floats, arithmetic, compares and selects. */
+#ifndef FM_SIMD_H
+#define FM_SIMD_H
+
+#include <stdint.h>
+#include <string.h>
+
+typedef enum fm_simd { FM_SIMD_SCALAR = 0, FM_SIMD_SSE2 = 1, FM_SIMD_AVX2 = 2 } fm_simd;
+
+/* The level the kernels use: the best the CPU has, unless FM_SIMD or fm_simd_set_level says less. */
+fm_simd fm_simd_level(void);
+/* Forces a level (capped at what the CPU has); returns the level now in use. For tests, benches. */
+fm_simd fm_simd_set_level(fm_simd level);
+const char *fm_simd_name(fm_simd level);
+
+#if defined(__AVX2__)
+#include <immintrin.h>
+#define FM_W 8
+typedef __m256 fv;
+typedef __m256i iv;
+static inline fv fv_load(const float *p) { return _mm256_loadu_ps(p); }
+static inline void fv_store(float *p, fv x) { _mm256_storeu_ps(p, x); }
+static inline fv fv_set1(float x) { return _mm256_set1_ps(x); }
+static inline fv fv_add(fv a, fv b) { return _mm256_add_ps(a, b); }
+static inline fv fv_sub(fv a, fv b) { return _mm256_sub_ps(a, b); }
+static inline fv fv_mul(fv a, fv b) { return _mm256_mul_ps(a, b); }
+static inline fv fv_lt(fv a, fv b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+/* mask ? a : b (mask lanes all ones or all zeros) */
+static inline fv fv_select(fv mask, fv a, fv b) { return _mm256_blendv_ps(b, a, mask); }
+static inline iv iv_set1(int32_t x) { return _mm256_set1_epi32(x); }
+static inline iv iv_select(fv mask, iv a, iv b)
+{
+    return _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(b), _mm256_castsi256_ps(a), mask));
+}
+static inline void iv_store(int32_t *p, iv x) { _mm256_storeu_si256((__m256i *)p, x); }
+/* Lanes whose byte equals `value`, as a bit mask (lane k = bit k). */
+static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
+{
+    __m128i b = _mm_loadl_epi64((const __m128i *)p);
+    return (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(b, _mm_set1_epi8((char)value))) & 0xffu;
+}
+#elif defined(__SSE2__)
+#include <emmintrin.h>
+#define FM_W 4
+typedef __m128 fv;
+typedef __m128i iv;
+static inline fv fv_load(const float *p) { return _mm_loadu_ps(p); }
+static inline void fv_store(float *p, fv x) { _mm_storeu_ps(p, x); }
+static inline fv fv_set1(float x) { return _mm_set1_ps(x); }
+static inline fv fv_add(fv a, fv b) { return _mm_add_ps(a, b); }
+static inline fv fv_sub(fv a, fv b) { return _mm_sub_ps(a, b); }
+static inline fv fv_mul(fv a, fv b) { return _mm_mul_ps(a, b); }
+static inline fv fv_lt(fv a, fv b) { return _mm_cmplt_ps(a, b); }
+static inline fv fv_select(fv mask, fv a, fv b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
+static inline iv iv_set1(int32_t x) { return _mm_set1_epi32(x); }
+static inline iv iv_select(fv mask, iv a, iv b)
+{
+    __m128i m = _mm_castps_si128(mask);
+    return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b));
+}
+static inline void iv_store(int32_t *p, iv x) { _mm_storeu_si128((__m128i *)p, x); }
+static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
+{
+    int32_t word;
+    memcpy(&word, p, 4);
+    __m128i b = _mm_cvtsi32_si128(word);
+    return (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(b, _mm_set1_epi8((char)value))) & 0xfu;
+}
+#else
+#define FM_W 1
+typedef float fv;
+typedef int32_t iv;
+static inline fv fv_load(const float *p) { return *p; }
+static inline void fv_store(float *p, fv x) { *p = x; }
+static inline fv fv_set1(float x) { return x; }
+static inline fv fv_add(fv a, fv b) { return a + b; }
+static inline fv fv_sub(fv a, fv b) { return a - b; }
+static inline fv fv_mul(fv a, fv b) { return a * b; }
+static inline fv fv_lt(fv a, fv b) { uint32_t m = a < b ? ~0u : 0u; fv r; memcpy(&r, &m, 4); return r; }
+static inline fv fv_select(fv mask, fv a, fv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
+static inline iv iv_set1(int32_t x) { return x; }
+static inline iv iv_select(fv mask, iv a, iv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
+static inline void iv_store(int32_t *p, iv x) { *p = x; }
+static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { return *p == value; }
+#endif
+
+/* Names a SIMD variant of a kernel: <name>_avx2 in the -mavx2 copy (whose wrapper defines
+ * FM_SIMD_AVX2_COPY), <name>_base in the baseline one (SSE2 on x86-64, wider with FM_NATIVE). */
+#if defined(FM_SIMD_AVX2_COPY)
+#define FM_SIMD_VARIANT(name) name##_avx2
+#else
+#define FM_SIMD_VARIANT(name) name##_base
+#endif
+
+#endif

@@ -1,0 +1,138 @@
+/* Spatial re-sort of the agent store (the throughput issue's locality lever).
+ *
+ * Agents are launched in D1 order (FM eq 4), which is spatially coherent in the source but not after
+ * a few seconds of flight; the MDE neighbour walk (kernel_mde.c), the field and distance-grid
+ * samples then touch memory at random. Every FM_RESORT_INTERVAL steps the active range is sorted by
+ * the Morton code of each agent's position on a 1024^3 lattice over the scene bounds, so agents close
+ * in space are close in memory. Agents that arrived since the last sort go first and leave the active
+ * range. The sort is a stable LSD radix sort on (key, slot), so the order, like everything else in the
+ * step, does not depend on the thread count. Every per-slot array moves with its agent; id[] says who
+ * is where. */
+#include "sim.h"
+
+#include <assert.h>
+#include <string.h>
+
+enum { MORTON_BITS = 10, RADIX_BITS = 11, RADIX = 1 << RADIX_BITS };
+#define ARRIVED_KEY 0u
+#define FLIGHT_KEY (1u << (3 * MORTON_BITS))
+
+/* Spreads the low 10 bits of x to every third bit. */
+static uint32_t spread3(uint32_t x)
+{
+    x &= 0x3ffu;
+    x = (x | (x << 16)) & 0x030000ffu;
+    x = (x | (x << 8)) & 0x0300f00fu;
+    x = (x | (x << 4)) & 0x030c30c3u;
+    x = (x | (x << 2)) & 0x09249249u;
+    return x;
+}
+
+static uint32_t lattice(float x, double lo, double scale)
+{
+    double q = ((double)x - lo) * scale;
+    if (!(q > 0)) return 0; /* NaN too */
+    return q >= (1 << MORTON_BITS) - 1 ? (1u << MORTON_BITS) - 1 : (uint32_t)q;
+}
+
+static void compute_keys(const fm_model *m, const fm_state *s, uint32_t *key)
+{
+    double scale[3];
+    for (int k = 0; k < 3; k++) {
+        double extent = m->scene_hi[k] - m->scene_lo[k];
+        scale[k] = extent > 0 ? (double)(1 << MORTON_BITS) / extent : 0;
+    }
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->active_end; a++) {
+        if (s->phase[a] == FM_PHASE_ARRIVED) {
+            key[a] = ARRIVED_KEY;
+            continue;
+        }
+        uint32_t x = lattice(s->p[0][a], m->scene_lo[0], scale[0]);
+        uint32_t y = lattice(s->p[1][a], m->scene_lo[1], scale[1]);
+        uint32_t z = lattice(s->p[2][a], m->scene_lo[2], scale[2]);
+        key[a] = FLIGHT_KEY | spread3(x) | spread3(y) << 1 | spread3(z) << 2;
+    }
+}
+
+/* Stable LSD radix sort of slots 0..count-1 by key; returns the slots in sorted order (in one of
+ * the two halves of s->sort_slots). */
+static const int32_t *radix_sort(fm_state *s, int64_t count)
+{
+    uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->n;
+    int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->n;
+    for (int64_t a = 0; a < count; a++) slot[a] = (int32_t)a;
+    static_assert(3 * RADIX_BITS >= 3 * MORTON_BITS + 1, "three passes cover the key");
+    for (int shift = 0; shift < 3 * RADIX_BITS; shift += RADIX_BITS) {
+        int64_t offset[RADIX] = {0};
+        for (int64_t a = 0; a < count; a++) offset[(key[a] >> shift) & (RADIX - 1)]++;
+        int64_t sum = 0;
+        for (int d = 0; d < RADIX; d++) {
+            int64_t c = offset[d];
+            offset[d] = sum, sum += c;
+        }
+        for (int64_t a = 0; a < count; a++) {
+            int64_t to = offset[(key[a] >> shift) & (RADIX - 1)]++;
+            key_tmp[to] = key[a], slot_tmp[to] = slot[a];
+        }
+        uint32_t *kt = key; key = key_tmp, key_tmp = kt;
+        int32_t *st = slot; slot = slot_tmp, slot_tmp = st;
+    }
+    return slot;
+}
+
+/* array[k] = old array[order[k]] for k < count, through the scratch buffer. */
+static void permute(void *array, size_t size, const int32_t *order, int64_t count, void *scratch, int threads)
+{
+    unsigned char *a = array, *t = scratch;
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t k = 0; k < count; k++) {
+        switch (size) { /* fixed sizes let the compiler emit single moves */
+        case 1: t[k] = a[order[k]]; break;
+        case 4: memcpy(t + 4 * k, a + 4 * (size_t)order[k], 4); break;
+        case 8: memcpy(t + 8 * k, a + 8 * (size_t)order[k], 8); break;
+        default: memcpy(t + size * (size_t)k, a + size * (size_t)order[k], size);
+        }
+    }
+    memcpy(array, scratch, size * (size_t)count);
+}
+
+void fm_state_resort(const fm_model *m, fm_state *s)
+{
+    const int64_t count = s->active_end;
+    if (count == 0) return;
+    compute_keys(m, s, s->sort_keys);
+    const int32_t *order = radix_sort(s, count);
+    void *tmp = s->sort_scratch;
+    for (int k = 0; k < 3; k++) {
+        permute(s->p[k], sizeof(float), order, count, tmp, s->threads);
+        permute(s->v[k], sizeof(float), order, count, tmp, s->threads);
+        permute(s->p2[k], sizeof(float), order, count, tmp, s->threads);
+    }
+    permute(s->id, sizeof(int32_t), order, count, tmp, s->threads);
+    permute(s->phase, 1, order, count, tmp, s->threads);
+    permute(s->target, sizeof(int64_t), order, count, tmp, s->threads);
+    permute(s->t2, sizeof(float), order, count, tmp, s->threads);
+    permute(s->tf, sizeof(float), order, count, tmp, s->threads);
+    permute(s->morph, sizeof(float) * FM_MORPH_FLOATS, order, count, tmp, s->threads);
+    permute(s->perm, 1, order, count, tmp, s->threads);
+    permute(s->morph_safe, 1, order, count, tmp, s->threads);
+    int64_t arrived = 0;
+    while (arrived < count && s->phase[arrived] == FM_PHASE_ARRIVED) arrived++;
+    s->active_begin = arrived;
+}
+
+fm_status fm_state_alloc_sort(fm_state *s)
+{
+    size_t n = (size_t)s->n;
+    s->sort_scratch = fm_alloc(16 * n);
+    s->sort_keys = fm_alloc(2 * sizeof(uint32_t) * n);
+    s->sort_slots = fm_alloc(2 * sizeof(int32_t) * n);
+    return s->sort_scratch && s->sort_keys && s->sort_slots ? FM_OK : FM_ERR_MEMORY;
+}
+
+void fm_state_free_sort(fm_state *s)
+{
+    fm_free(s->sort_scratch), fm_free(s->sort_keys), fm_free(s->sort_slots);
+    s->sort_scratch = NULL, s->sort_keys = NULL, s->sort_slots = NULL;
+}
