@@ -226,7 +226,9 @@ typedef struct mde_plan {
     int member;
     double q[3];          /* scaled coordinates */
     int32_t c[3];         /* cell */
-    uint32_t row[9];      /* row hashes */
+    int rows;             /* rows to walk: 9, or with pruning only those within reach */
+    uint32_t row[9];      /* their row hashes */
+    uint8_t lo[9], hi[9]; /* with pruning: the part lo .. hi-1 of each run (cells cx-1+lo ..) */
     int overlap;          /* two runs share slots */
     int nr;               /* ranges */
     int32_t rk[2 * MDE_RANGES];
@@ -246,7 +248,51 @@ typedef struct mde_ctx {
     int have_rows, row_overlap;
 } mde_ctx;
 
-/* Stage 1: the agent's cell and rows; prefetches the slot table entries of the 9 runs. */
+/* Do runs i and j (slots base + row + lo .. base + row + hi - 1, mod the table) share a slot? */
+static int pruned_runs_overlap(const mde_plan *pl, uint32_t mask)
+{
+    for (int i = 0; i < pl->rows; i++)
+        for (int j = i + 1; j < pl->rows; j++) {
+            uint32_t a = pl->row[i] + pl->lo[i], b = pl->row[j] + pl->lo[j];
+            uint32_t la = (uint32_t)(pl->hi[i] - pl->lo[i]), lb = (uint32_t)(pl->hi[j] - pl->lo[j]);
+            if (((b - a) & mask) < la || ((a - b) & mask) < lb) return 1;
+        }
+    return 0;
+}
+
+/* Stage 1 with pruning (cells larger than d_min, the usual case: the cell is at least the agents'
+ * spacing): only the rows whose cells come within d_min of the agent, and only their hashes; with
+ * one row, typical when d_min is well below the spacing, no overlap test. The rows, runs and their
+ * order are those the full 9-row plan would keep after pruning, so the result is the same. */
+static inline void plan_cells_pruned(mde_ctx *x, mde_plan *pl)
+{
+    const fm_grid *g = x->g;
+    double gap[3][3]; /* [axis][d + 1]: squared gap to the neighbour cell's box, cell units */
+    for (int k = 0; k < 3; k++) {
+        double f = pl->q[k] - (double)pl->c[k];
+        gap[k][0] = f * f, gap[k][1] = 0, gap[k][2] = (1 - f) * (1 - f);
+    }
+    if (pl->c[1] != x->row_cy || pl->c[2] != x->row_cz || !x->have_rows) {
+        x->row[4] = fm_grid_row(g, pl->c[1], pl->c[2]); /* the agent's own row, reused while it stays */
+        x->row_cy = pl->c[1], x->row_cz = pl->c[2], x->have_rows = 1;
+    }
+    const uint32_t base = (uint32_t)(pl->c[0] - 1);
+    int rows = 0;
+    for (int dz = 0, r = 0; dz < 3; dz++)
+        for (int dy = 0; dy < 3; dy++, r++) {
+            double yz = gap[1][dy] + gap[2][dz];
+            if (!(yz < x->r2)) continue;
+            pl->row[rows] = r == 4 ? x->row[4] : fm_grid_row(g, pl->c[1] + dy - 1, pl->c[2] + dz - 1);
+            pl->lo[rows] = !(gap[0][0] + yz < x->r2) ? 1 : 0;
+            pl->hi[rows] = !(gap[0][2] + yz < x->r2) ? 2 : 3;
+            __builtin_prefetch(x->start + ((base + pl->row[rows] + pl->lo[rows]) & x->mask));
+            rows++;
+        }
+    pl->rows = rows;
+    pl->overlap = rows > 1 && pruned_runs_overlap(pl, x->mask);
+}
+
+/* Stage 1: the agent's cell and rows; prefetches the slot table entries of the runs. */
 static inline void plan_cells(mde_ctx *x, mde_plan *pl, int64_t a)
 {
     pl->member = x->member[a] && x->active;
@@ -255,6 +301,10 @@ static inline void plan_cells(mde_ctx *x, mde_plan *pl, int64_t a)
     pl->x = x->px[a], pl->y = x->py[a], pl->z = x->pz[a];
     pl->q[0] = fm_grid_scaled(g, pl->x), pl->q[1] = fm_grid_scaled(g, pl->y), pl->q[2] = fm_grid_scaled(g, pl->z);
     for (int k = 0; k < 3; k++) pl->c[k] = fm_grid_coord(pl->q[k]);
+    if (x->prune) {
+        plan_cells_pruned(x, pl);
+        return;
+    }
     if (pl->c[1] != x->row_cy || pl->c[2] != x->row_cz || !x->have_rows) {
         uint32_t hy[3], hz[3];
         for (int d = 0; d < 3; d++)
@@ -265,8 +315,10 @@ static inline void plan_cells(mde_ctx *x, mde_plan *pl, int64_t a)
         x->row_cy = pl->c[1], x->row_cz = pl->c[2], x->have_rows = 1;
     }
     const uint32_t base = (uint32_t)(pl->c[0] - 1); /* + row: the slot of the cell cx - 1 */
+    pl->rows = 9;
     for (int r = 0; r < 9; r++) {
         pl->row[r] = x->row[r];
+        pl->lo[r] = 0, pl->hi[r] = 3;
         __builtin_prefetch(x->start + ((base + x->row[r]) & x->mask));
     }
     pl->overlap = x->row_overlap;
@@ -280,51 +332,26 @@ static inline void plan_ranges(const mde_ctx *x, mde_plan *pl)
     const uint32_t mask = x->mask, table = x->table;
     const uint32_t base = (uint32_t)(pl->c[0] - 1);
     int32_t *rk = pl->rk;
-    int fast = !x->prune && !pl->overlap;
-    if (fast) { /* whole runs; wrapping ones are rare */
-        for (int r = 0; r < 9; r++) {
-            uint32_t s0 = (base + pl->row[r]) & mask;
-            fast &= s0 <= table - 3;
-            uint32_t s1 = s0 + 3 <= table ? s0 + 3 : s0; /* in bounds; unused if not fast */
-            rk[2 * r] = start[s0], rk[2 * r + 1] = start[s1];
-            __builtin_prefetch(x->quad + (rk[2 * r] >> 2));
+    uint32_t seen[27];
+    int ns = 0, nr = 0;
+    for (int r = 0; r < pl->rows; r++) {
+        const uint32_t lo = pl->lo[r], hi = pl->hi[r];
+        const uint32_t s0 = (base + pl->row[r] + lo) & mask;
+        if (!pl->overlap && s0 + (hi - lo) <= table) { /* one range (runs that wrap are rare) */
+            rk[2 * nr] = start[s0], rk[2 * nr + 1] = start[s0 + (hi - lo)], nr++;
+            continue;
         }
-        pl->nr = 9;
-        if (fast) return;
-    }
-    if (!fast) { /* trimmed runs, and slot by slot when runs wrap or share slots */
-        const int prune = x->prune;
-        const double r2 = x->r2;
-        double gap[3][3]; /* [axis][d + 1]: squared gap to the neighbour cell's box, cell units */
-        for (int k = 0; k < 3; k++) {
-            double f = pl->q[k] - (double)pl->c[k];
-            gap[k][0] = f * f, gap[k][1] = 0, gap[k][2] = (1 - f) * (1 - f);
+        for (uint32_t o = lo; o < hi; o++) { /* slot by slot, each slot once */
+            uint32_t sl = (base + pl->row[r] + o) & mask;
+            int dup = 0;
+            for (int j = 0; j < ns; j++) dup |= seen[j] == sl;
+            if (dup) continue;
+            seen[ns++] = sl;
+            rk[2 * nr] = start[sl], rk[2 * nr + 1] = start[sl + 1], nr++;
         }
-        uint32_t seen[27];
-        int ns = 0, nr = 0;
-        for (int dz = 0, r = 0; dz < 3; dz++)
-            for (int dy = 0; dy < 3; dy++, r++) {
-                double yz = gap[1][dy] + gap[2][dz];
-                if (prune && !(yz < r2)) continue;
-                uint32_t lo = prune && !(gap[0][0] + yz < r2) ? 1 : 0;
-                uint32_t hi = prune && !(gap[0][2] + yz < r2) ? 2 : 3;
-                uint32_t s0 = (base + pl->row[r] + lo) & mask;
-                if (!pl->overlap && s0 + (hi - lo) <= table) { /* one range */
-                    rk[2 * nr] = start[s0], rk[2 * nr + 1] = start[s0 + (hi - lo)], nr++;
-                    continue;
-                }
-                for (uint32_t o = lo; o < hi; o++) {
-                    uint32_t sl = (base + pl->row[r] + o) & mask;
-                    int dup = 0;
-                    for (int j = 0; j < ns; j++) dup |= seen[j] == sl;
-                    if (dup) continue;
-                    seen[ns++] = sl;
-                    rk[2 * nr] = start[sl], rk[2 * nr + 1] = start[sl + 1], nr++;
-                }
-            }
-        pl->nr = nr;
     }
-    for (int r = 0; r < pl->nr; r++) __builtin_prefetch(x->quad + (rk[2 * r] >> 2));
+    pl->nr = nr;
+    for (int r = 0; r < nr; r++) __builtin_prefetch(x->quad + (rk[2 * r] >> 2));
 }
 
 #if MDE_SSE2

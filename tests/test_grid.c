@@ -387,7 +387,7 @@ static void test_cell_borders(void)
 static void test_hash_collisions(void)
 {
     uint64_t rng = 14;
-    int64_t risky = 0, wrapped = 0, needed = 0;
+    int64_t risky = 0, wrapped = 0, needed = 0, pruned = 0;
     for (int round = 0; round < 40; round++) {
         pts s = pts_new(30); /* capacity 30: a table of 64 slots */
         for (int64_t a = 0; a < s.n; a += 3) {
@@ -422,6 +422,8 @@ static void test_hash_collisions(void)
         fm_grid_free(&g);
         needed += check_against_brute_force(round == 0 ? "tiny table, shared slots, wraps" : NULL, &s, 1.0f,
                                             1.0f, 1.0f, 1);
+        /* the same with cells larger than d_min: the pruned walk, its runs sharing slots too */
+        pruned += check_against_brute_force(round == 0 ? "tiny table, pruned rows" : NULL, &s, 0.6f, 1.0f, 1.0f, 1);
         pts_free(&s);
     }
     printf("    neighbours reachable through 2+ of the 27 cells: %lld, in wrapping runs: %lld\n",
@@ -429,6 +431,7 @@ static void test_hash_collisions(void)
     ENSURE(risky > 0);
     ENSURE(wrapped > 0);
     ENSURE(needed > 200);
+    ENSURE(pruned > 50);
 }
 
 static void test_threads_bitwise(void)
