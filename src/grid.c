@@ -11,6 +11,7 @@
 #include "grid.h"
 
 #include <assert.h>
+#include <math.h>
 
 static void grid_zero(fm_grid *g)
 {
@@ -74,7 +75,7 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
         int32_t cy = fm_grid_coord(fm_grid_scaled(&gl, py[a]));
         int32_t cz = fm_grid_coord(fm_grid_scaled(&gl, pz[a]));
         uint32_t s = fm_grid_slot(&gl, cx, cy, cz);
-        if (member[a]) {
+        if (!member || member[a]) {
             slot[a] = s;
             h[s >> log2_fine]++;
         } else {
@@ -200,4 +201,26 @@ int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * F
             }
         }
     return nr;
+}
+
+int64_t fm_grid_nearest(const fm_grid *g, const float q[3], const uint8_t *alive, int64_t self, int64_t skip,
+                        double *d2)
+{
+    int32_t rk[2 * FM_GRID_MAX_RANGES];
+    const int nr = fm_grid_ranges(g, q[0], q[1], q[2], rk);
+    const double reach2 = (double)g->cell * (double)g->cell;
+    double best = INFINITY;
+    int64_t who = -1;
+    for (int r = 0; r < nr; r++)
+        for (int32_t k = rk[2 * r]; k < rk[2 * r + 1]; k++) {
+            const fm_grid_quad *e = &g->quad[k >> 2];
+            const int64_t j = e->i[k & 3];
+            if (j == self || j == skip || (alive && !alive[j])) continue;
+            double dx = (double)e->x[k & 3] - q[0], dy = (double)e->y[k & 3] - q[1], dz = (double)e->z[k & 3] - q[2];
+            double dd = dx * dx + dy * dy + dz * dz;
+            if (dd < best || (dd == best && j < who)) best = dd, who = j;
+        }
+    if (!(best <= reach2)) who = -1, best = INFINITY;
+    *d2 = best;
+    return who;
 }
