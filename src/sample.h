@@ -27,7 +27,7 @@ typedef enum fm_sample_method { FM_SAMPLE_RANDOM = 0, FM_SAMPLE_MOSAIC = 1, FM_S
 #define FM_SAMPLE_MOSAIC_K 2.0         /* eq 1: "k is 2.0 in our current implementation" */
 #define FM_SAMPLE_MOSAIC_W 0.9         /* eq 3: "we choose w as 0.9" */
 #define FM_SAMPLE_MOSAIC_STEP 0.25     /* eq 5's delta t, in units of sqrt(M/N) (the paper gives none) */
-#define FM_SAMPLE_LAMBDA 2.0           /* the paper gives none; per voxel edge, see below */
+#define FM_SAMPLE_LAMBDA 1.0           /* the paper gives none; per voxel edge, see below */
 #define FM_SAMPLE_OVERSAMPLE 2.0       /* stratified candidates per sample (the paper gives none) */
 
 typedef struct fm_sample_opts {
@@ -114,6 +114,19 @@ typedef struct fm_sample_ctx {
 void fm_sample_random_into(const fm_sample_ctx *c, double *x, int32_t *tri);
 fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
 fm_status fm_sample_stratified(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
+
+/* The index along a 3D Hilbert curve (Skilling, "Programming the Hilbert curve", 2004;
+   AxesToTranspose, then the bits interleaved) of the point p, quantized as (p - lo) * scale
+   rounded and clamped to [0, 2^21 - 1] per axis. */
+#define FM_HILBERT_BITS 21
+uint64_t fm_hilbert_key(const double p[3], const double lo[3], double scale);
+
+/* Sorting by a key, ties by index (so the order is total and the same everywhere). */
+typedef struct fm_keyed {
+    uint64_t key;
+    int64_t i;
+} fm_keyed;
+void fm_keyed_sort(fm_keyed *k, int64_t n);
 
 /* Barycentric coordinates of a point q on triangle t (clamped to the triangle, summing to 1). */
 void fm_sample_barycentric(const fm_mesh *mesh, int32_t t, const double q[3], double b[3]);

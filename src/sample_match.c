@@ -17,67 +17,24 @@
 #include <math.h>
 #include <stdlib.h>
 
-enum { MATCH_WINDOW = 8, MATCH_PASSES = 4, HILBERT_BITS = 21 };
-
-/* The Hilbert index of a point of the 2^21 cube (Skilling's AxesToTranspose, then the transposed
-   bits interleaved, most significant first). */
-static uint64_t hilbert_index(uint32_t x[3])
-{
-    const uint32_t m = 1u << (HILBERT_BITS - 1);
-    for (uint32_t q = m; q > 1; q >>= 1) { /* inverse undo */
-        uint32_t p = q - 1;
-        for (int i = 0; i < 3; i++) {
-            if (x[i] & q) {
-                x[0] ^= p;
-            } else {
-                uint32_t t = (x[0] ^ x[i]) & p;
-                x[0] ^= t, x[i] ^= t;
-            }
-        }
-    }
-    for (int i = 1; i < 3; i++) x[i] ^= x[i - 1]; /* Gray encode */
-    uint32_t t = 0;
-    for (uint32_t q = m; q > 1; q >>= 1)
-        if (x[2] & q) t ^= q - 1;
-    for (int i = 0; i < 3; i++) x[i] ^= t;
-    uint64_t h = 0;
-    for (int b = HILBERT_BITS - 1; b >= 0; b--)
-        for (int i = 0; i < 3; i++) h = h << 1 | (x[i] >> b & 1u);
-    return h;
-}
-
-typedef struct ranked {
-    uint64_t key;
-    int64_t i;
-} ranked;
-
-static int ranked_cmp(const void *a, const void *b)
-{
-    const ranked *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->i > y->i) - (x->i < y->i);
-}
+enum { MATCH_WINDOW = 8, MATCH_PASSES = 4 };
 
 /* Unit directions from the centroid (0 for a point at the centroid) and their curve order. */
-static void directions(const float *p, int64_t n, double *u, ranked *order)
+static void directions(const float *p, int64_t n, double *u, fm_keyed *order)
 {
     double c[3] = {0, 0, 0};
     for (int64_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) c[k] += (double)p[3 * i + k];
     for (int k = 0; k < 3; k++) c[k] /= (double)n;
-    const double scale = (double)((1u << HILBERT_BITS) - 1);
+    const double lo[3] = {-1, -1, -1}, scale = 0.5 * (double)((1u << FM_HILBERT_BITS) - 1);
     for (int64_t i = 0; i < n; i++) {
         double d[3], len = 0;
         for (int k = 0; k < 3; k++) d[k] = (double)p[3 * i + k] - c[k], len += d[k] * d[k];
         len = sqrt(len);
-        uint32_t q[3];
-        for (int k = 0; k < 3; k++) {
-            u[3 * i + k] = len > 0 ? d[k] / len : 0.0;
-            q[k] = (uint32_t)lround(0.5 * (u[3 * i + k] + 1.0) * scale);
-        }
-        order[i] = (ranked){hilbert_index(q), i};
+        for (int k = 0; k < 3; k++) u[3 * i + k] = len > 0 ? d[k] / len : 0.0;
+        order[i] = (fm_keyed){fm_hilbert_key(u + 3 * i, lo, scale), i};
     }
-    qsort(order, (size_t)n, sizeof *order, ranked_cmp);
+    fm_keyed_sort(order, n);
 }
 
 static double dir_cost(const double *u, const double *v)
@@ -86,7 +43,7 @@ static double dir_cost(const double *u, const double *v)
     return d0 * d0 + d1 * d1 + d2 * d2;
 }
 
-static void improve_by_swaps(const double *ua, const double *us, const ranked *agents, int64_t n, int64_t *out)
+static void improve_by_swaps(const double *ua, const double *us, const fm_keyed *agents, int64_t n, int64_t *out)
 {
     for (int pass = 0; pass < MATCH_PASSES; pass++) {
         int64_t swaps = 0;
@@ -108,7 +65,7 @@ static void improve_by_swaps(const double *ua, const double *us, const ranked *a
 static fm_status match_spherical(const float *agents, const float *samples, int64_t n, int64_t *out, fm_error *err)
 {
     double *ua = malloc(sizeof(double) * 3 * (size_t)n), *us = malloc(sizeof(double) * 3 * (size_t)n);
-    ranked *ra = malloc(sizeof(ranked) * (size_t)n), *rs = malloc(sizeof(ranked) * (size_t)n);
+    fm_keyed *ra = malloc(sizeof(fm_keyed) * (size_t)n), *rs = malloc(sizeof(fm_keyed) * (size_t)n);
     fm_status st = FM_OK;
     if (!ua || !us || !ra || !rs) {
         st = fm_fail(err, FM_ERR_MEMORY, "out of memory matching %lld agents", (long long)n);

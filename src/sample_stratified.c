@@ -448,7 +448,8 @@ static fm_status choose_leaf_edge(strat *s, fm_error *err)
 {
     const fm_sample_ctx *c = s->c;
     const double target = ceil(c->opts.oversample * (double)c->n);
-    double h = sqrt(c->area / target), best_h = 0;
+    /* a surface of area M crosses about 1.5 M / h^2 cubes of edge h */
+    double h = sqrt(1.5 * c->area / target), best_h = 0;
     int64_t best = INT64_MAX, leaves = 0;
     for (int it = 0; it < 12; it++) {
         if (!place_octree(s, h))
@@ -597,8 +598,9 @@ static fm_status eliminate(const fm_sample_ctx *c, const cands *cd, double *x, i
             e.alive[i] = 1;
             for (int k = 0; k < 3; k++) e.xyz[k][i] = (float)cd->a[i].x[k];
         }
-        /* cells of twice the final spacing: the closest pair of n points on area M is nearer */
-        fm_grid_build(&e.g, (const float *const *)e.xyz, NULL, m, (float)(2.0 * sqrt(c->area / (double)c->n)), c->threads);
+        /* cells of 1.5 x sqrt(M/N): while more than N points are left their closest pair is nearer (N
+           points on area M cannot all be farther apart than a hexagonal packing, 1.075 sqrt(M/N)) */
+        fm_grid_build(&e.g, (const float *const *)e.xyz, NULL, m, (float)(1.5 * sqrt(c->area / (double)c->n)), c->threads);
 #pragma omp parallel for num_threads(c->threads) schedule(static)
         for (int64_t i = 0; i < m; i++) refresh(&e, i);
         for (int64_t i = 0; i < m; i++) e.hp.e[i] = (heap_entry){e.key[i], i};
