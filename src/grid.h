@@ -66,7 +66,8 @@ typedef struct fm_grid {
 fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err); /* all allocation is here */
 void fm_grid_free(fm_grid *g);                                       /* g may be zeroed or freed */
 
-/* Lists the agents a < n (n <= capacity) with member[a] != 0; the others get slot FM_GRID_NONE.
+/* Lists the agents a < n (n <= capacity) with member[a] != 0 (all of them if member is NULL); the
+ * others get slot FM_GRID_NONE.
  * cell > 0. threads: OpenMP threads for the parallel passes; the result does not depend on it. */
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
                    int threads);
@@ -109,5 +110,21 @@ static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, in
 {
     return ((uint32_t)cx + fm_grid_row(g, cy, cz)) & g->mask;
 }
+
+/* The listed entries of the 27 cells around the cell of (x, y, z): up to 27 ranges
+ * [rk[2r], rk[2r + 1]) of the sorted entries (g->quad), each slot once even when hashing maps two
+ * of the cells to it; runs of consecutive slots are merged. Returns the number of ranges. Distinct
+ * cells can share a slot, so callers filter by distance. A walk for any caller; the MDE kernel
+ * keeps its own pipelined one. */
+#define FM_GRID_MAX_RANGES 27
+int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * FM_GRID_MAX_RANGES]);
+
+/* The nearest listed entry to q other than agents self and skip (either may be -1), among those
+ * with alive[j] != 0 (alive may be NULL), by the float coordinates the grid holds, the distance
+ * in double: returns its agent index and writes the squared distance to *d2, or returns -1 (and
+ * *d2 = INFINITY) if none is within the build's cell, beyond which a neighbour may be missed. Ties
+ * go to the lower index. */
+int64_t fm_grid_nearest(const fm_grid *g, const float q[3], const uint8_t *alive, int64_t self, int64_t skip,
+                        double *d2);
 
 #endif
