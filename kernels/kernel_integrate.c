@@ -1,7 +1,9 @@
-/* Phase 1 integration and the switch into phase 2 (FM §5.5). */
-#include "kernels.h"
+/* Phase 1 integration and the switch into phase 2 (FM §5.5): the scalar reference and the
+ * dispatch; the SIMD variants are in kernel_integrate_simd.c. */
+#include "kernel_integrate.h"
+#include "simd.h"
 
-int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
+int64_t fm_kernel_integrate_flying_ref(float *const p[3], const float *const v[3], const uint8_t *phase,
                                    int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
                                    const fm_sdf_view *target_sdf, float switch_distance,
                                    uint8_t *entered)
@@ -19,4 +21,19 @@ int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], c
         if (inside) entered[a] = 1, count++;
     }
     return count;
+}
+
+int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], const uint8_t *phase,
+                                   int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                   const fm_sdf_view *target_sdf, float switch_distance,
+                                   uint8_t *entered)
+{
+    if (!target_sdf) { /* the sphere test vectorises; the distance switch samples a grid per agent */
+        switch (fm_simd_level()) {
+        case FM_SIMD_AVX2: return fm_integrate_sphere_avx2(p, v, phase, begin, end, dt, sphere, entered);
+        case FM_SIMD_SSE2: return fm_integrate_sphere_base(p, v, phase, begin, end, dt, sphere, entered);
+        default: break;
+        }
+    }
+    return fm_kernel_integrate_flying_ref(p, v, phase, begin, end, dt, sphere, target_sdf, switch_distance, entered);
 }

@@ -43,6 +43,10 @@ int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], c
                                    int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
                                    const fm_sdf_view *target_sdf, float switch_distance,
                                    uint8_t *entered);
+int64_t fm_kernel_integrate_flying_ref(float *const p[3], const float *const v[3], const uint8_t *phase,
+                                       int64_t begin, int64_t end, float dt, fm_sphere_view sphere,
+                                       const fm_sdf_view *target_sdf, float switch_distance,
+                                       uint8_t *entered);
 
 /* Phase 2 (FM eq 9): straight flight at speed0 from p2 to the target centroid, evaluated in closed
  * form at `time` so no error accumulates; agents whose flight time tf has passed arrive. Returns

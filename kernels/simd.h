@@ -38,6 +38,8 @@ static inline fv fv_mul(fv a, fv b) { return _mm256_mul_ps(a, b); }
 static inline fv fv_lt(fv a, fv b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
 /* mask ? a : b (mask lanes all ones or all zeros) */
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm256_blendv_ps(b, a, mask); }
+/* Lane k of a compare result as bit k. */
+static inline unsigned fv_mask(fv m) { return (unsigned)_mm256_movemask_ps(m); }
 static inline iv iv_set1(int32_t x) { return _mm256_set1_epi32(x); }
 static inline iv iv_select(fv mask, iv a, iv b)
 {
@@ -63,6 +65,7 @@ static inline fv fv_sub(fv a, fv b) { return _mm_sub_ps(a, b); }
 static inline fv fv_mul(fv a, fv b) { return _mm_mul_ps(a, b); }
 static inline fv fv_lt(fv a, fv b) { return _mm_cmplt_ps(a, b); }
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
+static inline unsigned fv_mask(fv m) { return (unsigned)_mm_movemask_ps(m); }
 static inline iv iv_set1(int32_t x) { return _mm_set1_epi32(x); }
 static inline iv iv_select(fv mask, iv a, iv b)
 {
@@ -89,6 +92,7 @@ static inline fv fv_sub(fv a, fv b) { return a - b; }
 static inline fv fv_mul(fv a, fv b) { return a * b; }
 static inline fv fv_lt(fv a, fv b) { uint32_t m = a < b ? ~0u : 0u; fv r; memcpy(&r, &m, 4); return r; }
 static inline fv fv_select(fv mask, fv a, fv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
+static inline unsigned fv_mask(fv m) { uint32_t b; memcpy(&b, &m, 4); return b != 0; }
 static inline iv iv_set1(int32_t x) { return x; }
 static inline iv iv_select(fv mask, iv a, iv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
 static inline void iv_store(int32_t *p, iv x) { *p = x; }

@@ -73,6 +73,39 @@ static void test_path_kernel_matches_reference(void)
     fm_simd_set_level(best);
 }
 
+/* Integration and the sphere switch: positions, entered flags and the count. */
+static void test_integrate_matches_reference(void)
+{
+    enum { N = 1003 };
+    static float p0[3][N], v[3][N], want_p[3][N], got_p[3][N];
+    static uint8_t phase[N], want_e[N], got_e[N];
+    uint64_t rng = 9;
+    for (int a = 0; a < N; a++) {
+        for (int k = 0; k < 3; k++) p0[k][a] = (float)(4 * test_uniform(&rng) - 2), v[k][a] = (float)(2 * test_uniform(&rng) - 1);
+        phase[a] = (uint8_t)(test_next_u64(&rng) % 4);
+        if (a % 7 == 0) v[0][a] = v[1][a] = v[2][a] = 0; /* zero velocity */
+    }
+    for (int a = 0; a < 30; a++) p0[0][a] = 1.0f, p0[1][a] = p0[2][a] = 0, v[0][a] = v[1][a] = v[2][a] = 0, phase[a] = 1;
+    const fm_sphere_view sphere = {{0, 0, 0}, 1.0f}; /* agents 0..29 sit exactly on the sphere: not inside */
+    const fm_simd best = fm_simd_set_level(FM_SIMD_AVX2);
+    float *vp[3] = {v[0], v[1], v[2]};
+    memcpy(want_p, p0, sizeof p0);
+    float *wp[3] = {want_p[0], want_p[1], want_p[2]};
+    int64_t want = fm_kernel_integrate_flying_ref(wp, (const float *const *)vp, phase, 3, N - 2, 0.1f, sphere, NULL, 0, want_e);
+    ENSURE(want > 0);
+    for (int level = FM_SIMD_SSE2; level <= (int)best; level++) {
+        fm_simd_set_level((fm_simd)level);
+        memcpy(got_p, p0, sizeof p0);
+        memset(got_e, 0xAA, sizeof got_e), memset(want_e, 0xAA, 3), memset(want_e + N - 2, 0xAA, 2);
+        float *gp[3] = {got_p[0], got_p[1], got_p[2]};
+        int64_t got = fm_kernel_integrate_flying(gp, (const float *const *)vp, phase, 3, N - 2, 0.1f, sphere, NULL, 0, got_e);
+        ENSURE_MSG(got == want, "%s: %lld entered, the reference %lld", fm_simd_name((fm_simd)level), (long long)got, (long long)want);
+        ENSURE_MSG(memcmp(want_p, got_p, sizeof want_p) == 0, "%s: positions differ", fm_simd_name((fm_simd)level));
+        ENSURE_MSG(memcmp(want_e, got_e, sizeof want_e) == 0, "%s: entered flags differ", fm_simd_name((fm_simd)level));
+    }
+    fm_simd_set_level(best);
+}
+
 /* The level can be forced down and never above what the CPU has. */
 static void test_level_is_capped(void)
 {
@@ -86,5 +119,6 @@ int main(void)
 {
     RUN_TEST(test_level_is_capped);
     RUN_TEST(test_path_kernel_matches_reference);
+    RUN_TEST(test_integrate_matches_reference);
     return fm_test_failures != 0;
 }
