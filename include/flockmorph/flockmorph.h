@@ -268,12 +268,14 @@ typedef struct fm_cache_attr_info {
 const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr);
 
 typedef struct fm_cache_options {
-    int compression_level;   /* zstd 1..19 */
-    int delta;               /* 1: f32 attributes stored as the XOR of their bits with the previous
+    int compression_level;   /* zstd 1..19 (default 1) */
+    int delta;               /* 1: every attribute stored as the XOR of its bits with the previous
                                 frame's (lossless); every key_interval-th frame is stored whole */
-    int key_interval;        /* frames between whole frames when delta is on (default 16) */
-    double quantum;          /* > 0: f32 attributes rounded to multiples of quantum (lossy, error
-                                <= quantum / 2, documented); 0: lossless (the default) */
+    int key_interval;        /* frames from one whole frame to the next when delta is on (default 16):
+                                random access decodes at most this many chunks */
+    double quantum;          /* > 0: f32 attributes rounded to multiples of quantum and stored as
+                                int32 multiples (lossy, error <= quantum / 2 before the read value's
+                                own float rounding); 0: lossless (the default) */
 } fm_cache_options;
 
 fm_cache_options fm_default_cache_options(void);
@@ -301,6 +303,10 @@ fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr a
 uint64_t fm_cache_file_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
+uint64_t fm_cache_frame_bytes(const fm_cache_reader *r, uint32_t frame); /* one chunk; 0 past the end */
+uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1 or 2 */
+/* The options the cache was written with (format 1: level only, the rest default). */
+fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */
 
