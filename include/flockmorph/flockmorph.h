@@ -130,6 +130,9 @@ typedef struct fm_scene_def {
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
+    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless) */
+    int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
+    double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
 } fm_scene_def;
 
@@ -211,6 +214,9 @@ void fm_state_tet_vertices(const fm_model *model, const fm_state *state, float *
 
 /* Target tet index each agent holds (-1 while it has none), agents in id order. */
 void fm_state_targets(const fm_state *state, int64_t *out);
+
+/* Each agent's fm_phase (one byte per agent), agents in id order. */
+void fm_state_phases(const fm_state *state, uint8_t *out);
 
 /* ---------------------------------------------------------------- cache */
 
