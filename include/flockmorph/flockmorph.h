@@ -130,7 +130,7 @@ typedef struct fm_scene_def {
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
-    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless) */
+    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */
     int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
@@ -275,8 +275,9 @@ const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr);
 
 typedef struct fm_cache_options {
     int compression_level;   /* zstd 1..19 (default 1) */
-    int delta;               /* 1: every attribute stored as the XOR of its bits with the previous
-                                frame's (lossless); every key_interval-th frame is stored whole */
+    int delta;               /* 1 (the default): every attribute stored as the XOR of its bits with
+                                the previous frame's (lossless); every key_interval-th frame is
+                                stored whole. 0: every frame whole */
     int key_interval;        /* frames from one whole frame to the next when delta is on (default 16):
                                 random access decodes at most this many chunks */
     double quantum;          /* > 0: f32 attributes rounded to multiples of quantum and stored as
