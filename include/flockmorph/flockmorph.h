@@ -292,8 +292,11 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
                                               const fm_cache_options *opts, fm_error *err);
 /* data[i] points at agents × attribute i's values, in the order given to create_attrs. */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err);
-/* Reopens PATH.partial left by an interrupted run, keeps its first `frames` frames, drops anything
- * after them, and continues writing (checkpoint / resume). Fails if fewer frames are readable. */
+/* Reopens PATH.partial left by an interrupted run (format 2), checks its first `frames` chunks
+ * (headers and crc32), drops anything after them, and continues writing with the attributes and
+ * options of its header (checkpoint / resume). Given the same further frames the finished file is
+ * byte-identical to an uninterrupted one. Fails, leaving the file alone, if fewer frames are
+ * readable. */
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
@@ -303,7 +306,9 @@ fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
 int fm_cache_has_attr(const fm_cache_reader *r, fm_cache_attr attr);
-/* Reads one attribute of one frame into out (agents × bytes_per_agent bytes). */
+/* Reads one attribute of one frame into out (agents × bytes_per_agent bytes, aligned for its
+ * scalar type). With delta, a frame is rebuilt from the key frame before it; the last decoded frame
+ * is kept, so reading frames in order decodes one chunk each. */
 fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr attr, void *out,
                              fm_error *err);
 /* Sizes for `inspect`: the file, and the raw and compressed bytes of all frames. */
@@ -312,7 +317,7 @@ uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_frame_bytes(const fm_cache_reader *r, uint32_t frame); /* one chunk; 0 past the end */
 uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1 or 2 */
-/* The options the cache was written with (format 1: level only, the rest default). */
+/* The options the cache was written with (format 1: its level, no delta, no quantum). */
 fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */
