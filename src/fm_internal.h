@@ -27,11 +27,16 @@ typedef struct fm_output_file {
     char partial[FM_PATH_MAX + 16];
 } fm_output_file;
 
+/* Sets o's names (PATH and PATH.partial) without opening anything. */
+fm_status fm_output_name(fm_output_file *o, const char *path, fm_error *err);
 fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
 /* Checks for write errors, flushes to disk, closes and renames; on any failure removes the
  * partial file and reports `detail` (if not NULL or empty) or the errno text. */
 fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
 void fm_output_discard(fm_output_file *o);
+/* Reopens the PATH.partial an interrupted writer left, keeps its first `keep` bytes and positions
+ * at their end, to continue writing (resume). */
+fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);
