@@ -110,7 +110,7 @@ void fm_state_targets(const fm_state *s, int64_t *out)
 
 void fm_state_phases(const fm_state *s, uint8_t *out)
 {
-    memcpy(out, s->phase, (size_t)s->n);
+    for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->phase[a]; /* slot order in, id order out */
 }
 
 /* out[i] = c + scale * M * rel[i] for the four vertices (M row-major, NULL = identity). */

@@ -11,4 +11,7 @@ else
   tools/setup.sh build -DFM_WERROR=ON
   dir=build
 fi
+# ctest runs tests side by side, each with OpenMP threads: more threads than cores. Spinning at
+# OpenMP barriers (libgomp's default) then burns the cores the other tests need; sleeping does not.
+export OMP_WAIT_POLICY="${OMP_WAIT_POLICY:-passive}"
 ctest --test-dir "$dir" --output-on-failure -j"$(nproc)"
