@@ -32,6 +32,13 @@ fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
 fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
 void fm_output_discard(fm_output_file *o);
 
+/* scene.c: feeds `add` every value a scene file can set, each after its key, in the parameter
+ * table's order: a canonical byte stream of the definition (no padding, no bytes past a string's
+ * end), which checkpoints hash. Mesh file names are left out (where a file lies does not change
+ * the run; the model hash covers the meshes), and so is scene_path. */
+typedef void (*fm_bytes_fn)(const void *bytes, size_t n, void *user);
+void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user);
+
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);
 
