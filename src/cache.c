@@ -1,7 +1,7 @@
 /* The native frame cache (docs/cache-format.md is the specification).
  *
  *   header   64 bytes: "FMCACHE1", version, header size, agents, floats per agent, filter, codec,
- *            frame rate
+ *            zstd level (so a resumed writer compresses as the first one did), frame rate
  *   chunks   one per frame: "FRAM", frame index, compressed size, raw size, then a zstd frame
  *            (with zstd's content checksum) of the frame's floats after a 4-byte shuffle
  *   index    "FIDX", frame count, one u64 file offset per chunk
@@ -18,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 enum {
     CACHE_VERSION = 1,
@@ -56,6 +57,8 @@ static void unshuffle4(const unsigned char *in, size_t count, unsigned char *out
 struct fm_cache_writer {
     fm_output_file out;      /* PATH.partial until finish() */
     uint64_t agents;
+    int level;
+    uint32_t handed;         /* frames handed over by add_frame (or kept by resume) */
     size_t raw_bytes;
     unsigned char *shuffled, *packed;
     size_t packed_cap;
@@ -94,16 +97,18 @@ static fm_status write_header(fm_cache_writer *w, double frame_rate, fm_error *e
     put_u32(h + 24, FLOATS_PER_AGENT);
     put_u32(h + 28, FILTER_SHUFFLE4);
     put_u32(h + 32, CODEC_ZSTD);
+    put_u32(h + 36, (uint32_t)w->level);
     memcpy(h + 40, &frame_rate, 8);
     return write_bytes(w, h, sizeof h, err);
 }
 
-fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, double frame_rate,
-                                        int level, fm_error *err)
+/* A writer with its buffers and compressor, without a file or a thread yet. */
+static fm_cache_writer *writer_alloc(uint64_t agents, int level, fm_error *err)
 {
     fm_cache_writer *w = calloc(1, sizeof *w);
     if (!w) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     w->agents = agents;
+    w->level = level;
     w->raw_bytes = (size_t)agents * FLOATS_PER_AGENT * sizeof(float);
     w->packed_cap = ZSTD_compressBound(w->raw_bytes);
     w->shuffled = malloc(w->raw_bytes ? w->raw_bytes : 1);
@@ -122,17 +127,31 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
      * depend on nbWorkers, so fixing it keeps caches identical for any --threads. Ignored (one
      * thread) where libzstd lacks multithreading. */
     ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_nbWorkers, ZSTD_WORKERS);
-    if (fm_output_open(&w->out, path, err) != FM_OK || write_header(w, frame_rate, err) != FM_OK) {
-        fm_cache_writer_abort(w);
-        return NULL;
-    }
+    return w;
+}
+
+/* Starts the writer thread; on failure frees w (and deletes its partial file). */
+static fm_cache_writer *writer_start(fm_cache_writer *w, fm_error *err)
+{
     if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
-        fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", path);
+        fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", w->out.path);
         fm_cache_writer_abort(w);
         return NULL;
     }
     w->thread_started = 1;
     return w;
+}
+
+fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, double frame_rate,
+                                        int level, fm_error *err)
+{
+    fm_cache_writer *w = writer_alloc(agents, level, err);
+    if (!w) return NULL;
+    if (fm_output_open(&w->out, path, err) != FM_OK || write_header(w, frame_rate, err) != FM_OK) {
+        fm_cache_writer_abort(w);
+        return NULL;
+    }
+    return writer_start(w, err);
 }
 
 /* Compresses and appends one frame (the worker's job). */
@@ -194,8 +213,21 @@ fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_e
     if (st == FM_OK) {
         memcpy(w->pending, verts, w->raw_bytes);
         w->has_pending = 1;
+        w->handed++;
         pthread_cond_broadcast(&w->changed);
     }
+    pthread_mutex_unlock(&w->lock);
+    return st;
+}
+
+uint32_t fm_cache_writer_frames(const fm_cache_writer *w) { return w->handed; }
+
+fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    if (st == FM_OK && (fflush(w->out.f) != 0 || fsync(fileno(w->out.f)) != 0))
+        st = fm_fail(err, FM_ERR_IO, "%s: cannot flush to disk: %s", w->out.partial, strerror(errno));
     pthread_mutex_unlock(&w->lock);
     return st;
 }
@@ -269,6 +301,7 @@ struct fm_cache_reader {
     char warning[FM_PATH_MAX + 160]; /* non-empty when the cache was recovered without its index */
     uint64_t agents;
     double frame_rate;
+    int level;               /* the writer's zstd level (for resume) */
     uint32_t frames;
     uint64_t *offsets;
     size_t raw_bytes;
@@ -296,6 +329,7 @@ static fm_status read_header(fm_cache_reader *r, fm_error *err)
     if (get_u32(h + 24) != FLOATS_PER_AGENT || get_u32(h + 28) != FILTER_SHUFFLE4 || get_u32(h + 32) != CODEC_ZSTD)
         return fm_fail(err, FM_ERR_INPUT, "%s: unsupported attribute layout, filter or codec", r->path);
     r->agents = get_u64(h + 16);
+    r->level = (int)get_u32(h + 36);
     memcpy(&r->frame_rate, h + 40, 8);
     if (r->agents > ((uint64_t)1 << 40)) return fm_fail(err, FM_ERR_INPUT, "%s: implausible agent count", r->path);
     r->raw_bytes = (size_t)r->agents * FLOATS_PER_AGENT * sizeof(float);
@@ -416,4 +450,55 @@ void fm_cache_close(fm_cache_reader *r)
     if (r->f) fclose(r->f);
     free(r->offsets), free(r->packed), free(r->shuffled);
     free(r);
+}
+
+/* ---------------------------------------------------------------- resume */
+
+/* Checks that the first `frames` frames of the partial cache read back (chunk headers and
+ * checksums) and returns where frame frames-1 ends: everything after it is dropped. */
+static fm_status verified_prefix_end(fm_cache_reader *r, uint32_t frames, uint64_t *end, fm_error *err)
+{
+    if (fm_cache_frames(r) < frames)
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot resume after frame %u: only %u complete frames are readable",
+                       r->path, frames, fm_cache_frames(r));
+    *end = HEADER_BYTES;
+    float *scratch = malloc(r->raw_bytes ? r->raw_bytes : 1);
+    if (!scratch) return fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", r->path);
+    fm_status st = FM_OK;
+    for (uint32_t k = 0; k < frames && st == FM_OK; k++) st = fm_cache_read_frame(r, k, scratch, err);
+    free(scratch);
+    if (st != FM_OK || frames == 0) return st;
+    unsigned char h[CHUNK_HEADER_BYTES];
+    st = read_at(r, r->offsets[frames - 1], h, sizeof h, err);
+    *end = r->offsets[frames - 1] + CHUNK_HEADER_BYTES + get_u64(h + 8);
+    return st;
+}
+
+fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err)
+{
+    char partial[FM_PATH_MAX + 16];
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    if (access(partial, F_OK) != 0)
+        return fm_fail(err, FM_ERR_INPUT, "%s: nothing to resume: %s does not exist", path, partial), NULL;
+    fm_cache_reader *r = fm_cache_open(partial, err);
+    if (!r) return NULL;
+    uint64_t keep = 0;
+    fm_status st = verified_prefix_end(r, frames, &keep, err);
+    fm_cache_writer *w = st == FM_OK ? writer_alloc(r->agents, r->level, err) : NULL;
+    if (w && frames > 0) {
+        w->offsets = malloc(sizeof *w->offsets * frames);
+        if (!w->offsets) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
+        else memcpy(w->offsets, r->offsets, sizeof *w->offsets * frames);
+        w->offsets_cap = frames;
+    }
+    fm_cache_close(r);
+    if (!w) return NULL;
+    w->frames = w->handed = frames;
+    w->pos = keep;
+    if (st == FM_OK) st = fm_output_reopen(&w->out, path, keep, err);
+    if (st != FM_OK) {
+        free_writer(w); /* keeps PATH.partial as it was when reopening failed */
+        return NULL;
+    }
+    return writer_start(w, err);
 }

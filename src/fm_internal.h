@@ -31,6 +31,9 @@ fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
  * partial file and reports `detail` (if not NULL or empty) or the errno text. */
 fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
 void fm_output_discard(fm_output_file *o);
+/* Reopens the PATH.partial an interrupted writer left, keeps its first `keep` bytes and positions
+ * at their end, to continue writing (resume). */
+fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
 /* scene.c: feeds `add` every value a scene file can set, each after its key, in the parameter
  * table's order: a canonical byte stream of the definition (no padding, no bytes past a string's

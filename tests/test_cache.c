@@ -396,6 +396,127 @@ static void test_write_failure_on_the_writer_thread(void)
     remove(partial);
 }
 
+/* ---------------------------------------------------------------- resume */
+
+static void partial_name(char *partial, const char *path) { snprintf(partial, FM_PATH_MAX + 16, "%s.partial", path); }
+
+/* Resumes PATH.partial (already in place) at frame `at`, adds frames at..total-1 as smooth frames
+ * and finishes; returns 0 on success. */
+static int resume_and_finish(const char *path, uint32_t at, uint32_t total, uint64_t agents)
+{
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_resume(path, at, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return -1;
+    ENSURE(fm_cache_writer_frames(w) == at);
+    float *frame = malloc(sizeof(float) * 12 * agents);
+    for (uint32_t f = at; f < total; f++) {
+        smooth_frame(frame, 12 * agents, f);
+        ENSURE_MSG(fm_cache_writer_add_frame(w, frame, &err) == FM_OK, "%s", err.message);
+    }
+    ENSURE(fm_cache_writer_frames(w) == total);
+    free(frame);
+    fm_status st = fm_cache_writer_finish(w, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    return st == FM_OK ? 0 : -1;
+}
+
+/* A run killed at various points leaves PATH.partial cut somewhere; resuming at frame 6 and adding
+ * frames 6..9 gives exactly the bytes of an uninterrupted run. */
+static void test_resume_is_byte_identical(void)
+{
+    enum { AGENTS = 25, FRAMES = 10, AT = 6 };
+    char ref[FM_PATH_MAX], path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    if (write_cache(tmp_path(ref, "resume_ref.fmc"), AGENTS, FRAMES, 24.0, 5, NULL) != 0) return;
+    size_t len;
+    unsigned char *want = read_all(ref, &len);
+    if (!want) return;
+    size_t index = (size_t)get_u64(want + len - 16), chunk[FRAMES + 1];
+    for (int f = 0; f < FRAMES; f++) chunk[f] = (size_t)get_u64(want + index + 8 + 8 * (size_t)f);
+    chunk[FRAMES] = index;
+    /* where the killed run's file ends: right after frame 5, in frame 6's chunk header, in frame 7's
+     * data, after frame 9 (no index), inside the index, and with the footer (killed before the rename) */
+    const size_t cuts[] = {chunk[AT], chunk[AT] + 10, chunk[AT + 1] + 30, index, index + 12, len};
+    tmp_path(path, "resume.fmc");
+    partial_name(partial, path);
+    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
+        remove(path);
+        write_all(partial, want, cuts[i]);
+        if (resume_and_finish(path, AT, FRAMES, AGENTS) != 0) continue;
+        size_t got_len;
+        unsigned char *got = read_all(path, &got_len);
+        ENSURE_MSG(got && got_len == len && memcmp(got, want, len) == 0, "cut at %zu: resumed file differs", cuts[i]);
+        ENSURE(!file_exists(partial));
+        free(got);
+    }
+    free(want);
+}
+
+/* The state a real writer leaves on disk after flush(): resume from it, byte-identical again. */
+static void test_resume_after_flush(void)
+{
+    enum { AGENTS = 25, FRAMES = 10, AT = 6 };
+    char ref[FM_PATH_MAX], path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    if (write_cache(tmp_path(ref, "flush_ref.fmc"), AGENTS, FRAMES, 24.0, 5, NULL) != 0) return;
+    tmp_path(path, "flush.fmc");
+    partial_name(partial, path);
+    remove(path);
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(path, AGENTS, 24.0, 5, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return;
+    float frame[12 * AGENTS];
+    for (uint32_t f = 0; f < 8; f++) {
+        smooth_frame(frame, 12 * AGENTS, f);
+        ENSURE(fm_cache_writer_add_frame(w, frame, &err) == FM_OK);
+    }
+    ENSURE(fm_cache_writer_flush(w, &err) == FM_OK && fm_cache_writer_frames(w) == 8);
+    size_t len;
+    unsigned char *on_disk = read_all(partial, &len); /* what a kill now would leave */
+    fm_cache_writer_abort(w);
+    if (!on_disk) return;
+    write_all(partial, on_disk, len);
+    free(on_disk);
+    fm_cache_reader *r = fm_cache_open(partial, &err);
+    ENSURE_MSG(r && fm_cache_frames(r) == 8, "flushed frames not all on disk: %s", r ? fm_cache_warning(r) : err.message);
+    fm_cache_close(r);
+    if (resume_and_finish(path, AT, FRAMES, AGENTS) != 0) return;
+    size_t a_len, b_len;
+    unsigned char *a = read_all(ref, &a_len), *b = read_all(path, &b_len);
+    ENSURE(a && b && a_len == b_len && memcmp(a, b, a_len) == 0);
+    free(a), free(b);
+}
+
+/* Resume refuses a partial file with too few frames or a damaged frame, and leaves it alone. */
+static void test_resume_refuses(void)
+{
+    char ref[FM_PATH_MAX], path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    if (write_cache(tmp_path(ref, "refuse_ref.fmc"), 30, 5, 24.0, 3, NULL) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(ref, &len);
+    if (!bytes) return;
+    tmp_path(path, "refuse.fmc");
+    partial_name(partial, path);
+    fm_error err = {0};
+    remove(partial);
+    ENSURE(fm_cache_writer_resume(path, 2, &err) == NULL && err.status == FM_ERR_INPUT &&
+           strstr(err.message, "nothing to resume"));
+    size_t index = (size_t)get_u64(bytes + len - 16), chunk3 = (size_t)get_u64(bytes + index + 8 + 24);
+    write_all(partial, bytes, chunk3 + 30); /* frames 0..2 complete */
+    ENSURE(fm_cache_writer_resume(path, 4, &err) == NULL);
+    ENSURE_MSG(err.status == FM_ERR_INPUT && strstr(err.message, "only 3 complete frames"), "'%s'", err.message);
+    size_t chunk1 = (size_t)get_u64(bytes + index + 8 + 8);
+    bytes[chunk1 + 24 + 20] ^= 0x40; /* inside frame 1's compressed data */
+    write_all(partial, bytes, len);
+    ENSURE(fm_cache_writer_resume(path, 3, &err) == NULL);
+    ENSURE_MSG(err.status == FM_ERR_INPUT && strstr(err.message, "frame 1"), "'%s'", err.message);
+    size_t still;
+    unsigned char *kept = read_all(partial, &still);
+    ENSURE(kept && still == len && memcmp(kept, bytes, len) == 0);
+    free(kept), free(bytes);
+    remove(partial);
+}
+
 int main(void)
 {
     RUN_TEST(test_write_failure_on_the_writer_thread);
@@ -409,5 +530,8 @@ int main(void)
     RUN_TEST(test_corrupt_chunk);
     RUN_TEST(test_not_a_cache);
     RUN_TEST(test_bad_version);
+    RUN_TEST(test_resume_is_byte_identical);
+    RUN_TEST(test_resume_after_flush);
+    RUN_TEST(test_resume_refuses);
     return test_result();
 }

@@ -290,6 +290,9 @@ fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const 
  * after them, and continues writing (checkpoint / resume). Fails if fewer frames are readable. */
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
+/* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
+ * checkpoint taken after it can rely on those frames being on disk. */
+fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
 
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
