@@ -293,6 +293,15 @@ void fm_cache_writer_abort(fm_cache_writer *w)
     free_writer(w);
 }
 
+void fm_cache_writer_close_partial(fm_cache_writer *w)
+{
+    if (!w) return;
+    stop_worker(w, NULL);
+    if (w->out.f) fclose(w->out.f); /* the frames written so far stay in PATH.partial */
+    w->out.f = NULL;
+    free_writer(w);
+}
+
 /* ---------------------------------------------------------------- reader */
 
 struct fm_cache_reader {

@@ -293,6 +293,9 @@ uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
  * checkpoint taken after it can rely on those frames being on disk. */
 fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
+/* Frees w and keeps PATH.partial with every frame written so far, for fm_cache_writer_resume (a
+ * run stopped by a signal, or one that failed after a checkpoint). */
+void fm_cache_writer_close_partial(fm_cache_writer *w);
 
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
