@@ -256,24 +256,35 @@ static fm_status probe_hook(const fm_model *m, const fm_state *s, const fm_run_s
     return FM_OK;
 }
 
-static void test_checkpoints_every_k_frames_after_flush(void)
+/* Runs the scene with the probe as checkpoint hook; returns the frames written. */
+static int64_t run_probed(flush_probe *p, int64_t every, double seconds)
 {
     fm_error err = {0};
     fm_state *s = fm_state_create(g_model, 1, &err);
     fm_cache_writer *w = fm_cache_writer_create(DIR_ "/probe.fmc", (uint64_t)g_model->n, 24, 1, &err);
     ENSURE(s && w);
-    if (!s || !w) return;
-    flush_probe p = {DIR_ "/probe.fmc.partial", w, 0, {0}, 1};
+    if (!s || !w) return 0;
+    *p = (flush_probe){DIR_ "/probe.fmc.partial", w, 0, {0}, 1};
     fm_run_control c = fm_default_run_control();
-    c.checkpoint = probe_hook, c.checkpoint_user = &p, c.checkpoint_every = 7;
+    c.checkpoint = probe_hook, c.checkpoint_user = p, c.checkpoint_every = every, c.checkpoint_seconds = seconds;
     fm_run_stats rs;
     ENSURE(fm_run_controlled(g_model, s, w, &c, &rs, &err) == FM_OK);
-    ENSURE_MSG(p.calls == (int)((rs.frames - 1) / 7), "%d checkpoints in %lld frames", p.calls, (long long)rs.frames);
-    for (int i = 0; i < p.calls && i < 8; i++) ENSURE(p.frames[i] == 7 * (i + 1));
-    ENSURE_MSG(p.on_disk_ok, "a checkpoint was taken before its frames were on disk");
+    ENSURE_MSG(p->on_disk_ok, "a checkpoint was taken before its frames were on disk");
     fm_cache_writer_abort(w);
     fm_run_stats_free(&rs);
     fm_state_destroy(s);
+    return rs.frames;
+}
+
+static void test_checkpoints_every_k_frames_after_flush(void)
+{
+    flush_probe p;
+    int64_t frames = run_probed(&p, 7, 0);
+    ENSURE_MSG(p.calls == (int)((frames - 1) / 7), "%d checkpoints in %lld frames", p.calls, (long long)frames);
+    for (int i = 0; i < p.calls && i < 8; i++) ENSURE(p.frames[i] == 7 * (i + 1));
+    frames = run_probed(&p, 0, 1e-9); /* by wall time: due at every frame boundary */
+    ENSURE_MSG(p.calls == (int)(frames - 1), "%d checkpoints in %lld frames", p.calls, (long long)frames);
+    ENSURE(run_probed(&p, 0, 0) > 0 && p.calls == 0);
 }
 
 /* A checkpoint after 24 frames, written by run_until_stopped; returns its bytes. */
@@ -381,7 +392,6 @@ static pid_t start_run(const char *out, const char *extra)
     for (char *w = strtok(words, " "); w && argc < 15; w = strtok(NULL, " ")) argv[argc++] = w;
     argv[argc] = NULL;
     pid_t pid = -1;
-    if (!strstr(extra, "--resume")) clear_outputs(out);
     ENSURE(posix_spawn(&pid, FM_CLI, &fa, NULL, argv, environ) == 0);
     posix_spawn_file_actions_destroy(&fa);
     return pid;
@@ -420,6 +430,7 @@ static long long g_ref_bytes; /* the reference cache's size: interruptions happe
 
 static void reference_run(void)
 {
+    clear_outputs(OUT);
     ENSURE_MSG(run_to_end(OUT, "") == 0, "see %s.log", OUT);
     ENSURE(rename(OUT "/frames.fmc", DIR_ "/ref.fmc") == 0 && rename(OUT "/stats.json", DIR_ "/ref.json") == 0);
     g_ref_bytes = file_size(DIR_ "/ref.fmc");
@@ -442,6 +453,7 @@ static void resume_and_compare(const char *what)
 
 static void test_kill9_then_resume(void)
 {
+    clear_outputs(OUT);
     pid_t pid = start_run(OUT, "--checkpoint-every 5");
     int alive = wait_for_size(pid, OUT "/checkpoint.fmck", 0);
     alive = alive && wait_for_size(pid, OUT "/frames.fmc.partial", g_ref_bytes / 2); /* many frames later */
@@ -456,6 +468,7 @@ static void test_kill9_then_resume(void)
  * message and the files left, then resumes it. */
 static void interrupt_then_resume(int sig, int status, double fraction, const char *what)
 {
+    clear_outputs(OUT);
     pid_t pid = start_run(OUT, "");
     ENSURE_MSG(wait_for_size(pid, OUT "/frames.fmc.partial", (long long)(fraction * (double)g_ref_bytes)),
                "%s: the run ended too soon", what);
@@ -486,10 +499,12 @@ static void copy_file(const char *from, const char *to)
     free(bytes);
 }
 
-/* `flockmorph run scene -o out --resume` exits 2 naming `why`, and leaves no cache. */
+/* `flockmorph run scene -o out --resume` exits 2 naming `why`, and writes no cache. */
 static void ensure_refused(const char *scene_dir, const char *out, const char *why)
 {
-    char cmd[4 * FM_PATH_MAX];
+    char cmd[4 * FM_PATH_MAX], cache[FM_PATH_MAX + 16];
+    snprintf(cache, sizeof cache, "%s/frames.fmc", out);
+    long long cache_before = file_size(cache);
     snprintf(cmd, sizeof cmd, "'%s' run '%s/scene.json' -o '%s' --resume --quiet > '%s.log' 2>&1", FM_CLI, scene_dir, out, out);
     int rc = system(cmd);
     snprintf(cmd, sizeof cmd, "%s.log", out);
@@ -497,13 +512,13 @@ static void ensure_refused(const char *scene_dir, const char *out, const char *w
     char *log = slurp(cmd, &len);
     ENSURE_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 2 && log && strstr(log, why), "exit %d: %s", WEXITSTATUS(rc), log ? log : "");
     free(log);
-    snprintf(cmd, sizeof cmd, "%s/frames.fmc", out);
-    ENSURE(!exists(cmd));
+    ENSURE(file_size(cache) == cache_before);
 }
 
 static void test_cli_refuses_other_scene_and_damage(void)
 {
     /* a checkpoint and partial cache of the test scene */
+    clear_outputs(OUT);
     pid_t pid = start_run(OUT, "");
     ENSURE(wait_for_size(pid, OUT "/frames.fmc.partial", 300000));
     kill(pid, SIGINT);
@@ -525,7 +540,13 @@ static void test_cli_refuses_other_scene_and_damage(void)
     free(bytes);
     ensure_refused(DIR_, OUT, "checksum mismatch");
     ENSURE(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial")); /* refused, not removed */
-    remove(OUT "/checkpoint.fmck");
+
+    /* without --resume the run starts over, says so, and finishes as usual */
+    ENSURE(run_to_end(OUT, "--checkpoint-every 0") == 0);
+    char *log = slurp(OUT ".log", &len);
+    ENSURE_MSG(log && strstr(log, "warning: starting over"), "%s", log ? log : "");
+    free(log);
+    ENSURE(same_bytes(OUT "/frames.fmc", DIR_ "/ref.fmc") && !exists(OUT "/checkpoint.fmck"));
     ensure_refused(DIR_, OUT, "nothing to resume");
 }
 

@@ -208,13 +208,23 @@ typedef struct run_files {
     char cache[FM_PATH_MAX + 300], stats[FM_PATH_MAX + 16], checkpoint[FM_PATH_MAX + 32];
 } run_files;
 
+static void remove_checkpoint(const run_files *files)
+{
+    char partial[sizeof files->checkpoint + 16];
+    snprintf(partial, sizeof partial, "%s.partial", files->checkpoint); /* left if killed while writing one */
+    remove(files->checkpoint), remove(partial);
+}
+
 /* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
 static int open_run(const run_options *o, const fm_scene_def *def, const fm_model *model, const run_files *files,
                     fm_state *state, fm_run_stats *rs, fm_cache_writer **cache)
 {
     fm_error err = {0};
     if (!o->resume) {
-        remove(files->checkpoint); /* an earlier run's, which this run's cache replaces */
+        if (access(files->checkpoint, F_OK) == 0)
+            fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
+                    "continues such a run)\n", files->checkpoint);
+        remove_checkpoint(files); /* this run's cache replaces the one it describes */
         *cache = fm_cache_writer_create(files->cache, (uint64_t)fm_model_get_info(model).agents, def->frame_rate,
                                         def->compression_level, &err);
         return *cache ? 0 : cli_report(&err);
@@ -289,7 +299,7 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const ru
     int rc = write_stats(files->stats, def, mi, rs, threads, prep_seconds, files->cache);
     fm_run_stats_free(rs);
     if (rc) return rc;
-    remove(files->checkpoint);
+    remove_checkpoint(files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
            (long long)rs->steps, rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0.0);
     if (!rs->all_arrived)
