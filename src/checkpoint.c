@@ -265,7 +265,9 @@ static fm_status read_header(source *src, header *h)
     if (st == FM_OK && (h->members != (uint32_t)fm_state_member_count || h->layout_hash != layout_hash()))
         return fm_fail(src->err, FM_ERR_INPUT, "%s: written by a flockmorph whose agent store differs from this "
                        "one; finish the run with that build, or run again without --resume", src->path);
-    if (st == FM_OK && (h->frames < 1 || h->frames > UINT32_MAX)) return damaged(src, "impossible frame count");
+    uint64_t room = (uint64_t)(src->size - HEADER_BYTES - TRAILER_BYTES) / 8; /* the stats take frames + 2 */
+    if (st == FM_OK && (h->frames < 1 || h->frames > UINT32_MAX || h->frames + 2 > room))
+        return damaged(src, "impossible frame count");
     return st;
 }
 
