@@ -67,18 +67,26 @@ void fm_run_stats_free(fm_run_stats *stats)
     stats->mde_fraction = NULL;
 }
 
+/* Makes room for `count` per-frame values, growing by doubling from 1024. */
+static fm_status mde_room(fm_run_stats *stats, int64_t count, int64_t *capacity, fm_error *err)
+{
+    if (count <= *capacity) return FM_OK;
+    int64_t cap = *capacity > 0 ? *capacity : 1024;
+    while (cap < count) cap *= 2;
+    double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)cap);
+    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
+    stats->mde_fraction = grown, *capacity = cap;
+    return FM_OK;
+}
+
 /* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
 static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
                             int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
-    int64_t slot = stats->frames - 2;
-    if (slot >= *capacity) { /* grows by doubling */
-        double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)(2 * *capacity));
-        if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
-        stats->mde_fraction = grown, *capacity *= 2;
-    }
-    stats->mde_fraction[slot] = flying > 0 ? (double)mde / (double)flying : NAN;
+    fm_status st = mde_room(stats, stats->frames - 1, capacity, err);
+    if (st != FM_OK) return st;
+    stats->mde_fraction[stats->frames - 2] = flying > 0 ? (double)mde / (double)flying : NAN;
     *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
     return FM_OK;
 }
@@ -92,17 +100,6 @@ static double mde_mean(const fm_run_stats *stats)
     for (int64_t f = 0; f + 1 < stats->frames; f++)
         if (!isnan(stats->mde_fraction[f])) sum += stats->mde_fraction[f], frames++;
     return frames ? sum / (double)frames : 0.0;
-}
-
-/* The per-frame array, with room for the frames already recorded (a resumed run's). */
-static fm_status reserve_mde(fm_run_stats *stats, int64_t *capacity, fm_error *err)
-{
-    *capacity = 1024;
-    while (*capacity < stats->frames) *capacity *= 2;
-    double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)*capacity);
-    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
-    stats->mde_fraction = grown;
-    return FM_OK;
 }
 
 fm_run_control fm_default_run_control(void)
@@ -170,8 +167,8 @@ fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cac
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
     float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    int64_t capacity;
-    if (!verts || reserve_mde(stats, &capacity, err) != FM_OK) {
+    int64_t capacity = 0; /* a resumed run's array holds exactly its frames so far */
+    if (!verts || mde_room(stats, FM_MAX(stats->frames, 1), &capacity, err) != FM_OK) {
         fm_free(verts), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
