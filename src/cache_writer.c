@@ -326,6 +326,16 @@ void fm_cache_writer_abort(fm_cache_writer *w)
     free_writer(w);
 }
 
+/* Stops the writer and keeps PATH.partial with the frames written so far (for --resume). */
+void fm_cache_writer_close_partial(fm_cache_writer *w)
+{
+    if (!w) return;
+    stop_worker(w, NULL);
+    if (w->out.f) fclose(w->out.f);
+    w->out.f = NULL;
+    free_writer(w);
+}
+
 /* ---------------------------------------------------------------- resume */
 
 /* Checks the first `frames` chunks of the partial cache (headers and checksums), takes over

@@ -38,6 +38,13 @@ void fm_output_discard(fm_output_file *o);
  * at their end, to continue writing (resume). */
 fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
+/* scene.c: feeds `add` every value a scene file can set, each after its key, in the parameter
+ * table's order: a canonical byte stream of the definition (no padding, no bytes past a string's
+ * end), which checkpoints hash. Mesh file names are left out (where a file lies does not change
+ * the run; the model hash covers the meshes), and so is scene_path. */
+typedef void (*fm_bytes_fn)(const void *bytes, size_t n, void *user);
+void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user);
+
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);
 

@@ -84,57 +84,139 @@ void fm_run_stats_free(fm_run_stats *stats)
     stats->mde_fraction = NULL;
 }
 
+/* Makes room for `count` per-frame values, growing by doubling from 1024. */
+static fm_status mde_room(fm_run_stats *stats, int64_t count, int64_t *capacity, fm_error *err)
+{
+    if (count <= *capacity) return FM_OK;
+    int64_t cap = *capacity > 0 ? *capacity : 1024;
+    while (cap < count) cap *= 2;
+    double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)cap);
+    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
+    stats->mde_fraction = grown, *capacity = cap;
+    return FM_OK;
+}
+
 /* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
 static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
-                            int64_t *frames_with_flyers, int64_t *capacity, fm_error *err)
+                            int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
-    double f = flying > 0 ? (double)mde / (double)flying : NAN;
-    int64_t slot = stats->frames - 2;
-    if (slot >= *capacity) { /* grows by doubling */
-        double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)(2 * *capacity));
-        if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
-        stats->mde_fraction = grown, *capacity *= 2;
-    }
-    stats->mde_fraction[slot] = f;
-    if (flying > 0) stats->mde_fraction_mean += f, ++*frames_with_flyers;
+    fm_status st = mde_room(stats, stats->frames - 1, capacity, err);
+    if (st != FM_OK) return st;
+    stats->mde_fraction[stats->frames - 2] = flying > 0 ? (double)mde / (double)flying : NAN;
     *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
     return FM_OK;
 }
 
-fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
-                 void *user, fm_run_stats *stats, fm_error *err)
+/* FM Table I's MDE column: the mean over the frames that had agents in phase 1, summed in frame
+ * order (so a resumed run adds the same numbers in the same order). */
+static double mde_mean(const fm_run_stats *stats)
 {
-    memset(stats, 0, sizeof *stats);
-    float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    uint8_t *phases = fm_alloc((size_t)s->n);
-    int64_t capacity = 1024;
-    stats->mde_fraction = malloc(sizeof(double) * (size_t)capacity);
-    if (!verts || !phases || !stats->mde_fraction) {
-        fm_free(verts), fm_free(phases), fm_run_stats_free(stats);
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
-    }
-    int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps, frames_with_flyers = 0;
-    fm_status st = emit_frame(m, s, verts, phases, cache, stats, err);
-    while (st == FM_OK && s->count[FM_PHASE_ARRIVED] < s->n && stats->frames < m->def.frame_limit) {
-        double t0 = fm_seconds();
-        for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
-        stats->simulate_seconds += fm_seconds() - t0;
-        st = emit_frame(m, s, verts, phases, cache, stats, err);
-        if (st == FM_OK) st = record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers, &capacity, err);
-        if (progress) {
-            fm_state_info info = fm_state_get_info(s);
-            progress(&info, stats->frames - 1, user);
-        }
-    }
+    double sum = 0;
+    int64_t frames = 0;
+    for (int64_t f = 0; f + 1 < stats->frames; f++)
+        if (!isnan(stats->mde_fraction[f])) sum += stats->mde_fraction[f], frames++;
+    return frames ? sum / (double)frames : 0.0;
+}
+
+fm_run_control fm_default_run_control(void)
+{
+    fm_run_control c;
+    memset(&c, 0, sizeof c);
+    return c;
+}
+
+static int run_done(const fm_model *m, const fm_state *s, const fm_run_stats *stats)
+{
+    return s->count[FM_PHASE_ARRIVED] == s->n || stats->frames >= m->def.frame_limit;
+}
+
+/* When to call the checkpoint hook: every `checkpoint_every` frames and/or `checkpoint_seconds`. */
+typedef struct checkpoint_clock {
+    int64_t last_frames;
+    double last_time;
+} checkpoint_clock;
+
+static int checkpoint_due(const fm_run_control *c, const checkpoint_clock *clock, const fm_run_stats *stats)
+{
+    if (!c->checkpoint) return 0;
+    if (c->checkpoint_every > 0 && stats->frames - clock->last_frames >= c->checkpoint_every) return 1;
+    return c->checkpoint_seconds > 0 && fm_seconds() - clock->last_time >= c->checkpoint_seconds;
+}
+
+/* Flushes the cache so its first stats->frames frames are on disk, then calls the hook. */
+static fm_status checkpoint(const fm_model *m, const fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
+                            checkpoint_clock *clock, const fm_run_stats *stats, fm_error *err)
+{
+    fm_status st = cache ? fm_cache_writer_flush(cache, err) : FM_OK;
+    if (st == FM_OK && c->checkpoint) st = c->checkpoint(m, s, stats, c->checkpoint_user, err);
+    clock->last_frames = stats->frames, clock->last_time = fm_seconds();
+    return st;
+}
+
+/* The end-state checks and totals of stats.json. */
+static void finish_stats(const fm_model *m, const fm_state *s, const float *verts, fm_run_stats *stats)
+{
     stats->steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !stats->all_arrived;
     stats->final_max_vertex_error = max_vertex_error(m, s, verts);
     stats->target_tets_filled_once = each_target_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
-    stats->mde_fraction_mean = frames_with_flyers ? stats->mde_fraction_mean / (double)frames_with_flyers : 0.0;
+    stats->mde_fraction_mean = mde_mean(stats);
     stats->min_obstacle_clearance = s->min_clearance;
+}
+
+/* Simulates and writes one frame. */
+static fm_status next_frame(const fm_model *m, fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
+                            fm_run_stats *stats, int64_t *flying_before, int64_t *mde_before, int64_t *capacity,
+                            fm_error *err)
+{
+    double t0 = fm_seconds();
+    for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
+    stats->simulate_seconds += fm_seconds() - t0;
+    fm_status st = emit_frame(m, s, verts, phases, cache, stats, err);
+    return st == FM_OK ? record_mde(s, flying_before, mde_before, stats, capacity, err) : st;
+}
+
+fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
+                            fm_run_stats *stats, fm_error *err)
+{
+    if (!c->resume) memset(stats, 0, sizeof *stats);
+    float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
+    uint8_t *phases = fm_alloc((size_t)s->n);
+    int64_t capacity = 0; /* a resumed run's array holds exactly its frames so far */
+    if (!verts || !phases || mde_room(stats, FM_MAX(stats->frames, 1), &capacity, err) != FM_OK) {
+        fm_free(verts), fm_free(phases), fm_run_stats_free(stats);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    }
+    int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps;
+    checkpoint_clock clock = {stats->frames, fm_seconds()};
+    fm_status st = FM_OK;
+    if (c->resume) fm_state_tet_vertices(m, s, verts); /* the last frame, should the run be complete */
+    else st = emit_frame(m, s, verts, phases, cache, stats, err);
+    while (st == FM_OK && !run_done(m, s, stats)) {
+        if (c->stop && *c->stop) {
+            st = checkpoint(m, s, cache, c, &clock, stats, err);
+            if (st == FM_OK) st = FM_STOPPED;
+            break;
+        }
+        if (checkpoint_due(c, &clock, stats) && (st = checkpoint(m, s, cache, c, &clock, stats, err)) != FM_OK) break;
+        st = next_frame(m, s, verts, phases, cache, stats, &flying_before, &mde_before, &capacity, err);
+        if (c->progress) {
+            fm_state_info info = fm_state_get_info(s);
+            c->progress(&info, stats->frames - 1, c->progress_user);
+        }
+    }
+    finish_stats(m, s, verts, stats);
     fm_free(verts), fm_free(phases);
     return st;
+}
+
+fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
+                 void *user, fm_run_stats *stats, fm_error *err)
+{
+    fm_run_control c = fm_default_run_control();
+    c.progress = progress, c.progress_user = user;
+    return fm_run_controlled(m, s, cache, &c, stats, err);
 }

@@ -633,3 +633,58 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
     free(text);
     return st;
 }
+
+/* ---------------------------------------------------------------- canonical bytes (checkpoints) */
+
+static void feed_table(const param *table, size_t count, const void *base, const fm_scene_def *def, fm_bytes_fn add,
+                       void *user);
+
+static void feed_list(const param *table, size_t count, const void *items, size_t item_bytes, int32_t n,
+                      const fm_scene_def *def, fm_bytes_fn add, void *user)
+{
+    add(&n, sizeof n, user);
+    for (int32_t i = 0; i < n; i++) feed_table(table, count, (const char *)items + (size_t)i * item_bytes, def, add, user);
+}
+
+/* One value in a fixed width: enums as int32, strings without their unused tail. */
+static void feed_value(const param *p, const char *field, const fm_scene_def *def, fm_bytes_fn add, void *user)
+{
+    int32_t e;
+    switch (p->type) {
+    case P_DOUBLE: case P_INT64: case P_UINT64: add(field, 8, user); break;
+    case P_INT32: case P_BOOL: add(field, 4, user); break;
+    case P_VEC3: add(field, 24, user); break;
+    case P_INT3: add(field, 12, user); break;
+    case P_MESH: break; /* the file's contents are in the model hash */
+    case P_NAME: add(field, strlen(field) + 1, user); break;
+    case P_CURVE: e = (int32_t)*(const fm_curve *)field, add(&e, sizeof e, user); break;
+    case P_SWITCH: e = (int32_t)*(const fm_phase_switch *)field, add(&e, sizeof e, user); break;
+    case P_FIELD_KIND: e = (int32_t)*(const fm_field_kind *)field, add(&e, sizeof e, user); break;
+    case P_POINTS:
+        add(&def->path_point_count, sizeof def->path_point_count, user);
+        add(def->path_points, sizeof def->path_points[0] * (size_t)def->path_point_count, user);
+        break;
+    case P_FIELDS:
+        feed_list(FIELD_PARAMS, sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0], def->fields, sizeof def->fields[0],
+                  def->field_count, def, add, user);
+        break;
+    case P_OBSTACLES:
+        feed_list(MESH_PARAMS, sizeof MESH_PARAMS / sizeof MESH_PARAMS[0], def->obstacles, sizeof def->obstacles[0],
+                  def->obstacle_count, def, add, user);
+        break;
+    }
+}
+
+static void feed_table(const param *table, size_t count, const void *base, const fm_scene_def *def, fm_bytes_fn add,
+                       void *user)
+{
+    for (size_t i = 0; i < count; i++) {
+        add(table[i].key, strlen(table[i].key) + 1, user);
+        feed_value(&table[i], (const char *)base + table[i].offset, def, add, user);
+    }
+}
+
+void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user)
+{
+    feed_table(PARAMS, PARAM_COUNT, def, def, add, user);
+}

@@ -119,6 +119,20 @@ static inline void fm_active_block(const fm_state *s, int64_t b, int64_t *begin,
     *end = FM_MIN(*begin + FM_BLOCK, s->active_end);
 }
 
+/* One member of fm_state that a step changes and a later step reads: what a checkpoint saves
+ * (checkpoint.c). A per-agent array (the member is a pointer) holds n elements of `bytes` each; a
+ * scalar member is `bytes` bytes of the struct itself. */
+typedef struct fm_state_member {
+    const char *name;
+    size_t offset;   /* offsetof(fm_state, member) */
+    size_t bytes;    /* per agent for an array, in all for a scalar */
+    int per_agent;
+} fm_state_member;
+
+/* state.c: the table of every saved member, in file order. */
+extern const fm_state_member fm_state_members[];
+extern const int fm_state_member_count;
+
 /* morph.c */
 extern const uint8_t fm_even_permutations[12][4];
 /* Chooses the correspondence and A = RS for one agent: src and dst are 12 floats each, relative

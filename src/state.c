@@ -3,8 +3,32 @@
 
 #include <math.h>
 #include <omp.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Every member of the store that carries the run from one step to the next; a checkpoint saves
+ * exactly these (checkpoint.c), so a new per-agent array or evolving counter is one line here.
+ * Not listed: the scratch each step rebuilds before reading it (entered, member, vla, mde_needed,
+ * grid, blocks), and the style fields, whose baked grid is a pure function of time and seed. */
+#define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_state, member), bytes, 1}
+#define SCALAR(member) {#member, offsetof(fm_state, member), sizeof(((fm_state *)0)->member), 0}
+const fm_state_member fm_state_members[] = {
+    AGENT_ARRAY(p[0], sizeof(float)), AGENT_ARRAY(p[1], sizeof(float)), AGENT_ARRAY(p[2], sizeof(float)),
+    AGENT_ARRAY(v[0], sizeof(float)), AGENT_ARRAY(v[1], sizeof(float)), AGENT_ARRAY(v[2], sizeof(float)),
+    AGENT_ARRAY(phase, sizeof(uint8_t)),
+    AGENT_ARRAY(target, sizeof(int64_t)),
+    AGENT_ARRAY(t2, sizeof(float)),
+    AGENT_ARRAY(p2[0], sizeof(float)), AGENT_ARRAY(p2[1], sizeof(float)), AGENT_ARRAY(p2[2], sizeof(float)),
+    AGENT_ARRAY(tf, sizeof(float)),
+    AGENT_ARRAY(morph, sizeof(float) * FM_MORPH_FLOATS),
+    AGENT_ARRAY(perm, sizeof(uint8_t)),
+    AGENT_ARRAY(morph_safe, sizeof(uint8_t)),
+    AGENT_ARRAY(id, sizeof(int32_t)), SCALAR(active_begin), SCALAR(active_end),
+    SCALAR(step), SCALAR(time), SCALAR(launched), SCALAR(next_slot), SCALAR(count),
+    SCALAR(morph_fallbacks), SCALAR(mde_agent_steps), SCALAR(flying_agent_steps), SCALAR(min_clearance),
+};
+const int fm_state_member_count = (int)(sizeof fm_state_members / sizeof fm_state_members[0]);
 
 static int alloc_arrays(fm_state *s)
 {

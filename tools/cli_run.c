@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,25 +15,35 @@
 #include <unistd.h>
 
 static const char *const USAGE_RUN =
-    "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]\n"
+    "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
     "\n"
     "Reads the scene (docs/scene.md), tetrahedralizes and subdivides the meshes, simulates until\n"
     "every agent has arrived (or the scene's frame limit), and writes OUTDIR/<output.cache>\n"
     "(default frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
     "\n"
-    "  -o, --output DIR   output directory (required)\n"
-    "  --threads N        worker threads (default: all cores); results do not depend on N\n"
-    "  --quiet            no progress display (it is shown only on a terminal anyway)\n";
+    "  -o, --output DIR      output directory (required)\n"
+    "  --threads N           worker threads (default: all cores); results do not depend on N\n"
+    "  --quiet               no progress display (it is shown only on a terminal anyway)\n"
+    "  --checkpoint-every K  save the run to OUTDIR/checkpoint.fmck every K frames; 0: only when\n"
+    "                        interrupted (default: every 60 s of wall time)\n"
+    "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene)\n"
+    "\n"
+    "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
+    "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
 
+enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
+static const char CHECKPOINT_NAME[] = "checkpoint.fmck";
 
 typedef struct run_options {
     const char *scene, *outdir;
-    int threads, quiet;
+    int threads, quiet, resume;
+    long checkpoint_every; /* -1: by wall time (the default) */
 } run_options;
 
 static int parse_run(int argc, char **argv, run_options *o)
 {
     memset(o, 0, sizeof *o);
+    o->checkpoint_every = -1;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
         long v;
@@ -40,7 +51,11 @@ static int parse_run(int argc, char **argv, run_options *o)
         else if (!strcmp(a, "--threads") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 1, 1024, &v)) return cli_usage_error(USAGE_RUN, "--threads wants a whole number from 1 to 1024, not '%s'", argv[i]);
             o->threads = (int)v;
-        } else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
+        } else if (!strcmp(a, "--checkpoint-every") && i + 1 < argc) {
+            if (cli_parse_int(argv[++i], 0, 2000000000L, &o->checkpoint_every))
+                return cli_usage_error(USAGE_RUN, "--checkpoint-every wants a whole number of frames >= 0, not '%s'", argv[i]);
+        } else if (!strcmp(a, "--resume")) o->resume = 1;
+        else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
         else if (a[0] == '-') return cli_usage_error(USAGE_RUN, "unknown or incomplete option '%s'", a);
         else if (!o->scene) o->scene = a;
         else return cli_usage_error(USAGE_RUN, "unexpected argument '%s'", a);
@@ -159,6 +174,145 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
+/* SIGINT / SIGTERM: the first asks fm_run_controlled to checkpoint and stop at the end of the
+ * frame; a second one (an impatient user) takes the default action at once. */
+static volatile sig_atomic_t g_stop_signal;
+
+static void on_stop_signal(int sig)
+{
+    if (g_stop_signal) {
+        signal(sig, SIG_DFL);
+        raise(sig);
+        return;
+    }
+    g_stop_signal = sig;
+}
+
+static void handle_stop_signals(void (*handler)(int))
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = handler;
+    sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+static fm_status save_checkpoint(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
+{
+    return fm_checkpoint_save(path, m, s, rs, err);
+}
+
+typedef struct run_files {
+    char cache[FM_PATH_MAX + 300], stats[FM_PATH_MAX + 16], checkpoint[FM_PATH_MAX + 32];
+} run_files;
+
+static void remove_checkpoint(const run_files *files)
+{
+    char partial[sizeof files->checkpoint + 16];
+    snprintf(partial, sizeof partial, "%s.partial", files->checkpoint); /* left if killed while writing one */
+    remove(files->checkpoint), remove(partial);
+}
+
+/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
+static int open_run(const run_options *o, const fm_scene_def *def, const fm_model *model, const run_files *files,
+                    fm_state *state, fm_run_stats *rs, fm_cache_writer **cache)
+{
+    fm_error err = {0};
+    if (!o->resume) {
+        if (access(files->checkpoint, F_OK) == 0)
+            fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
+                    "continues such a run)\n", files->checkpoint);
+        remove_checkpoint(files); /* this run's cache replaces the one it describes */
+        fm_cache_options copts = fm_default_cache_options();
+        copts.compression_level = def->compression_level;
+        copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+        const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+        *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)fm_model_get_info(model).agents, def->frame_rate,
+                                              attrs, 2, &copts, &err);
+        return *cache ? 0 : cli_report(&err);
+    }
+    if (fm_checkpoint_load(files->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);
+    *cache = fm_cache_writer_resume(files->cache, (uint32_t)rs->frames, &err);
+    if (!*cache) return fm_run_stats_free(rs), cli_report(&err);
+    return 0;
+}
+
+/* Prints an argument so a shell reads it back unchanged. */
+static void print_shell_word(FILE *f, const char *s)
+{
+    if (s[strspn(s, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./=:,+@%")] == 0) {
+        fputs(s, f);
+        return;
+    }
+    fputc('\'', f);
+    for (; *s; s++) *s == '\'' ? fputs("'\\''", f) : fputc(*s, f);
+    fputc('\'', f);
+}
+
+static void print_resume_command(const run_options *o)
+{
+    fputs("flockmorph run ", stderr);
+    print_shell_word(stderr, o->scene);
+    fputs(" -o ", stderr);
+    print_shell_word(stderr, o->outdir);
+    fputs(" --resume\n", stderr);
+}
+
+/* After a stop: the cache keeps its frames as .partial for --resume; exit 128 + signal. */
+static int report_interrupted(const run_options *o, fm_cache_writer *cache, const fm_run_stats *rs)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: interrupted at frame %lld; checkpoint written; resume with: ", (long long)rs->frames - 1);
+    print_resume_command(o);
+    return 128 + g_stop_signal;
+}
+
+/* A run that failed (a full disk, say) after a checkpoint can still be resumed once the cause is
+ * fixed: keep the checkpoint and the partial cache. Without one, the partial cache goes. */
+static int report_failed(const run_options *o, const run_files *files, fm_cache_writer *cache, const fm_error *err)
+{
+    int rc = cli_report(err);
+    if (access(files->checkpoint, F_OK) != 0) return fm_cache_writer_abort(cache), rc;
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: the last checkpoint and the partial cache are kept; once the problem is fixed, "
+            "resume with: ");
+    print_resume_command(o);
+    return rc;
+}
+
+static fm_run_control run_control(const run_options *o, const run_files *files, run_progress *rp)
+{
+    fm_run_control c = fm_default_run_control();
+    c.progress = frame_progress, c.progress_user = rp;
+    c.resume = o->resume;
+    c.checkpoint = save_checkpoint, c.checkpoint_user = (void *)files->checkpoint;
+    c.checkpoint_every = o->checkpoint_every > 0 ? o->checkpoint_every : 0;
+    c.checkpoint_seconds = o->checkpoint_every < 0 ? DEFAULT_CHECKPOINT_SECONDS : 0;
+    c.stop = &g_stop_signal;
+    return c;
+}
+
+/* The cache, stats.json and the summary of a finished run; the checkpoint is no longer needed. */
+static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const run_files *files, fm_cache_writer *cache,
+                      fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying)
+{
+    fm_error err = {0};
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(rs), cli_report(&err);
+    int rc = write_stats(files->stats, def, mi, rs, threads, prep_seconds, files->cache);
+    fm_run_stats_free(rs);
+    if (rc) return rc;
+    remove_checkpoint(files);
+    printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
+           (long long)rs->steps, rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0.0);
+    if (!rs->all_arrived)
+        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
+                "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
+    printf("cache: %s\nstats: %s\n", files->cache, files->stats);
+    return 0;
+}
+
 static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
 {
     fm_error err = {0};
@@ -167,33 +321,33 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     fm_state *state = fm_state_create(model, o->threads, &err);
     if (!state) return cli_report(&err);
     int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
-    char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
-    snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
-    snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
-    fm_cache_options copts = fm_default_cache_options();
-    copts.compression_level = def->compression_level;
-    copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
-    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
-    fm_cache_writer *cache = fm_cache_writer_create_attrs(cache_path, (uint64_t)mi.agents, def->frame_rate, attrs, 2, &copts, &err);
-    if (!cache) return fm_state_destroy(state), cli_report(&err);
-    run_progress rp = {show, mi.agents, cli_seconds()};
+    run_files files;
+    snprintf(files.cache, sizeof files.cache, "%s/%s", o->outdir, def->cache_name);
+    snprintf(files.stats, sizeof files.stats, "%s/stats.json", o->outdir);
+    snprintf(files.checkpoint, sizeof files.checkpoint, "%s/%s", o->outdir, CHECKPOINT_NAME);
+    fm_cache_writer *cache = NULL;
     fm_run_stats rs;
-    fm_status st = fm_run(model, state, cache, frame_progress, &rp, &rs, &err);
+    int rc = open_run(o, def, model, &files, state, &rs, &cache);
+    if (rc) return fm_state_destroy(state), rc;
+    run_progress rp = {show, mi.agents, cli_seconds()};
+    fm_run_control control = run_control(o, &files, &rp);
+    handle_stop_signals(on_stop_signal);
+    fm_status st = fm_run_controlled(model, state, cache, &control, &rs, &err);
+    handle_stop_signals(SIG_DFL);
     if (show) fprintf(stderr, "\n");
     int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
     fm_state_destroy(state);
-    if (st != FM_OK) return fm_cache_writer_abort(cache), fm_run_stats_free(&rs), cli_report(&err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(&rs), cli_report(&err);
-    int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path);
-    fm_run_stats_free(&rs);
-    if (rc) return rc;
-    printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi.agents, (long long)rs.frames,
-           (long long)rs.steps, rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0);
-    if (!rs.all_arrived)
-        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
-                "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
-    printf("cache: %s\nstats: %s\n", cache_path, stats_path);
-    return 0;
+    if (st == FM_STOPPED) return fm_run_stats_free(&rs), report_interrupted(o, cache, &rs);
+    if (st != FM_OK) return fm_run_stats_free(&rs), report_failed(o, &files, cache, &err);
+    return finish_run(def, &mi, &files, cache, &rs, threads, prep_seconds, still_flying);
+}
+
+static int check_checkpoint(const run_options *o, const fm_scene_def *def)
+{
+    char path[FM_PATH_MAX + 32];
+    fm_error err = {0};
+    snprintf(path, sizeof path, "%s/%s", o->outdir, CHECKPOINT_NAME);
+    return fm_checkpoint_check(path, def, &err) == FM_OK ? 0 : cli_report(&err);
 }
 
 int cli_run(int argc, char **argv)
@@ -206,6 +360,7 @@ int cli_run(int argc, char **argv)
     fm_scene_def def;
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
     if ((rc = cli_make_outdir(o.outdir, &err))) return rc;
+    if (o.resume && (rc = check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
     fm_model *model = fm_model_build(&def, prep_progress, &show, &err);

@@ -1,6 +1,6 @@
 /* flockmorph: the command line.
  *
- *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]
+ *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]
  *   flockmorph export CACHE -o FILE.ply|FILE.obj [--frame K]
  *   flockmorph render CACHE -o FILE.png [--frame K] [--size WxH] [--view front|top|side]
  *   flockmorph inspect CACHE [--json]

@@ -14,6 +14,7 @@
 #ifndef FLOCKMORPH_H
 #define FLOCKMORPH_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -30,7 +31,9 @@ typedef enum fm_status {
     FM_ERR_INPUT = 2,    /* bad scene file, mesh or parameter */
     FM_ERR_IO = 3,       /* cannot read or write a file */
     FM_ERR_MEMORY = 4,   /* allocation failed */
-    FM_ERR_INTERNAL = 5  /* a library failed in a way the input does not explain */
+    FM_ERR_INTERNAL = 5, /* a library failed in a way the input does not explain */
+    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint
+                            (the CLI then exits 128 + the signal's number) */
 } fm_status;
 
 typedef struct fm_error {
@@ -302,6 +305,9 @@ uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
  * checkpoint taken after it can rely on those frames being on disk. */
 fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
+/* Frees w and keeps PATH.partial with every frame written so far, for fm_cache_writer_resume (a
+ * run stopped by a signal, or one that failed after a checkpoint). */
+void fm_cache_writer_close_partial(fm_cache_writer *w);
 
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
@@ -348,6 +354,54 @@ typedef void (*fm_run_progress_fn)(const fm_state_info *info, int64_t frame, voi
  * to `cache` (may be NULL) and measuring the run. */
 fm_status fm_run(const fm_model *model, fm_state *state, fm_cache_writer *cache,
                  fm_run_progress_fn progress, void *user, fm_run_stats *stats, fm_error *err);
+
+/* ---------------------------------------------------------------- checkpoint and resume */
+
+/* Called by fm_run_controlled at a frame boundary once the cache is flushed, so the cache's first
+ * stats->frames frames are on disk; typically calls fm_checkpoint_save. A failure ends the run. */
+typedef fm_status (*fm_run_checkpoint_fn)(const fm_model *model, const fm_state *state, const fm_run_stats *stats,
+                                          void *user, fm_error *err);
+
+typedef struct fm_run_control {
+    fm_run_progress_fn progress;     /* after every frame; may be NULL */
+    void *progress_user;
+    int resume;                      /* 0: a new run (frame 0 is written first, stats start at zero);
+                                        1: state and stats were restored by fm_checkpoint_load and the
+                                        run continues after frame stats->frames - 1 */
+    fm_run_checkpoint_fn checkpoint; /* NULL: no checkpoints */
+    void *checkpoint_user;
+    int64_t checkpoint_every;        /* checkpoint every this many frames; 0: not by frame count */
+    double checkpoint_seconds;       /* ... or when this much wall time passed since the last one
+                                        (or the start); 0: not by time */
+    volatile sig_atomic_t *stop;     /* may be NULL; read at every frame boundary: when non-zero, the
+                                        run checkpoints there and returns FM_STOPPED (unless that
+                                        frame already ends the run) */
+} fm_run_control;
+
+/* No checkpoints, no stop flag, a new run. */
+fm_run_control fm_default_run_control(void);
+
+/* fm_run with checkpoints, a stop flag and resume. The cache and stats of a run stopped and resumed
+ * any number of times are bitwise those of an uninterrupted run (timings aside). */
+fm_status fm_run_controlled(const fm_model *model, fm_state *state, fm_cache_writer *cache,
+                            const fm_run_control *control, fm_run_stats *stats, fm_error *err);
+
+/* Writes the run's state and statistics after stats->frames frames to `path` (as PATH.partial,
+ * fsync'ed, then renamed): docs/resume.md describes the file. */
+fm_status fm_checkpoint_save(const char *path, const fm_model *model, const fm_state *state,
+                             const fm_run_stats *stats, fm_error *err);
+
+/* Checks a checkpoint file against a scene before the (long) model build: readable, undamaged
+ * (checksum), this version's layout, written for the same scene parameters. FM_ERR_INPUT with a
+ * message saying which, FM_ERR_IO if it cannot be read. */
+fm_status fm_checkpoint_check(const char *path, const fm_scene_def *def, fm_error *err);
+
+/* Restores a checkpoint into `state` (fresh from fm_state_create for `model`) and `stats` (free
+ * them with fm_run_stats_free), after the checks of fm_checkpoint_check and a check that `model`
+ * is the one it was written from (same tets after TetGen and subdivision, same obstacles). On
+ * failure state is unusable and stats hold nothing to free. */
+fm_status fm_checkpoint_load(const char *path, const fm_model *model, fm_state *state, fm_run_stats *stats,
+                             fm_error *err);
 
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
 int64_t fm_count_inverted_tets(const float *verts, size_t n);

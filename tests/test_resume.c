@@ -1,0 +1,572 @@
+/* Checkpoint and resume (docs/resume.md): a run stopped, killed or interrupted and then resumed
+ * finishes with the cache and stats.json of an uninterrupted run, byte for byte (timings aside);
+ * a checkpoint of another scene or model, or a damaged one, is refused and never used.
+ *
+ * The scene: an octahedron flies 20 units around an octahedral obstacle through a time-varying
+ * baked wind with MDE on, so every kind of state the step carries is exercised. */
+#define _POSIX_C_SOURCE 200809L
+#include "flockmorph/flockmorph.h"
+#include "sim.h"
+#include "test_macros.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+extern char **environ;
+
+#define DIR_ FM_TEST_TMP "/resume"
+#define SCENE DIR_ "/scene.json"
+
+/* ---------------------------------------------------------------- files */
+
+static char *slurp(const char *path, size_t *len)
+{
+    *len = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 1 << 16;
+    char *buf = malloc(cap + 1);
+    while (buf) {
+        *len += fread(buf + *len, 1, cap - *len, f);
+        if (*len < cap) break;
+        char *bigger = realloc(buf, 2 * cap + 1);
+        if (!bigger) free(buf);
+        buf = bigger, cap *= 2;
+    }
+    fclose(f);
+    if (buf) buf[*len] = 0;
+    return buf;
+}
+
+static int exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+static long long file_size(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 ? (long long)st.st_size : -1;
+}
+
+/* 1 if both files exist and hold the same bytes. */
+static int same_bytes(const char *a, const char *b)
+{
+    size_t na, nb;
+    char *x = slurp(a, &na), *y = slurp(b, &nb);
+    int same = x && y && na == nb && memcmp(x, y, na) == 0;
+    free(x), free(y);
+    return same;
+}
+
+/* stats.json without the lines of its timing keys, which differ between any two runs. */
+static char *stats_without_timings(const char *path)
+{
+    static const char *const timing[] = {"\"preprocess_seconds\"", "\"simulate_seconds\"", "\"output_seconds\"",
+                                         "\"agent_steps_per_second\""};
+    size_t len;
+    char *text = slurp(path, &len), *out = text, *line = text;
+    if (!text) return NULL;
+    while (*line) {
+        char *end = strchr(line, '\n');
+        size_t n = end ? (size_t)(end - line + 1) : strlen(line);
+        int drop = 0;
+        for (int i = 0; i < 4; i++) drop |= strstr(line, timing[i]) != NULL && strstr(line, timing[i]) < line + n;
+        if (!drop) memmove(out, line, n), out += n;
+        line += n;
+    }
+    *out = 0;
+    return text;
+}
+
+/* A regular octahedron |x| + |y| + |z| <= r with outward triangles. */
+static void write_octahedron(const char *path, double r)
+{
+    FILE *f = fopen(path, "w");
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    if (!f) return;
+    fprintf(f, "v %g 0 0\nv %g 0 0\nv 0 %g 0\nv 0 %g 0\nv 0 0 %g\nv 0 0 %g\n", r, -r, r, -r, r, -r);
+    for (int s = 0; s < 8; s++) { /* one face per octant; a reflection reverses the winding */
+        int x = s & 1 ? 2 : 1, y = s & 2 ? 4 : 3, z = s & 4 ? 6 : 5;
+        int odd = ((s & 1) + (s >> 1 & 1) + (s >> 2 & 1)) & 1;
+        fprintf(f, "f %d %d %d\n", x, odd ? z : y, odd ? y : z);
+    }
+    fclose(f);
+}
+
+/* The test scene in dir (with its mesh), `seed` varying the parameters. */
+static void write_scene(const char *dir, int seed)
+{
+    char path[FM_PATH_MAX];
+    mkdir(dir, 0777);
+    snprintf(path, sizeof path, "%s/oct.obj", dir);
+    write_octahedron(path, 1.0);
+    snprintf(path, sizeof path, "%s/scene.json", dir);
+    FILE *f = fopen(path, "w");
+    ENSURE(f != NULL);
+    if (!f) return;
+    fprintf(f, "{\n"
+               "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
+               "  \"target\": {\"mesh\": \"oct.obj\", \"translate\": [10, 0, 0]},\n"
+               "  \"n\": 1500, \"speed0\": 4, \"launch_rate\": 200, \"seed\": %d,\n"
+               "  \"time\": {\"frame_rate\": 24, \"time_step\": 0.0208333333333333333},\n"
+               "  \"path\": {\"points\": [[0, 2.2, 0]]},\n"
+               "  \"obstacles\": {\"meshes\": [{\"mesh\": \"oct.obj\", \"scale\": 1.5}], \"k_a\": 1.0, \"voxel\": 0.15},\n"
+               "  \"mde\": {\"d_min\": 0.05},\n"
+               "  \"style\": {\"grid\": [12, 12, 12], \"fields\": [{\"type\": \"wind\", \"direction\": [0, 1, 0],\n"
+               "             \"speed\": 0.3, \"turbulence\": 0.3, \"scale\": 2, \"period\": 1}]}\n"
+               "}\n", seed);
+    fclose(f);
+}
+
+/* ---------------------------------------------------------------- in process */
+
+static fm_model *g_model;
+static fm_scene_def g_def;
+
+static fm_status save_hook(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
+{
+    return fm_checkpoint_save(path, m, s, rs, err);
+}
+
+typedef struct stop_after {
+    int64_t frame;             /* stop after this frame; < 0: once every phase has agents */
+    int64_t stopped_after;
+    volatile sig_atomic_t flag;
+} stop_after;
+
+static void stop_progress(const fm_state_info *info, int64_t frame, void *user)
+{
+    stop_after *sa = user;
+    int all_phases = info->count[0] > 0 && info->count[1] > 0 && info->count[2] > 0 && info->count[3] > 0;
+    if (!sa->flag && (sa->frame >= 0 ? frame >= sa->frame : all_phases)) sa->flag = 1, sa->stopped_after = frame;
+}
+
+/* An uninterrupted run to `cache`. */
+static void run_whole(const char *cache, fm_run_stats *rs)
+{
+    fm_error err = {0};
+    fm_state *s = fm_state_create(g_model, 1, &err);
+    fm_cache_writer *w = fm_cache_writer_create(cache, (uint64_t)g_model->n, g_def.frame_rate, g_def.compression_level, &err);
+    ENSURE_MSG(s && w, "%s", err.message);
+    if (!s || !w) return;
+    ENSURE_MSG(fm_run(g_model, s, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    fm_state_destroy(s);
+}
+
+/* Every saved member of two states holds the same bytes. */
+static void ensure_same_state(const fm_state *a, const fm_state *b)
+{
+    for (int i = 0; i < fm_state_member_count; i++) {
+        const fm_state_member *mb = &fm_state_members[i];
+        const char *pa = (const char *)a + mb->offset, *pb = (const char *)b + mb->offset;
+        size_t bytes = mb->bytes;
+        if (mb->per_agent) {
+            memcpy(&pa, pa, sizeof pa), memcpy(&pb, pb, sizeof pb);
+            bytes *= (size_t)a->n;
+        }
+        ENSURE_MSG(memcmp(pa, pb, bytes) == 0, "member %s differs after the round trip", mb->name);
+    }
+}
+
+/* Runs until the progress callback raises the stop flag after frame `stop_frame` (< 0: once
+ * agents are in every phase), checkpointing every 5 frames; returns the stopped state (the caller
+ * destroys it). */
+static fm_state *run_until_stopped(const char *cache, const char *ckpt, int64_t stop_frame, fm_run_stats *rs)
+{
+    fm_error err = {0};
+    fm_state *s = fm_state_create(g_model, 2, &err);
+    fm_cache_writer *w = fm_cache_writer_create(cache, (uint64_t)g_model->n, g_def.frame_rate, g_def.compression_level, &err);
+    ENSURE_MSG(s && w, "%s", err.message);
+    if (!s || !w) return s;
+    stop_after sa = {stop_frame, -1, 0};
+    fm_run_control c = fm_default_run_control();
+    c.progress = stop_progress, c.progress_user = &sa;
+    c.checkpoint = save_hook, c.checkpoint_user = (void *)ckpt, c.checkpoint_every = 5;
+    c.stop = &sa.flag;
+    ENSURE_MSG(fm_run_controlled(g_model, s, w, &c, rs, &err) == FM_STOPPED, "%s", err.message);
+    ENSURE_MSG(sa.stopped_after >= 0 && rs->frames == sa.stopped_after + 1, "stopped with %lld frames, expected %lld",
+               (long long)rs->frames, (long long)sa.stopped_after + 1);
+    fm_cache_writer_close_partial(w);
+    return s;
+}
+
+static void test_stop_restore_continue_same_bytes(void)
+{
+    const char *whole = DIR_ "/whole.fmc", *cache = DIR_ "/stopped.fmc", *ckpt = DIR_ "/inproc.fmck";
+    fm_run_stats ref, first, rest;
+    run_whole(whole, &ref);
+    ENSURE_MSG(ref.frames > 40 && ref.all_arrived, "the scene should take a while and finish: %lld frames", (long long)ref.frames);
+    fm_state *stopped = run_until_stopped(cache, ckpt, -1, &first); /* agents in every phase */
+    fm_error err = {0};
+    fm_state *s = fm_state_create(g_model, 1, &err);
+    ENSURE_MSG(s && fm_checkpoint_load(ckpt, g_model, s, &rest, &err) == FM_OK, "%s", err.message);
+    if (stopped && s) ensure_same_state(stopped, s);
+    ENSURE(rest.frames == first.frames && rest.inverted_tet_frames == first.inverted_tet_frames);
+    ENSURE(memcmp(rest.mde_fraction, first.mde_fraction, sizeof(double) * (size_t)(first.frames - 1)) == 0);
+    fm_cache_writer *w = fm_cache_writer_resume(cache, (uint32_t)rest.frames, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    fm_run_control c = fm_default_run_control();
+    c.resume = 1;
+    if (s && w) {
+        ENSURE_MSG(fm_run_controlled(g_model, s, w, &c, &rest, &err) == FM_OK, "%s", err.message);
+        ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    }
+    ENSURE_MSG(same_bytes(whole, cache), "the resumed cache differs from the uninterrupted one");
+    ENSURE(rest.frames == ref.frames && rest.steps == ref.steps && rest.all_arrived == ref.all_arrived);
+    ENSURE(rest.inverted_tet_frames == ref.inverted_tet_frames && rest.morph_fallbacks == ref.morph_fallbacks);
+    ENSURE(memcmp(rest.mde_fraction, ref.mde_fraction, sizeof(double) * (size_t)(ref.frames - 1)) == 0);
+    ENSURE(memcmp(&rest.mde_fraction_mean, &ref.mde_fraction_mean, sizeof(double)) == 0);
+    ENSURE(rest.final_max_vertex_error == ref.final_max_vertex_error);
+    ENSURE(memcmp(&rest.min_obstacle_clearance, &ref.min_obstacle_clearance, sizeof(double)) == 0);
+    ENSURE_MSG(ref.min_obstacle_clearance < 1.0, "the flock should pass the obstacle (clearance %g)", ref.min_obstacle_clearance);
+    fm_run_stats_free(&ref), fm_run_stats_free(&first), fm_run_stats_free(&rest);
+    fm_state_destroy(stopped), fm_state_destroy(s);
+}
+
+typedef struct flush_probe {
+    const char *partial;
+    fm_cache_writer *w;
+    int calls;
+    int64_t frames[8];
+    int on_disk_ok;
+} flush_probe;
+
+/* A checkpoint hook that checks the cache's frames are on disk when it is called. */
+static fm_status probe_hook(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *user, fm_error *err)
+{
+    flush_probe *p = user;
+    (void)m, (void)s, (void)err;
+    if (p->calls < 8) p->frames[p->calls] = rs->frames;
+    p->calls++;
+    fm_cache_reader *r = fm_cache_open(p->partial, err);
+    p->on_disk_ok &= r && fm_cache_frames(r) == (uint32_t)rs->frames && fm_cache_writer_frames(p->w) == (uint32_t)rs->frames;
+    fm_cache_close(r);
+    return FM_OK;
+}
+
+/* Runs the scene with the probe as checkpoint hook; returns the frames written. */
+static int64_t run_probed(flush_probe *p, int64_t every, double seconds)
+{
+    fm_error err = {0};
+    fm_state *s = fm_state_create(g_model, 1, &err);
+    fm_cache_writer *w = fm_cache_writer_create(DIR_ "/probe.fmc", (uint64_t)g_model->n, 24, 1, &err);
+    ENSURE(s && w);
+    if (!s || !w) return 0;
+    *p = (flush_probe){DIR_ "/probe.fmc.partial", w, 0, {0}, 1};
+    fm_run_control c = fm_default_run_control();
+    c.checkpoint = probe_hook, c.checkpoint_user = p, c.checkpoint_every = every, c.checkpoint_seconds = seconds;
+    fm_run_stats rs;
+    ENSURE(fm_run_controlled(g_model, s, w, &c, &rs, &err) == FM_OK);
+    ENSURE_MSG(p->on_disk_ok, "a checkpoint was taken before its frames were on disk");
+    fm_cache_writer_abort(w);
+    fm_run_stats_free(&rs);
+    fm_state_destroy(s);
+    return rs.frames;
+}
+
+static void test_checkpoints_every_k_frames_after_flush(void)
+{
+    flush_probe p;
+    int64_t frames = run_probed(&p, 7, 0);
+    ENSURE_MSG(p.calls == (int)((frames - 1) / 7), "%d checkpoints in %lld frames", p.calls, (long long)frames);
+    for (int i = 0; i < p.calls && i < 8; i++) ENSURE(p.frames[i] == 7 * (i + 1));
+    frames = run_probed(&p, 0, 1e-9); /* by wall time: due at every frame boundary */
+    ENSURE_MSG(p.calls == (int)(frames - 1), "%d checkpoints in %lld frames", p.calls, (long long)frames);
+    ENSURE(run_probed(&p, 0, 0) > 0 && p.calls == 0);
+}
+
+/* A checkpoint after 24 frames, written by run_until_stopped; returns its bytes. */
+static char *checkpoint_bytes(size_t *len)
+{
+    fm_run_stats rs;
+    fm_state *s = run_until_stopped(DIR_ "/damage.fmc", DIR_ "/damage.fmck", 23, &rs);
+    fm_run_stats_free(&rs), fm_state_destroy(s);
+    return slurp(DIR_ "/damage.fmck", len);
+}
+
+static fm_status load_bytes(const char *bytes, size_t len, fm_error *err)
+{
+    FILE *f = fopen(DIR_ "/damaged.fmck", "wb");
+    if (!f) return FM_ERR_IO;
+    fwrite(bytes, 1, len, f);
+    fclose(f);
+    fm_state *s = fm_state_create(g_model, 1, err);
+    fm_run_stats rs;
+    fm_status st = fm_checkpoint_load(DIR_ "/damaged.fmck", g_model, s, &rs, err);
+    if (st == FM_OK) fm_run_stats_free(&rs);
+    fm_state_destroy(s);
+    return st;
+}
+
+static void test_damaged_checkpoints_refused(void)
+{
+    size_t len;
+    char *good = checkpoint_bytes(&len);
+    ENSURE(good && len > 1000);
+    if (!good) return;
+    fm_error err = {0};
+    ENSURE_MSG(load_bytes(good, len, &err) == FM_OK, "%s", err.message);
+    int refused = 0, tried = 0, checksum_named = 0;
+    for (size_t at = 0; at < len; at += at < 80 ? 1 : 331, tried++) { /* every header byte, then a sample */
+        good[at] ^= 0x10;
+        fm_status st = load_bytes(good, len, &err);
+        good[at] ^= 0x10;
+        refused += st == FM_ERR_INPUT;
+        checksum_named += strstr(err.message, "checksum mismatch") != NULL;
+    }
+    ENSURE_MSG(refused == tried, "%d of %d flipped bytes were refused", refused, tried);
+    ENSURE(checksum_named > tried / 2);
+    for (size_t cut = 0; cut < len; cut += len / 7 + 1)
+        ENSURE_MSG(load_bytes(good, cut, &err) == FM_ERR_INPUT, "cut at %zu accepted", cut);
+    free(good);
+}
+
+static void test_other_scene_or_model_refused(void)
+{
+    fm_error err = {0};
+    fm_scene_def other = g_def;
+    ENSURE(fm_checkpoint_check(DIR_ "/damage.fmck", &g_def, &err) == FM_OK);
+    other.seed++;
+    ENSURE(fm_checkpoint_check(DIR_ "/damage.fmck", &other, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "different scene"), "%s", err.message);
+    other = g_def;
+    snprintf(other.scene_path, sizeof other.scene_path, "elsewhere/scene.json"); /* where it lies: irrelevant */
+    snprintf(other.source.path, sizeof other.source.path, "elsewhere/oct.obj");
+    ENSURE_MSG(fm_checkpoint_check(DIR_ "/damage.fmck", &other, &err) == FM_OK, "%s", err.message);
+    other = g_def;
+    other.fields[0].speed = 0.31;
+    ENSURE(fm_checkpoint_check(DIR_ "/damage.fmck", &other, &err) == FM_ERR_INPUT);
+    ENSURE(fm_checkpoint_check(DIR_ "/missing.fmck", &g_def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "nothing to resume"), "%s", err.message);
+
+    /* the same parameters on a different mesh: the model hash tells */
+    mkdir(DIR_ "/bigger", 0777);
+    write_octahedron(DIR_ "/bigger/oct.obj", 1.05);
+    other = g_def;
+    snprintf(other.target.path, sizeof other.target.path, "%s", DIR_ "/bigger/oct.obj");
+    fm_model *m = fm_model_build(&other, NULL, NULL, &err);
+    ENSURE_MSG(m != NULL, "%s", err.message);
+    fm_state *s = m ? fm_state_create(m, 1, &err) : NULL;
+    fm_run_stats rs;
+    if (s) ENSURE(fm_checkpoint_load(DIR_ "/damage.fmck", m, s, &rs, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "different model"), "%s", err.message);
+    fm_state_destroy(s);
+    fm_model_destroy(m);
+}
+
+/* ---------------------------------------------------------------- the command line */
+
+/* Removes what an earlier run left in out. */
+static void clear_outputs(const char *out)
+{
+    static const char *const names[] = {"frames.fmc", "frames.fmc.partial", "stats.json", "checkpoint.fmck"};
+    char path[FM_PATH_MAX + 32];
+    for (int i = 0; i < 4; i++) snprintf(path, sizeof path, "%s/%s", out, names[i]), remove(path);
+}
+
+/* Starts `flockmorph run SCENE -o OUT ARGS...` with stdout and stderr to OUT.log; returns its pid. */
+static pid_t start_run(const char *out, const char *extra)
+{
+    char log[FM_PATH_MAX];
+    snprintf(log, sizeof log, "%s.log", out);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    char *argv[16] = {(char *)FM_CLI, "run", SCENE, "-o", (char *)out, "--threads", "1", "--quiet"};
+    char words[256];
+    snprintf(words, sizeof words, "%s", extra);
+    int argc = 8;
+    for (char *w = strtok(words, " "); w && argc < 15; w = strtok(NULL, " ")) argv[argc++] = w;
+    argv[argc] = NULL;
+    pid_t pid = -1;
+    ENSURE(posix_spawn(&pid, FM_CLI, &fa, NULL, argv, environ) == 0);
+    posix_spawn_file_actions_destroy(&fa);
+    return pid;
+}
+
+/* The child's exit status, 128 + signal if a signal ended it. */
+static int wait_status(pid_t pid)
+{
+    int status;
+    if (waitpid(pid, &status, 0) != pid) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+static int run_to_end(const char *out, const char *extra) { return wait_status(start_run(out, extra)); }
+
+static void sleep_ms(long ms)
+{
+    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* Polls (1 ms) until `path` is larger than `bytes`; 0 if the child exited first. */
+static int wait_for_size(pid_t pid, const char *path, long long bytes)
+{
+    for (;;) {
+        if (file_size(path) > bytes) return 1;
+        if (waitpid(pid, NULL, WNOHANG) == pid) return 0;
+        sleep_ms(1);
+    }
+}
+
+/* The uninterrupted run, kept as DIR_/ref.fmc and DIR_/ref.json for the comparisons. Every run
+ * of these tests writes to the same OUT so stats.json's "cache" path is the same too. */
+#define OUT DIR_ "/out"
+static long long g_ref_bytes; /* the reference cache's size: interruptions happen at fractions of it */
+
+static void reference_run(void)
+{
+    clear_outputs(OUT);
+    ENSURE_MSG(run_to_end(OUT, "") == 0, "see %s.log", OUT);
+    ENSURE(rename(OUT "/frames.fmc", DIR_ "/ref.fmc") == 0 && rename(OUT "/stats.json", DIR_ "/ref.json") == 0);
+    g_ref_bytes = file_size(DIR_ "/ref.fmc");
+}
+
+/* Resumes the run in OUT and compares the finished cache and stats.json with the reference. */
+static void resume_and_compare(const char *what)
+{
+    int rc = run_to_end(OUT, "--resume");
+    size_t len;
+    char *log = slurp(OUT ".log", &len);
+    ENSURE_MSG(rc == 0, "%s: resume exited %d: %s", what, rc, log ? log : "");
+    free(log);
+    ENSURE_MSG(same_bytes(OUT "/frames.fmc", DIR_ "/ref.fmc"), "%s: the resumed cache differs", what);
+    char *a = stats_without_timings(OUT "/stats.json"), *b = stats_without_timings(DIR_ "/ref.json");
+    ENSURE_MSG(a && b && strcmp(a, b) == 0, "%s: stats.json differs:\n%s\nvs\n%s", what, a ? a : "", b ? b : "");
+    free(a), free(b);
+    ENSURE_MSG(!exists(OUT "/checkpoint.fmck") && !exists(OUT "/frames.fmc.partial"), "%s: leftovers", what);
+}
+
+static void test_kill9_then_resume(void)
+{
+    clear_outputs(OUT);
+    pid_t pid = start_run(OUT, "--checkpoint-every 5");
+    int alive = wait_for_size(pid, OUT "/checkpoint.fmck", 0);
+    alive = alive && wait_for_size(pid, OUT "/frames.fmc.partial", g_ref_bytes / 2); /* many frames later */
+    ENSURE_MSG(alive, "the run ended before it could be killed");
+    kill(pid, SIGKILL);
+    ENSURE(wait_status(pid) == 128 + SIGKILL);
+    ENSURE(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial") && !exists(OUT "/frames.fmc"));
+    resume_and_compare("kill -9");
+}
+
+/* Interrupts a run with `sig` once it has written some frames, checks the exit status, the
+ * message and the files left, then resumes it. */
+static void interrupt_then_resume(int sig, int status, double fraction, const char *what)
+{
+    clear_outputs(OUT);
+    pid_t pid = start_run(OUT, "");
+    ENSURE_MSG(wait_for_size(pid, OUT "/frames.fmc.partial", (long long)(fraction * (double)g_ref_bytes)),
+               "%s: the run ended too soon", what);
+    kill(pid, sig);
+    int rc = wait_status(pid);
+    size_t len;
+    char *log = slurp(OUT ".log", &len);
+    ENSURE_MSG(rc == status, "%s: exit %d, expected %d: %s", what, rc, status, log ? log : "");
+    ENSURE_MSG(log && strstr(log, "interrupted at frame ") && strstr(log, "checkpoint written; resume with: flockmorph run ")
+               && strstr(log, " -o " OUT " --resume"), "%s: %s", what, log ? log : "");
+    free(log);
+    ENSURE_MSG(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial") && !exists(OUT "/frames.fmc"),
+               "%s: the checkpoint and partial cache should be kept", what);
+    resume_and_compare(what);
+}
+
+static void test_sigint_then_resume(void) { interrupt_then_resume(SIGINT, 130, 0.6, "SIGINT"); }
+static void test_sigterm_then_resume(void) { interrupt_then_resume(SIGTERM, 143, 0.3, "SIGTERM"); }
+
+static void copy_file(const char *from, const char *to)
+{
+    size_t len;
+    char *bytes = slurp(from, &len);
+    FILE *f = fopen(to, "wb");
+    ENSURE(bytes && f);
+    if (bytes && f) fwrite(bytes, 1, len, f);
+    if (f) fclose(f);
+    free(bytes);
+}
+
+/* `flockmorph run scene -o out --resume` exits 2 naming `why`, and writes no cache. */
+static void ensure_refused(const char *scene_dir, const char *out, const char *why)
+{
+    char cmd[4 * FM_PATH_MAX], cache[FM_PATH_MAX + 16];
+    snprintf(cache, sizeof cache, "%s/frames.fmc", out);
+    long long cache_before = file_size(cache);
+    snprintf(cmd, sizeof cmd, "'%s' run '%s/scene.json' -o '%s' --resume --quiet > '%s.log' 2>&1", FM_CLI, scene_dir, out, out);
+    int rc = system(cmd);
+    snprintf(cmd, sizeof cmd, "%s.log", out);
+    size_t len;
+    char *log = slurp(cmd, &len);
+    ENSURE_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 2 && log && strstr(log, why), "exit %d: %s", WEXITSTATUS(rc), log ? log : "");
+    free(log);
+    ENSURE(file_size(cache) == cache_before);
+}
+
+static void test_cli_refuses_other_scene_and_damage(void)
+{
+    /* a checkpoint and partial cache of the test scene */
+    clear_outputs(OUT);
+    pid_t pid = start_run(OUT, "");
+    ENSURE(wait_for_size(pid, OUT "/frames.fmc.partial", 300000));
+    kill(pid, SIGINT);
+    ENSURE(wait_status(pid) == 130);
+    const char *other = DIR_ "/other";
+    write_scene(other, 8); /* another seed */
+    mkdir(DIR_ "/other/out", 0777);
+    copy_file(OUT "/checkpoint.fmck", DIR_ "/other/out/checkpoint.fmck");
+    copy_file(OUT "/frames.fmc.partial", DIR_ "/other/out/frames.fmc.partial");
+    ensure_refused(other, DIR_ "/other/out", "written for a different scene");
+
+    size_t len;
+    char *bytes = slurp(OUT "/checkpoint.fmck", &len);
+    ENSURE(bytes && len > 100);
+    if (!bytes) return;
+    bytes[len / 2] ^= 1;
+    FILE *f = fopen(OUT "/checkpoint.fmck", "wb");
+    if (f) fwrite(bytes, 1, len, f), fclose(f);
+    free(bytes);
+    ensure_refused(DIR_, OUT, "checksum mismatch");
+    ENSURE(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial")); /* refused, not removed */
+
+    /* without --resume the run starts over, says so, and finishes as usual */
+    ENSURE(run_to_end(OUT, "--checkpoint-every 0") == 0);
+    char *log = slurp(OUT ".log", &len);
+    ENSURE_MSG(log && strstr(log, "warning: starting over"), "%s", log ? log : "");
+    free(log);
+    ENSURE(same_bytes(OUT "/frames.fmc", DIR_ "/ref.fmc") && !exists(OUT "/checkpoint.fmck"));
+    ensure_refused(DIR_, OUT, "nothing to resume");
+}
+
+int main(void)
+{
+    write_scene(DIR_, 7);
+    fm_error err = {0};
+    if (fm_scene_load(SCENE, &g_def, &err) != FM_OK || !(g_model = fm_model_build(&g_def, NULL, NULL, &err))) {
+        fprintf(stderr, "cannot build the test scene: %s\n", err.message);
+        return 1;
+    }
+    RUN_TEST(test_stop_restore_continue_same_bytes);
+    RUN_TEST(test_checkpoints_every_k_frames_after_flush);
+    RUN_TEST(test_damaged_checkpoints_refused);
+    RUN_TEST(test_other_scene_or_model_refused);
+    fm_model_destroy(g_model);
+    reference_run();
+    RUN_TEST(test_kill9_then_resume);
+    RUN_TEST(test_sigint_then_resume);
+    RUN_TEST(test_sigterm_then_resume);
+    RUN_TEST(test_cli_refuses_other_scene_and_damage);
+    return test_result();
+}
