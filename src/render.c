@@ -14,25 +14,19 @@
  * Embree thread ("threads=1"), so ties between coincident faces (neighbouring tets share faces)
  * are broken the same way whatever the thread count: the image bytes do not depend on it. */
 #define _POSIX_C_SOURCE 200809L
-#include "fm_internal.h"
-#include "grid.h"
+#include "render.h"
 
 #include <embree3/rtcore.h>
 
-#include <errno.h>
 #include <math.h>
 #include <omp.h>
-#include <png.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define FM_RENDER_MAX_DIM 16384
 #define FM_RENDER_MAX_SAMPLES 8
 #define FM_RENDER_PI 3.14159265358979323846
-/* Coordinates beyond this are treated like NaN: Embree's float BVH cannot hold them usefully. */
-#define FM_RENDER_MAX_COORD 1e18f
 
 /* Colours in sRGB (converted to linear light once). */
 static const double fm_background_srgb[3] = {0.118, 0.129, 0.157};
@@ -422,13 +416,6 @@ static void frame_scene_free(frame_scene *sc)
     memset(sc, 0, sizeof *sc);
 }
 
-static int finite_coords(const float *p, int count)
-{
-    for (int i = 0; i < count; i++)
-        if (!(fabsf(p[i]) <= FM_RENDER_MAX_COORD)) return 0;
-    return 1;
-}
-
 static void grow_bounds(frame_scene *sc, const float *p, double pad)
 {
     for (int k = 0; k < 3; k++) {
@@ -443,7 +430,7 @@ static size_t keep_finite(const float *data, size_t n, int floats, frame_scene *
 {
     size_t kept = 0;
     for (size_t i = 0; i < n; i++)
-        if (finite_coords(data + (size_t)floats * i, floats)) sc->agent[kept++] = (uint32_t)i;
+        if (fm_render_coords_ok(data + (size_t)floats * i, floats)) sc->agent[kept++] = (uint32_t)i;
     return kept;
 }
 
@@ -457,7 +444,7 @@ static fm_status embree_status(fm_renderer *r, fm_error *err)
     return st;
 }
 
-/* Commits geometry g (if any) as the scene's only geometry. */
+/* Commits g as the scene's only geometry (and releases the caller's reference). */
 static fm_status commit_scene(fm_renderer *r, RTCGeometry g, frame_scene *sc, fm_error *err)
 {
     sc->scene = rtcNewScene(r->device);
@@ -472,7 +459,7 @@ static fm_status commit_scene(fm_renderer *r, RTCGeometry g, frame_scene *sc, fm
     return embree_status(r, err);
 }
 
-static fm_status start_scene(fm_renderer *r, size_t n, int tets, frame_scene *sc, fm_error *err)
+static fm_status start_scene(size_t n, int tets, frame_scene *sc, fm_error *err)
 {
     memset(sc, 0, sizeof *sc);
     sc->n = n, sc->tets = tets;
@@ -481,7 +468,6 @@ static fm_status start_scene(fm_renderer *r, size_t n, int tets, frame_scene *sc
         return fm_fail(err, FM_ERR_USAGE, "render: %zu agents are more than Embree can hold", n);
     sc->agent = malloc(sizeof(uint32_t) * (n ? n : 1));
     if (!sc->agent) return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu agents", n);
-    (void)r;
     return FM_OK;
 }
 
@@ -489,7 +475,7 @@ static fm_status build_tets(fm_renderer *r, const float *verts, size_t n, frame_
                             fm_error *err)
 {
     static const unsigned faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-    fm_status st = start_scene(r, n, 1, sc, err);
+    fm_status st = start_scene(n, 1, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(verts, n, 12, sc);
     if (kept == 0) return FM_OK;
@@ -516,7 +502,7 @@ static fm_status build_tets(fm_renderer *r, const float *verts, size_t n, frame_
 static fm_status build_points(fm_renderer *r, const float *pos, size_t n, frame_scene *sc,
                               fm_error *err)
 {
-    fm_status st = start_scene(r, n, 0, sc, err);
+    fm_status st = start_scene(n, 0, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(pos, n, 3, sc);
     if (kept == 0) return FM_OK;
@@ -705,180 +691,6 @@ fm_status fm_renderer_draw_points(fm_renderer *r, const float *positions, size_t
     if (st == FM_OK && (st = build_points(r, positions, n, &sc, err)) != FM_OK)
         frame_scene_free(&sc);
     return st == FM_OK ? draw(r, &sc, rgb, err) : st;
-}
-
-/* ---------------------------------------------------------------- point radius */
-
-/* Squared distance from point a to its nearest other point among the 27 grid cells around it
- * (+inf if there is none; coincident points are not neighbours). */
-static double nearest_in_cells(const fm_grid *g, const float *const p[3], int32_t a)
-{
-    int32_t c[3];
-    const float x[3] = {p[0][a], p[1][a], p[2][a]};
-    for (int k = 0; k < 3; k++) c[k] = fm_grid_coord(fm_grid_scaled(g, x[k]));
-    double best = INFINITY;
-    for (int dz = -1; dz <= 1; dz++)
-        for (int dy = -1; dy <= 1; dy++)
-            for (int dx = -1; dx <= 1; dx++) {
-                uint32_t s = fm_grid_slot(g, c[0] + dx, c[1] + dy, c[2] + dz);
-                for (int32_t e = g->start[s]; e < g->start[s + 1]; e++) {
-                    const fm_grid_quad *q = g->quad + (e >> 2);
-                    double ex = q->x[e & 3] - x[0], ey = q->y[e & 3] - x[1], ez = q->z[e & 3] - x[2];
-                    double d2 = ex * ex + ey * ey + ez * ez;
-                    if (d2 > 0.0 && d2 < best) best = d2;
-                }
-            }
-    return best;
-}
-
-static int compare_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-#define FM_RADIUS_SAMPLES 4096
-
-/* Nearest-neighbour distances d[] of up to FM_RADIUS_SAMPLES evenly strided points, searched in
- * the 27 cells around each. A distance up to the cell edge is exact (anything nearer lies in those
- * cells); a larger one (or +inf: nothing found) is only an upper bound. Returns how many are exact. */
-static int sample_spacings(const fm_grid *g, const float *const p[3], int32_t n, double cell,
-                           double *d, int *count)
-{
-    int32_t stride = n > FM_RADIUS_SAMPLES ? n / FM_RADIUS_SAMPLES : 1;
-    int exact = 0;
-    *count = 0;
-    for (int32_t a = 0; a < n && *count < FM_RADIUS_SAMPLES; a += stride) {
-        double dist = sqrt(nearest_in_cells(g, p, a));
-        d[(*count)++] = dist;
-        exact += dist <= cell;
-    }
-    return exact;
-}
-
-/* Median nearest-neighbour distance over a sample of the points; 0 if there is none. The grid's
- * cell starts at the spacing the points would have filling their box and doubles until most
- * samples' distances are exact, which points on a surface or a curve need. */
-static double median_spacing(const float *const p[3], int32_t n, const double lo[3],
-                             const double hi[3])
-{
-    double diag = 0.0, volume = 1.0;
-    for (int k = 0; k < 3; k++) diag += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-    diag = sqrt(diag);
-    for (int k = 0; k < 3; k++) volume *= fmax(hi[k] - lo[k], 1e-3 * diag);
-    double cell = cbrt(volume / n);
-    fm_grid g;
-    uint8_t *member = malloc((size_t)n);
-    double *d = malloc(sizeof(double) * FM_RADIUS_SAMPLES);
-    if (!member || !d || !(cell > 0.0) || fm_grid_init(&g, n, NULL) != FM_OK) {
-        free(member), free(d);
-        return 0.0;
-    }
-    memset(member, 1, (size_t)n);
-    int count = 0;
-    for (int round = 0; round < 64; round++, cell *= 2.0) {
-        fm_grid_build(&g, p, member, n, (float)cell, 1);
-        /* 60 % exact: the median is then one of the exact ones (the others are larger). */
-        if (5 * sample_spacings(&g, p, n, cell, d, &count) >= 3 * count || cell > 2.0 * diag) break;
-    }
-    qsort(d, (size_t)count, sizeof *d, compare_double);
-    double median = count && isfinite(d[count / 2]) ? d[count / 2] : 0.0;
-    fm_grid_free(&g);
-    free(member), free(d);
-    return median;
-}
-
-double fm_render_point_radius(const float *positions, size_t n)
-{
-    if (n > (size_t)FM_GRID_MAX_CAPACITY) n = (size_t)FM_GRID_MAX_CAPACITY; /* a prefix will do */
-    float *soa = malloc(sizeof(float) * 3 * (n ? n : 1));
-    if (!soa || !positions) return free(soa), 1.0;
-    float *const p[3] = {soa, soa + n, soa + 2 * n};
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    int32_t m = 0;
-    for (size_t i = 0; i < n; i++) {
-        const float *q = positions + 3 * i;
-        if (!finite_coords(q, 3)) continue;
-        for (int k = 0; k < 3; k++) {
-            p[k][m] = q[k];
-            lo[k] = fmin(lo[k], q[k]), hi[k] = fmax(hi[k], q[k]);
-        }
-        m++;
-    }
-    double spacing = m > 1 ? median_spacing((const float *const *)p, m, lo, hi) : 0.0;
-    double diag = 0.0;
-    for (int k = 0; k < 3 && m > 0; k++) diag += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-    free(soa);
-    /* Without neighbours to measure: 1 % of the points' extent, or 1 for a single point. */
-    if (!(spacing > 0.0)) return diag > 0.0 ? 0.01 * sqrt(diag) : 1.0;
-    return 0.45 * spacing;
-}
-
-/* ---------------------------------------------------------------- PNG */
-
-typedef struct png_failure {
-    char message[256];
-} png_failure;
-
-static void png_error_fn(png_structp png, png_const_charp msg)
-{
-    png_failure *pf = png_get_error_ptr(png);
-    snprintf(pf->message, sizeof pf->message, "%s", msg);
-    png_longjmp(png, 1);
-}
-
-static void png_warning_fn(png_structp png, png_const_charp msg)
-{
-    (void)png;
-    (void)msg;
-}
-
-/* Returns 0 on success, -1 on failure with pf->message set (errno may say more). */
-static int write_png_stream(FILE *f, const unsigned char *rgb, int width, int height,
-                            png_failure *pf)
-{
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, pf, png_error_fn,
-                                              png_warning_fn);
-    png_infop info = png ? png_create_info_struct(png) : NULL;
-    if (!info) {
-        png_destroy_write_struct(&png, NULL);
-        snprintf(pf->message, sizeof pf->message, "libpng could not start");
-        return -1;
-    }
-    if (setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        return -1;
-    }
-    png_init_io(png, f);
-    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB,
-                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
-    png_write_info(png, info);
-    for (int y = 0; y < height; y++) png_write_row(png, rgb + (size_t)y * (size_t)width * 3);
-    png_write_end(png, info);
-    png_destroy_write_struct(&png, &info);
-    return 0;
-}
-
-fm_status fm_write_png(const unsigned char *rgb, int width, int height, const char *path,
-                       fm_error *err)
-{
-    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "render: no output path given");
-    if (!rgb || width < 1 || height < 1 || width > FM_RENDER_MAX_DIM || height > FM_RENDER_MAX_DIM)
-        return fm_fail(err, FM_ERR_USAGE, "cannot write '%s': no %dx%d image to write", path,
-                       width, height);
-    fm_output_file out;
-    fm_status st = fm_output_open(&out, path, err);
-    if (st != FM_OK) return st;
-    png_failure pf = {""};
-    errno = 0;
-    if (write_png_stream(out.f, rgb, width, height, &pf) != 0) {
-        int e = errno;
-        fm_output_discard(&out);
-        if (pf.message[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, pf.message);
-        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
-    }
-    return fm_output_commit(&out, NULL, err);
 }
 
 /* ---------------------------------------------------------------- one-call forms */

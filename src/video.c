@@ -134,6 +134,15 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
     v->width = width, v->height = height;
     snprintf(v->path, sizeof v->path, "%s", path);
     snprintf(v->partial, sizeof v->partial, "%s.partial", path);
+    /* Create the file ffmpeg will write, so that a missing or read-only directory is reported
+     * plainly, before any frame is rendered. */
+    errno = 0;
+    FILE *probe = fopen(v->partial, "wb");
+    if (!probe || fclose(probe) != 0) {
+        fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(errno ? errno : EIO));
+        free_writer(v);
+        return NULL;
+    }
     int sv[2] = {-1, -1};
     errno = 0;
     v->log = tmpfile();
@@ -141,6 +150,7 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
         socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
         fm_fail(err, FM_ERR_IO, "video '%s': cannot set up ffmpeg's input and log: %s", path,
                 strerror(errno ? errno : EIO));
+        remove(v->partial);
         free_writer(v);
         return NULL;
     }
@@ -155,6 +165,7 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
         fm_fail(err, FM_ERR_IO, "cannot write '%s': cannot run ffmpeg: %s", path, strerror(rc));
     }
     if (rc) {
+        remove(v->partial);
         free_writer(v);
         return NULL;
     }

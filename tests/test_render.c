@@ -571,6 +571,11 @@ static void test_cli_mp4(void)
     snprintf(args, sizeof args, "render '%s' -o '%s' --frames -3: --size 64x48", cache, out);
     ENSURE_EXIT("", args, 0);
     ENSURE_MSG(probe_frames(out) == 3, "the last 3: ffprobe counts %ld", probe_frames(out));
+    /* A directory that does not exist: an I/O error before anything is rendered. */
+    tmp_path(out, sizeof out, "no_such_dir/drift.mp4");
+    snprintf(args, sizeof args, "render '%s' -o '%s' --size 64x48", cache, out);
+    ENSURE_EXIT("", args, 3);
+    ENSURE_MSG(strstr(g_err, "No such file") != NULL, "%s", g_err);
 }
 
 /* ffmpeg missing (PATH holds an empty directory) or failing (a stand-in that prints and exits 1):
