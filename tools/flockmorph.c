@@ -2,7 +2,7 @@
  *
  *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]
  *   flockmorph export CACHE -o FILE.ply|FILE.obj [--frame K]
- *   flockmorph render CACHE -o FILE.png [--frame K] [--size WxH] [--view front|top|side]
+ *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4 [--frames A:B] [--fps F] [options]
  *   flockmorph info CACHE
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
@@ -19,7 +19,7 @@ static const char *USAGE_MAIN =
     "commands:\n"
     "  run      simulate a scene file and write the frame cache and stats.json\n"
     "  export   write one frame of a cache as PLY or OBJ\n"
-    "  render   render one frame of a cache to a PNG preview\n"
+    "  render   ray-cast a frame of a cache to a PNG, or frames to an MP4 (ffmpeg)\n"
     "  info     print a cache's agent and frame counts\n"
     "\n"
     "'flockmorph <command> --help' describes each command. docs/ has the scene file reference.\n";
