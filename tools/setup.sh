@@ -25,6 +25,7 @@ packages=(
   python3-numpy
   python3-zstandard
   libxxhash-dev
+  ffmpeg
 )
 missing=()
 for p in "${packages[@]}"; do
