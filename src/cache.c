@@ -79,7 +79,7 @@ static void *worker_main(void *arg);
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
     if (fwrite(data, 1, n, w->out.f) != n)
-        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s", w->out.partial, strerror(errno));
+        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s%s", w->out.partial, strerror(errno), fm_write_hint(errno));
     w->pos += n;
     return FM_OK;
 }
@@ -126,6 +126,7 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
         fm_cache_writer_abort(w);
         return NULL;
     }
+    w->out.keep_partial_on_failure = 1; /* a cache that fails to finish keeps its complete frames */
     if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
         fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", path);
         fm_cache_writer_abort(w);
@@ -248,9 +249,17 @@ fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
     fm_status st = stop_worker(w, err);
     if (st == FM_OK) st = write_index_and_footer(w, err);
     if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
-    else fm_output_discard(&w->out);
+    else fm_output_keep_partial(&w->out);
     free_writer(w);
     return st;
+}
+
+void fm_cache_writer_abandon(fm_cache_writer *w)
+{
+    if (!w) return;
+    stop_worker(w, NULL);
+    fm_output_keep_partial(&w->out);
+    free_writer(w);
 }
 
 void fm_cache_writer_abort(fm_cache_writer *w)

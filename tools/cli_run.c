@@ -112,8 +112,19 @@ static json_t *mde_frames_json(const fm_run_stats *rs)
     return a;
 }
 
+/* The model's warnings and the run's own (stopped at the frame limit), printed and kept for stats.json. */
+typedef struct run_warnings {
+    json_t *list;
+} run_warnings;
+
+static void add_warning(run_warnings *w, const char *text)
+{
+    fprintf(stderr, "flockmorph: warning: %s\n", text);
+    json_array_append_new(w->list, json_string(text));
+}
+
 static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
-                       int threads, double preprocess_seconds, const char *cache_path)
+                       int threads, double preprocess_seconds, const char *cache_path, const run_warnings *warnings)
 {
     json_t *j = json_object();
     json_object_set_new(j, "agents", json_integer(mi->agents));
@@ -146,6 +157,7 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "threads", json_integer(threads));
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     json_object_set_new(j, "cache", json_string(cache_path));
+    json_object_set(j, "warnings", warnings->list);
     fm_output_file out;
     fm_error err = {0};
     fm_status st = fm_output_open(&out, path, &err);
@@ -159,7 +171,26 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
-static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
+/* A failed run leaves the cache as PATH.partial: say how much of it is readable. */
+static int report_failed_run(const fm_error *err, const char *cache_path)
+{
+    int rc = cli_report(err);
+    char partial[FM_PATH_MAX + 320];
+    snprintf(partial, sizeof partial, "%s.partial", cache_path);
+    fm_error ignored = {0};
+    fm_cache_reader *r = fm_cache_open(partial, &ignored);
+    if (r && fm_cache_frames(r) > 0)
+        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph info, "
+                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
+    else
+        remove(partial);
+    fm_cache_close(r);
+    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
+    return rc;
+}
+
+static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds,
+                    run_warnings *warnings)
 {
     fm_error err = {0};
     int show = !o->quiet && isatty(STDERR_FILENO);
@@ -170,6 +201,8 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
     snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
     snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
+    /* the previous run's results must not pass for this run's if it fails */
+    remove(cache_path), remove(stats_path);
     fm_cache_writer *cache = fm_cache_writer_create(cache_path, (uint64_t)mi.agents, def->frame_rate, def->compression_level, &err);
     if (!cache) return fm_state_destroy(state), cli_report(&err);
     run_progress rp = {show, mi.agents, cli_seconds()};
@@ -178,16 +211,20 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     if (show) fprintf(stderr, "\n");
     int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
     fm_state_destroy(state);
-    if (st != FM_OK) return fm_cache_writer_abort(cache), fm_run_stats_free(&rs), cli_report(&err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(&rs), cli_report(&err);
-    int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path);
+    if (st != FM_OK) fm_cache_writer_abandon(cache);
+    else st = fm_cache_writer_finish(cache, &err);
+    if (st != FM_OK) return fm_run_stats_free(&rs), report_failed_run(&err, cache_path);
+    if (!rs.all_arrived) {
+        char text[256];
+        snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
+                 "raise time.frame_limit in the scene", def->frame_limit, (long long)still_flying);
+        add_warning(warnings, text);
+    }
+    int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path, warnings);
     fm_run_stats_free(&rs);
     if (rc) return rc;
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi.agents, (long long)rs.frames,
            (long long)rs.steps, rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0);
-    if (!rs.all_arrived)
-        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
-                "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
     printf("cache: %s\nstats: %s\n", cache_path, stats_path);
     return 0;
 }
@@ -201,14 +238,18 @@ int cli_run(int argc, char **argv)
     fm_error err = {0};
     fm_scene_def def;
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
-    if ((rc = cli_make_outdir(o.outdir, &err))) return rc;
+    const char *outputs[] = {def.cache_name, "stats.json"};
+    if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
     fm_model *model = fm_model_build(&def, prep_progress, &show, &err);
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n");
     if (!model) return cli_report(&err);
-    rc = simulate(&o, &def, model, prep_seconds);
+    run_warnings warnings = {json_array()};
+    for (int i = 0; i < fm_model_warning_count(model); i++) add_warning(&warnings, fm_model_warning(model, i));
+    rc = simulate(&o, &def, model, prep_seconds, &warnings);
+    json_decref(warnings.list);
     fm_model_destroy(model);
     return rc;
 }
