@@ -152,6 +152,10 @@ extern "C" fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, doub
                            "triangles (triangle %d has a corner at (%g, %g, %g) in the world); TetGen cannot mesh it",
                            name, triangle_list(bad).c_str(), bad[0], c[0], c[1], c[2]);
         }
+        // Facets with different markers are never merged, so TetGen would keep every triangle as a
+        // constraint and make many more tets: the meshing pass runs without them.
+        delete[] in.facetmarkerlist;
+        in.facetmarkerlist = nullptr;
         char switches[96];
         if (max_volume > 0)
             std::snprintf(switches, sizeof switches, "pq%.6ga%.9gAzQ", quality, max_volume);
@@ -232,8 +236,8 @@ extern "C" int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_
             if (m > a->nt && !in_b) in_b = m - (int)a->nt;
         }
         if (in_a && in_b) {
-            std::snprintf(how, how_size, "their surfaces cross (triangle %d of %s and triangle %d of %s; TetGen finds "
-                          "%zu crossing triangles)", in_a, name_a, in_b, name_b, crossing.size());
+            std::snprintf(how, how_size, "their surfaces intersect (triangle %d of %s and triangle %d of %s; TetGen finds "
+                          "%zu intersecting triangles)", in_a, name_a, in_b, name_b, crossing.size());
             return 1;
         }
         if (std::fabs(fm_mesh_winding_number(b, a->v)) > 0.5) {

@@ -456,7 +456,7 @@ static void test_obstacle_overlaps_source_or_target(void)
     char where[FM_PATH_MAX + 32];
     const char *path = plain_scene("obstacle_cross.json", OBSTACLE_AT("\"translate\": [-9, 0, 0]"));
     EXPECT_RUN(path, 2, scene_position("{\"mesh\": \"" OCTAHEDRON "\", \"translate\": [-9", where, sizeof where),
-               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces cross");
+               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect");
     path = plain_scene("obstacle_around.json", OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"));
     EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]");
     path = plain_scene("obstacle_inside.json", OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"));
