@@ -164,8 +164,11 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     if (st == FM_OK) {
         if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
             st = fm_output_commit(&out, NULL, &err);
-        else
-            fm_output_discard(&out), st = fm_fail(&err, FM_ERR_IO, "cannot write '%s'", path);
+        else {
+            int e = errno ? errno : EIO;
+            fm_output_discard(&out);
+            st = fm_fail(&err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
+        }
     }
     json_decref(j);
     return st == FM_OK ? 0 : cli_report(&err);
