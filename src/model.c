@@ -120,13 +120,14 @@ static fm_status check_path_ends(const fm_scene_def *def, const fm_mesh *obstacl
 {
     int last = def->path_point_count - 1;
     const double *ends[4] = {cs, ct, last >= 0 ? def->path_points[0] : NULL, last >= 0 ? def->path_points[last] : NULL};
-    char names[4][48] = {"the source centroid C_S (where the path starts)", "the target centroid C_T (where the path ends)"};
-    snprintf(names[2], sizeof names[2], "path.points[0]");
-    snprintf(names[3], sizeof names[3], "path.points[%d]", last);
+    static const char *const names[4] = {"the source centroid C_S (where the path starts)",
+                                         "the target centroid C_T (where the path ends)", "the first path point",
+                                         "the last path point"};
     for (int e = 0; e < 4; e++) {
         if (!ends[e] || fabs(fm_mesh_winding_number(obstacle, ends[e])) <= 0.5) continue;
-        char where[FM_PATH_MAX + 64];
-        fm_scene_key_location(def, e < 2 ? key : names[e], where, sizeof where);
+        char where[FM_PATH_MAX + 64], point_key[32];
+        snprintf(point_key, sizeof point_key, "path.points[%d]", e == 2 ? 0 : last);
+        fm_scene_key_location(def, e < 2 ? key : point_key, where, sizeof where);
         return fm_fail(err, FM_ERR_INPUT, "%s: %s (%g, %g, %g) lies inside %s: the path must start and end in free "
                        "space", where, names[e], ends[e][0], ends[e][1], ends[e][2], key);
     }
@@ -320,7 +321,8 @@ static void free_scratch(prep_scratch *s, int count)
     free(s->obstacles);
 }
 
-static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+/* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
+static fm_status prepare_inputs(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
@@ -332,7 +334,14 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     m->info.target_tets = s->dst.n;
     if ((st = warn_if_shapes_overlap(m, s, err)) != FM_OK) return st;
     if (def->obstacle_count > 0 && (st = load_obstacles(m, s, err)) != FM_OK) return st;
-    if ((st = choose_n(m, &s->src, &s->dst, err)) != FM_OK) return st;
+    return choose_n(m, &s->src, &s->dst, err);
+}
+
+static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    fm_status st = prepare_inputs(m, s, progress, user, err);
+    if (st != FM_OK) return st;
     report(progress, user, "subdivide", 0.6);
     if ((st = fm_subdivide_to(&s->src, m->n, err)) != FM_OK) return st;
     if ((st = fm_subdivide_to(&s->dst, m->n, err)) != FM_OK) return st;

@@ -519,6 +519,7 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
 }
 
 enum { MAX_STEPS_PER_FRAME = 1000000 };
+#define FIELD_GRID_MAX_CELLS 268435456.0 /* 2^28, as fm_fields_create allows */
 
 static int is_zero3(const double v[3]) { return v[0] == 0 && v[1] == 0 && v[2] == 0; }
 
@@ -555,6 +556,11 @@ static fm_status check_consistency(where *w, const fm_scene_def *def)
         where_set_key(w, "style.grid");
         return fail_at(w, "style.grid", "[%d, %d, %d]: give all three sizes, or [0, 0, 0] to evaluate the fields "
                        "directly", g[0], g[1], g[2]);
+    }
+    if ((double)g[0] * g[1] * g[2] > FIELD_GRID_MAX_CELLS) {
+        where_set_key(w, "style.grid");
+        return fail_at(w, "style.grid", "[%d, %d, %d] is %.3g cells, more than the 2^28 supported (16 bytes each)",
+                       g[0], g[1], g[2], (double)g[0] * g[1] * g[2]);
     }
     return check_field_vectors(w, def);
 }

@@ -18,7 +18,7 @@
 #include <unistd.h>
 
 #if defined(__SANITIZE_ADDRESS__)
-#include <sanitizer/allocator_interface.h>
+size_t __sanitizer_get_current_allocated_bytes(void); /* libasan's (gcc installs no header for it) */
 #endif
 
 #define LEFT "\"translate\": [-10, 0, 0]"
@@ -216,6 +216,8 @@ static void test_scene_consistency(void)
     char where[FM_PATH_MAX + 32];
     const char *path = plain_scene("grid.json", ",\n  \"style\": {\"grid\": [8, 0, 8]}");
     EXPECT_RUN(path, 2, scene_position("[8, 0, 8]", where, sizeof where), "style.grid", "give all three");
+    path = plain_scene("huge_grid.json", ",\n  \"style\": {\"grid\": [2048, 2048, 2048]}");
+    EXPECT_RUN(path, 2, scene_position("[2048", where, sizeof where), "style.grid", "more than the 2^28 supported");
     path = plain_scene("gravity.json", ",\n  \"style\": {\"fields\": [{\"type\": \"gravity\", \"direction\": [0, 0, 0]}]}");
     EXPECT_RUN(path, 2, scene_position("[0, 0, 0]", where, sizeof where), "style.fields[0].direction",
                "must not be [0, 0, 0]");
@@ -438,10 +440,10 @@ static void test_path_end_inside_obstacle(void)
     char where[FM_PATH_MAX + 32];
     const char *path = plain_scene("path_last.json", ",\n  \"path\": {\"points\": [[0, 6, 0], [0.2, 0, 0]]}"
                                    OBSTACLE_AT("\"translate\": [0, 0, 0]"));
-    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[1] (0.2, 0, 0) lies inside obstacles.meshes[0]");
+    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[1]: the last path point (0.2, 0, 0) lies inside obstacles.meshes[0]");
     path = plain_scene("path_first.json", ",\n  \"path\": {\"points\": [[0.2, 0, 0], [0, 6, 0]]}"
                        OBSTACLE_AT("\"translate\": [0, 0, 0]"));
-    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[0] (0.2, 0, 0) lies inside obstacles.meshes[0]");
+    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[0]: the first path point (0.2, 0, 0) lies inside obstacles.meshes[0]");
     /* a source of two octahedra 6 apart has its centroid C_S between them, in the obstacle there */
     char mesh[FM_PATH_MAX];
     write_octahedra(tmp_path(mesh, "pair.obj"), (const double[][3]){{-3, 0, 0}, {3, 0, 0}}, 2);
