@@ -210,30 +210,34 @@ static void test_numeric_keys_out_of_range(void)
     expect_below_bound(&source_scale, "-2", 1);
 }
 
+/* The octahedron scene with `extra`: exit 2, the position of `at` in the text, the key, `what`. */
+static void expect_scene_error(const char *name, const char *extra, const char *at, const char *key, const char *what)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene(name, extra);
+    EXPECT_RUN(path, 2, scene_position(at, where, sizeof where), key, what);
+}
+
 /* Values each fine alone that do not fit together. */
 static void test_scene_consistency(void)
 {
-    char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("grid.json", ",\n  \"style\": {\"grid\": [8, 0, 8]}");
-    EXPECT_RUN(path, 2, scene_position("[8, 0, 8]", where, sizeof where), "style.grid", "give all three");
-    path = plain_scene("huge_grid.json", ",\n  \"style\": {\"grid\": [2048, 2048, 2048]}");
-    EXPECT_RUN(path, 2, scene_position("[2048", where, sizeof where), "style.grid", "more than the 2^28 supported");
-    path = plain_scene("gravity.json", ",\n  \"style\": {\"fields\": [{\"type\": \"gravity\", \"direction\": [0, 0, 0]}]}");
-    EXPECT_RUN(path, 2, scene_position("[0, 0, 0]", where, sizeof where), "style.fields[0].direction",
-               "must not be [0, 0, 0]");
-    path = plain_scene("vortex.json", ",\n  \"style\": {\"fields\": [{\"type\": \"vortex\", \"axis\": [0, 0, 0]}]}");
-    EXPECT_RUN(path, 2, scene_position("[0, 0, 0]", where, sizeof where), "style.fields[0].axis");
-    path = plain_scene("tiny_step.json", ",\n  \"time\": {\"frame_rate\": 25, \"time_step\": 1e-9}");
-    EXPECT_RUN(path, 2, scene_position("1e-9", where, sizeof where), "time.time_step", "steps per frame");
+    expect_scene_error("grid.json", ",\n  \"style\": {\"grid\": [8, 0, 8]}", "[8, 0, 8]", "style.grid", "give all three");
+    expect_scene_error("huge_grid.json", ",\n  \"style\": {\"grid\": [2048, 2048, 2048]}", "[2048", "style.grid",
+                       "more than the 2^28 supported");
+    expect_scene_error("gravity.json", ",\n  \"style\": {\"fields\": [{\"type\": \"gravity\", \"direction\": [0, 0, 0]}]}",
+                       "[0, 0, 0]", "style.fields[0].direction", "must not be [0, 0, 0]");
+    expect_scene_error("vortex.json", ",\n  \"style\": {\"fields\": [{\"type\": \"vortex\", \"axis\": [0, 0, 0]}]}",
+                       "[0, 0, 0]", "style.fields[0].axis", "must not be [0, 0, 0]");
+    expect_scene_error("tiny_step.json", ",\n  \"time\": {\"frame_rate\": 25, \"time_step\": 1e-9}", "1e-9",
+                       "time.time_step", "steps per frame");
 }
 
 static void test_output_cache_name(void)
 {
-    char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("cache_slash.json", ",\n  \"output\": {\"cache\": \"sub/frames.fmc\"}");
-    EXPECT_RUN(path, 2, scene_position("\"sub/", where, sizeof where), "output.cache", "not a plain file name");
-    path = plain_scene("cache_empty.json", ",\n  \"output\": {\"cache\": \"\"}");
-    EXPECT_RUN(path, 2, scene_position("\"\"", where, sizeof where), "output.cache", "not a plain file name");
+    expect_scene_error("cache_slash.json", ",\n  \"output\": {\"cache\": \"sub/frames.fmc\"}", "\"sub/", "output.cache",
+                       "not a plain file name");
+    expect_scene_error("cache_empty.json", ",\n  \"output\": {\"cache\": \"\"}", "\"\"", "output.cache",
+                       "not a plain file name");
 }
 
 /* ---------------------------------------------------------------- meshes */
