@@ -586,6 +586,44 @@ static void test_file_size_limit(void)
     remove(partial);
 }
 
+/* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
+ * test) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
+ * its PATH.partial holds the frames that fitted, bit for bit. */
+static void test_cache_writer_keeps_partial(void)
+{
+    enum { AGENTS = 2000, FRAMES = 8 };
+    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16], warning[FM_PATH_MAX + 200];
+    snprintf(partial, sizeof partial, "%s.partial", tmp_path(path, "writer.fmc"));
+    remove(path), remove(partial);
+    float *frames = malloc(sizeof(float) * 12 * AGENTS * FRAMES);
+    uint64_t rng = 11;
+    for (size_t i = 0; frames && i < 12 * (size_t)AGENTS * FRAMES; i++) frames[i] = (float)test_uniform(&rng);
+    ENSURE(frames != NULL);
+    if (!frames) return;
+    struct rlimit old, lowered;
+    getrlimit(RLIMIT_FSIZE, &old);
+    lowered = old;
+    lowered.rlim_cur = 64 + 3 * (24 + 12 * AGENTS * 4) + 12 * AGENTS * 2; /* random floats barely compress */
+    void (*previous)(int) = signal(SIGXFSZ, SIG_IGN);
+    ENSURE(setrlimit(RLIMIT_FSIZE, &lowered) == 0);
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(path, AGENTS, 24, 1, &err);
+    fm_status st = FM_OK;
+    for (int f = 0; w && f < FRAMES && st == FM_OK; f++) st = fm_cache_writer_add_frame(w, frames + 12 * AGENTS * f, &err);
+    fm_status finished = w ? fm_cache_writer_finish(w, &err) : FM_ERR_INTERNAL;
+    setrlimit(RLIMIT_FSIZE, &old);
+    signal(SIGXFSZ, previous);
+    ENSURE_MSG(finished == FM_ERR_IO && strstr(err.message, "File too large"), "status %d: %s", (int)finished, err.message);
+    ENSURE(!exists(path));
+    uint32_t got = 0;
+    uint64_t agents = 0;
+    float *read = read_frames(partial, &got, &agents, warning, sizeof warning);
+    ENSURE_MSG(got >= 2 && got < FRAMES && agents == AGENTS, "%u frames recovered", got);
+    if (read) ENSURE(memcmp(read, frames, sizeof(float) * 12 * AGENTS * got) == 0);
+    free(read), free(frames);
+    remove(partial);
+}
+
 /* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
  * first for the cache, then for stats.json after a complete cache. */
 static void test_disk_full(void)
@@ -646,6 +684,7 @@ int main(void)
     RUN_TEST(test_source_target_overlap_warns);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
+    RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_disk_full);
     return test_result();
 }
