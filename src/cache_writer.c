@@ -49,7 +49,7 @@ const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w) { return &w
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
     if (fwrite(data, 1, n, w->out.f) != n)
-        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s", w->out.partial, strerror(errno));
+        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s%s", w->out.partial, strerror(errno), fm_write_hint(errno));
     w->pos += n;
     return FM_OK;
 }
@@ -91,6 +91,7 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
 /* Starts the writer thread; on failure frees w (and deletes its partial file). */
 static fm_cache_writer *writer_start(fm_cache_writer *w, fm_error *err)
 {
+    w->out.keep_partial_on_failure = 1; /* a cache that fails to finish keeps its complete frames */
     if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
         fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", w->out.path);
         fm_cache_writer_abort(w);
@@ -313,7 +314,7 @@ fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
     fm_status st = stop_worker(w, err);
     if (st == FM_OK) st = write_index_and_footer(w, err);
     if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
-    else fm_output_discard(&w->out);
+    else fm_output_keep_partial(&w->out); /* its complete frames stay readable */
     free_writer(w);
     return st;
 }
@@ -331,8 +332,7 @@ void fm_cache_writer_close_partial(fm_cache_writer *w)
 {
     if (!w) return;
     stop_worker(w, NULL);
-    if (w->out.f) fclose(w->out.f);
-    w->out.f = NULL;
+    fm_output_keep_partial(&w->out);
     free_writer(w);
 }
 

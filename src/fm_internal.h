@@ -25,6 +25,8 @@ typedef struct fm_output_file {
     FILE *f;
     char path[FM_PATH_MAX];
     char partial[FM_PATH_MAX + 16];
+    int keep_partial_on_failure; /* commit leaves PATH.partial when it fails (the frame cache: its
+                                    complete frames stay readable) */
 } fm_output_file;
 
 /* Sets o's names (PATH and PATH.partial) without opening anything. */
@@ -44,6 +46,23 @@ fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, f
  * the run; the model hash covers the meshes), and so is scene_path. */
 typedef void (*fm_bytes_fn)(const void *bytes, size_t n, void *user);
 void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user);
+
+/* Closes PATH.partial and leaves it on disk (a cache that stopped early stays readable). */
+void fm_output_keep_partial(fm_output_file *o);
+
+/* A user's input file (scene, mesh): FM_OK if it can be opened for reading; otherwise
+ * FM_ERR_INPUT with "PATH: cannot open the <what>: <reason>" (missing, a directory, permission
+ * denied), or FM_ERR_IO for a failure the user did not cause. */
+fm_status fm_check_input_file(const char *path, const char *what, fm_error *err);
+
+/* What the user can do about a failed write with this errno ("" if nothing specific): disk full,
+ * file-size limit, read-only file system. */
+const char *fm_write_hint(int errnum);
+
+/* scene.c: "FILE:LINE:COL: key" for a key of the loaded scene (a dotted path, list elements as
+ * "obstacles.meshes[1]"), found by reading the scene file again; "FILE: key" when it cannot be
+ * located, "key" for a definition built in code. For errors found after loading (model build). */
+void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);

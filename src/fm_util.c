@@ -6,6 +6,7 @@
 #include <string.h>
 #include <errno.h>
 #include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
@@ -41,6 +42,7 @@ double fm_seconds(void)
 fm_status fm_output_name(fm_output_file *o, const char *path, fm_error *err)
 {
     o->f = NULL;
+    o->keep_partial_on_failure = 0;
     if (strlen(path) >= sizeof o->path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path);
     snprintf(o->path, sizeof o->path, "%s", path);
     snprintf(o->partial, sizeof o->partial, "%s.partial", path);
@@ -52,7 +54,10 @@ fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err)
     if (fm_output_name(o, path, err) != FM_OK) return FM_ERR_USAGE;
     errno = 0;
     o->f = fopen(o->partial, "wb");
-    if (!o->f) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(errno ? errno : EIO));
+    if (!o->f) {
+        int e = errno ? errno : EIO;
+        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
+    }
     return FM_OK;
 }
 
@@ -64,9 +69,10 @@ fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err)
     o->f = NULL;
     if (!bad && rename(o->partial, o->path) != 0) bad = 1, e = errno;
     if (!bad) return FM_OK;
-    remove(o->partial);
+    if (!o->keep_partial_on_failure) remove(o->partial);
     if (detail && detail[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", o->path, detail);
-    return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", o->path, strerror(e ? e : EIO));
+    e = e ? e : EIO;
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", o->path, strerror(e), fm_write_hint(e));
 }
 
 void fm_output_discard(fm_output_file *o)
@@ -87,4 +93,44 @@ fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, f
         return fm_fail(err, FM_ERR_IO, "cannot resume writing '%s': %s", o->partial, strerror(e));
     }
     return FM_OK;
+}
+
+void fm_output_keep_partial(fm_output_file *o)
+{
+    if (o->f) fclose(o->f);
+    o->f = NULL;
+}
+
+const char *fm_write_hint(int errnum)
+{
+    switch (errnum) {
+    case ENOSPC: return " (the disk is full: free space or write elsewhere with -o)";
+    case EDQUOT: return " (the disk quota is used up: free space or write elsewhere with -o)";
+    case EFBIG: return " (the file-size limit was reached: see `ulimit -f`, or lower n or time.frame_limit)";
+    case EROFS: return " (the file system is read-only: write elsewhere with -o)";
+    default: return "";
+    }
+}
+
+/* Errors that describe the path the user gave, rather than a failing machine. */
+static int user_caused(int errnum)
+{
+    return errnum == ENOENT || errnum == ENOTDIR || errnum == EACCES || errnum == EPERM || errnum == ELOOP ||
+           errnum == ENAMETOOLONG || errnum == EISDIR;
+}
+
+fm_status fm_check_input_file(const char *path, const char *what, fm_error *err)
+{
+    struct stat st;
+    int e = 0;
+    if (stat(path, &st) != 0) e = errno;
+    else if (S_ISDIR(st.st_mode)) e = EISDIR;
+    else {
+        FILE *f = fopen(path, "rb"); /* the permission check that counts (access() ignores ACLs' details) */
+        if (f) fclose(f);
+        else e = errno;
+    }
+    if (!e) return FM_OK;
+    return fm_fail(err, user_caused(e) ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open the %s: %s", path, what,
+                   e == EISDIR ? "it is a directory" : strerror(e));
 }

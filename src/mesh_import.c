@@ -5,7 +5,6 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -78,7 +77,7 @@ static fm_status gather_triangles(const struct aiScene *scene, const char *path,
         nv += am->mNumVertices;
         for (unsigned f = 0; f < am->mNumFaces; f++) nt += am->mFaces[f].mNumIndices == 3;
     }
-    if (nt == 0) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh has no triangles", path);
+    if (nt == 0) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh has no triangles (is it empty, or not a mesh?)", path);
     if (nv > INT32_MAX)
         return fm_fail(err, FM_ERR_INPUT, "%s: %lld vertices is more than supported (2^31)", path,
                        (long long)nv);
@@ -122,17 +121,14 @@ static fm_status check_finite(const fm_mesh *mesh, const char *path, fm_error *e
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
     memset(out, 0, sizeof *out);
-    FILE *probe = fopen(path, "rb");
-    if (!probe)
-        return fm_fail(err, errno == ENOENT || errno == ENOTDIR ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open: %s",
-                       path, strerror(errno));
-    fclose(probe);
+    fm_status st = fm_check_input_file(path, "mesh", err);
+    if (st != FM_OK) return st;
     const struct aiScene *scene =
         aiImportFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);
     if (!scene)
         return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
                        "STL, OFF, glTF", path, aiGetErrorString());
-    fm_status st = gather_triangles(scene, path, out, err);
+    st = gather_triangles(scene, path, out, err);
     aiReleaseImport(scene);
     if (st == FM_OK) st = check_finite(out, path, err);
     if (st == FM_OK) st = weld_vertices(out, err);
@@ -164,6 +160,26 @@ static fm_status edge_error(const fm_mesh *mesh, const char *name, const directe
                    (long long)(e->half / 3 + 1), what);
 }
 
+/* A triangle whose area is below this fraction of its longest edge squared has (up to rounding)
+ * collinear corners: it has no normal, and TetGen fails on it. */
+#define ZERO_AREA_RATIO 1e-12
+
+static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Twice the triangle's area, and its longest edge squared. */
+static double twice_area(const fm_mesh *mesh, const int32_t *f, double *longest2)
+{
+    const double *p[3] = {mesh->v + 3 * (int64_t)f[0], mesh->v + 3 * (int64_t)f[1], mesh->v + 3 * (int64_t)f[2]};
+    double e[3][3], c[3];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) e[i][k] = p[(i + 1) % 3][k] - p[i][k];
+    c[0] = e[0][1] * e[1][2] - e[0][2] * e[1][1];
+    c[1] = e[0][2] * e[1][0] - e[0][0] * e[1][2];
+    c[2] = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+    *longest2 = fmax(dot3(e[0], e[0]), fmax(dot3(e[1], e[1]), dot3(e[2], e[2])));
+    return sqrt(dot3(c, c));
+}
+
 static fm_status check_degenerate(const fm_mesh *mesh, const char *name, fm_error *err)
 {
     for (int64_t t = 0; t < mesh->nt; t++) {
@@ -171,8 +187,28 @@ static fm_status check_degenerate(const fm_mesh *mesh, const char *name, fm_erro
         if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2])
             return fm_fail(err, FM_ERR_INPUT, "%s: triangle %lld is degenerate (two corners at the "
                            "same position)", name, (long long)t + 1);
+        double longest2, area2 = twice_area(mesh, f, &longest2);
+        if (!(area2 > ZERO_AREA_RATIO * longest2)) {
+            const double *a = mesh->v + 3 * (int64_t)f[0];
+            return fm_fail(err, FM_ERR_INPUT, "%s: triangle %lld (corner (%g, %g, %g)) is degenerate: zero area, "
+                           "its corners lie on one line", name, (long long)t + 1, a[0], a[1], a[2]);
+        }
     }
     return FM_OK;
+}
+
+/* A closed surface can still enclose nothing: a flat sheet of two back-to-back triangles, or parts
+ * whose volumes cancel. TetGen asserts (aborts) on a flat input, so this is checked first. */
+static fm_status check_volume(const fm_mesh *mesh, const char *name, fm_error *err)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int64_t i = 0; i < mesh->nv; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], mesh->v[3 * i + k]), hi[k] = fmax(hi[k], mesh->v[3 * i + k]);
+    double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}, diagonal = sqrt(dot3(d, d));
+    double volume = fm_mesh_signed_volume(mesh);
+    if (fabs(volume) > 1e-9 * diagonal * diagonal * diagonal) return FM_OK;
+    return fm_fail(err, FM_ERR_INPUT, "%s: the mesh encloses no volume (%g in a %g x %g x %g box): it is flat, "
+                   "or its parts cancel out", name, volume, d[0], d[1], d[2]);
 }
 
 fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair_fn pair, void *user,
@@ -210,7 +246,8 @@ fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair
 fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err)
 {
     fm_status st = check_degenerate(mesh, path, err);
-    return st == FM_OK ? fm_mesh_pair_edges(mesh, path, NULL, NULL, err) : st;
+    if (st == FM_OK) st = fm_mesh_pair_edges(mesh, path, NULL, NULL, err);
+    return st == FM_OK ? check_volume(mesh, path, err) : st;
 }
 
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref)

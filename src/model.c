@@ -5,6 +5,7 @@
 #include "fm_math.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,28 +20,52 @@ typedef struct prep_scratch {
     fm_tets src, dst;
     fm_path path;
     int64_t *d1, *d2;
+    fm_mesh *obstacles;  /* obstacle meshes, placed (def.obstacle_count) */
 } prep_scratch;
 
-/* Prefixes err's message with the scene key that named the mesh ("source.mesh: ..."). */
-static fm_status name_key(fm_status st, const char *key, fm_error *err)
+/* Prefixes err's message with where the scene sets `key` ("scene.json:3:14: source.mesh: ..."). */
+static fm_status name_key(const fm_scene_def *def, fm_status st, const char *key, fm_error *err)
 {
     if (st != FM_OK && err) {
-        char msg[sizeof err->message];
+        char msg[sizeof err->message], where[FM_PATH_MAX + 64];
         snprintf(msg, sizeof msg, "%s", err->message);
-        fm_fail(err, st, "%s: %s", key, msg);
+        fm_scene_key_location(def, key, where, sizeof where);
+        fm_fail(err, st, "%s: %s", where, msg);
     }
     return st;
+}
+
+/* Records a warning ("FILE:LINE:COL: key: what") on the model. */
+static void warn(fm_model *m, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void warn(fm_model *m, const char *key, const char *fmt, ...)
+{
+    if (m->warning_count == FM_MODEL_MAX_WARNINGS) return;
+    char what[768], where[FM_PATH_MAX + 64];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    fm_scene_key_location(&m->def, key, where, sizeof where);
+    snprintf(m->warnings[m->warning_count++], sizeof m->warnings[0], "%.200s: %s", where, what);
+}
+
+/* Loads, checks and places one mesh. */
+static fm_status load_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
+                           fm_error *err)
+{
+    fm_status st = fm_mesh_load(ref->path, mesh, err);
+    if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
+    if (st == FM_OK) fm_mesh_place(mesh, ref);
+    return name_key(def, st, key, err);
 }
 
 /* Loads, checks, places and tetrahedralizes one mesh. */
 static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
                               fm_tets *tets, fm_error *err)
 {
-    fm_status st = fm_mesh_load(ref->path, mesh, err);
-    if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
-    if (st != FM_OK) return name_key(st, key, err);
-    fm_mesh_place(mesh, ref);
-    return name_key(fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
+    fm_status st = load_mesh(def, ref, key, mesh, err);
+    if (st != FM_OK) return st;
+    return name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
 }
 
 /* FM §4: n >= max(n1, n2); say which mesh needs more. */
@@ -48,11 +73,20 @@ static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, f
 {
     int64_t most = FM_MAX(src->n, dst->n);
     m->n = m->def.n > 0 ? m->def.n : most;
-    if (m->n >= most) return FM_OK;
-    return fm_fail(err, FM_ERR_INPUT, "%s: n: %lld is smaller than the %lld tets TetGen made for %s; use n >= %lld "
-                   "or leave n out (default max(n1, n2))", m->def.scene_path[0] ? m->def.scene_path : "scene",
-                   (long long)m->n, (long long)most, src->n >= dst->n ? m->def.source.path : m->def.target.path,
-                   (long long)most);
+    if (m->n < most) {
+        char where[FM_PATH_MAX + 64];
+        fm_scene_key_location(&m->def, "n", where, sizeof where);
+        return fm_fail(err, FM_ERR_INPUT, "%s: %lld is smaller than the %lld tets TetGen made for %s; use n >= %lld "
+                       "or leave n out (default max(n1, n2))", where, (long long)m->n, (long long)most,
+                       src->n >= dst->n ? m->def.source.path : m->def.target.path, (long long)most);
+    }
+    if (m->def.d_min > 0 && m->n > FM_GRID_MAX_CAPACITY) {
+        char where[FM_PATH_MAX + 64];
+        fm_scene_key_location(&m->def, "n", where, sizeof where);
+        return fm_fail(err, FM_ERR_INPUT, "%s: %lld agents is more than the MDE neighbour grid holds (%lld); lower n "
+                       "or turn MDE off (mde.d_min 0)", where, (long long)m->n, (long long)FM_GRID_MAX_CAPACITY);
+    }
+    return fm_memory_check(&m->def, m->n, err);
 }
 
 static double total_volume(const fm_tets *tets, double centroid[3])
@@ -66,6 +100,51 @@ static double total_volume(const fm_tets *tets, double centroid[3])
     }
     for (int k = 0; k < 3; k++) centroid[k] = vol > 0 ? c[k] / vol : 0;
     return vol;
+}
+
+/* Refuses an obstacle that shares volume with the source or target. */
+static fm_status refuse_overlap(const fm_scene_def *def, const fm_mesh *obstacle, const char *key, const fm_mesh *shape,
+                                const char *shape_name, fm_error *err)
+{
+    char how[512], where[FM_PATH_MAX + 64];
+    int overlap = fm_meshes_overlap(obstacle, key, shape, shape_name, how, sizeof how, err);
+    if (overlap <= 0) return overlap < 0 ? (err ? err->status : FM_ERR_INTERNAL) : FM_OK;
+    fm_scene_key_location(def, key, where, sizeof where);
+    return fm_fail(err, FM_ERR_INPUT, "%s: the obstacle overlaps %s: %s; tets would start or end inside it. Move "
+                   "it clear (translate) or make it smaller (scale)", where, shape_name, how);
+}
+
+/* The path's ends: C_S, C_T (FM eq 3's Q_0 and Q_{m+1}) and the first and last control points. */
+static fm_status check_path_ends(const fm_scene_def *def, const fm_mesh *obstacle, const char *key, const double cs[3],
+                                 const double ct[3], fm_error *err)
+{
+    int last = def->path_point_count - 1;
+    const double *ends[4] = {cs, ct, last >= 0 ? def->path_points[0] : NULL, last >= 0 ? def->path_points[last] : NULL};
+    static const char *const names[4] = {"the source centroid C_S (where the path starts)",
+                                         "the target centroid C_T (where the path ends)", "the first path point",
+                                         "the last path point"};
+    for (int e = 0; e < 4; e++) {
+        if (!ends[e] || fabs(fm_mesh_winding_number(obstacle, ends[e])) <= 0.5) continue;
+        char where[FM_PATH_MAX + 64], point_key[32];
+        snprintf(point_key, sizeof point_key, "path.points[%d]", e == 2 ? 0 : last);
+        fm_scene_key_location(def, e < 2 ? key : point_key, where, sizeof where);
+        return fm_fail(err, FM_ERR_INPUT, "%s: %s (%g, %g, %g) lies inside %s: the path must start and end in free "
+                       "space", where, names[e], ends[e][0], ends[e][1], ends[e][2], key);
+    }
+    return FM_OK;
+}
+
+/* FM §4 assumes the source and target apart; overlapping ones still run (agents launched inside
+ * the target's bounding sphere go straight to phase 2), so this only warns. */
+static fm_status warn_if_shapes_overlap(fm_model *m, const prep_scratch *s, fm_error *err)
+{
+    char how[512];
+    int overlap = fm_meshes_overlap(&s->src_mesh, "the source", &s->dst_mesh, "the target", how, sizeof how, err);
+    if (overlap < 0) return err ? err->status : FM_ERR_INTERNAL;
+    if (overlap)
+        warn(m, "target.translate", "the source and target overlap: %s. FM assumes they are apart; agents that "
+             "launch inside the target's bounding sphere skip the path", how);
+    return FM_OK;
 }
 
 static fm_status alloc_model_arrays(fm_model *m, fm_error *err)
@@ -174,33 +253,39 @@ static void scene_bounds(fm_model *m, const prep_scratch *s)
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
 }
 
-/* Loads, checks and places the obstacle meshes; builds d_t (FM §5.3) with a band covering k_a
- * plus the largest tet radius, so the look-ahead of eq 8 always reads real distances. */
-static fm_status build_obstacles(fm_model *m, float max_radius, fm_error *err)
+/* Loads the obstacle meshes and refuses obstacles that overlap the source or target, or that hold
+ * an end of the path: the tets would start or finish inside them (FM §5.3 assumes free space). */
+static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
-    int count = def->obstacle_count;
-    fm_mesh *meshes = calloc((size_t)count, sizeof *meshes);
-    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles");
+    s->obstacles = calloc((size_t)def->obstacle_count, sizeof *s->obstacles);
+    if (!s->obstacles) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles");
+    double cs[3], ct[3];
+    total_volume(&s->src, cs), total_volume(&s->dst, ct); /* subdivision keeps the centroids */
     fm_status st = FM_OK;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int i = 0; i < count && st == FM_OK; i++) {
+    for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
-        st = name_key(fm_mesh_load(def->obstacles[i].path, &meshes[i], err), key, err);
-        if (st == FM_OK) st = name_key(fm_mesh_check_closed(&meshes[i], def->obstacles[i].path, err), key, err);
-        if (st == FM_OK) fm_mesh_place(&meshes[i], &def->obstacles[i]), grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
+        st = load_mesh(def, &def->obstacles[i], key, &s->obstacles[i], err);
+        if (st == FM_OK) st = refuse_overlap(def, &s->obstacles[i], key, &s->src_mesh, "the source", err);
+        if (st == FM_OK) st = refuse_overlap(def, &s->obstacles[i], key, &s->dst_mesh, "the target", err);
+        if (st == FM_OK) st = check_path_ends(def, &s->obstacles[i], key, cs, ct, err);
     }
-    if (st == FM_OK) {
-        double reach = def->k_a + max_radius, extent = 0;
-        for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
-        double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
-        m->obstacles = fm_obstacles_build(meshes, count, voxel, reach + 2 * voxel, err);
-        if (!m->obstacles) st = err ? err->status : FM_ERR_INPUT;
-    }
-    for (int i = 0; i < count; i++) fm_mesh_free(&meshes[i]);
-    free(meshes);
     return st;
+}
+
+/* Builds d_t (FM §5.3) with a band covering k_a plus the largest tet radius, so the look-ahead of
+ * eq 8 always reads real distances. */
+static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_radius, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int i = 0; i < def->obstacle_count; i++) grow_bounds(lo, hi, s->obstacles[i].v, s->obstacles[i].nv);
+    double reach = def->k_a + max_radius, extent = 0;
+    for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
+    double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
+    m->obstacles = fm_obstacles_build(s->obstacles, def->obstacle_count, voxel, reach + 2 * voxel, err);
+    return m->obstacles ? FM_OK : name_key(def, err ? err->status : FM_ERR_INPUT, "obstacles.voxel", err);
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
@@ -211,7 +296,7 @@ static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);
     double voxel = extent / 160, band = fabs(m->def.switch_distance) + 3 * voxel;
     m->target_sdf = fm_obstacles_build(target, 1, voxel, band, err);
-    return m->target_sdf ? FM_OK : name_key(err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
+    return m->target_sdf ? FM_OK : name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
 }
 
 static void set_timing(fm_model *m)
@@ -226,15 +311,18 @@ static void set_timing(fm_model *m)
     m->info.launch_rate = m->launch_rate;
 }
 
-static void free_scratch(prep_scratch *s)
+static void free_scratch(prep_scratch *s, int count)
 {
     fm_mesh_free(&s->src_mesh), fm_mesh_free(&s->dst_mesh);
     fm_tets_free(&s->src), fm_tets_free(&s->dst);
     fm_path_free(&s->path);
     free(s->d1), free(s->d2);
+    for (int i = 0; s->obstacles && i < count; i++) fm_mesh_free(&s->obstacles[i]);
+    free(s->obstacles);
 }
 
-static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+/* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
+static fm_status prepare_inputs(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
@@ -244,7 +332,16 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     if ((st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
     m->info.source_tets = s->src.n;
     m->info.target_tets = s->dst.n;
-    if ((st = choose_n(m, &s->src, &s->dst, err)) != FM_OK) return st;
+    if ((st = warn_if_shapes_overlap(m, s, err)) != FM_OK) return st;
+    if (def->obstacle_count > 0 && (st = load_obstacles(m, s, err)) != FM_OK) return st;
+    return choose_n(m, &s->src, &s->dst, err);
+}
+
+static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    fm_status st = prepare_inputs(m, s, progress, user, err);
+    if (st != FM_OK) return st;
     report(progress, user, "subdivide", 0.6);
     if ((st = fm_subdivide_to(&s->src, m->n, err)) != FM_OK) return st;
     if ((st = fm_subdivide_to(&s->dst, m->n, err)) != FM_OK) return st;
@@ -252,7 +349,8 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     m->info.source_volume = total_volume(&s->src, m->info.source_centroid);
     m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
     report(progress, user, "order", 0.8);
-    if ((st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err)) != FM_OK) return st;
+    st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err);
+    if (st != FM_OK) return name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
     m->info.key_points = s->path.count;
     s->d1 = malloc(sizeof(int64_t) * (size_t)m->n);
     s->d2 = malloc(sizeof(int64_t) * (size_t)m->n);
@@ -269,7 +367,7 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
     m->max_radius = max_radius;
     report(progress, user, "obstacles", 0.9);
-    if (def->obstacle_count > 0 && (st = build_obstacles(m, max_radius, err)) != FM_OK) return st;
+    if (def->obstacle_count > 0 && (st = build_obstacles(m, s, max_radius, err)) != FM_OK) return st;
     if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
     set_timing(m);
     report(progress, user, "ready", 1.0);
@@ -279,6 +377,7 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
 fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
+    if (def->n > 0 && fm_memory_check(def, def->n, err) != FM_OK) return NULL; /* before TetGen runs */
     fm_model *m = calloc(1, sizeof *m);
     if (!m) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");
@@ -288,7 +387,7 @@ fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void 
     prep_scratch scratch;
     memset(&scratch, 0, sizeof scratch);
     fm_status st = build(m, &scratch, progress, user, err);
-    free_scratch(&scratch);
+    free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
         fm_model_destroy(m);
         return NULL;
@@ -310,5 +409,9 @@ void fm_model_destroy(fm_model *m)
 }
 
 fm_model_info fm_model_get_info(const fm_model *m) { return m->info; }
+
+int fm_model_warning_count(const fm_model *m) { return m->warning_count; }
+
+const char *fm_model_warning(const fm_model *m, int i) { return i >= 0 && i < m->warning_count ? m->warnings[i] : ""; }
 
 const float *fm_model_target_tet(const fm_model *m, int64_t j) { return m->tgt_f + 12 * j; }

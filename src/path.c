@@ -79,8 +79,8 @@ fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const doubl
     for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
     fm_status st = FM_OK;
     if (!(total > 0))
-        st = fm_fail(err, FM_ERR_INPUT, "the path has zero length: the source and target "
-                     "centroids coincide and there are no path points in between");
+        st = fm_fail(err, FM_ERR_INPUT, "the path has fewer than two distinct points (zero length): the source "
+                     "and target centroids coincide and no path point lies apart from them");
     else
         resample(dense, n, total, out->count, out->q);
     free(ctrl);

@@ -23,7 +23,8 @@ typedef struct fm_tets {
 /* mesh_import.c */
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
 void fm_mesh_free(fm_mesh *mesh);
-/* Every edge shared by exactly two faces with opposite directions; names the first bad edge. */
+/* Every edge shared by exactly two faces with opposite directions, no zero-area triangle, and a
+ * volume inside; names the first bad edge or triangle (numbered from 1 in file order). */
 fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err);
 /* The edge check alone, calling pair (if not NULL) for every edge with its two half-edges, each
  * numbered 3 * triangle + corner (the edge from corner k to corner k + 1). */
@@ -39,6 +40,15 @@ extern "C" {
 #endif
 fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, double max_volume,
                             const char *name, fm_tets *out, fm_error *err);
+/* Do two closed meshes (each valid alone) share any volume? TetGen's self-intersection detection
+ * runs on both surfaces together; if they do not cross, one may still hold the other, which a
+ * winding-number test of one vertex decides. Returns 1 and describes the overlap in `how` (naming
+ * triangles of a and b, numbered from 1), 0 if they are apart, -1 with err set if the check
+ * itself failed. */
+int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_mesh *b, const char *name_b, char *how,
+                      size_t how_size, fm_error *err);
+/* Generalised winding number of the closed surface around p: about +-1 inside, 0 outside. */
+double fm_mesh_winding_number(const fm_mesh *mesh, const double p[3]);
 #ifdef __cplusplus
 }
 #endif

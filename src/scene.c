@@ -105,6 +105,13 @@ static const param PARAMS[] = {
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
+static const param *find_param(const char *key)
+{
+    for (size_t i = 0; i < PARAM_COUNT; i++)
+        if (!strcmp(PARAMS[i].key, key)) return &PARAMS[i];
+    return NULL;
+}
+
 /* The keys of one element of obstacles.meshes (source and target share the ranges above). */
 #define MOFF(field) offsetof(fm_mesh_ref, field)
 static const param MESH_PARAMS[] = {
@@ -154,17 +161,23 @@ typedef struct where {
 
 #define KEY(w, p) ((w)->label[0] ? (w)->label : (p)->key)
 
+/* Points w at a dotted key; a list element is written "obstacles.meshes[1]" (then ".mesh" etc.). */
 static void where_set_key(where *w, const char *dotted)
 {
     w->depth = 0;
     w->at_key = 0;
     const char *s = dotted;
     while (*s && w->depth < 8) {
-        size_t len = strcspn(s, ".");
-        snprintf(w->names[w->depth], sizeof w->names[0], "%.*s", (int)len, s);
-        w->steps[w->depth] = (fm_json_step){w->names[w->depth], 0};
-        w->depth++;
-        s += len + (s[len] == '.');
+        size_t len = strcspn(s, ".["), name = w->depth;
+        snprintf(w->names[name], sizeof w->names[0], "%.*s", (int)len, s);
+        w->steps[w->depth++] = (fm_json_step){w->names[name], 0};
+        s += len;
+        while (*s == '[' && w->depth < 8) { /* one or more indices */
+            w->names[w->depth][0] = 0;
+            w->steps[w->depth++] = (fm_json_step){NULL, (int)strtol(s + 1, NULL, 10)};
+            s += strcspn(s, "]") + (s[strcspn(s, "]")] == ']');
+        }
+        s += *s == '.';
     }
 }
 
@@ -510,18 +523,51 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
     return st;
 }
 
+enum { MAX_STEPS_PER_FRAME = 1000000 };
+#define FIELD_GRID_MAX_CELLS 268435456.0 /* 2^28, as fm_fields_create allows */
+
+static int is_zero3(const double v[3]) { return v[0] == 0 && v[1] == 0 && v[2] == 0; }
+
+/* A wind or gravity needs a direction and a vortex an axis: a zero vector has none. */
+static fm_status check_field_vectors(where *w, const fm_scene_def *def)
+{
+    for (int32_t i = 0; i < def->field_count; i++) {
+        const fm_field_def *f = &def->fields[i];
+        int needs_direction = f->kind == FM_FIELD_WIND || f->kind == FM_FIELD_GRAVITY;
+        if (!(needs_direction ? is_zero3(f->direction) : f->kind == FM_FIELD_VORTEX && is_zero3(f->axis))) continue;
+        char key[64];
+        snprintf(key, sizeof key, "style.fields[%d].%s", i, needs_direction ? "direction" : "axis");
+        where_set_key(w, key);
+        return fail_at(w, key, "must not be [0, 0, 0]: it gives the field's %s", needs_direction ? "direction" : "axis");
+    }
+    return FM_OK;
+}
+
 /* Checks that span several parameters. */
 static fm_status check_consistency(where *w, const fm_scene_def *def)
 {
     if (def->time_step > 0) {
         double steps = (1.0 / def->frame_rate) / def->time_step;
-        if (steps < 0.999999 || fabs(steps - floor(steps + 0.5)) > 1e-6 * steps) {
-            where_set_key(w, "time.time_step");
+        where_set_key(w, "time.time_step");
+        if (steps < 0.999999 || fabs(steps - floor(steps + 0.5)) > 1e-6 * steps)
             return fail_at(w, "time.time_step", "%g s does not divide the frame interval 1/%g s "
                            "into whole steps", def->time_step, def->frame_rate);
-        }
+        if (steps > MAX_STEPS_PER_FRAME)
+            return fail_at(w, "time.time_step", "%g s makes %.3g steps per frame, more than the %d supported",
+                           def->time_step, steps, MAX_STEPS_PER_FRAME);
     }
-    return FM_OK;
+    const int32_t *g = def->field_grid;
+    if ((g[0] > 0 || g[1] > 0 || g[2] > 0) && !(g[0] > 0 && g[1] > 0 && g[2] > 0)) {
+        where_set_key(w, "style.grid");
+        return fail_at(w, "style.grid", "[%d, %d, %d]: give all three sizes, or [0, 0, 0] to evaluate the fields "
+                       "directly", g[0], g[1], g[2]);
+    }
+    if ((double)g[0] * g[1] * g[2] > FIELD_GRID_MAX_CELLS) {
+        where_set_key(w, "style.grid");
+        return fail_at(w, "style.grid", "[%d, %d, %d] is %.3g cells, more than the 2^28 supported (16 bytes each)",
+                       g[0], g[1], g[2], (double)g[0] * g[1] * g[2]);
+    }
+    return check_field_vectors(w, def);
 }
 
 /* Range checks of every numeric entry of a table over the struct at base. */
@@ -578,6 +624,10 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     if (st != FM_OK) return st;
     if (def->path_point_count < 0 || def->path_point_count > FM_MAX_PATH_POINTS)
         return fail_at(&w, "path.points", "between 0 and %d points", FM_MAX_PATH_POINTS);
+    const param *points = find_param("path.points"); /* check_table skips lists */
+    for (int32_t i = 0; i < def->path_point_count; i++)
+        for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(&w, points, def->path_points[i][k]);
+    if (st != FM_OK) return st;
     if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
         return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
     if (!def->cache_name[0] || strchr(def->cache_name, '/') || !strcmp(def->cache_name, ".") || !strcmp(def->cache_name, ".."))
@@ -587,10 +637,10 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
 
 static char *read_text(const char *path, fm_status *st, fm_error *err)
 {
+    if ((*st = fm_check_input_file(path, "scene file", err)) != FM_OK) return NULL;
     FILE *f = fopen(path, "rb");
     if (!f) {
-        *st = fm_fail(err, errno == ENOENT || errno == ENOTDIR ? FM_ERR_INPUT : FM_ERR_IO,
-                      "%s: cannot open the scene file: %s", path, strerror(errno));
+        *st = fm_fail(err, FM_ERR_IO, "%s: cannot open the scene file: %s", path, strerror(errno));
         return NULL;
     }
     size_t cap = 1 << 16, len = 0;
@@ -611,6 +661,28 @@ static char *read_text(const char *path, fm_status *st, fm_error *err)
     }
     text[len] = 0;
     return text;
+}
+
+void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size)
+{
+    const char *file = def->scene_path;
+    if (!file[0]) {
+        snprintf(out, size, "%s", key);
+        return;
+    }
+    fm_status st;
+    char *text = read_text(file, &st, NULL);
+    json_t *root = text ? json_loads(text, JSON_REJECT_DUPLICATES, NULL) : NULL; /* locate needs valid JSON */
+    int line = 0, col = 0;
+    if (root) {
+        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, ""};
+        where_set_key(&w, key);
+        fm_json_locate(text, w.steps, w.depth, 0, &line, &col);
+        json_decref(root);
+    }
+    free(text);
+    if (line > 0) snprintf(out, size, "%s:%d:%d: %s", file, line, col, key);
+    else snprintf(out, size, "%s: %s", file, key);
 }
 
 fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)

@@ -11,6 +11,7 @@
 
 enum { FM_BLOCK = 4096 };        /* agents per scheduler block */
 enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
+enum { FM_MODEL_MAX_WARNINGS = 8 };
 
 /* Immutable after fm_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
@@ -36,6 +37,8 @@ struct fm_model {
     double dt;
     int32_t steps_per_frame;
     double launch_rate;
+    char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_model_warning) */
+    int warning_count;
 };
 
 /* Per-agent morph parameters (FM §6), set when the agent enters phase 2. */
@@ -132,6 +135,21 @@ typedef struct fm_state_member {
 /* state.c: the table of every saved member, in file order. */
 extern const fm_state_member fm_state_members[];
 extern const int fm_state_member_count;
+
+/* memory.c: bytes a run of n agents needs (docs/limits.md). */
+typedef struct fm_memory_estimate {
+    double model, state, frames, grid; /* bytes per agent while stepping: model, agent store, frame
+                                          buffers (run, cache writer, zstd output), MDE grid */
+    double per_agent;                  /* their sum */
+    double fixed;                      /* bytes that do not grow with n: libraries, field and distance grids */
+    double run;                        /* per_agent * n + fixed */
+    double preprocess;                 /* peak while preparing: both tet sets in double, orders, model */
+    double total;                      /* the larger of run and preprocess */
+} fm_memory_estimate;
+fm_memory_estimate fm_memory_estimate_run(const fm_scene_def *def, int64_t n);
+double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
+/* FM_ERR_INPUT naming the scene's n, the estimate and the machine's memory if it does not fit. */
+fm_status fm_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
 /* morph.c */
 extern const uint8_t fm_even_permutations[12][4];

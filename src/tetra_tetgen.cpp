@@ -6,11 +6,13 @@
 #define TETLIBRARY
 #include <tetgen.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
 #include <new>
+#include <string>
 #include <vector>
 
 extern "C" {
@@ -19,23 +21,32 @@ extern "C" {
 
 namespace {
 
-void fill_input(const fm_mesh *mesh, tetgenio &in)
+// One facet per triangle of the meshes (their vertices concatenated); facet markers number the
+// triangles from 1 across all meshes, so TetGen's reports name them.
+void fill_input(const fm_mesh *const *meshes, int count, tetgenio &in)
 {
+    int64_t nv = 0, nt = 0;
+    for (int i = 0; i < count; i++) nv += meshes[i]->nv, nt += meshes[i]->nt;
     in.firstnumber = 0;
-    in.numberofpoints = (int)mesh->nv;
-    in.pointlist = new REAL[3 * mesh->nv];
-    std::memcpy(in.pointlist, mesh->v, sizeof(REAL) * 3 * mesh->nv);
-    in.numberoffacets = (int)mesh->nt;
-    in.facetlist = new tetgenio::facet[mesh->nt];
-    for (int64_t t = 0; t < mesh->nt; t++) {
-        tetgenio::facet &f = in.facetlist[t];
-        f.numberofpolygons = 1;
-        f.polygonlist = new tetgenio::polygon[1];
-        f.numberofholes = 0;
-        f.holelist = nullptr;
-        f.polygonlist[0].numberofvertices = 3;
-        f.polygonlist[0].vertexlist = new int[3];
-        for (int k = 0; k < 3; k++) f.polygonlist[0].vertexlist[k] = mesh->tri[3 * t + k];
+    in.numberofpoints = (int)nv;
+    in.pointlist = new REAL[3 * nv];
+    in.numberoffacets = (int)nt;
+    in.facetlist = new tetgenio::facet[nt];
+    in.facetmarkerlist = new int[nt];
+    for (int i = 0, vbase = 0, t0 = 0; i < count; vbase += (int)meshes[i]->nv, t0 += (int)meshes[i]->nt, i++) {
+        const fm_mesh *mesh = meshes[i];
+        std::memcpy(in.pointlist + 3 * vbase, mesh->v, sizeof(REAL) * 3 * mesh->nv);
+        for (int64_t t = 0; t < mesh->nt; t++) {
+            tetgenio::facet &f = in.facetlist[t0 + t];
+            f.numberofpolygons = 1;
+            f.polygonlist = new tetgenio::polygon[1];
+            f.numberofholes = 0;
+            f.holelist = nullptr;
+            f.polygonlist[0].numberofvertices = 3;
+            f.polygonlist[0].vertexlist = new int[3];
+            for (int k = 0; k < 3; k++) f.polygonlist[0].vertexlist[k] = vbase + mesh->tri[3 * t + k];
+            in.facetmarkerlist[t0 + t] = (int)(t0 + t + 1);
+        }
     }
 }
 
@@ -52,29 +63,6 @@ const char *tetgen_reason(int code)
     }
 }
 
-// Generalised winding number of the closed surface around p (Van Oosterom & Strackee solid
-// angles): ~1 inside an outward-facing surface, ~0 outside and inside cavities.
-double winding_number(const fm_mesh *mesh, const double p[3])
-{
-    double total = 0;
-    for (int64_t t = 0; t < mesh->nt; t++) {
-        double a[3], b[3], c[3];
-        for (int k = 0; k < 3; k++) {
-            a[k] = mesh->v[3 * mesh->tri[3 * t] + k] - p[k];
-            b[k] = mesh->v[3 * mesh->tri[3 * t + 1] + k] - p[k];
-            c[k] = mesh->v[3 * mesh->tri[3 * t + 2] + k] - p[k];
-        }
-        double la = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-        double lb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-        double lc = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
-        double dot = la * lb * lc + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) * lc +
-                     (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) * la + (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]) * lb;
-        total += 2 * std::atan2(det, dot);
-    }
-    return total / (4 * 3.14159265358979323846);
-}
-
 // TetGen fills every region its facets enclose, cavities included. With the "A" switch each
 // region gets its own attribute; keep the regions whose first tet lies inside the solid.
 std::vector<char> solid_regions(const tetgenio &out, const fm_mesh *mesh, double orientation)
@@ -89,19 +77,34 @@ std::vector<char> solid_regions(const tetgenio &out, const fm_mesh *mesh, double
             double c[3] = {0, 0, 0};
             for (int k = 0; k < 4; k++)
                 for (int i = 0; i < 3; i++) c[i] += 0.25 * out.pointlist[3 * out.tetrahedronlist[t * out.numberofcorners + k] + i];
-            it = inside.emplace(region, orientation * winding_number(mesh, c) > 0.5).first;
+            it = inside.emplace(region, orientation * fm_mesh_winding_number(mesh, c) > 0.5).first;
         }
         keep[t] = it->second;
     }
     return keep;
 }
 
-// Runs TetGen's self-intersection detection; non-zero count means the surface intersects itself.
-int count_intersecting_faces(tetgenio &in)
+// TetGen's self-intersection detection ("d"): the markers (triangle numbers from 1, sorted) of
+// the triangles it finds crossing another; empty if the surface is clean.
+std::vector<int> intersecting_triangles(tetgenio &in)
 {
     tetgenio check;
     tetrahedralize((char *)"dzQ", &in, &check);
-    return check.numberoftrifaces;
+    std::vector<int> found;
+    for (int i = 0; i < check.numberoftrifaces; i++)
+        found.push_back(check.trifacemarkerlist ? check.trifacemarkerlist[i] : 0);
+    std::sort(found.begin(), found.end());
+    return found;
+}
+
+// "triangles 3, 4, 7 and 5 more" for a message.
+std::string triangle_list(const std::vector<int> &tris)
+{
+    std::string s = tris.size() == 1 ? "triangle " : "triangles ";
+    size_t shown = std::min<size_t>(tris.size(), 8);
+    for (size_t i = 0; i < shown; i++) s += (i ? ", " : "") + std::to_string(tris[i]);
+    if (tris.size() > shown) s += " and " + std::to_string(tris.size() - shown) + " more";
+    return s;
 }
 
 fm_status copy_tets(const tetgenio &out, const std::vector<char> &keep, const char *name, fm_tets *tets,
@@ -141,11 +144,18 @@ extern "C" fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, doub
     out->n = 0;
     try {
         tetgenio in;
-        fill_input(mesh, in);
-        int bad = count_intersecting_faces(in);
-        if (bad > 0)
-            return fm_fail(err, FM_ERR_INPUT, "%s: the surface intersects itself (%d triangles "
-                           "involved); TetGen cannot mesh it", name, bad);
+        fill_input(&mesh, 1, in);
+        std::vector<int> bad = intersecting_triangles(in);
+        if (!bad.empty()) {
+            const double *c = mesh->v + 3 * (int64_t)mesh->tri[3 * (int64_t)(bad[0] > 0 ? bad[0] - 1 : 0)];
+            return fm_fail(err, FM_ERR_INPUT, "%s: the surface intersects itself: TetGen finds %s crossing other "
+                           "triangles (triangle %d has a corner at (%g, %g, %g) in the world); TetGen cannot mesh it",
+                           name, triangle_list(bad).c_str(), bad[0], c[0], c[1], c[2]);
+        }
+        // Facets with different markers are never merged, so TetGen would keep every triangle as a
+        // constraint and make many more tets: the meshing pass runs without them.
+        delete[] in.facetmarkerlist;
+        in.facetmarkerlist = nullptr;
         char switches[96];
         if (max_volume > 0)
             std::snprintf(switches, sizeof switches, "pq%.6ga%.9gAzQ", quality, max_volume);
@@ -171,4 +181,83 @@ extern "C" void fm_tets_free(fm_tets *tets)
     std::free(tets->v);
     tets->v = nullptr;
     tets->n = 0;
+}
+
+// Van Oosterom & Strackee solid angles: ~1 inside an outward-facing surface, ~0 outside and
+// inside cavities, ~-1 inside an inward-facing one.
+extern "C" double fm_mesh_winding_number(const fm_mesh *mesh, const double p[3])
+{
+    double total = 0;
+    for (int64_t t = 0; t < mesh->nt; t++) {
+        double a[3], b[3], c[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = mesh->v[3 * mesh->tri[3 * t] + k] - p[k];
+            b[k] = mesh->v[3 * mesh->tri[3 * t + 1] + k] - p[k];
+            c[k] = mesh->v[3 * mesh->tri[3 * t + 2] + k] - p[k];
+        }
+        double la = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        double lb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        double lc = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        double dot = la * lb * lc + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) * lc +
+                     (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) * la + (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]) * lb;
+        total += 2 * std::atan2(det, dot);
+    }
+    return total / (4 * 3.14159265358979323846);
+}
+
+namespace {
+
+bool boxes_apart(const fm_mesh *a, const fm_mesh *b)
+{
+    for (int k = 0; k < 3; k++) {
+        double alo = INFINITY, ahi = -INFINITY, blo = INFINITY, bhi = -INFINITY;
+        for (int64_t i = 0; i < a->nv; i++) alo = std::fmin(alo, a->v[3 * i + k]), ahi = std::fmax(ahi, a->v[3 * i + k]);
+        for (int64_t i = 0; i < b->nv; i++) blo = std::fmin(blo, b->v[3 * i + k]), bhi = std::fmax(bhi, b->v[3 * i + k]);
+        if (ahi < blo || bhi < alo) return true;
+    }
+    return false;
+}
+
+} // namespace
+
+extern "C" int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_mesh *b, const char *name_b,
+                                 char *how, size_t how_size, fm_error *err)
+{
+    if (boxes_apart(a, b)) return 0;
+    try {
+        tetgenio in;
+        const fm_mesh *both[2] = {a, b};
+        fill_input(both, 2, in);
+        std::vector<int> crossing = intersecting_triangles(in);
+        int in_a = 0, in_b = 0; // the first crossing triangle of each (markers above a->nt are b's)
+        for (int m : crossing) {
+            if (m <= a->nt && !in_a) in_a = m;
+            if (m > a->nt && !in_b) in_b = m - (int)a->nt;
+        }
+        if (in_a && in_b) {
+            std::snprintf(how, how_size, "their surfaces intersect (triangle %d of %s and triangle %d of %s; TetGen finds "
+                          "%zu intersecting triangles)", in_a, name_a, in_b, name_b, crossing.size());
+            return 1;
+        }
+        if (std::fabs(fm_mesh_winding_number(b, a->v)) > 0.5) {
+            std::snprintf(how, how_size, "%s lies inside %s", name_a, name_b);
+            return 1;
+        }
+        if (std::fabs(fm_mesh_winding_number(a, b->v)) > 0.5) {
+            std::snprintf(how, how_size, "%s lies inside %s", name_b, name_a);
+            return 1;
+        }
+        return 0;
+    } catch (int code) {
+        // TetGen refuses surfaces that touch (shared or nearly coincident points and facets).
+        std::snprintf(how, how_size, "their surfaces touch (%s, TetGen code %d)", tetgen_reason(code), code);
+        return code == 1 ? (fm_fail(err, FM_ERR_MEMORY, "out of memory in TetGen"), -1) : 1;
+    } catch (std::bad_alloc &) {
+        fm_fail(err, FM_ERR_MEMORY, "out of memory in TetGen");
+        return -1;
+    } catch (...) {
+        fm_fail(err, FM_ERR_INTERNAL, "TetGen failed with an unknown exception");
+        return -1;
+    }
 }

@@ -22,8 +22,9 @@ int cli_report(const fm_error *err);
 int cli_wants_help(int argc, char **argv);
 /* Parses a whole number in [lo, hi]; -1 if it is not one. */
 int cli_parse_int(const char *s, long lo, long hi, long *out);
-/* Creates dir (and parents) if needed and checks it is writable; 0 or an exit status. */
-int cli_make_outdir(const char *dir, fm_error *err);
+/* Creates dir (and parents) if needed and checks that it is writable and that none of the output
+ * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
+int cli_make_outdir(const char *dir, const char *const *names, int count);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

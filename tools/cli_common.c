@@ -49,34 +49,56 @@ int cli_parse_int(const char *s, long lo, long hi, long *out)
     return 0;
 }
 
-/* mkdir -p: creates dir and any missing parents. */
-static int make_dirs(const char *dir)
+/* mkdir -p: creates dir and any missing parents; on failure `failed` names the one that failed. */
+static int make_dirs(const char *dir, char *failed, size_t size)
 {
     char path[FM_PATH_MAX];
     if (snprintf(path, sizeof path, "%s", dir) >= (int)sizeof path) return errno = ENAMETOOLONG, -1;
-    for (char *p = path + 1; *p; p++) {
-        if (*p != '/') continue;
+    for (char *p = path + 1;; p++) {
+        if (*p && *p != '/') continue;
+        char end = *p;
         *p = 0;
-        if (mkdir(path, 0777) != 0 && errno != EEXIST) return -1;
+        if (mkdir(path, 0777) != 0 && errno != EEXIST) return snprintf(failed, size, "%s", path), -1;
+        if (!end) return 0;
         *p = '/';
     }
-    return mkdir(path, 0777) != 0 && errno != EEXIST ? -1 : 0;
 }
 
-int cli_make_outdir(const char *dir, fm_error *err)
+/* An output name (or its .partial) that exists as a directory would fail only after the run. */
+static int check_output_name(const char *dir, const char *name)
+{
+    char path[2 * FM_PATH_MAX];
+    struct stat st;
+    for (int partial = 0; partial < 2; partial++) {
+        snprintf(path, sizeof path, "%s/%s%s", dir, name, partial ? ".partial" : "");
+        if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
+            return fprintf(stderr, "flockmorph: error: -o %s: cannot write %s: a directory of that name is in the "
+                           "way\n", dir, path), FM_ERR_USAGE;
+    }
+    return 0;
+}
+
+int cli_make_outdir(const char *dir, const char *const *names, int count)
 {
     struct stat st;
+    char failed[FM_PATH_MAX] = "";
     if (stat(dir, &st) == 0) {
-        if (!S_ISDIR(st.st_mode)) return fprintf(stderr, "flockmorph: error: %s exists and is not a directory\n", dir), FM_ERR_IO;
-    } else if (make_dirs(dir) != 0) {
-        fprintf(stderr, "flockmorph: error: cannot create the output directory %s: %s\n", dir, strerror(errno));
-        return FM_ERR_IO;
+        if (!S_ISDIR(st.st_mode))
+            return fprintf(stderr, "flockmorph: error: -o %s: exists and is not a directory\n", dir), FM_ERR_USAGE;
+    } else if (make_dirs(dir, failed, sizeof failed) != 0) {
+        int e = errno;
+        char step[FM_PATH_MAX + 16] = "";
+        if (failed[0] && strcmp(failed, dir)) snprintf(step, sizeof step, " (creating %s)", failed);
+        fprintf(stderr, "flockmorph: error: -o %s: cannot create the output directory%s: %s\n", dir, step, strerror(e));
+        return FM_ERR_USAGE;
     }
-    if (access(dir, W_OK) != 0) {
-        fprintf(stderr, "flockmorph: error: cannot write to the output directory %s: %s\n", dir, strerror(errno));
-        return FM_ERR_IO;
+    if (access(dir, W_OK | X_OK) != 0)
+        return fprintf(stderr, "flockmorph: error: -o %s: cannot write to the output directory: %s\n", dir,
+                       strerror(errno)), FM_ERR_USAGE;
+    for (int i = 0; i < count; i++) {
+        int rc = check_output_name(dir, names[i]);
+        if (rc) return rc;
     }
-    (void)err;
     return 0;
 }
 

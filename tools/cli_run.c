@@ -127,8 +127,19 @@ static json_t *mde_frames_json(const fm_run_stats *rs)
     return a;
 }
 
+/* The model's warnings and the run's own (stopped at the frame limit), printed and kept for stats.json. */
+typedef struct run_warnings {
+    json_t *list;
+} run_warnings;
+
+static void add_warning(run_warnings *w, const char *text)
+{
+    fprintf(stderr, "flockmorph: warning: %s\n", text);
+    json_array_append_new(w->list, json_string(text));
+}
+
 static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
-                       int threads, double preprocess_seconds, const char *cache_path)
+                       int threads, double preprocess_seconds, const char *cache_path, const run_warnings *warnings)
 {
     json_t *j = json_object();
     json_object_set_new(j, "agents", json_integer(mi->agents));
@@ -161,14 +172,18 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "threads", json_integer(threads));
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     json_object_set_new(j, "cache", json_string(cache_path));
+    json_object_set(j, "warnings", warnings->list);
     fm_output_file out;
     fm_error err = {0};
     fm_status st = fm_output_open(&out, path, &err);
     if (st == FM_OK) {
         if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
             st = fm_output_commit(&out, NULL, &err);
-        else
-            fm_output_discard(&out), st = fm_fail(&err, FM_ERR_IO, "cannot write '%s'", path);
+        else {
+            int e = errno ? errno : EIO;
+            fm_output_discard(&out);
+            st = fm_fail(&err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
+        }
     }
     json_decref(j);
     return st == FM_OK ? 0 : cli_report(&err);
@@ -225,6 +240,7 @@ static int open_run(const run_options *o, const fm_scene_def *def, const fm_mode
             fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
                     "continues such a run)\n", files->checkpoint);
         remove_checkpoint(files); /* this run's cache replaces the one it describes */
+        remove(files->cache), remove(files->stats); /* the previous run's results must not pass for this one's */
         fm_cache_options copts = fm_default_cache_options();
         copts.compression_level = def->compression_level;
         copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
@@ -269,13 +285,30 @@ static int report_interrupted(const run_options *o, fm_cache_writer *cache, cons
     return 128 + g_stop_signal;
 }
 
+/* A failed run without a checkpoint leaves its cache as PATH.partial: say how much of it is
+ * readable, or remove it when nothing is. */
+static void report_partial_cache(const run_files *files)
+{
+    char partial[sizeof files->cache + 16];
+    snprintf(partial, sizeof partial, "%s.partial", files->cache);
+    fm_error ignored = {0};
+    fm_cache_reader *r = fm_cache_open(partial, &ignored);
+    if (r && fm_cache_frames(r) > 0)
+        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph inspect, "
+                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
+    else
+        remove(partial);
+    fm_cache_close(r);
+    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
+}
+
 /* A run that failed (a full disk, say) after a checkpoint can still be resumed once the cause is
  * fixed: keep the checkpoint and the partial cache. Without one, the partial cache goes. */
 static int report_failed(const run_options *o, const run_files *files, fm_cache_writer *cache, const fm_error *err)
 {
     int rc = cli_report(err);
-    if (access(files->checkpoint, F_OK) != 0) return fm_cache_writer_abort(cache), rc;
     fm_cache_writer_close_partial(cache);
+    if (access(files->checkpoint, F_OK) != 0) return report_partial_cache(files), rc;
     fprintf(stderr, "flockmorph: the last checkpoint and the partial cache are kept; once the problem is fixed, "
             "resume with: ");
     print_resume_command(o);
@@ -296,24 +329,32 @@ static fm_run_control run_control(const run_options *o, const run_files *files, 
 
 /* The cache, stats.json and the summary of a finished run; the checkpoint is no longer needed. */
 static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const run_files *files, fm_cache_writer *cache,
-                      fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying)
+                      fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying, run_warnings *warnings)
 {
     fm_error err = {0};
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(rs), cli_report(&err);
-    int rc = write_stats(files->stats, def, mi, rs, threads, prep_seconds, files->cache);
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) { /* finish keeps PATH.partial on failure */
+        int rc = cli_report(&err);
+        report_partial_cache(files);
+        return fm_run_stats_free(rs), rc;
+    }
+    if (!rs->all_arrived) {
+        char text[256];
+        snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
+                 "raise time.frame_limit in the scene", def->frame_limit, (long long)still_flying);
+        add_warning(warnings, text);
+    }
+    int rc = write_stats(files->stats, def, mi, rs, threads, prep_seconds, files->cache, warnings);
     fm_run_stats_free(rs);
     if (rc) return rc;
     remove_checkpoint(files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
            (long long)rs->steps, rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0.0);
-    if (!rs->all_arrived)
-        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
-                "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
     printf("cache: %s\nstats: %s\n", files->cache, files->stats);
     return 0;
 }
 
-static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
+static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds,
+                    run_warnings *warnings)
 {
     fm_error err = {0};
     int show = !o->quiet && isatty(STDERR_FILENO);
@@ -339,7 +380,7 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     fm_state_destroy(state);
     if (st == FM_STOPPED) return fm_run_stats_free(&rs), report_interrupted(o, cache, &rs);
     if (st != FM_OK) return fm_run_stats_free(&rs), report_failed(o, &files, cache, &err);
-    return finish_run(def, &mi, &files, cache, &rs, threads, prep_seconds, still_flying);
+    return finish_run(def, &mi, &files, cache, &rs, threads, prep_seconds, still_flying, warnings);
 }
 
 static int check_checkpoint(const run_options *o, const fm_scene_def *def)
@@ -359,7 +400,8 @@ int cli_run(int argc, char **argv)
     fm_error err = {0};
     fm_scene_def def;
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
-    if ((rc = cli_make_outdir(o.outdir, &err))) return rc;
+    const char *outputs[] = {def.cache_name, "stats.json"};
+    if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
     if (o.resume && (rc = check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
@@ -367,7 +409,10 @@ int cli_run(int argc, char **argv)
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n");
     if (!model) return cli_report(&err);
-    rc = simulate(&o, &def, model, prep_seconds);
+    run_warnings warnings = {json_array()};
+    for (int i = 0; i < fm_model_warning_count(model); i++) add_warning(&warnings, fm_model_warning(model, i));
+    rc = simulate(&o, &def, model, prep_seconds, &warnings);
+    json_decref(warnings.list);
     fm_model_destroy(model);
     return rc;
 }

@@ -178,6 +178,12 @@ typedef struct fm_model_info {
 
 fm_model_info fm_model_get_info(const fm_model *model);
 
+/* Input the engine accepts but the paper does not expect (source and target overlapping, FM §4),
+ * one message per warning, naming the scene file and key. The CLI prints them and lists them in
+ * stats.json "warnings". */
+int fm_model_warning_count(const fm_model *model);
+const char *fm_model_warning(const fm_model *model, int i);
+
 /* Target tet j's four vertices (12 floats, x y z per vertex) in world units. */
 const float *fm_model_target_tet(const fm_model *model, int64_t j);
 
@@ -231,7 +237,10 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
                                         int compression_level, fm_error *err);
 /* verts: agents × 12 floats. */
 fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err);
-fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err); /* frees w */
+/* Writes the index and renames PATH.partial to PATH; frees w. If anything failed (now or on the
+ * writer thread: disk full, file-size limit), PATH.partial stays, readable by fm_cache_open up to
+ * its last complete frame, and nothing is under PATH. */
+fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err);
 void fm_cache_writer_abort(fm_cache_writer *w);                       /* frees w, deletes file */
 
 typedef struct fm_cache_reader fm_cache_reader;
@@ -305,8 +314,9 @@ uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
  * checkpoint taken after it can rely on those frames being on disk. */
 fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
-/* Frees w and keeps PATH.partial with every frame written so far, for fm_cache_writer_resume (a
- * run stopped by a signal, or one that failed after a checkpoint). */
+/* Stops without an index: frees w and keeps PATH.partial with every frame written so far, readable
+ * by fm_cache_open up to its last complete frame and continued by fm_cache_writer_resume (a run
+ * stopped by a signal, or one that failed: disk full, file-size limit). */
 void fm_cache_writer_close_partial(fm_cache_writer *w);
 
 int fm_cache_attr_count(const fm_cache_reader *r);

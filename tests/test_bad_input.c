@@ -1,0 +1,690 @@
+/* Bad input through the CLI (docs/errors.md): every mistake a user can make in a scene, a mesh, a
+ * parameter or an output directory ends with exit status 1 (usage) or 2 (input) and a message that
+ * names the file, line and column, key or mesh element; disk full and file-size limits end with
+ * exit status 3, nothing under the final cache name and a partial cache readable up to its last
+ * complete frame. The bad meshes are written here (under the test's scratch directory). */
+#define _POSIX_C_SOURCE 200809L
+#include "flockmorph/flockmorph.h"
+#include "sim.h"
+#include "test_macros.h"
+#include "test_cli_helpers.h"
+
+#include <jansson.h>
+#include <malloc.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#if defined(__SANITIZE_ADDRESS__)
+size_t __sanitizer_get_current_allocated_bytes(void); /* libasan's (gcc installs no header for it) */
+#endif
+
+#define LEFT "\"translate\": [-10, 0, 0]"
+#define RIGHT "\"translate\": [10, 0, 0]"
+#define OCTAHEDRON "bad_octahedron.obj"
+
+static char *tmp_path(char *buf, const char *name)
+{
+    snprintf(buf, FM_PATH_MAX, "%s/bad_%s", FM_TEST_TMP, name);
+    return buf;
+}
+
+static char g_scene[FM_PATH_MAX];  /* the last scene written */
+static char g_scene_text[8192];    /* and its text */
+
+/* Writes scene `name`: `source` (a file in the scratch directory) with source_keys, morphing into
+ * the octahedron with target_keys, plus `extra` members. Returns its path. */
+static const char *scene(const char *name, const char *source, const char *source_keys, const char *target_keys,
+                         const char *extra)
+{
+    char oct[FM_PATH_MAX];
+    write_octahedron(tmp_path(oct, "octahedron.obj"));
+    snprintf(g_scene_text, sizeof g_scene_text,
+             "{\n  \"source\": {\"mesh\": \"%s\", %s},\n  \"target\": {\"mesh\": \"" OCTAHEDRON "\", %s}%s\n}\n",
+             source, source_keys, target_keys, extra);
+    write_text(tmp_path(g_scene, name), g_scene_text);
+    return g_scene;
+}
+
+/* The octahedron 20 units apart from itself, with `extra` members. */
+static const char *plain_scene(const char *name, const char *extra)
+{
+    return scene(name, OCTAHEDRON, LEFT, RIGHT, extra);
+}
+
+/* "SCENE:LINE:COL" of the first `needle` in the last scene's text. */
+static const char *scene_position(const char *needle, char *out, size_t size)
+{
+    const char *hit = strstr(g_scene_text, needle);
+    ENSURE_MSG(hit != NULL, "'%s' is not in the scene", needle);
+    int line = 1, col = 1;
+    for (const char *c = g_scene_text; hit && c < hit; c++) {
+        if (*c == '\n') line++, col = 1;
+        else col++;
+    }
+    snprintf(out, size, "%s:%d:%d: ", g_scene, line, col);
+    return out;
+}
+
+static char g_outdir[FM_PATH_MAX];
+
+/* Runs the scene into a fresh output directory; returns the exit status. */
+static int run_scene(const cli_env *env, const char *scene_path, const char *outdir_name)
+{
+    char args[3 * FM_PATH_MAX];
+    tmp_path(g_outdir, outdir_name);
+    snprintf(args, sizeof args, "rm -rf '%s'", g_outdir);
+    ENSURE(system(args) == 0);
+    if (env && env->unprivileged) mkdir(g_outdir, 0777), chmod(g_outdir, 0777); /* nobody may write it */
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
+    return cli_with(env, args);
+}
+
+/* Expects exit status `code` and every one of the NULL-terminated `parts` on stderr. */
+static void expect_output(int rc, int code, const char *what, const char *const *parts)
+{
+    ENSURE_MSG(rc == code, "%s: exit %d, expected %d\nstderr: %s", what, rc, code, g_err);
+    for (int i = 0; parts[i]; i++) ENSURE_MSG(strstr(g_err, parts[i]) != NULL, "%s: '%s' not in stderr: %s", what, parts[i], g_err);
+}
+
+#define EXPECT_RUN(scene_path, code, ...)                                                              \
+    expect_output(run_scene(NULL, (scene_path), "out"), (code), (scene_path), (const char *const[]){__VA_ARGS__, NULL})
+
+/* Runs as an unprivileged user (nobody) when the test is root, so that permissions apply. */
+#define EXPECT_RUN_UNPRIVILEGED(scene_path, outdir, code, ...)                                               \
+    do {                                                                                                     \
+        cli_env env_ = {0, 1};                                                                               \
+        int rc_ = run_scene(&env_, (scene_path), (outdir));                                                  \
+        if (rc_ == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");                  \
+        else expect_output(rc_, (code), (scene_path), (const char *const[]){__VA_ARGS__, NULL});            \
+    } while (0)
+
+static int exists(const char *path)
+{
+    struct stat st;
+    return lstat(path, &st) == 0;
+}
+
+/* ---------------------------------------------------------------- the scene file */
+
+static void test_scene_file_unreadable(void)
+{
+    char path[FM_PATH_MAX], dir[FM_PATH_MAX];
+    remove(tmp_path(path, "no_such_scene.json"));
+    EXPECT_RUN(path, 2, path, "cannot open the scene file", "No such file");
+    mkdir(tmp_path(dir, "scene_dir.json"), 0755);
+    EXPECT_RUN(dir, 2, dir, "cannot open the scene file: it is a directory");
+    const char *locked = plain_scene("locked.json", "");
+    chmod(locked, 0);
+    EXPECT_RUN_UNPRIVILEGED(locked, "out", 2, locked, "cannot open the scene file: Permission denied");
+    chmod(locked, 0644);
+}
+
+/* JSON has no NaN or infinity; a number too large for a double is jansson's syntax error. */
+static void test_scene_numbers_not_finite(void)
+{
+    static const char *const cases[][3] = {{"inf.json", "1e999", "real number overflow"},
+                                           {"nan.json", "NaN", "invalid token"},
+                                           {"minus_inf.json", "-Infinity", "invalid token"}};
+    for (int i = 0; i < 3; i++) {
+        char extra[64], where[FM_PATH_MAX + 32];
+        snprintf(extra, sizeof extra, ",\n  \"speed0\": %s", cases[i][1]);
+        const char *path = plain_scene(cases[i][0], extra);
+        snprintf(where, sizeof where, "%s:4:", path); /* jansson's line; its column is where it stopped */
+        EXPECT_RUN(path, 2, where, cases[i][2]);
+    }
+}
+
+/* Every numeric key with a lower bound, at a value below it: "@" marks where the value goes. */
+typedef struct bound_case {
+    const char *member; /* JSON member(s) with '@' for the value */
+    const char *key;    /* as the message names it */
+    int positive;       /* 1: must be > 0 (0 is tested too); 0: must be >= 0 */
+} bound_case;
+
+static const bound_case BOUND_CASES[] = {
+    {"\"n\": @", "n", 0},
+    {"\"speed0\": @", "speed0", 1},
+    {"\"omega1\": @", "omega1", 1},
+    {"\"launch_rate\": @", "launch_rate", 0},
+    {"\"seed\": @", "seed", 0},
+    {"\"tetgen\": {\"quality\": @}", "tetgen.quality", 1},
+    {"\"tetgen\": {\"max_volume\": @}", "tetgen.max_volume", 0},
+    {"\"time\": {\"frame_rate\": @}", "time.frame_rate", 1},
+    {"\"time\": {\"time_step\": @}", "time.time_step", 0},
+    {"\"time\": {\"frame_limit\": @}", "time.frame_limit", 1},
+    {"\"path\": {\"key_points\": @}", "path.key_points", 1},
+    {"\"path\": {\"width\": @}", "path.width", 0},
+    {"\"path\": {\"attraction\": @}", "path.attraction", 0},
+    {"\"morph\": {\"shrink\": @}", "morph.shrink", 1},
+    {"\"morph\": {\"shrink_time\": @}", "morph.shrink_time", 0},
+    {"\"morph\": {\"morph_fraction\": @}", "morph.morph_fraction", 1},
+    {"\"output\": {\"compression_level\": @}", "output.compression_level", 1},
+    {"\"style\": {\"omega2\": @}", "style.omega2", 0},
+    {"\"style\": {\"grid\": [4, @, 4]}", "style.grid", 0},
+    {"\"style\": {\"fields\": [{\"type\": \"curl_noise\", \"gain\": @}]}", "style.fields[0].gain", 0},
+    {"\"style\": {\"fields\": [{\"type\": \"curl_noise\", \"scale\": @}]}", "style.fields[0].scale", 1},
+    {"\"style\": {\"fields\": [{\"type\": \"wind\", \"speed\": @}]}", "style.fields[0].speed", 0},
+    {"\"style\": {\"fields\": [{\"type\": \"wind\", \"turbulence\": @}]}", "style.fields[0].turbulence", 0},
+    {"\"style\": {\"fields\": [{\"type\": \"wind\", \"scale\": @}]}", "style.fields[0].scale", 1},
+    {"\"style\": {\"fields\": [{\"type\": \"wind\", \"period\": @}]}", "style.fields[0].period", 0},
+    {"\"style\": {\"fields\": [{\"type\": \"gravity\", \"speed\": @}]}", "style.fields[0].speed", 0},
+    {"\"obstacles\": {\"k_a\": @}", "obstacles.k_a", 1},
+    {"\"obstacles\": {\"voxel\": @}", "obstacles.voxel", 0},
+    {"\"obstacles\": {\"meshes\": [{\"mesh\": \"" OCTAHEDRON "\", \"scale\": @}]}", "obstacles.meshes[0].scale", 1},
+    {"\"mde\": {\"d_min\": @}", "mde.d_min", 0},
+    {"\"mde\": {\"speed\": @}", "mde.speed", 0},
+};
+
+/* Writes the case's scene with `value` at the '@'. */
+static const char *write_bound_case(const bound_case *c, const char *value, int source_member)
+{
+    char member[512], extra[600];
+    const char *at = strchr(c->member, '@');
+    snprintf(member, sizeof member, "%.*s%s%s", (int)(at - c->member), c->member, value, at + 1);
+    snprintf(extra, sizeof extra, ",\n  %s", member);
+    return source_member ? scene("bound.json", OCTAHEDRON, member, RIGHT, "") : plain_scene("bound.json", extra);
+}
+
+/* Expects exit 2, the value's FILE:LINE:COL (where '@' was) and the key. */
+static void expect_below_bound(const bound_case *c, const char *value, int source_member)
+{
+    char where[FM_PATH_MAX + 32], expect[FM_PATH_MAX + 96];
+    write_bound_case(c, "@", source_member);
+    scene_position("@", where, sizeof where);
+    snprintf(expect, sizeof expect, "%s%s: ", where, c->key);
+    const char *path = write_bound_case(c, value, source_member);
+    EXPECT_RUN(path, 2, expect, "must be >");
+}
+
+static void test_numeric_keys_out_of_range(void)
+{
+    for (size_t i = 0; i < sizeof BOUND_CASES / sizeof BOUND_CASES[0]; i++) {
+        expect_below_bound(&BOUND_CASES[i], "-1", 0);
+        if (BOUND_CASES[i].positive) expect_below_bound(&BOUND_CASES[i], "0", 0);
+    }
+    const bound_case source_scale = {"\"scale\": @", "source.scale", 1};
+    expect_below_bound(&source_scale, "0", 1);
+    expect_below_bound(&source_scale, "-2", 1);
+}
+
+/* The octahedron scene with `extra`: exit 2, the position of `at` in the text, the key, `what`. */
+static void expect_scene_error(const char *name, const char *extra, const char *at, const char *key, const char *what)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene(name, extra);
+    EXPECT_RUN(path, 2, scene_position(at, where, sizeof where), key, what);
+}
+
+/* Values each fine alone that do not fit together. */
+static void test_scene_consistency(void)
+{
+    expect_scene_error("grid.json", ",\n  \"style\": {\"grid\": [8, 0, 8]}", "[8, 0, 8]", "style.grid", "give all three");
+    expect_scene_error("huge_grid.json", ",\n  \"style\": {\"grid\": [2048, 2048, 2048]}", "[2048", "style.grid",
+                       "more than the 2^28 supported");
+    expect_scene_error("gravity.json", ",\n  \"style\": {\"fields\": [{\"type\": \"gravity\", \"direction\": [0, 0, 0]}]}",
+                       "[0, 0, 0]", "style.fields[0].direction", "must not be [0, 0, 0]");
+    expect_scene_error("vortex.json", ",\n  \"style\": {\"fields\": [{\"type\": \"vortex\", \"axis\": [0, 0, 0]}]}",
+                       "[0, 0, 0]", "style.fields[0].axis", "must not be [0, 0, 0]");
+    expect_scene_error("tiny_step.json", ",\n  \"time\": {\"frame_rate\": 25, \"time_step\": 1e-9}", "1e-9",
+                       "time.time_step", "steps per frame");
+}
+
+static void test_output_cache_name(void)
+{
+    expect_scene_error("cache_slash.json", ",\n  \"output\": {\"cache\": \"sub/frames.fmc\"}", "\"sub/", "output.cache",
+                       "not a plain file name");
+    expect_scene_error("cache_empty.json", ",\n  \"output\": {\"cache\": \"\"}", "\"\"", "output.cache",
+                       "not a plain file name");
+}
+
+/* ---------------------------------------------------------------- meshes */
+
+/* A scene whose source is `mesh_name` (in the scratch directory); `where` gets the position of the
+ * source.mesh value. */
+static const char *mesh_scene(const char *mesh_name, char *where, size_t size)
+{
+    char file[FM_PATH_MAX], quoted[FM_PATH_MAX + 2];
+    snprintf(file, sizeof file, "bad_%s", mesh_name);
+    const char *path = scene("mesh.json", file, LEFT, RIGHT, "");
+    snprintf(quoted, sizeof quoted, "\"%s\"", file);
+    scene_position(quoted, where, size);
+    strncat(where, "source.mesh: ", size - strlen(where) - 1);
+    return path;
+}
+
+/* Runs a scene with the bad mesh as its source; expects exit 2, the scene position, the mesh's
+ * path and `what`. */
+static void expect_bad_mesh(const char *mesh_name, const char *what)
+{
+    char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+    const char *path = mesh_scene(mesh_name, where, sizeof where);
+    EXPECT_RUN(path, 2, where, tmp_path(mesh, mesh_name), what);
+}
+
+static void write_mesh(const char *name, const char *text)
+{
+    char path[FM_PATH_MAX];
+    write_text(tmp_path(path, name), text);
+}
+
+static void test_mesh_file_unreadable(void)
+{
+    char mesh[FM_PATH_MAX];
+    remove(tmp_path(mesh, "missing.obj"));
+    expect_bad_mesh("missing.obj", "cannot open the mesh: No such file");
+    mkdir(tmp_path(mesh, "folder.obj"), 0755);
+    expect_bad_mesh("folder.obj", "cannot open the mesh: it is a directory");
+    write_octahedron(tmp_path(mesh, "locked.obj"));
+    chmod(mesh, 0);
+    char where[FM_PATH_MAX + 64];
+    const char *path = mesh_scene("locked.obj", where, sizeof where);
+    EXPECT_RUN_UNPRIVILEGED(path, "locked_out", 2, where, mesh, "cannot open the mesh: Permission denied");
+    chmod(mesh, 0644);
+}
+
+static void test_mesh_empty_or_not_a_mesh(void)
+{
+    write_mesh("empty.obj", "");
+    expect_bad_mesh("empty.obj", "cannot read the mesh");
+    write_mesh("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n");
+    expect_bad_mesh("points.obj", "cannot read the mesh");
+    write_mesh("mesh.xyz", "solid nonsense\n 1 2 3\n");
+    expect_bad_mesh("mesh.xyz", "supported: OBJ, PLY, STL, OFF, glTF");
+    write_mesh("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+    expect_bad_mesh("nan.obj", "non-finite");
+}
+
+/* Random bytes under each known extension: an error naming the file, never a crash. */
+static void test_mesh_garbage_bytes(void)
+{
+    static const char *names[] = {"garbage.obj", "garbage.ply", "garbage.stl", "garbage.off", "garbage.gltf", "garbage.glb"};
+    uint64_t rng = 7;
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        char path[FM_PATH_MAX];
+        FILE *f = fopen(tmp_path(path, names[i]), "wb");
+        ENSURE(f != NULL);
+        if (!f) return;
+        for (int k = 0; k < 4000; k++) fputc((int)(test_next_u64(&rng) & 0xFF), f);
+        fclose(f);
+        expect_bad_mesh(names[i], names[i]);
+    }
+}
+
+/* The octahedron without its last triangle: three edges have one triangle each. */
+static void test_mesh_open(void)
+{
+    char path[FM_PATH_MAX], text[1024];
+    write_octahedron(tmp_path(path, "open.obj"));
+    slurp(path, text, sizeof text);
+    *strrchr(text, 'f') = 0;
+    write_mesh("open.obj", text);
+    expect_bad_mesh("open.obj", "has no neighbour: the surface has a hole there");
+}
+
+/* Octahedra centred at the origin and at (1, 1, 0) share the edge (1, 0, 0)-(0, 1, 0) and
+ * nothing else: four triangles meet at it. */
+static void test_mesh_non_manifold(void)
+{
+    char path[FM_PATH_MAX];
+    write_octahedra(tmp_path(path, "shared_edge.obj"), (const double[][3]){{0, 0, 0}, {1, 1, 0}}, 2);
+    expect_bad_mesh("shared_edge.obj", "is shared by more than two triangles");
+}
+
+/* Octahedra centred at the origin and at (1, 0, 0): the first one's four +x triangles (1, 3, 5,
+ * 7) cross the second one's four -x triangles (8 + 2, 4, 6, 8); no other pair meets. TetGen's
+ * detection names them. */
+static void test_mesh_self_intersecting(void)
+{
+    char path[FM_PATH_MAX];
+    write_octahedra(tmp_path(path, "crossing.obj"), (const double[][3]){{0, 0, 0}, {1, 0, 0}}, 2);
+    expect_bad_mesh("crossing.obj", "the surface intersects itself: TetGen finds triangles 1, 3, 5, 7, 10, 12, 14, 16 crossing");
+}
+
+static void test_mesh_degenerate(void)
+{
+    /* a tetrahedron whose bottom edge (0,0,0)-(2,0,0) is split at (1,0,0) on one side only, closed
+     * by the zero-area triangle 3 along that edge */
+    write_mesh("zero_area.obj", "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 0 0 2\nv 1 0 0\n"
+                                "f 1 3 5\nf 5 3 2\nf 1 5 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+    expect_bad_mesh("zero_area.obj", "triangle 3 (corner (0, 0, 0)) is degenerate: zero area");
+    /* two triangles back to back: closed and manifold, but flat (TetGen used to abort on it) */
+    write_mesh("flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 3 2\n");
+    expect_bad_mesh("flat.obj", "the mesh encloses no volume");
+    /* the same, tilted out of the axis planes */
+    write_mesh("tilted.obj", "v 0 0 0\nv 1 1 0\nv 0 1 1\nf 1 2 3\nf 1 3 2\n");
+    expect_bad_mesh("tilted.obj", "the mesh encloses no volume");
+}
+
+/* ---------------------------------------------------------------- n */
+
+static void test_n_too_small(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("n_small.json", ",\n  \"n\": 2");
+    EXPECT_RUN(path, 2, scene_position("2\n", where, sizeof where), "n: 2 is smaller than the", "tets TetGen made for");
+}
+
+/* Bytes allocated on the heap now (glibc's accounting, or ASan's under the sanitizer build). */
+static double allocated_bytes(void)
+{
+#if defined(__SANITIZE_ADDRESS__)
+    return (double)__sanitizer_get_current_allocated_bytes();
+#else
+    struct mallinfo2 mi = mallinfo2();
+    return (double)mi.uordblks + (double)mi.hblkhd;
+#endif
+}
+
+/* The estimate follows the real allocations: model, agent store, the run's frame and the cache
+ * writer's buffers for 200000 agents, measured by the allocator. */
+static void test_memory_estimate_matches_allocations(void)
+{
+    char mesh[FM_PATH_MAX], cache[FM_PATH_MAX];
+    write_octahedron(tmp_path(mesh, "octahedron.obj"));
+    fm_scene_def def = fm_default_scene_def();
+    snprintf(def.source.path, sizeof def.source.path, "%s", mesh);
+    snprintf(def.target.path, sizeof def.target.path, "%s", mesh);
+    def.source.translate[0] = -10, def.target.translate[0] = 10;
+    def.n = 200000;
+    fm_error err = {0};
+    double before = allocated_bytes();
+    fm_model *model = fm_model_build(&def, NULL, NULL, &err);
+    fm_state *state = model ? fm_state_create(model, 1, &err) : NULL;
+    float *frame = malloc(sizeof(float) * 12 * (size_t)def.n);
+    fm_cache_writer *w = state ? fm_cache_writer_create(tmp_path(cache, "estimate.fmc"), (uint64_t)def.n, 24, 1, &err) : NULL;
+    ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
+    double used = allocated_bytes() - before;
+    fm_memory_estimate e = fm_memory_estimate_run(&def, def.n);
+    double estimated = (e.model + e.state + e.frames) * (double)def.n;
+    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
+               used, estimated, used / (double)def.n, estimated / (double)def.n);
+    printf("  allocated %.1f bytes per agent, estimated %.1f\n", used / (double)def.n, estimated / (double)def.n);
+    fm_cache_writer_abort(w);
+    free(frame);
+    fm_state_destroy(state);
+    fm_model_destroy(model);
+}
+
+/* n beyond physical memory is refused before anything is built, with the estimate. */
+static void test_n_too_large_for_memory(void)
+{
+    fm_scene_def def = fm_default_scene_def();
+    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_run(&def, 1000).per_agent;
+    long long n = (long long)(1.25 * physical / per_agent);
+    if (physical <= 0 || n > 1000000000) {
+        printf("  (skipped: this machine's memory fits the largest n a scene accepts)\n");
+        return;
+    }
+    char extra[64], where[FM_PATH_MAX + 32], need[96];
+    snprintf(extra, sizeof extra, ",\n  \"n\": %lld", n);
+    const char *path = plain_scene("n_large.json", extra);
+    snprintf(extra, sizeof extra, "%lld", n);
+    fm_memory_estimate e = fm_memory_estimate_run(&def, n);
+    snprintf(need, sizeof need, "n: %lld agents need about %.1f GiB (%.0f bytes per agent", n, e.total / 1073741824.0, e.per_agent);
+    EXPECT_RUN(path, 2, scene_position(extra, where, sizeof where), need, "physical memory", "docs/limits.md");
+}
+
+/* ---------------------------------------------------------------- the path and obstacles */
+
+static void test_path_too_short(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = scene("path_short.json", OCTAHEDRON, "\"translate\": [3, 0, 0]", "\"translate\": [3, 0, 0]", "");
+    EXPECT_RUN(path, 2, scene_position("[3, 0, 0]}\n}", where, sizeof where), "target.translate",
+               "fewer than two distinct points");
+}
+
+#define OBSTACLE_AT(where) ",\n  \"obstacles\": {\"meshes\": [{\"mesh\": \"" OCTAHEDRON "\", " where "}]}"
+
+static void test_path_end_inside_obstacle(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("path_last.json", ",\n  \"path\": {\"points\": [[0, 6, 0], [0.2, 0, 0]]}"
+                                   OBSTACLE_AT("\"translate\": [0, 0, 0]"));
+    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[1]: the last path point (0.2, 0, 0) lies inside obstacles.meshes[0]");
+    path = plain_scene("path_first.json", ",\n  \"path\": {\"points\": [[0.2, 0, 0], [0, 6, 0]]}"
+                       OBSTACLE_AT("\"translate\": [0, 0, 0]"));
+    EXPECT_RUN(path, 2, scene_position("[0.2, 0, 0]", where, sizeof where), "path.points[0]: the first path point (0.2, 0, 0) lies inside obstacles.meshes[0]");
+    /* a source of two octahedra 6 apart has its centroid C_S between them, in the obstacle there */
+    char mesh[FM_PATH_MAX];
+    write_octahedra(tmp_path(mesh, "pair.obj"), (const double[][3]){{-3, 0, 0}, {3, 0, 0}}, 2);
+    path = scene("centroid.json", "bad_pair.obj", LEFT, "\"translate\": [20, 0, 0]",
+                 OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.5"));
+    EXPECT_RUN(path, 2, scene_position("{\"mesh\": \"" OCTAHEDRON "\", \"translate\": [-10", where, sizeof where),
+               "the source centroid C_S (where the path starts) (-10, 0, 0) lies inside obstacles.meshes[0]");
+}
+
+static void test_obstacle_overlaps_source_or_target(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("obstacle_cross.json", OBSTACLE_AT("\"translate\": [-9, 0, 0]"));
+    EXPECT_RUN(path, 2, scene_position("{\"mesh\": \"" OCTAHEDRON "\", \"translate\": [-9", where, sizeof where),
+               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect");
+    path = plain_scene("obstacle_around.json", OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"));
+    EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]");
+    path = plain_scene("obstacle_inside.json", OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"));
+    EXPECT_RUN(path, 2, "the obstacle overlaps the source: obstacles.meshes[0] lies inside the source");
+}
+
+/* FM assumes source and target apart; overlapping ones run, with a warning on stderr and in
+ * stats.json. */
+static void test_source_target_overlap_warns(void)
+{
+    char where[FM_PATH_MAX + 32], stats[FM_PATH_MAX + 16];
+    const char *path = scene("overlap.json", OCTAHEDRON, "\"translate\": [0, 0, 0]", "\"translate\": [0.5, 0, 0]", "");
+    scene_position("[0.5, 0, 0]", where, sizeof where);
+    EXPECT_RUN(path, 0, "flockmorph: warning: ", where, "target.translate: the source and target overlap");
+    snprintf(stats, sizeof stats, "%s/stats.json", g_outdir);
+    json_t *j = json_load_file(stats, 0, NULL);
+    json_t *w = json_object_get(j, "warnings");
+    ENSURE_MSG(json_is_array(w) && json_array_size(w) == 1, "%s: warnings", stats);
+    const char *text = json_string_value(json_array_get(w, 0));
+    ENSURE_MSG(text && strstr(text, where) && strstr(text, "overlap"), "warning '%s'", text ? text : "");
+    ENSURE(json_is_true(json_object_get(j, "all_arrived")));
+    json_decref(j);
+    /* apart: no warning */
+    path = plain_scene("apart.json", "");
+    EXPECT_RUN(path, 0, "");
+    ENSURE_MSG(strstr(g_err, "warning") == NULL, "%s", g_err);
+    j = json_load_file(stats, 0, NULL);
+    ENSURE(json_is_array(json_object_get(j, "warnings")) && json_array_size(json_object_get(j, "warnings")) == 0);
+    json_decref(j);
+}
+
+/* ---------------------------------------------------------------- the output directory */
+
+static void test_output_directory(void)
+{
+    char args[3 * FM_PATH_MAX], parent[FM_PATH_MAX], out[FM_PATH_MAX + 16];
+    const char *path = plain_scene("outdir.json", "");
+    /* a parent that is a regular file cannot hold directories */
+    write_text(tmp_path(parent, "plain_file"), "x");
+    snprintf(args, sizeof args, "run '%s' -o '%s/sub/out' --quiet", path, parent);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "cannot create the output directory") && strstr(g_err, "Not a directory"), "%s", g_err);
+    /* an output name taken by a directory would fail only after the whole run */
+    snprintf(out, sizeof out, "%s/frames.fmc", tmp_path(parent, "taken"));
+    mkdir(parent, 0755), mkdir(out, 0755);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, parent);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, out) && strstr(g_err, "a directory of that name is in the way"), "%s", g_err);
+    /* permissions: a read-only directory, and a missing one under it */
+    mkdir(tmp_path(parent, "read_only"), 0755);
+    chmod(parent, 0555);
+    cli_env env = {0, 1};
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, parent);
+    int rc = cli_with(&env, args);
+    if (rc == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");
+    else expect_output(rc, 1, parent, (const char *const[]){"cannot write to the output directory", "Permission denied", NULL});
+    snprintf(args, sizeof args, "run '%s' -o '%s/new' --quiet", path, parent);
+    rc = cli_with(&env, args);
+    if (rc != CLI_NOT_RUN)
+        expect_output(rc, 1, parent, (const char *const[]){"cannot create the output directory", "Permission denied", NULL});
+    chmod(parent, 0755);
+}
+
+/* ---------------------------------------------------------------- resource limits */
+
+/* Reads every frame of a cache into one array (frames × agents × 12 floats). */
+static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, char *warning, size_t size)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return NULL;
+    *frames = fm_cache_frames(r), *agents = fm_cache_agents(r);
+    snprintf(warning, size, "%s", fm_cache_warning(r));
+    size_t per_frame = 12 * (size_t)*agents;
+    float *all = malloc(sizeof(float) * per_frame * (*frames ? *frames : 1));
+    for (uint32_t f = 0; all && f < *frames; f++)
+        ENSURE_MSG(fm_cache_read_frame(r, f, all + per_frame * f, &err) == FM_OK, "%s", err.message);
+    fm_cache_close(r);
+    return all;
+}
+
+/* The file-size limit stops the cache midway: exit 3 naming the file and the reason, nothing under
+ * the final name, no stats.json (not even the last run's), and the partial cache holds complete
+ * frames equal to the unlimited run's. */
+static void test_file_size_limit(void)
+{
+    char cache[FM_PATH_MAX + 16], partial[FM_PATH_MAX + 32], stats[FM_PATH_MAX + 16], warning[FM_PATH_MAX + 200];
+    const char *path = plain_scene("limit.json", ",\n  \"n\": 300");
+    ENSURE(run_scene(NULL, path, "limit_full") == 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    struct stat st;
+    ENSURE(stat(cache, &st) == 0);
+    uint32_t frames = 0, got = 0;
+    uint64_t agents = 0, got_agents = 0;
+    float *full = read_frames(cache, &frames, &agents, warning, sizeof warning);
+    ENSURE(full != NULL && frames > 4);
+
+    tmp_path(g_outdir, "limit_cut");
+    mkdir(g_outdir, 0755);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    snprintf(partial, sizeof partial, "%s.partial", cache);
+    snprintf(stats, sizeof stats, "%s/stats.json", g_outdir);
+    write_text(cache, "an older run's cache"), write_text(stats, "{\"all_arrived\": true}");
+    remove(partial);
+    char args[3 * FM_PATH_MAX];
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, g_outdir);
+    cli_env limited = {(long long)st.st_size / 2, 0};
+    int rc = cli_with(&limited, args);
+    expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
+                  "complete frames written before the error are in", "no stats.json", NULL});
+    ENSURE_MSG(!exists(cache) && !exists(stats), "a final cache or stats.json is left in %s", g_outdir);
+    float *cut = read_frames(partial, &got, &got_agents, warning, sizeof warning);
+    ENSURE_MSG(got >= 1 && got < frames && got_agents == agents, "%u of %u frames recovered", got, frames);
+    ENSURE_MSG(strstr(warning, "incomplete cache") != NULL, "warning '%s'", warning);
+    if (full && cut) ENSURE(memcmp(full, cut, sizeof(float) * 12 * (size_t)agents * got) == 0);
+    char said[64];
+    snprintf(said, sizeof said, "the %u complete frames", got);
+    ENSURE_MSG(strstr(g_err, said) != NULL, "'%s' not in %s", said, g_err);
+    free(full), free(cut);
+    remove(partial);
+}
+
+/* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
+ * test) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
+ * its PATH.partial holds the frames that fitted, bit for bit. */
+static void test_cache_writer_keeps_partial(void)
+{
+    enum { AGENTS = 2000, FRAMES = 8 };
+    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16], warning[FM_PATH_MAX + 200];
+    snprintf(partial, sizeof partial, "%s.partial", tmp_path(path, "writer.fmc"));
+    remove(path), remove(partial);
+    float *frames = malloc(sizeof(float) * 12 * AGENTS * FRAMES);
+    uint64_t rng = 11;
+    for (size_t i = 0; frames && i < 12 * (size_t)AGENTS * FRAMES; i++) frames[i] = (float)test_uniform(&rng);
+    ENSURE(frames != NULL);
+    if (!frames) return;
+    struct rlimit old, lowered;
+    getrlimit(RLIMIT_FSIZE, &old);
+    lowered = old;
+    lowered.rlim_cur = 64 + 3 * (24 + 12 * AGENTS * 4) + 12 * AGENTS * 2; /* random floats barely compress */
+    void (*previous)(int) = signal(SIGXFSZ, SIG_IGN);
+    ENSURE(setrlimit(RLIMIT_FSIZE, &lowered) == 0);
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(path, AGENTS, 24, 1, &err);
+    fm_status st = FM_OK;
+    for (int f = 0; w && f < FRAMES && st == FM_OK; f++) st = fm_cache_writer_add_frame(w, frames + 12 * AGENTS * f, &err);
+    fm_status finished = w ? fm_cache_writer_finish(w, &err) : FM_ERR_INTERNAL;
+    setrlimit(RLIMIT_FSIZE, &old);
+    signal(SIGXFSZ, previous);
+    ENSURE_MSG(finished == FM_ERR_IO && strstr(err.message, "File too large"), "status %d: %s", (int)finished, err.message);
+    ENSURE(!exists(path));
+    uint32_t got = 0;
+    uint64_t agents = 0;
+    float *read = read_frames(partial, &got, &agents, warning, sizeof warning);
+    ENSURE_MSG(got >= 2 && got < FRAMES && agents == AGENTS, "%u frames recovered", got);
+    if (read) ENSURE(memcmp(read, frames, sizeof(float) * 12 * AGENTS * got) == 0);
+    free(read), free(frames);
+    remove(partial);
+}
+
+/* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
+ * first for the cache, then for stats.json after a complete cache. */
+static void test_disk_full(void)
+{
+    struct stat st;
+    if (stat("/dev/full", &st) != 0) {
+        printf("  (skipped: no /dev/full)\n");
+        return;
+    }
+    char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], partial[FM_PATH_MAX + 48], stats[FM_PATH_MAX + 16];
+    char args[3 * FM_PATH_MAX];
+    const char *path = plain_scene("full.json", "");
+    mkdir(tmp_path(outdir, "full_out"), 0755);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
+    snprintf(partial, sizeof partial, "%s.partial", cache);
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    remove(cache), remove(stats), remove(partial);
+    ENSURE(symlink("/dev/full", partial) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, outdir);
+    int rc = cli(args);
+    expect_output(rc, 3, "disk full (cache)", (const char *const[]){partial, "No space left on device", "the disk is full", NULL});
+    ENSURE(!exists(cache) && !exists(stats));
+    remove(partial);
+
+    snprintf(partial, sizeof partial, "%s.partial", stats);
+    remove(partial);
+    ENSURE(symlink("/dev/full", partial) == 0);
+    rc = cli(args);
+    expect_output(rc, 3, "disk full (stats)", (const char *const[]){stats, "No space left on device", NULL});
+    ENSURE_MSG(!exists(stats), "stats.json written");
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err); /* the cache itself was complete */
+    ENSURE_MSG(r != NULL && !fm_cache_warning(r)[0], "%s", err.message);
+    fm_cache_close(r);
+    remove(partial);
+}
+
+int main(void)
+{
+    RUN_TEST(test_scene_file_unreadable);
+    RUN_TEST(test_scene_numbers_not_finite);
+    RUN_TEST(test_numeric_keys_out_of_range);
+    RUN_TEST(test_scene_consistency);
+    RUN_TEST(test_output_cache_name);
+    RUN_TEST(test_mesh_file_unreadable);
+    RUN_TEST(test_mesh_empty_or_not_a_mesh);
+    RUN_TEST(test_mesh_garbage_bytes);
+    RUN_TEST(test_mesh_open);
+    RUN_TEST(test_mesh_non_manifold);
+    RUN_TEST(test_mesh_self_intersecting);
+    RUN_TEST(test_mesh_degenerate);
+    RUN_TEST(test_n_too_small);
+    RUN_TEST(test_memory_estimate_matches_allocations);
+    RUN_TEST(test_n_too_large_for_memory);
+    RUN_TEST(test_path_too_short);
+    RUN_TEST(test_path_end_inside_obstacle);
+    RUN_TEST(test_obstacle_overlaps_source_or_target);
+    RUN_TEST(test_source_target_overlap_warns);
+    RUN_TEST(test_output_directory);
+    RUN_TEST(test_file_size_limit);
+    RUN_TEST(test_cache_writer_keeps_partial);
+    RUN_TEST(test_disk_full);
+    return test_result();
+}
