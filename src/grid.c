@@ -18,26 +18,34 @@ static void grid_zero(fm_grid *g)
     *g = (fm_grid){0};
 }
 
-fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err)
+/* The table for up to `agents` agents: the next power of two >= 2 agents slots (at least 64). A
+ * build sizes it for the agents it may list, not the capacity, so a build over few agents (most of
+ * them still waiting) costs little; a larger table never needs more than init allocated. */
+static void size_table(fm_grid *g, int64_t agents)
 {
-    grid_zero(g);
-    if (capacity < 0 || capacity > FM_GRID_MAX_CAPACITY)
-        return fm_fail(err, FM_ERR_INPUT, "grid capacity %lld out of range [0, %lld]", (long long)capacity,
-                       (long long)FM_GRID_MAX_CAPACITY);
     int log2_table = 6;
-    while ((INT64_C(1) << log2_table) < 2 * capacity) log2_table++;
+    while ((INT64_C(1) << log2_table) < 2 * agents) log2_table++;
     int64_t table = INT64_C(1) << log2_table;
     /* slots per coarse bucket: 2048 (8 KB of counts), more for huge tables so that buckets stay
      * <= 4096 (pass 2 then scatters to at most 4096 streams) */
     int log2_fine = 11;
     while (log2_fine < log2_table && (table >> log2_fine) > 4096) log2_fine++;
     if (log2_fine > log2_table) log2_fine = log2_table;
-
-    g->capacity = capacity;
     g->mask = (uint32_t)(table - 1);
     g->log2_table = log2_table;
     g->log2_fine = log2_fine;
     g->coarse = (int32_t)(table >> log2_fine);
+}
+
+fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err)
+{
+    grid_zero(g);
+    if (capacity < 0 || capacity > FM_GRID_MAX_CAPACITY)
+        return fm_fail(err, FM_ERR_INPUT, "grid capacity %lld out of range [0, %lld]", (long long)capacity,
+                       (long long)FM_GRID_MAX_CAPACITY);
+    size_table(g, capacity);
+    const int64_t table = (int64_t)g->mask + 1;
+    g->capacity = capacity;
     size_t cap = (size_t)(capacity > 0 ? capacity : 1);
     g->start = fm_alloc(sizeof(int32_t) * (size_t)(table + 1));
     g->quad = fm_alloc(sizeof(fm_grid_quad) * ((cap + FM_GRID_PAD + 3) / 4));
@@ -92,6 +100,7 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
     g->cell = cell;
     g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
     if (threads < 1) threads = 1;
+    size_table(g, n);
 
     const int32_t coarse = g->coarse;
     const int log2_fine = g->log2_fine;
