@@ -25,10 +25,11 @@ packages=(
   python3-numpy
   python3-zstandard
 )
-# Debian's Blender 3.4 runs the add-on's test (tests/blender/test_blender_import.py). It is 31
-# packages, a 70 MiB download and 270 MiB installed (measured on Debian 12 with --no-install-recommends), so it comes only when the tests need it:
-# tools/run-tests.sh sets FM_WITH_BLENDER=1 (FM_WITH_BLENDER=0 leaves it out and the test reports
-# SKIPPED); FM_WITH_BLENDER=1 tools/setup.sh installs it for using the add-on.
+# Debian's Blender 3.4 runs the add-on's test (tests/blender/test_blender_import.py). With
+# --no-install-recommends it is 31 packages, a 70 MiB download and 270 MiB installed (Debian 12),
+# so it comes only when the tests need it: tools/run-tests.sh sets FM_WITH_BLENDER=1
+# (FM_WITH_BLENDER=0 leaves it out, and the test reports SKIPPED). FM_WITH_BLENDER=1
+# tools/setup.sh installs it for using the add-on.
 if [ "${FM_WITH_BLENDER:-0}" = 1 ]; then
   packages+=(blender)
 fi
