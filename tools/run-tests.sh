@@ -2,8 +2,10 @@
 # Sets up (installs what is missing, builds) and runs the whole test suite with ctest.
 #   tools/run-tests.sh                 Release build in build/
 #   FM_SANITIZE=1 tools/run-tests.sh   AddressSanitizer + UndefinedBehaviorSanitizer build in build-asan/
+#   FM_WITH_BLENDER=0 tools/run-tests.sh   without installing Blender (test_blender is then skipped)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export FM_WITH_BLENDER=${FM_WITH_BLENDER:-1} # setup.sh installs Blender for test_blender
 if [ "${FM_SANITIZE:-0}" = 1 ]; then
   FM_BUILD_TYPE=Debug tools/setup.sh build-asan -DFM_SANITIZE=ON -DFM_WERROR=ON
   dir=build-asan

@@ -1,0 +1,87 @@
+"""flockmorph cache importer for Blender 3.4: File > Import > flockmorph cache (.fmc).
+
+Imports a cache written by `flockmorph run` as an animated mesh (four vertices and four triangles
+per tet) or as a point cloud (one vertex per agent, with velocity, orientation and rotation
+attributes for point flocks). docs/blender.md describes installation, the options, how the
+animation works (importer.py) and Geometry Nodes instancing.
+"""
+
+bl_info = {
+    "name": "flockmorph cache (.fmc)",
+    "author": "flockmorph",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "File > Import > flockmorph cache (.fmc)",
+    "description": "Import a flockmorph frame cache as an animated mesh or point cloud",
+    "category": "Import-Export",
+}
+
+if "importer" in locals():  # Blender's "Reload Scripts"
+    import importlib
+    importlib.reload(importer)  # noqa: F821 - bound by the import below on the first load
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
+
+from . import importer
+
+
+class IMPORT_SCENE_OT_flockmorph(bpy.types.Operator, ImportHelper):
+    """Import a flockmorph frame cache as an animated mesh or point cloud"""
+    bl_idname = "import_scene.flockmorph"
+    bl_label = "Import flockmorph cache"
+    bl_options = {"REGISTER", "UNDO", "PRESET"}
+
+    filename_ext = ".fmc"
+    filter_glob: StringProperty(default="*.fmc", options={"HIDDEN"})
+
+    mode: EnumProperty(
+        name="As",
+        items=[
+            ("AUTO", "Automatic", "A mesh for a tet cache, a point cloud for a point flock"),
+            ("MESH", "Mesh", "Four vertices and four triangles per tet"),
+            ("POINTS", "Point Cloud", "One vertex per agent: the tet's centroid, or the position of a point flock"),
+        ],
+        default="AUTO",
+    )
+    frame_first: IntProperty(name="First Frame", description="First cache frame to show", default=0, min=0)
+    frame_last: IntProperty(name="Last Frame", description="Last cache frame to show (-1: the cache's last)",
+                            default=-1, min=-1)
+    frame_step: IntProperty(name="Frame Step", description="Show every n-th cache frame", default=1, min=1)
+    start_frame: IntProperty(name="Start at Scene Frame", description="Scene frame that shows the first cache frame",
+                             default=1)
+    scale: FloatProperty(name="Scale", description="Multiplies positions and velocities", default=1.0,
+                         min=1e-6, soft_max=100.0)
+    set_scene: BoolProperty(name="Set Scene Frames and FPS",
+                            description="Set the scene's frame range and frame rate to play the cache at its own speed",
+                            default=True)
+
+    def execute(self, context):
+        try:
+            _, warning = importer.import_cache(
+                context, self.filepath, mode=self.mode, first=self.frame_first, last=self.frame_last,
+                step=self.frame_step, start=self.start_frame, scale=self.scale, set_scene=self.set_scene)
+        except ValueError as e:  # ImportFailed, and the reader's errors for files that are not caches
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        if warning:
+            self.report({"WARNING"}, warning)
+        return {"FINISHED"}
+
+
+def menu_func_import(self, context):
+    self.layout.operator(IMPORT_SCENE_OT_flockmorph.bl_idname, text="flockmorph cache (.fmc)")
+
+
+def register():
+    bpy.utils.register_class(IMPORT_SCENE_OT_flockmorph)
+    bpy.types.TOPBAR_MT_file_import.append(menu_func_import)
+    bpy.app.handlers.frame_change_pre.append(importer.on_frame_change)
+
+
+def unregister():
+    bpy.app.handlers.frame_change_pre.remove(importer.on_frame_change)
+    bpy.types.TOPBAR_MT_file_import.remove(menu_func_import)
+    bpy.utils.unregister_class(IMPORT_SCENE_OT_flockmorph)
+    importer.close_caches()

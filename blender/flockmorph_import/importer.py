@@ -1,0 +1,272 @@
+"""Turns a flockmorph cache (.fmc, docs/cache-format.md) into a Blender object and animates it.
+
+How the animation works, and why: the object's mesh keeps its topology, and a frame-change
+handler (`on_frame_change`, registered by the add-on) writes the positions of the scene's frame
+into it, read from the cache on demand. The cache has an index and per-frame chunks, so any frame
+is a random access that decodes one chunk (at most `key_interval` with delta encoding), and
+reading frames in order decodes one chunk each. Memory stays at one frame whatever the cache's
+length, and the file on disk stays the only copy of the animation. Shape keys baked per frame
+were the alternative: they need no add-on at render time, but they hold every frame in the .blend
+(48 bytes per tet and frame: 200 MB for 13,818 tets over 300 frames), and they cannot animate the
+velocity and orientation attributes that point flocks carry.
+
+The settings an object was imported with live on its mesh as the custom property "flockmorph",
+so a saved .blend animates again when it is opened with the add-on enabled.
+"""
+import importlib.util
+import os
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+
+def _load_reader():
+    """flockmorph_cache: the copy packaged next to this file (build/flockmorph_import.zip), or in
+    a source checkout the one source of truth, python/flockmorph_cache.py."""
+    try:
+        from . import flockmorph_cache
+        return flockmorph_cache
+    except ImportError:
+        pass
+    source = Path(__file__).resolve().parents[2] / "python" / "flockmorph_cache.py"
+    if not source.is_file():
+        raise ImportError("flockmorph_cache.py is missing: install the add-on from build/flockmorph_import.zip "
+                          "(docs/blender.md)")
+    spec = importlib.util.spec_from_file_location("flockmorph_cache", source)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+fmc = _load_reader()
+
+SETTINGS = "flockmorph"  # the mesh's custom property
+TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int32)  # outward, docs/cache-format.md
+MODES = ("AUTO", "MESH", "POINTS")
+
+
+class ImportFailed(ValueError):
+    """A cache that cannot be imported with the options given; the message says why."""
+
+
+# ---------------------------------------------------------------- open caches
+
+_open_caches = {}  # absolute path -> ((mtime_ns, size), flockmorph_cache.Cache)
+
+
+def open_cache(path):
+    """The open cache at `path`, reopened when the file changed on disk (a new run)."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise ImportFailed(f"{path}: cannot open: {e.strerror}") from None
+    stamp = (st.st_mtime_ns, st.st_size)
+    held = _open_caches.get(path)
+    if held and held[0] == stamp:
+        return held[1]
+    if held:
+        held[1].close()
+        del _open_caches[path]
+    cache = fmc.open(path)
+    _open_caches[path] = (stamp, cache)
+    return cache
+
+
+def close_caches():
+    for _, cache in _open_caches.values():
+        cache.close()
+    _open_caches.clear()
+
+
+# ---------------------------------------------------------------- frames and geometry
+
+def cache_frame(settings, scene_frame):
+    """The cache frame shown at `scene_frame`: `first` at scene frame `start`, then one cache
+    frame every `step`, held at the ends of the range."""
+    k = settings["first"] + (scene_frame - settings["start"]) * settings["step"]
+    return min(max(k, settings["first"]), settings["last"])
+
+
+def agent_points(cache, k):
+    """One point per agent at frame k: the `position` attribute, or the tet's centroid."""
+    if "position" in cache.attributes:
+        return cache.read(k, "position")
+    v = cache.read(k, "tet_vertices")
+    return (v[:, 0].astype(np.float64) + v[:, 1] + v[:, 2] + v[:, 3]) * 0.25  # 6x faster than mean(axis=1)
+
+
+def vertex_positions(cache, k, mode):
+    if mode == "MESH":
+        return cache.read(k, "tet_vertices").reshape(-1, 3)
+    return agent_points(cache, k)
+
+
+def euler_xyz(quaternions):
+    """Blender's XYZ Euler angles (R = Rz·Ry·Rx) of quaternions (w, x, y, z), shape (n, 3): the
+    Rotation input of Geometry Nodes' Instance on Points in Blender 3.4, which has no quaternion
+    type. A zero quaternion gives no rotation."""
+    q = np.asarray(quaternions, dtype=np.float64)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.where(norm > 0, q / np.where(norm > 0, norm, 1), [1.0, 0.0, 0.0, 0.0])
+    w, x, y, z = q.T
+    r00, r01 = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z)
+    r10, r11 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z)
+    r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    cos_y = np.hypot(r00, r10)
+    locked = cos_y < 1e-6  # Y = ±90°: only X − Z (or X + Z) is defined; take Z = 0
+    ex = np.where(locked, np.arctan2(-r20 * r01, r11), np.arctan2(r21, r22))
+    ey = np.arctan2(-r20, cos_y)
+    ez = np.where(locked, 0.0, np.arctan2(r10, r00))
+    return np.stack([ex, ey, ez], axis=1)
+
+
+def agent_attributes(cache, k, scale):
+    """The mesh attributes of frame k, one row per agent: {name: (type, foreach key, values)}."""
+    out = {}
+    names = cache.attributes
+    if "velocity" in names:
+        out["velocity"] = ("FLOAT_VECTOR", "vector", cache.read(k, "velocity") * scale)
+    if "orientation" in names:
+        q = cache.read(k, "orientation")
+        out["orientation"] = ("FLOAT_COLOR", "color", q)  # w, x, y, z in the colour's r, g, b, a
+        out["rotation"] = ("FLOAT_VECTOR", "vector", euler_xyz(q))
+    for name in ("id", "phase"):
+        if name in names:
+            out[name] = ("INT", "value", cache.read(k, name).astype(np.int32))
+    return out
+
+
+def build_topology(mesh, agents, mode):
+    """Four vertices and four outward triangles per agent (MESH), or one vertex (POINTS)."""
+    if mode == "POINTS":
+        mesh.vertices.add(agents)
+        return
+    corners = (TET_FACES[None, :, :] + 4 * np.arange(agents, dtype=np.int32)[:, None, None]).reshape(-1)
+    faces = 4 * agents
+    mesh.vertices.add(4 * agents)
+    mesh.loops.add(corners.size)
+    mesh.polygons.add(faces)
+    mesh.loops.foreach_set("vertex_index", corners)
+    mesh.polygons.foreach_set("loop_start", np.arange(0, corners.size, 3, dtype=np.int32))
+    mesh.polygons.foreach_set("loop_total", np.full(faces, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+
+
+def load_frame(mesh, scene_frame):
+    """Writes the cache frame shown at `scene_frame` into the mesh: positions and attributes."""
+    settings = mesh[SETTINGS]
+    cache = open_cache(settings["cache"])
+    mode, scale = settings["mode"], settings["scale"]
+    per_agent = 4 if mode == "MESH" else 1
+    if cache.agents * per_agent != len(mesh.vertices):
+        raise ImportFailed(f"{settings['cache']}: the cache now has {cache.agents} agents, the object was imported "
+                           f"with {len(mesh.vertices) // per_agent}; import it again")
+    k = cache_frame(settings, scene_frame)
+    xyz = vertex_positions(cache, k, mode) * scale
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(xyz, dtype=np.float32).reshape(-1))
+    for name, (kind, key, values) in agent_attributes(cache, k, scale).items():
+        attr = mesh.attributes.get(name)
+        if attr is None:
+            attr = mesh.attributes.new(name, kind, "POINT")
+        values = np.repeat(values, per_agent, axis=0)
+        dtype = np.int32 if kind == "INT" else np.float32
+        attr.data.foreach_set(key, np.ascontiguousarray(values, dtype=dtype).reshape(-1))
+    mesh.update()
+
+
+# ---------------------------------------------------------------- import
+
+def choose_mode(cache, mode):
+    if mode not in MODES:
+        raise ImportFailed(f"mode must be one of {', '.join(MODES)}, not {mode!r}")
+    has_tets = "tet_vertices" in cache.attributes
+    if mode == "AUTO":
+        return "MESH" if has_tets else "POINTS"
+    if mode == "MESH" and not has_tets:
+        raise ImportFailed(f"{cache.path}: a point-flock cache has no tet_vertices to build a mesh from; "
+                           "import it as a point cloud")
+    if mode == "POINTS" and not has_tets and "position" not in cache.attributes:
+        raise ImportFailed(f"{cache.path}: the cache has neither tet_vertices nor position")
+    return mode
+
+
+def frame_range(cache, first, last, step):
+    """(first, last) cache frames, last = −1 meaning the cache's last frame and moved down onto
+    the step grid, so the animation ends on a frame it shows."""
+    if cache.frames == 0:
+        raise ImportFailed(f"{cache.path}: the cache has no frames")
+    if step < 1:
+        raise ImportFailed(f"frame step must be at least 1, not {step}")
+    if last < 0:
+        last = cache.frames - 1
+    if not 0 <= first <= last < cache.frames:
+        raise ImportFailed(f"{cache.path}: frame range {first} … {last} is not within the cache's "
+                           f"{cache.frames} frames (0 … {cache.frames - 1})")
+    return first, first + (last - first) // step * step
+
+
+def set_scene_timing(scene, cache, settings):
+    """Scene frames start … end show the imported frames at the cache's own speed."""
+    scene.frame_start = settings["start"]
+    scene.frame_end = settings["start"] + (settings["last"] - settings["first"]) // settings["step"]
+    rate = cache.frame_rate / settings["step"]
+    if rate > 0 and np.isfinite(rate):
+        scene.render.fps = max(1, round(rate))
+        scene.render.fps_base = scene.render.fps / rate  # Blender's frame rate is fps / fps_base
+
+
+def import_cache(context, path, mode="AUTO", first=0, last=-1, step=1, start=1, scale=1.0, set_scene=True):
+    """Creates the animated object of the cache at `path` in the active collection and returns
+    (object, warning or None). Raises ImportFailed (a ValueError) with a message for the user."""
+    path = os.path.abspath(bpy.path.abspath(path))
+    cache = open_cache(path)
+    if cache.agents == 0:
+        raise ImportFailed(f"{path}: the cache has no agents")
+    if not scale > 0:
+        raise ImportFailed(f"scale must be positive, not {scale}")
+    mode = choose_mode(cache, mode)
+    first, last = frame_range(cache, first, last, step)
+    settings = {"cache": path, "mode": mode, "first": first, "last": last, "step": step, "start": start,
+                "scale": float(scale)}
+    name = f"{Path(path).parent.name}_{Path(path).stem}"
+    mesh = bpy.data.meshes.new(name)
+    build_topology(mesh, cache.agents, mode)
+    mesh[SETTINGS] = settings
+    obj = bpy.data.objects.new(name, mesh)
+    context.collection.objects.link(obj)
+    for other in context.view_layer.objects:
+        other.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    scene = context.scene
+    if set_scene:
+        set_scene_timing(scene, cache, settings)
+    # The handler changes mesh data while frames render: Blender needs the interface locked then.
+    scene.render.use_lock_interface = True
+    load_frame(mesh, scene.frame_current)
+    return obj, cache.warning
+
+
+# ---------------------------------------------------------------- the handler
+
+_reported = set()  # (mesh, message) pairs already printed, so a missing file is reported once
+
+
+def animated_meshes(scene):
+    meshes = {}
+    for obj in scene.objects:
+        if obj.type == "MESH" and SETTINGS in obj.data:
+            meshes[obj.data.name_full] = obj.data
+    return meshes.values()
+
+
+@bpy.app.handlers.persistent
+def on_frame_change(scene, *_):
+    for mesh in animated_meshes(scene):
+        try:
+            load_frame(mesh, scene.frame_current)
+        except (ValueError, OSError, KeyError, IndexError) as e:
+            if (mesh.name_full, str(e)) not in _reported:
+                _reported.add((mesh.name_full, str(e)))
+                print(f"flockmorph: {mesh.name_full}: {e}")
