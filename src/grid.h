@@ -110,26 +110,4 @@ static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, in
     return ((uint32_t)cx + fm_grid_row(g, cy, cz)) & g->mask;
 }
 
-/* The distinct slots of the 27 cells around the cell of (x, y, z), in increasing order (so a walk
- * over them visits every agent once, in an order that depends only on the grid); returns how many
- * (<= 27). Every listed agent within `cell` of the point is in one of them. A plain scalar walk for
- * kernels that do not need the row-run layout the MDE kernel exploits. */
-static inline int fm_grid_neighbour_slots(const fm_grid *g, float x, float y, float z, uint32_t slots[27])
-{
-    const int32_t cx = fm_grid_coord(fm_grid_scaled(g, x)), cy = fm_grid_coord(fm_grid_scaled(g, y));
-    const int32_t cz = fm_grid_coord(fm_grid_scaled(g, z));
-    int count = 0;
-    for (int dz = -1; dz <= 1; dz++)
-        for (int dy = -1; dy <= 1; dy++)
-            for (int dx = -1; dx <= 1; dx++) {
-                uint32_t s = fm_grid_slot(g, cx + dx, cy + dy, cz + dz);
-                int at = count;
-                while (at > 0 && slots[at - 1] > s) at--; /* insertion sort, duplicates dropped */
-                if (at > 0 && slots[at - 1] == s) continue;
-                for (int j = count; j > at; j--) slots[j] = slots[j - 1];
-                slots[at] = s, count++;
-            }
-    return count;
-}
-
 #endif
