@@ -62,23 +62,15 @@ static const double GX[16] = {1, -1, 1, -1, 1, -1, 1, -1, 0, 0, 0, 0, 1, 0, -1, 
 static const double GY[16] = {1, 1, -1, -1, 0, 0, 0, 0, 1, -1, 1, -1, 1, -1, 1, -1};
 static const double GZ[16] = {0, 0, 0, 0, 1, 1, -1, -1, 1, 1, -1, -1, 0, 1, 0, -1};
 
-static uint64_t splitmix64(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
 /* Potential `which` (0..2) of field `index`: a Fisher-Yates shuffle driven by its own splitmix64
    stream, which starts at a point derived from the scene seed, the field index and `which`. */
 static void make_perm(uint64_t seed, int index, int which, uint8_t perm[2 * PERM])
 {
     uint64_t s = seed;
-    s = splitmix64(&s) + 0xD1B54A32D192ED03ull * (uint64_t)(3 * (int64_t)index + which + 1);
+    s = fm_splitmix64(&s) + 0xD1B54A32D192ED03ull * (uint64_t)(3 * (int64_t)index + which + 1);
     for (int i = 0; i < PERM; i++) perm[i] = (uint8_t)i;
     for (int i = PERM - 1; i > 0; i--) {
-        int j = (int)(((splitmix64(&s) >> 32) * (uint64_t)(i + 1)) >> 32);
+        int j = (int)(((fm_splitmix64(&s) >> 32) * (uint64_t)(i + 1)) >> 32);
         uint8_t tmp = perm[i];
         perm[i] = perm[j];
         perm[j] = tmp;

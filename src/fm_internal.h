@@ -6,6 +6,7 @@
 
 #include <stdarg.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #define FM_ALIGN 64
@@ -34,6 +35,30 @@ void fm_output_discard(fm_output_file *o);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);
+
+/* splitmix64 (Steele, Lea & Flood 2014): the next value of a well-mixed 64-bit stream. */
+static inline uint64_t fm_splitmix64(uint64_t *state)
+{
+    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+/* Counter-based randomness: 64 random bits that depend only on (seed, stream, index), so any
+ * thread may draw them in any order. */
+static inline uint64_t fm_random_bits(uint64_t seed, uint64_t stream, uint64_t index)
+{
+    uint64_t s = seed ^ (stream * 0xD1B54A32D192ED03ull);
+    s = fm_splitmix64(&s) ^ index;
+    return fm_splitmix64(&s);
+}
+
+/* fm_random_bits mapped to [0, 1) with 53 bits. */
+static inline double fm_random_unit(uint64_t seed, uint64_t stream, uint64_t index)
+{
+    return (double)(fm_random_bits(seed, stream, index) >> 11) * 0x1p-53;
+}
 
 #define FM_MIN(a, b) ((a) < (b) ? (a) : (b))
 #define FM_MAX(a, b) ((a) > (b) ? (a) : (b))

@@ -1,6 +1,7 @@
 /* 3x3 matrices, polar decomposition, rotations, and the minimal enclosing sphere.
  * See fm_math.h for the contracts. */
 #include "fm_math.h"
+#include "fm_internal.h"
 
 #include <float.h>
 #include <math.h>
@@ -563,14 +564,6 @@ static void fm_msph_bounds(fm_msph *ms, size_t n)
     double h = fm_norm3(half);
     ms->tol_abs = FM_SPHERE_TOL_ABS * h;
     ms->bound = h * (1.0 + 1e-9) + ms->tol_abs;
-}
-
-static uint64_t fm_splitmix64(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9E3779B97F4A7C15u);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-    return z ^ (z >> 31);
 }
 
 /* Fisher-Yates; the modulo bias (< n / 2^64) does not matter for a visiting order. */

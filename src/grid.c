@@ -174,3 +174,30 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
         /* now cnt[j] = end of slot s0 + j = start of slot s0 + j + 1 */
     }
 }
+
+int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * FM_GRID_MAX_RANGES])
+{
+    const int32_t cx = fm_grid_coord(fm_grid_scaled(g, x)), cy = fm_grid_coord(fm_grid_scaled(g, y)),
+                  cz = fm_grid_coord(fm_grid_scaled(g, z));
+    uint32_t seen[FM_GRID_MAX_RANGES];
+    int ns = 0, nr = 0;
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++) {
+            const uint32_t base = (uint32_t)(cx - 1) + fm_grid_row(g, cy + dy, cz + dz);
+            uint32_t prev = FM_GRID_NONE;
+            for (uint32_t o = 0; o < 3; o++) {
+                const uint32_t s = (base + o) & g->mask;
+                int dup = 0;
+                for (int j = 0; j < ns; j++) dup |= seen[j] == s;
+                if (dup) {
+                    prev = FM_GRID_NONE;
+                    continue;
+                }
+                seen[ns++] = s;
+                if (prev != FM_GRID_NONE && s == prev + 1) rk[2 * nr - 1] = g->start[s + 1]; /* extend */
+                else rk[2 * nr] = g->start[s], rk[2 * nr + 1] = g->start[s + 1], nr++;
+                prev = s;
+            }
+        }
+    return nr;
+}

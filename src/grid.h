@@ -110,4 +110,12 @@ static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, in
     return ((uint32_t)cx + fm_grid_row(g, cy, cz)) & g->mask;
 }
 
+/* The listed entries of the 27 cells around the cell of (x, y, z): up to 27 ranges
+ * [rk[2r], rk[2r + 1]) of the sorted entries (g->quad), each slot once even when hashing maps two
+ * of the cells to it; runs of consecutive slots are merged. Returns the number of ranges. Distinct
+ * cells can share a slot, so callers filter by distance. A walk for any caller; the MDE kernel
+ * keeps its own pipelined one. */
+#define FM_GRID_MAX_RANGES 27
+int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * FM_GRID_MAX_RANGES]);
+
 #endif
