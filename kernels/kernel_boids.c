@@ -38,10 +38,10 @@ void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *cons
         float r2[3], cos_half[3], r2_max;
         agent_params(b, a, r2, cos_half, &r2_max);
         fm_boids_sums sums = {{{0}}, {0}};
-        uint32_t slots[27];
-        const int count = fm_grid_neighbour_slots(g, x[0], x[1], x[2], slots);
-        for (int si = 0; si < count; si++) {
-            for (int32_t e = g->start[slots[si]]; e < g->start[slots[si] + 1]; e++) {
+        int32_t ranges[2 * FM_GRID_MAX_RANGES];
+        const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
+        for (int ri = 0; ri < count; ri++) {
+            for (int32_t e = ranges[2 * ri]; e < ranges[2 * ri + 1]; e++) {
                 const fm_grid_quad *q = &g->quad[e >> 2];
                 const int lane = e & 3;
                 const int32_t nb = q->i[lane];
