@@ -1,4 +1,5 @@
 /* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
+#include "frame_loop.h"
 #include "sim.h"
 
 #include <math.h>
@@ -37,6 +38,7 @@ static double max_vertex_error(const fm_model *m, const fm_state *s, const float
 
 static int each_target_taken_once(const fm_state *s)
 {
+    if (s->n < 1) return 1;
     uint8_t *taken = calloc((size_t)s->n, 1);
     if (!taken) return 0;
     int ok = 1;
@@ -49,16 +51,13 @@ static int each_target_taken_once(const fm_state *s)
     return ok;
 }
 
+/* Frame k: the tet vertices, written to the cache, with the inverted-tet count. */
 static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, fm_cache_writer *cache,
                             fm_run_stats *stats, fm_error *err)
 {
-    double t0 = fm_seconds();
     fm_state_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    fm_status st = cache ? fm_cache_writer_add_frame(cache, verts, err) : FM_OK;
-    stats->frames++;
-    stats->output_seconds += fm_seconds() - t0;
-    return st;
+    return cache ? fm_cache_writer_add_frame(cache, verts, err) : FM_OK;
 }
 
 void fm_run_stats_free(fm_run_stats *stats)
@@ -68,12 +67,12 @@ void fm_run_stats_free(fm_run_stats *stats)
 }
 
 /* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
-static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
-                            int64_t *frames_with_flyers, int64_t *capacity, fm_error *err)
+static fm_status record_mde(const fm_state *s, int64_t frame, int64_t *flying_before, int64_t *mde_before,
+                            fm_run_stats *stats, int64_t *frames_with_flyers, int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
     double f = flying > 0 ? (double)mde / (double)flying : NAN;
-    int64_t slot = stats->frames - 2;
+    int64_t slot = frame - 1;
     if (slot >= *capacity) { /* grows by doubling */
         double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)(2 * *capacity));
         if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
@@ -85,38 +84,87 @@ static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *
     return FM_OK;
 }
 
+/* What the frame loop's callbacks share. */
+typedef struct tetra_run {
+    const fm_model *m;
+    fm_state *s;
+    float *verts;
+    fm_cache_writer *cache;
+    fm_run_progress_fn progress;
+    void *user;
+    fm_run_stats *stats;
+    int64_t flying_before, mde_before, frames_with_flyers, capacity;
+} tetra_run;
+
+static void tetra_step(void *sim)
+{
+    tetra_run *r = sim;
+    fm_step(r->m, r->s);
+}
+
+static int tetra_finished(const void *sim)
+{
+    const tetra_run *r = sim;
+    return r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+}
+
+static fm_status tetra_frame(void *sim, int64_t frame, fm_error *err)
+{
+    tetra_run *r = sim;
+    fm_status st = emit_frame(r->m, r->s, r->verts, r->cache, r->stats, err);
+    if (frame == 0 || st != FM_OK) return st;
+    st = record_mde(r->s, frame, &r->flying_before, &r->mde_before, r->stats, &r->frames_with_flyers, &r->capacity, err);
+    if (r->progress) {
+        fm_state_info info = fm_state_get_info(r->s);
+        r->progress(&info, frame, r->user);
+    }
+    return st;
+}
+
 fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
                  void *user, fm_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    int64_t capacity = 1024;
-    stats->mde_fraction = malloc(sizeof(double) * (size_t)capacity);
-    if (!verts || !stats->mde_fraction) {
-        fm_free(verts), fm_run_stats_free(stats);
+    tetra_run r = {m, s, fm_alloc(sizeof(float) * 12 * (size_t)s->n), cache, progress, user, stats,
+                   s->flying_agent_steps, s->mde_agent_steps, 0, 1024};
+    stats->mde_fraction = malloc(sizeof(double) * (size_t)r.capacity);
+    if (!r.verts || !stats->mde_fraction) {
+        fm_free(r.verts), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
-    int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps, frames_with_flyers = 0;
-    fm_status st = emit_frame(m, s, verts, cache, stats, err);
-    while (st == FM_OK && s->count[FM_PHASE_ARRIVED] < s->n && stats->frames < m->def.frame_limit) {
-        double t0 = fm_seconds();
-        for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
-        stats->simulate_seconds += fm_seconds() - t0;
-        st = emit_frame(m, s, verts, cache, stats, err);
-        if (st == FM_OK) st = record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers, &capacity, err);
-        if (progress) {
-            fm_state_info info = fm_state_get_info(s);
-            progress(&info, stats->frames - 1, user);
-        }
-    }
+    const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit};
+    fm_loop_times times;
+    fm_status st = fm_frame_loop_run(&loop, &times, err);
+    stats->frames = times.frames;
+    stats->simulate_seconds = times.simulate_seconds;
+    stats->output_seconds = times.output_seconds;
     stats->steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !stats->all_arrived;
-    stats->final_max_vertex_error = max_vertex_error(m, s, verts);
+    stats->final_max_vertex_error = max_vertex_error(m, s, r.verts);
     stats->target_tets_filled_once = each_target_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
-    stats->mde_fraction_mean = frames_with_flyers ? stats->mde_fraction_mean / (double)frames_with_flyers : 0.0;
+    stats->mde_fraction_mean = r.frames_with_flyers ? stats->mde_fraction_mean / (double)r.frames_with_flyers : 0.0;
     stats->min_obstacle_clearance = s->min_clearance;
-    fm_free(verts);
+    fm_free(r.verts);
+    return st;
+}
+
+fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err)
+{
+    *times = (fm_loop_times){0, 0, 0};
+    double t0 = fm_seconds();
+    fm_status st = loop->frame(loop->sim, 0, err);
+    times->output_seconds += fm_seconds() - t0;
+    times->frames = 1;
+    while (st == FM_OK && !loop->finished(loop->sim) && times->frames < loop->frame_limit) {
+        t0 = fm_seconds();
+        for (int32_t k = 0; k < loop->steps_per_frame && !loop->finished(loop->sim); k++) loop->step(loop->sim);
+        double t1 = fm_seconds();
+        times->simulate_seconds += t1 - t0;
+        st = loop->frame(loop->sim, times->frames, err);
+        times->output_seconds += fm_seconds() - t1;
+        times->frames++;
+    }
     return st;
 }
