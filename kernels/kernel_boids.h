@@ -33,12 +33,12 @@ typedef struct fm_boids_view {
 } fm_boids_view;
 
 /* The perception test, shared by the kernel and its reference so both pick the same neighbours:
- * d = x_b - x_a with d2 = |d|^2 (float, dx*dx + dy*dy + dz*dz), h = v_a with hlen = |h|. */
-static inline int fm_boids_sees(const float d[3], float d2, const float h[3], float hlen, float r2, float cos_half)
+ * d2 = |x_b - x_a|^2 (float, dx*dx + dy*dy + dz*dz), hd = v_a . (x_b - x_a), hlen_dist =
+ * |v_a| sqrtf(d2). */
+static inline int fm_boids_sees(float d2, float hd, float hlen_dist, float hlen, float r2, float cos_half)
 {
     if (!(d2 < r2) || d2 == 0) return 0;
-    if (cos_half <= -1.0f || hlen == 0) return 1;
-    return h[0] * d[0] + h[1] * d[1] + h[2] * d[2] >= cos_half * hlen * sqrtf(d2);
+    return cos_half <= -1.0f || hlen == 0 || hd >= cos_half * hlen_dist;
 }
 
 /* Sums over one agent's perceived neighbours (double, so the order they come in barely matters). */
@@ -51,15 +51,16 @@ typedef struct fm_boids_sums {
 static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const float h[3],
                                 float hlen, const float r2[3], const float cos_half[3])
 {
-    if (fm_boids_sees(d, d2, h, hlen, r2[FM_BOIDS_SEPARATION], cos_half[FM_BOIDS_SEPARATION])) {
+    const float hd = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], hlen_dist = hlen * sqrtf(d2);
+    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_SEPARATION], cos_half[FM_BOIDS_SEPARATION])) {
         for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_SEPARATION][k] -= (double)d[k] / d2;
         s->count[FM_BOIDS_SEPARATION]++;
     }
-    if (fm_boids_sees(d, d2, h, hlen, r2[FM_BOIDS_COHESION], cos_half[FM_BOIDS_COHESION])) {
+    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_COHESION], cos_half[FM_BOIDS_COHESION])) {
         for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_COHESION][k] += d[k];
         s->count[FM_BOIDS_COHESION]++;
     }
-    if (fm_boids_sees(d, d2, h, hlen, r2[FM_BOIDS_ALIGNMENT], cos_half[FM_BOIDS_ALIGNMENT])) {
+    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_ALIGNMENT], cos_half[FM_BOIDS_ALIGNMENT])) {
         for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_ALIGNMENT][k] += vb[k];
         s->count[FM_BOIDS_ALIGNMENT]++;
     }

@@ -174,15 +174,13 @@ static void scene_bounds(fm_model *m, const prep_scratch *s)
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
 }
 
-/* Loads, checks and places the obstacle meshes; builds d_t (FM §5.3) with a band covering k_a
- * plus the largest tet radius, so the look-ahead of eq 8 always reads real distances. */
-static fm_status build_obstacles(fm_model *m, float max_radius, fm_error *err)
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_error *err)
 {
-    const fm_scene_def *def = &m->def;
     int count = def->obstacle_count;
     fm_mesh *meshes = calloc((size_t)count, sizeof *meshes);
-    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles");
+    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles"), NULL;
     fm_status st = FM_OK;
+    fm_obstacles *out = NULL;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < count && st == FM_OK; i++) {
         char key[48];
@@ -192,15 +190,14 @@ static fm_status build_obstacles(fm_model *m, float max_radius, fm_error *err)
         if (st == FM_OK) fm_mesh_place(&meshes[i], &def->obstacles[i]), grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
     }
     if (st == FM_OK) {
-        double reach = def->k_a + max_radius, extent = 0;
+        double extent = 0;
         for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
         double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
-        m->obstacles = fm_obstacles_build(meshes, count, voxel, reach + 2 * voxel, err);
-        if (!m->obstacles) st = err ? err->status : FM_ERR_INPUT;
+        out = fm_obstacles_build(meshes, count, voxel, reach + 2 * voxel, err);
     }
     for (int i = 0; i < count; i++) fm_mesh_free(&meshes[i]);
     free(meshes);
-    return st;
+    return out;
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
@@ -269,7 +266,8 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
     m->max_radius = max_radius;
     report(progress, user, "obstacles", 0.9);
-    if (def->obstacle_count > 0 && (st = build_obstacles(m, max_radius, err)) != FM_OK) return st;
+    if (def->obstacle_count > 0 && !(m->obstacles = fm_obstacles_from_scene(def, def->k_a + max_radius, err)))
+        return err ? err->status : FM_ERR_INPUT;
     if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
     set_timing(m);
     report(progress, user, "ready", 1.0);
