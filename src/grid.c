@@ -11,6 +11,7 @@
 #include "grid.h"
 
 #include <assert.h>
+#include <math.h>
 
 static void grid_zero(fm_grid *g)
 {
@@ -74,7 +75,7 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
         int32_t cy = fm_grid_coord(fm_grid_scaled(&gl, py[a]));
         int32_t cz = fm_grid_coord(fm_grid_scaled(&gl, pz[a]));
         uint32_t s = fm_grid_slot(&gl, cx, cy, cz);
-        if (member[a]) {
+        if (!member || member[a]) {
             slot[a] = s;
             h[s >> log2_fine]++;
         } else {
@@ -175,29 +176,68 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
     }
 }
 
+/* Do two of the runs base[r] .. base[r] + 2 share a slot? */
+static int runs_share_slots(const uint32_t base[9], uint32_t mask)
+{
+    for (int r = 1; r < 9; r++)
+        for (int q = 0; q < r; q++)
+            if (((base[r] - base[q] + 2) & mask) <= 4) return 1;
+    return 0;
+}
+
 int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * FM_GRID_MAX_RANGES])
 {
     const int32_t cx = fm_grid_coord(fm_grid_scaled(g, x)), cy = fm_grid_coord(fm_grid_scaled(g, y)),
                   cz = fm_grid_coord(fm_grid_scaled(g, z));
-    uint32_t seen[FM_GRID_MAX_RANGES];
-    int ns = 0, nr = 0;
-    for (int dz = -1; dz <= 1; dz++)
-        for (int dy = -1; dy <= 1; dy++) {
-            const uint32_t base = (uint32_t)(cx - 1) + fm_grid_row(g, cy + dy, cz + dz);
-            uint32_t prev = FM_GRID_NONE;
-            for (uint32_t o = 0; o < 3; o++) {
-                const uint32_t s = (base + o) & g->mask;
-                int dup = 0;
-                for (int j = 0; j < ns; j++) dup |= seen[j] == s;
-                if (dup) {
-                    prev = FM_GRID_NONE;
-                    continue;
-                }
-                seen[ns++] = s;
-                if (prev != FM_GRID_NONE && s == prev + 1) rk[2 * nr - 1] = g->start[s + 1]; /* extend */
-                else rk[2 * nr] = g->start[s], rk[2 * nr + 1] = g->start[s + 1], nr++;
-                prev = s;
+    uint32_t base[9];
+    for (int dz = -1, r = 0; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++, r++) base[r] = ((uint32_t)(cx - 1) + fm_grid_row(g, cy + dy, cz + dz)) & g->mask;
+    int nr = 0;
+    if (!runs_share_slots(base, g->mask)) { /* the usual case: 9 runs of 3 slots, split where they wrap */
+        for (int r = 0; r < 9; r++) {
+            const uint32_t s0 = base[r], s3 = s0 + 3;
+            if (s3 <= g->mask + 1) {
+                rk[2 * nr] = g->start[s0], rk[2 * nr + 1] = g->start[s3], nr++;
+            } else {
+                rk[2 * nr] = g->start[s0], rk[2 * nr + 1] = g->start[g->mask + 1], nr++;
+                rk[2 * nr] = g->start[0], rk[2 * nr + 1] = g->start[s3 - (g->mask + 1)], nr++;
             }
         }
+        return nr;
+    }
+    uint32_t seen[FM_GRID_MAX_RANGES];
+    int ns = 0;
+    for (int r = 0; r < 9; r++) {
+        for (uint32_t o = 0; o < 3; o++) {
+            const uint32_t s = (base[r] + o) & g->mask;
+            int dup = 0;
+            for (int j = 0; j < ns; j++) dup |= seen[j] == s;
+            if (dup) continue;
+            seen[ns++] = s;
+            rk[2 * nr] = g->start[s], rk[2 * nr + 1] = g->start[s + 1], nr++;
+        }
+    }
     return nr;
+}
+
+int64_t fm_grid_nearest(const fm_grid *g, const float q[3], const uint8_t *alive, int64_t self, int64_t skip,
+                        double *d2)
+{
+    int32_t rk[2 * FM_GRID_MAX_RANGES];
+    const int nr = fm_grid_ranges(g, q[0], q[1], q[2], rk);
+    const double reach2 = (double)g->cell * (double)g->cell;
+    double best = INFINITY;
+    int64_t who = -1;
+    for (int r = 0; r < nr; r++)
+        for (int32_t k = rk[2 * r]; k < rk[2 * r + 1]; k++) {
+            const fm_grid_quad *e = &g->quad[k >> 2];
+            const int64_t j = e->i[k & 3];
+            if (j == self || j == skip || (alive && !alive[j])) continue;
+            double dx = (double)e->x[k & 3] - q[0], dy = (double)e->y[k & 3] - q[1], dz = (double)e->z[k & 3] - q[2];
+            double dd = dx * dx + dy * dy + dz * dz;
+            if (dd < best || (dd == best && j < who)) best = dd, who = j;
+        }
+    if (!(best <= reach2)) who = -1, best = INFINITY;
+    *d2 = best;
+    return who;
 }

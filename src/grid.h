@@ -66,7 +66,8 @@ typedef struct fm_grid {
 fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err); /* all allocation is here */
 void fm_grid_free(fm_grid *g);                                       /* g may be zeroed or freed */
 
-/* Lists the agents a < n (n <= capacity) with member[a] != 0; the others get slot FM_GRID_NONE.
+/* Lists the agents a < n (n <= capacity) with member[a] != 0 (all of them if member is NULL); the
+ * others get slot FM_GRID_NONE.
  * cell > 0. threads: OpenMP threads for the parallel passes; the result does not depend on it. */
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
                    int threads);
@@ -117,5 +118,13 @@ static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, in
  * keeps its own pipelined one. */
 #define FM_GRID_MAX_RANGES 27
 int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * FM_GRID_MAX_RANGES]);
+
+/* The nearest listed entry to q other than agents self and skip (either may be -1), among those
+ * with alive[j] != 0 (alive may be NULL), by the float coordinates the grid holds, the distance
+ * in double: returns its agent index and writes the squared distance to *d2, or returns -1 (and
+ * *d2 = INFINITY) if none is within the build's cell, beyond which a neighbour may be missed. Ties
+ * go to the lower index. */
+int64_t fm_grid_nearest(const fm_grid *g, const float q[3], const uint8_t *alive, int64_t self, int64_t skip,
+                        double *d2);
 
 #endif

@@ -1,0 +1,116 @@
+/* Agent-to-sample correspondence (SCF §3, "Point Correspondence Establishment").
+ *
+ * The paper obtains coherent correspondences between overlapping consecutive shapes "by
+ * spherically projecting source positions on the first shape onto the surface of the second
+ * shape". We match by that projection: both point sets are projected onto unit spheres around
+ * their own centroids, and agents take the samples whose directions are nearest theirs. An exact
+ * assignment (n^3) is out of reach for 10^6 agents, so:
+ *   1. both sets are sorted along a 3D Hilbert curve through their unit directions (Skilling,
+ *      "Programming the Hilbert curve", 2004; 21 bits per axis), which keeps nearby directions
+ *      nearby in the order, and matched rank to rank;
+ *   2. a few passes over the agents in curve order let each agent swap samples with the next
+ *      MATCH_WINDOW agents along the curve whenever that lowers the pair's summed squared
+ *      direction distance |u_a - v_s|^2; every swap lowers the total, so the passes converge.
+ * Everything is sequential and depends only on the input, never on threads. */
+#include "sample.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+enum { MATCH_WINDOW = 8, MATCH_PASSES = 4 };
+
+/* Unit directions from the centroid (0 for a point at the centroid) and their curve order. */
+static void directions(const float *p, int64_t n, double *u, fm_keyed *order)
+{
+    double c[3] = {0, 0, 0};
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c[k] += (double)p[3 * i + k];
+    for (int k = 0; k < 3; k++) c[k] /= (double)n;
+    const double lo[3] = {-1, -1, -1}, scale = 0.5 * (double)((1u << FM_HILBERT_BITS) - 1);
+    for (int64_t i = 0; i < n; i++) {
+        double d[3], len = 0;
+        for (int k = 0; k < 3; k++) d[k] = (double)p[3 * i + k] - c[k], len += d[k] * d[k];
+        len = sqrt(len);
+        for (int k = 0; k < 3; k++) u[3 * i + k] = len > 0 ? d[k] / len : 0.0;
+        order[i] = (fm_keyed){fm_hilbert_key(u + 3 * i, lo, scale), i};
+    }
+    fm_keyed_sort(order, n);
+}
+
+static double dir_cost(const double *u, const double *v)
+{
+    double d0 = u[0] - v[0], d1 = u[1] - v[1], d2 = u[2] - v[2];
+    return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+static void improve_by_swaps(const double *ua, const double *us, const fm_keyed *agents, int64_t n, int64_t *out)
+{
+    for (int pass = 0; pass < MATCH_PASSES; pass++) {
+        int64_t swaps = 0;
+        for (int64_t r = 0; r < n; r++) {
+            const int64_t a = agents[r].i;
+            for (int64_t w = 1; w <= MATCH_WINDOW && r + w < n; w++) {
+                const int64_t b = agents[r + w].i;
+                const double *pa = ua + 3 * a, *pb = ua + 3 * b, *sa = us + 3 * out[a], *sb = us + 3 * out[b];
+                if (dir_cost(pa, sb) + dir_cost(pb, sa) < dir_cost(pa, sa) + dir_cost(pb, sb)) {
+                    int64_t t = out[a];
+                    out[a] = out[b], out[b] = t, swaps++;
+                }
+            }
+        }
+        if (swaps == 0) break;
+    }
+}
+
+static fm_status match_spherical(const float *agents, const float *samples, int64_t n, int64_t *out, fm_error *err)
+{
+    double *ua = malloc(sizeof(double) * 3 * (size_t)n), *us = malloc(sizeof(double) * 3 * (size_t)n);
+    fm_keyed *ra = malloc(sizeof(fm_keyed) * (size_t)n), *rs = malloc(sizeof(fm_keyed) * (size_t)n);
+    fm_status st = FM_OK;
+    if (!ua || !us || !ra || !rs) {
+        st = fm_fail(err, FM_ERR_MEMORY, "out of memory matching %lld agents", (long long)n);
+    } else {
+        directions(agents, n, ua, ra);
+        directions(samples, n, us, rs);
+        for (int64_t r = 0; r < n; r++) out[ra[r].i] = rs[r].i;
+        improve_by_swaps(ua, us, ra, n, out);
+    }
+    free(ua), free(us), free(ra), free(rs);
+    return st;
+}
+
+/* Fisher-Yates from a splitmix64 stream; the modulo bias (< n / 2^64) does not matter here. */
+static void match_random(int64_t n, uint64_t seed, int64_t *out)
+{
+    uint64_t s = seed;
+    for (int64_t i = 0; i < n; i++) out[i] = i;
+    for (int64_t i = n - 1; i > 0; i--) {
+        int64_t j = (int64_t)(fm_splitmix64(&s) % (uint64_t)(i + 1)), t = out[i];
+        out[i] = out[j], out[j] = t;
+    }
+}
+
+static fm_status check_points(const float *p, int64_t n, const char *what, fm_error *err)
+{
+    if (!p) return fm_fail(err, FM_ERR_INPUT, "fm_match_agents: no %s positions given", what);
+    for (int64_t i = 0; i < 3 * n; i++)
+        if (!isfinite(p[i])) return fm_fail(err, FM_ERR_INPUT, "fm_match_agents: %s %lld is not finite", what, (long long)(i / 3));
+    return FM_OK;
+}
+
+fm_status fm_match_agents(const float *agents, const float *samples, int64_t n, fm_match_method m, uint64_t seed,
+                          int64_t *out, fm_error *err)
+{
+    if (n < 0) return fm_fail(err, FM_ERR_INPUT, "fm_match_agents: negative count %lld", (long long)n);
+    if (m != FM_MATCH_RANDOM && m != FM_MATCH_SPHERICAL)
+        return fm_fail(err, FM_ERR_INPUT, "unknown matching method %d (0 random, 1 spherical)", (int)m);
+    if (n == 0) return FM_OK;
+    if (!out) return fm_fail(err, FM_ERR_INPUT, "fm_match_agents: no output given");
+    if (m == FM_MATCH_RANDOM) {
+        match_random(n, seed, out);
+        return FM_OK;
+    }
+    fm_status st = check_points(agents, n, "agent", err);
+    if (st == FM_OK) st = check_points(samples, n, "sample", err);
+    return st == FM_OK ? match_spherical(agents, samples, n, out, err) : st;
+}

@@ -1,0 +1,198 @@
+/* Surface mosaic sampling (SCF §3, eqs 1-5 and Table I; after Lai, Hu & Martin, "Surface
+ * mosaics", 2006).
+ *
+ * Start: N area-weighted random points. Each iteration (Table I, lines 2-9), for every point i:
+ *   U_i  = { j != i : dis_ij < A },  A = k sqrt(M/N)                        (eq 1)
+ *   E_ij = exp(-dis_ij^2 / (2 sigma^2)),  sigma = w sqrt(M/N)               (eqs 2-3, see sample.h)
+ *   F_i  = sum over U_i of norm(p_i - p_j) E_ij                            (eq 4)
+ *   F_i is restricted to the tangent plane (the plane of the triangle p_i lies on), then
+ *   p'_i = p_i + delta_t F_i                                               (eq 5)
+ * and p'_i is projected orthogonally back onto the mesh: its exact closest point (an Embree
+ * rtcPointQuery, closest.h), which also gives the new triangle.
+ *
+ * Where the paper is vague:
+ * - dis_ij is Manhattan (Table I, line 4) or Euclidean, as chosen; the same metric decides who is
+ *   in U_i (the paper cuts U by Manhattan distance, which is what Table I's metric gives).
+ * - delta_t is not given (Table I prints "sigma t"); we take delta_t = step sqrt(M/N), so the
+ *   result does not depend on the model's scale: a point pushed by one close neighbour moves a
+ *   quarter of the mean spacing per iteration by default. Steps of 0.5 and more oscillate (the
+ *   measurements are in docs/sampling.md).
+ * - Points are updated together from the previous iteration's positions (Jacobi, not
+ *   Gauss-Seidel), so every point is independent of the others' order and of the thread count:
+ *   neighbours are found on the engine's hash grid (grid.h, cells of edge A) and summed in the
+ *   grid's order, which does not depend on the thread count either.
+ * - Coincident points (dis_ij = 0) have no direction; they are pushed apart along a direction
+ *   chosen from their two indices (the MDE kernel's rule), then projected onto the plane. */
+#include "sample.h"
+
+#include "closest.h"
+#include "grid.h"
+#include "kernel_mde.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct mosaic {
+    const fm_sample_ctx *c;
+    fm_closest *surface;
+    fm_grid grid;
+    float *xyz[3];        /* float copies of the positions, for the grid */
+    double reach;         /* A */
+    double inv_2sigma2;   /* 1 / (2 sigma^2) */
+    double dt;            /* delta t */
+    double slack;         /* absolute slack for the closest-point search radius */
+    double scale;         /* largest |coordinate| of the mesh */
+    float cell;           /* grid cell: A plus the float rounding of two points */
+    int manhattan;
+} mosaic;
+
+static double distance_metric(const double d[3], int manhattan)
+{
+    return manhattan ? fabs(d[0]) + fabs(d[1]) + fabs(d[2]) : sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+}
+
+/* Eq 4 for point i: the sum over its neighbourhood U_i of norm(p_i - p_j) E_ij. The grid's float
+   copies reject the far candidates (most of the 27 cells) before the double arithmetic. */
+static void repulsion(const mosaic *m, const double *x, int64_t i, double f[3])
+{
+    int32_t rk[2 * FM_GRID_MAX_RANGES];
+    const float q[3] = {m->xyz[0][i], m->xyz[1][i], m->xyz[2][i]};
+    const int nr = fm_grid_ranges(&m->grid, q[0], q[1], q[2], rk);
+    const double *pi = x + 3 * i;
+    const float r2 = m->cell * m->cell;
+    f[0] = f[1] = f[2] = 0;
+    for (int r = 0; r < nr; r++)
+        for (int32_t k = rk[2 * r]; k < rk[2 * r + 1]; k++) {
+            const fm_grid_quad *e = &m->grid.quad[k >> 2];
+            const float ex = e->x[k & 3] - q[0], ey = e->y[k & 3] - q[1], ez = e->z[k & 3] - q[2];
+            if (ex * ex + ey * ey + ez * ez > r2) continue; /* beyond the cell: dis_ij >= A */
+            const int64_t j = e->i[k & 3];
+            if (j == i) continue;
+            const double *pj = x + 3 * j;
+            double d[3] = {pi[0] - pj[0], pi[1] - pj[1], pi[2] - pj[2]};
+            double dis = distance_metric(d, m->manhattan);
+            if (!(dis < m->reach)) continue;
+            double w = exp(-dis * dis * m->inv_2sigma2), len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            if (len > 0) {
+                for (int a = 0; a < 3; a++) f[a] += w * d[a] / len;
+            } else {
+                float u[3];
+                int32_t lo = (int32_t)(i < j ? i : j), hi = (int32_t)(i < j ? j : i);
+                fm_mde_coincident_dir(lo, hi, u);
+                double s = i < j ? w : -w;
+                for (int a = 0; a < 3; a++) f[a] += s * (double)u[a];
+            }
+        }
+}
+
+/* One point's move: eq 5 in the tangent plane, then the orthogonal projection onto the mesh. */
+static void move_point(const mosaic *m, const double *x, const int32_t *tri, int64_t i, double *x_out, int32_t *tri_out)
+{
+    double f[3];
+    repulsion(m, x, i, f);
+    const double *n = fm_closest_face_normal(m->surface, tri[i]);
+    double fn = f[0] * n[0] + f[1] * n[1] + f[2] * n[2];
+    double step[3], len2 = 0;
+    for (int a = 0; a < 3; a++) step[a] = m->dt * (f[a] - fn * n[a]), len2 += step[a] * step[a];
+    if (!(len2 > 0)) { /* no neighbour: stays */
+        memcpy(x_out + 3 * i, x + 3 * i, 3 * sizeof(double));
+        tri_out[i] = tri[i];
+        return;
+    }
+    double q[3] = {x[3 * i] + step[0], x[3 * i + 1] + step[1], x[3 * i + 2] + step[2]};
+    int64_t t = -1;
+    /* x_i is on the mesh, so the mesh is within |step| of q: the search starts there */
+    fm_closest_point(m->surface, q, sqrt(len2) + m->slack, x_out + 3 * i, &t);
+    tri_out[i] = (int32_t)t;
+}
+
+/* Reorders the points along a Hilbert curve through their bounding box, so that neighbours on the
+   surface are mostly neighbours in memory (the grid walk and the BVH then stay in cache). */
+static fm_status sort_spatially(int64_t n, double *x, int32_t *tri, fm_error *err)
+{
+    fm_keyed *k = malloc(sizeof(fm_keyed) * (size_t)n);
+    double *x2 = malloc(sizeof(double) * 3 * (size_t)n);
+    int32_t *t2 = malloc(sizeof(int32_t) * (size_t)n);
+    if (!k || !x2 || !t2) {
+        free(k), free(x2), free(t2);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld mosaic points", (long long)n);
+    }
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
+    for (int64_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) lo[a] = fmin(lo[a], x[3 * i + a]), hi[a] = fmax(hi[a], x[3 * i + a]);
+    for (int a = 0; a < 3; a++) extent = fmax(extent, hi[a] - lo[a]);
+    const double scale = extent > 0 ? (double)((1u << FM_HILBERT_BITS) - 1) / extent : 0;
+    for (int64_t i = 0; i < n; i++) k[i] = (fm_keyed){fm_hilbert_key(x + 3 * i, lo, scale), i};
+    fm_keyed_sort(k, n);
+    for (int64_t i = 0; i < n; i++) {
+        memcpy(x2 + 3 * i, x + 3 * k[i].i, 3 * sizeof(double));
+        t2[i] = tri[k[i].i];
+    }
+    memcpy(x, x2, sizeof(double) * 3 * (size_t)n);
+    memcpy(tri, t2, sizeof(int32_t) * (size_t)n);
+    free(k), free(x2), free(t2);
+    return FM_OK;
+}
+
+static fm_status mosaic_init(mosaic *m, const fm_sample_ctx *c, fm_error *err)
+{
+    const double spacing = sqrt(c->area / (double)c->n);
+    m->c = c;
+    m->reach = c->opts.k * spacing;
+    const double sigma = c->opts.w * spacing;
+    m->inv_2sigma2 = 1.0 / (2.0 * sigma * sigma);
+    m->dt = c->opts.step * spacing;
+    m->manhattan = c->opts.manhattan != 0;
+    for (int64_t i = 0; i < 3 * c->mesh->nv; i++) m->scale = fmax(m->scale, fabs(c->mesh->v[i]));
+    m->slack = 1e-9 * m->scale + 1e-6 * spacing;
+    m->surface = fm_closest_build(c->mesh, 1, "sampled mesh", 0, err);
+    if (!m->surface) return err ? err->status : FM_ERR_INTERNAL;
+    for (int k = 0; k < 3; k++) m->xyz[k] = fm_alloc(sizeof(float) * (size_t)c->n);
+    if (!m->xyz[0] || !m->xyz[1] || !m->xyz[2])
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld mosaic points", (long long)c->n);
+    return fm_grid_init(&m->grid, c->n, err);
+}
+
+static void mosaic_free(mosaic *m)
+{
+    fm_closest_destroy(m->surface);
+    fm_grid_free(&m->grid);
+    for (int k = 0; k < 3; k++) fm_free(m->xyz[k]);
+}
+
+fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err)
+{
+    mosaic m = {0};
+    fm_status st = mosaic_init(&m, c, err);
+    double *x2 = NULL;
+    int32_t *tri2 = NULL;
+    if (st == FM_OK) {
+        x2 = fm_alloc(sizeof(double) * 3 * (size_t)c->n);
+        tri2 = fm_alloc(sizeof(int32_t) * (size_t)c->n);
+        if (!x2 || !tri2) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld mosaic points", (long long)c->n);
+    }
+    if (st == FM_OK) {
+        fm_sample_random_into(c, x, tri); /* Table I starts from random sampling */
+        st = sort_spatially(c->n, x, tri, err);
+    }
+    if (st == FM_OK) {
+        /* cells larger than A by the float rounding of both points: a neighbour with dis_ij < A
+           (in double) is always in the 27 cells around a point's (float) cell */
+        m.cell = (float)(m.reach * (1.0 + 1e-6) + 4.0 * FLT_EPSILON * m.scale);
+        for (int it = 0; it < c->opts.iterations; it++) {
+            for (int64_t i = 0; i < c->n; i++)
+                for (int k = 0; k < 3; k++) m.xyz[k][i] = (float)x[3 * i + k];
+            fm_grid_build(&m.grid, (const float *const *)m.xyz, NULL, c->n, m.cell, c->threads);
+#pragma omp parallel for num_threads(c->threads) schedule(dynamic, 256)
+            for (int64_t i = 0; i < c->n; i++) move_point(&m, x, tri, i, x2, tri2);
+            memcpy(x, x2, sizeof(double) * 3 * (size_t)c->n);
+            memcpy(tri, tri2, sizeof(int32_t) * (size_t)c->n);
+        }
+    }
+    fm_free(x2);
+    fm_free(tri2);
+    mosaic_free(&m);
+    return st;
+}
