@@ -48,9 +48,9 @@ static fm_status assign(fm_flock_model *m, const fm_samples *src, const fm_sampl
 {
     fm_samples *dest = &m->target.dest;
     dest->n = m->n;
-    dest->p = malloc(sizeof(float) * 3 * (size_t)m->n);
-    dest->bary = malloc(sizeof(float) * 3 * (size_t)m->n);
-    dest->tri = malloc(sizeof(int32_t) * (size_t)m->n);
+    dest->p = fm_alloc(sizeof(float) * 3 * (size_t)m->n);
+    dest->bary = fm_alloc(sizeof(float) * 3 * (size_t)m->n);
+    dest->tri = fm_alloc(sizeof(int32_t) * (size_t)m->n);
     if (!dest->p || !dest->bary || !dest->tri) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
     for (int64_t a = 0; a < m->n; a++) {
         int64_t j = match[a];
