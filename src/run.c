@@ -1,6 +1,7 @@
 /* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
 #include "frame_loop.h"
 #include "sim.h"
+#include "cache_format.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -51,13 +52,28 @@ static int each_target_taken_once(const fm_state *s)
     return ok;
 }
 
-/* Frame k: the tet vertices, written to the cache, with the inverted-tet count. */
-static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, fm_cache_writer *cache,
+/* Hands the frame to the cache in the attributes it was created with: the tetra morph has tet
+ * vertices and phases. */
+static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
+                             fm_error *err)
+{
+    const cache_layout *l = fm_cache_writer_layout(cache);
+    const void *data[CACHE_MAX_ATTRS];
+    for (int i = 0; i < l->attr_count; i++) {
+        if (l->attrs[i]->attr == FM_ATTR_TET_VERTICES) data[i] = verts;
+        else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_state_phases(s, phases), data[i] = phases;
+        else return fm_fail(err, FM_ERR_USAGE, "the tetra morph cannot write the cache attribute '%s'", l->attrs[i]->name);
+    }
+    return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+/* Frame k: the tet vertices (and phases), written to the cache, with the inverted-tet count. */
+static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
                             fm_run_stats *stats, fm_error *err)
 {
     fm_state_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    return cache ? fm_cache_writer_add_frame(cache, verts, err) : FM_OK;
+    return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
 }
 
 void fm_run_stats_free(fm_run_stats *stats)
@@ -89,6 +105,7 @@ typedef struct tetra_run {
     const fm_model *m;
     fm_state *s;
     float *verts;
+    uint8_t *phases;
     fm_cache_writer *cache;
     fm_run_progress_fn progress;
     void *user;
@@ -111,7 +128,7 @@ static int tetra_finished(const void *sim)
 static fm_status tetra_frame(void *sim, int64_t frame, fm_error *err)
 {
     tetra_run *r = sim;
-    fm_status st = emit_frame(r->m, r->s, r->verts, r->cache, r->stats, err);
+    fm_status st = emit_frame(r->m, r->s, r->verts, r->phases, r->cache, r->stats, err);
     if (frame == 0 || st != FM_OK) return st;
     st = record_mde(r->s, frame, &r->flying_before, &r->mde_before, r->stats, &r->frames_with_flyers, &r->capacity, err);
     if (r->progress) {
@@ -125,11 +142,11 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
                  void *user, fm_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    tetra_run r = {m, s, fm_alloc(sizeof(float) * 12 * (size_t)s->n), cache, progress, user, stats,
-                   s->flying_agent_steps, s->mde_agent_steps, 0, 1024};
+    tetra_run r = {m, s, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n), cache, progress, user,
+                   stats, s->flying_agent_steps, s->mde_agent_steps, 0, 1024};
     stats->mde_fraction = malloc(sizeof(double) * (size_t)r.capacity);
-    if (!r.verts || !stats->mde_fraction) {
-        fm_free(r.verts), fm_run_stats_free(stats);
+    if (!r.verts || !r.phases || !stats->mde_fraction) {
+        fm_free(r.verts), fm_free(r.phases), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
     const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit};
@@ -146,7 +163,7 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
     stats->morph_fallbacks = s->morph_fallbacks;
     stats->mde_fraction_mean = r.frames_with_flyers ? stats->mde_fraction_mean / (double)r.frames_with_flyers : 0.0;
     stats->min_obstacle_clearance = s->min_clearance;
-    fm_free(r.verts);
+    fm_free(r.verts), fm_free(r.phases);
     return st;
 }
 

@@ -15,12 +15,15 @@ packages=(
   libassimp-dev
   libjansson-dev
   libzstd-dev
+  zlib1g-dev
   libpng-dev
   libembree-dev
   libopenvdb-dev
   libtbb-dev
   libblosc-dev
   libboost-iostreams-dev
+  python3-numpy
+  python3-zstandard
 )
 missing=()
 for p in "${packages[@]}"; do
