@@ -5,6 +5,7 @@
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
 
+#include <jansson.h>
 #include <stdint.h>
 
 /* Commands: argc/argv start after the command's name. Each returns the process exit status. */
@@ -24,6 +25,19 @@ int cli_wants_help(int argc, char **argv);
 int cli_parse_int(const char *s, long lo, long hi, long *out);
 /* Creates dir (and parents) if needed and checks it is writable; 0 or an exit status. */
 int cli_make_outdir(const char *dir, fm_error *err);
+
+/* `run`: its options, and the shape flock's half of it (cli_run_flock.c). */
+typedef struct cli_run_options {
+    const char *scene, *outdir;
+    int threads, quiet;
+} cli_run_options;
+int cli_run_flock(const cli_run_options *o, const fm_scene_def *def);
+/* Preprocessing progress on stderr when *(int *)user (an fm_progress_fn). */
+void cli_prep_progress(const char *stage, double fraction, void *user);
+/* The scene's output.* cache options. */
+fm_cache_options cli_cache_options(const fm_scene_def *def);
+/* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
+int cli_write_json(const char *path, json_t *j);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

@@ -129,3 +129,31 @@ int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float *
     return 0;
 }
 
+
+void cli_prep_progress(const char *stage, double fraction, void *user)
+{
+    if (*(const int *)user) fprintf(stderr, "\r\033[K  preprocessing: %-24s %3.0f%%", stage, 100 * fraction);
+}
+
+fm_cache_options cli_cache_options(const fm_scene_def *def)
+{
+    fm_cache_options copts = fm_default_cache_options();
+    copts.compression_level = def->compression_level;
+    copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+    return copts;
+}
+
+int cli_write_json(const char *path, json_t *j)
+{
+    fm_output_file out;
+    fm_error err = {0};
+    fm_status st = fm_output_open(&out, path, &err);
+    if (st == FM_OK) {
+        if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
+            st = fm_output_commit(&out, NULL, &err);
+        else
+            fm_output_discard(&out), st = fm_fail(&err, FM_ERR_IO, "cannot write '%s'", path);
+    }
+    json_decref(j);
+    return st == FM_OK ? 0 : cli_report(&err);
+}

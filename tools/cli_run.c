@@ -16,21 +16,18 @@
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]\n"
     "\n"
-    "Reads the scene (docs/scene.md), tetrahedralizes and subdivides the meshes, simulates until\n"
-    "every agent has arrived (or the scene's frame limit), and writes OUTDIR/<output.cache>\n"
-    "(default frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
+    "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
+    "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
+    "(\"mode\": \"shape_flock\", docs/shape-flock.md) samples the surfaces and simulates until every\n"
+    "agent is bound; both stop at the scene's frame limit. Writes OUTDIR/<output.cache> (default\n"
+    "frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
     "\n"
     "  -o, --output DIR   output directory (required)\n"
     "  --threads N        worker threads (default: all cores); results do not depend on N\n"
     "  --quiet            no progress display (it is shown only on a terminal anyway)\n";
 
 
-typedef struct run_options {
-    const char *scene, *outdir;
-    int threads, quiet;
-} run_options;
-
-static int parse_run(int argc, char **argv, run_options *o)
+static int parse_run(int argc, char **argv, cli_run_options *o)
 {
     memset(o, 0, sizeof *o);
     for (int i = 0; i < argc; i++) {
@@ -48,11 +45,6 @@ static int parse_run(int argc, char **argv, run_options *o)
     if (!o->scene) return cli_usage_error(USAGE_RUN, "%s", "no scene file given");
     if (!o->outdir) return cli_usage_error(USAGE_RUN, "%s", "no output directory given (-o OUTDIR)");
     return 0;
-}
-
-static void prep_progress(const char *stage, double fraction, void *user)
-{
-    if (*(const int *)user) fprintf(stderr, "\r\033[K  preprocessing: %-24s %3.0f%%", stage, 100 * fraction);
 }
 
 typedef struct run_progress {
@@ -116,6 +108,7 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
                        int threads, double preprocess_seconds, const char *cache_path)
 {
     json_t *j = json_object();
+    json_object_set_new(j, "mode", json_string("tetra_morph"));
     json_object_set_new(j, "agents", json_integer(mi->agents));
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
@@ -146,20 +139,10 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "threads", json_integer(threads));
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     json_object_set_new(j, "cache", json_string(cache_path));
-    fm_output_file out;
-    fm_error err = {0};
-    fm_status st = fm_output_open(&out, path, &err);
-    if (st == FM_OK) {
-        if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
-            st = fm_output_commit(&out, NULL, &err);
-        else
-            fm_output_discard(&out), st = fm_fail(&err, FM_ERR_IO, "cannot write '%s'", path);
-    }
-    json_decref(j);
-    return st == FM_OK ? 0 : cli_report(&err);
+    return cli_write_json(path, j);
 }
 
-static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
+static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds)
 {
     fm_error err = {0};
     int show = !o->quiet && isatty(STDERR_FILENO);
@@ -170,9 +153,7 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
     snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
     snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
-    fm_cache_options copts = fm_default_cache_options();
-    copts.compression_level = def->compression_level;
-    copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+    fm_cache_options copts = cli_cache_options(def);
     const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
     fm_cache_writer *cache = fm_cache_writer_create_attrs(cache_path, (uint64_t)mi.agents, def->frame_rate, attrs, 2, &copts, &err);
     if (!cache) return fm_state_destroy(state), cli_report(&err);
@@ -199,16 +180,17 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
 int cli_run(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_RUN), 0;
-    run_options o;
+    cli_run_options o;
     int rc = parse_run(argc, argv, &o);
     if (rc) return rc;
     fm_error err = {0};
     fm_scene_def def;
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
     if ((rc = cli_make_outdir(o.outdir, &err))) return rc;
+    if (def.mode == FM_MODE_SHAPE_FLOCK) return cli_run_flock(&o, &def);
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
-    fm_model *model = fm_model_build(&def, prep_progress, &show, &err);
+    fm_model *model = fm_model_build(&def, cli_prep_progress, &show, &err);
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n");
     if (!model) return cli_report(&err);
