@@ -1,15 +1,27 @@
-/* Preview rendering of tets: orthographic projection, z-buffer, flat Lambert shading, PNG out.
+/* The preview renderer: Embree 3 ray casting of a frame's tets (4 triangles each) or points
+ * (spheres), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
+ * a colour per agent from a gradient over its index, sRGB output. docs/render.md describes it.
  *
- * The camera looks along view_dir; the image's right axis is normalize(view_dir × up) and its
- * up axis is right × view_dir, so looking along +Y with up +Z puts +X on the right and +Z at
- * the top. The bounds box (the tets' bounding box or opts->bounds) is fitted into the image,
- * keeping the aspect ratio and leaving margin × width/height free on each side. This is a
- * preview, not a renderer of record. */
+ * Camera. The image's right axis is normalize(view_dir x up) and its up axis right x view_dir, so
+ * looking along +Y with up +Z puts +X on the right and +Z at the top. A point p lands on the image
+ * plane at (s, t) = (p.right, p.up) (orthographic) or (q.right, q.up) / q.fwd with q = p - eye
+ * (perspective, the eye at the bounds' centre pulled back until the bounding sphere fills fov_deg).
+ * The bounds' eight corners are fitted into the image, keeping the aspect ratio and leaving
+ * margin x width/height free on each side; pixel (x, y) is the plane point
+ * (s_mid + (x - W/2) / scale, t_mid - (y - H/2) / scale).
+ *
+ * Determinism. Each pixel is computed by one thread from fixed rays, and the BVH is built on one
+ * Embree thread ("threads=1"), so ties between coincident faces (neighbouring tets share faces)
+ * are broken the same way whatever the thread count: the image bytes do not depend on it. */
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
+#include "grid.h"
+
+#include <embree3/rtcore.h>
 
 #include <errno.h>
 #include <math.h>
+#include <omp.h>
 #include <png.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -17,33 +29,22 @@
 #include <string.h>
 
 #define FM_RENDER_MAX_DIM 16384
+#define FM_RENDER_MAX_SAMPLES 8
+#define FM_RENDER_PI 3.14159265358979323846
+/* Coordinates beyond this are treated like NaN: Embree's float BVH cannot hold them usefully. */
+#define FM_RENDER_MAX_COORD 1e18f
 
-static const int fm_tet_faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-static const double fm_object_rgb[3] = {0.72, 0.80, 0.92}; /* light grey-blue */
-static const unsigned char fm_background_rgb[3] = {20, 22, 28};
-static const double fm_ambient = 0.25;
+/* Colours in sRGB (converted to linear light once). */
+static const double fm_background_srgb[3] = {0.118, 0.129, 0.157};
+static const double fm_ground_srgb[3] = {0.62, 0.62, 0.64};
+/* The agent gradient, from agent 0 to agent n - 1: blue, teal, green, amber, coral. */
+#define FM_RAMP_STOPS 5
+static const double fm_ramp_srgb[FM_RAMP_STOPS][3] = {
+    {0.27, 0.47, 0.80}, {0.19, 0.70, 0.73}, {0.54, 0.77, 0.31}, {0.94, 0.71, 0.20}, {0.88, 0.35, 0.31}};
+static const double fm_ambient = 0.28; /* linear light that reaches surfaces in shadow */
+static const double fm_key = 0.85;     /* the key light's strength */
 
-fm_render_opts fm_default_render_opts(void)
-{
-    fm_render_opts o;
-    memset(&o, 0, sizeof o);
-    o.width = 960;
-    o.height = 540;
-    o.view_dir[1] = 1.0; /* camera on -Y looking at the front */
-    o.up[2] = 1.0;
-    o.margin = 0.05;
-    o.bounds = NULL;
-    return o;
-}
-
-/* ---------------------------------------------------------------- camera */
-
-typedef struct camera {
-    double right[3], up[3], fwd[3]; /* orthonormal image axes and viewing direction */
-    double light[3];                /* unit vector towards the light */
-    double s_mid, t_mid, scale;     /* bounds centre on the image plane, pixels per unit */
-    int width, height;
-} camera;
+/* ---------------------------------------------------------------- small vector helpers */
 
 static double dot3(const double a[3], const double b[3])
 {
@@ -57,7 +58,7 @@ static void cross3(const double a[3], const double b[3], double out[3])
     out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-/* Normalises v in place; returns its original length. */
+/* Normalises v in place; returns its original length (v is left alone when that is 0 or not finite). */
 static double normalize3(double v[3])
 {
     double len = sqrt(dot3(v, v));
@@ -66,7 +67,86 @@ static double normalize3(double v[3])
     return len;
 }
 
-static fm_status camera_axes(const fm_render_opts *o, camera *cam, fm_error *err)
+static int finite_nonzero3(const double v[3])
+{
+    double len = sqrt(dot3(v, v));
+    return isfinite(len) && len > 0.0;
+}
+
+/* ---------------------------------------------------------------- colour */
+
+static double srgb_to_linear(double c)
+{
+    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
+/* edge[v] = the linear value at which the 8-bit sRGB code reaches v (edge[0] = -inf), so that
+ * encoding is a search instead of a pow() per channel. */
+static void srgb_edges(float edge[256])
+{
+    edge[0] = -INFINITY;
+    for (int v = 1; v < 256; v++) edge[v] = (float)srgb_to_linear((v - 0.5) / 255.0);
+}
+
+static unsigned char srgb_encode(const float edge[256], float linear)
+{
+    int lo = 0; /* largest v with edge[v] <= linear; NaN stays 0 */
+    for (int step = 128; step > 0; step >>= 1)
+        if (edge[lo + step] <= linear) lo += step;
+    return (unsigned char)lo;
+}
+
+static void linear_colour(const double srgb[3], float out[3])
+{
+    for (int k = 0; k < 3; k++) out[k] = (float)srgb_to_linear(srgb[k]);
+}
+
+/* ---------------------------------------------------------------- options and views */
+
+fm_render_opts fm_default_render_opts(void)
+{
+    fm_render_opts o;
+    memset(&o, 0, sizeof o);
+    o.width = 960;
+    o.height = 540;
+    o.fov_deg = 40.0;
+    o.margin = 0.05;
+    o.bounds = NULL;
+    o.world_up[2] = 1.0;
+    o.ground = 1;
+    o.point_radius = 0.0;
+    o.samples = 1;
+    o.threads = 0;
+    fm_render_set_view(&o, "persp", NULL);
+    return o;
+}
+
+typedef struct named_view {
+    const char *name;
+    double dir[3], up[3];
+    int perspective;
+} named_view;
+
+/* "persp" looks from the front left, above: the classic 3/4 view of a scene standing on +Z. */
+static const named_view fm_views[] = {{"persp", {0.5, 1.0, -0.4}, {0, 0, 1}, 1},
+                                      {"front", {0, 1, 0}, {0, 0, 1}, 0},
+                                      {"top", {0, 0, -1}, {0, 1, 0}, 0},
+                                      {"side", {-1, 0, 0}, {0, 0, 1}, 0}};
+
+fm_status fm_render_set_view(fm_render_opts *opts, const char *name, fm_error *err)
+{
+    for (size_t i = 0; i < sizeof fm_views / sizeof fm_views[0]; i++) {
+        if (!name || strcmp(name, fm_views[i].name) != 0) continue;
+        memcpy(opts->view_dir, fm_views[i].dir, sizeof opts->view_dir);
+        memcpy(opts->up, fm_views[i].up, sizeof opts->up);
+        opts->perspective = fm_views[i].perspective;
+        return FM_OK;
+    }
+    return fm_fail(err, FM_ERR_USAGE, "render: view is persp, front, top or side, not '%s'",
+                   name ? name : "(null)");
+}
+
+static fm_status check_opts(const fm_render_opts *o, fm_error *err)
 {
     if (o->width < 1 || o->height < 1 || o->width > FM_RENDER_MAX_DIM ||
         o->height > FM_RENDER_MAX_DIM)
@@ -74,159 +154,664 @@ static fm_status camera_axes(const fm_render_opts *o, camera *cam, fm_error *err
                        o->height, FM_RENDER_MAX_DIM);
     if (!(o->margin >= 0.0 && o->margin < 0.5))
         return fm_fail(err, FM_ERR_USAGE, "render: margin %g is outside [0, 0.5)", o->margin);
-    memcpy(cam->fwd, o->view_dir, sizeof cam->fwd);
-    double up[3];
-    memcpy(up, o->up, sizeof up);
-    double lf = normalize3(cam->fwd), lu = normalize3(up);
-    if (!(lf > 0.0 && isfinite(lf)) || !(lu > 0.0 && isfinite(lu)))
-        return fm_fail(err, FM_ERR_USAGE, "render: view_dir and up must be finite and non-zero");
-    cross3(cam->fwd, up, cam->right);
-    if (!(normalize3(cam->right) > 1e-9))
+    if (!finite_nonzero3(o->view_dir) || !finite_nonzero3(o->up) || !finite_nonzero3(o->world_up))
+        return fm_fail(err, FM_ERR_USAGE,
+                       "render: view_dir, up and world_up must be finite and non-zero");
+    if (!isfinite(dot3(o->light_dir, o->light_dir)))
+        return fm_fail(err, FM_ERR_USAGE, "render: light_dir must be finite");
+    double f[3], u[3], r[3];
+    memcpy(f, o->view_dir, sizeof f), memcpy(u, o->up, sizeof u);
+    normalize3(f), normalize3(u);
+    cross3(f, u, r);
+    if (!(sqrt(dot3(r, r)) > 1e-9))
         return fm_fail(err, FM_ERR_USAGE, "render: up is parallel to view_dir");
-    cross3(cam->right, cam->fwd, cam->up);
-    /* From the camera's upper left: towards the camera, up and to the left. */
-    for (int k = 0; k < 3; k++)
-        cam->light[k] = -1.0 * cam->fwd[k] + 0.6 * cam->up[k] - 0.5 * cam->right[k];
-    normalize3(cam->light);
-    cam->width = o->width;
-    cam->height = o->height;
+    if (o->perspective && !(o->fov_deg >= 1.0 && o->fov_deg <= 170.0))
+        return fm_fail(err, FM_ERR_USAGE, "render: fov_deg %g is outside [1, 170]", o->fov_deg);
+    if (!(o->point_radius >= 0.0 && isfinite(o->point_radius)))
+        return fm_fail(err, FM_ERR_USAGE, "render: point radius %g is not a finite value >= 0",
+                       o->point_radius);
+    if (o->samples < 1 || o->samples > FM_RENDER_MAX_SAMPLES)
+        return fm_fail(err, FM_ERR_USAGE, "render: samples %d is outside 1..%d", o->samples,
+                       FM_RENDER_MAX_SAMPLES);
+    if (o->bounds)
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(o->bounds[k]) || !isfinite(o->bounds[k + 3]) ||
+                o->bounds[k] > o->bounds[k + 3])
+                return fm_fail(err, FM_ERR_USAGE,
+                               "render: bounds must be finite [minx miny minz maxx maxy maxz]");
     return FM_OK;
 }
 
-/* Fits the box [lo, hi] into the image. */
-static void camera_fit(camera *cam, const double lo[3], const double hi[3], double margin)
+/* ---------------------------------------------------------------- the renderer */
+
+struct fm_renderer {
+    fm_render_opts o;      /* o.bounds points at bounds below (or is NULL) */
+    double bounds[6];
+    RTCDevice device;
+    char embree_error[256];
+    float srgb_edge[256];
+    float background[3], ground_albedo[3], ramp[FM_RAMP_STOPS][3]; /* linear */
+};
+
+static void on_embree_error(void *user, enum RTCError code, const char *str)
 {
+    fm_renderer *r = user;
+    if (!r->embree_error[0])
+        snprintf(r->embree_error, sizeof r->embree_error, "Embree error %d: %s", (int)code,
+                 str ? str : "");
+}
+
+static fm_status renderer_create(const fm_render_opts *opts, fm_renderer **out, fm_error *err)
+{
+    *out = NULL;
+    fm_render_opts defaults = fm_default_render_opts();
+    const fm_render_opts *o = opts ? opts : &defaults;
+    fm_status st = check_opts(o, err);
+    if (st != FM_OK) return st;
+    fm_renderer *r = calloc(1, sizeof *r);
+    if (!r) return fm_fail(err, FM_ERR_MEMORY, "render: out of memory");
+    r->o = *o;
+    if (o->bounds) {
+        memcpy(r->bounds, o->bounds, sizeof r->bounds);
+        r->o.bounds = r->bounds;
+    }
+    /* One build thread: see the determinism note at the top. */
+    r->device = rtcNewDevice("threads=1");
+    if (!r->device) {
+        free(r);
+        return fm_fail(err, FM_ERR_INTERNAL, "render: Embree could not create a device (error %d)",
+                       (int)rtcGetDeviceError(NULL));
+    }
+    rtcSetDeviceErrorFunction(r->device, on_embree_error, r);
+    srgb_edges(r->srgb_edge);
+    linear_colour(fm_background_srgb, r->background);
+    linear_colour(fm_ground_srgb, r->ground_albedo);
+    for (int i = 0; i < FM_RAMP_STOPS; i++) linear_colour(fm_ramp_srgb[i], r->ramp[i]);
+    *out = r;
+    return FM_OK;
+}
+
+fm_renderer *fm_renderer_create(const fm_render_opts *opts, fm_error *err)
+{
+    fm_renderer *r;
+    renderer_create(opts, &r, err);
+    return r;
+}
+
+void fm_renderer_destroy(fm_renderer *r)
+{
+    if (!r) return;
+    rtcReleaseDevice(r->device);
+    free(r);
+}
+
+/* Agent `agent` of n: its place on the gradient, interpolated in linear light. */
+static void agent_colour(const fm_renderer *r, uint32_t agent, size_t n, float out[3])
+{
+    double u = n > 1 ? (double)agent / (double)(n - 1) * (FM_RAMP_STOPS - 1) : 0.0;
+    int i = (int)u;
+    if (i >= FM_RAMP_STOPS - 1) i = FM_RAMP_STOPS - 2;
+    float f = (float)(u - i);
+    for (int k = 0; k < 3; k++) out[k] = r->ramp[i][k] + f * (r->ramp[i + 1][k] - r->ramp[i][k]);
+}
+
+/* ---------------------------------------------------------------- camera, ground and light */
+
+typedef struct view {
+    double right[3], up[3], fwd[3];
+    double eye[3];            /* perspective: the eye; orthographic: origin of the ray through (0, 0) */
+    int perspective;
+    double s_mid, t_mid, scale; /* image-plane centre and pixels per image-plane unit */
+    int width, height, samples;
+    double light[3];          /* unit vector towards the key light */
+    double eps;               /* offset of shadow rays off a surface, world units */
+    /* ground: the plane w.x = height, drawn over [lo1, hi1] x [lo2, hi2] in the (g1, g2) basis */
+    int ground;
+    double w[3], g1[3], g2[3], level, lo1, hi1, lo2, hi2;
+} view;
+
+static void box_corner(const double lo[3], const double hi[3], int c, double p[3])
+{
+    p[0] = (c & 1) ? hi[0] : lo[0];
+    p[1] = (c & 2) ? hi[1] : lo[1];
+    p[2] = (c & 4) ? hi[2] : lo[2];
+}
+
+/* World point -> image-plane (s, t). */
+static void project(const view *v, const double p[3], double *s, double *t)
+{
+    if (!v->perspective) {
+        *s = dot3(p, v->right), *t = dot3(p, v->up);
+        return;
+    }
+    double q[3] = {p[0] - v->eye[0], p[1] - v->eye[1], p[2] - v->eye[2]};
+    double depth = dot3(q, v->fwd);
+    *s = dot3(q, v->right) / depth, *t = dot3(q, v->up) / depth;
+}
+
+/* Axes, eye and the fit of the box [lo, hi] into the image. */
+static void view_camera(const fm_render_opts *o, const double lo[3], const double hi[3], view *v)
+{
+    memcpy(v->fwd, o->view_dir, sizeof v->fwd);
+    double up[3];
+    memcpy(up, o->up, sizeof up);
+    normalize3(v->fwd), normalize3(up);
+    cross3(v->fwd, up, v->right);
+    normalize3(v->right);
+    cross3(v->right, v->fwd, v->up);
+    v->perspective = o->perspective;
+    v->width = o->width, v->height = o->height, v->samples = o->samples;
+
+    double c[3], radius = 0.0;
+    for (int k = 0; k < 3; k++) {
+        c[k] = 0.5 * (lo[k] + hi[k]);
+        radius += 0.25 * (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    }
+    radius = sqrt(radius);
+    if (!(radius > 0.0)) radius = 1.0; /* a single point: any size will do */
+    /* Perspective: far enough that the bounding sphere fills fov_deg. Orthographic: the rays start
+     * well in front of the bounds and the ground (which reaches 2 radii out). */
+    double back = o->perspective ? radius / sin(o->fov_deg * (FM_RENDER_PI / 360.0)) : 4.0 * radius;
+    for (int k = 0; k < 3; k++) v->eye[k] = c[k] - back * v->fwd[k];
+    if (!v->perspective) {
+        double along = dot3(v->eye, v->fwd); /* keep only the depth: (s, t) are added per ray */
+        for (int k = 0; k < 3; k++) v->eye[k] = along * v->fwd[k];
+    }
+
     double smin = INFINITY, smax = -INFINITY, tmin = INFINITY, tmax = -INFINITY;
-    for (int c = 0; c < 8; c++) {
-        double p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
-        double s = dot3(p, cam->right), t = dot3(p, cam->up);
+    for (int i = 0; i < 8; i++) {
+        double p[3], s, t;
+        box_corner(lo, hi, i, p);
+        project(v, p, &s, &t);
         smin = fmin(smin, s), smax = fmax(smax, s);
         tmin = fmin(tmin, t), tmax = fmax(tmax, t);
     }
-    double avail_w = cam->width * (1.0 - 2.0 * margin);
-    double avail_h = cam->height * (1.0 - 2.0 * margin);
+    double avail_w = o->width * (1.0 - 2.0 * o->margin);
+    double avail_h = o->height * (1.0 - 2.0 * o->margin);
     double sx = smax > smin ? avail_w / (smax - smin) : INFINITY;
     double sy = tmax > tmin ? avail_h / (tmax - tmin) : INFINITY;
-    cam->scale = fmin(sx, sy);
-    if (!isfinite(cam->scale)) cam->scale = 1.0; /* a single point: any scale will do */
-    cam->s_mid = 0.5 * (smin + smax);
-    cam->t_mid = 0.5 * (tmin + tmax);
+    v->scale = fmin(sx, sy);
+    if (!isfinite(v->scale)) v->scale = o->perspective ? 1.0 : avail_h / (2.0 * radius);
+    v->s_mid = 0.5 * (smin + smax);
+    v->t_mid = 0.5 * (tmin + tmax);
+    v->eps = 1e-4 * radius;
 }
 
-/* World point -> pixel x (right), pixel y (down) and depth (larger is farther). */
-static void camera_project(const camera *cam, const float v[3], double out[3])
+/* A unit vector across w (for the ground's basis and the light's horizontal part). */
+static void perpendicular(const double w[3], const double hint[3], double out[3])
 {
-    double p[3] = {v[0], v[1], v[2]};
-    out[0] = 0.5 * cam->width + (dot3(p, cam->right) - cam->s_mid) * cam->scale;
-    out[1] = 0.5 * cam->height - (dot3(p, cam->up) - cam->t_mid) * cam->scale;
-    out[2] = dot3(p, cam->fwd);
+    double d = dot3(hint, w);
+    for (int k = 0; k < 3; k++) out[k] = hint[k] - d * w[k];
+    if (normalize3(out) > 1e-6) return;
+    const double x[3] = {1, 0, 0}, y[3] = {0, 1, 0};
+    const double *axis = fabs(w[0]) < 0.9 ? x : y;
+    d = dot3(axis, w);
+    for (int k = 0; k < 3; k++) out[k] = axis[k] - d * w[k];
+    normalize3(out);
 }
 
-/* ---------------------------------------------------------------- rasteriser */
-
-typedef struct image {
-    int width, height;
-    unsigned char *rgb; /* width × height × 3, rows top to bottom */
-    float *depth;       /* width × height */
-} image;
-
-/* Edge function: > 0 when p is on the inner side of a->b for a triangle with positive area. */
-static double edge(const double a[3], const double b[3], const double p[2])
+/* The ground: a rectangle just under the box, wider than it by 0.3 x its largest extent on each
+ * side. The key light: opts' light_dir, or else high above (about 60 degrees), from the left and
+ * a little from the camera's side, so shadows fall to the right and away from the camera. */
+static void view_ground_and_light(const fm_render_opts *o, const double lo[3], const double hi[3],
+                                  view *v)
 {
-    return (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
-}
-
-/* Top-left fill rule for positive-area triangles in y-down pixel coordinates. */
-static int top_left(const double a[3], const double b[3])
-{
-    double dx = b[0] - a[0], dy = b[1] - a[1];
-    return dy < 0.0 || (dy == 0.0 && dx > 0.0);
-}
-
-static void raster_triangle(image *img, const double *a, const double *b, const double *c,
-                            const unsigned char rgb[3])
-{
-    for (int k = 0; k < 3; k++)
-        if (!isfinite(a[k]) || !isfinite(b[k]) || !isfinite(c[k])) return;
-    double pa[2] = {c[0], c[1]};
-    double area = edge(a, b, pa);
-    if (area < 0.0) { /* make the winding positive */
-        const double *tmp = b;
-        b = c;
-        c = tmp;
-        area = -area;
+    memcpy(v->w, o->world_up, sizeof v->w);
+    normalize3(v->w);
+    perpendicular(v->w, v->right, v->g1);
+    cross3(v->w, v->g1, v->g2);
+    double hmin = INFINITY, hmax = -INFINITY;
+    v->lo1 = v->lo2 = INFINITY, v->hi1 = v->hi2 = -INFINITY;
+    for (int i = 0; i < 8; i++) {
+        double p[3];
+        box_corner(lo, hi, i, p);
+        double h = dot3(p, v->w), a = dot3(p, v->g1), b = dot3(p, v->g2);
+        hmin = fmin(hmin, h), hmax = fmax(hmax, h);
+        v->lo1 = fmin(v->lo1, a), v->hi1 = fmax(v->hi1, a);
+        v->lo2 = fmin(v->lo2, b), v->hi2 = fmax(v->hi2, b);
     }
-    if (!(area > 0.0)) return; /* degenerate */
+    double extent = fmax(fmax(v->hi1 - v->lo1, v->hi2 - v->lo2), hmax - hmin);
+    double pad = extent > 0.0 ? 0.3 * extent : 1.0;
+    v->lo1 -= pad, v->hi1 += pad, v->lo2 -= pad, v->hi2 += pad;
+    /* A hair under the lowest point, so faces resting on the bounds' floor never tie with it. */
+    v->level = hmin - 1e-3 * pad;
+    v->ground = o->ground;
 
-    /* Pixels whose centre (x + 0.5, y + 0.5) lies in the triangle's bounding box. */
-    double x0 = ceil(fmin(a[0], fmin(b[0], c[0])) - 0.5);
-    double x1 = floor(fmax(a[0], fmax(b[0], c[0])) - 0.5);
-    double y0 = ceil(fmin(a[1], fmin(b[1], c[1])) - 0.5);
-    double y1 = floor(fmax(a[1], fmax(b[1], c[1])) - 0.5);
-    x0 = fmax(x0, 0.0), y0 = fmax(y0, 0.0);
-    x1 = fmin(x1, img->width - 1.0), y1 = fmin(y1, img->height - 1.0);
-    if (x0 > x1 || y0 > y1) return;
-
-    int tl0 = top_left(b, c), tl1 = top_left(c, a), tl2 = top_left(a, b);
-    for (int y = (int)y0; y <= (int)y1; y++) {
-        for (int x = (int)x0; x <= (int)x1; x++) {
-            double p[2] = {x + 0.5, y + 0.5};
-            double w0 = edge(b, c, p), w1 = edge(c, a, p), w2 = edge(a, b, p);
-            if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
-            if ((w0 == 0.0 && !tl0) || (w1 == 0.0 && !tl1) || (w2 == 0.0 && !tl2)) continue;
-            float z = (float)((w0 * a[2] + w1 * b[2] + w2 * c[2]) / area);
-            size_t i = (size_t)y * (size_t)img->width + (size_t)x;
-            if (!(z < img->depth[i])) continue;
-            img->depth[i] = z;
-            memcpy(img->rgb + 3 * i, rgb, 3);
-        }
-    }
+    memcpy(v->light, o->light_dir, sizeof v->light);
+    if (normalize3(v->light) > 0.0) return;
+    double across[3]; /* the image's right axis, levelled */
+    perpendicular(v->w, v->right, across);
+    for (int k = 0; k < 3; k++) v->light[k] = 1.6 * v->w[k] - 0.9 * across[k] - 0.3 * v->fwd[k];
+    normalize3(v->light);
 }
 
-/* Flat Lambert shade of the world-space triangle (a, b, c); |n·l| ignores the winding. */
-static void shade(const camera *cam, const float *a, const float *b, const float *c,
-                  unsigned char rgb[3])
+/* The ray through image point (x, y) in pixels (continuous, y down). */
+static void camera_ray(const view *v, double x, double y, float org[3], float dir[3])
 {
-    double e1[3], e2[3], n[3];
+    double s = v->s_mid + (x - 0.5 * v->width) / v->scale;
+    double t = v->t_mid - (y - 0.5 * v->height) / v->scale;
+    double o[3], d[3];
     for (int k = 0; k < 3; k++) {
-        e1[k] = (double)b[k] - a[k];
-        e2[k] = (double)c[k] - a[k];
-    }
-    cross3(e1, e2, n);
-    double diffuse = normalize3(n) > 0.0 ? fabs(dot3(n, cam->light)) : 0.0;
-    if (!isfinite(diffuse)) diffuse = 0.0;
-    double intensity = fm_ambient + (1.0 - fm_ambient) * fmin(diffuse, 1.0);
-    for (int k = 0; k < 3; k++)
-        rgb[k] = (unsigned char)lround(255.0 * fm_object_rgb[k] * intensity);
-}
-
-static void render(const camera *cam, const float *verts, size_t n, image *img)
-{
-    for (size_t t = 0; t < n; t++) {
-        const float *tv = verts + 12 * t;
-        double p[4][3];
-        for (int v = 0; v < 4; v++) camera_project(cam, tv + 3 * v, p[v]);
-        for (int f = 0; f < 4; f++) {
-            const int *ix = fm_tet_faces[f];
-            unsigned char rgb[3];
-            shade(cam, tv + 3 * ix[0], tv + 3 * ix[1], tv + 3 * ix[2], rgb);
-            raster_triangle(img, p[ix[0]], p[ix[1]], p[ix[2]], rgb);
+        if (v->perspective) {
+            o[k] = v->eye[k];
+            d[k] = v->fwd[k] + s * v->right[k] + t * v->up[k];
+        } else {
+            o[k] = v->eye[k] + s * v->right[k] + t * v->up[k];
+            d[k] = v->fwd[k];
         }
     }
+    normalize3(d);
+    for (int k = 0; k < 3; k++) org[k] = (float)o[k], dir[k] = (float)d[k];
 }
 
-/* The tets' bounding box over finite vertices; returns 0 if there is none. */
-static int tets_bounds(const float *verts, size_t n, double lo[3], double hi[3])
+/* ---------------------------------------------------------------- the frame's Embree scene */
+
+typedef struct frame_scene {
+    RTCScene scene;    /* NULL when nothing finite is drawn */
+    uint32_t *agent;   /* agent of each kept tet or point */
+    size_t n;          /* agents in the frame (the gradient's length) */
+    int tets;          /* 1: primitive p is face p % 4 of kept tet p / 4; 0: primitive p is kept point p */
+    int have_bounds;   /* lo, hi hold the kept geometry's bounds */
+    double lo[3], hi[3];
+} frame_scene;
+
+static void frame_scene_free(frame_scene *sc)
 {
-    int any = 0;
-    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (size_t i = 0; i < 4 * n; i++) {
-        const float *v = verts + 3 * i;
-        if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2])) continue;
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], v[k]), hi[k] = fmax(hi[k], v[k]);
-        any = 1;
+    if (sc->scene) rtcReleaseScene(sc->scene);
+    free(sc->agent);
+    memset(sc, 0, sizeof *sc);
+}
+
+static int finite_coords(const float *p, int count)
+{
+    for (int i = 0; i < count; i++)
+        if (!(fabsf(p[i]) <= FM_RENDER_MAX_COORD)) return 0;
+    return 1;
+}
+
+static void grow_bounds(frame_scene *sc, const float *p, double pad)
+{
+    for (int k = 0; k < 3; k++) {
+        sc->lo[k] = fmin(sc->lo[k], p[k] - pad);
+        sc->hi[k] = fmax(sc->hi[k], p[k] + pad);
     }
-    return any;
+    sc->have_bounds = 1;
+}
+
+/* Keeps the agents whose `floats` coordinates are finite; fills sc->agent, returns how many. */
+static size_t keep_finite(const float *data, size_t n, int floats, frame_scene *sc)
+{
+    size_t kept = 0;
+    for (size_t i = 0; i < n; i++)
+        if (finite_coords(data + (size_t)floats * i, floats)) sc->agent[kept++] = (uint32_t)i;
+    return kept;
+}
+
+static fm_status embree_status(fm_renderer *r, fm_error *err)
+{
+    enum RTCError e = rtcGetDeviceError(r->device);
+    if (e == RTC_ERROR_NONE && !r->embree_error[0]) return FM_OK;
+    fm_status st = e == RTC_ERROR_OUT_OF_MEMORY ? FM_ERR_MEMORY : FM_ERR_INTERNAL;
+    fm_fail(err, st, "render: %s", r->embree_error[0] ? r->embree_error : "Embree failed");
+    r->embree_error[0] = 0;
+    return st;
+}
+
+/* Commits geometry g (if any) as the scene's only geometry. */
+static fm_status commit_scene(fm_renderer *r, RTCGeometry g, frame_scene *sc, fm_error *err)
+{
+    sc->scene = rtcNewScene(r->device);
+    if (sc->scene) {
+        /* Watertight traversal: rays do not slip through the shared edges of neighbouring faces. */
+        rtcSetSceneFlags(sc->scene, RTC_SCENE_FLAG_ROBUST);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(sc->scene, g);
+        rtcCommitScene(sc->scene);
+    }
+    rtcReleaseGeometry(g);
+    return embree_status(r, err);
+}
+
+static fm_status start_scene(fm_renderer *r, size_t n, int tets, frame_scene *sc, fm_error *err)
+{
+    memset(sc, 0, sizeof *sc);
+    sc->n = n, sc->tets = tets;
+    for (int k = 0; k < 3; k++) sc->lo[k] = INFINITY, sc->hi[k] = -INFINITY;
+    if ((uint64_t)n * 4 > UINT32_MAX)
+        return fm_fail(err, FM_ERR_USAGE, "render: %zu agents are more than Embree can hold", n);
+    sc->agent = malloc(sizeof(uint32_t) * (n ? n : 1));
+    if (!sc->agent) return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu agents", n);
+    (void)r;
+    return FM_OK;
+}
+
+static fm_status build_tets(fm_renderer *r, const float *verts, size_t n, frame_scene *sc,
+                            fm_error *err)
+{
+    static const unsigned faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    fm_status st = start_scene(r, n, 1, sc, err);
+    if (st != FM_OK) return st;
+    size_t kept = keep_finite(verts, n, 12, sc);
+    if (kept == 0) return FM_OK;
+    RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!g) return embree_status(r, err);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                        3 * sizeof(float), 4 * kept);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                           3 * sizeof(unsigned), 4 * kept);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu tets", kept);
+    }
+    for (size_t t = 0; t < kept; t++) {
+        const float *tv = verts + 12 * (size_t)sc->agent[t];
+        memcpy(vb + 12 * t, tv, 12 * sizeof(float));
+        for (int c = 0; c < 4; c++) grow_bounds(sc, tv + 3 * c, 0.0);
+        for (int f = 0; f < 4; f++)
+            for (int c = 0; c < 3; c++) ib[3 * (4 * t + f) + c] = (unsigned)(4 * t) + faces[f][c];
+    }
+    return commit_scene(r, g, sc, err);
+}
+
+static fm_status build_points(fm_renderer *r, const float *pos, size_t n, frame_scene *sc,
+                              fm_error *err)
+{
+    fm_status st = start_scene(r, n, 0, sc, err);
+    if (st != FM_OK) return st;
+    size_t kept = keep_finite(pos, n, 3, sc);
+    if (kept == 0) return FM_OK;
+    float radius = (float)(r->o.point_radius > 0.0 ? r->o.point_radius
+                                                   : fm_render_point_radius(pos, n));
+    RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    if (!g) return embree_status(r, err);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                        4 * sizeof(float), kept);
+    if (!vb) {
+        rtcReleaseGeometry(g);
+        return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu points", kept);
+    }
+    for (size_t i = 0; i < kept; i++) {
+        const float *p = pos + 3 * (size_t)sc->agent[i];
+        memcpy(vb + 4 * i, p, 3 * sizeof(float));
+        vb[4 * i + 3] = radius;
+        grow_bounds(sc, p, radius);
+    }
+    return commit_scene(r, g, sc, err);
+}
+
+/* ---------------------------------------------------------------- tracing and shading */
+
+typedef struct surface {
+    double p[3], n[3]; /* hit point, unit normal facing the ray's origin */
+    float albedo[3];
+} surface;
+
+/* Distance along the ray to the ground rectangle, +inf if it misses. */
+static double ground_hit(const view *v, const double org[3], const double dir[3])
+{
+    double denom = dot3(v->w, dir);
+    if (!v->ground || fabs(denom) < 1e-12) return INFINITY;
+    double t = (v->level - dot3(v->w, org)) / denom;
+    if (!(t > 0.0)) return INFINITY;
+    double q[3] = {org[0] + t * dir[0], org[1] + t * dir[1], org[2] + t * dir[2]};
+    double a = dot3(q, v->g1), b = dot3(q, v->g2);
+    return a >= v->lo1 && a <= v->hi1 && b >= v->lo2 && b <= v->hi2 ? t : INFINITY;
+}
+
+/* The nearest surface along the ray: a tet face, a sphere or the ground. 0 if none. */
+static int trace(const fm_renderer *r, const view *v, const frame_scene *sc, const float org[3],
+                 const float dir[3], surface *hit)
+{
+    double t_obj = INFINITY, n[3] = {0, 0, 0};
+    uint32_t agent = 0;
+    if (sc->scene) {
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        struct RTCRayHit rh;
+        memset(&rh, 0, sizeof rh);
+        rh.ray.org_x = org[0], rh.ray.org_y = org[1], rh.ray.org_z = org[2];
+        rh.ray.dir_x = dir[0], rh.ray.dir_y = dir[1], rh.ray.dir_z = dir[2];
+        rh.ray.tnear = 0.0f, rh.ray.tfar = INFINITY, rh.ray.mask = UINT32_MAX;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(sc->scene, &ctx, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+            t_obj = rh.ray.tfar;
+            n[0] = rh.hit.Ng_x, n[1] = rh.hit.Ng_y, n[2] = rh.hit.Ng_z;
+            agent = sc->agent[sc->tets ? rh.hit.primID / 4 : rh.hit.primID];
+        }
+    }
+    double o[3] = {org[0], org[1], org[2]}, d[3] = {dir[0], dir[1], dir[2]};
+    double t_gnd = ground_hit(v, o, d);
+    if (t_obj == INFINITY && t_gnd == INFINITY) return 0;
+    if (t_obj <= t_gnd) {
+        agent_colour(r, agent, sc->n, hit->albedo);
+    } else {
+        memcpy(n, v->w, sizeof n);
+        memcpy(hit->albedo, r->ground_albedo, sizeof hit->albedo);
+    }
+    double t = fmin(t_obj, t_gnd);
+    if (normalize3(n) == 0.0) memcpy(n, v->w, sizeof n); /* a zero-area face: any normal */
+    if (dot3(n, d) > 0.0)                                 /* shade the side the ray sees */
+        for (int k = 0; k < 3; k++) n[k] = -n[k];
+    for (int k = 0; k < 3; k++) hit->p[k] = o[k] + t * d[k], hit->n[k] = n[k];
+    return 1;
+}
+
+/* 1 if something lies between the surface and the key light. */
+static int in_shadow(const view *v, const frame_scene *sc, const surface *s)
+{
+    if (!sc->scene) return 0;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay ray;
+    memset(&ray, 0, sizeof ray);
+    ray.org_x = (float)(s->p[0] + v->eps * s->n[0]);
+    ray.org_y = (float)(s->p[1] + v->eps * s->n[1]);
+    ray.org_z = (float)(s->p[2] + v->eps * s->n[2]);
+    ray.dir_x = (float)v->light[0], ray.dir_y = (float)v->light[1], ray.dir_z = (float)v->light[2];
+    ray.tnear = (float)v->eps, ray.tfar = INFINITY, ray.mask = UINT32_MAX;
+    rtcOccluded1(sc->scene, &ctx, &ray);
+    return ray.tfar < 0.0f; /* Embree sets tfar to -inf on a hit */
+}
+
+/* Linear radiance seen along one camera ray. */
+static void shade_ray(const fm_renderer *r, const view *v, const frame_scene *sc, double x,
+                      double y, float out[3])
+{
+    float org[3], dir[3];
+    camera_ray(v, x, y, org, dir);
+    surface s;
+    if (!trace(r, v, sc, org, dir, &s)) {
+        memcpy(out, r->background, 3 * sizeof(float));
+        return;
+    }
+    double lambert = dot3(s.n, v->light);
+    double light = fm_ambient;
+    if (lambert > 0.0 && !in_shadow(v, sc, &s)) light += fm_key * lambert;
+    for (int k = 0; k < 3; k++) out[k] = (float)(s.albedo[k] * light);
+}
+
+/* One pixel: the mean of samples x samples rays on a regular grid inside it. */
+static void shade_pixel(const fm_renderer *r, const view *v, const frame_scene *sc, int px,
+                        int py, unsigned char rgb[3])
+{
+    int m = v->samples;
+    float sum[3] = {0, 0, 0};
+    for (int j = 0; j < m; j++)
+        for (int i = 0; i < m; i++) {
+            float c[3];
+            shade_ray(r, v, sc, px + (i + 0.5) / m, py + (j + 0.5) / m, c);
+            for (int k = 0; k < 3; k++) sum[k] += c[k];
+        }
+    for (int k = 0; k < 3; k++) rgb[k] = srgb_encode(r->srgb_edge, sum[k] / (float)(m * m));
+}
+
+static void fill_background(const fm_renderer *r, unsigned char *rgb)
+{
+    unsigned char bg[3];
+    for (int k = 0; k < 3; k++) bg[k] = srgb_encode(r->srgb_edge, r->background[k]);
+    size_t pixels = (size_t)r->o.width * (size_t)r->o.height;
+    for (size_t i = 0; i < pixels; i++) memcpy(rgb + 3 * i, bg, 3);
+}
+
+static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_error *err)
+{
+    const fm_render_opts *o = &r->o;
+    double lo[3], hi[3];
+    if (o->bounds) {
+        memcpy(lo, o->bounds, sizeof lo), memcpy(hi, o->bounds + 3, sizeof hi);
+    } else if (sc->have_bounds) {
+        memcpy(lo, sc->lo, sizeof lo), memcpy(hi, sc->hi, sizeof hi);
+    } else { /* nothing to fit: an empty picture */
+        fill_background(r, rgb);
+        frame_scene_free(sc);
+        return FM_OK;
+    }
+    view v;
+    view_camera(o, lo, hi, &v);
+    view_ground_and_light(o, lo, hi, &v);
+    int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    const fm_renderer *cr = r;
+#pragma omp parallel for schedule(dynamic, 2) num_threads(threads)
+    for (int y = 0; y < o->height; y++)
+        for (int x = 0; x < o->width; x++)
+            shade_pixel(cr, &v, sc, x, y, rgb + 3 * ((size_t)y * (size_t)o->width + (size_t)x));
+    frame_scene_free(sc);
+    return embree_status(r, err);
+}
+
+static fm_status check_draw_args(const void *data, size_t n, const unsigned char *rgb,
+                                 fm_error *err)
+{
+    if (n > 0 && !data) return fm_fail(err, FM_ERR_USAGE, "render: no coordinates given");
+    if (!rgb) return fm_fail(err, FM_ERR_USAGE, "render: no image buffer given");
+    return FM_OK;
+}
+
+fm_status fm_renderer_draw_tets(fm_renderer *r, const float *verts, size_t n, unsigned char *rgb,
+                                fm_error *err)
+{
+    fm_status st = check_draw_args(verts, n, rgb, err);
+    frame_scene sc;
+    if (st == FM_OK && (st = build_tets(r, verts, n, &sc, err)) != FM_OK) frame_scene_free(&sc);
+    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
+}
+
+fm_status fm_renderer_draw_points(fm_renderer *r, const float *positions, size_t n,
+                                  unsigned char *rgb, fm_error *err)
+{
+    fm_status st = check_draw_args(positions, n, rgb, err);
+    frame_scene sc;
+    if (st == FM_OK && (st = build_points(r, positions, n, &sc, err)) != FM_OK)
+        frame_scene_free(&sc);
+    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
+}
+
+/* ---------------------------------------------------------------- point radius */
+
+/* Squared distance from point a to its nearest other point among the 27 grid cells around it
+ * (+inf if there is none; coincident points are not neighbours). */
+static double nearest_in_cells(const fm_grid *g, const float *const p[3], int32_t a)
+{
+    int32_t c[3];
+    const float x[3] = {p[0][a], p[1][a], p[2][a]};
+    for (int k = 0; k < 3; k++) c[k] = fm_grid_coord(fm_grid_scaled(g, x[k]));
+    double best = INFINITY;
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                uint32_t s = fm_grid_slot(g, c[0] + dx, c[1] + dy, c[2] + dz);
+                for (int32_t e = g->start[s]; e < g->start[s + 1]; e++) {
+                    const fm_grid_quad *q = g->quad + (e >> 2);
+                    double ex = q->x[e & 3] - x[0], ey = q->y[e & 3] - x[1], ez = q->z[e & 3] - x[2];
+                    double d2 = ex * ex + ey * ey + ez * ez;
+                    if (d2 > 0.0 && d2 < best) best = d2;
+                }
+            }
+    return best;
+}
+
+static int compare_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+#define FM_RADIUS_SAMPLES 4096
+
+/* Nearest-neighbour distances d[] of up to FM_RADIUS_SAMPLES evenly strided points, searched in
+ * the 27 cells around each. A distance up to the cell edge is exact (anything nearer lies in those
+ * cells); a larger one (or +inf: nothing found) is only an upper bound. Returns how many are exact. */
+static int sample_spacings(const fm_grid *g, const float *const p[3], int32_t n, double cell,
+                           double *d, int *count)
+{
+    int32_t stride = n > FM_RADIUS_SAMPLES ? n / FM_RADIUS_SAMPLES : 1;
+    int exact = 0;
+    *count = 0;
+    for (int32_t a = 0; a < n && *count < FM_RADIUS_SAMPLES; a += stride) {
+        double dist = sqrt(nearest_in_cells(g, p, a));
+        d[(*count)++] = dist;
+        exact += dist <= cell;
+    }
+    return exact;
+}
+
+/* Median nearest-neighbour distance over a sample of the points; 0 if there is none. The grid's
+ * cell starts at the spacing the points would have filling their box and doubles until most
+ * samples' distances are exact, which points on a surface or a curve need. */
+static double median_spacing(const float *const p[3], int32_t n, const double lo[3],
+                             const double hi[3])
+{
+    double diag = 0.0, volume = 1.0;
+    for (int k = 0; k < 3; k++) diag += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    diag = sqrt(diag);
+    for (int k = 0; k < 3; k++) volume *= fmax(hi[k] - lo[k], 1e-3 * diag);
+    double cell = cbrt(volume / n);
+    fm_grid g;
+    uint8_t *member = malloc((size_t)n);
+    double *d = malloc(sizeof(double) * FM_RADIUS_SAMPLES);
+    if (!member || !d || !(cell > 0.0) || fm_grid_init(&g, n, NULL) != FM_OK) {
+        free(member), free(d);
+        return 0.0;
+    }
+    memset(member, 1, (size_t)n);
+    int count = 0;
+    for (int round = 0; round < 64; round++, cell *= 2.0) {
+        fm_grid_build(&g, p, member, n, (float)cell, 1);
+        /* 60 % exact: the median is then one of the exact ones (the others are larger). */
+        if (5 * sample_spacings(&g, p, n, cell, d, &count) >= 3 * count || cell > 2.0 * diag) break;
+    }
+    qsort(d, (size_t)count, sizeof *d, compare_double);
+    double median = count && isfinite(d[count / 2]) ? d[count / 2] : 0.0;
+    fm_grid_free(&g);
+    free(member), free(d);
+    return median;
+}
+
+double fm_render_point_radius(const float *positions, size_t n)
+{
+    if (n > (size_t)FM_GRID_MAX_CAPACITY) n = (size_t)FM_GRID_MAX_CAPACITY; /* a prefix will do */
+    float *soa = malloc(sizeof(float) * 3 * (n ? n : 1));
+    if (!soa || !positions) return free(soa), 1.0;
+    float *const p[3] = {soa, soa + n, soa + 2 * n};
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    int32_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        const float *q = positions + 3 * i;
+        if (!finite_coords(q, 3)) continue;
+        for (int k = 0; k < 3; k++) {
+            p[k][m] = q[k];
+            lo[k] = fmin(lo[k], q[k]), hi[k] = fmax(hi[k], q[k]);
+        }
+        m++;
+    }
+    double spacing = m > 1 ? median_spacing((const float *const *)p, m, lo, hi) : 0.0;
+    double diag = 0.0;
+    for (int k = 0; k < 3 && m > 0; k++) diag += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    free(soa);
+    /* Without neighbours to measure: 1 % of the points' extent, or 1 for a single point. */
+    if (!(spacing > 0.0)) return diag > 0.0 ? 0.01 * sqrt(diag) : 1.0;
+    return 0.45 * spacing;
 }
 
 /* ---------------------------------------------------------------- PNG */
@@ -249,15 +834,12 @@ static void png_warning_fn(png_structp png, png_const_charp msg)
 }
 
 /* Returns 0 on success, -1 on failure with pf->message set (errno may say more). */
-static int write_png(FILE *f, const image *img, png_failure *pf)
+static int write_png_stream(FILE *f, const unsigned char *rgb, int width, int height,
+                            png_failure *pf)
 {
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, pf, png_error_fn,
                                               png_warning_fn);
-    if (!png) {
-        snprintf(pf->message, sizeof pf->message, "libpng could not start");
-        return -1;
-    }
-    png_infop info = png_create_info_struct(png);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
     if (!info) {
         png_destroy_write_struct(&png, NULL);
         snprintf(pf->message, sizeof pf->message, "libpng could not start");
@@ -268,26 +850,29 @@ static int write_png(FILE *f, const image *img, png_failure *pf)
         return -1;
     }
     png_init_io(png, f);
-    png_set_IHDR(png, info, (png_uint_32)img->width, (png_uint_32)img->height, 8,
-                 PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
-                 PNG_FILTER_TYPE_DEFAULT);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
     png_write_info(png, info);
-    for (int y = 0; y < img->height; y++)
-        png_write_row(png, img->rgb + (size_t)y * (size_t)img->width * 3);
+    for (int y = 0; y < height; y++) png_write_row(png, rgb + (size_t)y * (size_t)width * 3);
     png_write_end(png, info);
     png_destroy_write_struct(&png, &info);
     return 0;
 }
 
-/* Writes img to path through path.partial and rename(). */
-static fm_status save_png(const image *img, const char *path, fm_error *err)
+fm_status fm_write_png(const unsigned char *rgb, int width, int height, const char *path,
+                       fm_error *err)
 {
+    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "render: no output path given");
+    if (!rgb || width < 1 || height < 1 || width > FM_RENDER_MAX_DIM || height > FM_RENDER_MAX_DIM)
+        return fm_fail(err, FM_ERR_USAGE, "cannot write '%s': no %dx%d image to write", path,
+                       width, height);
     fm_output_file out;
     fm_status st = fm_output_open(&out, path, err);
     if (st != FM_OK) return st;
     png_failure pf = {""};
     errno = 0;
-    if (write_png(out.f, img, &pf) != 0) {
+    if (write_png_stream(out.f, rgb, width, height, &pf) != 0) {
         int e = errno;
         fm_output_discard(&out);
         if (pf.message[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, pf.message);
@@ -296,53 +881,37 @@ static fm_status save_png(const image *img, const char *path, fm_error *err)
     return fm_output_commit(&out, NULL, err);
 }
 
-/* ---------------------------------------------------------------- entry point */
+/* ---------------------------------------------------------------- one-call forms */
+
+typedef fm_status (*draw_fn)(fm_renderer *, const float *, size_t, unsigned char *, fm_error *);
+
+static fm_status render_png(draw_fn draw_frame, const float *data, size_t n,
+                            const fm_render_opts *opts, const char *path, fm_error *err)
+{
+    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "render: no output path given");
+    fm_renderer *r;
+    fm_status st = renderer_create(opts, &r, err);
+    if (st != FM_OK) return st;
+    size_t bytes = 3 * (size_t)r->o.width * (size_t)r->o.height;
+    unsigned char *rgb = malloc(bytes);
+    st = rgb ? FM_OK
+             : fm_fail(err, FM_ERR_MEMORY, "render to '%s': out of memory for %dx%d",
+                                 path, r->o.width, r->o.height);
+    if (st == FM_OK) st = draw_frame(r, data, n, rgb, err);
+    if (st == FM_OK) st = fm_write_png(rgb, r->o.width, r->o.height, path, err);
+    free(rgb);
+    fm_renderer_destroy(r);
+    return st;
+}
 
 fm_status fm_render_tets_png(const float *verts, size_t n, const fm_render_opts *opts,
                              const char *path, fm_error *err)
 {
-    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "render: no output path given");
-    if (n > 0 && !verts) return fm_fail(err, FM_ERR_USAGE, "render to '%s': no vertices", path);
-    fm_render_opts defaults = fm_default_render_opts();
-    const fm_render_opts *o = opts ? opts : &defaults;
+    return render_png(fm_renderer_draw_tets, verts, n, opts, path, err);
+}
 
-    camera cam;
-    fm_status s = camera_axes(o, &cam, err);
-    if (s != FM_OK) return s;
-
-    double lo[3], hi[3];
-    int have_bounds;
-    if (o->bounds) {
-        for (int k = 0; k < 3; k++) {
-            lo[k] = o->bounds[k];
-            hi[k] = o->bounds[k + 3];
-            if (!isfinite(lo[k]) || !isfinite(hi[k]) || lo[k] > hi[k])
-                return fm_fail(err, FM_ERR_USAGE,
-                               "render: bounds must be finite [minx miny minz maxx maxy maxz]");
-        }
-        have_bounds = 1;
-    } else {
-        have_bounds = tets_bounds(verts, n, lo, hi);
-    }
-
-    size_t pixels = (size_t)o->width * (size_t)o->height;
-    image img = {o->width, o->height, fm_alloc(3 * pixels), fm_alloc(sizeof(float) * pixels)};
-    if (!img.rgb || !img.depth) {
-        fm_free(img.rgb);
-        fm_free(img.depth);
-        return fm_fail(err, FM_ERR_MEMORY, "render to '%s': out of memory for %dx%d", path,
-                       o->width, o->height);
-    }
-    for (size_t i = 0; i < pixels; i++) {
-        memcpy(img.rgb + 3 * i, fm_background_rgb, 3);
-        img.depth[i] = INFINITY;
-    }
-    if (have_bounds) {
-        camera_fit(&cam, lo, hi, o->margin);
-        render(&cam, verts, n, &img);
-    }
-    s = save_png(&img, path, err);
-    fm_free(img.rgb);
-    fm_free(img.depth);
-    return s;
+fm_status fm_render_points_png(const float *positions, size_t n, const fm_render_opts *opts,
+                               const char *path, fm_error *err)
+{
+    return render_png(fm_renderer_draw_points, positions, n, opts, path, err);
 }

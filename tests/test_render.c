@@ -1,5 +1,7 @@
-/* fm_render_tets_png: render small scenes, read the PNG back with libpng and check where the
- * pixels landed. */
+/* The preview renderer (src/render.c) and its video writer (src/video.c): render small scenes
+ * whose projection is known and check where the pixels land, that a tet shadows the ground, that
+ * the bytes do not depend on the thread count, that points become spheres; then `flockmorph render`
+ * to MP4 through ffmpeg, counted back with ffprobe, and its errors. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
@@ -9,12 +11,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 
 #ifndef FM_TEST_TMP
 #error "FM_TEST_TMP must name a scratch directory"
 #endif
 
-/* ---------------------------------------------------------------- helpers */
+/* ---------------------------------------------------------------- images */
 
 typedef struct rgb_image {
     int width, height;
@@ -26,6 +30,29 @@ static const unsigned char *pixel(const rgb_image *im, int x, int y)
     return im->rgb + 3 * ((size_t)y * (size_t)im->width + (size_t)x);
 }
 
+static int brightness(const rgb_image *im, int x, int y)
+{
+    const unsigned char *p = pixel(im, x, y);
+    return p[0] + p[1] + p[2];
+}
+
+/* Renders tets (points = 0) or points into a new image; rgb is NULL on failure. */
+static rgb_image render(const float *data, size_t n, int points, const fm_render_opts *o)
+{
+    rgb_image im = {o->width, o->height, malloc(3 * (size_t)o->width * (size_t)o->height)};
+    fm_error err = {0};
+    fm_renderer *r = fm_renderer_create(o, &err);
+    ENSURE_MSG(r != NULL, "create: %s", err.message);
+    fm_status st = FM_ERR_INTERNAL;
+    if (r && im.rgb)
+        st = points ? fm_renderer_draw_points(r, data, n, im.rgb, &err)
+                    : fm_renderer_draw_tets(r, data, n, im.rgb, &err);
+    ENSURE_MSG(st == FM_OK, "draw: status %d: %s", (int)st, err.message);
+    fm_renderer_destroy(r);
+    if (st != FM_OK) free(im.rgb), im.rgb = NULL;
+    return im;
+}
+
 /* Reads an 8-bit RGB PNG (anything else fails); 0 on success. */
 static int read_png(const char *path, rgb_image *out)
 {
@@ -34,10 +61,7 @@ static int read_png(const char *path, rgb_image *out)
     memset(&img, 0, sizeof img);
     img.version = PNG_IMAGE_VERSION;
     if (!png_image_begin_read_from_file(&img, path)) return 1;
-    if (img.format != PNG_FORMAT_RGB) { /* 8-bit, colour, no alpha, no palette */
-        png_image_free(&img);
-        return 2;
-    }
+    if (img.format != PNG_FORMAT_RGB) return png_image_free(&img), 2;
     out->rgb = malloc(PNG_IMAGE_SIZE(img));
     if (!out->rgb || !png_image_finish_read(&img, NULL, out->rgb, 0, NULL)) {
         png_image_free(&img);
@@ -52,47 +76,20 @@ static int read_png(const char *path, rgb_image *out)
 
 static int file_exists(const char *path)
 {
-    FILE *f = fopen(path, "rb");
-    if (f) fclose(f);
-    return f != NULL;
+    struct stat st;
+    return stat(path, &st) == 0;
 }
 
 static char *tmp_path(char *buf, size_t size, const char *name)
 {
-    snprintf(buf, size, "%s/%s", FM_TEST_TMP, name);
+    snprintf(buf, size, "%s/render_%s", FM_TEST_TMP, name);
     return buf;
-}
-
-/* Renders and reads the result back; 0 on success. */
-static int render_and_read(const float *verts, size_t n, const fm_render_opts *opts,
-                           const char *name, rgb_image *out)
-{
-    char path[512], partial[600];
-    tmp_path(path, sizeof path, name);
-    snprintf(partial, sizeof partial, "%s.partial", path);
-    remove(path);
-    fm_error err = {0};
-    fm_status s = fm_render_tets_png(verts, n, opts, path, &err);
-    ENSURE_MSG(s == FM_OK, "%s: status %d: %s", name, (int)s, err.message);
-    ENSURE_MSG(!file_exists(partial), "%s left behind", partial);
-    memset(out, 0, sizeof *out);
-    if (s != FM_OK) return 1;
-    int rc = read_png(path, out);
-    ENSURE_MSG(rc == 0, "%s: cannot read the PNG back (%d)", name, rc);
-    if (rc == 0) {
-        ENSURE_MSG(out->width == opts->width && out->height == opts->height,
-                   "%s: %dx%d, expected %dx%d", name, out->width, out->height, opts->width,
-                   opts->height);
-        if (out->width != opts->width || out->height != opts->height) rc = 4;
-    }
-    remove(path);
-    return rc;
 }
 
 /* Foreground = any pixel that differs from the top-left corner (the scenes leave it empty). */
 typedef struct coverage {
-    long fg, bg;
-    int x0, x1, y0, y1; /* foreground pixel bounding box (inclusive) */
+    long fg;
+    int x0, x1, y0, y1; /* foreground bounding box (inclusive) */
 } coverage;
 
 static int is_fg(const rgb_image *im, int x, int y)
@@ -102,13 +99,10 @@ static int is_fg(const rgb_image *im, int x, int y)
 
 static coverage cover(const rgb_image *im)
 {
-    coverage c = {0, 0, im->width, -1, im->height, -1};
+    coverage c = {0, im->width, -1, im->height, -1};
     for (int y = 0; y < im->height; y++)
         for (int x = 0; x < im->width; x++) {
-            if (!is_fg(im, x, y)) {
-                c.bg++;
-                continue;
-            }
+            if (!is_fg(im, x, y)) continue;
             c.fg++;
             if (x < c.x0) c.x0 = x;
             if (x > c.x1) c.x1 = x;
@@ -118,9 +112,11 @@ static coverage cover(const rgb_image *im)
     return c;
 }
 
+/* ---------------------------------------------------------------- scenes */
+
 /* A tet whose back face (v0 v1 v2) lies in the plane y = y0 as the triangle
  * (cx - w, cz - h), (cx + w, cz - h), (cx, cz + h) in (x, z), with the apex v3 sticking out
- * towards -Y (towards the default camera) over the triangle's centroid. Positive volume. */
+ * towards -Y (towards the front camera) over the triangle's centroid. Positive volume. */
 static void make_tet(float *t, double cx, double y0, double cz, double w, double h, double depth)
 {
     const double v[4][3] = {{cx - w, y0, cz - h},
@@ -133,281 +129,325 @@ static void make_tet(float *t, double cx, double y0, double cz, double w, double
 
 static const double unit_box[6] = {-1, -1, -1, 1, 1, 1};
 
-/* Where the default view (along +Y, up +Z) puts world (x, z) once the box [-1, 1]^3 is fitted
- * into W x H with margin m: the box spans 2 x 2 on the image plane. */
-static double box_scale(const fm_render_opts *o)
+/* Orthographic front view (along +Y, up +Z), no ground, fitted to the box [-1, 1]^3. */
+static fm_render_opts front_opts(void)
 {
-    double sx = o->width * (1.0 - 2.0 * o->margin) / 2.0;
-    double sy = o->height * (1.0 - 2.0 * o->margin) / 2.0;
+    fm_render_opts o = fm_default_render_opts();
+    ENSURE(fm_render_set_view(&o, "front", NULL) == FM_OK);
+    o.ground = 0;
+    o.bounds = unit_box;
+    return o;
+}
+
+/* Pixels per world unit once the box [-1, 1]^3, which spans 2 x 2 on the front view's image
+ * plane, is fitted into W x H with margin m. */
+static double box_scale(const fm_render_opts *o, double plane_w, double plane_h)
+{
+    double sx = o->width * (1.0 - 2.0 * o->margin) / plane_w;
+    double sy = o->height * (1.0 - 2.0 * o->margin) / plane_h;
     return sx < sy ? sx : sy;
 }
-static double px_of(const fm_render_opts *o, double x)
-{
-    return 0.5 * o->width + x * box_scale(o);
-}
-static double py_of(const fm_render_opts *o, double z)
-{
-    return 0.5 * o->height - z * box_scale(o);
-}
+static double px_of(const fm_render_opts *o, double s) { return 0.5 * o->width + s * box_scale(o, 2, 2); }
+static double py_of(const fm_render_opts *o, double t) { return 0.5 * o->height - t * box_scale(o, 2, 2); }
 
-/* ---------------------------------------------------------------- tests */
+/* ---------------------------------------------------------------- options */
 
-static void test_defaults(void)
+static void test_defaults_and_views(void)
 {
     fm_render_opts o = fm_default_render_opts();
     ENSURE(o.width == 960 && o.height == 540);
-    ENSURE(o.view_dir[0] == 0 && o.view_dir[1] == 1 && o.view_dir[2] == 0);
-    ENSURE(o.up[0] == 0 && o.up[1] == 0 && o.up[2] == 1);
+    ENSURE(o.perspective == 1 && o.ground == 1 && o.samples == 1 && o.bounds == NULL);
+    ENSURE(o.world_up[0] == 0 && o.world_up[1] == 0 && o.world_up[2] == 1);
+    ENSURE(o.view_dir[1] > 0 && o.view_dir[2] < 0); /* persp: from the front, above */
     ENSURE_NEAR(o.margin, 0.05, 1e-15);
-    ENSURE(o.bounds == NULL);
+    fm_error err = {0};
+    ENSURE(fm_render_set_view(&o, "top", &err) == FM_OK);
+    ENSURE(o.perspective == 0 && o.view_dir[2] == -1 && o.up[1] == 1);
+    ENSURE(fm_render_set_view(&o, "side", &err) == FM_OK && o.view_dir[0] == -1);
+    ENSURE(fm_render_set_view(&o, "front", &err) == FM_OK && o.view_dir[1] == 1);
+    ENSURE(fm_render_set_view(&o, "diagonal", &err) == FM_ERR_USAGE);
+    ENSURE_MSG(strstr(err.message, "diagonal") && strstr(err.message, "persp"), "%s", err.message);
 }
 
-/* One tet in the right half of a fixed box, seen from the front. */
-static void test_front_view_right_half(void)
+/* ---------------------------------------------------------------- where pixels land */
+
+/* One tet in the right half of the fixed box, seen from the front: its pixels lie inside its
+ * projected bounding box and fill the silhouette (the back triangle, half that box). */
+static void test_front_view_inside_projected_box(void)
 {
-    fm_render_opts o = fm_default_render_opts();
-    o.bounds = unit_box;
+    fm_render_opts o = front_opts();
     float tet[12];
     make_tet(tet, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4); /* x in [0.3, 0.9], z in [-0.5, 0.5] */
-    rgb_image im;
-    if (render_and_read(tet, 1, &o, "fm_test_render_front.png", &im) != 0) return;
-
-    const unsigned char *bg = pixel(&im, 0, 0);
-    ENSURE_MSG(bg[0] + bg[1] + bg[2] < 3 * 80, "background %d %d %d is not dark", bg[0], bg[1],
-               bg[2]);
+    rgb_image im = render(tet, 1, 0, &o);
+    if (!im.rgb) return;
     coverage c = cover(&im);
-    ENSURE_MSG(c.fg > 0, "no foreground pixels");
-    ENSURE_MSG(c.bg > 4 * c.fg, "background %ld does not dominate foreground %ld", c.bg, c.fg);
-
-    /* Projected bounding box of the tet, in pixel-centre coordinates, +-2 pixels. */
-    double bx0 = px_of(&o, 0.3), bx1 = px_of(&o, 0.9);
-    double by0 = py_of(&o, 0.5), by1 = py_of(&o, -0.5);
-    ENSURE_MSG(c.x0 + 0.5 >= bx0 - 2 && c.x1 + 0.5 <= bx1 + 2 && c.y0 + 0.5 >= by0 - 2 &&
-                   c.y1 + 0.5 <= by1 + 2,
+    double bx0 = px_of(&o, 0.3), bx1 = px_of(&o, 0.9), by0 = py_of(&o, 0.5), by1 = py_of(&o, -0.5);
+    /* Pixel centres (x + 0.5) inside the box, and the box reached, to a pixel. */
+    ENSURE_MSG(c.fg > 0 && c.x0 + 0.5 >= bx0 - 1 && c.x1 + 0.5 <= bx1 + 1 && c.y0 + 0.5 >= by0 - 1 &&
+                   c.y1 + 0.5 <= by1 + 1,
                "foreground [%d, %d] x [%d, %d] outside [%.1f, %.1f] x [%.1f, %.1f]", c.x0, c.x1,
                c.y0, c.y1, bx0, bx1, by0, by1);
-    /* ... and it fills that box (the tet is not a speck). */
-    ENSURE_MSG(c.x0 + 0.5 <= bx0 + 2 && c.x1 + 0.5 >= bx1 - 2 && c.y0 + 0.5 <= by0 + 2 &&
-                   c.y1 + 0.5 >= by1 - 2,
+    ENSURE_MSG(c.x0 + 0.5 <= bx0 + 1 && c.x1 + 0.5 >= bx1 - 1 && c.y0 + 0.5 <= by0 + 1 &&
+                   c.y1 + 0.5 >= by1 - 1,
                "foreground [%d, %d] x [%d, %d] does not reach [%.1f, %.1f] x [%.1f, %.1f]", c.x0,
                c.x1, c.y0, c.y1, bx0, bx1, by0, by1);
-    /* +X is on the right: everything lies in the right half. */
-    ENSURE_MSG(c.x0 >= im.width / 2, "foreground starts at x = %d, left of the centre", c.x0);
-    /* The silhouette is the back triangle (the apex projects inside it): no holes. */
     double area = 0.5 * (bx1 - bx0) * (by1 - by0);
     ENSURE_MSG(fabs((double)c.fg - area) < 0.015 * area, "%ld foreground pixels, expected %.0f",
                c.fg, area);
+    ENSURE_MSG(c.x0 >= im.width / 2, "+X is not on the right: foreground from x = %d", c.x0);
     free(im.rgb);
 }
 
-/* Flat shading with the light at the camera's upper left: the face turned up and left is the
- * brightest of the three visible faces, and each face is one flat colour. */
-static void test_shading(void)
+/* Perspective, fitted to a cube (the 6 tets of its Kuhn triangulation, so its silhouette is the
+ * projection of its bounding box): it spans the image minus the margins along the limiting axis,
+ * centred, and stays inside the margins on the other. */
+static size_t kuhn_block(float *out, int cells);
+
+static void test_perspective_fit(void)
 {
     fm_render_opts o = fm_default_render_opts();
-    o.bounds = unit_box;
-    float tet[12];
-    make_tet(tet, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4);
-    rgb_image im;
-    if (render_and_read(tet, 1, &o, "fm_test_render_shading.png", &im) != 0) return;
-    /* Visible faces as (apex, a, b): left (3, 2, 0), right (3, 1, 2), bottom (3, 0, 1). */
-    static const int faces[3][3] = {{3, 2, 0}, {3, 1, 2}, {3, 0, 1}};
-    int sum[3];
-    const unsigned char *col[3];
-    for (int f = 0; f < 3; f++) {
-        double x = 0, z = 0;
-        for (int k = 0; k < 3; k++) {
-            x += tet[3 * faces[f][k] + 0] / 3.0;
-            z += tet[3 * faces[f][k] + 2] / 3.0;
+    o.ground = 0;
+    float cube[6 * 12 + 12];
+    size_t n = kuhn_block(cube, 1);
+    for (size_t i = 0; i < 12 * n; i++) cube[i] = 2.0f * cube[i] + (i % 3 == 2 ? -7.0f : 5.0f);
+    rgb_image im = render(cube, n, 0, &o);
+    if (!im.rgb) return;
+    coverage c = cover(&im);
+    double mx = o.margin * o.width, my = o.margin * o.height;
+    ENSURE_MSG(c.fg > 1000, "only %ld foreground pixels", c.fg);
+    ENSURE_MSG(c.x0 >= mx - 1 && c.x1 <= o.width - mx && c.y0 >= my - 1 && c.y1 <= o.height - my,
+               "foreground [%d, %d] x [%d, %d] crosses the margins", c.x0, c.x1, c.y0, c.y1);
+    ENSURE_NEAR(c.y0 + 0.5, my, 1.5);
+    ENSURE_NEAR(c.y1 + 0.5, o.height - my, 1.5);
+    ENSURE_NEAR(0.5 * (c.x0 + c.x1 + 1), 0.5 * o.width, 1.5);
+    free(im.rgb);
+}
+
+/* Agent i takes colour i / (n - 1) of the gradient: agent 0 blue, the last agent coral. */
+static void test_gradient_over_agents(void)
+{
+    fm_render_opts o = front_opts();
+    float tets[24];
+    make_tet(tets, -0.5, 0.0, 0.0, 0.3, 0.5, 0.4);
+    make_tet(tets + 12, 0.5, 0.0, 0.0, 0.3, 0.5, 0.4);
+    rgb_image im = render(tets, 2, 0, &o);
+    if (!im.rgb) return;
+    long left = 0, right = 0, wrong = 0;
+    for (int y = 0; y < im.height; y++)
+        for (int x = 0; x < im.width; x++) {
+            if (!is_fg(&im, x, y)) continue;
+            const unsigned char *p = pixel(&im, x, y);
+            int blue = p[2] > p[0] + 20, coral = p[0] > p[2] + 20;
+            if (x < im.width / 2) left++, wrong += !blue;
+            else right++, wrong += !coral;
         }
-        int px = (int)floor(px_of(&o, x)), py = (int)floor(py_of(&o, z));
-        col[f] = pixel(&im, px, py);
-        sum[f] = col[f][0] + col[f][1] + col[f][2];
-        ENSURE_MSG(is_fg(&im, px, py), "face %d centre (%d, %d) is background", f, px, py);
-        /* Flat: the 5 x 5 block around the face's centre has one colour. */
-        for (int dy = -2; dy <= 2; dy++)
-            for (int dx = -2; dx <= 2; dx++)
-                ENSURE_MSG(memcmp(pixel(&im, px + dx, py + dy), col[f], 3) == 0,
-                           "face %d is not flat at (%d, %d)", f, px + dx, py + dy);
+    ENSURE_MSG(left > 1000 && right > 1000, "left %ld, right %ld pixels", left, right);
+    ENSURE_MSG(wrong == 0, "%ld pixels have the other end's colour", wrong);
+    free(im.rgb);
+}
+
+/* ---------------------------------------------------------------- shadows */
+
+/* Light from straight above, camera looking down at 45 degrees from the front (orthographic): a
+ * tet hovering over the middle of the box darkens the ground right under it, which the camera
+ * sees below the tet, while the ground elsewhere stays lit (and is the same with no tet). */
+static void test_shadow_on_ground(void)
+{
+    fm_render_opts o = fm_default_render_opts();
+    o.perspective = 0;
+    o.view_dir[0] = 0, o.view_dir[1] = 1, o.view_dir[2] = -1;
+    o.up[0] = 0, o.up[1] = 0, o.up[2] = 1;
+    o.light_dir[2] = 1;
+    o.bounds = unit_box;
+    o.width = 400, o.height = 300;
+    float tet[12];
+    make_tet(tet, 0.0, 0.1, 0.5, 0.2, 0.2, 0.2); /* x in [-0.2, 0.2], y in [-0.1, 0.1], z ~ 0.5 */
+    rgb_image im = render(tet, 1, 0, &o), bare = render(NULL, 0, 0, &o);
+    if (!im.rgb || !bare.rgb) return free(im.rgb), free(bare.rgb);
+    /* Image plane: s = x, t = (y + z) / sqrt 2; the box spans 2 x 2 sqrt 2 of it. The ground lies
+     * at z = -1 (a hair below). */
+    double scale = box_scale(&o, 2.0, 2.0 * sqrt(2.0)), r2 = sqrt(0.5);
+    int sx = (int)(0.5 * o.width), sy = (int)(0.5 * o.height + r2 * scale);  /* under the tet */
+    int fx = (int)(0.5 * o.width + 0.7 * scale);                            /* x = 0.7: far */
+    int tet_y = (int)(0.5 * o.height - 0.5 * r2 * scale);                   /* the tet itself */
+    ENSURE_MSG(is_fg(&im, sx, tet_y), "the tet is not at (%d, %d)", sx, tet_y);
+    int under = brightness(&im, sx, sy), far = brightness(&im, fx, sy), lit = brightness(&bare, sx, sy);
+    ENSURE_MSG(is_fg(&im, sx, sy) && is_fg(&im, fx, sy), "(%d, %d) or (%d, %d) is not ground", sx,
+               sy, fx, sy);
+    ENSURE_MSG(under < 0.7 * far, "ground under the tet (%d) is not darker than far from it (%d)",
+               under, far);
+    ENSURE_MSG(lit == far, "without the tet the ground there is %d, elsewhere %d", lit, far);
+    const unsigned char *p = pixel(&im, sx, sy);
+    ENSURE_MSG(abs(p[0] - p[1]) < 8 && abs(p[1] - p[2]) < 8, "the shadow (%d %d %d) is not grey ground",
+               p[0], p[1], p[2]);
+    free(im.rgb);
+    free(bare.rgb);
+}
+
+/* ---------------------------------------------------------------- threads */
+
+/* A block of cubes, each split into the 6 tets of its Kuhn triangulation, so neighbouring tets
+ * share faces exactly (ties for the BVH), plus a duplicate of every 7th tet. */
+static size_t kuhn_block(float *out, int cells)
+{
+    static const int path[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    size_t n = 0;
+    for (int cz = 0; cz < cells; cz++)
+        for (int cy = 0; cy < cells; cy++)
+            for (int cx = 0; cx < cells; cx++)
+                for (int p = 0; p < 6; p++) {
+                    int v[3] = {cx, cy, cz};
+                    float *t = out + 12 * n++;
+                    for (int k = 0; k < 3; k++) t[k] = (float)v[k];
+                    for (int step = 0; step < 3; step++) { /* walk the cube's diagonal, one axis a step */
+                        v[path[p][step]]++;
+                        for (int k = 0; k < 3; k++) t[3 * (step + 1) + k] = (float)v[k];
+                    }
+                    if (n % 7 == 0) memcpy(out + 12 * n, t, 12 * sizeof(float)), n++;
+                }
+    return n;
+}
+
+static void test_same_bytes_for_any_thread_count(void)
+{
+    enum { CELLS = 6 };
+    float *tets = malloc(sizeof(float) * 12 * 7 * CELLS * CELLS * CELLS);
+    if (!tets) return;
+    size_t n = kuhn_block(tets, CELLS);
+    fm_render_opts o = fm_default_render_opts();
+    o.width = 320, o.height = 200, o.samples = 2;
+    rgb_image im[3];
+    for (int i = 0; i < 3; i++) {
+        o.threads = i + 1;
+        im[i] = render(tets, n, 0, &o);
     }
-    ENSURE_MSG(sum[0] > sum[1] + 60 && sum[0] > sum[2] + 60,
-               "upper-left face (%d) is not clearly the brightest (right %d, bottom %d)", sum[0],
-               sum[1], sum[2]);
-    /* Grey-blue: blue >= green >= red on the lit face. */
-    ENSURE_MSG(col[0][2] >= col[0][1] && col[0][1] >= col[0][0], "lit face colour %d %d %d",
-               col[0][0], col[0][1], col[0][2]);
-    free(im.rgb);
-}
-
-/* +Z is at the top: a tet in the upper left of the box lands in the upper-left quadrant. */
-static void test_up_is_up(void)
-{
-    fm_render_opts o = fm_default_render_opts();
-    o.bounds = unit_box;
-    float tet[12];
-    make_tet(tet, -0.5, 0.0, 0.5, 0.3, 0.3, 0.4); /* x in [-0.8, -0.2], z in [0.2, 0.8] */
-    rgb_image im;
-    if (render_and_read(tet, 1, &o, "fm_test_render_up.png", &im) != 0) return;
-    coverage c = cover(&im);
-    ENSURE(c.fg > 0);
-    ENSURE_MSG(c.x1 < im.width / 2 && c.y1 < im.height / 2,
-               "foreground [%d, %d] x [%d, %d] is not in the upper-left quadrant", c.x0, c.x1,
-               c.y0, c.y1);
-    ENSURE_NEAR(c.y0 + 0.5, py_of(&o, 0.8), 2.0);
-    ENSURE_NEAR(c.y1 + 0.5, py_of(&o, 0.2), 2.0);
-    free(im.rgb);
-}
-
-/* Seen from behind (looking along -Y, up +Z) the silhouette is the mirror image: +X is on
- * the left. */
-static void test_mirror_from_behind(void)
-{
-    fm_render_opts o = fm_default_render_opts();
-    o.bounds = unit_box;
-    float tet[12];
-    make_tet(tet, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4);
-    rgb_image front, back;
-    if (render_and_read(tet, 1, &o, "fm_test_render_mirror_a.png", &front) != 0) return;
-    o.view_dir[1] = -1.0;
-    if (render_and_read(tet, 1, &o, "fm_test_render_mirror_b.png", &back) != 0) {
-        free(front.rgb);
-        return;
+    if (im[0].rgb && im[1].rgb && im[2].rgb) {
+        coverage c = cover(&im[0]);
+        ENSURE_MSG(c.fg > 320 * 200 / 4, "only %ld pixels drawn", c.fg);
+        size_t bytes = 3 * 320 * 200;
+        ENSURE_MSG(memcmp(im[0].rgb, im[1].rgb, bytes) == 0, "1 and 2 threads differ");
+        ENSURE_MSG(memcmp(im[0].rgb, im[2].rgb, bytes) == 0, "1 and 3 threads differ");
     }
-    coverage cf = cover(&front), cb = cover(&back);
-    ENSURE(cb.fg > 0);
-    ENSURE_MSG(cb.x1 < back.width / 2, "from behind, foreground reaches x = %d", cb.x1);
-    long differ = 0;
-    for (int y = 0; y < front.height; y++)
-        for (int x = 0; x < front.width; x++)
-            if (is_fg(&front, x, y) != is_fg(&back, front.width - 1 - x, y)) differ++;
-    ENSURE_MSG(differ <= cf.fg / 100, "%ld pixels differ from the mirror image (of %ld)", differ,
-               cf.fg);
-    free(front.rgb);
-    free(back.rgb);
+    for (int i = 0; i < 3; i++) free(im[i].rgb);
+    free(tets);
 }
 
-/* With no bounds the tets' bounding box is fitted: its limiting extent (here the height)
- * spans the image minus the margins, centred. */
-static void test_fit_to_tets(void)
-{
-    fm_render_opts o = fm_default_render_opts();
-    float tet[12];
-    make_tet(tet, 5.0, 3.0, -7.0, 0.3, 0.5, 0.4); /* 0.6 wide, 1.0 tall */
-    rgb_image im;
-    if (render_and_read(tet, 1, &o, "fm_test_render_fit.png", &im) != 0) return;
-    coverage c = cover(&im);
-    double scale = o.height * (1.0 - 2.0 * o.margin) / 1.0; /* height-limited */
-    double top = o.margin * o.height, bottom = o.height - top;
-    double left = 0.5 * o.width - 0.3 * scale, right = 0.5 * o.width + 0.3 * scale;
-    /* (the top is a 33-degree spike whose first pixel centres sit a little below its tip) */
-    ENSURE_NEAR(c.y0 + 0.5, top, 3.0);
-    ENSURE_NEAR(c.y1 + 0.5, bottom, 1.5);
-    ENSURE_NEAR(c.x0 + 0.5, left, 1.5);
-    ENSURE_NEAR(c.x1 + 0.5, right, 1.5);
-    free(im.rgb);
+/* ---------------------------------------------------------------- points */
 
-    /* An oblique view still keeps everything inside the margins. */
-    o.view_dir[0] = 1.0, o.view_dir[1] = 2.0, o.view_dir[2] = -1.5;
-    o.up[0] = 0.3;
-    if (render_and_read(tet, 1, &o, "fm_test_render_oblique.png", &im) != 0) return;
-    c = cover(&im);
-    ENSURE(c.fg > 1000);
-    ENSURE_MSG(c.x0 >= o.margin * o.width - 1 && c.x1 <= (1 - o.margin) * o.width &&
-                   c.y0 >= o.margin * o.height - 1 && c.y1 <= (1 - o.margin) * o.height,
-               "oblique foreground [%d, %d] x [%d, %d] crosses the margin", c.x0, c.x1, c.y0,
-               c.y1);
-    free(im.rgb);
-}
-
-/* The nearer tet wins wherever they overlap, whichever is drawn first. */
-static void test_depth_buffer(void)
+/* Three points of radius 0.1 seen from the front: three discs of radius 0.1 x scale pixels at the
+ * projected centres, and nothing else. */
+static void test_points_are_spheres(void)
 {
-    fm_render_opts o = fm_default_render_opts();
-    o.bounds = unit_box;
-    float scene[24], swapped[24];
-    make_tet(scene, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4);         /* A: near, y in [-0.4, 0] */
-    make_tet(scene + 12, 0.5, 0.5, 0.05, 0.5, 0.85, 0.4);  /* B: far behind, covering A */
-    memcpy(swapped, scene + 12, sizeof(float) * 12);
-    memcpy(swapped + 12, scene, sizeof(float) * 12);
-    rgb_image a, b, ab, ba;
-    int rc = render_and_read(scene, 1, &o, "fm_test_render_z_a.png", &a);
-    rc |= render_and_read(scene + 12, 1, &o, "fm_test_render_z_b.png", &b);
-    rc |= render_and_read(scene, 2, &o, "fm_test_render_z_ab.png", &ab);
-    rc |= render_and_read(swapped, 2, &o, "fm_test_render_z_ba.png", &ba);
-    if (rc == 0) {
-        long in_a = 0, b_differs = 0, wrong_ab = 0, wrong_ba = 0, b_missing = 0;
-        for (int y = 0; y < a.height; y++)
-            for (int x = 0; x < a.width; x++) {
-                if (!is_fg(&a, x, y)) continue;
-                in_a++;
-                if (!is_fg(&b, x, y)) b_missing++;
-                if (memcmp(pixel(&b, x, y), pixel(&a, x, y), 3) != 0) b_differs++;
-                if (memcmp(pixel(&ab, x, y), pixel(&a, x, y), 3) != 0) wrong_ab++;
-                if (memcmp(pixel(&ba, x, y), pixel(&a, x, y), 3) != 0) wrong_ba++;
+    fm_render_opts o = front_opts();
+    o.width = 400, o.height = 400;
+    o.point_radius = 0.1;
+    const float pts[9] = {-0.5f, 0.0f, 0.5f, 0.5f, 0.3f, 0.5f, 0.0f, -0.2f, -0.5f};
+    rgb_image im = render(pts, 3, 1, &o);
+    if (!im.rgb) return;
+    double rpx = 0.1 * box_scale(&o, 2, 2);
+    long inside[3] = {0, 0, 0}, stray = 0;
+    for (int y = 0; y < im.height; y++)
+        for (int x = 0; x < im.width; x++) {
+            if (!is_fg(&im, x, y)) continue;
+            int which = -1;
+            for (int i = 0; i < 3; i++) {
+                double dx = x + 0.5 - px_of(&o, pts[3 * i]), dy = y + 0.5 - py_of(&o, pts[3 * i + 2]);
+                if (sqrt(dx * dx + dy * dy) <= rpx + 1.0) which = i;
             }
-        ENSURE_MSG(b_missing == 0, "B does not cover A (%ld pixels)", b_missing);
-        ENSURE_MSG(b_differs > in_a / 2, "B's colour matches A's too often to tell them apart");
-        ENSURE_MSG(wrong_ab == 0, "A then B: %ld of A's %ld pixels show B", wrong_ab, in_a);
-        ENSURE_MSG(wrong_ba == 0, "B then A: %ld of A's %ld pixels show B", wrong_ba, in_a);
-    }
-    free(a.rgb);
-    free(b.rgb);
-    free(ab.rgb);
-    free(ba.rgb);
+            if (which < 0) stray++;
+            else inside[which]++;
+        }
+    double disc = 3.14159265358979 * rpx * rpx;
+    ENSURE_MSG(stray == 0, "%ld pixels outside the discs", stray);
+    for (int i = 0; i < 3; i++)
+        ENSURE_MSG(fabs((double)inside[i] - disc) < 0.05 * disc, "disc %d: %ld pixels, expected %.0f",
+                   i, inside[i], disc);
+    /* Lit from the upper left: the disc's upper-left part is brighter than its lower right. */
+    int cx = (int)px_of(&o, pts[0]), cy = (int)py_of(&o, pts[2]), d = (int)(0.5 * rpx);
+    ENSURE(brightness(&im, cx - d, cy - d) > brightness(&im, cx + d, cy + d) + 30);
+    free(im.rgb);
 }
 
-/* NaN and infinite vertices and zero-area tets are skipped without a crash. */
-static void test_nan_and_degenerate(void)
+/* 0.45 x the median nearest-neighbour distance: on a 3D lattice, a plane lattice and a line. */
+static void test_point_radius(void)
 {
-    fm_render_opts o = fm_default_render_opts();
-    float scene[12 * 4];
+    enum { SIDE = 12 };
+    float *p = malloc(sizeof(float) * 3 * SIDE * SIDE * SIDE);
+    if (!p) return;
+    size_t n = 0;
+    for (int i = 0; i < SIDE * SIDE * SIDE; i++, n++) {
+        p[3 * n] = 0.5f * (float)(i % SIDE) + 3.0f;
+        p[3 * n + 1] = 0.5f * (float)(i / SIDE % SIDE);
+        p[3 * n + 2] = 0.5f * (float)(i / (SIDE * SIDE)) - 7.0f;
+    }
+    ENSURE_NEAR(fm_render_point_radius(p, n), 0.225, 1e-6);
+    for (size_t i = 0; i < n; i++) p[3 * i + 2] = 0.0f, p[3 * i + 1] *= 0.25f; /* a 12 x 12 plane */
+    ENSURE_NEAR(fm_render_point_radius(p, SIDE * SIDE), 0.45 * 0.125, 1e-6);
+    p[0] = NAN; /* ignored */
+    ENSURE_NEAR(fm_render_point_radius(p, SIDE), 0.225, 1e-6); /* a line of spacing 0.5 */
+    const float two[6] = {0, 0, 0, 2, 0, 0};
+    ENSURE_NEAR(fm_render_point_radius(two, 2), 0.9, 1e-6);
+    ENSURE_NEAR(fm_render_point_radius(two, 1), 1.0, 0.0);
+    free(p);
+}
+
+/* ---------------------------------------------------------------- robustness and PNG */
+
+/* NaN and infinite tets are skipped, degenerate ones draw nothing, and no geometry at all gives
+ * the background. */
+static void test_nan_degenerate_and_empty(void)
+{
+    fm_render_opts o = front_opts();
+    o.width = 200, o.height = 120;
+    float scene[36];
     make_tet(scene, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4);
-    for (int k = 0; k < 12; k++) scene[12 + k] = NAN;      /* all NaN */
-    make_tet(scene + 24, -0.5, 0.0, 0.5, 0.3, 0.3, 0.4);
-    scene[24 + 9] = INFINITY;                              /* v3 = (inf, NaN, z) */
-    scene[24 + 10] = NAN;
-    for (int k = 0; k < 12; k++) scene[36 + k] = 0.25f;    /* all four vertices equal */
-
-    /* The bounds are fitted to the finite vertices only; the first tet and the third tet's
-     * face (0, 2, 1), the one without v3, are drawn, left and right of the centre. */
-    rgb_image im;
-    if (render_and_read(scene, 4, &o, "fm_test_render_nan.png", &im) == 0) {
-        coverage c = cover(&im);
-        ENSURE(c.fg > 1000);
-        ENSURE_MSG(c.x0 < im.width / 2 && c.x1 > im.width / 2 && c.y0 >= o.margin * im.height - 1,
-                   "foreground [%d, %d] x [%d, %d]", c.x0, c.x1, c.y0, c.y1);
-        free(im.rgb);
-    }
-    /* ... and with fixed bounds, the degenerate tet alone draws nothing. */
-    o.bounds = unit_box;
-    if (render_and_read(scene + 36, 1, &o, "fm_test_render_degenerate.png", &im) == 0) {
-        coverage c = cover(&im);
-        ENSURE_MSG(c.fg == 0, "a zero-volume point tet drew %ld pixels", c.fg);
-        free(im.rgb);
-    }
-    /* Only non-finite tets and no bounds: nothing to fit, a background image. */
+    for (int k = 0; k < 12; k++) scene[12 + k] = NAN;
+    for (int k = 0; k < 12; k++) scene[24 + k] = 0.25f; /* four equal vertices */
+    scene[12 + 4] = INFINITY;
+    rgb_image all = render(scene, 3, 0, &o), first = render(scene, 1, 0, &o);
+    if (all.rgb && first.rgb)
+        ENSURE_MSG(memcmp(all.rgb, first.rgb, 3 * 200 * 120) == 0,
+                   "the NaN and the degenerate tet changed the picture");
+    free(all.rgb), free(first.rgb);
     o.bounds = NULL;
-    if (render_and_read(scene + 12, 1, &o, "fm_test_render_allnan.png", &im) == 0) {
-        ENSURE(cover(&im).fg == 0);
-        free(im.rgb);
-    }
+    o.ground = 1;
+    rgb_image none = render(scene + 12, 1, 0, &o);
+    if (none.rgb) ENSURE_MSG(cover(&none).fg == 0, "only a NaN tet, yet something was drawn");
+    free(none.rgb);
+    rgb_image empty = render(NULL, 0, 1, &o);
+    if (empty.rgb) ENSURE(cover(&empty).fg == 0 && brightness(&empty, 0, 0) < 3 * 80);
+    free(empty.rgb);
 }
 
-/* n == 0 gives a valid, all-background PNG of the requested size, with or without bounds. */
-static void test_empty(void)
+/* fm_render_tets_png writes what the renderer drew, as an 8-bit RGB PNG, through .partial. */
+static void test_png_matches_buffer(void)
 {
     fm_render_opts o = fm_default_render_opts();
-    o.width = 64;
-    o.height = 48;
-    for (int pass = 0; pass < 2; pass++) {
-        o.bounds = pass ? unit_box : NULL;
-        rgb_image im;
-        if (render_and_read(NULL, 0, &o, "fm_test_render_empty.png", &im) != 0) continue;
-        ENSURE_MSG(cover(&im).fg == 0, "empty scene has foreground pixels");
-        const unsigned char *bg = pixel(&im, 0, 0);
-        ENSURE(bg[0] + bg[1] + bg[2] < 3 * 80);
-        free(im.rgb);
+    o.width = 160, o.height = 90;
+    float tet[12];
+    make_tet(tet, 0.0, 0.0, 0.0, 0.3, 0.5, 0.4);
+    char path[512], partial[600];
+    tmp_path(path, sizeof path, "tet.png");
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    remove(path);
+    fm_error err = {0};
+    ENSURE_MSG(fm_render_tets_png(tet, 1, &o, path, &err) == FM_OK, "%s", err.message);
+    ENSURE(!file_exists(partial));
+    rgb_image png, drawn = render(tet, 1, 0, &o);
+    int rc = read_png(path, &png);
+    ENSURE_MSG(rc == 0, "cannot read %s back (%d)", path, rc);
+    if (rc == 0 && drawn.rgb) {
+        ENSURE(png.width == 160 && png.height == 90);
+        ENSURE_MSG(cover(&png).fg > 500, "the PNG is nearly empty");
+        ENSURE_MSG(memcmp(png.rgb, drawn.rgb, 3 * 160 * 90) == 0, "the PNG differs from the drawing");
     }
+    free(png.rgb), free(drawn.rgb);
+    const float pts[3] = {0, 0, 0};
+    tmp_path(path, sizeof path, "point.png");
+    ENSURE_MSG(fm_render_points_png(pts, 1, &o, path, &err) == FM_OK, "%s", err.message);
+    rc = read_png(path, &png);
+    ENSURE(rc == 0 && cover(&png).fg > 500);
+    free(png.rgb);
 }
 
 static void test_errors(void)
@@ -416,42 +456,214 @@ static void test_errors(void)
     make_tet(tet, 0.6, 0.0, 0.0, 0.3, 0.5, 0.4);
     fm_render_opts o = fm_default_render_opts();
     char path[512], partial[600];
-
-    tmp_path(path, sizeof path, "fm_no_such_dir/out.png");
+    tmp_path(path, sizeof path, "no_such_dir/out.png");
     snprintf(partial, sizeof partial, "%s.partial", path);
     fm_error err = {0};
     fm_status s = fm_render_tets_png(tet, 1, &o, path, &err);
-    ENSURE_MSG(s == FM_ERR_IO, "status %d", (int)s);
-    ENSURE_MSG(strstr(err.message, path) && strstr(err.message, "No such file"),
-               "message: %s", err.message);
+    ENSURE_MSG(s == FM_ERR_IO && strstr(err.message, path) && strstr(err.message, "No such file"),
+               "status %d: %s", (int)s, err.message);
     ENSURE(!file_exists(path) && !file_exists(partial));
 
-    /* Bad options are usage errors and write nothing. */
-    tmp_path(path, sizeof path, "fm_test_render_badopts.png");
+    tmp_path(path, sizeof path, "badopts.png");
     remove(path);
-    fm_render_opts bad[4] = {o, o, o, o};
+    enum { BAD = 9 };
+    fm_render_opts bad[BAD];
+    for (int i = 0; i < BAD; i++) bad[i] = o;
+    const double inverted[6] = {0, 0, 0, -1, 1, 1};
     bad[0].width = 0;
-    bad[1].up[1] = 1.0, bad[1].up[2] = 0.0; /* parallel to view_dir */
+    bad[1].up[0] = bad[1].view_dir[0], bad[1].up[1] = bad[1].view_dir[1], bad[1].up[2] = bad[1].view_dir[2];
     bad[2].margin = 0.5;
-    bad[3].view_dir[1] = 0.0;
-    for (int i = 0; i < 4; i++) {
+    bad[3].view_dir[0] = bad[3].view_dir[1] = bad[3].view_dir[2] = 0.0;
+    bad[4].fov_deg = 0.0;
+    bad[5].samples = 9;
+    bad[6].point_radius = -1.0;
+    bad[7].bounds = inverted;
+    bad[8].light_dir[0] = NAN;
+    for (int i = 0; i < BAD; i++) {
         s = fm_render_tets_png(tet, 1, &bad[i], path, &err);
         ENSURE_MSG(s == FM_ERR_USAGE, "bad option set %d: status %d", i, (int)s);
         ENSURE(!file_exists(path));
+        ENSURE(fm_renderer_create(&bad[i], &err) == NULL);
     }
+    ENSURE(fm_write_png(NULL, 4, 4, path, &err) == FM_ERR_USAGE && !file_exists(path));
+    fm_renderer *r = fm_renderer_create(&o, &err);
+    ENSURE(r != NULL);
+    unsigned char px[3];
+    ENSURE(fm_renderer_draw_tets(r, NULL, 5, px, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_draw_points(r, tet, 1, NULL, &err) == FM_ERR_USAGE);
+    fm_renderer_destroy(r);
+    ENSURE(fm_video_open(path, 65, 48, 24, &err) == NULL && err.status == FM_ERR_USAGE);
+    ENSURE(fm_video_open(path, 64, 48, 0, &err) == NULL && err.status == FM_ERR_USAGE);
+}
+
+/* ---------------------------------------------------------------- the CLI: MP4 and its errors */
+
+#define FRAMES 10
+#define AGENTS 12
+
+static char g_err[1 << 14]; /* the last command's stderr */
+
+/* Runs `[ENV] flockmorph ARGS`; returns its exit status (-1 if it did not exit normally). */
+static int cli(const char *env, const char *args)
+{
+    char err_path[512], cmd[4096];
+    tmp_path(err_path, sizeof err_path, "stderr.txt");
+    snprintf(cmd, sizeof cmd, "%s '%s' %s >/dev/null 2>'%s'", env, FM_CLI, args, err_path);
+    int status = system(cmd);
+    g_err[0] = 0;
+    FILE *f = fopen(err_path, "rb");
+    if (f) g_err[fread(g_err, 1, sizeof g_err - 1, f)] = 0, fclose(f);
+    return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+#define ENSURE_EXIT(env, args, code)                                                            \
+    do {                                                                                        \
+        int rc_ = cli(env, args);                                                               \
+        ENSURE_MSG(rc_ == (code), "flockmorph %s: exit %d, expected %d\nstderr: %s", (args), rc_, \
+                   (code), g_err);                                                              \
+    } while (0)
+
+/* A cache of AGENTS tets in a row drifting up by 0.1 per frame, at 24 frames per second. */
+static int write_cache(const char *path)
+{
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(path, AGENTS, 24.0, 1, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return -1;
+    float tets[12 * AGENTS];
+    for (int f = 0; f < FRAMES; f++) {
+        for (int a = 0; a < AGENTS; a++) make_tet(tets + 12 * a, a - 6.0, 0.0, 0.1 * f, 0.4, 0.4, 0.5);
+        ENSURE(fm_cache_writer_add_frame(w, tets, &err) == FM_OK);
+    }
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    return 0;
+}
+
+/* Video frames that ffprobe decodes from the file; -1 if it cannot tell. */
+static long probe_frames(const char *path)
+{
+    char cmd[1024], line[64] = "";
+    snprintf(cmd, sizeof cmd,
+             "ffprobe -v error -count_frames -select_streams v:0 -show_entries stream=nb_read_frames "
+             "-of csv=p=0 '%s' 2>/dev/null", path);
+    FILE *p = popen(cmd, "r");
+    if (!p) return -1;
+    char *got = fgets(line, sizeof line, p);
+    int status = pclose(p);
+    return got && status == 0 ? strtol(line, NULL, 10) : -1;
+}
+
+static void test_cli_mp4(void)
+{
+    char cache[512], out[512], partial[600], args[2048];
+    tmp_path(cache, sizeof cache, "drift.fmc");
+    tmp_path(out, sizeof out, "drift.mp4");
+    snprintf(partial, sizeof partial, "%s.partial", out);
+    if (write_cache(cache)) return;
+    remove(out);
+    snprintf(args, sizeof args, "render '%s' -o '%s' --frames 2:6 --size 64x48", cache, out);
+    ENSURE_EXIT("", args, 0);
+    ENSURE_MSG(probe_frames(out) == 5, "ffprobe counts %ld frames, 5 asked for", probe_frames(out));
+    ENSURE(!file_exists(partial));
+    snprintf(args, sizeof args, "render '%s' -o '%s' --size 64x48 --view front --fps 12", cache, out);
+    ENSURE_EXIT("", args, 0);
+    ENSURE_MSG(probe_frames(out) == FRAMES, "all frames: ffprobe counts %ld", probe_frames(out));
+    snprintf(args, sizeof args, "render '%s' -o '%s' --frames -3: --size 64x48", cache, out);
+    ENSURE_EXIT("", args, 0);
+    ENSURE_MSG(probe_frames(out) == 3, "the last 3: ffprobe counts %ld", probe_frames(out));
+}
+
+/* ffmpeg missing (PATH holds an empty directory) or failing (a stand-in that prints and exits 1):
+ * exit 3, a message that names ffmpeg and quotes what it said, and no file. */
+static void test_cli_mp4_without_ffmpeg(void)
+{
+    char cache[512], out[512], partial[600], args[2048], dir[512], env[1024], fake[600];
+    tmp_path(cache, sizeof cache, "drift.fmc");
+    tmp_path(out, sizeof out, "noffmpeg.mp4");
+    snprintf(partial, sizeof partial, "%s.partial", out);
+    tmp_path(dir, sizeof dir, "empty_bin");
+    mkdir(dir, 0777);
+    remove(out);
+    snprintf(args, sizeof args, "render '%s' -o '%s' --size 64x48", cache, out);
+    snprintf(env, sizeof env, "PATH='%s'", dir);
+    ENSURE_EXIT(env, args, 3);
+    ENSURE_MSG(strstr(g_err, "ffmpeg") && strstr(g_err, "not installed"), "%s", g_err);
+    ENSURE(!file_exists(out) && !file_exists(partial));
+
+    tmp_path(dir, sizeof dir, "broken_bin");
+    mkdir(dir, 0777);
+    snprintf(fake, sizeof fake, "%s/ffmpeg", dir);
+    FILE *f = fopen(fake, "w");
+    ENSURE(f != NULL);
+    if (!f) return;
+    fputs("#!/bin/sh\necho 'Unknown encoder libx264 (stand-in)' >&2\nexit 1\n", f);
+    fclose(f);
+    chmod(fake, 0755);
+    snprintf(env, sizeof env, "PATH='%s:/usr/bin:/bin'", dir);
+    ENSURE_EXIT(env, args, 3);
+    ENSURE_MSG(strstr(g_err, "ffmpeg") && strstr(g_err, "Unknown encoder libx264 (stand-in)"),
+               "%s", g_err);
+    ENSURE(!file_exists(out) && !file_exists(partial));
+}
+
+static void test_cli_usage_errors(void)
+{
+    char cache[512], out[512], args[2048];
+    tmp_path(cache, sizeof cache, "drift.fmc");
+    static const struct {
+        const char *out, *opts, *says;
+    } cases[] = {{"x.gif", "", ".png or .mp4"},
+                 {"x.mp4", "--frame 3", "--frames"},
+                 {"x.mp4", "--size 65x48", "even"},
+                 {"x.png", "--frames 1:2", "--frame K"},
+                 {"x.mp4", "--frames 6:2", "empty"},
+                 {"x.mp4", "--frames 2:99", "has 10 frames"},
+                 {"x.mp4", "--frames a:b", "--frames"},
+                 {"x.mp4", "--fps -1", "--fps"},
+                 {"x.png", "--view diagonal", "persp"},
+                 {"x.png", "--samples 0", "--samples"},
+                 {"x.png", "--radius 0", "--radius"}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        tmp_path(out, sizeof out, cases[i].out);
+        remove(out);
+        snprintf(args, sizeof args, "render '%s' -o '%s' %s", cache, out, cases[i].opts);
+        ENSURE_EXIT("", args, 1);
+        ENSURE_MSG(strstr(g_err, cases[i].says), "%s: '%s' not in: %s", cases[i].opts, cases[i].says, g_err);
+        ENSURE(!file_exists(out));
+    }
+}
+
+/* The CLI's PNG: the default perspective view with the ground, camera fitted to all frames. */
+static void test_cli_png(void)
+{
+    char cache[512], out[512], args[2048];
+    tmp_path(cache, sizeof cache, "drift.fmc");
+    tmp_path(out, sizeof out, "drift.png");
+    remove(out);
+    snprintf(args, sizeof args, "render '%s' -o '%s' --frame 0 --size 200x120 --threads 2", cache, out);
+    ENSURE_EXIT("", args, 0);
+    rgb_image im;
+    ENSURE(read_png(out, &im) == 0 && im.width == 200 && im.height == 120);
+    if (im.rgb) ENSURE_MSG(cover(&im).fg > 200 * 120 / 4, "the ground and tets cover too little");
+    free(im.rgb);
 }
 
 int main(void)
 {
-    RUN_TEST(test_defaults);
-    RUN_TEST(test_front_view_right_half);
-    RUN_TEST(test_shading);
-    RUN_TEST(test_up_is_up);
-    RUN_TEST(test_mirror_from_behind);
-    RUN_TEST(test_fit_to_tets);
-    RUN_TEST(test_depth_buffer);
-    RUN_TEST(test_nan_and_degenerate);
-    RUN_TEST(test_empty);
+    RUN_TEST(test_defaults_and_views);
+    RUN_TEST(test_front_view_inside_projected_box);
+    RUN_TEST(test_perspective_fit);
+    RUN_TEST(test_gradient_over_agents);
+    RUN_TEST(test_shadow_on_ground);
+    RUN_TEST(test_same_bytes_for_any_thread_count);
+    RUN_TEST(test_points_are_spheres);
+    RUN_TEST(test_point_radius);
+    RUN_TEST(test_nan_degenerate_and_empty);
+    RUN_TEST(test_png_matches_buffer);
     RUN_TEST(test_errors);
+    RUN_TEST(test_cli_mp4);
+    RUN_TEST(test_cli_mp4_without_ffmpeg);
+    RUN_TEST(test_cli_usage_errors);
+    RUN_TEST(test_cli_png);
     return test_result();
 }

@@ -47,6 +47,23 @@ typedef struct cli_frame_options {
 
 /* CACHE -o OUT [--frame K] [--size WxH] [--view V]; -o may be omitted when optional_out. */
 int cli_parse_frame_options(int argc, char **argv, const char *usage, int optional_out, cli_frame_options *o);
+/* Opens a cache and prints its recovery warning, if any; 0 or an exit status. */
+int cli_open_cache(const char *path, fm_cache_reader **reader);
+/* Frame k of a cache with `frames` frames (k < 0 counts from the end); 0, or FM_ERR_USAGE with a
+ * message naming the frame count. */
+int cli_pick_frame(const char *cache, uint32_t frames, long k, uint32_t *frame);
+
+/* A frame range as typed: "A:B" (inclusive), "A:", ":B", ":" or a single "K"; negative numbers count
+ * from the end. */
+typedef struct cli_frame_range {
+    long first, last;
+    int has_first, has_last;
+} cli_frame_range;
+
+/* -1 if spec is not a range. */
+int cli_parse_frame_range(const char *spec, cli_frame_range *range);
+/* The range's frames of a cache (open ends: its first and last); 0 or FM_ERR_USAGE with a message. */
+int cli_resolve_frame_range(const char *cache, uint32_t frames, const cli_frame_range *range, uint32_t *first, uint32_t *last);
 /* Opens the cache and reads the chosen frame (default last) into a malloc'ed array. */
 int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float **verts, uint32_t *frame);
 

@@ -103,32 +103,73 @@ int cli_parse_frame_options(int argc, char **argv, const char *usage, int option
     return 0;
 }
 
+int cli_open_cache(const char *path, fm_cache_reader **reader)
+{
+    fm_error err = {0};
+    *reader = fm_cache_open(path, &err);
+    if (!*reader) return cli_report(&err);
+    if (fm_cache_warning(*reader)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(*reader));
+    return 0;
+}
+
+int cli_pick_frame(const char *cache, uint32_t frames, long k, uint32_t *frame)
+{
+    long j = k < 0 ? k + (long)frames : k;
+    if (j < 0 || j >= (long)frames) {
+        fprintf(stderr, "flockmorph: error: %s has %ld frames (0..%ld); there is no frame %ld\n", cache, (long)frames, (long)frames - 1, k);
+        return FM_ERR_USAGE;
+    }
+    *frame = (uint32_t)j;
+    return 0;
+}
+
+int cli_parse_frame_range(const char *spec, cli_frame_range *range)
+{
+    memset(range, 0, sizeof *range);
+    const char *colon = strchr(spec, ':');
+    char first[32] = "", last[32] = "";
+    size_t len = colon ? (size_t)(colon - spec) : strlen(spec);
+    if (len >= sizeof first || (colon && strlen(colon + 1) >= sizeof last)) return -1;
+    memcpy(first, spec, len);
+    if (colon) strcpy(last, colon + 1);
+    else if (!len) return -1; /* "" is not a frame */
+    if (first[0] && cli_parse_int(first, -2000000000L, 2000000000L, &range->first)) return -1;
+    if (last[0] && cli_parse_int(last, -2000000000L, 2000000000L, &range->last)) return -1;
+    range->has_first = first[0] != 0;
+    range->has_last = colon ? last[0] != 0 : 1;
+    if (!colon) range->last = range->first;
+    return 0;
+}
+
+int cli_resolve_frame_range(const char *cache, uint32_t frames, const cli_frame_range *range, uint32_t *first, uint32_t *last)
+{
+    int rc = cli_pick_frame(cache, frames, range->has_first ? range->first : 0, first);
+    if (!rc) rc = cli_pick_frame(cache, frames, range->has_last ? range->last : -1, last);
+    if (!rc && *first > *last) {
+        fprintf(stderr, "flockmorph: error: frame range %u:%u of %s is empty (first after last)\n", *first, *last, cache);
+        rc = FM_ERR_USAGE;
+    }
+    return rc;
+}
+
 /* Opens the cache and reads the chosen frame (default last). */
 int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float **verts, uint32_t *frame)
 {
     fm_error err = {0};
-    fm_cache_reader *r = fm_cache_open(o->cache, &err);
-    if (!r) return cli_report(&err);
-    if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
-    long frames = (long)fm_cache_frames(r), k = o->has_frame ? o->frame : -1;
-    if (k < 0) k += frames;
-    if (k < 0 || k >= frames) {
-        fprintf(stderr, "flockmorph: error: %s has %ld frames (0..%ld); there is no frame %ld\n", o->cache, frames, frames - 1, o->frame);
-        fm_cache_close(r);
-        return FM_ERR_USAGE;
-    }
+    fm_cache_reader *r;
+    int rc = cli_open_cache(o->cache, &r);
+    if (rc) return rc;
+    if ((rc = cli_pick_frame(o->cache, fm_cache_frames(r), o->has_frame ? o->frame : -1, frame))) return fm_cache_close(r), rc;
     *verts = malloc(sizeof(float) * 12 * (fm_cache_agents(r) ? fm_cache_agents(r) : 1));
     if (!*verts) return fm_cache_close(r), fprintf(stderr, "flockmorph: error: out of memory\n"), FM_ERR_MEMORY;
-    if (fm_cache_read_frame(r, (uint32_t)k, *verts, &err) != FM_OK) {
+    if (fm_cache_read_frame(r, *frame, *verts, &err) != FM_OK) {
         free(*verts);
         fm_cache_close(r);
         return cli_report(&err);
     }
     *reader = r;
-    *frame = (uint32_t)k;
     return 0;
 }
-
 
 void cli_prep_progress(const char *stage, double fraction, void *user)
 {

@@ -24,6 +24,7 @@ packages=(
   libboost-iostreams-dev
   python3-numpy
   python3-zstandard
+  ffmpeg
 )
 missing=()
 for p in "${packages[@]}"; do
