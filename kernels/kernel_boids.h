@@ -53,7 +53,8 @@ static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, co
 {
     const float hd = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], hlen_dist = hlen * sqrtf(d2);
     if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_SEPARATION], cos_half[FM_BOIDS_SEPARATION])) {
-        for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_SEPARATION][k] -= (double)d[k] / d2;
+        const double inv_d2 = 1.0 / d2;
+        for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_SEPARATION][k] -= d[k] * inv_d2;
         s->count[FM_BOIDS_SEPARATION]++;
     }
     if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_COHESION], cos_half[FM_BOIDS_COHESION])) {

@@ -26,8 +26,10 @@ static fm_fuzzy_def fuzzy_curve(int count, const double (*pts)[2])
     return c;
 }
 
-/* The shape flock's defaults (docs/scene.md "shape_flock"; radii, angles and weights as SCF gives
- * or implies them: separation widest, alignment narrowest). */
+/* The shape flock's defaults (docs/scene.md "shape_flock"). Radii: SCF's J ranges divided by 3 (on
+ * a surface of area A a radius J / sqrt(N) sees about pi J^2 / A agents whatever N: ~150 with the
+ * paper's J on our 10-unit meshes, ~20 with these); angles and weights as SCF implies them
+ * (separation widest, alignment narrowest). */
 static fm_flock_def fm_default_flock_def(void)
 {
     static const double steering[3][2] = {{0, 0.05}, {1, 0.2}, {6, 1}}, homing[2][2] = {{0, 1}, {6, 0.5}};
@@ -35,9 +37,9 @@ static fm_flock_def fm_default_flock_def(void)
     fm_flock_def f = {
         .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_RANDOM, .mass = 1,
         .max_speed = {8, 12}, .max_force = {15, 30},
-        .separation = {{60, 120}, {240, 300}, {1.5, 2}},
-        .cohesion = {{30, 120}, {240, 300}, {0.8, 1.2}},
-        .alignment = {{30, 60}, {120, 180}, {0.8, 1.2}},
+        .separation = {{20, 40}, {240, 300}, {1.5, 2}},  /* J: a third of SCF's, see docs/shape-flock.md */
+        .cohesion = {{10, 40}, {240, 300}, {0.8, 1.2}},
+        .alignment = {{10, 20}, {120, 180}, {0.8, 1.2}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .damping = 3, .external_gain = 1,
         .arrival_radius = 0.3, .arrival_time = 0.2, .turn_rate_deg = 720, .bind_distance = 0.002,
