@@ -144,6 +144,70 @@ static void test_threads_and_seeds_agree(void)
     fm_flock_model_destroy(m), fm_flock_model_destroy(other);
 }
 
+static char *slurp(const char *path, long *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    *len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = malloc((size_t)*len + 1);
+    if (buf && fread(buf, 1, (size_t)*len, f) != (size_t)*len) free(buf), buf = NULL;
+    fclose(f);
+    return buf;
+}
+
+/* The whole run through fm_flock_run into a cache; returns its stats. */
+static fm_flock_run_stats run_to_cache(const fm_flock_model *m, int threads, const char *path)
+{
+    fm_error err = {0};
+    fm_flock_run_stats rs;
+    memset(&rs, 0, sizeof rs);
+    fm_flock_state *s = fm_flock_state_create(m, threads, &err);
+    fm_cache_writer *w = fm_flock_cache_create(path, m, NULL, &err);
+    ENSURE_MSG(s && w, "%s", err.message);
+    if (!s || !w) return fm_flock_state_destroy(s), rs;
+    ENSURE_MSG(fm_flock_run(m, s, w, NULL, NULL, &rs, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    fm_flock_state_destroy(s);
+    return rs;
+}
+
+/* The cache of a whole run: the same bytes for 1 and 2 threads and for a second run; the run stops
+ * when every agent is bound, and the cache's last frame has every agent on its destination. */
+static void test_caches_are_identical_for_threads_and_runs(void)
+{
+    fm_scene_def def = flock_def(1500);
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    const char *p1 = FM_TEST_TMP "/flock_threads1.fmc", *p2 = FM_TEST_TMP "/flock_threads2.fmc", *p3 = FM_TEST_TMP "/flock_again.fmc";
+    fm_flock_run_stats r1 = run_to_cache(m, 1, p1), r2 = run_to_cache(m, 2, p2), r3 = run_to_cache(m, 2, p3);
+    ENSURE(r1.all_bound && !r1.stopped_at_frame_limit && r1.bound_fraction == 1 && r1.final_max_distance == 0);
+    ENSURE(r1.frames == r2.frames && r2.frames == r3.frames && r1.steps == r2.steps && isnan(r1.tracking_lag));
+    long n1 = 0, n2 = 0, n3 = 0;
+    char *a = slurp(p1, &n1), *b = slurp(p2, &n2), *c = slurp(p3, &n3);
+    ENSURE_MSG(a && b && n1 == n2 && !memcmp(a, b, (size_t)n1), "1 and 2 threads give different caches");
+    ENSURE_MSG(b && c && n2 == n3 && !memcmp(b, c, (size_t)n2), "two runs give different caches");
+    free(a), free(b), free(c);
+
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(p1, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (r) {
+        ENSURE(fm_cache_frames(r) == (uint32_t)r1.frames && fm_cache_agents(r) == 1500);
+        float *pos = malloc(sizeof(float) * 3 * 1500), *c2 = malloc(sizeof(float) * 3 * 1500);
+        ENSURE(fm_cache_read_attr(r, fm_cache_frames(r) - 1, FM_ATTR_POSITION, pos, &err) == FM_OK);
+        fm_flock_model_endpoints(m, NULL, c2);
+        ENSURE(!memcmp(pos, c2, sizeof(float) * 3 * 1500));
+        ENSURE(fm_cache_read_attr(r, 0, FM_ATTR_POSITION, pos, &err) == FM_OK);
+        fm_flock_model_endpoints(m, c2, NULL);
+        ENSURE(!memcmp(pos, c2, sizeof(float) * 3 * 1500)); /* frame 0: every agent on its source sample */
+        free(pos), free(c2);
+        fm_cache_close(r);
+    }
+    fm_flock_model_destroy(m);
+}
+
 /* Each flying agent's frame has its x axis along its velocity and stays upright (z has no part
  * pointing down unless it flies steeply); quaternions are unit. */
 static void test_orientation_follows_velocity(void)
@@ -338,6 +402,7 @@ int main(void)
     RUN_TEST(test_static_target_every_agent_binds);
     RUN_TEST(test_floating_agents_stay_near);
     RUN_TEST(test_threads_and_seeds_agree);
+    RUN_TEST(test_caches_are_identical_for_threads_and_runs);
     RUN_TEST(test_orientation_follows_velocity);
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
