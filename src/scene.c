@@ -739,6 +739,11 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
         where_set_key(w, "mode");
         return fail_at(w, "n", "the shape flock needs its number of agents (n >= 1)");
     }
+    const double *dir = f->deform_direction;
+    if (f->deform == FM_DEFORM_WAVE && dir[0] == 0 && dir[1] == 0 && dir[2] == 0) {
+        where_set_key(w, "shape_flock.deform.type");
+        return fail_at(w, "shape_flock.deform.direction", "a wave needs a non-zero direction");
+    }
     if (f->deform != FM_DEFORM_SEQUENCE) return FM_OK;
     where_set_key(w, "shape_flock.deform.type");
     if (!f->deform_sequence[0] || !one_integer_conversion(f->deform_sequence))

@@ -392,6 +392,9 @@ static void test_scene_keys_belong_to_their_mode(void)
                      " \"shape_flock\": {\"deform\": {\"type\": \"sequence\", \"sequence\": \"w_%s.obj\", \"frames\": 3}}}",
                      &def, &err) == FM_ERR_INPUT);
     ENSURE_MSG(strstr(err.message, "shape_flock.deform.sequence") && strstr(err.message, "one integer"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"deform\": {\"type\": \"wave\", \"direction\": [0, 0, 0]}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.deform.direction: a wave needs a non-zero direction"), "%s", err.message);
     ENSURE(load_text("{\"mode\": \"shape_flok\", \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}}",
                      &def, &err) == FM_ERR_INPUT);
     ENSURE_MSG(strstr(err.message, "mode: expected \"tetra_morph\" or \"shape_flock\""), "%s", err.message);
