@@ -12,22 +12,12 @@
 /* Random streams of the scene seed (fm_random_unit), one per use. */
 enum { STREAM_SOURCE = 1, STREAM_TARGET, STREAM_MATCH, STREAM_PARAMS = 16 };
 
-static fm_status name_key(fm_status st, const char *key, fm_error *err)
-{
-    if (st != FM_OK && err) {
-        char msg[sizeof err->message];
-        snprintf(msg, sizeof msg, "%s", err->message);
-        fm_fail(err, st, "%s: %s", key, msg);
-    }
-    return st;
-}
-
 static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
 {
     fm_sample_opts opts = fm_default_sample_opts();
     opts.method = (fm_sample_method)m->def.flock.sampling;
     opts.seed = fm_random_bits(m->def.seed, stream, 0);
-    return name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
+    return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
 }
 
 static fm_status alloc_agent_arrays(fm_flock_model *m, fm_error *err)
@@ -86,7 +76,7 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
     fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
     free(pts);
     m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 : 0;
-    return name_key(st, "path.points", err);
+    return fm_name_key(st, "path.points", err);
 }
 
 /* Each agent draws every parameter uniformly from its range (SCF: "every agent maintains its own
@@ -169,7 +159,7 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progr
     if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, &tgt, err);
     if (progress && st == FM_OK) progress("match", 0.7, user);
     if (st == FM_OK)
-        st = name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
+        st = fm_name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
                                       fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
     if (st == FM_OK) mean_point(src.p, m->n, m->o1), mean_point(tgt.p, m->n, m->o2);
@@ -182,8 +172,8 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
-    fm_status st = name_key(fm_flock_target_build(&m->target, def, err), "target.mesh", err);
-    if (st == FM_OK) st = name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
+    fm_status st = fm_name_key(fm_flock_target_build(&m->target, def, err), "target.mesh", err);
+    if (st == FM_OK) st = fm_name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
     if (st == FM_OK) fm_mesh_place(&source, &def->source);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);

@@ -37,12 +37,10 @@ static fm_status load_frame(fm_flock_target *t, const fm_scene_def *def, int32_t
     char path[FM_PATH_MAX + 32];
     snprintf(path, sizeof path, def->flock.deform_sequence, i);
     fm_mesh frame;
-    fm_status st = fm_mesh_load(path, &frame, err);
-    if (st != FM_OK) {
-        char msg[sizeof err->message];
-        snprintf(msg, sizeof msg, "%s", err->message);
-        return fm_fail(err, st, "shape_flock.deform.sequence: mesh %d: %s", i, msg);
-    }
+    char key[64];
+    snprintf(key, sizeof key, "shape_flock.deform.sequence: mesh %d", i);
+    fm_status st = fm_name_key(fm_mesh_load(path, &frame, err), key, err);
+    if (st != FM_OK) return st;
     int same = frame.nv == t->mesh.nv && frame.nt == t->mesh.nt &&
                !memcmp(frame.tri, t->mesh.tri, sizeof(int32_t) * 3 * (size_t)frame.nt);
     if (same) {

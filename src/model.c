@@ -21,26 +21,15 @@ typedef struct prep_scratch {
     int64_t *d1, *d2;
 } prep_scratch;
 
-/* Prefixes err's message with the scene key that named the mesh ("source.mesh: ..."). */
-static fm_status name_key(fm_status st, const char *key, fm_error *err)
-{
-    if (st != FM_OK && err) {
-        char msg[sizeof err->message];
-        snprintf(msg, sizeof msg, "%s", err->message);
-        fm_fail(err, st, "%s: %s", key, msg);
-    }
-    return st;
-}
-
 /* Loads, checks, places and tetrahedralizes one mesh. */
 static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
                               fm_tets *tets, fm_error *err)
 {
     fm_status st = fm_mesh_load(ref->path, mesh, err);
     if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
-    if (st != FM_OK) return name_key(st, key, err);
+    if (st != FM_OK) return fm_name_key(st, key, err);
     fm_mesh_place(mesh, ref);
-    return name_key(fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
+    return fm_name_key(fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
 }
 
 /* FM §4: n >= max(n1, n2); say which mesh needs more. */
@@ -185,8 +174,8 @@ fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_
     for (int i = 0; i < count && st == FM_OK; i++) {
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
-        st = name_key(fm_mesh_load(def->obstacles[i].path, &meshes[i], err), key, err);
-        if (st == FM_OK) st = name_key(fm_mesh_check_closed(&meshes[i], def->obstacles[i].path, err), key, err);
+        st = fm_name_key(fm_mesh_load(def->obstacles[i].path, &meshes[i], err), key, err);
+        if (st == FM_OK) st = fm_name_key(fm_mesh_check_closed(&meshes[i], def->obstacles[i].path, err), key, err);
         if (st == FM_OK) fm_mesh_place(&meshes[i], &def->obstacles[i]), grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
     }
     if (st == FM_OK) {
@@ -208,7 +197,7 @@ static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);
     double voxel = extent / 160, band = fabs(m->def.switch_distance) + 3 * voxel;
     m->target_sdf = fm_obstacles_build(target, 1, voxel, band, err);
-    return m->target_sdf ? FM_OK : name_key(err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
+    return m->target_sdf ? FM_OK : fm_name_key(err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
 }
 
 static void set_timing(fm_model *m)

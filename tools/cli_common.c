@@ -2,6 +2,8 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
+#include <omp.h>
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -197,4 +199,36 @@ int cli_write_json(const char *path, json_t *j)
     }
     json_decref(j);
     return st == FM_OK ? 0 : cli_report(&err);
+}
+
+double cli_agent_steps_per_second(const cli_run_record *r)
+{
+    return r->simulate_seconds > 0 ? (double)r->agents * (double)r->steps / r->simulate_seconds : 0;
+}
+
+json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
+{
+    json_t *j = json_object();
+    json_object_set_new(j, "mode", json_string(r->mode));
+    json_object_set_new(j, "agents", json_integer(r->agents));
+    json_object_set_new(j, "frames", json_integer(r->frames));
+    json_object_set_new(j, "steps", json_integer(r->steps));
+    json_object_set_new(j, "time_step", json_real(r->time_step));
+    json_object_set_new(j, "frame_rate", json_real(def->frame_rate));
+    json_object_set_new(j, "preprocess_seconds", json_real(r->preprocess_seconds));
+    json_object_set_new(j, "simulate_seconds", json_real(r->simulate_seconds));
+    json_object_set_new(j, "output_seconds", json_real(r->output_seconds));
+    json_object_set_new(j, "agent_steps_per_second", json_real(cli_agent_steps_per_second(r)));
+    json_object_set_new(j, "steps_per_second", json_real(r->simulate_seconds > 0 ? (double)r->steps / r->simulate_seconds : 0));
+    json_object_set_new(j, "threads", json_integer(r->threads));
+    json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
+    json_object_set_new(j, "cache", json_string(r->cache));
+    return j;
+}
+
+void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out)
+{
+    snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
+    snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
+    out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
 }

@@ -3,7 +3,6 @@
 #include "cli.h"
 
 #include <jansson.h>
-#include <omp.h>
 
 #include <errno.h>
 #include <math.h>
@@ -47,15 +46,9 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     return 0;
 }
 
-typedef struct run_progress {
-    int show;
-    int64_t agents;
-    double start;
-} run_progress;
-
 static void frame_progress(const fm_state_info *info, int64_t frame, void *user)
 {
-    const run_progress *p = user;
+    const cli_progress *p = user;
     if (!p->show) return;
     double done = (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents;
     fprintf(stderr, "\r\033[K  frame %lld  t = %.2f s  waiting %lld  flying %lld  homing %lld  arrived %.1f%%  (%.0f s)",
@@ -105,23 +98,12 @@ static json_t *mde_frames_json(const fm_run_stats *rs)
 }
 
 static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
-                       int threads, double preprocess_seconds, const char *cache_path)
+                       const cli_run_record *record)
 {
-    json_t *j = json_object();
-    json_object_set_new(j, "mode", json_string("tetra_morph"));
-    json_object_set_new(j, "agents", json_integer(mi->agents));
+    json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
-    json_object_set_new(j, "frames", json_integer(rs->frames));
-    json_object_set_new(j, "steps", json_integer(rs->steps));
-    json_object_set_new(j, "time_step", json_real(mi->time_step));
-    json_object_set_new(j, "frame_rate", json_real(def->frame_rate));
     json_object_set_new(j, "launch_rate", json_real(mi->launch_rate));
-    json_object_set_new(j, "preprocess_seconds", json_real(preprocess_seconds));
-    json_object_set_new(j, "simulate_seconds", json_real(rs->simulate_seconds));
-    json_object_set_new(j, "output_seconds", json_real(rs->output_seconds));
-    double rate = rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0;
-    json_object_set_new(j, "agent_steps_per_second", json_real(rate));
     json_object_set_new(j, "all_arrived", json_boolean(rs->all_arrived));
     json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));
     json_object_set_new(j, "final_max_vertex_error", rs->all_arrived ? json_real(rs->final_max_vertex_error) : json_null());
@@ -136,9 +118,6 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
-    json_object_set_new(j, "threads", json_integer(threads));
-    json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", json_string(cache_path));
     return cli_write_json(path, j);
 }
 
@@ -149,15 +128,13 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_model 
     fm_model_info mi = fm_model_get_info(model);
     fm_state *state = fm_state_create(model, o->threads, &err);
     if (!state) return cli_report(&err);
-    int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
-    char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
-    snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
-    snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
+    cli_outputs out;
+    cli_run_outputs(o, def, &out);
     fm_cache_options copts = cli_cache_options(def);
     const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
-    fm_cache_writer *cache = fm_cache_writer_create_attrs(cache_path, (uint64_t)mi.agents, def->frame_rate, attrs, 2, &copts, &err);
+    fm_cache_writer *cache = fm_cache_writer_create_attrs(out.cache, (uint64_t)mi.agents, def->frame_rate, attrs, 2, &copts, &err);
     if (!cache) return fm_state_destroy(state), cli_report(&err);
-    run_progress rp = {show, mi.agents, cli_seconds()};
+    cli_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_stats rs;
     fm_status st = fm_run(model, state, cache, frame_progress, &rp, &rs, &err);
     if (show) fprintf(stderr, "\n");
@@ -165,15 +142,17 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_model 
     fm_state_destroy(state);
     if (st != FM_OK) return fm_cache_writer_abort(cache), fm_run_stats_free(&rs), cli_report(&err);
     if (fm_cache_writer_finish(cache, &err) != FM_OK) return fm_run_stats_free(&rs), cli_report(&err);
-    int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path);
+    const cli_run_record record = {"tetra_morph", mi.agents, rs.frames, rs.steps, mi.time_step, prep_seconds,
+                                   rs.simulate_seconds, rs.output_seconds, out.threads, out.cache};
+    int rc = write_stats(out.stats, def, &mi, &rs, &record);
     fm_run_stats_free(&rs);
     if (rc) return rc;
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi.agents, (long long)rs.frames,
-           (long long)rs.steps, rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0);
+           (long long)rs.steps, cli_agent_steps_per_second(&record));
     if (!rs.all_arrived)
         fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
                 "raise time.frame_limit in the scene\n", def->frame_limit, (long long)still_flying);
-    printf("cache: %s\nstats: %s\n", cache_path, stats_path);
+    printf("cache: %s\nstats: %s\n", out.cache, out.stats);
     return 0;
 }
 

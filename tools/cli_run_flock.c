@@ -4,19 +4,12 @@
 #include "cli.h"
 
 #include <math.h>
-#include <omp.h>
 #include <stdio.h>
 #include <unistd.h>
 
-typedef struct flock_progress {
-    int show;
-    int64_t agents;
-    double start;
-} flock_progress;
-
 static void frame_progress(const fm_flock_info *info, int64_t frame, void *user)
 {
-    const flock_progress *p = user;
+    const cli_progress *p = user;
     if (!p->show) return;
     fprintf(stderr, "\r\033[K  frame %lld  t = %.2f s  flying %lld  arriving %lld  bound %.1f%%  (%.0f s)", (long long)frame,
             info->time, (long long)info->count[FM_PHASE_FLYING], (long long)info->count[FM_PHASE_HOMING],
@@ -40,21 +33,9 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
 }
 
 static int write_stats(const char *path, const fm_scene_def *def, const fm_flock_model_info *mi,
-                       const fm_flock_run_stats *rs, int threads, double preprocess_seconds, const char *cache_path)
+                       const fm_flock_run_stats *rs, const cli_run_record *record)
 {
-    json_t *j = json_object();
-    json_object_set_new(j, "mode", json_string("shape_flock"));
-    json_object_set_new(j, "agents", json_integer(mi->agents));
-    json_object_set_new(j, "frames", json_integer(rs->frames));
-    json_object_set_new(j, "steps", json_integer(rs->steps));
-    json_object_set_new(j, "time_step", json_real(mi->time_step));
-    json_object_set_new(j, "frame_rate", json_real(def->frame_rate));
-    json_object_set_new(j, "preprocess_seconds", json_real(preprocess_seconds));
-    json_object_set_new(j, "simulate_seconds", json_real(rs->simulate_seconds));
-    json_object_set_new(j, "output_seconds", json_real(rs->output_seconds));
-    double rate = rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0;
-    json_object_set_new(j, "agent_steps_per_second", json_real(rate));
-    json_object_set_new(j, "steps_per_second", json_real(rs->simulate_seconds > 0 ? (double)rs->steps / rs->simulate_seconds : 0));
+    json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "all_bound", json_boolean(rs->all_bound));
     json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));
     json_object_set_new(j, "final_mean_distance", number_or_null(rs->final_mean_distance));
@@ -63,9 +44,6 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_flock
     json_object_set_new(j, "tracking_lag", number_or_null(rs->tracking_lag));
     json_object_set_new(j, "tracking_frames", json_integer(rs->tracking_frames));
     json_object_set_new(j, "shape_flock", settings_json(def, mi));
-    json_object_set_new(j, "threads", json_integer(threads));
-    json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", json_string(cache_path));
     return cli_write_json(path, j);
 }
 
@@ -75,30 +53,29 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_
     fm_flock_model_info mi = fm_flock_model_get_info(model);
     fm_flock_state *state = fm_flock_state_create(model, o->threads, &err);
     if (!state) return cli_report(&err);
-    int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
-    char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
-    snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
-    snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
+    cli_outputs out;
+    cli_run_outputs(o, def, &out);
     fm_cache_options copts = cli_cache_options(def);
-    fm_cache_writer *cache = fm_flock_cache_create(cache_path, model, &copts, &err);
+    fm_cache_writer *cache = fm_flock_cache_create(out.cache, model, &copts, &err);
     if (!cache) return fm_flock_state_destroy(state), cli_report(&err);
-    flock_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
+    cli_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
     fm_flock_run_stats rs;
     fm_status st = fm_flock_run(model, state, cache, frame_progress, &fp, &rs, &err);
     if (fp.show) fprintf(stderr, "\n");
     fm_flock_state_destroy(state);
     if (st != FM_OK) return fm_cache_writer_abort(cache), cli_report(&err);
     if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_report(&err);
-    int rc = write_stats(stats_path, def, &mi, &rs, threads, prep_seconds, cache_path);
+    const cli_run_record record = {"shape_flock", mi.agents, rs.frames, rs.steps, mi.time_step, prep_seconds,
+                                   rs.simulate_seconds, rs.output_seconds, out.threads, out.cache};
+    int rc = write_stats(out.stats, def, &mi, &rs, &record);
     if (rc) return rc;
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s; bound %.1f%%, distance to destination mean %.3g max %.3g\n",
-           (long long)mi.agents, (long long)rs.frames, (long long)rs.steps,
-           rs.simulate_seconds > 0 ? (double)mi.agents * (double)rs.steps / rs.simulate_seconds : 0.0, 100 * rs.bound_fraction,
-           rs.final_mean_distance, rs.final_max_distance);
+           (long long)mi.agents, (long long)rs.frames, (long long)rs.steps, cli_agent_steps_per_second(&record),
+           100 * rs.bound_fraction, rs.final_mean_distance, rs.final_max_distance);
     if (!mi.deforming && def->flock.arrival_mode == FM_ARRIVAL_BIND && !rs.all_bound)
         fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %.1f%% of the agents not yet bound; "
                 "raise time.frame_limit in the scene\n", def->frame_limit, 100 * (1 - rs.bound_fraction));
-    printf("cache: %s\nstats: %s\n", cache_path, stats_path);
+    printf("cache: %s\nstats: %s\n", out.cache, out.stats);
     return 0;
 }
 
