@@ -172,7 +172,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
-    fm_status st = fm_name_key(fm_flock_target_build(&m->target, def, err), "target.mesh", err);
+    fm_status st = fm_flock_target_build(&m->target, def, err);
     if (st == FM_OK) st = fm_name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
     if (st == FM_OK) fm_mesh_place(&source, &def->source);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);

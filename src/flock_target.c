@@ -58,7 +58,7 @@ fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_
 {
     memset(t, 0, sizeof *t);
     t->kind = def->flock.deform;
-    fm_status st = fm_mesh_load(def->target.path, &t->mesh, err);
+    fm_status st = fm_name_key(fm_mesh_load(def->target.path, &t->mesh, err), "target.mesh", err);
     if (st != FM_OK) return st;
     fm_mesh_place(&t->mesh, &def->target);
     if (t->kind == FM_DEFORM_WAVE) return vertex_normals(t, err);
