@@ -43,7 +43,7 @@ typedef struct fm_sample_opts {
                            E_ij underflows to 0). We read M/N in eq 3 as the same length as in eq 1 */
     double lambda;      /* stratified: the density lambda e^(-lambda d), d the distance to the
                            voxel centre in voxel edges (so lambda is free of the model's scale) */
-    /* Extensions (not in the brief's first API; zero takes the default): */
+    /* Beyond the paper's parameters (zero takes the default): */
     double step;        /* mosaic: eq 5's delta t in units of sqrt(M/N) */
     double oversample;  /* stratified: occupied voxels (candidates) aimed for per sample, >= 1 */
     int threads;        /* OpenMP threads; 0 = omp_get_max_threads(). Results do not depend on it */
