@@ -27,7 +27,8 @@ const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr)
 
 fm_cache_options fm_default_cache_options(void)
 {
-    return (fm_cache_options){.compression_level = 1, .delta = 0, .key_interval = CACHE_DEFAULT_KEY_INTERVAL,
+    /* delta: half the file size of the words scene and less writer time (docs/performance.md) */
+    return (fm_cache_options){.compression_level = 1, .delta = 1, .key_interval = CACHE_DEFAULT_KEY_INTERVAL,
                               .quantum = 0};
 }
 
@@ -190,16 +191,26 @@ uint32_t cache_chunk_crc(const unsigned char *chunk, uint64_t payload)
     return cache_crc32(cache_crc32(0, chunk, 12), chunk + 16, 8 + (size_t)payload);
 }
 
+/* One word in, one byte to each plane: the compiler keeps the four plane pointers in registers
+ * and vectorises this, about 4x faster than a byte loop over (word, plane). */
 void cache_shuffle4(const unsigned char *in, size_t count, unsigned char *out)
 {
-    for (size_t i = 0; i < count; i++)
-        for (int k = 0; k < 4; k++) out[k * count + i] = in[4 * i + k];
+    unsigned char *p0 = out, *p1 = out + count, *p2 = out + 2 * count, *p3 = out + 3 * count;
+    for (size_t i = 0; i < count; i++) {
+        uint32_t w;
+        memcpy(&w, in + 4 * i, 4);
+        p0[i] = (unsigned char)w, p1[i] = (unsigned char)(w >> 8);
+        p2[i] = (unsigned char)(w >> 16), p3[i] = (unsigned char)(w >> 24);
+    }
 }
 
 void cache_unshuffle4(const unsigned char *in, size_t count, unsigned char *out)
 {
-    for (size_t i = 0; i < count; i++)
-        for (int k = 0; k < 4; k++) out[4 * i + k] = in[k * count + i];
+    const unsigned char *p0 = in, *p1 = in + count, *p2 = in + 2 * count, *p3 = in + 3 * count;
+    for (size_t i = 0; i < count; i++) {
+        uint32_t w = (uint32_t)p0[i] | (uint32_t)p1[i] << 8 | (uint32_t)p2[i] << 16 | (uint32_t)p3[i] << 24;
+        memcpy(out + 4 * i, &w, 4);
+    }
 }
 
 void cache_xor(unsigned char *dst, const unsigned char *src, size_t n)

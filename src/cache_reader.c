@@ -55,6 +55,7 @@ static fm_status read_header_v1(fm_cache_reader *r, const unsigned char *h, fm_e
     l->attrs[0] = fm_cache_attr_describe(FM_ATTR_TET_VERTICES);
     l->filters[0] = FILTER_SHUFFLE4;
     l->opts = fm_default_cache_options();
+    l->opts.delta = 0;
     l->opts.compression_level = (int)get_u32(h + 36);
     return FM_OK;
 }

@@ -356,8 +356,7 @@ static fm_status take_over_prefix(fm_cache_writer *w, fm_cache_reader *r, uint32
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err)
 {
     fm_output_file probe;
-    if (strlen(path) >= sizeof probe.path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path), NULL;
-    snprintf(probe.partial, sizeof probe.partial, "%s.partial", path);
+    if (fm_output_name(&probe, path, err) != FM_OK) return NULL;
     if (access(probe.partial, F_OK) != 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: nothing to resume: %s does not exist", path, probe.partial), NULL;
     fm_cache_reader *r = fm_cache_open(probe.partial, err);

@@ -31,6 +31,8 @@ typedef struct fm_output_file {
     char partial[FM_PATH_MAX + 16];
 } fm_output_file;
 
+/* Sets o's names (PATH and PATH.partial) without opening anything. */
+fm_status fm_output_name(fm_output_file *o, const char *path, fm_error *err);
 fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
 /* Checks for write errors, flushes to disk, closes and renames; on any failure removes the
  * partial file and reports `detail` (if not NULL or empty) or the errno text. */

@@ -48,12 +48,18 @@ double fm_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err)
+fm_status fm_output_name(fm_output_file *o, const char *path, fm_error *err)
 {
     o->f = NULL;
     if (strlen(path) >= sizeof o->path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path);
     snprintf(o->path, sizeof o->path, "%s", path);
     snprintf(o->partial, sizeof o->partial, "%s.partial", path);
+    return FM_OK;
+}
+
+fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err)
+{
+    if (fm_output_name(o, path, err) != FM_OK) return FM_ERR_USAGE;
     errno = 0;
     o->f = fopen(o->partial, "wb");
     if (!o->f) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(errno ? errno : EIO));
@@ -81,10 +87,7 @@ void fm_output_discard(fm_output_file *o)
 
 fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err)
 {
-    o->f = NULL;
-    if (strlen(path) >= sizeof o->path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path);
-    snprintf(o->path, sizeof o->path, "%s", path);
-    snprintf(o->partial, sizeof o->partial, "%s.partial", path);
+    if (fm_output_name(o, path, err) != FM_OK) return FM_ERR_USAGE;
     errno = 0;
     o->f = fopen(o->partial, "r+b");
     if (!o->f || ftruncate(fileno(o->f), (off_t)keep) != 0 || fseeko(o->f, (off_t)keep, SEEK_SET) != 0) {

@@ -71,6 +71,7 @@ fm_scene_def fm_default_scene_def(void)
     d.morph_fraction = 0.75;
     d.seed = 1;
     d.compression_level = 1; /* zstd level 1: twice as fast as 3 on frames, about 10 % larger */
+    d.cache_delta = 1; /* lossless, and it pays: docs/performance.md, "Cache writer" */
     d.cache_key_interval = 16;
     d.omega2 = 1.0;
     d.k_a = 1.0;

@@ -20,7 +20,7 @@ static void test_attribute_table(void)
     }
     ENSURE(fm_cache_attr_describe((fm_cache_attr)0) == NULL && fm_cache_attr_describe((fm_cache_attr)7) == NULL);
     fm_cache_options o = fm_default_cache_options();
-    ENSURE(o.compression_level == 1 && o.delta == 0 && o.key_interval == 16 && o.quantum == 0);
+    ENSURE(o.compression_level == 1 && o.delta == 1 && o.key_interval == 16 && o.quantum == 0);
 }
 
 /* Writes all six attributes under `opts` and reads every frame back twice: in order, and in a
@@ -55,13 +55,14 @@ static void round_trip(const char *name, uint64_t agents, uint32_t frames, const
 static void test_round_trip_every_attribute_and_option(void)
 {
     fm_cache_options o = fm_default_cache_options();
-    round_trip("attrs_lossless.fmc", 23, 9, &o, DATA_RANDOM);
+    o.delta = 0;
+    round_trip("attrs_whole.fmc", 23, 9, &o, DATA_RANDOM);
     o.delta = 1, o.key_interval = 4;
     round_trip("attrs_delta.fmc", 23, 11, &o, DATA_RANDOM);       /* bitwise, NaN payloads included */
     round_trip("attrs_delta_smooth.fmc", 500, 11, &o, DATA_SMOOTH);
     o.key_interval = 1;
     round_trip("attrs_delta_k1.fmc", 23, 5, &o, DATA_RANDOM);
-    o = fm_default_cache_options(), o.quantum = 1e-3;
+    o = fm_default_cache_options(), o.delta = 0, o.quantum = 1e-3;
     round_trip("attrs_quantum.fmc", 300, 6, &o, DATA_SMOOTH);
     o.delta = 1, o.key_interval = 3, o.compression_level = 19;
     round_trip("attrs_quantum_delta.fmc", 300, 10, &o, DATA_SMOOTH);

@@ -363,7 +363,7 @@ static void test_inspect_json(void)
     ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "phase"));
     ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u8"));
     json_t *o = json_object_get(j, "options");
-    ENSURE(jnum(o, "compression_level") == 1 && json_is_false(json_object_get(o, "delta")) && jnum(o, "quantum") == 0);
+    ENSURE(jnum(o, "compression_level") == 1 && json_is_true(json_object_get(o, "delta")) && jnum(o, "key_interval") == 16 && jnum(o, "quantum") == 0);
     struct stat st;
     ENSURE(stat(g_cache, &st) == 0 && jnum(j, "file_bytes") == (double)st.st_size);
     ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));

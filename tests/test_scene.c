@@ -96,7 +96,7 @@ static void test_valid_scene_fields(void)
         "  \"launch_rate\": 100,\n"
         "  \"morph\": {\"shrink\": 0.25, \"shrink_time\": 0.5, \"morph_fraction\": 0.6},\n"
         "  \"seed\": 9007199254740993,\n"
-        "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19, \"delta\": true, \"key_interval\": 7,\n"
+        "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19, \"delta\": false, \"key_interval\": 7,\n"
         "             \"quantum\": 0.001}\n"
         "}\n";
     char path[FM_PATH_MAX], expect[FM_PATH_MAX + 16];
@@ -122,7 +122,7 @@ static void test_valid_scene_fields(void)
     ENSURE(d.shrink == 0.25 && d.shrink_time == 0.5 && d.morph_fraction == 0.6);
     ENSURE(d.seed == 9007199254740993ull);
     ENSURE(strcmp(d.cache_name, "run.fmc") == 0 && d.compression_level == 19);
-    ENSURE(d.cache_delta == 1 && d.cache_key_interval == 7 && d.cache_quantum == 0.001);
+    ENSURE(d.cache_delta == 0 && d.cache_key_interval == 7 && d.cache_quantum == 0.001);
 }
 
 static void test_defaults_for_left_out_keys(void)
@@ -142,7 +142,7 @@ static void test_defaults_for_left_out_keys(void)
     ENSURE(strcmp(d.cache_name, e.cache_name) == 0);
     /* the documented defaults themselves */
     ENSURE(e.speed0 == 10.0 && e.frame_rate == 24.0 && e.compression_level == 1 && e.shrink == 0.5);
-    ENSURE(d.cache_delta == 0 && d.cache_key_interval == 16 && d.cache_quantum == 0);
+    ENSURE(d.cache_delta == 1 && d.cache_key_interval == 16 && d.cache_quantum == 0);
 }
 
 static void test_boundary_values_accepted(void)

@@ -202,7 +202,7 @@ typedef struct fm_scene_def {
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
-    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless) */
+    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */
     int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
@@ -348,8 +348,9 @@ const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr);
 
 typedef struct fm_cache_options {
     int compression_level;   /* zstd 1..19 (default 1) */
-    int delta;               /* 1: every attribute stored as the XOR of its bits with the previous
-                                frame's (lossless); every key_interval-th frame is stored whole */
+    int delta;               /* 1 (the default): every attribute stored as the XOR of its bits with
+                                the previous frame's (lossless); every key_interval-th frame is
+                                stored whole. 0: every frame whole */
     int key_interval;        /* frames from one whole frame to the next when delta is on (default 16):
                                 random access decodes at most this many chunks */
     double quantum;          /* > 0: f32 attributes rounded to multiples of quantum and stored as
@@ -364,8 +365,11 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
                                               const fm_cache_options *opts, fm_error *err);
 /* data[i] points at agents × attribute i's values, in the order given to create_attrs. */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err);
-/* Reopens PATH.partial left by an interrupted run, keeps its first `frames` frames, drops anything
- * after them, and continues writing (checkpoint / resume). Fails if fewer frames are readable. */
+/* Reopens PATH.partial left by an interrupted run (format 2), checks its first `frames` chunks
+ * (headers and crc32), drops anything after them, and continues writing with the attributes and
+ * options of its header (checkpoint / resume). Given the same further frames the finished file is
+ * byte-identical to an uninterrupted one. Fails, leaving the file alone, if fewer frames are
+ * readable. */
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
@@ -375,7 +379,9 @@ fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
 int fm_cache_has_attr(const fm_cache_reader *r, fm_cache_attr attr);
-/* Reads one attribute of one frame into out (agents × bytes_per_agent bytes). */
+/* Reads one attribute of one frame into out (agents × bytes_per_agent bytes, aligned for its
+ * scalar type). With delta, a frame is rebuilt from the key frame before it; the last decoded frame
+ * is kept, so reading frames in order decodes one chunk each. */
 fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr attr, void *out,
                              fm_error *err);
 /* Sizes for `inspect`: the file, and the raw and compressed bytes of all frames. */
@@ -384,7 +390,7 @@ uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_frame_bytes(const fm_cache_reader *r, uint32_t frame); /* one chunk; 0 past the end */
 uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1 or 2 */
-/* The options the cache was written with (format 1: level only, the rest default). */
+/* The options the cache was written with (format 1: its level, no delta, no quantum). */
 fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Tests python/flockmorph_cache.py against the C reader.
 
-Runs small scenes through the flockmorph CLI (a lossless cache, and one with delta encoding and
-quantisation), then compares every frame of every attribute the module returns with the bytes the
+Runs small scenes through the flockmorph CLI (a cache of whole frames, and one with delta encoding
+and quantisation), then compares every frame of every attribute the module returns with the bytes the
 C reader decodes (tests/cache_dump.c) and its metadata with `flockmorph inspect --json`. Also reads
 the committed format-1 fixture, a cache cut short (recovery with a warning), a flipped byte
 (checksum error) and files that are not caches.
@@ -86,7 +86,7 @@ class CacheCase(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         if CacheCase.lossless is None:
-            CacheCase.lossless = run_scene("lossless", {})
+            CacheCase.lossless = run_scene("lossless", {"delta": False})
             CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001})
 
     def assert_matches_c(self, path):
@@ -220,7 +220,7 @@ class NotACache(unittest.TestCase):
         self.expect_error(b'{"agents": 5}\n' + b"x" * 100, "not a flockmorph cache")
         self.expect_error(b"", "shorter than the cache header")
         self.expect_error(b"FMCACHE1" + bytes([9, 0, 0, 0]) + bytes(52), "cache version 9 is not supported")
-        with open(CacheCase.lossless or run_scene("lossless", {}), "rb") as f:
+        with open(CacheCase.lossless or run_scene("lossless", {"delta": False}), "rb") as f:
             header = bytearray(f.read(96))
         header[20] ^= 1
         self.expect_error(bytes(header), "header checksum mismatch")
