@@ -15,6 +15,10 @@
 fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
+/* On failure (st != FM_OK) prefixes err's message with "<key>: " (the scene key that named the
+ * failing input); returns st. */
+fm_status fm_name_key(fm_status st, const char *key, fm_error *err);
+
 /* 64-byte aligned, zero-filled; size rounded up to a multiple of 64. NULL on failure. */
 void *fm_alloc(size_t bytes);
 void fm_free(void *p);

@@ -21,6 +21,16 @@ fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
     return status;
 }
 
+fm_status fm_name_key(fm_status st, const char *key, fm_error *err)
+{
+    if (st != FM_OK && err) {
+        char msg[sizeof err->message];
+        snprintf(msg, sizeof msg, "%s", err->message);
+        fm_fail(err, st, "%s: %s", key, msg);
+    }
+    return st;
+}
+
 void *fm_alloc(size_t bytes)
 {
     size_t rounded = (bytes + FM_ALIGN - 1) / FM_ALIGN * FM_ALIGN;

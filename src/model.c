@@ -276,16 +276,39 @@ static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
 
 /* Builds d_t (FM §5.3) with a band covering k_a plus the largest tet radius, so the look-ahead of
  * eq 8 always reads real distances. */
-static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_radius, fm_error *err)
+/* The distance grid of placed obstacle meshes, with a band wide enough for `reach` (FM eq 7's k_a
+ * plus the largest agent radius); the voxel is obstacles.voxel or 1/160 of the extent. */
+static fm_obstacles *obstacle_grid(const fm_scene_def *def, const fm_mesh *meshes, double reach, fm_error *err)
 {
-    const fm_scene_def *def = &m->def;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int i = 0; i < def->obstacle_count; i++) grow_bounds(lo, hi, s->obstacles[i].v, s->obstacles[i].nv);
-    double reach = def->k_a + max_radius, extent = 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
+    for (int i = 0; i < def->obstacle_count; i++) grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
     double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
-    m->obstacles = fm_obstacles_build(s->obstacles, def->obstacle_count, voxel, reach + 2 * voxel, err);
-    return m->obstacles ? FM_OK : name_key(def, err ? err->status : FM_ERR_INPUT, "obstacles.voxel", err);
+    fm_obstacles *o = fm_obstacles_build(meshes, def->obstacle_count, voxel, reach + 2 * voxel, err);
+    if (!o) name_key(def, err ? err->status : FM_ERR_INPUT, "obstacles.voxel", err);
+    return o;
+}
+
+static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_radius, fm_error *err)
+{
+    m->obstacles = obstacle_grid(&m->def, s->obstacles, m->def.k_a + max_radius, err);
+    return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
+}
+
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_error *err)
+{
+    fm_mesh *meshes = calloc((size_t)def->obstacle_count, sizeof *meshes);
+    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles"), NULL;
+    fm_status st = FM_OK;
+    for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
+        char key[48];
+        snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
+        st = load_mesh(def, &def->obstacles[i], key, &meshes[i], err);
+    }
+    fm_obstacles *out = st == FM_OK ? obstacle_grid(def, meshes, reach, err) : NULL;
+    for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
+    free(meshes);
+    return out;
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */

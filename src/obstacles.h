@@ -46,6 +46,11 @@ fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
    does not depend on it. Thread-safe: callable from OpenMP threads concurrently. */
 double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double closest[3], double normal[3]);
 
+/* The scene's obstacles (obstacles.meshes, each loaded, checked closed and placed) with a band wide
+   enough for `reach` (FM eq 7's k_a plus the largest agent radius), the voxel obstacles.voxel or
+   1/160 of their extent plus the reach. Errors name "obstacles.meshes[i]". NULL on failure. (model.c) */
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_error *err);
+
 /* Internal: obstacles_vdb.cpp, OpenVDB behind extern "C" (never throws). Builds the clamped dense
    grid of the closed triangle soup (v: 3 doubles per vertex; tri: 3 indices per triangle) and
    stores it in *d (allocated with fm_alloc; the caller frees it with fm_free), n and origin.

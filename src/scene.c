@@ -6,6 +6,7 @@
  * parsing) and the key. */
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
+#include "fuzzy.h"
 #include "json_locate.h"
 
 #include <jansson.h>
@@ -16,6 +17,42 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* A fuzzy curve through count [d, w] points. */
+static fm_fuzzy_def fuzzy_curve(int count, const double (*pts)[2])
+{
+    fm_fuzzy_def c = {.count = count};
+    for (int i = 0; i < count; i++) c.d[i] = pts[i][0], c.w[i] = pts[i][1];
+    return c;
+}
+
+/* The shape flock's defaults (docs/scene.md "shape_flock"). Radii: SCF's J ranges divided by 3 (on
+ * a surface of area A a radius J / sqrt(N) sees about pi J^2 / A agents whatever N: ~150 with the
+ * paper's J on our 10-unit meshes, ~20 with these); angles and weights as SCF implies them
+ * (separation widest, alignment narrowest). */
+static fm_flock_def fm_default_flock_def(void)
+{
+    static const double steering[3][2] = {{0, 0.05}, {1, 0.2}, {6, 1}}, homing[2][2] = {{0, 1}, {6, 0.5}};
+    static const double damping[3][2] = {{0, 1}, {1, 1}, {3, 0}}, external[2][2] = {{0, 0.1}, {3, 1}};
+    fm_flock_def f = {
+        .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_RANDOM, .mass = 1,
+        .max_speed = {8, 12}, .max_force = {15, 30},
+        .separation = {{20, 40}, {240, 300}, {1.5, 2}},  /* J: a third of SCF's, see docs/shape-flock.md */
+        .cohesion = {{10, 40}, {240, 300}, {0.8, 1.2}},
+        .alignment = {{10, 20}, {120, 180}, {0.8, 1.2}},
+        .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
+        .damping = 3, .external_gain = 1,
+        .arrival_radius = 0.3, .arrival_time = 0.2, .turn_rate_deg = 720, .bind_distance = 0.002,
+        .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
+        .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
+        .deform_direction = {1, 0, 0}, .deform_frame_rate = 24,
+    };
+    f.fuzzy[FM_FUZZY_STEERING] = fuzzy_curve(3, steering);
+    f.fuzzy[FM_FUZZY_HOMING] = fuzzy_curve(2, homing);
+    f.fuzzy[FM_FUZZY_DAMPING] = fuzzy_curve(3, damping);
+    f.fuzzy[FM_FUZZY_EXTERNAL] = fuzzy_curve(2, external);
+    return f;
+}
 
 fm_scene_def fm_default_scene_def(void)
 {
@@ -40,12 +77,17 @@ fm_scene_def fm_default_scene_def(void)
     d.k_a = 1.0;
     d.path_attraction = 1.0;
     strcpy(d.cache_name, "frames.fmc");
+    d.flock = fm_default_flock_def();
     return d;
 }
 
 typedef enum param_type {
     P_DOUBLE, P_INT32, P_INT64, P_UINT64, P_BOOL, P_VEC3, P_INT3, P_MESH, P_NAME, P_CURVE, P_SWITCH,
-    P_FIELD_KIND, P_POINTS, P_FIELDS, P_OBSTACLES
+    P_FIELD_KIND, P_POINTS, P_FIELDS, P_OBSTACLES,
+    P_ENUM,     /* one of param.names (a NULL-terminated list), stored as an int-sized enum */
+    P_RANGE,    /* [lo, hi] (or one number for both), each in range, lo <= hi */
+    P_FUZZY,    /* a fuzzy weight curve: [[d, w], ...], d increasing */
+    P_PATTERN   /* a mesh file name pattern, resolved like P_MESH but optional */
 } param_type;
 
 enum { OPEN_MIN = 1, OPEN_MAX = 2 };
@@ -58,8 +100,47 @@ typedef struct param {
     int open;           /* OPEN_MIN / OPEN_MAX: that bound itself is excluded */
 } param;
 
+/* The values of each P_ENUM key, NULL-terminated. */
+static const char *const MODE_NAMES[] = {"tetra_morph", "shape_flock", NULL};
+static const char *const SAMPLING_NAMES[] = {"random", "mosaic", "stratified", NULL};
+static const char *const MATCH_NAMES[] = {"random", "spherical", NULL};
+static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
+static const char *const DEFORM_NAMES[] = {"none", "wave", "pulse", "sequence", NULL};
+static const struct { const char *key; const char *const *names; } ENUM_NAMES[] = {
+    {"mode", MODE_NAMES}, {"shape_flock.sampling", SAMPLING_NAMES}, {"shape_flock.match", MATCH_NAMES},
+    {"shape_flock.arrival.mode", ARRIVAL_NAMES}, {"shape_flock.deform.type", DEFORM_NAMES},
+};
+
+static const char *const *enum_names(const param *p)
+{
+    for (size_t i = 0; i < sizeof ENUM_NAMES / sizeof ENUM_NAMES[0]; i++)
+        if (!strcmp(ENUM_NAMES[i].key, p->key)) return ENUM_NAMES[i].names;
+    return MODE_NAMES; /* not reached: every P_ENUM key is listed */
+}
+
+/* Keys (or groups of keys) of the tetra morph alone; "shape_flock" holds the flock's alone. A key of
+ * the other mode is an error rather than silently ignored. */
+static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
+                                         "path.attraction", "launch_rate", "morph", "style.omega2",
+                                         "obstacles.in_phase2", "mde", "phase2"};
+
+static int has_prefix(const char *key, const char *group)
+{
+    size_t len = strlen(group);
+    return !strncmp(key, group, len) && (key[len] == 0 || key[len] == '.');
+}
+
+static int applies(const param *p, fm_mode mode)
+{
+    if (has_prefix(p->key, "shape_flock")) return mode == FM_MODE_SHAPE_FLOCK;
+    for (size_t i = 0; i < sizeof TETRA_ONLY / sizeof TETRA_ONLY[0]; i++)
+        if (has_prefix(p->key, TETRA_ONLY[i])) return mode == FM_MODE_TETRA_MORPH;
+    return 1;
+}
+
 #define OFF(field) offsetof(fm_scene_def, field)
 static const param PARAMS[] = {
+    {"mode", P_ENUM, OFF(mode), 0, 0, 0}, /* first: the keys read after it are checked against it */
     {"source.mesh", P_MESH, OFF(source.path), 0, 0, 0},
     {"source.translate", P_VEC3, OFF(source.translate), -1e9, 1e9, 0},
     {"source.scale", P_DOUBLE, OFF(source.scale), 0, 1e9, 1},
@@ -102,6 +183,45 @@ static const param PARAMS[] = {
     {"path.attraction", P_DOUBLE, OFF(path_attraction), 0, 1e6, 0},
     {"phase2.switch", P_SWITCH, OFF(phase_switch), 0, 0, 0},
     {"phase2.switch_distance", P_DOUBLE, OFF(switch_distance), -1e9, 1e9, 0},
+    {"shape_flock.sampling", P_ENUM, OFF(flock.sampling), 0, 0, 0},
+    {"shape_flock.match", P_ENUM, OFF(flock.match), 0, 0, 0},
+    {"shape_flock.mass", P_DOUBLE, OFF(flock.mass), 0, 1e9, OPEN_MIN},
+    {"shape_flock.max_speed", P_RANGE, OFF(flock.max_speed), 0, 1e9, OPEN_MIN},
+    {"shape_flock.max_force", P_RANGE, OFF(flock.max_force), 0, 1e12, 0},
+    {"shape_flock.separation.radius_j", P_RANGE, OFF(flock.separation.radius_j), 0, 1e9, 0},
+    {"shape_flock.separation.angle", P_RANGE, OFF(flock.separation.angle_deg), 0, 360, OPEN_MIN},
+    {"shape_flock.separation.weight", P_RANGE, OFF(flock.separation.weight), 0, 1e6, 0},
+    {"shape_flock.cohesion.radius_j", P_RANGE, OFF(flock.cohesion.radius_j), 0, 1e9, 0},
+    {"shape_flock.cohesion.angle", P_RANGE, OFF(flock.cohesion.angle_deg), 0, 360, OPEN_MIN},
+    {"shape_flock.cohesion.weight", P_RANGE, OFF(flock.cohesion.weight), 0, 1e6, 0},
+    {"shape_flock.alignment.radius_j", P_RANGE, OFF(flock.alignment.radius_j), 0, 1e9, 0},
+    {"shape_flock.alignment.angle", P_RANGE, OFF(flock.alignment.angle_deg), 0, 360, OPEN_MIN},
+    {"shape_flock.alignment.weight", P_RANGE, OFF(flock.alignment.weight), 0, 1e6, 0},
+    {"shape_flock.kalman.q", P_DOUBLE, OFF(flock.kalman_q), 0, 1e12, 0},
+    {"shape_flock.kalman.r_position", P_DOUBLE, OFF(flock.kalman_r_position), 0, 1e12, OPEN_MIN},
+    {"shape_flock.kalman.r_velocity", P_DOUBLE, OFF(flock.kalman_r_velocity), 0, 1e12, OPEN_MIN},
+    {"shape_flock.fuzzy.steering", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_STEERING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.homing", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_HOMING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.damping", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_DAMPING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.external", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_EXTERNAL]), 0, 1e9, 0},
+    {"shape_flock.damping", P_DOUBLE, OFF(flock.damping), 0, 1e6, 0},
+    {"shape_flock.external_gain", P_DOUBLE, OFF(flock.external_gain), 0, 1e6, 0},
+    {"shape_flock.path_time", P_DOUBLE, OFF(flock.path_time), 0, 1e9, 0},
+    {"shape_flock.arrival.radius", P_DOUBLE, OFF(flock.arrival_radius), 0, 1e9, 0},
+    {"shape_flock.arrival.time", P_DOUBLE, OFF(flock.arrival_time), 0, 1e6, OPEN_MIN},
+    {"shape_flock.arrival.turn_rate", P_DOUBLE, OFF(flock.turn_rate_deg), 0, 1e9, OPEN_MIN},
+    {"shape_flock.arrival.bind_distance", P_DOUBLE, OFF(flock.bind_distance), 0, 1e9, 0},
+    {"shape_flock.arrival.mode", P_ENUM, OFF(flock.arrival_mode), 0, 0, 0},
+    {"shape_flock.arrival.float_amplitude", P_DOUBLE, OFF(flock.float_amplitude), 0, 1e9, 0},
+    {"shape_flock.arrival.float_period", P_DOUBLE, OFF(flock.float_period), 0, 1e9, OPEN_MIN},
+    {"shape_flock.deform.type", P_ENUM, OFF(flock.deform), 0, 0, 0},
+    {"shape_flock.deform.amplitude", P_DOUBLE, OFF(flock.deform_amplitude), -1e9, 1e9, 0},
+    {"shape_flock.deform.period", P_DOUBLE, OFF(flock.deform_period), 0, 1e9, OPEN_MIN},
+    {"shape_flock.deform.wavelength", P_DOUBLE, OFF(flock.deform_wavelength), 0, 1e9, OPEN_MIN},
+    {"shape_flock.deform.direction", P_VEC3, OFF(flock.deform_direction), -1e9, 1e9, 0},
+    {"shape_flock.deform.sequence", P_PATTERN, OFF(flock.deform_sequence), 0, 0, 0},
+    {"shape_flock.deform.frames", P_INT32, OFF(flock.deform_frames), 0, 1e6, 0},
+    {"shape_flock.deform.frame_rate", P_DOUBLE, OFF(flock.deform_frame_rate), 0, 1e6, OPEN_MIN},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
@@ -331,6 +451,65 @@ static fm_status read_int3(where *w, const param *p, const json_t *v, int32_t *o
 
 static fm_status read_param(where *w, const param *p, const json_t *v, void *base, fm_scene_def *def);
 
+/* [lo, hi] with both in range and lo <= hi; a single number sets both. */
+static fm_status read_range(where *w, const param *p, const json_t *v, double *out)
+{
+    if (json_is_number(v)) {
+        fm_status st = read_number(w, p, v, &out[0]);
+        out[1] = out[0];
+        return st;
+    }
+    if (!json_is_array(v) || json_array_size(v) != 2)
+        return fail_at(w, KEY(w, p), "expected a number or a range [lo, hi], got %s", json_type_name(v));
+    for (int k = 0; k < 2; k++) {
+        w->steps[w->depth++] = (fm_json_step){NULL, k};
+        fm_status st = read_number(w, p, json_array_get(v, (size_t)k), &out[k]);
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    if (out[0] > out[1]) return fail_at(w, KEY(w, p), "the range [%g, %g] runs backwards", out[0], out[1]);
+    return FM_OK;
+}
+
+/* One [d, w] point of a fuzzy curve: d in the param's range, w >= 0, d above the previous point's. */
+static fm_status read_fuzzy_point(where *w, const param *p, const json_t *v, fm_fuzzy_def *c, int i)
+{
+    param weight = *p; /* named like the curve; weights are 0 .. 10^6 */
+    weight.min = 0, weight.max = 1e6, weight.open = 0;
+    if (!json_is_array(v) || json_array_size(v) != 2)
+        return fail_at(w, KEY(w, p), "expected a point [distance, weight], got %s", json_type_name(v));
+    w->steps[w->depth++] = (fm_json_step){NULL, 0};
+    fm_status st = read_number(w, p, json_array_get(v, 0), &c->d[i]);
+    w->steps[w->depth - 1] = (fm_json_step){NULL, 1};
+    if (st == FM_OK) st = read_number(w, &weight, json_array_get(v, 1), &c->w[i]);
+    w->depth--;
+    if (st == FM_OK && i > 0 && !((float)c->d[i] > (float)c->d[i - 1]))
+        st = fail_at(w, KEY(w, p), "point %d: the distances must increase (%g after %g)", i, c->d[i], c->d[i - 1]);
+    return st;
+}
+
+/* A fuzzy weight curve (SCF Figure 6): [[d, w], ...], 1 to FM_FUZZY_MAX_POINTS points. */
+static fm_status read_fuzzy(where *w, const param *p, const json_t *v, fm_fuzzy_def *c)
+{
+    if (!json_is_array(v) || json_array_size(v) < 1 || json_array_size(v) > FM_FUZZY_MAX_POINTS)
+        return fail_at(w, KEY(w, p), "expected 1 to %d points [distance, weight]", FM_FUZZY_MAX_POINTS);
+    c->count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < c->count; i++) {
+        w->steps[w->depth++] = (fm_json_step){NULL, i};
+        fm_status st = read_fuzzy_point(w, p, json_array_get(v, (size_t)i), c, i);
+        w->depth--;
+        if (st != FM_OK) return st;
+    }
+    return FM_OK;
+}
+
+static int name_count(const char *const *names)
+{
+    int n = 0;
+    while (names[n]) n++;
+    return n;
+}
+
 /* Reads member p->key of a list element, naming it "<label>.<key>" in messages. */
 static fm_status read_member(where *w, const char *label, const param *p, const json_t *v, void *base,
                              fm_scene_def *def)
@@ -434,7 +613,10 @@ static fm_status read_param(where *w, const param *p, const json_t *v, void *bas
     case P_INT64: return read_integer(w, p, v, (int64_t *)field);
     case P_UINT64: st = read_integer(w, p, v, &i); *(uint64_t *)field = (uint64_t)i; return st;
     case P_VEC3: return read_vec3(w, p, v, (double *)field);
-    case P_MESH: return read_mesh_path(w, p, v, field);
+    case P_MESH: case P_PATTERN: return read_mesh_path(w, p, v, field);
+    case P_ENUM: st = read_enum(w, p, v, enum_names(p), name_count(enum_names(p)), &e); *(int *)field = e; return st;
+    case P_RANGE: return read_range(w, p, v, (double *)field);
+    case P_FUZZY: return read_fuzzy(w, p, v, (fm_fuzzy_def *)field);
     case P_NAME: return read_name(w, p, v, field);
     case P_CURVE: st = read_enum(w, p, v, CURVE_NAMES, 2, &e); *(fm_curve *)field = (fm_curve)e; return st;
     case P_SWITCH: st = read_enum(w, p, v, SWITCH_NAMES, 2, &e); *(fm_phase_switch *)field = (fm_phase_switch)e; return st;
@@ -510,10 +692,13 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
         return fail_at(w, "scene", "the scene must be a JSON object");
     }
     fm_status st = check_unknown_keys(w, root, "");
-    for (size_t i = 0; i < PARAM_COUNT && st == FM_OK; i++) {
+    for (size_t i = 0; i < PARAM_COUNT && st == FM_OK; i++) { /* "mode" comes first */
         const json_t *v;
         st = lookup(w, root, PARAMS[i].key, &v);
-        if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
+        if (st == FM_OK && v && !applies(&PARAMS[i], def->mode)) {
+            w->at_key = 1;
+            st = fail_at(w, PARAMS[i].key, "does not apply to mode \"%s\"", MODE_NAMES[def->mode]);
+        } else if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
         else if (st == FM_OK && PARAMS[i].type == P_MESH) {
             where_set_key(w, PARAMS[i].key);
             w->depth = 0;
@@ -570,6 +755,51 @@ static fm_status check_consistency(where *w, const fm_scene_def *def)
     return check_field_vectors(w, def);
 }
 
+static fm_status check_range_pair(const where *w, const param *p, const double *lo_hi)
+{
+    fm_status st = check_range(w, p, lo_hi[0]);
+    if (st == FM_OK) st = check_range(w, p, lo_hi[1]);
+    if (st == FM_OK && lo_hi[0] > lo_hi[1]) st = fail_at(w, KEY(w, p), "the range [%g, %g] runs backwards", lo_hi[0], lo_hi[1]);
+    return st;
+}
+
+/* A printf pattern with exactly one integer conversion (%d, %03d, %i, %u) and no other '%' but "%%". */
+static int one_integer_conversion(const char *pattern)
+{
+    int conversions = 0;
+    for (const char *c = pattern; *c; c++) {
+        if (*c != '%') continue;
+        if (c[1] == '%') { c++; continue; }
+        c++;
+        while (*c >= '0' && *c <= '9') c++;
+        if (*c != 'd' && *c != 'i' && *c != 'u') return 0;
+        conversions++;
+    }
+    return conversions == 1;
+}
+
+/* The shape flock's checks that span several keys. */
+static fm_status check_flock(where *w, const fm_scene_def *def)
+{
+    const fm_flock_def *f = &def->flock;
+    if (def->n < 1) {
+        where_set_key(w, "mode");
+        return fail_at(w, "n", "the shape flock needs its number of agents (n >= 1)");
+    }
+    const double *dir = f->deform_direction;
+    if (f->deform == FM_DEFORM_WAVE && dir[0] == 0 && dir[1] == 0 && dir[2] == 0) {
+        where_set_key(w, "shape_flock.deform.type");
+        return fail_at(w, "shape_flock.deform.direction", "a wave needs a non-zero direction");
+    }
+    if (f->deform != FM_DEFORM_SEQUENCE) return FM_OK;
+    where_set_key(w, "shape_flock.deform.type");
+    if (!f->deform_sequence[0] || !one_integer_conversion(f->deform_sequence))
+        return fail_at(w, "shape_flock.deform.sequence", "'%s' is not a file name pattern with one integer, "
+                       "like \"wave_%%03d.obj\"", f->deform_sequence);
+    if (f->deform_frames < 1) return fail_at(w, "shape_flock.deform.frames", "a sequence needs at least one mesh");
+    return FM_OK;
+}
+
 /* Range checks of every numeric entry of a table over the struct at base. */
 static fm_status check_table(where *w, const param *table, size_t count, const void *base, const char *prefix)
 {
@@ -584,6 +814,13 @@ static fm_status check_table(where *w, const param *table, size_t count, const v
         else if (p->type == P_VEC3 || p->type == P_INT3)
             for (int k = 0; k < 3 && st == FM_OK; k++)
                 st = check_range(w, p, p->type == P_VEC3 ? ((const double *)field)[k] : ((const int32_t *)field)[k]);
+        else if (p->type == P_RANGE) st = check_range_pair(w, p, (const double *)field);
+        else if (p->type == P_ENUM && (*(const int *)field < 0 || *(const int *)field >= name_count(enum_names(p))))
+            st = fail_at(w, KEY(w, p), "unknown value %d", *(const int *)field);
+        else if (p->type == P_FUZZY) {
+            fm_fuzzy curve;
+            st = fm_fuzzy_init(&curve, (const fm_fuzzy_def *)field, KEY(w, p), w->err);
+        }
         w->label[0] = 0;
         if (st != FM_OK) return st;
     }
@@ -632,6 +869,7 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
         return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
     if (!def->cache_name[0] || strchr(def->cache_name, '/') || !strcmp(def->cache_name, ".") || !strcmp(def->cache_name, ".."))
         return fail_at(&w, "output.cache", "'%s' is not a plain file name", def->cache_name);
+    if (def->mode == FM_MODE_SHAPE_FLOCK && (st = check_flock(&w, def)) != FM_OK) return st;
     return check_consistency(&w, def);
 }
 
@@ -700,6 +938,7 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
         where w = {path, text, err, {{0}}, {{0}}, 0, 0, ""};
         st = read_scene(&w, root, def);
         if (st == FM_OK) st = check_consistency(&w, def);
+        if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(&w, def);
         json_decref(root);
     }
     free(text);
@@ -728,7 +967,16 @@ static void feed_value(const param *p, const char *field, const fm_scene_def *de
     case P_VEC3: add(field, 24, user); break;
     case P_INT3: add(field, 12, user); break;
     case P_MESH: break; /* the file's contents are in the model hash */
-    case P_NAME: add(field, strlen(field) + 1, user); break;
+    case P_NAME: case P_PATTERN: add(field, strlen(field) + 1, user); break;
+    case P_ENUM: e = (int32_t)*(const int *)field, add(&e, sizeof e, user); break;
+    case P_RANGE: add(field, 2 * sizeof(double), user); break;
+    case P_FUZZY: {
+        const fm_fuzzy_def *f = (const fm_fuzzy_def *)field;
+        add(&f->count, sizeof f->count, user);
+        add(f->d, sizeof f->d[0] * (size_t)f->count, user);
+        add(f->w, sizeof f->w[0] * (size_t)f->count, user);
+        break;
+    }
     case P_CURVE: e = (int32_t)*(const fm_curve *)field, add(&e, sizeof e, user); break;
     case P_SWITCH: e = (int32_t)*(const fm_phase_switch *)field, add(&e, sizeof e, user); break;
     case P_FIELD_KIND: e = (int32_t)*(const fm_field_kind *)field, add(&e, sizeof e, user); break;

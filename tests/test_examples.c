@@ -2,17 +2,23 @@
  *   words:    the foundation issue's definition of done: every agent arrives, the last frame is
  *             the target within 1e-5, no tet ever inverts, every target tet is taken exactly once.
  *   castling: the rook's tets fly past the king standing in their path (FM Figure 8 bottom):
- *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0). */
+ *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0).
+ *   flock_cylinder_sphere: the shape flock's static scenario (SCF Figure 9): every agent ends
+ *             bound on its destination, the cache holds the flock's attributes.
+ *   flock_tracking: the shape flock tracks a waving torus (SCF Figure 11): a mean distance to the
+ *             moving destinations below 0.05 units once the path is flown (measured: ~0.01). */
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
 
 #include <jansson.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/wait.h>
 
-/* Runs the example, checks the end state every scene must reach, and returns its stats.json
- * (NULL if the run failed). */
-static json_t *run_example(const char *name)
+/* Runs the example as a user does and returns its stats.json (NULL if the run failed), after the
+ * checks every run must pass: a complete cache with the given attributes, as many frames and
+ * agents as stats.json says. */
+static json_t *run_cli(const char *name, const fm_cache_attr *attrs, int attr_count)
 {
     char out[FM_PATH_MAX], cmd[4 * FM_PATH_MAX], stats_path[FM_PATH_MAX + 16];
     snprintf(out, sizeof out, "%s/example_%s", FM_TEST_TMP, name);
@@ -25,22 +31,32 @@ static json_t *run_example(const char *name)
     json_t *stats = json_load_file(stats_path, 0, &jerr);
     ENSURE_MSG(stats != NULL, "%s: %s", stats_path, jerr.text);
     if (!stats) return NULL;
-    ENSURE_MSG(json_is_true(json_object_get(stats, "all_arrived")), "%s: not every agent arrived", name);
-    ENSURE(json_is_true(json_object_get(stats, "target_tets_filled_once")));
-    ENSURE(json_integer_value(json_object_get(stats, "inverted_tet_frames")) == 0);
-    double error = json_number_value(json_object_get(stats, "final_max_vertex_error"));
-    ENSURE_MSG(json_is_number(json_object_get(stats, "final_max_vertex_error")) && error <= 1e-5, "%s: error %g", name, error);
     ENSURE(json_integer_value(json_object_get(stats, "frames")) > 10);
     ENSURE(json_number_value(json_object_get(stats, "agent_steps_per_second")) > 0);
-
     char cache[FM_PATH_MAX + 16];
     snprintf(cache, sizeof cache, "%s/frames.fmc", out);
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(cache, &err);
     ENSURE_MSG(r != NULL && fm_cache_warning(r)[0] == 0, "%s", err.message);
-    if (r) ENSURE(fm_cache_agents(r) == (uint64_t)json_integer_value(json_object_get(stats, "agents")));
-    if (r) ENSURE(fm_cache_frames(r) == (uint32_t)json_integer_value(json_object_get(stats, "frames")));
+    if (!r) return stats;
+    ENSURE(fm_cache_agents(r) == (uint64_t)json_integer_value(json_object_get(stats, "agents")));
+    ENSURE(fm_cache_frames(r) == (uint32_t)json_integer_value(json_object_get(stats, "frames")));
+    for (int i = 0; i < attr_count; i++) ENSURE_MSG(fm_cache_has_attr(r, attrs[i]), "%s: attribute %d missing", name, attrs[i]);
     fm_cache_close(r);
+    return stats;
+}
+
+/* Runs a tetra-morph example and checks the end state every such scene must reach. */
+static json_t *run_example(const char *name)
+{
+    const fm_cache_attr attrs[2] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    json_t *stats = run_cli(name, attrs, 2);
+    if (!stats) return NULL;
+    ENSURE_MSG(json_is_true(json_object_get(stats, "all_arrived")), "%s: not every agent arrived", name);
+    ENSURE(json_is_true(json_object_get(stats, "target_tets_filled_once")));
+    ENSURE(json_integer_value(json_object_get(stats, "inverted_tet_frames")) == 0);
+    double error = json_number_value(json_object_get(stats, "final_max_vertex_error"));
+    ENSURE_MSG(json_is_number(json_object_get(stats, "final_max_vertex_error")) && error <= 1e-5, "%s: error %g", name, error);
     return stats;
 }
 
@@ -63,9 +79,42 @@ static void test_castling_example_passes_the_king(void)
     json_decref(stats);
 }
 
+/* A shape-flock example: its cache holds the flock's attributes. */
+static json_t *run_flock_example(const char *name)
+{
+    const fm_cache_attr attrs[4] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_PHASE};
+    json_t *stats = run_cli(name, attrs, 4);
+    if (stats) ENSURE(!strcmp(json_string_value(json_object_get(stats, "mode")), "shape_flock"));
+    return stats;
+}
+
+static void test_flock_cylinder_sphere_binds_everyone(void)
+{
+    json_t *stats = run_flock_example("flock_cylinder_sphere");
+    if (!stats) return;
+    ENSURE(json_is_true(json_object_get(stats, "all_bound")));
+    ENSURE(json_number_value(json_object_get(stats, "bound_fraction")) == 1.0);
+    ENSURE_MSG(json_number_value(json_object_get(stats, "final_max_distance")) <= 1e-6, "an agent ended %g from its destination",
+               json_number_value(json_object_get(stats, "final_max_distance")));
+    ENSURE(json_is_null(json_object_get(stats, "tracking_lag")));
+    json_decref(stats);
+}
+
+static void test_flock_tracking_keeps_up(void)
+{
+    json_t *stats = run_flock_example("flock_tracking");
+    if (!stats) return;
+    double lag = json_number_value(json_object_get(stats, "tracking_lag"));
+    ENSURE_MSG(json_is_number(json_object_get(stats, "tracking_lag")) && lag > 0 && lag < 0.05, "tracking lag %g", lag);
+    ENSURE(json_integer_value(json_object_get(stats, "tracking_frames")) > 100);
+    json_decref(stats);
+}
+
 int main(void)
 {
     RUN_TEST(test_words_example_completes);
     RUN_TEST(test_castling_example_passes_the_king);
+    RUN_TEST(test_flock_cylinder_sphere_binds_everyone);
+    RUN_TEST(test_flock_tracking_keeps_up);
     return test_result();
 }

@@ -5,6 +5,7 @@
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
 
+#include <jansson.h>
 #include <stdint.h>
 
 /* Commands: argc/argv start after the command's name. Each returns the process exit status. */
@@ -25,6 +26,43 @@ int cli_parse_int(const char *s, long lo, long hi, long *out);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
+
+/* `run`: its options, and the shape flock's half of it (cli_run_flock.c). */
+typedef struct cli_run_options {
+    const char *scene, *outdir;
+    int threads, quiet;
+} cli_run_options;
+int cli_run_flock(const cli_run_options *o, const fm_scene_def *def);
+/* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json) and with how many threads. */
+typedef struct cli_outputs {
+    char cache[FM_PATH_MAX + 300];
+    char stats[FM_PATH_MAX + 16];
+    int threads;
+} cli_outputs;
+void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out);
+/* The frame progress line's state (shown on a terminal unless --quiet). */
+typedef struct cli_progress {
+    int show;
+    int64_t agents;
+    double start;
+} cli_progress;
+/* Preprocessing progress on stderr when *(int *)user (an fm_progress_fn). */
+void cli_prep_progress(const char *stage, double fraction, void *user);
+/* The scene's output.* cache options. */
+fm_cache_options cli_cache_options(const fm_scene_def *def);
+/* stats.json's keys that both modes write: mode, agents, frames, steps, timings and rates, threads,
+ * seed and cache. The caller adds its own and passes j to cli_write_json. */
+typedef struct cli_run_record {
+    const char *mode;
+    int64_t agents, frames, steps;
+    double time_step, preprocess_seconds, simulate_seconds, output_seconds;
+    int threads;
+    const char *cache;
+} cli_run_record;
+json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
+double cli_agent_steps_per_second(const cli_run_record *r);
+/* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
+int cli_write_json(const char *path, json_t *j);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

@@ -2,6 +2,8 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
+#include <omp.h>
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -191,4 +193,67 @@ int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float *
     }
     *reader = r;
     return 0;
+}
+
+void cli_prep_progress(const char *stage, double fraction, void *user)
+{
+    if (*(const int *)user) fprintf(stderr, "\r\033[K  preprocessing: %-24s %3.0f%%", stage, 100 * fraction);
+}
+
+fm_cache_options cli_cache_options(const fm_scene_def *def)
+{
+    fm_cache_options copts = fm_default_cache_options();
+    copts.compression_level = def->compression_level;
+    copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+    return copts;
+}
+
+int cli_write_json(const char *path, json_t *j)
+{
+    fm_output_file out;
+    fm_error err = {0};
+    fm_status st = fm_output_open(&out, path, &err);
+    if (st == FM_OK) {
+        if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
+            st = fm_output_commit(&out, NULL, &err);
+        else {
+            int e = errno ? errno : EIO;
+            fm_output_discard(&out);
+            st = fm_fail(&err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
+        }
+    }
+    json_decref(j);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
+double cli_agent_steps_per_second(const cli_run_record *r)
+{
+    return r->simulate_seconds > 0 ? (double)r->agents * (double)r->steps / r->simulate_seconds : 0;
+}
+
+json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
+{
+    json_t *j = json_object();
+    json_object_set_new(j, "mode", json_string(r->mode));
+    json_object_set_new(j, "agents", json_integer(r->agents));
+    json_object_set_new(j, "frames", json_integer(r->frames));
+    json_object_set_new(j, "steps", json_integer(r->steps));
+    json_object_set_new(j, "time_step", json_real(r->time_step));
+    json_object_set_new(j, "frame_rate", json_real(def->frame_rate));
+    json_object_set_new(j, "preprocess_seconds", json_real(r->preprocess_seconds));
+    json_object_set_new(j, "simulate_seconds", json_real(r->simulate_seconds));
+    json_object_set_new(j, "output_seconds", json_real(r->output_seconds));
+    json_object_set_new(j, "agent_steps_per_second", json_real(cli_agent_steps_per_second(r)));
+    json_object_set_new(j, "steps_per_second", json_real(r->simulate_seconds > 0 ? (double)r->steps / r->simulate_seconds : 0));
+    json_object_set_new(j, "threads", json_integer(r->threads));
+    json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
+    json_object_set_new(j, "cache", json_string(r->cache));
+    return j;
+}
+
+void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out)
+{
+    snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
+    snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
+    out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
 }

@@ -17,16 +17,19 @@
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
     "\n"
-    "Reads the scene (docs/scene.md), tetrahedralizes and subdivides the meshes, simulates until\n"
-    "every agent has arrived (or the scene's frame limit), and writes OUTDIR/<output.cache>\n"
-    "(default frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
+    "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
+    "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
+    "(\"mode\": \"shape_flock\", docs/shape-flock.md) samples the surfaces and simulates until every\n"
+    "agent is bound; both stop at the scene's frame limit. Writes OUTDIR/<output.cache> (default\n"
+    "frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
     "\n"
     "  -o, --output DIR      output directory (required)\n"
     "  --threads N           worker threads (default: all cores); results do not depend on N\n"
     "  --quiet               no progress display (it is shown only on a terminal anyway)\n"
     "  --checkpoint-every K  save the run to OUTDIR/checkpoint.fmck every K frames; 0: only when\n"
     "                        interrupted (default: every 60 s of wall time)\n"
-    "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene)\n"
+    "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene;\n"
+    "                        checkpoints are for the tetra morph only)\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
@@ -65,20 +68,9 @@ static int parse_run(int argc, char **argv, run_options *o)
     return 0;
 }
 
-static void prep_progress(const char *stage, double fraction, void *user)
-{
-    if (*(const int *)user) fprintf(stderr, "\r\033[K  preprocessing: %-24s %3.0f%%", stage, 100 * fraction);
-}
-
-typedef struct run_progress {
-    int show;
-    int64_t agents;
-    double start;
-} run_progress;
-
 static void frame_progress(const fm_state_info *info, int64_t frame, void *user)
 {
-    const run_progress *p = user;
+    const cli_progress *p = user;
     if (!p->show) return;
     double done = (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents;
     fprintf(stderr, "\r\033[K  frame %lld  t = %.2f s  waiting %lld  flying %lld  homing %lld  arrived %.1f%%  (%.0f s)",
@@ -139,22 +131,12 @@ static void add_warning(run_warnings *w, const char *text)
 }
 
 static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
-                       int threads, double preprocess_seconds, const char *cache_path, const run_warnings *warnings)
+                       const cli_run_record *record, const run_warnings *warnings)
 {
-    json_t *j = json_object();
-    json_object_set_new(j, "agents", json_integer(mi->agents));
+    json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
-    json_object_set_new(j, "frames", json_integer(rs->frames));
-    json_object_set_new(j, "steps", json_integer(rs->steps));
-    json_object_set_new(j, "time_step", json_real(mi->time_step));
-    json_object_set_new(j, "frame_rate", json_real(def->frame_rate));
     json_object_set_new(j, "launch_rate", json_real(mi->launch_rate));
-    json_object_set_new(j, "preprocess_seconds", json_real(preprocess_seconds));
-    json_object_set_new(j, "simulate_seconds", json_real(rs->simulate_seconds));
-    json_object_set_new(j, "output_seconds", json_real(rs->output_seconds));
-    double rate = rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0;
-    json_object_set_new(j, "agent_steps_per_second", json_real(rate));
     json_object_set_new(j, "all_arrived", json_boolean(rs->all_arrived));
     json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));
     json_object_set_new(j, "final_max_vertex_error", rs->all_arrived ? json_real(rs->final_max_vertex_error) : json_null());
@@ -169,24 +151,8 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
-    json_object_set_new(j, "threads", json_integer(threads));
-    json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", json_string(cache_path));
     json_object_set(j, "warnings", warnings->list);
-    fm_output_file out;
-    fm_error err = {0};
-    fm_status st = fm_output_open(&out, path, &err);
-    if (st == FM_OK) {
-        if (json_dumpf(j, out.f, JSON_INDENT(2) | JSON_REAL_PRECISION(10)) == 0 && fputc('\n', out.f) != EOF)
-            st = fm_output_commit(&out, NULL, &err);
-        else {
-            int e = errno ? errno : EIO;
-            fm_output_discard(&out);
-            st = fm_fail(&err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
-        }
-    }
-    json_decref(j);
-    return st == FM_OK ? 0 : cli_report(&err);
+    return cli_write_json(path, j);
 }
 
 /* SIGINT / SIGTERM: the first asks fm_run_controlled to checkpoint and stop at the end of the
@@ -315,7 +281,7 @@ static int report_failed(const run_options *o, const run_files *files, fm_cache_
     return rc;
 }
 
-static fm_run_control run_control(const run_options *o, const run_files *files, run_progress *rp)
+static fm_run_control run_control(const run_options *o, const run_files *files, cli_progress *rp)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = frame_progress, c.progress_user = rp;
@@ -343,7 +309,9 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const ru
                  "raise time.frame_limit in the scene", def->frame_limit, (long long)still_flying);
         add_warning(warnings, text);
     }
-    int rc = write_stats(files->stats, def, mi, rs, threads, prep_seconds, files->cache, warnings);
+    const cli_run_record record = {"tetra_morph", mi->agents, rs->frames, rs->steps, mi->time_step, prep_seconds,
+                                   rs->simulate_seconds, rs->output_seconds, threads, files->cache};
+    int rc = write_stats(files->stats, def, mi, rs, &record, warnings);
     fm_run_stats_free(rs);
     if (rc) return rc;
     remove_checkpoint(files);
@@ -370,7 +338,7 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     fm_run_stats rs;
     int rc = open_run(o, def, model, &files, state, &rs, &cache);
     if (rc) return fm_state_destroy(state), rc;
-    run_progress rp = {show, mi.agents, cli_seconds()};
+    cli_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_control control = run_control(o, &files, &rp);
     handle_stop_signals(on_stop_signal);
     fm_status st = fm_run_controlled(model, state, cache, &control, &rs, &err);
@@ -402,10 +370,16 @@ int cli_run(int argc, char **argv)
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
     const char *outputs[] = {def.cache_name, "stats.json"};
     if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
+    if (def.mode == FM_MODE_SHAPE_FLOCK) {
+        if (o.resume || o.checkpoint_every > 0)
+            return cli_usage_error(USAGE_RUN, "%s", "--resume and --checkpoint-every apply to the tetra morph only");
+        const cli_run_options flock = {o.scene, o.outdir, o.threads, o.quiet};
+        return cli_run_flock(&flock, &def);
+    }
     if (o.resume && (rc = check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
-    fm_model *model = fm_model_build(&def, prep_progress, &show, &err);
+    fm_model *model = fm_model_build(&def, cli_prep_progress, &show, &err);
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n");
     if (!model) return cli_report(&err);

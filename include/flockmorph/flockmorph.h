@@ -90,9 +90,81 @@ typedef enum fm_phase_switch {
     FM_SWITCH_DISTANCE = 1  /* beyond the paper (§8): the target's own signed distance < switch_distance */
 } fm_phase_switch;
 
+/* Which system a scene runs: the tetra flock morph (FM) or the shape-constrained flock (SCF). */
+typedef enum fm_mode { FM_MODE_TETRA_MORPH = 0, FM_MODE_SHAPE_FLOCK = 1 } fm_mode;
+
+#define FM_FUZZY_MAX_POINTS 16
+
+/* A fuzzy weight curve (SCF Figure 6): the weight of one kind of force as a function of the agent's
+ * distance to its destination, piecewise linear through count points (d strictly increasing,
+ * w >= 0) and constant beyond the first and the last, so continuous everywhere. */
+typedef struct fm_fuzzy_def {
+    int32_t count;
+    double d[FM_FUZZY_MAX_POINTS]; /* units */
+    double w[FM_FUZZY_MAX_POINTS];
+} fm_fuzzy_def;
+
+/* The four weight curves, indexing fm_flock_def.fuzzy. */
+typedef enum fm_fuzzy_force {
+    FM_FUZZY_STEERING = 0, FM_FUZZY_HOMING = 1, FM_FUZZY_DAMPING = 2, FM_FUZZY_EXTERNAL = 3, FM_FUZZY_FORCES = 4
+} fm_fuzzy_force;
+
+/* One boids rule (SCF "Basic Steering Behaviors"); every agent draws its own values uniformly from
+ * these [lo, hi] ranges. */
+typedef struct fm_boid_rule_def {
+    double radius_j[2];  /* J of SCF eq 6: the perception radius is r = J / sqrt(N) */
+    double angle_deg[2]; /* perception angle: full opening of the cone around the heading, (0, 360] */
+    double weight[2];
+} fm_boid_rule_def;
+
+typedef enum fm_flock_sampling {
+    FM_FLOCK_SAMPLE_RANDOM = 0, FM_FLOCK_SAMPLE_MOSAIC = 1, FM_FLOCK_SAMPLE_STRATIFIED = 2
+} fm_flock_sampling;
+typedef enum fm_flock_match { FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1 } fm_flock_match;
+typedef enum fm_flock_arrival { FM_ARRIVAL_BIND = 0, FM_ARRIVAL_FLOAT = 1 } fm_flock_arrival;
+typedef enum fm_deform_kind {
+    FM_DEFORM_NONE = 0,     /* a static target */
+    FM_DEFORM_WAVE = 1,     /* procedural: vertices move along their normals, a travelling sine wave */
+    FM_DEFORM_PULSE = 2,    /* procedural: the target scales about its centre, breathing */
+    FM_DEFORM_SEQUENCE = 3  /* a sequence of meshes with the target's connectivity */
+} fm_deform_kind;
+
+/* The shape-constrained flock's parameters (SCF; docs/shape-flock.md, docs/scene.md "shape_flock"). */
+typedef struct fm_flock_def {
+    fm_flock_sampling sampling;  /* how the source and target surfaces are sampled */
+    fm_flock_match match;        /* agent-to-destination correspondence */
+    double mass;                 /* m of eq 9; every force is divided by it */
+    double max_speed[2];         /* MaxSpeed range, units/s */
+    double max_force[2];         /* MaxForce range (bounds the boids steering force), units/s^2 * mass */
+    fm_boid_rule_def separation, cohesion, alignment;
+    double kalman_q;             /* spectral density of Q's acceleration noise, units^2/s^3 */
+    double kalman_r_position;    /* R's position variance, units^2 (> 0) */
+    double kalman_r_velocity;    /* R's velocity variance, units^2/s^2 (> 0) */
+    fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];
+    double damping;              /* c of the damping force -m c (v - v_destination), 1/s */
+    double external_gain;        /* acceleration per unit of style-field velocity, 1/s */
+    double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */
+    double arrival_radius;       /* stepped steering within this distance of the destination; 0 = off */
+    double arrival_time;         /* time constant of the stepped approach, s */
+    double turn_rate_deg;        /* largest turn of the stepped approach, degrees/s */
+    double bind_distance;        /* arrival: bind (or start floating) within this distance, units */
+    fm_flock_arrival arrival_mode;
+    double float_amplitude;      /* floating: largest offset from the destination, units */
+    double float_period;         /* floating: seconds per oscillation */
+    fm_deform_kind deform;
+    double deform_amplitude;     /* wave: units along the normal; pulse: relative scale */
+    double deform_period;        /* seconds per cycle */
+    double deform_wavelength;    /* wave: units along deform_direction */
+    double deform_direction[3];  /* wave: the direction it travels */
+    char deform_sequence[FM_PATH_MAX]; /* sequence: printf pattern with one integer, "wave_%03d.obj" */
+    int32_t deform_frames;       /* sequence: meshes 0 .. frames-1 */
+    double deform_frame_rate;    /* sequence: meshes per second; the sequence loops */
+} fm_flock_def;
+
 /* Every parameter of a run; docs/scene.md documents each with its default and unit. */
 typedef struct fm_scene_def {
     char scene_path[FM_PATH_MAX]; /* where it was read from (for messages); "" if built in code */
+    fm_mode mode;               /* the tetra morph (default) or the shape-constrained flock */
     fm_mesh_ref source;
     fm_mesh_ref target;
     int64_t n;                  /* agents = tets after subdivision; 0 = max(n1, n2) (FM §4) */
@@ -137,6 +209,7 @@ typedef struct fm_scene_def {
     int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
+    fm_flock_def flock;         /* mode FM_MODE_SHAPE_FLOCK only */
 } fm_scene_def;
 
 fm_scene_def fm_default_scene_def(void);
@@ -415,6 +488,92 @@ fm_status fm_checkpoint_load(const char *path, const fm_model *model, fm_state *
 
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
 int64_t fm_count_inverted_tets(const float *verts, size_t n);
+
+/* ---------------------------------------------------------------- shape-constrained flock
+ *
+ * The second mode (scene "mode": "shape_flock"; SCF, docs/shape-flock.md): n point agents start on
+ * samples of the source surface, each is given a sample of the target surface as its destination,
+ * and they fly there as boids along the global path, homing through a Kalman filter and weighted by
+ * fuzzy curves, then bind to (or float around) their destinations, which follow the target when it
+ * deforms. The same model/state split as the tetra morph: the model is immutable, the state holds
+ * the agent store. Agents use fm_phase: FM_PHASE_FLYING under forces, FM_PHASE_HOMING in the stepped
+ * approach, FM_PHASE_ARRIVED bound or floating. */
+typedef struct fm_flock_model fm_flock_model;
+typedef struct fm_flock_state fm_flock_state;
+
+/* Requires def->mode == FM_MODE_SHAPE_FLOCK and def->n > 0. */
+fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
+                                     fm_error *err);
+void fm_flock_model_destroy(fm_flock_model *model);
+
+typedef struct fm_flock_model_info {
+    int64_t agents;
+    double source_center[3];   /* O1: the mean of the source samples */
+    double target_center[3];   /* O2: the mean of the target samples (at time 0) */
+    double path_length;        /* of the B-spline from O1 to O2 */
+    double path_time;          /* seconds the leaders take along their paths */
+    double time_step;
+    int32_t steps_per_frame;
+    double max_radius;         /* the largest perception radius: the neighbour grid's cell */
+    int deforming;             /* the target moves (fm_deform_kind != NONE) */
+} fm_flock_model_info;
+
+fm_flock_model_info fm_flock_model_get_info(const fm_flock_model *model);
+
+/* Every agent's start C1 and its destination C2 at time 0, 3 floats per agent (either may be NULL). */
+void fm_flock_model_endpoints(const fm_flock_model *model, float *c1, float *c2);
+
+/* threads <= 0 uses OpenMP's default. Results do not depend on the thread count. */
+fm_flock_state *fm_flock_state_create(const fm_flock_model *model, int threads, fm_error *err);
+void fm_flock_state_destroy(fm_flock_state *state);
+
+void fm_flock_step(const fm_flock_model *model, fm_flock_state *state);
+
+typedef struct fm_flock_info {
+    int64_t step;
+    double time;
+    int64_t count[4];          /* agents per fm_phase */
+} fm_flock_info;
+
+fm_flock_info fm_flock_get_info(const fm_flock_state *state);
+
+/* The current frame, agents in id order; any output may be NULL. position and velocity: 3 floats
+ * per agent; orientation: 4 floats (w x y z), the frame with x along the velocity and z toward world
+ * +Z (kept while the agent is at rest); phase: one fm_phase byte. */
+void fm_flock_frame(const fm_flock_state *state, float *position, float *velocity, float *orientation,
+                    uint8_t *phase);
+
+/* The current destinations, 3 floats per agent. */
+void fm_flock_destinations(const fm_flock_state *state, float *out);
+
+/* Mean and largest distance of the agents to their current destinations. */
+void fm_flock_distance(const fm_flock_state *state, double *mean, double *max);
+
+/* A cache with the flock's attributes: position, velocity, orientation and phase. */
+fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *model,
+                                       const fm_cache_options *opts, fm_error *err);
+
+typedef struct fm_flock_run_stats {
+    int64_t frames;                 /* frames written, frame 0 included */
+    int64_t steps;
+    double simulate_seconds;        /* time spent in fm_flock_step */
+    double output_seconds;          /* time spent computing and writing frames */
+    int all_bound;                  /* every agent bound or floating at its destination */
+    int stopped_at_frame_limit;
+    double final_mean_distance;     /* to the destination, at the last frame */
+    double final_max_distance;
+    double bound_fraction;          /* agents in FM_PHASE_ARRIVED at the last frame */
+    double tracking_lag;            /* deforming target: mean distance to the moving destination over
+                                       the frames after path_time; NaN for a static target */
+    int64_t tracking_frames;        /* frames that mean is taken over */
+} fm_flock_run_stats;
+
+typedef void (*fm_flock_progress_fn)(const fm_flock_info *info, int64_t frame, void *user);
+
+/* Steps until every agent is bound (static targets only) or def.frame_limit frames are written,
+ * writing each frame to `cache` (from fm_flock_cache_create; may be NULL). */
+fm_status fm_flock_run(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
+                       fm_flock_progress_fn progress, void *user, fm_flock_run_stats *stats, fm_error *err);
 
 /* ---------------------------------------------------------------- export and preview */
 

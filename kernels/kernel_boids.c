@@ -1,0 +1,128 @@
+/* Boids steering over the neighbour grid (SCF "Basic Steering Behaviors"); see kernel_boids.h. */
+#include "kernel_boids.h"
+
+#if defined(__SSE2__) && !defined(FM_BOIDS_SCALAR)
+#include <emmintrin.h>
+#define BOIDS_SSE2 1
+#else
+#define BOIDS_SSE2 0
+#endif
+
+void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, const float v[3], float f[3])
+{
+    const double max_speed = b->max_speed[a], max_force = b->max_force[a];
+    double force[3] = {0, 0, 0};
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        const double *dir = s->rule[r];
+        double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+        if (s->count[r] == 0 || !(len > 0)) continue;
+        const double w = b->weight[r][a];
+        for (int k = 0; k < 3; k++) force[k] += w * (max_speed * dir[k] / len - v[k]); /* desired - velocity */
+    }
+    double len = sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
+    double scale = len > max_force ? max_force / len : 1.0;
+    for (int k = 0; k < 3; k++) f[k] = (float)(force[k] * scale);
+}
+
+/* The agent's own perception parameters. */
+static void agent_params(const fm_boids_view *b, int64_t a, float r2[3], float cos_half[3], float *r2_max)
+{
+    *r2_max = 0;
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        r2[r] = b->radius[r][a] * b->radius[r][a];
+        cos_half[r] = b->cos_half[r][a];
+        if (r2[r] > *r2_max) *r2_max = r2[r];
+    }
+}
+
+/* Agent a's view of one grid entry k that passed the r2_max test. */
+static inline void add_entry(fm_boids_sums *sums, const fm_grid *g, int32_t k, int64_t a, const float x[3],
+                             const float *const v[3], const float h[3], float hlen, const float r2[3],
+                             const float cos_half[3])
+{
+    const fm_grid_quad *q = &g->quad[k >> 2];
+    const int lane = k & 3;
+    const int32_t nb = q->i[lane];
+    if (nb == a) return;
+    const float d[3] = {q->x[lane] - x[0], q->y[lane] - x[1], q->z[lane] - x[2]};
+    const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
+    fm_boids_add(sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, h, hlen, r2, cos_half);
+}
+
+/* The entries [b, e) of the grid within r2_max of x, in entry order, added to the sums. Most
+ * candidates of the 27 cells are farther than the widest radius, so they are rejected 4 at a time
+ * (SSE2, one aligned quad per test; -DFM_BOIDS_SCALAR or no SSE2 tests them one by one, with the
+ * same float arithmetic and so the same hits in the same order). */
+static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t e, int64_t a, const float x[3],
+                       const float *const v[3], const float h[3], float hlen, const float r2[3], const float cos_half[3],
+                       float r2_max)
+{
+#if BOIDS_SSE2
+    const __m128 px = _mm_set1_ps(x[0]), py = _mm_set1_ps(x[1]), pz = _mm_set1_ps(x[2]), reach = _mm_set1_ps(r2_max);
+    const __m128i lo = _mm_set1_epi32(b - 1), hi = _mm_set1_epi32(e), lanes = _mm_setr_epi32(0, 1, 2, 3);
+    for (int32_t qi = b >> 2; qi <= (e - 1) >> 2; qi++) {
+        const fm_grid_quad *q = &g->quad[qi];
+        const __m128 dx = _mm_sub_ps(_mm_load_ps(q->x), px), dy = _mm_sub_ps(_mm_load_ps(q->y), py);
+        const __m128 dz = _mm_sub_ps(_mm_load_ps(q->z), pz);
+        const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+        const __m128i k = _mm_add_epi32(_mm_set1_epi32(4 * qi), lanes);
+        const __m128i valid = _mm_and_si128(_mm_cmpgt_epi32(k, lo), _mm_cmplt_epi32(k, hi));
+        int bits = _mm_movemask_ps(_mm_and_ps(_mm_cmplt_ps(d2, reach), _mm_castsi128_ps(valid)));
+        while (bits) {
+            const int lane = __builtin_ctz((unsigned)bits);
+            bits &= bits - 1;
+            add_entry(sums, g, 4 * qi + lane, a, x, v, h, hlen, r2, cos_half);
+        }
+    }
+#else
+    for (int32_t k = b; k < e; k++) {
+        const fm_grid_quad *q = &g->quad[k >> 2];
+        const int lane = k & 3;
+        const float dx = q->x[lane] - x[0], dy = q->y[lane] - x[1], dz = q->z[lane] - x[2];
+        if (dx * dx + dy * dy + dz * dz < r2_max) add_entry(sums, g, k, a, x, v, h, hlen, r2, cos_half);
+    }
+#endif
+}
+
+void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *const p[3], const float *const v[3],
+                     const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end, float *const f[3])
+{
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        const float x[3] = {p[0][a], p[1][a], p[2][a]}, h[3] = {v[0][a], v[1][a], v[2][a]};
+        const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+        float r2[3], cos_half[3], r2_max;
+        agent_params(b, a, r2, cos_half, &r2_max);
+        fm_boids_sums sums = {{{0}}, {0}};
+        int32_t ranges[2 * FM_GRID_MAX_RANGES];
+        const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
+        for (int ri = 0; ri < count; ri++)
+            scan_range(&sums, g, ranges[2 * ri], ranges[2 * ri + 1], a, x, v, h, hlen, r2, cos_half, r2_max);
+        float out[3];
+        fm_boids_steer(&sums, b, a, h, out);
+        for (int k = 0; k < 3; k++) f[k][a] = out[k];
+    }
+}
+
+void fm_kernel_boids_reference(const fm_boids_view *b, const float *const p[3], const float *const v[3],
+                               int64_t n, const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end,
+                               float *const f[3])
+{
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        const float h[3] = {v[0][a], v[1][a], v[2][a]};
+        const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+        float r2[3], cos_half[3], r2_max;
+        agent_params(b, a, r2, cos_half, &r2_max);
+        fm_boids_sums sums = {{{0}}, {0}};
+        for (int64_t nb = 0; nb < n; nb++) {
+            if (nb == a) continue;
+            const float d[3] = {p[0][nb] - p[0][a], p[1][nb] - p[1][a], p[2][nb] - p[2][a]};
+            const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
+            fm_boids_add(&sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, h, hlen, r2, cos_half);
+        }
+        float out[3];
+        fm_boids_steer(&sums, b, a, h, out);
+        for (int k = 0; k < 3; k++) f[k][a] = out[k];
+    }
+}

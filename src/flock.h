@@ -1,0 +1,93 @@
+/* The shape-constrained flock (SCF): the internal layout of fm_flock_model and fm_flock_state.
+ *
+ * It shares the tetra morph's machinery: SoA arrays from fm_alloc indexed by agent id, FM_BLOCK
+ * blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
+ * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
+ * distance field (obstacles.h), the frame loop (frame_loop.h) and the cache. */
+#ifndef FM_FLOCK_H
+#define FM_FLOCK_H
+
+#include "bspline.h"
+#include "fields.h"
+#include "fuzzy.h"
+#include "grid.h"
+#include "kalman.h"
+#include "kernel_boids.h"
+#include "obstacles.h"
+#include "sample.h"
+#include "sim.h"
+
+#include <stdint.h>
+
+/* The target surface over time. Every agent's destination is a point of it given by a triangle and
+ * barycentric coordinates (SCF: samples are drawn once, on the first shape, and follow the vertices
+ * of a deforming one). */
+typedef struct fm_flock_target {
+    fm_deform_kind kind;
+    fm_mesh mesh;          /* the placed target at rest */
+    double *normals;       /* wave: unit vertex normals, 3 per vertex */
+    double center[3];      /* pulse: the centre it scales about (mean of the vertices) */
+    double *frames;        /* sequence: deform_frames vertex arrays, 3 * nv doubles each */
+    fm_samples dest;       /* agent a's destination: dest.tri[a], dest.bary[3a..], dest.p at rest */
+} fm_flock_target;
+
+struct fm_flock_model {
+    fm_scene_def def;
+    fm_flock_model_info info;
+    int64_t n;
+    double dt;
+    int32_t steps_per_frame;
+    float *start[3];               /* C1: the agent's source sample */
+    float *dest0[3];               /* C2 at time 0 */
+    fm_flock_target target;
+    fm_bspline path;               /* R from O1 to O2, by arc length */
+    double o1[3], o2[3];
+    double path_time;
+    /* per-agent parameters, drawn from the scene's ranges */
+    float *radius[FM_BOIDS_RULES], *cos_half[FM_BOIDS_RULES], *weight[FM_BOIDS_RULES];
+    float *max_speed, *max_force;
+    float max_radius;              /* the neighbour grid's cell */
+    fm_fuzzy fuzzy[FM_FUZZY_FORCES];
+    fm_obstacles *obstacles;       /* NULL without obstacles */
+    double scene_lo[3], scene_hi[3]; /* source, target and path, padded: the style-field grid spans them */
+};
+
+/* Per-block results of a step, combined in block order. */
+typedef struct flock_block {
+    int64_t count[4];  /* agents per fm_phase after the step */
+} flock_block;
+
+struct fm_flock_state {
+    int64_t n;
+    int64_t step;
+    double time;
+    int threads;
+    float *p[3], *v[3];
+    float *orient;                 /* 4 per agent: w x y z */
+    uint8_t *phase;                /* fm_phase: FLYING forces, HOMING stepped approach, ARRIVED bound */
+    float *t_bind;                 /* when the agent bound (floating offsets start there) */
+    float *dest[3], *dest_v[3];    /* the destination at the end of the step and its velocity */
+    float *leader[3], *leader_v[3];/* the virtual leader (Kalman measurement) and its velocity */
+    float *acc[3];                 /* scratch: the step's acceleration */
+    float *ext[3];                 /* scratch: the style fields at the agent */
+    float *w_homing;               /* scratch: the homing weight */
+    double *mesh_v;                /* deforming: the target's vertices at the current time */
+    float *eval;                   /* deforming: destinations, 3 per agent (fm_samples_eval) */
+    uint8_t *member;               /* every agent is listed in the grid */
+    fm_kalman kalman;              /* the covariance and gain, shared by all agents (kalman.h) */
+    fm_fields *fields;
+    fm_grid grid;
+    int grid_ready;
+    flock_block *blocks;
+    int64_t count[4];
+};
+
+/* flock_target.c: the target's vertices at time t (nv * 3 doubles) */
+fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_error *err);
+void fm_flock_target_free(fm_flock_target *t);
+void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def, double time, double *out);
+
+/* flock_state.c */
+void fm_flock_update_orientation(float *q, const float v[3]);
+
+#endif

@@ -1,0 +1,238 @@
+/* fm_flock_model_build: the shape flock's preprocessing. Source and target are sampled (SCF
+ * "Shape Constraints"), agents are matched to destinations ("Point Correspondence"), the global
+ * path is built (eqs 10-12), and each agent draws its boids parameters from the scene's ranges
+ * (eq 6). Everything here runs once; the result is immutable. */
+#include "flock.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Random streams of the scene seed (fm_random_unit), one per use. */
+enum { STREAM_SOURCE = 1, STREAM_TARGET, STREAM_MATCH, STREAM_PARAMS = 16 };
+
+static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
+{
+    fm_sample_opts opts = fm_default_sample_opts();
+    opts.method = (fm_sample_method)m->def.flock.sampling;
+    opts.seed = fm_random_bits(m->def.seed, stream, 0);
+    return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
+}
+
+static fm_status alloc_agent_arrays(fm_flock_model *m, fm_error *err)
+{
+    size_t n = (size_t)m->n;
+    int ok = (m->max_speed = fm_alloc(sizeof(float) * n)) && (m->max_force = fm_alloc(sizeof(float) * n));
+    for (int k = 0; k < 3; k++) {
+        ok = ok && (m->start[k] = fm_alloc(sizeof(float) * n)) && (m->dest0[k] = fm_alloc(sizeof(float) * n));
+        ok = ok && (m->radius[k] = fm_alloc(sizeof(float) * n)) && (m->cos_half[k] = fm_alloc(sizeof(float) * n));
+        ok = ok && (m->weight[k] = fm_alloc(sizeof(float) * n));
+    }
+    return ok ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+}
+
+/* Agent a starts on source sample a and flies to target sample match[a]: its destination keeps
+ * that sample's triangle and barycentric coordinates, so it follows a deforming target. */
+static fm_status assign(fm_flock_model *m, const fm_samples *src, const fm_samples *tgt, const int64_t *match, fm_error *err)
+{
+    fm_samples *dest = &m->target.dest;
+    dest->n = m->n;
+    dest->p = fm_alloc(sizeof(float) * 3 * (size_t)m->n);
+    dest->bary = fm_alloc(sizeof(float) * 3 * (size_t)m->n);
+    dest->tri = fm_alloc(sizeof(int32_t) * (size_t)m->n);
+    if (!dest->p || !dest->bary || !dest->tri) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+    for (int64_t a = 0; a < m->n; a++) {
+        int64_t j = match[a];
+        dest->tri[a] = tgt->tri[j];
+        for (int k = 0; k < 3; k++) {
+            dest->p[3 * a + k] = tgt->p[3 * j + k], dest->bary[3 * a + k] = tgt->bary[3 * j + k];
+            m->start[k][a] = src->p[3 * a + k], m->dest0[k][a] = tgt->p[3 * j + k];
+        }
+    }
+    return FM_OK;
+}
+
+static void mean_point(const float *p, int64_t n, double out[3])
+{
+    double sum[3] = {0, 0, 0};
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) sum[k] += p[3 * i + k];
+    for (int k = 0; k < 3; k++) out[k] = sum[k] / (double)n;
+}
+
+/* SCF "Global Path Control": R from O1 (the source's centre) through path.points to O2. */
+static fm_status build_path(fm_flock_model *m, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    int32_t count = def->path_point_count + 2;
+    double *pts = malloc(sizeof(double) * 3 * (size_t)count);
+    if (!pts) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the path");
+    memcpy(pts, m->o1, sizeof m->o1);
+    memcpy(pts + 3, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
+    memcpy(pts + 3 * (count - 1), m->o2, sizeof m->o2);
+    int distinct = 0;
+    for (int32_t i = 1; i < count; i++) distinct |= memcmp(pts, pts + 3 * i, sizeof m->o1) != 0;
+    fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
+    free(pts);
+    m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 : 0;
+    return fm_name_key(st, "path.points", err);
+}
+
+/* Each agent draws every parameter uniformly from its range (SCF: "every agent maintains its own
+ * attribute list"); radii are r = J / sqrt(N) (eq 6). */
+static void draw_parameters(fm_flock_model *m)
+{
+    const fm_flock_def *f = &m->def.flock;
+    const fm_boid_rule_def *rules[FM_BOIDS_RULES] = {&f->separation, &f->cohesion, &f->alignment};
+    const double inv_sqrt_n = 1.0 / sqrt((double)m->n), deg = 3.14159265358979323846 / 180;
+    m->max_radius = 0;
+    for (int64_t a = 0; a < m->n; a++) {
+        uint64_t stream = STREAM_PARAMS;
+#define DRAW(range) ((range)[0] + ((range)[1] - (range)[0]) * fm_random_unit(m->def.seed, stream++, (uint64_t)a))
+        for (int r = 0; r < FM_BOIDS_RULES; r++) {
+            m->radius[r][a] = (float)(DRAW(rules[r]->radius_j) * inv_sqrt_n);
+            double angle = DRAW(rules[r]->angle_deg);
+            m->cos_half[r][a] = angle >= 360 ? -1.0f : (float)cos(0.5 * angle * deg);
+            m->weight[r][a] = (float)DRAW(rules[r]->weight);
+            m->max_radius = fmaxf(m->max_radius, m->radius[r][a]);
+        }
+        m->max_speed[a] = (float)DRAW(f->max_speed);
+        m->max_force[a] = (float)DRAW(f->max_force);
+#undef DRAW
+    }
+}
+
+static void grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count)
+{
+    for (int64_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
+}
+
+/* Source, target and path, padded by 15 % of the largest extent (as the tetra morph's grid). */
+static void scene_bounds(fm_flock_model *m, const fm_mesh *source)
+{
+    for (int k = 0; k < 3; k++) m->scene_lo[k] = INFINITY, m->scene_hi[k] = -INFINITY;
+    grow_bounds(m->scene_lo, m->scene_hi, source->v, source->nv);
+    grow_bounds(m->scene_lo, m->scene_hi, m->target.mesh.v, m->target.mesh.nv);
+    grow_bounds(m->scene_lo, m->scene_hi, &m->def.path_points[0][0], m->def.path_point_count);
+    double pad = 0;
+    for (int k = 0; k < 3; k++) pad = fmax(pad, 0.15 * (m->scene_hi[k] - m->scene_lo[k]));
+    for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
+}
+
+static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
+{
+    static const char *const keys[FM_FUZZY_FORCES] = {"shape_flock.fuzzy.steering", "shape_flock.fuzzy.homing",
+                                                      "shape_flock.fuzzy.damping", "shape_flock.fuzzy.external"};
+    fm_status st = FM_OK;
+    for (int f = 0; f < FM_FUZZY_FORCES && st == FM_OK; f++) st = fm_fuzzy_init(&m->fuzzy[f], &m->def.flock.fuzzy[f], keys[f], err);
+    return st;
+}
+
+static void set_info(fm_flock_model *m)
+{
+    const fm_scene_def *def = &m->def;
+    double frame = 1.0 / def->frame_rate;
+    m->steps_per_frame = def->time_step > 0 ? (int32_t)llround(frame / def->time_step) : 1;
+    m->dt = frame / m->steps_per_frame;
+    fm_flock_model_info *i = &m->info;
+    i->agents = m->n;
+    memcpy(i->source_center, m->o1, sizeof m->o1);
+    memcpy(i->target_center, m->o2, sizeof m->o2);
+    i->path_length = m->path.length;
+    i->path_time = m->path_time;
+    i->time_step = m->dt;
+    i->steps_per_frame = m->steps_per_frame;
+    i->max_radius = m->max_radius;
+    i->deforming = def->flock.deform != FM_DEFORM_NONE;
+}
+
+/* Samples both surfaces and assigns each agent its start and destination. */
+static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progress_fn progress, void *user, fm_error *err)
+{
+    fm_samples src = {0}, tgt = {0};
+    int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
+    if (progress) progress("sample source", 0.1, user);
+    fm_status st = match ? sample(source, m, STREAM_SOURCE, &src, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (progress && st == FM_OK) progress("sample target", 0.4, user);
+    if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, &tgt, err);
+    if (progress && st == FM_OK) progress("match", 0.7, user);
+    if (st == FM_OK)
+        st = fm_name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
+                                      fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
+    if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
+    if (st == FM_OK) mean_point(src.p, m->n, m->o1), mean_point(tgt.p, m->n, m->o2);
+    fm_samples_free(&src), fm_samples_free(&tgt);
+    free(match);
+    return st;
+}
+
+static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    fm_mesh source = {0};
+    fm_status st = fm_flock_target_build(&m->target, def, err);
+    if (st == FM_OK) st = fm_name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
+    if (st == FM_OK) fm_mesh_place(&source, &def->source);
+    if (st == FM_OK) st = alloc_agent_arrays(m, err);
+    if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
+    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) st = init_fuzzy(m, err);
+    if (st == FM_OK) {
+        draw_parameters(m);
+        scene_bounds(m, &source);
+        set_info(m);
+    }
+    if (st == FM_OK && def->obstacle_count > 0 && !(m->obstacles = fm_obstacles_from_scene(def, def->k_a, err)))
+        st = err ? err->status : FM_ERR_INPUT;
+    fm_mesh_free(&source);
+    if (progress && st == FM_OK) progress("ready", 1.0, user);
+    return st;
+}
+
+fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    if (fm_scene_validate(def, err) != FM_OK) return NULL;
+    if (def->mode != FM_MODE_SHAPE_FLOCK) {
+        fm_fail(err, FM_ERR_USAGE, "fm_flock_model_build: the scene's mode is not \"shape_flock\"");
+        return NULL;
+    }
+    fm_flock_model *m = calloc(1, sizeof *m);
+    if (!m) {
+        fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        return NULL;
+    }
+    m->def = *def;
+    m->n = def->n;
+    if (build(m, progress, user, err) != FM_OK) {
+        fm_flock_model_destroy(m);
+        return NULL;
+    }
+    return m;
+}
+
+void fm_flock_model_destroy(fm_flock_model *m)
+{
+    if (!m) return;
+    fm_flock_target_free(&m->target);
+    fm_bspline_free(&m->path);
+    fm_obstacles_destroy(m->obstacles);
+    fm_free(m->max_speed), fm_free(m->max_force);
+    for (int k = 0; k < 3; k++) {
+        fm_free(m->start[k]), fm_free(m->dest0[k]);
+        fm_free(m->radius[k]), fm_free(m->cos_half[k]), fm_free(m->weight[k]);
+    }
+    free(m);
+}
+
+fm_flock_model_info fm_flock_model_get_info(const fm_flock_model *m) { return m->info; }
+
+void fm_flock_model_endpoints(const fm_flock_model *m, float *c1, float *c2)
+{
+    for (int64_t a = 0; a < m->n; a++)
+        for (int k = 0; k < 3; k++) {
+            if (c1) c1[3 * a + k] = m->start[k][a];
+            if (c2) c2[3 * a + k] = m->dest0[k][a];
+        }
+}

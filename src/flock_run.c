@@ -1,0 +1,94 @@
+/* fm_flock_run: the shape flock's frames through the shared frame loop, and its end-state
+ * measures (distance to the destinations, the bound fraction, the tracking lag). */
+#include "flock.h"
+#include "frame_loop.h"
+
+#include <math.h>
+#include <string.h>
+
+/* The attributes of a flock cache, in the order fm_flock_run hands them over. */
+static const fm_cache_attr FLOCK_ATTRS[] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_PHASE};
+enum { FLOCK_ATTR_COUNT = sizeof FLOCK_ATTRS / sizeof FLOCK_ATTRS[0] };
+
+fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *m, const fm_cache_options *opts, fm_error *err)
+{
+    fm_cache_options o = opts ? *opts : fm_default_cache_options();
+    return fm_cache_writer_create_attrs(path, (uint64_t)m->n, m->def.frame_rate, FLOCK_ATTRS, FLOCK_ATTR_COUNT, &o, err);
+}
+
+typedef struct flock_run {
+    const fm_flock_model *m;
+    fm_flock_state *s;
+    float *position, *velocity, *orientation;
+    uint8_t *phase;
+    fm_cache_writer *cache;
+    fm_flock_progress_fn progress;
+    void *user;
+    fm_flock_run_stats *stats;
+    double lag_sum;
+} flock_run;
+
+static void flock_step(void *sim)
+{
+    flock_run *r = sim;
+    fm_flock_step(r->m, r->s);
+}
+
+/* A static target with binding is done when every agent is bound; floating agents and a moving
+ * target keep going to the frame limit. */
+static int flock_finished(const void *sim)
+{
+    const flock_run *r = sim;
+    const fm_flock_def *f = &r->m->def.flock;
+    return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+}
+
+static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
+{
+    flock_run *r = sim;
+    fm_flock_frame(r->s, r->position, r->velocity, r->orientation, r->phase);
+    fm_status st = FM_OK;
+    if (r->cache) {
+        const void *data[FLOCK_ATTR_COUNT] = {r->position, r->velocity, r->orientation, r->phase};
+        st = fm_cache_writer_add_frame_attrs(r->cache, data, err);
+    }
+    if (r->m->info.deforming && r->s->time >= r->m->path_time && frame > 0) { /* tracking lag */
+        double mean, max;
+        fm_flock_distance(r->s, &mean, &max);
+        r->lag_sum += mean;
+        r->stats->tracking_frames++;
+    }
+    if (r->progress && frame > 0) {
+        fm_flock_info info = fm_flock_get_info(r->s);
+        r->progress(&info, frame, r->user);
+    }
+    return st;
+}
+
+fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
+                       void *user, fm_flock_run_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    const size_t n = (size_t)s->n;
+    flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
+                   fm_alloc(n), cache, progress, user, stats, 0};
+    fm_status st = r.position && r.velocity && r.orientation && r.phase
+                       ? FM_OK
+                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    if (st == FM_OK) {
+        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit};
+        fm_loop_times times;
+        st = fm_frame_loop_run(&loop, &times, err);
+        stats->frames = times.frames;
+        stats->simulate_seconds = times.simulate_seconds;
+        stats->output_seconds = times.output_seconds;
+    }
+    stats->steps = s->step;
+    stats->all_bound = s->count[FM_PHASE_ARRIVED] == s->n;
+    stats->stopped_at_frame_limit = !flock_finished(&r);
+    fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
+    stats->bound_fraction = (double)s->count[FM_PHASE_ARRIVED] / (double)s->n;
+    stats->tracking_lag = stats->tracking_frames > 0 ? r.lag_sum / (double)stats->tracking_frames : NAN;
+    fm_free(r.position), fm_free(r.velocity), fm_free(r.orientation), fm_free(r.phase);
+    return st;
+}

@@ -1,0 +1,250 @@
+/* fm_flock_step: one time step of the shape-constrained flock (SCF "Local Force Model", "Fuzzy
+ * Control Logic", "Global Path Control").
+ *
+ * The pipeline, from t to t + dt:
+ *   1. target     a deforming target's vertices at t + dt; each destination follows its triangle
+ *                 (barycentric coordinates), its velocity by difference
+ *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at s = (t + dt) / path
+ *                 time, which ends on the destination; R is evaluated once for all agents
+ *   3. prepare    the Kalman covariance and gain (shared); the style-field grid; the neighbour grid
+ *                 over every agent (counting sort, cell = the largest perception radius)
+ *   4. forces     for agents under forces (FM_PHASE_FLYING), the fuzzy weights of their distance
+ *                 to the destination weigh the boids steering, damping and external forces (their
+ *                 acceleration u), and the homing force of eq 9 from the Kalman posterior
+ *   5. move       forces: x += v dt + a dt^2 / 2, v += a dt (exact for a constant a, as eq 9
+ *                 assumes), |v| <= MaxSpeed, then stepped steering once within arrival.radius;
+ *                 stepped: turn toward the destination at a bounded rate and close in at a pace
+ *                 that slows with the distance, binding within bind_distance; bound: on the
+ *                 destination, or floating around it; then the orientation
+ * Stages 4 and 5 run over fixed blocks of agents on OpenMP threads with a barrier between them:
+ * stage 4 only reads positions and velocities, stage 5 only moves an agent itself, so every agent
+ * sees the same neighbours whatever the thread count; per-block counts are combined in block order. */
+#include "flock.h"
+#include "kernel_sdf.h"
+
+#include <math.h>
+#include <string.h>
+
+static const double TWO_PI = 6.283185307179586;
+
+/* Stage 1: destinations at time t (deforming targets only; a static target keeps dest0). */
+static void update_destinations(const fm_flock_model *m, fm_flock_state *s, double t)
+{
+    fm_flock_target_vertices(&m->target, &m->def.flock, t, s->mesh_v);
+    fm_samples_eval(&m->target.dest, s->mesh_v, m->target.mesh.tri, s->eval);
+    const float inv_dt = (float)(1.0 / m->dt);
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++)
+        for (int k = 0; k < 3; k++) {
+            float now = s->eval[3 * a + k];
+            s->dest_v[k][a] = (now - s->dest[k][a]) * inv_dt;
+            s->dest[k][a] = now;
+        }
+}
+
+/* Stage 2 for one block: the leader at path fraction u (r = R(u)), and its velocity by difference. */
+static void leaders_block(const fm_flock_model *m, fm_flock_state *s, const double r[3], double u, int64_t begin, int64_t end)
+{
+    const double inv_dt = 1.0 / m->dt;
+    for (int64_t a = begin; a < end; a++) {
+        double z[3];
+        if (u >= 1) {
+            for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
+        } else {
+            const double c1[3] = {m->start[0][a], m->start[1][a], m->start[2][a]};
+            const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
+            fm_path_map(r, m->o1, m->o2, c1, c2, u, z);
+        }
+        for (int k = 0; k < 3; k++) {
+            s->leader_v[k][a] = (float)((z[k] - s->leader[k][a]) * inv_dt);
+            s->leader[k][a] = (float)z[k];
+        }
+    }
+}
+
+static float distance_to_destination(const fm_flock_state *s, int64_t a)
+{
+    float d[3] = {s->dest[0][a] - s->p[0][a], s->dest[1][a] - s->p[1][a], s->dest[2][a] - s->p[2][a]};
+    return sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+}
+
+/* Obstacles (shared with the tetra morph, beyond SCF, which has none): within k_a of an obstacle an
+ * agent is pushed out along grad d_t, up to its MaxForce at the surface. */
+static void add_obstacle_push(const fm_flock_model *m, fm_flock_state *s, int64_t a, float *acc)
+{
+    fm_sdf_view sdf = fm_obstacles_sdf(m->obstacles);
+    float g[3], k_a = (float)m->def.k_a;
+    float d = fm_sdf_sample(&sdf, s->p[0][a], s->p[1][a], s->p[2][a], g);
+    if (!(d < k_a)) return;
+    float push = m->max_force[a] / (float)m->def.flock.mass * fminf(1.0f, 1.0f - d / k_a);
+    for (int k = 0; k < 3; k++) acc[k] += push * g[k];
+}
+
+/* Stage 4 for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
+static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end)
+{
+    const fm_flock_def *f = &m->def.flock;
+    const fm_boids_view boids = {{m->radius[0], m->radius[1], m->radius[2]},
+                                 {m->cos_half[0], m->cos_half[1], m->cos_half[2]},
+                                 {m->weight[0], m->weight[1], m->weight[2]}, m->max_speed, m->max_force};
+    const float *const *p = (const float *const *)s->p, *const *v = (const float *const *)s->v;
+    fm_kernel_boids(&s->grid, &boids, p, v, s->phase, FM_PHASE_FLYING, begin, end, s->acc); /* F_steer */
+    if (s->fields) {
+        for (int k = 0; k < 3; k++) memset(s->ext[k] + begin, 0, sizeof(float) * (size_t)(end - begin));
+        fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, 1.0f, s->ext);
+    }
+    const float inv_mass = (float)(1.0 / f->mass), damping = (float)f->damping, gain = (float)f->external_gain;
+    for (int64_t a = begin; a < end; a++) {
+        if (s->phase[a] != FM_PHASE_FLYING) continue;
+        const float d = distance_to_destination(s, a);
+        const float w_steer = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_STEERING], d);
+        const float w_damp = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_DAMPING], d);
+        const float w_ext = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_EXTERNAL], d);
+        s->w_homing[a] = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_HOMING], d);
+        float acc[3];
+        for (int k = 0; k < 3; k++) {
+            acc[k] = w_steer * s->acc[k][a] * inv_mass;                     /* boids */
+            acc[k] += w_damp * -damping * (s->v[k][a] - s->dest_v[k][a]);   /* damping, relative to the destination */
+            if (s->fields) acc[k] += w_ext * gain * s->ext[k][a];           /* eqs 7-8, wind */
+        }
+        if (m->obstacles) add_obstacle_push(m, s, a, acc);
+        for (int k = 0; k < 3; k++) s->acc[k][a] = acc[k];
+    }
+    /* + w_homing F_h / m (eq 9): the Kalman filter predicts with u = acc and updates with the leader */
+    fm_kalman_homing(&s->kalman, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
+                     (const float *const *)s->leader_v, s->w_homing, s->acc);
+}
+
+/* Under forces: x += v dt + a dt^2 / 2, v += a dt, |v| <= MaxSpeed. Returns the new phase. */
+static uint8_t move_flying(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
+{
+    float v2 = 0;
+    for (int k = 0; k < 3; k++) {
+        s->p[k][a] += s->v[k][a] * dt + 0.5f * s->acc[k][a] * dt * dt;
+        s->v[k][a] += s->acc[k][a] * dt;
+        v2 += s->v[k][a] * s->v[k][a];
+    }
+    const float max_speed = m->max_speed[a];
+    if (v2 > max_speed * max_speed)
+        for (int k = 0; k < 3; k++) s->v[k][a] *= max_speed / sqrtf(v2);
+    const float radius = (float)m->def.flock.arrival_radius;
+    return radius > 0 && distance_to_destination(s, a) < radius ? FM_PHASE_HOMING : FM_PHASE_FLYING;
+}
+
+/* Rotates unit h toward unit d by at most `turn` radians, in their plane; returns the new h. */
+static void turn_toward(float h[3], const float d[3], float turn)
+{
+    float c = h[0] * d[0] + h[1] * d[1] + h[2] * d[2];
+    float e[3] = {d[0] - c * h[0], d[1] - c * h[1], d[2] - c * h[2]};
+    float elen = sqrtf(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    float angle = acosf(fmaxf(-1.0f, fminf(1.0f, c)));
+    if (angle <= turn || !(elen > 1e-6f)) {
+        if (angle <= turn || c > 0) memcpy(h, d, 3 * sizeof(float));
+        else { /* straight away from it: turn about any axis perpendicular to h */
+            float p[3] = {-h[1], h[0], 0};
+            if (fabsf(h[2]) > 0.9f) p[0] = 0, p[1] = -h[2], p[2] = h[1];
+            float plen = sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            for (int k = 0; k < 3; k++) h[k] = cosf(turn) * h[k] + sinf(turn) * p[k] / plen;
+        }
+        return;
+    }
+    for (int k = 0; k < 3; k++) h[k] = cosf(turn) * h[k] + sinf(turn) * e[k] / elen;
+}
+
+static void bind(fm_flock_state *s, int64_t a, float dt)
+{
+    for (int k = 0; k < 3; k++) s->v[k][a] = (s->dest[k][a] - s->p[k][a]) / dt, s->p[k][a] = s->dest[k][a];
+    s->t_bind[a] = (float)(s->time + dt);
+}
+
+/* SCF's stepped steering: "by setting up a local coordinate frame for every one, we rotate and move
+ * it in a right pace to navigate it smoothly toward the target position". In the destination's
+ * frame the agent's heading turns toward it by at most turn_rate dt, and it closes in at speed
+ * min(MaxSpeed, distance / arrival.time) times the cosine left between heading and direction (so a
+ * wrong heading turns first and never orbits), binding once within bind_distance or within reach
+ * of this step. Returns the new phase. */
+static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
+{
+    const fm_flock_def *f = &m->def.flock;
+    float to[3] = {s->dest[0][a] - s->p[0][a], s->dest[1][a] - s->p[1][a], s->dest[2][a] - s->p[2][a]};
+    float dist = sqrtf(to[0] * to[0] + to[1] * to[1] + to[2] * to[2]);
+    float rel[3] = {s->v[0][a] - s->dest_v[0][a], s->v[1][a] - s->dest_v[1][a], s->v[2][a] - s->dest_v[2][a]};
+    float speed = sqrtf(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
+    if (dist <= (float)f->bind_distance) return bind(s, a, dt), FM_PHASE_ARRIVED;
+    float dir[3] = {to[0] / dist, to[1] / dist, to[2] / dist}, h[3];
+    for (int k = 0; k < 3; k++) h[k] = speed > 0 ? rel[k] / speed : dir[k];
+    turn_toward(h, dir, (float)(f->turn_rate_deg * 3.14159265358979323846 / 180) * dt);
+    float pace = fminf(m->max_speed[a], dist / (float)f->arrival_time);
+    pace *= fmaxf(0.0f, h[0] * dir[0] + h[1] * dir[1] + h[2] * dir[2]);
+    if (pace * dt >= dist) return bind(s, a, dt), FM_PHASE_ARRIVED;
+    for (int k = 0; k < 3; k++) {
+        s->v[k][a] = s->dest_v[k][a] + pace * h[k];
+        s->p[k][a] += s->v[k][a] * dt;
+    }
+    return FM_PHASE_HOMING;
+}
+
+/* Bound: on the destination; floating: around it, a smooth per-agent Lissajous offset that grows
+ * from 0 at binding to float_amplitude. */
+static void move_bound(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
+{
+    const fm_flock_def *f = &m->def.flock;
+    float offset[3] = {0, 0, 0};
+    if (f->arrival_mode == FM_ARRIVAL_FLOAT) {
+        static const double freq[3] = {1.0, 1.31, 0.77};
+        double tau = s->time + dt - s->t_bind[a], ramp = 1 - exp(-tau / f->float_period);
+        for (int k = 0; k < 3; k++) {
+            double phase = TWO_PI * fm_random_unit(m->def.seed, 100 + (uint64_t)k, (uint64_t)a);
+            offset[k] = (float)(f->float_amplitude * ramp * sin(TWO_PI * freq[k] * tau / f->float_period + phase));
+        }
+    }
+    for (int k = 0; k < 3; k++) {
+        float x = s->dest[k][a] + offset[k];
+        s->v[k][a] = (x - s->p[k][a]) / dt;
+        s->p[k][a] = x;
+    }
+}
+
+/* Stage 5 for one block: each agent moves only itself. */
+static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end, flock_block *bc)
+{
+    const float dt = (float)m->dt;
+    memset(bc, 0, sizeof *bc);
+    for (int64_t a = begin; a < end; a++) {
+        uint8_t phase = s->phase[a];
+        if (phase == FM_PHASE_FLYING) phase = move_flying(m, s, a, dt);
+        else if (phase == FM_PHASE_HOMING) phase = move_stepped(m, s, a, dt);
+        else move_bound(m, s, a, dt);
+        s->phase[a] = phase;
+        bc->count[phase]++;
+        const float v[3] = {s->v[0][a], s->v[1][a], s->v[2][a]};
+        fm_flock_update_orientation(s->orient + 4 * a, v);
+    }
+}
+
+void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
+{
+    const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
+    const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
+    if (m->info.deforming) update_destinations(m, s, t_end);
+    double u = m->path_time > 0 ? fmin(t_end / m->path_time, 1.0) : 1.0, r[3] = {0, 0, 0};
+    if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
+    fm_kalman_advance(&s->kalman);
+    if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
+    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->n, m->max_radius > 0 ? m->max_radius : 1.0f,
+                  s->threads);
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t b = 0; b < blocks; b++) {
+        const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);
+        leaders_block(m, s, r, u, begin, end);
+        forces_block(m, s, begin, end);
+    }
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t b = 0; b < blocks; b++)
+        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), &s->blocks[b]);
+    memset(s->count, 0, sizeof s->count);
+    for (int64_t b = 0; b < blocks; b++) /* combine in block order */
+        for (int i = 0; i < 4; i++) s->count[i] += s->blocks[b].count[i];
+    s->time = t_end;
+    s->step++;
+}

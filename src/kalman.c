@@ -1,0 +1,45 @@
+/* Per-agent Kalman homing (SCF eq 9); see kalman.h. */
+#include "kalman.h"
+
+void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_vel)
+{
+    *kf = (fm_kalman){.dt = dt, .q = q, .r_pos = r_pos, .r_vel = r_vel};
+}
+
+void fm_kalman_advance(fm_kalman *kf)
+{
+    const double dt = kf->dt, a = kf->p[0], b = kf->p[1], c = kf->p[2];
+    /* P- = A P A^T + Q */
+    const double pa = a + 2 * b * dt + c * dt * dt + kf->q * dt * dt * dt / 3;
+    const double pb = b + c * dt + kf->q * dt * dt / 2;
+    const double pc = c + kf->q * dt;
+    /* K = P- S^-1, S = P- + R */
+    const double sa = pa + kf->r_pos, sc = pc + kf->r_vel, det = sa * sc - pb * pb;
+    const double ia = sc / det, ib = -pb / det, ic = sa / det;
+    double *k = kf->k;
+    k[0] = pa * ia + pb * ib, k[1] = pa * ib + pb * ic;
+    k[2] = pb * ia + pc * ib, k[3] = pb * ib + pc * ic;
+    /* P+ = (I - K) P-, symmetrised against rounding */
+    const double na = (1 - k[0]) * pa - k[1] * pb;
+    const double nb = 0.5 * (((1 - k[0]) * pb - k[1] * pc) + (-k[2] * pa + (1 - k[3]) * pb));
+    const double nc = -k[2] * pb + (1 - k[3]) * pc;
+    kf->p[0] = na, kf->p[1] = nb, kf->p[2] = nc;
+}
+
+void fm_kalman_homing(const fm_kalman *kf, int64_t begin, int64_t end, const uint8_t *phase,
+                      uint8_t phase_sel, const float *const p[3], const float *const v[3],
+                      const float *const z_p[3], const float *const z_v[3], const float *weight,
+                      float *const acc[3])
+{
+    const double dt = kf->dt, k_pp = kf->k[0], k_pv = kf->k[1], gain = 2.0 / (dt * dt);
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        for (int k = 0; k < 3; k++) {
+            const double u = acc[k][a];
+            const double e_p = (double)z_p[k][a] - ((double)p[k][a] + (double)v[k][a] * dt); /* z - x- */
+            const double e_v = (double)z_v[k][a] - ((double)v[k][a] + u * dt);
+            /* Pos+ - (Pos + Vel dt) = k_pp e_p + k_pv e_v, so eq 9 gives F_h / m = 2 (...) / dt^2 */
+            acc[k][a] = (float)(u + weight[a] * gain * (k_pp * e_p + k_pv * e_v));
+        }
+    }
+}

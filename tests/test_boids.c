@@ -1,0 +1,210 @@
+/* Boids (SCF "Basic Steering Behaviors"): the grid kernel equals its O(n^2) reference twin on
+ * random, clustered and coincident agents with per-agent radii, angles and weights; a neighbour
+ * outside a rule's perception angle or radius is ignored; each rule steers the way it should;
+ * MaxForce bounds the result. */
+#include "kernel_boids.h"
+#include "test_macros.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+enum { MAX_AGENTS = 4000 };
+
+static const double PI = 3.14159265358979323846;
+
+typedef struct flock {
+    int64_t n;
+    float *p[3], *v[3], *f[3], *ref[3];
+    float *radius[3], *cos_half[3], *weight[3], *max_speed, *max_force;
+    uint8_t *phase;
+} flock;
+
+static float *floats(int64_t n) { return calloc((size_t)n, sizeof(float)); }
+
+static flock make_flock(int64_t n)
+{
+    flock f = {.n = n, .max_speed = floats(n), .max_force = floats(n), .phase = calloc((size_t)n, 1)};
+    for (int k = 0; k < 3; k++) {
+        f.p[k] = floats(n), f.v[k] = floats(n), f.f[k] = floats(n), f.ref[k] = floats(n);
+        f.radius[k] = floats(n), f.cos_half[k] = floats(n), f.weight[k] = floats(n);
+    }
+    return f;
+}
+
+static void free_flock(flock *f)
+{
+    for (int k = 0; k < 3; k++) {
+        free(f->p[k]), free(f->v[k]), free(f->f[k]), free(f->ref[k]);
+        free(f->radius[k]), free(f->cos_half[k]), free(f->weight[k]);
+    }
+    free(f->max_speed), free(f->max_force), free(f->phase);
+}
+
+static fm_boids_view view(const flock *f)
+{
+    fm_boids_view b = {.max_speed = f->max_speed, .max_force = f->max_force};
+    for (int r = 0; r < 3; r++) b.radius[r] = f->radius[r], b.cos_half[r] = f->cos_half[r], b.weight[r] = f->weight[r];
+    return b;
+}
+
+/* The grid kernel's forces into f->f (cell = the largest radius), the reference's into f->ref. */
+static void run_both(flock *f)
+{
+    float cell = 0;
+    for (int r = 0; r < 3; r++)
+        for (int64_t a = 0; a < f->n; a++) cell = fmaxf(cell, f->radius[r][a]);
+    fm_grid g;
+    memset(&g, 0, sizeof g);
+    ENSURE(fm_grid_init(&g, f->n, NULL) == FM_OK);
+    uint8_t *member = malloc((size_t)f->n);
+    memset(member, 1, (size_t)f->n);
+    fm_grid_build(&g, (const float *const *)f->p, member, f->n, cell, 2);
+    fm_boids_view b = view(f);
+    fm_kernel_boids(&g, &b, (const float *const *)f->p, (const float *const *)f->v, f->phase, 1, 0, f->n, f->f);
+    fm_kernel_boids_reference(&b, (const float *const *)f->p, (const float *const *)f->v, f->n, f->phase, 1, 0, f->n, f->ref);
+    fm_grid_free(&g);
+    free(member);
+}
+
+/* n agents in a box of side `box` (a few share positions), random velocities and parameters. */
+static flock random_flock(int64_t n, float box, uint64_t seed)
+{
+    flock f = make_flock(n);
+    for (int64_t a = 0; a < n; a++) {
+        for (int k = 0; k < 3; k++) {
+            f.p[k][a] = (float)(box * test_uniform(&seed));
+            f.v[k][a] = (float)(4 * test_uniform(&seed) - 2);
+        }
+        if (a % 97 == 5) /* coincident with the previous agent */
+            for (int k = 0; k < 3; k++) f.p[k][a] = f.p[k][a - 1];
+        if (a % 89 == 3) f.v[0][a] = f.v[1][a] = f.v[2][a] = 0; /* at rest: sees all round */
+        for (int r = 0; r < 3; r++) {
+            f.radius[r][a] = (float)(0.3 + 0.7 * test_uniform(&seed));
+            f.cos_half[r][a] = (float)cos(PI * test_uniform(&seed)); /* angles 0 .. 360 degrees */
+            f.weight[r][a] = (float)(0.5 + test_uniform(&seed));
+        }
+        f.max_speed[a] = (float)(5 + 5 * test_uniform(&seed));
+        f.max_force[a] = a % 3 == 0 ? 1e9f : (float)(2 + 10 * test_uniform(&seed)); /* some never truncate */
+        f.phase[a] = a % 11 == 0 ? 3 : 1; /* a few in another phase: not computed, still neighbours */
+    }
+    return f;
+}
+
+static void test_kernel_equals_reference(void)
+{
+    const float boxes[3] = {10.0f, 3.0f, 0.5f}; /* sparse, dense, everybody within reach of everybody */
+    for (int trial = 0; trial < 3; trial++) {
+        flock f = random_flock(MAX_AGENTS, boxes[trial], 100 + (uint64_t)trial);
+        for (int64_t a = 0; a < f.n; a++) f.f[0][a] = f.ref[0][a] = -12345; /* untouched sentinel */
+        run_both(&f);
+        double worst = 0;
+        int64_t nonzero = 0, untouched_ok = 1;
+        for (int64_t a = 0; a < f.n; a++) {
+            if (f.phase[a] != 1) {
+                untouched_ok &= f.f[0][a] == -12345 && f.ref[0][a] == -12345;
+                continue;
+            }
+            double scale = 1 + fabs(f.ref[0][a]) + fabs(f.ref[1][a]) + fabs(f.ref[2][a]);
+            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(f.f[k][a] - f.ref[k][a]) / scale);
+            nonzero += f.ref[0][a] != 0 || f.ref[1][a] != 0 || f.ref[2][a] != 0;
+        }
+        ENSURE_MSG(worst < 1e-5, "box %g: kernel and reference differ by %g (relative)", boxes[trial], worst);
+        ENSURE_MSG(nonzero > f.n / 2, "box %g: only %lld agents felt a force", boxes[trial], (long long)nonzero);
+        ENSURE(untouched_ok);
+        free_flock(&f);
+    }
+}
+
+/* Agent 0 at the origin heading +x; agent 1 somewhere; one rule on at a time. */
+static flock pair(const float other[3], int rule, float radius, float angle_deg)
+{
+    flock f = make_flock(2);
+    f.v[0][0] = 1;
+    for (int k = 0; k < 3; k++) f.p[k][1] = other[k];
+    f.v[1][1] = 3; /* agent 1 heads +y */
+    for (int a = 0; a < 2; a++) {
+        for (int r = 0; r < 3; r++) f.radius[r][a] = radius, f.cos_half[r][a] = (float)cos(angle_deg * PI / 360);
+        f.weight[rule][a] = 1;
+        f.max_speed[a] = 10, f.max_force[a] = 1e9f;
+        f.phase[a] = 1;
+    }
+    return f;
+}
+
+static float force_on_0(const float other[3], int rule, float radius, float angle_deg, float out[3])
+{
+    flock f = pair(other, rule, radius, angle_deg);
+    run_both(&f);
+    for (int k = 0; k < 3; k++) {
+        out[k] = f.f[k][0];
+        ENSURE(f.f[k][0] == f.ref[k][0]);
+    }
+    free_flock(&f);
+    return sqrtf(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+}
+
+static void test_neighbours_outside_the_angle_are_ignored(void)
+{
+    const float front[3] = {0.5f, 0.1f, 0}, behind[3] = {-0.5f, 0.1f, 0}, side[3] = {0, 0.5f, 0};
+    float out[3];
+    for (int rule = 0; rule < 3; rule++) {
+        ENSURE_MSG(force_on_0(front, rule, 1, 120, out) > 0, "rule %d: a neighbour ahead is not seen", rule);
+        ENSURE_MSG(force_on_0(behind, rule, 1, 120, out) == 0, "rule %d: a neighbour behind is seen with 120 degrees", rule);
+        ENSURE_MSG(force_on_0(side, rule, 1, 120, out) == 0, "rule %d: a neighbour at 90 degrees is seen with 120", rule);
+        ENSURE_MSG(force_on_0(side, rule, 1, 200, out) > 0, "rule %d: a neighbour at 90 degrees is not seen with 200", rule);
+        ENSURE_MSG(force_on_0(behind, rule, 1, 360, out) > 0, "rule %d: 360 degrees does not see behind", rule);
+    }
+}
+
+static void test_neighbours_outside_the_radius_are_ignored(void)
+{
+    const float near[3] = {0.99f, 0, 0}, far[3] = {1.01f, 0, 0};
+    float out[3];
+    for (int rule = 0; rule < 3; rule++) {
+        ENSURE_MSG(force_on_0(near, rule, 1, 360, out) > 0, "rule %d: a neighbour inside the radius is not seen", rule);
+        ENSURE_MSG(force_on_0(far, rule, 1, 360, out) == 0, "rule %d: a neighbour beyond the radius is seen", rule);
+    }
+}
+
+/* Separation steers away, cohesion toward, alignment to the neighbour's heading, each as
+ * MaxSpeed * unit(direction) - v with v = (1, 0, 0) and MaxSpeed 10. */
+static void test_each_rule_steers_its_way(void)
+{
+    const float other[3] = {0.6f, 0.8f, 0};
+    float out[3];
+    force_on_0(other, FM_BOIDS_SEPARATION, 2, 360, out);
+    ENSURE_NEAR(out[0], -6 - 1, 1e-5);
+    ENSURE_NEAR(out[1], -8, 1e-5);
+    ENSURE_NEAR(out[2], 0, 1e-6);
+    force_on_0(other, FM_BOIDS_COHESION, 2, 360, out);
+    ENSURE_NEAR(out[0], 6 - 1, 1e-5);
+    ENSURE_NEAR(out[1], 8, 1e-5);
+    force_on_0(other, FM_BOIDS_ALIGNMENT, 2, 360, out);
+    ENSURE_NEAR(out[0], -1, 1e-5);
+    ENSURE_NEAR(out[1], 10, 1e-5);
+}
+
+static void test_max_force_bounds_the_steering(void)
+{
+    flock f = random_flock(1000, 2.0f, 7);
+    run_both(&f);
+    int64_t truncated = 0;
+    for (int64_t a = 0; a < f.n; a++) {
+        if (f.phase[a] != 1) continue;
+        float len = sqrtf(f.f[0][a] * f.f[0][a] + f.f[1][a] * f.f[1][a] + f.f[2][a] * f.f[2][a]);
+        ENSURE_MSG(len <= f.max_force[a] * (1 + 1e-6f), "agent %lld: |F| %g > MaxForce %g", (long long)a, len, f.max_force[a]);
+        truncated += len >= f.max_force[a] * (1 - 1e-6f);
+    }
+    ENSURE_MSG(truncated > 100, "only %lld agents reached MaxForce: the bound is not exercised", (long long)truncated);
+    free_flock(&f);
+}
+
+int main(void)
+{
+    RUN_TEST(test_kernel_equals_reference);
+    RUN_TEST(test_neighbours_outside_the_angle_are_ignored);
+    RUN_TEST(test_neighbours_outside_the_radius_are_ignored);
+    RUN_TEST(test_each_rule_steers_its_way);
+    RUN_TEST(test_max_force_bounds_the_steering);
+    return test_result();
+}

@@ -1,0 +1,414 @@
+/* The shape-constrained flock end to end through the public API: a static target ends with every
+ * agent bound exactly on its destination (or floating within its amplitude); the run is the same
+ * for 1 and 2 threads and for the same seed; orientations follow the velocity; destinations follow
+ * a deforming target (procedural and mesh sequence) and the flock tracks it; scene keys of the
+ * other mode are refused. */
+#include "flockmorph/flockmorph.h"
+#include "test_macros.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static fm_scene_def flock_def(int64_t n)
+{
+    fm_scene_def def = fm_default_scene_def();
+    def.mode = FM_MODE_SHAPE_FLOCK;
+    snprintf(def.source.path, sizeof def.source.path, "%s/examples/flock_cylinder_sphere/cylinder.obj", FM_SOURCE_DIR);
+    snprintf(def.target.path, sizeof def.target.path, "%s/examples/flock_cylinder_sphere/sphere.obj", FM_SOURCE_DIR);
+    def.source.translate[0] = -12, def.target.translate[0] = 12;
+    def.path_point_count = 1;
+    def.path_points[0][1] = -5, def.path_points[0][2] = 5;
+    def.n = n;
+    def.frame_rate = 24, def.time_step = 1.0 / 48, def.frame_limit = 600;
+    def.speed0 = 8;
+    def.flock.sampling = FM_FLOCK_SAMPLE_RANDOM;
+    /* perception radii of 0.2 .. 0.6 units (r = J / sqrt(n)): the paper's J would have every agent
+     * of a test-sized flock see all the others, which is slow and proves nothing more */
+    const double root_n = sqrt((double)n);
+    def.flock.separation.radius_j[0] = 0.3 * root_n, def.flock.separation.radius_j[1] = 0.6 * root_n;
+    def.flock.cohesion.radius_j[0] = 0.2 * root_n, def.flock.cohesion.radius_j[1] = 0.6 * root_n;
+    def.flock.alignment.radius_j[0] = 0.2 * root_n, def.flock.alignment.radius_j[1] = 0.4 * root_n;
+    return def;
+}
+
+typedef struct frame {
+    int64_t n;
+    float *p, *v, *q;
+    uint8_t *phase;
+} frame;
+
+static frame frame_of(const fm_flock_state *s, int64_t n)
+{
+    frame f = {n, malloc(sizeof(float) * 3 * (size_t)n), malloc(sizeof(float) * 3 * (size_t)n),
+               malloc(sizeof(float) * 4 * (size_t)n), malloc((size_t)n)};
+    fm_flock_frame(s, f.p, f.v, f.q, f.phase);
+    return f;
+}
+
+static void frame_free(frame *f) { free(f->p), free(f->v), free(f->q), free(f->phase); }
+
+static int frames_equal(const frame *a, const frame *b)
+{
+    size_t n = (size_t)a->n;
+    return a->n == b->n && !memcmp(a->p, b->p, 12 * n) && !memcmp(a->v, b->v, 12 * n) && !memcmp(a->q, b->q, 16 * n) &&
+           !memcmp(a->phase, b->phase, n);
+}
+
+/* Steps until every agent is in FM_PHASE_ARRIVED or `steps` steps; returns the steps taken. */
+static int64_t run(const fm_flock_model *m, fm_flock_state *s, int64_t steps)
+{
+    int64_t k = 0;
+    for (; k < steps && fm_flock_get_info(s).count[FM_PHASE_ARRIVED] < fm_flock_model_get_info(m).agents; k++)
+        fm_flock_step(m, s);
+    return k;
+}
+
+static fm_flock_model *build(const fm_scene_def *def)
+{
+    fm_error err = {0};
+    fm_flock_model *m = fm_flock_model_build(def, NULL, NULL, &err);
+    ENSURE_MSG(m != NULL, "%s", err.message);
+    return m;
+}
+
+/* SCF Figure 9's static case: every agent ends bound exactly on its destination. */
+static void test_static_target_every_agent_binds(void)
+{
+    fm_scene_def def = flock_def(600);
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    int64_t steps = run(m, s, 48 * 20);
+    fm_flock_info info = fm_flock_get_info(s);
+    ENSURE_MSG(info.count[FM_PHASE_ARRIVED] == 600, "after %lld steps %lld agents are bound", (long long)steps,
+               (long long)info.count[FM_PHASE_ARRIVED]);
+    double mean, max;
+    fm_flock_distance(s, &mean, &max);
+    ENSURE_MSG(max == 0, "a bound agent is %g from its destination", max);
+    float *dest = malloc(sizeof(float) * 3 * 600), *c2 = malloc(sizeof(float) * 3 * 600);
+    fm_flock_destinations(s, dest);
+    fm_flock_model_endpoints(m, NULL, c2);
+    ENSURE(memcmp(dest, c2, sizeof(float) * 3 * 600) == 0); /* a static target's destinations stay put */
+    /* it took the path: longer than the leaders' path time, but not much longer */
+    double path_time = fm_flock_model_get_info(m).path_time;
+    ENSURE_MSG(steps * (1.0 / 48) > path_time && steps * (1.0 / 48) < path_time + 6, "bound after %.2f s, path time %.2f s",
+               steps / 48.0, path_time);
+    free(dest), free(c2);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+}
+
+/* Floating instead of binding: agents stay within float_amplitude of their destinations. */
+static void test_floating_agents_stay_near(void)
+{
+    fm_scene_def def = flock_def(300);
+    def.flock.arrival_mode = FM_ARRIVAL_FLOAT;
+    def.flock.float_amplitude = 0.1;
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    run(m, s, 48 * 20);
+    ENSURE(fm_flock_get_info(s).count[FM_PHASE_ARRIVED] == 300);
+    for (int k = 0; k < 96; k++) fm_flock_step(m, s); /* two more seconds of floating */
+    double mean, max;
+    fm_flock_distance(s, &mean, &max);
+    ENSURE_MSG(max <= 0.1 * sqrt(3) * (1 + 1e-5), "a floating agent is %g away (amplitude 0.1 per axis)", max);
+    ENSURE_MSG(mean > 0.01, "the agents do not float (mean offset %g)", mean);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+}
+
+/* 1 and 2 threads give the same bits at every stage of the run, with more than one block of agents
+ * and the style fields on; a different seed gives a different flock, the same seed the same. */
+static void test_threads_and_seeds_agree(void)
+{
+    fm_scene_def def = flock_def(5000); /* two blocks of 4096 */
+    def.field_count = 1;
+    def.fields[0] = fm_default_field_def(FM_FIELD_VORTEX);
+    def.fields[0].center[0] = 0, def.fields[0].strength = 0.5;
+    fm_flock_model *m = build(&def);
+    def.seed = 99;
+    fm_flock_model *other = build(&def);
+    if (!m || !other) return;
+    fm_flock_state *s1 = fm_flock_state_create(m, 1, NULL), *s2 = fm_flock_state_create(m, 2, NULL);
+    fm_flock_state *again = fm_flock_state_create(m, 2, NULL), *s3 = fm_flock_state_create(other, 2, NULL);
+    for (int chunk = 0; chunk < 4; chunk++) {
+        for (int k = 0; k < 60; k++) fm_flock_step(m, s1), fm_flock_step(m, s2), fm_flock_step(m, again), fm_flock_step(other, s3);
+        frame a = frame_of(s1, 5000), b = frame_of(s2, 5000), c = frame_of(again, 5000), d = frame_of(s3, 5000);
+        ENSURE_MSG(frames_equal(&a, &b), "1 and 2 threads differ after %d steps", 60 * (chunk + 1));
+        ENSURE_MSG(frames_equal(&b, &c), "two runs differ after %d steps", 60 * (chunk + 1));
+        ENSURE_MSG(!frames_equal(&b, &d), "seeds 1 and 99 give the same flock");
+        frame_free(&a), frame_free(&b), frame_free(&c), frame_free(&d);
+    }
+    fm_flock_state_destroy(s1), fm_flock_state_destroy(s2), fm_flock_state_destroy(again), fm_flock_state_destroy(s3);
+    fm_flock_model_destroy(m), fm_flock_model_destroy(other);
+}
+
+static char *slurp(const char *path, long *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    *len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = malloc((size_t)*len + 1);
+    if (buf && fread(buf, 1, (size_t)*len, f) != (size_t)*len) free(buf), buf = NULL;
+    fclose(f);
+    return buf;
+}
+
+/* The whole run through fm_flock_run into a cache; returns its stats. */
+static fm_flock_run_stats run_to_cache(const fm_flock_model *m, int threads, const char *path)
+{
+    fm_error err = {0};
+    fm_flock_run_stats rs;
+    memset(&rs, 0, sizeof rs);
+    fm_flock_state *s = fm_flock_state_create(m, threads, &err);
+    fm_cache_writer *w = fm_flock_cache_create(path, m, NULL, &err);
+    ENSURE_MSG(s && w, "%s", err.message);
+    if (!s || !w) return fm_flock_state_destroy(s), rs;
+    ENSURE_MSG(fm_flock_run(m, s, w, NULL, NULL, &rs, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    fm_flock_state_destroy(s);
+    return rs;
+}
+
+/* The cache of a whole run: the same bytes for 1 and 2 threads and for a second run; the run stops
+ * when every agent is bound, and the cache's last frame has every agent on its destination. */
+static void test_caches_are_identical_for_threads_and_runs(void)
+{
+    fm_scene_def def = flock_def(1500);
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    const char *p1 = FM_TEST_TMP "/flock_threads1.fmc", *p2 = FM_TEST_TMP "/flock_threads2.fmc", *p3 = FM_TEST_TMP "/flock_again.fmc";
+    fm_flock_run_stats r1 = run_to_cache(m, 1, p1), r2 = run_to_cache(m, 2, p2), r3 = run_to_cache(m, 2, p3);
+    ENSURE(r1.all_bound && !r1.stopped_at_frame_limit && r1.bound_fraction == 1 && r1.final_max_distance == 0);
+    ENSURE(r1.frames == r2.frames && r2.frames == r3.frames && r1.steps == r2.steps && isnan(r1.tracking_lag));
+    long n1 = 0, n2 = 0, n3 = 0;
+    char *a = slurp(p1, &n1), *b = slurp(p2, &n2), *c = slurp(p3, &n3);
+    ENSURE_MSG(a && b && n1 == n2 && !memcmp(a, b, (size_t)n1), "1 and 2 threads give different caches");
+    ENSURE_MSG(b && c && n2 == n3 && !memcmp(b, c, (size_t)n2), "two runs give different caches");
+    free(a), free(b), free(c);
+
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(p1, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (r) {
+        ENSURE(fm_cache_frames(r) == (uint32_t)r1.frames && fm_cache_agents(r) == 1500);
+        float *pos = malloc(sizeof(float) * 3 * 1500), *c2 = malloc(sizeof(float) * 3 * 1500);
+        ENSURE(fm_cache_read_attr(r, fm_cache_frames(r) - 1, FM_ATTR_POSITION, pos, &err) == FM_OK);
+        fm_flock_model_endpoints(m, NULL, c2);
+        ENSURE(!memcmp(pos, c2, sizeof(float) * 3 * 1500));
+        ENSURE(fm_cache_read_attr(r, 0, FM_ATTR_POSITION, pos, &err) == FM_OK);
+        fm_flock_model_endpoints(m, c2, NULL);
+        ENSURE(!memcmp(pos, c2, sizeof(float) * 3 * 1500)); /* frame 0: every agent on its source sample */
+        free(pos), free(c2);
+        fm_cache_close(r);
+    }
+    fm_flock_model_destroy(m);
+}
+
+/* Each flying agent's frame has its x axis along its velocity and stays upright (z has no part
+ * pointing down unless it flies steeply); quaternions are unit. */
+static void test_orientation_follows_velocity(void)
+{
+    fm_scene_def def = flock_def(400);
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    for (int k = 0; k < 60; k++) fm_flock_step(m, s);
+    frame f = frame_of(s, 400);
+    int checked = 0;
+    for (int64_t a = 0; a < 400; a++) {
+        const float *q = f.q + 4 * a, *v = f.v + 3 * a;
+        double w = q[0], i = q[1], j = q[2], k = q[3];
+        ENSURE_NEAR(w * w + i * i + j * j + k * k, 1, 1e-5);
+        const double x[3] = {1 - 2 * (j * j + k * k), 2 * (i * j + w * k), 2 * (i * k - w * j)}; /* R e_x */
+        double vlen = sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
+        if (vlen < 1e-3) continue;
+        ENSURE_NEAR((x[0] * v[0] + x[1] * v[1] + x[2] * v[2]) / vlen, 1, 1e-5);
+        checked++;
+    }
+    ENSURE(checked > 300);
+    frame_free(&f);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+}
+
+/* A pulsing target: destinations breathe with it (each one's distance to the centre scales by
+ * 1 + A sin(2 pi t / period)), and once the path is done the flock stays close (the Kalman homing
+ * tracks the moving leaders), closer with a small R (position variance) than with a large one. */
+static double tracking_lag(double r)
+{
+    fm_scene_def def = flock_def(400);
+    def.flock.deform = FM_DEFORM_PULSE;
+    def.flock.deform_amplitude = 0.2, def.flock.deform_period = 1.5;
+    def.flock.arrival_radius = 0; /* no binding: forces all the way */
+    def.flock.damping = 0;        /* homing alone holds them */
+    def.flock.kalman_r_position = r, def.flock.kalman_r_velocity = 1;
+    fm_flock_model *m = build(&def);
+    if (!m) return NAN;
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    double path_time = fm_flock_model_get_info(m).path_time, lag = 0;
+    int samples = 0;
+    for (int k = 0; k < 48 * 12; k++) {
+        fm_flock_step(m, s);
+        if (fm_flock_get_info(s).time < path_time + 1) continue;
+        double mean, max;
+        fm_flock_distance(s, &mean, &max);
+        lag += mean, samples++;
+    }
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+    return lag / samples;
+}
+
+static void test_deforming_target_is_tracked(void)
+{
+    fm_scene_def def = flock_def(200);
+    def.flock.deform = FM_DEFORM_PULSE;
+    def.flock.deform_amplitude = 0.2, def.flock.deform_period = 1.5;
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 1, NULL);
+    float *c2 = malloc(sizeof(float) * 600), *dest = malloc(sizeof(float) * 600);
+    fm_flock_model_endpoints(m, NULL, c2);
+    const double center[3] = {12, 0, 0}; /* the sphere's vertices average to its centre */
+    for (int k = 0; k < 30; k++) fm_flock_step(m, s);
+    fm_flock_destinations(s, dest);
+    double t = fm_flock_get_info(s).time, scale = 1 + 0.2 * sin(2 * 3.14159265358979 * t / 1.5), worst = 0;
+    for (int a = 0; a < 200; a++)
+        for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(dest[3 * a + k] - (center[k] + (c2[3 * a + k] - center[k]) * scale)));
+    ENSURE_MSG(worst < 1e-3, "destinations are %g off the pulsing sphere", worst);
+    free(c2), free(dest);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+
+    double tight = tracking_lag(0.01), loose = tracking_lag(10);
+    printf("  tracking lag on a pulsing sphere: R = 0.01 %.4f, R = 10 %.4f\n", tight, loose);
+    ENSURE_MSG(tight < 0.25, "the flock does not keep up: mean lag %g", tight);
+    ENSURE_MSG(2 * tight < loose, "a smaller R does not track more closely: %g vs %g", tight, loose);
+}
+
+/* A sequence of meshes: a sphere moving 1 unit along +z per mesh at 12 meshes a second.
+ * Destinations interpolate between the meshes and loop. */
+static void write_shifted_sphere(const char *path, double dz)
+{
+    char src[FM_PATH_MAX];
+    snprintf(src, sizeof src, "%s/examples/flock_cylinder_sphere/sphere.obj", FM_SOURCE_DIR);
+    FILE *in = fopen(src, "r"), *out = fopen(path, "w");
+    char line[256];
+    while (in && out && fgets(line, sizeof line, in)) {
+        double x, y, z;
+        if (sscanf(line, "v %lf %lf %lf", &x, &y, &z) == 3) fprintf(out, "v %.9g %.9g %.9g\n", x, y, z + dz);
+        else fputs(line, out);
+    }
+    if (in) fclose(in);
+    if (out) fclose(out);
+}
+
+static void test_mesh_sequence_moves_the_destinations(void)
+{
+    char pattern[FM_PATH_MAX];
+    for (int i = 0; i < 3; i++) {
+        snprintf(pattern, sizeof pattern, "%s/seq_%02d.obj", FM_TEST_TMP, i);
+        write_shifted_sphere(pattern, i);
+    }
+    fm_scene_def def = flock_def(100);
+    snprintf(def.target.path, sizeof def.target.path, "%s/seq_00.obj", FM_TEST_TMP);
+    def.flock.deform = FM_DEFORM_SEQUENCE;
+    snprintf(def.flock.deform_sequence, sizeof def.flock.deform_sequence, "%s/seq_%%02d.obj", FM_TEST_TMP);
+    def.flock.deform_frames = 3, def.flock.deform_frame_rate = 12;
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    float *c2 = malloc(sizeof(float) * 300), *dest = malloc(sizeof(float) * 300);
+    fm_flock_model_endpoints(m, NULL, c2);
+    const double expect_dz[3] = {0.5, 2 - 2 * 0.5, 0}; /* t = 1/24: halfway to mesh 1; t = 5/24: mesh 2 -> 0; t = 1/4 */
+    const int steps[3] = {2, 8, 2};
+    for (int check = 0; check < 3; check++) {
+        for (int k = 0; k < steps[check]; k++) fm_flock_step(m, s);
+        fm_flock_destinations(s, dest);
+        double worst = 0;
+        for (int a = 0; a < 100; a++)
+            worst = fmax(worst, fabs(dest[3 * a] - c2[3 * a]) + fabs(dest[3 * a + 1] - c2[3 * a + 1]) +
+                                    fabs(dest[3 * a + 2] - (c2[3 * a + 2] + expect_dz[check])));
+        ENSURE_MSG(worst < 1e-4, "check %d (t = %g): destinations %g off", check, fm_flock_get_info(s).time, worst);
+    }
+    free(c2), free(dest);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+
+    /* a mesh with other connectivity is refused, naming it */
+    snprintf(pattern, sizeof pattern, "%s/seq_01.obj", FM_TEST_TMP);
+    FILE *f = fopen(pattern, "w");
+    if (f) fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n", f), fclose(f);
+    fm_error err = {0};
+    ENSURE(fm_flock_model_build(&def, NULL, NULL, &err) == NULL && err.status == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "seq_01.obj") && strstr(err.message, "connectivity"), "%s", err.message);
+}
+
+static fm_status load_text(const char *text, fm_scene_def *def, fm_error *err)
+{
+    char path[FM_PATH_MAX];
+    snprintf(path, sizeof path, "%s/flock_scene.json", FM_TEST_TMP);
+    FILE *f = fopen(path, "w");
+    if (!f) return FM_ERR_IO;
+    fputs(text, f);
+    fclose(f);
+    return fm_scene_load(path, def, err);
+}
+
+static void test_scene_keys_belong_to_their_mode(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"n\": 100, \"shape_flock\": {\"max_speed\": [5, 9], \"fuzzy\": {\"homing\": [[0, 1], [3, 0.5]]},\n"
+                     " \"separation\": {\"angle\": 270}, \"arrival\": {\"mode\": \"float\"}}}",
+                     &def, &err) == FM_OK);
+    ENSURE_MSG(err.status == FM_OK, "%s", err.message);
+    ENSURE(def.mode == FM_MODE_SHAPE_FLOCK && def.flock.max_speed[0] == 5 && def.flock.max_speed[1] == 9);
+    ENSURE(def.flock.fuzzy[FM_FUZZY_HOMING].count == 2 && def.flock.fuzzy[FM_FUZZY_HOMING].w[1] == 0.5);
+    ENSURE(def.flock.separation.angle_deg[0] == 270 && def.flock.separation.angle_deg[1] == 270);
+    ENSURE(def.flock.arrival_mode == FM_ARRIVAL_FLOAT);
+
+    ENSURE(load_text("{\"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n \"shape_flock\": {\"mass\": 2}}",
+                     &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, ":2:18: shape_flock.mass: does not apply to mode \"tetra_morph\""), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"mde\": {\"d_min\": 0.1}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "mde.d_min: does not apply to mode \"shape_flock\""), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}}",
+                     &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "n: the shape flock needs"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"fuzzy\": {\"damping\": [[0, 1], [2, 0.5], [1, 0]]}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, ":2:58: shape_flock.fuzzy.damping: point 2: the distances must increase"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"max_force\": [9, 3]}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.max_force: the range [9, 3] runs backwards"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"deform\": {\"type\": \"sequence\", \"sequence\": \"w_%s.obj\", \"frames\": 3}}}",
+                     &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.deform.sequence") && strstr(err.message, "one integer"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"deform\": {\"type\": \"wave\", \"direction\": [0, 0, 0]}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.deform.direction: a wave needs a non-zero direction"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flok\", \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}}",
+                     &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "mode: expected \"tetra_morph\" or \"shape_flock\""), "%s", err.message);
+}
+
+int main(void)
+{
+    RUN_TEST(test_static_target_every_agent_binds);
+    RUN_TEST(test_floating_agents_stay_near);
+    RUN_TEST(test_threads_and_seeds_agree);
+    RUN_TEST(test_caches_are_identical_for_threads_and_runs);
+    RUN_TEST(test_orientation_follows_velocity);
+    RUN_TEST(test_deforming_target_is_tracked);
+    RUN_TEST(test_mesh_sequence_moves_the_destinations);
+    RUN_TEST(test_scene_keys_belong_to_their_mode);
+    return test_result();
+}

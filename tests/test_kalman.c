@@ -1,0 +1,132 @@
+/* Kalman homing (SCF eq 9): an agent driven only by the homing force tracks a leader moving at
+ * constant velocity; the tracking lag shrinks as R falls, vanishes in the steady state, and R -> 0
+ * puts the agent on its leader. */
+#include "kalman.h"
+#include "test_macros.h"
+
+#include <math.h>
+
+enum { AGENTS = 3 };
+
+typedef struct track_result {
+    double mean_lag;   /* mean distance to the leader over the run */
+    double final_lag;  /* distance at the end */
+    double first_lag;  /* after the first step */
+} track_result;
+
+/* Agents start at rest where the leader starts; the leader flies at velocity u. Steps of dt with
+ * the flock's integrator: p += v dt + a dt^2 / 2, v += a dt. */
+static track_result track(double q, double r_pos, double r_vel, int steps)
+{
+    const double dt = 1.0 / 48, u[3] = {3, -1.5, 0.5}, start[3] = {1, 2, 3};
+    fm_kalman kf;
+    fm_kalman_init(&kf, dt, q, r_pos, r_vel);
+    float px[AGENTS], py[AGENTS], pz[AGENTS], vx[AGENTS] = {0}, vy[AGENTS] = {0}, vz[AGENTS] = {0};
+    float zx[AGENTS], zy[AGENTS], zz[AGENTS], wx[AGENTS], wy[AGENTS], wz[AGENTS];
+    float ax[AGENTS], ay[AGENTS], az[AGENTS], weight[AGENTS] = {1, 1, 1};
+    uint8_t phase[AGENTS] = {1, 1, 1};
+    for (int a = 0; a < AGENTS; a++) px[a] = (float)start[0], py[a] = (float)start[1], pz[a] = (float)start[2];
+    float *p[3] = {px, py, pz}, *v[3] = {vx, vy, vz}, *zp[3] = {zx, zy, zz}, *zv[3] = {wx, wy, wz}, *acc[3] = {ax, ay, az};
+    track_result r = {0, 0, 0};
+    for (int s = 0; s < steps; s++) {
+        double t_end = (s + 1) * dt;
+        for (int a = 0; a < AGENTS; a++)
+            for (int k = 0; k < 3; k++) zp[k][a] = (float)(start[k] + u[k] * t_end), zv[k][a] = (float)u[k], acc[k][a] = 0;
+        fm_kalman_advance(&kf);
+        fm_kalman_homing(&kf, 0, AGENTS, phase, 1, (const float *const *)p, (const float *const *)v,
+                         (const float *const *)zp, (const float *const *)zv, weight, acc);
+        double lag = 0;
+        for (int a = 0; a < AGENTS; a++) {
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) {
+                p[k][a] = (float)(p[k][a] + v[k][a] * dt + 0.5 * acc[k][a] * dt * dt);
+                v[k][a] = (float)(v[k][a] + acc[k][a] * dt);
+                d2 += (p[k][a] - zp[k][a]) * (double)(p[k][a] - zp[k][a]);
+            }
+            lag += sqrt(d2) / AGENTS;
+        }
+        r.mean_lag += lag / steps;
+        r.final_lag = lag;
+        if (s == 0) r.first_lag = lag;
+    }
+    return r;
+}
+
+static void test_lag_shrinks_as_r_falls(void)
+{
+    const double rs[4] = {10, 1, 0.1, 0.01};
+    double previous = INFINITY;
+    for (int i = 0; i < 4; i++) {
+        track_result t = track(1.0, rs[i], rs[i], 96);
+        ENSURE_MSG(t.mean_lag < previous, "R = %g: mean lag %g is not below %g", rs[i], t.mean_lag, previous);
+        ENSURE_MSG(t.mean_lag > 0, "R = %g: no lag at all", rs[i]);
+        printf("  R = %-5g mean lag over 2 s %.4f\n", rs[i], t.mean_lag);
+        previous = t.mean_lag;
+    }
+    /* and a loose filter lags clearly: the leader covers 3.4 units/s */
+    ENSURE(track(1.0, 10, 10, 96).mean_lag > 5 * track(1.0, 0.01, 0.01, 96).mean_lag);
+}
+
+/* Constant velocity is tracked without a steady-state error: the position and velocity measurements
+ * together leave none. */
+static void test_steady_state_has_no_lag(void)
+{
+    track_result t = track(1.0, 1.0, 1.0, 48 * 30);
+    ENSURE_MSG(t.final_lag < 1e-3, "lag after 30 s: %g", t.final_lag);
+}
+
+/* R -> 0: the posterior is the leader's state, and eq 9 lands the agent on it in one step. */
+static void test_tiny_r_puts_the_agent_on_its_leader(void)
+{
+    track_result t = track(1.0, 1e-9, 1e-9, 10);
+    ENSURE_MSG(t.first_lag < 1e-4, "after one step: %g", t.first_lag);
+    ENSURE_MSG(t.final_lag < 1e-4, "after ten steps: %g", t.final_lag);
+}
+
+/* The covariance stays symmetric positive definite and converges to the steady state (the
+ * Riccati fixed point): the gain stops changing. */
+static void test_covariance_converges(void)
+{
+    fm_kalman kf;
+    fm_kalman_init(&kf, 1.0 / 48, 2.0, 0.5, 0.2);
+    double k_prev = 0, change = 0;
+    for (int s = 0; s < 5000; s++) {
+        fm_kalman_advance(&kf);
+        ENSURE(kf.p[0] > 0 && kf.p[2] > 0 && kf.p[0] * kf.p[2] - kf.p[1] * kf.p[1] > 0);
+        change = fabs(kf.k[0] - k_prev);
+        k_prev = kf.k[0];
+    }
+    ENSURE_MSG(change < 1e-12, "gain still changing by %g", change);
+    ENSURE(kf.k[0] > 0 && kf.k[0] < 1 && kf.k[3] > 0 && kf.k[3] < 1);
+    /* the first step of a fresh filter: P was 0, so the gain is small (Q over Q + R) */
+    fm_kalman_init(&kf, 1.0 / 48, 2.0, 0.5, 0.2);
+    fm_kalman_advance(&kf);
+    ENSURE(kf.k[0] < 1e-4);
+}
+
+/* Only agents in the selected phase are touched, with their own weight. */
+static void test_phase_and_weight(void)
+{
+    fm_kalman kf;
+    fm_kalman_init(&kf, 0.1, 1, 1, 1);
+    for (int s = 0; s < 100; s++) fm_kalman_advance(&kf);
+    float zero[3] = {0, 0, 0}, one[3] = {1, 1, 1}, w[3] = {1, 0.5f, 1};
+    float ax[3] = {0, 0, 7}, ay[3] = {0, 0, 7}, az[3] = {0, 0, 7};
+    const float *p[3] = {zero, zero, zero}, *v[3] = {zero, zero, zero}, *zp[3] = {one, one, one}, *zv[3] = {zero, zero, zero};
+    float *acc[3] = {ax, ay, az};
+    uint8_t phase[3] = {1, 1, 2};
+    fm_kalman_homing(&kf, 0, 3, phase, 1, p, v, zp, zv, w, acc);
+    ENSURE(ax[0] > 0 && fabsf(ax[1] - 0.5f * ax[0]) <= 1e-6f * ax[0]);
+    ENSURE(ax[2] == 7 && ay[2] == 7 && az[2] == 7);
+    ENSURE_NEAR(ax[0], 2 * kf.k[0] / (0.1 * 0.1), 1e-3);
+}
+
+int main(void)
+{
+    RUN_TEST(test_lag_shrinks_as_r_falls);
+    RUN_TEST(test_steady_state_has_no_lag);
+    RUN_TEST(test_tiny_r_puts_the_agent_on_its_leader);
+    RUN_TEST(test_covariance_converges);
+    RUN_TEST(test_phase_and_weight);
+    return test_result();
+}
