@@ -72,9 +72,13 @@ static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const fl
 static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
                             fm_run_stats *stats, fm_error *err)
 {
+    double t0 = fm_seconds();
     fm_state_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
+    fm_status st = cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
+    stats->frames++;
+    stats->output_seconds += fm_seconds() - t0;
+    return st;
 }
 
 void fm_run_stats_free(fm_run_stats *stats)

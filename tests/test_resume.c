@@ -73,7 +73,7 @@ static int same_bytes(const char *a, const char *b)
 static char *stats_without_timings(const char *path)
 {
     static const char *const timing[] = {"\"preprocess_seconds\"", "\"simulate_seconds\"", "\"output_seconds\"",
-                                         "\"agent_steps_per_second\""};
+                                         "\"agent_steps_per_second\"", "\"steps_per_second\""};
     size_t len;
     char *text = slurp(path, &len), *out = text, *line = text;
     if (!text) return NULL;
@@ -81,7 +81,7 @@ static char *stats_without_timings(const char *path)
         char *end = strchr(line, '\n');
         size_t n = end ? (size_t)(end - line + 1) : strlen(line);
         int drop = 0;
-        for (int i = 0; i < 4; i++) drop |= strstr(line, timing[i]) != NULL && strstr(line, timing[i]) < line + n;
+        for (size_t i = 0; i < sizeof timing / sizeof timing[0]; i++) drop |= strstr(line, timing[i]) != NULL && strstr(line, timing[i]) < line + n;
         if (!drop) memmove(out, line, n), out += n;
         line += n;
     }
