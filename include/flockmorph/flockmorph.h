@@ -333,8 +333,8 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n);
 
 /* ---------------------------------------------------------------- export and preview */
 
-/* Writes tets (n × 12 floats) as a triangle mesh, 4 triangles per tet; the format comes from
- * the extension: .ply (binary little-endian) or .obj. */
+/* Writes tets (n × 12 floats) in the format of path's extension: .ply (binary little-endian)
+ * or .obj (4 triangles per tet), .vtu or .vdb (include/flockmorph/export.h, docs/export.md). */
 fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_error *err);
 
 typedef struct fm_render_opts {
@@ -354,5 +354,7 @@ fm_status fm_render_tets_png(const float *verts, size_t n, const fm_render_opts 
 #ifdef __cplusplus
 }
 #endif
+
+#include "flockmorph/export.h" /* the exporters: one frame as plain arrays to PLY, OBJ, VTK, VDB */
 
 #endif /* FLOCKMORPH_H */
