@@ -303,7 +303,8 @@ fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_erro
     if (format == FM_EXPORT_UNKNOWN)
         return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': unknown extension (accepted: "
                        ".ply, .obj, .vtu, .vdb)", path);
-    fm_export_frame frame = {.n = n, .tet_vertices = verts};
+    static const float no_tets[12]; /* tet_vertices set, even for n = 0, makes it a tet file */
+    fm_export_frame frame = {.n = n, .tet_vertices = verts ? verts : no_tets};
     return fm_export_frame_write(&frame, format, NULL, path, err);
 }
 

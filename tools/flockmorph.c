@@ -1,7 +1,7 @@
 /* flockmorph: the command line.
  *
  *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]
- *   flockmorph export CACHE -o FILE.ply|FILE.obj [--frame K]
+ *   flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR   (or -o FILE [--frame K])
  *   flockmorph render CACHE -o FILE.png [--frame K] [--size WxH] [--view front|top|side]
  *   flockmorph info CACHE
  *
@@ -18,7 +18,7 @@ static const char *USAGE_MAIN =
     "\n"
     "commands:\n"
     "  run      simulate a scene file and write the frame cache and stats.json\n"
-    "  export   write one frame of a cache as PLY or OBJ\n"
+    "  export   write frames of a cache as PLY, OBJ, VTK or OpenVDB points\n"
     "  render   render one frame of a cache to a PNG preview\n"
     "  info     print a cache's agent and frame counts\n"
     "\n"

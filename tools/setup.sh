@@ -21,6 +21,7 @@ packages=(
   libtbb-dev
   libblosc-dev
   libboost-iostreams-dev
+  python3
 )
 missing=()
 for p in "${packages[@]}"; do

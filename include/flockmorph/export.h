@@ -36,7 +36,8 @@ fm_export_format fm_export_format_of_path(const char *path);
 const char *fm_export_extension(fm_export_format format);
 
 /* One frame, agents in id order. Either tet_vertices (a tet morph) or positions (a point flock)
- * is set; the optional arrays may be NULL. */
+ * is set, and which one says what the file holds, also when n is 0; the optional arrays may be
+ * NULL. */
 typedef struct fm_export_frame {
     size_t n;                  /* agents */
     const float *tet_vertices; /* n × 12: 4 vertices × xyz per tet; NULL for a point flock */
