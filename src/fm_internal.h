@@ -31,6 +31,9 @@ fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
  * partial file and reports `detail` (if not NULL or empty) or the errno text. */
 fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
 void fm_output_discard(fm_output_file *o);
+/* Reopens the PATH.partial an interrupted writer left, keeps its first `keep` bytes and positions
+ * at their end, to continue writing (resume). */
+fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);

@@ -68,3 +68,20 @@ void fm_output_discard(fm_output_file *o)
     if (o->f) fclose(o->f), remove(o->partial);
     o->f = NULL;
 }
+
+fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err)
+{
+    o->f = NULL;
+    if (strlen(path) >= sizeof o->path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path);
+    snprintf(o->path, sizeof o->path, "%s", path);
+    snprintf(o->partial, sizeof o->partial, "%s.partial", path);
+    errno = 0;
+    o->f = fopen(o->partial, "r+b");
+    if (!o->f || ftruncate(fileno(o->f), (off_t)keep) != 0 || fseeko(o->f, (off_t)keep, SEEK_SET) != 0) {
+        int e = errno ? errno : EIO;
+        if (o->f) fclose(o->f);
+        o->f = NULL;
+        return fm_fail(err, FM_ERR_IO, "cannot resume writing '%s': %s", o->partial, strerror(e));
+    }
+    return FM_OK;
+}

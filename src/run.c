@@ -1,5 +1,6 @@
 /* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
 #include "sim.h"
+#include "cache_format.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -49,13 +50,28 @@ static int each_target_taken_once(const fm_state *s)
     return ok;
 }
 
-static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, fm_cache_writer *cache,
+/* Hands the frame to the cache in the attributes it was created with: the tetra morph has tet
+ * vertices and phases. */
+static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
+                             fm_error *err)
+{
+    const cache_layout *l = fm_cache_writer_layout(cache);
+    const void *data[CACHE_MAX_ATTRS];
+    for (int i = 0; i < l->attr_count; i++) {
+        if (l->attrs[i]->attr == FM_ATTR_TET_VERTICES) data[i] = verts;
+        else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_state_phases(s, phases), data[i] = phases;
+        else return fm_fail(err, FM_ERR_USAGE, "the tetra morph cannot write the cache attribute '%s'", l->attrs[i]->name);
+    }
+    return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
                             fm_run_stats *stats, fm_error *err)
 {
     double t0 = fm_seconds();
     fm_state_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    fm_status st = cache ? fm_cache_writer_add_frame(cache, verts, err) : FM_OK;
+    fm_status st = cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
     stats->frames++;
     stats->output_seconds += fm_seconds() - t0;
     return st;
@@ -90,19 +106,20 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
 {
     memset(stats, 0, sizeof *stats);
     float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
+    uint8_t *phases = fm_alloc((size_t)s->n);
     int64_t capacity = 1024;
     stats->mde_fraction = malloc(sizeof(double) * (size_t)capacity);
-    if (!verts || !stats->mde_fraction) {
-        fm_free(verts), fm_run_stats_free(stats);
+    if (!verts || !phases || !stats->mde_fraction) {
+        fm_free(verts), fm_free(phases), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
     int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps, frames_with_flyers = 0;
-    fm_status st = emit_frame(m, s, verts, cache, stats, err);
+    fm_status st = emit_frame(m, s, verts, phases, cache, stats, err);
     while (st == FM_OK && s->count[FM_PHASE_ARRIVED] < s->n && stats->frames < m->def.frame_limit) {
         double t0 = fm_seconds();
         for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
         stats->simulate_seconds += fm_seconds() - t0;
-        st = emit_frame(m, s, verts, cache, stats, err);
+        st = emit_frame(m, s, verts, phases, cache, stats, err);
         if (st == FM_OK) st = record_mde(s, &flying_before, &mde_before, stats, &frames_with_flyers, &capacity, err);
         if (progress) {
             fm_state_info info = fm_state_get_info(s);
@@ -117,6 +134,6 @@ fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_
     stats->morph_fallbacks = s->morph_fallbacks;
     stats->mde_fraction_mean = frames_with_flyers ? stats->mde_fraction_mean / (double)frames_with_flyers : 0.0;
     stats->min_obstacle_clearance = s->min_clearance;
-    fm_free(verts);
+    fm_free(verts), fm_free(phases);
     return st;
 }

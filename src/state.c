@@ -101,6 +101,11 @@ void fm_state_targets(const fm_state *s, int64_t *out)
     memcpy(out, s->target, sizeof(int64_t) * (size_t)s->n);
 }
 
+void fm_state_phases(const fm_state *s, uint8_t *out)
+{
+    memcpy(out, s->phase, (size_t)s->n);
+}
+
 /* out[i] = c + scale * M * rel[i] for the four vertices (M row-major, NULL = identity). */
 static void place_tet(const float *c, double scale, const double *mat, const float *rel, float *out)
 {

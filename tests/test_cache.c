@@ -2,62 +2,13 @@
  * PATH.partial protocol, and damaged files (truncated, corrupted, not a cache) that must fail
  * with FM_ERR_INPUT and a message instead of crashing or returning wrong data. */
 #define _POSIX_C_SOURCE 200809L
-#include "flockmorph/flockmorph.h"
-#include "test_macros.h"
+#include "cache_helpers.h"
 
-#include <float.h>
-#include <stdint.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 static uint64_t rng_state = 0x2545f4914f6cdd1dull;
 
 static uint64_t rng_next(void) { return test_next_u64(&rng_state); }
-
-static char *tmp_path(char *buf, const char *name)
-{
-    snprintf(buf, FM_PATH_MAX, "%s/cache_%s", FM_TEST_TMP, name);
-    return buf;
-}
-
-static int file_exists(const char *path)
-{
-    struct stat st;
-    return stat(path, &st) == 0;
-}
-
-static unsigned char *read_all(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    *len = 0;
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    unsigned char *buf = malloc(n > 0 ? (size_t)n : 1);
-    if (buf) *len = fread(buf, 1, (size_t)n, f);
-    fclose(f);
-    return buf;
-}
-
-static void write_all(const char *path, const void *data, size_t len)
-{
-    FILE *f = fopen(path, "wb");
-    ENSURE_MSG(f != NULL, "cannot create %s", path);
-    if (!f) return;
-    ENSURE(fwrite(data, 1, len, f) == len);
-    fclose(f);
-}
-
-static uint64_t get_u64(const unsigned char *p)
-{
-    uint64_t x;
-    memcpy(&x, p, 8);
-    return x;
-}
 
 /* Random float bit patterns (never NaN) with edge values planted at fixed places. */
 static void random_frame(float *out, size_t count)
@@ -246,100 +197,211 @@ static void expect_open_fails(const char *path, const char *what)
                err.message, what);
 }
 
-/* A cache cut at any byte: a cut inside the header is an error; any later cut opens with a warning
- * and exactly the frames whose chunks are complete, bitwise equal to the whole cache's. */
-static void test_truncated(void)
+/* ---------------------------------------------------------------- damaged files (format 2) */
+
+/* A cache cut at every byte: a cut inside the header is an error; any later cut opens with a
+ * warning and exactly the frames whose chunks are complete, equal to what was written. */
+static void test_truncated_at_every_byte(void)
 {
+    enum { FRAMES = 5 };
     char path[FM_PATH_MAX], cut[FM_PATH_MAX];
-    const uint64_t agents = 20;
-    if (write_cache(tmp_path(path, "whole.fmc"), agents, 4, 24.0, 3, NULL) != 0) return;
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    fm_cache_options opts = fm_default_cache_options();
+    opts.delta = 1, opts.key_interval = 2;
+    if (write_attrs_cache(tmp_path(path, "whole.fmc"), 3, FRAMES, attrs, 2, &opts, DATA_SMOOTH) != 0) return;
     size_t len;
     unsigned char *bytes = read_all(path, &len);
-    ENSURE(bytes != NULL && len > 100);
     if (!bytes) return;
-    size_t index = (size_t)get_u64(bytes + len - 16);
-    ENSURE(index > 64 && index < len - 16 && memcmp(bytes + index, "FIDX", 4) == 0);
-    size_t chunk_end[4]; /* where each frame's chunk ends */
-    for (int f = 0; f < 4; f++) {
-        size_t at = (size_t)get_u64(bytes + index + 8 + 8 * (size_t)f);
-        chunk_end[f] = at + 24 + (size_t)get_u64(bytes + at + 8);
-    }
-    fm_error err = {0};
-    fm_cache_reader *whole = fm_cache_open(path, &err);
-    ENSURE(whole && fm_cache_warning(whole)[0] == 0);
-    float *want = malloc(sizeof(float) * 12 * agents), *got = malloc(sizeof(float) * 12 * agents);
-    const size_t at[] = {0, 7, 40, 63, 64, 64 + 10, 64 + 24 + 5, chunk_end[0], chunk_end[1] + 1, index / 2, index,
-                         index + 4, index + 8 + 3, len - 16, len - 9, len - 1};
+    size_t header = bytes_u32(bytes + 12), ends[FRAMES];
+    for (uint32_t k = 0; k < FRAMES; k++) ends[k] = chunk_end(bytes, len, k);
+    ENSURE(header == 64 + 2 * 16 && chunk_start(bytes, len, 0) == header);
     tmp_path(cut, "cut.fmc");
-    for (size_t i = 0; i < sizeof at / sizeof at[0] && whole; i++) {
-        write_all(cut, bytes, at[i]);
-        memset(&err, 0, sizeof err);
+    for (size_t at = 0; at < len; at++) {
+        write_all(cut, bytes, at);
+        fm_error err = {0};
         fm_cache_reader *r = fm_cache_open(cut, &err);
-        if (at[i] < 64) { /* no complete header: nothing to recover */
+        if (at < header) { /* no complete header: nothing to recover */
             ENSURE_MSG(r == NULL && err.status == FM_ERR_INPUT && strstr(err.message, cut) &&
                        (strstr(err.message, "truncated") || strstr(err.message, "not a flockmorph cache")),
-                       "cut at %zu: '%s'", at[i], err.message);
+                       "cut at %zu: '%s'", at, err.message);
             fm_cache_close(r);
             continue;
         }
-        ENSURE_MSG(r != NULL, "cut at %zu: %s", at[i], err.message);
+        ENSURE_MSG(r != NULL, "cut at %zu: %s", at, err.message);
         if (!r) continue;
         uint32_t complete = 0;
-        while (complete < 4 && chunk_end[complete] <= at[i]) complete++;
-        ENSURE_MSG(fm_cache_frames(r) == complete, "cut at %zu: %u frames, %u complete", at[i], fm_cache_frames(r), complete);
-        ENSURE_MSG(strstr(fm_cache_warning(r), cut) && strstr(fm_cache_warning(r), "recovered"),
-                   "cut at %zu: warning '%s'", at[i], fm_cache_warning(r));
-        for (uint32_t f = 0; f < fm_cache_frames(r); f++) {
-            ENSURE(fm_cache_read_frame(whole, f, want, &err) == FM_OK && fm_cache_read_frame(r, f, got, &err) == FM_OK);
-            ENSURE(memcmp(want, got, sizeof(float) * 12 * agents) == 0);
-        }
+        while (complete < FRAMES && ends[complete] <= at) complete++;
+        ENSURE_MSG(fm_cache_frames(r) == complete, "cut at %zu: %u frames, %u complete", at, fm_cache_frames(r), complete);
+        ENSURE_MSG(strstr(fm_cache_warning(r), cut) && strstr(fm_cache_warning(r), "recovered"), "cut at %zu: warning '%s'",
+                   at, fm_cache_warning(r));
+        for (uint32_t f = 0; f < fm_cache_frames(r); f++) frame_matches(r, f, DATA_SMOOTH, 0, "truncated");
         fm_cache_close(r);
     }
-    fm_cache_close(whole);
-    free(want), free(got), free(bytes);
+    free(bytes);
 }
 
-/* Flips one byte at `offset` within frame 1's chunk (or its compressed data) and expects frame 1
- * to fail with FM_ERR_INPUT while frames 0 and 2 still read back intact. */
-static void flip_in_frame1(const char *name, int in_data, size_t offset)
+/* Every byte of frame 1's chunk flipped in turn: reading frame 1 fails with an error naming it
+ * (a checksum mismatch for anything but the tag, frame number and payload size, which the header
+ * check catches first), and frames 0 and 2 still read back. */
+static void test_flipped_byte_fails_its_checksum(void)
 {
-    char path[FM_PATH_MAX];
-    if (write_cache(tmp_path(path, name), 30, 3, 24.0, 3, NULL) != 0) return;
+    char path[FM_PATH_MAX], bad[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_POSITION, FM_ATTR_ID};
+    if (write_attrs_cache(tmp_path(path, "flip.fmc"), 30, 3, attrs, 2, NULL, DATA_SMOOTH) != 0) return;
     size_t len;
     unsigned char *bytes = read_all(path, &len);
     if (!bytes) return;
-    size_t index = (size_t)get_u64(bytes + len - 16);
-    size_t chunk = (size_t)get_u64(bytes + index + 8 + 8);
-    size_t packed = (size_t)get_u64(bytes + chunk + 8);
-    ENSURE(memcmp(bytes + chunk, "FRAM", 4) == 0 && packed > 8);
-    size_t pos = chunk + (in_data ? 24 + (offset < packed ? offset : packed - 1) : offset);
-    bytes[pos] ^= 0x5a;
+    size_t from = chunk_start(bytes, len, 1), to = chunk_end(bytes, len, 1);
+    tmp_path(bad, "flipped.fmc");
+    int mismatches = 0;
+    for (size_t at = from; at < to; at++) {
+        bytes[at] ^= 0x10;
+        write_all(bad, bytes, len);
+        bytes[at] ^= 0x10;
+        fm_error err = {0};
+        fm_cache_reader *r = fm_cache_open(bad, &err);
+        ENSURE_MSG(r != NULL && fm_cache_warning(r)[0] == 0, "flip at %zu: %s", at, err.message);
+        if (!r) continue;
+        float got[90];
+        fm_status st = fm_cache_read_attr(r, 1, FM_ATTR_POSITION, got, &err);
+        ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "frame 1") && strstr(err.message, bad),
+                   "flip at chunk byte %zu: status %d '%s'", at - from, (int)st, err.message);
+        int in_header = at - from < 12 || (at - from >= 16 && at - from < 24);
+        if (!in_header) {
+            ENSURE_MSG(strstr(err.message, "checksum mismatch"), "flip at chunk byte %zu: '%s'", at - from, err.message);
+            mismatches++;
+        }
+        frame_matches(r, 0, DATA_SMOOTH, 0, "flip");
+        frame_matches(r, 2, DATA_SMOOTH, 0, "flip");
+        fm_cache_close(r);
+    }
+    ENSURE(mismatches > 20);
+    free(bytes);
+}
+
+/* With delta a damaged frame also spoils the frames that build on it, but not the next key frame
+ * and those after it. */
+static void test_flip_with_delta(void)
+{
+    char path[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_VELOCITY};
+    fm_cache_options opts = fm_default_cache_options();
+    opts.delta = 1, opts.key_interval = 3;
+    if (write_attrs_cache(tmp_path(path, "flip_delta.fmc"), 40, 7, attrs, 1, &opts, DATA_SMOOTH) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    if (!bytes) return;
+    bytes[chunk_end(bytes, len, 1) - 3] ^= 0x01;
     write_all(path, bytes, len);
     free(bytes);
-
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(path, &err);
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (!r) return;
-    float got[360], want[360];
-    fm_status st = fm_cache_read_frame(r, 1, got, &err);
-    ENSURE_MSG(st == FM_ERR_INPUT && err.status == FM_ERR_INPUT, "%s: status %d", name, (int)st);
-    ENSURE_MSG(strstr(err.message, "frame 1") != NULL, "'%s'", err.message);
-    for (uint32_t f = 0; f < 3; f += 2) {
-        ENSURE(fm_cache_read_frame(r, f, got, &err) == FM_OK);
-        smooth_frame(want, 360, f);
-        ENSURE(memcmp(got, want, sizeof want) == 0);
+    float got[120];
+    for (uint32_t f = 0; f < 7; f++) {
+        if (f == 1 || f == 2) {
+            ENSURE(fm_cache_read_attr(r, f, FM_ATTR_VELOCITY, got, &err) == FM_ERR_INPUT);
+            ENSURE_MSG(strstr(err.message, "chunk 1: checksum mismatch (frame 1 is corrupt)"), "frame %u: '%s'", f, err.message);
+        } else {
+            frame_matches(r, f, DATA_SMOOTH, 0, "delta flip");
+        }
     }
     fm_cache_close(r);
 }
 
-static void test_corrupt_chunk(void)
+static void test_damaged_header_and_index(void)
 {
-    flip_in_frame1("flip_magic.fmc", 1, 0);      /* zstd frame magic */
-    flip_in_frame1("flip_middle.fmc", 1, 40);    /* compressed block */
-    flip_in_frame1("flip_checksum.fmc", 1, 1000); /* last byte: the content checksum */
-    flip_in_frame1("flip_header.fmc", 0, 4);     /* the chunk's frame number */
-    flip_in_frame1("flip_rawsize.fmc", 0, 16);   /* the chunk's raw size */
+    char path[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    if (write_attrs_cache(tmp_path(path, "header.fmc"), 4, 3, attrs, 2, NULL, DATA_SMOOTH) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    if (!bytes) return;
+    for (size_t at = 16; at < bytes_u32(bytes + 12); at++) { /* past magic, version and header size */
+        bytes[at] ^= 0x08;
+        write_all(path, bytes, len);
+        bytes[at] ^= 0x08;
+        expect_open_fails(path, "header checksum mismatch");
+    }
+    /* an index entry damaged: the chunks are walked instead, with a warning */
+    size_t index = (size_t)bytes_u64(bytes + len - 16);
+    bytes[index + 8 + 16 + 3] ^= 0x01;
+    write_all(path, bytes, len);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (r) {
+        ENSURE_MSG(strstr(fm_cache_warning(r), "index is damaged") && fm_cache_frames(r) == 3, "'%s'", fm_cache_warning(r));
+        for (uint32_t f = 0; f < 3; f++) frame_matches(r, f, DATA_SMOOTH, 0, "damaged index");
+        fm_cache_close(r);
+    }
+    free(bytes);
+}
+
+/* ---------------------------------------------------------------- format 1 */
+
+/* tests/data/cache_v1.fmc was written by the format-1 writer (commit a2f5f1b): 5 agents, 3 frames
+ * at 24 fps, zstd level 3, float i of frame f = 0.001 i + f. */
+static const char V1_FIXTURE[] = FM_SOURCE_DIR "/tests/data/cache_v1.fmc";
+
+static void v1_frame(float *out, uint32_t f)
+{
+    for (int i = 0; i < 60; i++) out[i] = (float)(0.001 * (double)i + f);
+}
+
+static void test_reads_format_1(void)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(V1_FIXTURE, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    ENSURE(fm_cache_version(r) == 1 && fm_cache_agents(r) == 5 && fm_cache_frames(r) == 3);
+    ENSURE(fm_cache_frame_rate(r) == 24.0 && fm_cache_warning(r)[0] == 0);
+    ENSURE(fm_cache_attr_count(r) == 1 && fm_cache_attr_at(r, 0)->attr == FM_ATTR_TET_VERTICES);
+    ENSURE(fm_cache_has_attr(r, FM_ATTR_TET_VERTICES) && !fm_cache_has_attr(r, FM_ATTR_PHASE));
+    fm_cache_options o = fm_cache_get_options(r);
+    ENSURE(o.compression_level == 3 && o.delta == 0 && o.quantum == 0);
+    ENSURE(fm_cache_raw_bytes(r) == 3 * 5 * 48 && fm_cache_file_bytes(r) == 702);
+    float got[60], want[60];
+    for (int pass = 0; pass < 2; pass++)
+        for (uint32_t f = 0; f < 3; f++) {
+            uint32_t k = pass ? 2 - f : f;
+            ENSURE_MSG(fm_cache_read_frame(r, k, got, &err) == FM_OK, "%s", err.message);
+            v1_frame(want, k);
+            ENSURE_MSG(memcmp(got, want, sizeof want) == 0, "format 1 frame %u differs", k);
+        }
+    uint8_t phase[5];
+    ENSURE(fm_cache_read_attr(r, 0, FM_ATTR_PHASE, phase, &err) == FM_ERR_INPUT && strstr(err.message, "no phase attribute"));
+    fm_cache_close(r);
+}
+
+/* A format-1 file cut short is recovered; a flipped byte in its data fails zstd's checksum. */
+static void test_format_1_damaged(void)
+{
+    char path[FM_PATH_MAX];
+    size_t len;
+    unsigned char *bytes = read_all(V1_FIXTURE, &len);
+    ENSURE(bytes && len == 702);
+    if (!bytes) return;
+    size_t index = (size_t)bytes_u64(bytes + len - 16), chunk2 = (size_t)bytes_u64(bytes + index + 8 + 16);
+    write_all(tmp_path(path, "v1_cut.fmc"), bytes, chunk2 + 5);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && fm_cache_frames(r) == 2 && strstr(fm_cache_warning(r), "recovered"), "%s", r ? fm_cache_warning(r) : err.message);
+    float got[60], want[60];
+    ENSURE(r && fm_cache_read_frame(r, 1, got, &err) == FM_OK);
+    v1_frame(want, 1);
+    ENSURE(memcmp(got, want, sizeof want) == 0);
+    fm_cache_close(r);
+    size_t chunk1 = (size_t)bytes_u64(bytes + index + 8 + 8);
+    bytes[chunk1 + 24 + 12] ^= 0x20;
+    write_all(path, bytes, len);
+    r = fm_cache_open(path, &err);
+    ENSURE(r && fm_cache_read_frame(r, 1, got, &err) == FM_ERR_INPUT && strstr(err.message, "frame 1"));
+    ENSURE(r && fm_cache_read_frame(r, 2, got, &err) == FM_OK);
+    fm_cache_close(r);
+    free(bytes);
 }
 
 static void test_not_a_cache(void)
@@ -405,8 +467,12 @@ int main(void)
     RUN_TEST(test_partial_until_finish);
     RUN_TEST(test_abort_removes_everything);
     RUN_TEST(test_create_in_missing_directory);
-    RUN_TEST(test_truncated);
-    RUN_TEST(test_corrupt_chunk);
+    RUN_TEST(test_truncated_at_every_byte);
+    RUN_TEST(test_flipped_byte_fails_its_checksum);
+    RUN_TEST(test_flip_with_delta);
+    RUN_TEST(test_damaged_header_and_index);
+    RUN_TEST(test_reads_format_1);
+    RUN_TEST(test_format_1_damaged);
     RUN_TEST(test_not_a_cache);
     RUN_TEST(test_bad_version);
     return test_result();

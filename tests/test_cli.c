@@ -5,6 +5,7 @@
 #include "test_macros.h"
 
 #include <jansson.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -312,6 +313,171 @@ static void test_info(void)
     ENSURE_MSG(strstr(g_out, want) != NULL, "'%s' not in %s", want, g_out);
 }
 
+/* ---------------------------------------------------------------- inspect */
+
+/* Runs `inspect --json` on path and parses its output; NULL (and a failed check) otherwise. */
+static json_t *inspect_json(const char *path, int expect_exit)
+{
+    char args[FM_PATH_MAX + 64];
+    snprintf(args, sizeof args, "inspect '%s' --json", path);
+    ENSURE_EXIT(args, expect_exit);
+    json_error_t jerr;
+    json_t *j = json_loads(g_out, 0, &jerr);
+    ENSURE_MSG(j != NULL, "inspect output is not JSON (%s): %s", jerr.text, g_out);
+    return j;
+}
+
+static double jnum(json_t *j, const char *key) { return json_number_value(json_object_get(j, key)); }
+
+/* Bounds of the tet vertices over all frames, read through the C API. */
+static void cache_bounds(fm_cache_reader *r, double lo[3], double hi[3])
+{
+    size_t n = 12 * (size_t)fm_cache_agents(r);
+    float *v = malloc(sizeof(float) * n);
+    fm_error err = {0};
+    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (uint32_t f = 0; f < fm_cache_frames(r); f++) {
+        ENSURE(fm_cache_read_frame(r, f, v, &err) == FM_OK);
+        for (size_t i = 0; i < n; i++) lo[i % 3] = fmin(lo[i % 3], v[i]), hi[i % 3] = fmax(hi[i % 3], v[i]);
+    }
+    free(v);
+}
+
+/* Every value inspect reports, checked against the cache read through the C API. */
+static void test_inspect_json(void)
+{
+    ENSURE(g_cache[0]);
+    if (!g_cache[0]) return;
+    json_t *j = inspect_json(g_cache, 0);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(g_cache, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!j || !r) return json_decref(j), fm_cache_close(r);
+    uint32_t frames = fm_cache_frames(r);
+    ENSURE(jnum(j, "format_version") == 2 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "frame_rate") == 24 && fabs(jnum(j, "duration_seconds") - (frames - 1) / 24.0) < 1e-9);
+    json_t *attrs = json_object_get(j, "attributes");
+    ENSURE(json_array_size(attrs) == 2);
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 0), "name")), "tet_vertices"));
+    ENSURE(jnum(json_array_get(attrs, 0), "components") == 12);
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "phase"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u8"));
+    json_t *o = json_object_get(j, "options");
+    ENSURE(jnum(o, "compression_level") == 1 && json_is_false(json_object_get(o, "delta")) && jnum(o, "quantum") == 0);
+    struct stat st;
+    ENSURE(stat(g_cache, &st) == 0 && jnum(j, "file_bytes") == (double)st.st_size);
+    ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));
+    ENSURE(jnum(j, "compressed_bytes") == fm_cache_compressed_bytes(r));
+    ENSURE(fabs(jnum(j, "compression_ratio") - jnum(j, "raw_bytes") / jnum(j, "compressed_bytes")) < 1e-6);
+    uint64_t lo = UINT64_MAX, hi = 0, sum = 0;
+    for (uint32_t f = 0; f < frames; f++) {
+        uint64_t b = fm_cache_frame_bytes(r, f);
+        lo = b < lo ? b : lo, hi = b > hi ? b : hi, sum += b;
+    }
+    json_t *fb = json_object_get(j, "frame_bytes");
+    ENSURE(jnum(fb, "min") == lo && jnum(fb, "max") == hi && fabs(jnum(fb, "mean") - (double)sum / frames) < 1e-6);
+    ENSURE(sum + 64 + 2 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
+    double blo[3], bhi[3];
+    cache_bounds(r, blo, bhi);
+    json_t *b = json_object_get(json_object_get(j, "bounds"), "tet_vertices");
+    for (int k = 0; k < 3; k++) {
+        ENSURE_NEAR(json_number_value(json_array_get(json_object_get(b, "min"), k)), blo[k], 1e-6 * (1 + fabs(blo[k])));
+        ENSURE_NEAR(json_number_value(json_array_get(json_object_get(b, "max"), k)), bhi[k], 1e-6 * (1 + fabs(bhi[k])));
+    }
+    ENSURE(bhi[0] - blo[0] > 20); /* the flock crossed from -10 to +10 */
+    ENSURE(json_is_true(json_object_get(j, "complete")) && json_is_null(json_object_get(j, "warning")));
+    fm_cache_close(r);
+    json_decref(j);
+}
+
+/* The text form says the same; a cache cut short is reported as recovered, with the warning. */
+static void test_inspect_text_and_recovered(void)
+{
+    char args[3 * FM_PATH_MAX], cut[FM_PATH_MAX], buf[1 << 16];
+    ENSURE(g_cache[0]);
+    if (!g_cache[0]) return;
+    snprintf(args, sizeof args, "inspect '%s'", g_cache);
+    ENSURE_EXIT(args, 0);
+    snprintf(buf, sizeof buf, "frames        %lld\n", g_frames);
+    ENSURE_MSG(strstr(g_out, "format        2\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
+               strstr(g_out, "attributes    tet_vertices (12 x f32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
+               strstr(g_out, "bounds        tet_vertices: ["), "%s", g_out);
+    FILE *in = fopen(g_cache, "rb"), *out = fopen(tmp_path(cut, "cut.fmc"), "wb");
+    ENSURE(in && out);
+    if (!in || !out) return;
+    size_t n = fread(buf, 1, 3000, in); /* the header and the first chunks */
+    fwrite(buf, 1, n, out);
+    fclose(in), fclose(out);
+    json_t *j = inspect_json(cut, 0);
+    ENSURE_MSG(strstr(g_err, "warning: ") && strstr(g_err, "recovered"), "%s", g_err);
+    ENSURE(j && json_is_false(json_object_get(j, "complete")) && strstr(json_string_value(json_object_get(j, "warning")), "recovered"));
+    ENSURE(j && jnum(j, "frames") >= 1 && jnum(j, "frames") < g_frames && jnum(j, "file_bytes") == 3000);
+    json_decref(j);
+    snprintf(args, sizeof args, "inspect '%s'", cut);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(strstr(g_out, "status        recovered"), "%s", g_out);
+}
+
+static void test_inspect_errors(void)
+{
+    char args[3 * FM_PATH_MAX], path[FM_PATH_MAX];
+    ENSURE_EXIT("inspect", 1);
+    ENSURE_EXIT("inspect --yaml x.fmc", 1);
+    snprintf(args, sizeof args, "inspect '%s'", tmp_path(path, "no_such.fmc"));
+    ENSURE_EXIT(args, 2);
+    write_text(tmp_path(path, "not_a_cache.fmc"), "{\"agents\": 1}\n");
+    snprintf(args, sizeof args, "inspect '%s' --json", path);
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "not a flockmorph cache"), "%s", g_err);
+}
+
+/* The phase attribute the run writes: everyone waits in frame 0, everyone has arrived in the last. */
+static void test_run_writes_phases(void)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = g_cache[0] ? fm_cache_open(g_cache, &err) : NULL;
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    uint8_t first[AGENTS], last[AGENTS], mid[AGENTS];
+    ENSURE(fm_cache_read_attr(r, 0, FM_ATTR_PHASE, first, &err) == FM_OK);
+    ENSURE(fm_cache_read_attr(r, fm_cache_frames(r) - 1, FM_ATTR_PHASE, last, &err) == FM_OK);
+    ENSURE(fm_cache_read_attr(r, fm_cache_frames(r) / 2, FM_ATTR_PHASE, mid, &err) == FM_OK);
+    int flying = 0;
+    for (int a = 0; a < AGENTS; a++) {
+        ENSURE(first[a] == FM_PHASE_WAITING && last[a] == FM_PHASE_ARRIVED && mid[a] <= FM_PHASE_ARRIVED);
+        flying += mid[a] == FM_PHASE_FLYING || mid[a] == FM_PHASE_HOMING;
+    }
+    ENSURE(flying > 0);
+    fm_cache_close(r);
+}
+
+/* output.delta / key_interval / quantum reach the cache: inspect shows them, and the frames are
+ * the lossless run's within quantum / 2 (same scene and seed, so the same simulation). */
+static void test_run_cache_options(void)
+{
+    char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], args[3 * FM_PATH_MAX], cache[FM_PATH_MAX + 16];
+    ENSURE(g_cache[0]);
+    if (!g_cache[0]) return;
+    write_scene(tmp_path(scene, "options.json"), ",\n  \"output\": {\"delta\": true, \"key_interval\": 5, \"quantum\": 0.0001}");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene, tmp_path(outdir, "options_out"));
+    ENSURE_EXIT(args, 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
+    json_t *j = inspect_json(cache, 0), *o = json_object_get(j, "options");
+    ENSURE(json_is_true(json_object_get(o, "delta")) && jnum(o, "key_interval") == 5 && jnum(o, "quantum") == 0.0001);
+    json_decref(j);
+    fm_error err = {0};
+    fm_cache_reader *a = fm_cache_open(g_cache, &err), *b = fm_cache_open(cache, &err);
+    ENSURE(a && b && fm_cache_frames(a) == fm_cache_frames(b));
+    float va[12 * AGENTS], vb[12 * AGENTS];
+    double worst = 0;
+    for (uint32_t f = 0; a && b && f < fm_cache_frames(a); f++) {
+        ENSURE(fm_cache_read_frame(a, f, va, &err) == FM_OK && fm_cache_read_frame(b, f, vb, &err) == FM_OK);
+        for (int i = 0; i < 12 * AGENTS; i++) worst = fmax(worst, fabs((double)va[i] - vb[i]));
+    }
+    ENSURE_MSG(worst <= 0.00005 + 1e-6 && worst > 0.00002, "largest difference %g for quantum 1e-4", worst);
+    fm_cache_close(a), fm_cache_close(b);
+}
+
 int main(void)
 {
     RUN_TEST(test_help);
@@ -324,5 +490,10 @@ int main(void)
     RUN_TEST(test_export_errors);
     RUN_TEST(test_render);
     RUN_TEST(test_info);
+    RUN_TEST(test_inspect_json);
+    RUN_TEST(test_inspect_text_and_recovered);
+    RUN_TEST(test_inspect_errors);
+    RUN_TEST(test_run_writes_phases);
+    RUN_TEST(test_run_cache_options);
     return test_result();
 }

@@ -96,7 +96,8 @@ static void test_valid_scene_fields(void)
         "  \"launch_rate\": 100,\n"
         "  \"morph\": {\"shrink\": 0.25, \"shrink_time\": 0.5, \"morph_fraction\": 0.6},\n"
         "  \"seed\": 9007199254740993,\n"
-        "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19}\n"
+        "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19, \"delta\": true, \"key_interval\": 7,\n"
+        "             \"quantum\": 0.001}\n"
         "}\n";
     char path[FM_PATH_MAX], expect[FM_PATH_MAX + 16];
     fm_scene_def d;
@@ -121,6 +122,7 @@ static void test_valid_scene_fields(void)
     ENSURE(d.shrink == 0.25 && d.shrink_time == 0.5 && d.morph_fraction == 0.6);
     ENSURE(d.seed == 9007199254740993ull);
     ENSURE(strcmp(d.cache_name, "run.fmc") == 0 && d.compression_level == 19);
+    ENSURE(d.cache_delta == 1 && d.cache_key_interval == 7 && d.cache_quantum == 0.001);
 }
 
 static void test_defaults_for_left_out_keys(void)
@@ -140,6 +142,7 @@ static void test_defaults_for_left_out_keys(void)
     ENSURE(strcmp(d.cache_name, e.cache_name) == 0);
     /* the documented defaults themselves */
     ENSURE(e.speed0 == 10.0 && e.frame_rate == 24.0 && e.compression_level == 1 && e.shrink == 0.5);
+    ENSURE(d.cache_delta == 0 && d.cache_key_interval == 16 && d.cache_quantum == 0);
 }
 
 static void test_boundary_values_accepted(void)
@@ -260,6 +263,8 @@ static void test_out_of_range(void)
     expect_error_at("range_shrink.json", "{" MESHES ",\n  \"morph\": {\"shrink\": @-0.5}}", "morph.shrink");
     expect_error_at("range_level.json", "{" MESHES ",\n  \"output\": {\"compression_level\": @25}}",
                     "output.compression_level");
+    expect_error_at("range_key.json", "{" MESHES ",\n  \"output\": {\"key_interval\": @0}}", "output.key_interval");
+    expect_error_at("range_quantum.json", "{" MESHES ",\n  \"output\": {\"quantum\": @-1}}", "output.quantum");
     expect_error_at("range_fraction.json", "{" MESHES ",\n  \"morph\": {\"morph_fraction\": @1.5}}",
                     "morph.morph_fraction");
     /* docs/scene.md: strictly between 0 and 1 */

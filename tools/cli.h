@@ -11,7 +11,8 @@
 int cli_run(int argc, char **argv);
 int cli_export(int argc, char **argv);
 int cli_render(int argc, char **argv);
-int cli_info(int argc, char **argv);
+int cli_inspect(int argc, char **argv);
+int cli_info(int argc, char **argv); /* inspect --json */
 
 double cli_seconds(void);
 /* Prints "flockmorph: <fmt with arg>" and the usage; returns FM_ERR_USAGE. */

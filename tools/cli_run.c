@@ -170,7 +170,11 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     char cache_path[FM_PATH_MAX + 300], stats_path[FM_PATH_MAX + 16];
     snprintf(cache_path, sizeof cache_path, "%s/%s", o->outdir, def->cache_name);
     snprintf(stats_path, sizeof stats_path, "%s/stats.json", o->outdir);
-    fm_cache_writer *cache = fm_cache_writer_create(cache_path, (uint64_t)mi.agents, def->frame_rate, def->compression_level, &err);
+    fm_cache_options copts = fm_default_cache_options();
+    copts.compression_level = def->compression_level;
+    copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    fm_cache_writer *cache = fm_cache_writer_create_attrs(cache_path, (uint64_t)mi.agents, def->frame_rate, attrs, 2, &copts, &err);
     if (!cache) return fm_state_destroy(state), cli_report(&err);
     run_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_stats rs;

@@ -3,7 +3,8 @@
  *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet]
  *   flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR   (or -o FILE [--frame K])
  *   flockmorph render CACHE -o FILE.png [--frame K] [--size WxH] [--view front|top|side]
- *   flockmorph info CACHE
+ *   flockmorph inspect CACHE [--json]
+ *   flockmorph info CACHE              (inspect --json)
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
 #include "cli.h"
@@ -20,7 +21,8 @@ static const char *USAGE_MAIN =
     "  run      simulate a scene file and write the frame cache and stats.json\n"
     "  export   write frames of a cache as PLY, OBJ, VTK or OpenVDB points\n"
     "  render   render one frame of a cache to a PNG preview\n"
-    "  info     print a cache's agent and frame counts\n"
+    "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
+    "  info     the same as 'inspect --json'\n"
     "\n"
     "'flockmorph <command> --help' describes each command. docs/ has the scene file reference.\n";
 
@@ -33,6 +35,7 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "run")) return cli_run(argc - 2, argv + 2);
     if (!strcmp(cmd, "export")) return cli_export(argc - 2, argv + 2);
     if (!strcmp(cmd, "render")) return cli_render(argc - 2, argv + 2);
+    if (!strcmp(cmd, "inspect")) return cli_inspect(argc - 2, argv + 2);
     if (!strcmp(cmd, "info")) return cli_info(argc - 2, argv + 2);
     fprintf(stderr, "flockmorph: unknown command '%s'\n\n%s", cmd, USAGE_MAIN);
     return FM_ERR_USAGE;

@@ -15,6 +15,7 @@ packages=(
   libassimp-dev
   libjansson-dev
   libzstd-dev
+  zlib1g-dev
   libpng-dev
   libembree-dev
   libopenvdb-dev
@@ -22,6 +23,8 @@ packages=(
   libblosc-dev
   libboost-iostreams-dev
   python3
+  python3-numpy
+  python3-zstandard
 )
 missing=()
 for p in "${packages[@]}"; do

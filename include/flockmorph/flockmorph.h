@@ -130,6 +130,9 @@ typedef struct fm_scene_def {
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
+    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless) */
+    int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
+    double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
 } fm_scene_def;
 
@@ -212,6 +215,9 @@ void fm_state_tet_vertices(const fm_model *model, const fm_state *state, float *
 /* Target tet index each agent holds (-1 while it has none), agents in id order. */
 void fm_state_targets(const fm_state *state, int64_t *out);
 
+/* Each agent's fm_phase (one byte per agent), agents in id order. */
+void fm_state_phases(const fm_state *state, uint8_t *out);
+
 /* ---------------------------------------------------------------- cache */
 
 /* The native frame cache (docs/cache-format.md): one zstd-compressed chunk per frame, an index
@@ -268,12 +274,14 @@ typedef struct fm_cache_attr_info {
 const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr);
 
 typedef struct fm_cache_options {
-    int compression_level;   /* zstd 1..19 */
-    int delta;               /* 1: f32 attributes stored as the XOR of their bits with the previous
+    int compression_level;   /* zstd 1..19 (default 1) */
+    int delta;               /* 1: every attribute stored as the XOR of its bits with the previous
                                 frame's (lossless); every key_interval-th frame is stored whole */
-    int key_interval;        /* frames between whole frames when delta is on (default 16) */
-    double quantum;          /* > 0: f32 attributes rounded to multiples of quantum (lossy, error
-                                <= quantum / 2, documented); 0: lossless (the default) */
+    int key_interval;        /* frames from one whole frame to the next when delta is on (default 16):
+                                random access decodes at most this many chunks */
+    double quantum;          /* > 0: f32 attributes rounded to multiples of quantum and stored as
+                                int32 multiples (lossy, error <= quantum / 2 before the read value's
+                                own float rounding); 0: lossless (the default) */
 } fm_cache_options;
 
 fm_cache_options fm_default_cache_options(void);
@@ -287,6 +295,9 @@ fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const 
  * after them, and continues writing (checkpoint / resume). Fails if fewer frames are readable. */
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
+/* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
+ * checkpoint taken after it can rely on those frames being on disk. */
+fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);
 
 int fm_cache_attr_count(const fm_cache_reader *r);
 const fm_cache_attr_info *fm_cache_attr_at(const fm_cache_reader *r, int i);
@@ -298,6 +309,10 @@ fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr a
 uint64_t fm_cache_file_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
+uint64_t fm_cache_frame_bytes(const fm_cache_reader *r, uint32_t frame); /* one chunk; 0 past the end */
+uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1 or 2 */
+/* The options the cache was written with (format 1: level only, the rest default). */
+fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */
 

@@ -1,0 +1,415 @@
+"""Reads flockmorph frame caches (.fmc, formats 1 and 2; docs/cache-format.md) into numpy arrays.
+
+    import flockmorph_cache
+    with flockmorph_cache.open("out/frames.fmc") as cache:
+        print(cache.agents, cache.frames, cache.frame_rate, cache.attributes)
+        tets = cache.read(cache.frames - 1, "tet_vertices")   # float32, shape (agents, 4, 3)
+        phase = cache.read(0, "phase")                        # uint8, shape (agents, 1)
+        lo, hi = cache.bounds()                               # over all frames
+
+Frames are read by random access through the cache's index; every chunk's crc32 is checked
+before it is decoded (format 1: zstd's own checksum). With delta encoding a frame is rebuilt from
+the key frame before it, and the last decoded frame is kept, so reading frames in order decodes
+one chunk each. A cache without a valid index (a run that was killed) is opened up to its last
+complete frame, with a warnings.warn. A file that is not a valid cache raises ValueError naming
+the file; a frame that does not exist raises IndexError, an attribute the cache lacks KeyError.
+
+Needs numpy and a zstd decoder: the zstandard module (Debian python3-zstandard) or, without it,
+libzstd.so.1 through ctypes.
+"""
+import builtins
+import struct
+import warnings
+import zlib
+
+import numpy as np
+
+try:
+    import zstandard as _zstandard
+except ImportError:  # pragma: no cover - exercised only where python3-zstandard is missing
+    _zstandard = None
+
+__all__ = ["open", "Cache", "ATTRIBUTES"]
+
+MAGIC = b"FMCACHE1"
+END_MAGIC = b"FMCEND\0\0"
+HEADER = 64
+ATTR_RECORD = 16
+CHUNK_HEADER = 24
+FOOTER = 16
+MAX_ATTRS = 6
+MAX_KEY_INTERVAL = 1 << 16
+SHUFFLE4, DELTA, QUANTISE = 1, 2, 4
+KEY_FRAME = 1
+
+F32, U32, U8 = 1, 2, 3
+_DTYPES = {F32: np.dtype("<f4"), U32: np.dtype("<u4"), U8: np.dtype("u1")}
+
+# kind: (name, components, scalar type), as fm_cache_attr in include/flockmorph/flockmorph.h
+ATTRIBUTES = {
+    1: ("tet_vertices", 12, F32),
+    2: ("position", 3, F32),
+    3: ("velocity", 3, F32),
+    4: ("orientation", 4, F32),
+    5: ("id", 1, U32),
+    6: ("phase", 1, U8),
+}
+
+
+def _zstd_bound(n):
+    """ZSTD_compressBound."""
+    return n + (n >> 8) + ((((128 << 10) - n) >> 11) if n < (128 << 10) else 0)
+
+
+class _Decompressor:
+    """zstd through the zstandard module, or through libzstd with ctypes."""
+
+    def __init__(self):
+        if _zstandard is not None:
+            self._d = _zstandard.ZstdDecompressor()
+            return
+        import ctypes
+        import ctypes.util
+        self._lib = ctypes.CDLL(ctypes.util.find_library("zstd") or "libzstd.so.1")
+        self._lib.ZSTD_decompress.restype = ctypes.c_size_t
+        self._lib.ZSTD_decompress.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p, ctypes.c_size_t]
+        self._lib.ZSTD_isError.argtypes = [ctypes.c_size_t]
+        self._lib.ZSTD_getErrorName.restype = ctypes.c_char_p
+        self._lib.ZSTD_getErrorName.argtypes = [ctypes.c_size_t]
+        self._ctypes = ctypes
+        self._d = None
+
+    def __call__(self, data, size):
+        """Decompresses one zstd frame of exactly `size` bytes; raises ValueError otherwise."""
+        if self._d is not None:
+            try:
+                out = self._d.decompress(data, max_output_size=size)
+            except _zstandard.ZstdError as e:
+                raise ValueError(str(e)) from None
+        else:
+            c = self._ctypes
+            buf = c.create_string_buffer(max(size, 1))
+            src = c.create_string_buffer(bytes(data), len(data))
+            got = self._lib.ZSTD_decompress(buf, size, src, len(data))
+            if self._lib.ZSTD_isError(got):
+                raise ValueError(self._lib.ZSTD_getErrorName(got).decode())
+            out = buf.raw[:got]
+        if len(out) != size:
+            raise ValueError("wrong size")
+        return out
+
+
+def _expected_filters(scalar, delta, quantum):
+    f = SHUFFLE4 if scalar != U8 else 0
+    if delta:
+        f |= DELTA
+    if scalar == F32 and quantum > 0:
+        f |= QUANTISE
+    return f
+
+
+class _Attr:
+    def __init__(self, kind, filters, agents):
+        self.kind = kind
+        self.name, self.components, self.scalar = ATTRIBUTES[kind]
+        self.filters = filters
+        self.dtype = _DTYPES[self.scalar]
+        self.nbytes = agents * self.components * self.dtype.itemsize
+
+
+class Cache:
+    """An open cache. Attributes: path, version, agents, frames, frame_rate, attributes (names),
+    options (dict: compression_level, delta, key_interval, quantum), complete, warning (str or
+    None), file_bytes, raw_bytes, compressed_bytes."""
+
+    def __init__(self, path):
+        self.path = str(path)
+        try:
+            self._f = builtins.open(self.path, "rb")
+        except FileNotFoundError:
+            raise ValueError(f"{self.path}: cannot open: no such file") from None
+        except OSError as e:
+            raise ValueError(f"{self.path}: cannot open: {e.strerror}") from None
+        try:
+            self._f.seek(0, 2)
+            self.file_bytes = self._f.tell()
+            self._read_header()
+            self._read_index()
+        except BaseException:
+            self._f.close()
+            raise
+        self._zstd = _Decompressor()
+        self._chunk_frame, self._chunk = -1, None
+        self._words = {}  # attribute index -> (frame, stored words of that frame)
+
+    # ------------------------------------------------------------ public
+
+    def read(self, frame, name):
+        """Attribute `name` of frame `frame` (negative counts from the end) as a new numpy array of
+        shape (agents, components), or (agents, 4, 3) for tet_vertices."""
+        frame = self._frame_number(frame)
+        if name not in self.attributes:
+            raise KeyError(f"{self.path}: the cache has no {name!r} attribute (it has {', '.join(self.attributes)})")
+        i = self.attributes.index(name)
+        a = self._attrs[i]
+        words = self._stored(frame, i)
+        if a.filters & SHUFFLE4:
+            words = words.reshape(4, -1).T
+        values = np.ascontiguousarray(words).reshape(-1)
+        if a.filters & QUANTISE:
+            out = (values.view("<i4").astype(np.float64) * self.options["quantum"]).astype(np.float32)
+        else:
+            out = values.view(a.dtype).copy()
+        return out.reshape(self.agents, 4, 3) if name == "tet_vertices" else out.reshape(self.agents, a.components)
+
+    def bounds(self, name=None):
+        """(min, max), each float32 of shape (3,), of tet_vertices (or position) over all frames;
+        None if the cache has no frames or no agents."""
+        if name is None:
+            name = next((n for n in ("tet_vertices", "position") if n in self.attributes), None)
+            if name is None:
+                raise KeyError(f"{self.path}: the cache has neither tet_vertices nor position")
+        lo = hi = None
+        for k in range(self.frames):
+            xyz = self.read(k, name).reshape(-1, 3)
+            if xyz.size == 0:
+                return None
+            flo, fhi = np.nanmin(xyz, axis=0), np.nanmax(xyz, axis=0)
+            lo = flo if lo is None else np.minimum(lo, flo)
+            hi = fhi if hi is None else np.maximum(hi, fhi)
+        return None if lo is None else (lo, hi)
+
+    def frame_bytes(self, frame):
+        """Bytes of the frame's chunk in the file."""
+        return self._sizes[self._frame_number(frame)]
+
+    def close(self):
+        self._f.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __repr__(self):
+        return (f"<flockmorph_cache.Cache {self.path!r}: format {self.version}, {self.agents} agents, "
+                f"{self.frames} frames at {self.frame_rate:g} fps, {', '.join(self.attributes)}>")
+
+    # ------------------------------------------------------------ header
+
+    def _fail(self, what):
+        raise ValueError(f"{self.path}: {what}")
+
+    def _read_at(self, pos, n):
+        self._f.seek(pos)
+        data = self._f.read(n)
+        if len(data) != n:
+            self._fail(f"truncated or unreadable at byte {pos}")
+        return data
+
+    def _read_header(self):
+        self._f.seek(0)
+        h = self._f.read(HEADER)
+        if h[:8] != MAGIC[:len(h[:8])]:
+            self._fail("not a flockmorph cache (bad magic)")
+        if len(h) < HEADER:
+            self._fail(f"truncated: {len(h)} bytes, shorter than the cache header")
+        self.version = struct.unpack_from("<I", h, 8)[0]
+        if self.version == 1:
+            self._read_header_v1(h)
+        elif self.version == 2:
+            self._read_header_v2(h)
+        else:
+            self._fail(f"cache version {self.version} is not supported (this reader reads 1 and 2)")
+        if self.agents > 1 << 40:
+            self._fail("implausible agent count")
+        self.attributes = [a.name for a in self._attrs]
+
+    def _read_header_v1(self, h):
+        _, _, _, agents, floats, filt, codec, level, rate = struct.unpack_from("<8sIIQIIIId", h)
+        if (floats, filt, codec) != (12, 1, 1):
+            self._fail("unsupported attribute layout, filter or codec")
+        self.agents, self.frame_rate, self._header_bytes = agents, rate, HEADER
+        self.options = {"compression_level": level, "delta": False, "key_interval": 16, "quantum": 0.0}
+        self._attrs = [_Attr(1, SHUFFLE4, agents)]
+
+    def _read_header_v2(self, fixed):
+        size = struct.unpack_from("<I", fixed, 12)[0]
+        if size < HEADER + ATTR_RECORD or size > HEADER + ATTR_RECORD * MAX_ATTRS or (size - HEADER) % ATTR_RECORD:
+            self._fail(f"bad header size {size}")
+        h = fixed + self._read_at(HEADER, size - HEADER)
+        (_, _, _, agents, count, flags, codec, level, rate, key, crc, quantum) = struct.unpack_from("<8sIIQIIIidIId", h)
+        if zlib.crc32(h[56:], zlib.crc32(b"\0\0\0\0", zlib.crc32(h[:52]))) != crc:
+            self._fail("header checksum mismatch")
+        if codec != 1 or flags & ~1:
+            self._fail("unsupported codec or flags")
+        if not 1 <= level <= 19 or not 1 <= key <= MAX_KEY_INTERVAL or not (quantum >= 0 and np.isfinite(quantum)):
+            self._fail("bad options in the header")
+        if not 1 <= count <= MAX_ATTRS or size != HEADER + ATTR_RECORD * count:
+            self._fail(f"bad attribute count {count} for a {size}-byte header")
+        delta = bool(flags & 1)
+        self.agents, self.frame_rate, self._header_bytes = agents, rate, size
+        self.options = {"compression_level": level, "delta": delta, "key_interval": key, "quantum": quantum}
+        self._attrs = []
+        for i in range(count):
+            kind, scalar, components, filters = struct.unpack_from("<IIII", h, HEADER + ATTR_RECORD * i)
+            if kind not in ATTRIBUTES:
+                self._fail(f"attribute {i} has unknown kind {kind}")
+            name, want_components, want_scalar = ATTRIBUTES[kind]
+            if any(a.kind == kind for a in self._attrs):
+                self._fail(f"attribute '{name}' appears twice")
+            if (scalar, components) != (want_scalar, want_components):
+                self._fail(f"attribute '{name}' has the wrong type or component count")
+            if filters != _expected_filters(scalar, delta, quantum):
+                self._fail(f"attribute '{name}' has unsupported filters {filters}")
+            self._attrs.append(_Attr(kind, filters, agents))
+
+    # ------------------------------------------------------------ index and recovery
+
+    def _index_bytes(self, frames):
+        return 8 + 8 * frames if self.version == 1 else 16 + 16 * frames
+
+    def _read_index(self):
+        self.warning = None
+        size = self.file_bytes
+        footer = None
+        if size >= self._header_bytes + self._index_bytes(0) + FOOTER:
+            footer = self._read_at(size - FOOTER, FOOTER)
+        if footer is None or footer[8:] != END_MAGIC:
+            return self._scan("incomplete cache (no index: the run did not finish or the file was cut short)")
+        index_pos = struct.unpack_from("<Q", footer)[0]
+        if not self._header_bytes <= index_pos <= size - FOOTER - 8:
+            return self._scan("the frame index is damaged")
+        tag, frames = struct.unpack("<4sI", self._read_at(index_pos, 8))
+        if tag != b"FIDX" or self._index_bytes(frames) != size - FOOTER - index_pos:
+            return self._scan("the frame index is damaged")
+        raw = self._read_at(index_pos, self._index_bytes(frames))
+        if self.version == 1:
+            self._offsets = list(struct.unpack_from(f"<{frames}Q", raw, 8))
+            ends = self._offsets[1:] + [index_pos]
+            self._sizes = [e - o for o, e in zip(self._offsets, ends)]
+        else:
+            if zlib.crc32(raw[:-8]) != struct.unpack_from("<I", raw, len(raw) - 8)[0]:
+                return self._scan("the frame index is damaged")
+            pairs = struct.unpack_from(f"<{2 * frames}Q", raw, 8)
+            self._offsets, self._sizes = list(pairs[0::2]), list(pairs[1::2])
+            if any(o < self._header_bytes or o + s > index_pos for o, s in zip(self._offsets, self._sizes)):
+                return self._scan("the frame index is damaged")
+        self.frames = frames
+        self.complete = True
+        self._summarise()
+
+    def _chunk_bytes(self, h, k):
+        """The chunk's bytes if h (its header, and the size table in format 2) is frame k's, else None."""
+        tag, frame = struct.unpack_from("<4sI", h)
+        if tag != b"FRAM" or frame != k:
+            return None
+        if self.version == 1:
+            packed, raw = struct.unpack_from("<QQ", h, 8)
+            ok = packed <= _zstd_bound(self._attrs[0].nbytes) and raw == self._attrs[0].nbytes
+            return CHUNK_HEADER + packed if ok else None
+        flags, _, payload = struct.unpack_from("<IIQ", h, 8)
+        if flags != (KEY_FRAME if self._is_key(k) else 0) or not self._block_sizes_ok(h[CHUNK_HEADER:], payload):
+            return None
+        return CHUNK_HEADER + payload
+
+    def _block_sizes_ok(self, table, payload):
+        sizes = struct.unpack_from(f"<{len(self._attrs)}Q", table)
+        return (all(c <= _zstd_bound(a.nbytes) for c, a in zip(sizes, self._attrs))
+                and 8 * len(self._attrs) + sum(sizes) == payload)
+
+    def _scan(self, why):
+        """Walks the chunks from the header; every complete one is a readable frame."""
+        head = CHUNK_HEADER + (0 if self.version == 1 else 8 * len(self._attrs))
+        pos, self._offsets, self._sizes = self._header_bytes, [], []
+        while pos + head <= self.file_bytes:
+            self._f.seek(pos)
+            n = self._chunk_bytes(self._f.read(head), len(self._offsets))
+            if n is None or pos + n > self.file_bytes:
+                break
+            self._offsets.append(pos)
+            self._sizes.append(n)
+            pos += n
+        self.frames = len(self._offsets)
+        self.complete = False
+        self.warning = f"{self.path}: {why}; recovered the {self.frames} complete frames before byte {pos}"
+        warnings.warn(self.warning, stacklevel=5)  # the caller of open()
+        self._summarise()
+
+    def _summarise(self):
+        self.compressed_bytes = sum(self._sizes)
+        self.raw_bytes = self.frames * sum(a.nbytes for a in self._attrs)
+
+    # ------------------------------------------------------------ chunks and frames
+
+    def _is_key(self, k):
+        return not self.options["delta"] or k % self.options["key_interval"] == 0
+
+    def _frame_number(self, frame):
+        k = int(frame)
+        if k < 0:
+            k += self.frames
+        if not 0 <= k < self.frames:
+            raise IndexError(f"{self.path}: frame {frame} does not exist (the cache has {self.frames} frames)")
+        return k
+
+    def _load_chunk(self, k):
+        """Chunk k's bytes, its header and crc32 checked."""
+        if self._chunk_frame == k:
+            return self._chunk
+        self._chunk_frame = -1
+        n = self._sizes[k]
+        if n < CHUNK_HEADER or n > CHUNK_HEADER + 8 * len(self._attrs) + sum(_zstd_bound(a.nbytes) for a in self._attrs):
+            self._fail(f"frame {k}: damaged chunk header")
+        chunk = self._read_at(self._offsets[k], n)
+        stated = self._chunk_bytes(chunk[:CHUNK_HEADER + (0 if self.version == 1 else 8 * len(self._attrs))], k)
+        if self.version != 1 and stated == n:
+            if zlib.crc32(chunk[16:], zlib.crc32(chunk[:12])) != struct.unpack_from("<I", chunk, 12)[0]:
+                self._fail(f"chunk {k}: checksum mismatch (frame {k} is corrupt)")
+        if stated != n:
+            self._fail(f"frame {k}: damaged chunk header")
+        self._chunk_frame, self._chunk = k, chunk
+        return chunk
+
+    def _block(self, k, i):
+        """Attribute i of chunk k, decompressed (stored words: quantised, shuffled, maybe a delta)."""
+        chunk = self._load_chunk(k)
+        if self.version == 1:
+            start, size = CHUNK_HEADER, len(chunk) - CHUNK_HEADER
+        else:
+            sizes = struct.unpack_from(f"<{len(self._attrs)}Q", chunk, CHUNK_HEADER)
+            start = CHUNK_HEADER + 8 * len(self._attrs) + sum(sizes[:i])
+            size = sizes[i]
+        a = self._attrs[i]
+        try:
+            data = self._zstd(chunk[start:start + size], a.nbytes)
+        except ValueError as e:
+            self._fail(f"frame {k} is corrupt ({a.name}: {e})")
+        return np.frombuffer(data, dtype=np.uint8)
+
+    def _stored(self, k, i):
+        """Attribute i's stored words at frame k, deltas undone from the last key frame (or from
+        the frame decoded last when it lies in between)."""
+        last, words = self._words.get(i, (-1, None))
+        if last == k:
+            return words
+        if not self._attrs[i].filters & DELTA:
+            words = self._block(k, i)
+        else:
+            key = k - k % self.options["key_interval"]
+            start = last + 1 if key <= last < k else key
+            if start == key:
+                words = self._block(key, i).copy()
+                start += 1
+            self._words.pop(i, None)
+            for j in range(start, k + 1):
+                words ^= self._block(j, i)
+        self._words[i] = (k, words)
+        return words
+
+
+def open(path):  # noqa: A001 - the module's entry point, like gzip.open
+    """Opens a flockmorph cache for reading; see Cache."""
+    return Cache(path)

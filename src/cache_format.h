@@ -1,0 +1,105 @@
+/* The native frame cache's on-disk layout and filters, shared by the writer (cache_writer.c) and
+ * the reader (cache_reader.c). docs/cache-format.md is the specification; the names here follow it.
+ *
+ * Format 2:
+ *   header   64 bytes + 16 per attribute: magic, version, agents, attributes, options, frame rate,
+ *            crc32 of the header
+ *   chunks   one per frame: "FRAM", frame, flags, crc32, payload size; then one u64 compressed size
+ *            per attribute and one zstd frame per attribute (each attribute decodes on its own)
+ *   index    "FIDX", frame count, (offset, size) per chunk, crc32
+ *   footer   u64 offset of the index, "FMCEND\0\0"
+ * Format 1 (read only): one attribute (tet vertices), 24-byte chunks without crc32 (zstd's own
+ * checksum instead), an index of offsets only. */
+#ifndef FM_CACHE_FORMAT_H
+#define FM_CACHE_FORMAT_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+#include <string.h>
+
+enum {
+    CACHE_VERSION = 2,
+    CACHE_FIXED_HEADER = 64,
+    CACHE_ATTR_RECORD = 16,
+    CACHE_CHUNK_HEADER = 24,
+    CACHE_FOOTER = 16,
+    CACHE_MAX_ATTRS = 6, /* every kind at most once */
+    CACHE_CODEC_ZSTD = 1,
+    CACHE_DEFAULT_KEY_INTERVAL = 16,
+    CACHE_MAX_KEY_INTERVAL = 1 << 16,
+};
+
+/* Per-attribute filter bits (header attribute record, offset 12). */
+enum { FILTER_SHUFFLE4 = 1, FILTER_DELTA = 2, FILTER_QUANTISE = 4 };
+/* Chunk flags. */
+enum { CHUNK_KEY_FRAME = 1 };
+/* Header flags. */
+enum { HEADER_DELTA = 1 };
+
+extern const char CACHE_MAGIC[8];
+extern const char CACHE_END_MAGIC[8];
+
+/* Little-endian field access (the engine targets little-endian x86-64 and ARM64). */
+static inline void put_u32(unsigned char *p, uint32_t x) { memcpy(p, &x, 4); }
+static inline void put_u64(unsigned char *p, uint64_t x) { memcpy(p, &x, 8); }
+static inline void put_f64(unsigned char *p, double x) { memcpy(p, &x, 8); }
+static inline uint32_t get_u32(const unsigned char *p) { uint32_t x; memcpy(&x, p, 4); return x; }
+static inline uint64_t get_u64(const unsigned char *p) { uint64_t x; memcpy(&x, p, 8); return x; }
+static inline double get_f64(const unsigned char *p) { double x; memcpy(&x, p, 8); return x; }
+
+/* What a cache holds and how it is encoded: everything the header says. */
+typedef struct cache_layout {
+    uint32_t version;
+    uint32_t header_bytes;
+    uint64_t agents;
+    double frame_rate;
+    int attr_count;
+    const fm_cache_attr_info *attrs[CACHE_MAX_ATTRS];
+    uint32_t filters[CACHE_MAX_ATTRS];
+    fm_cache_options opts;
+} cache_layout;
+
+/* Checks the attribute list and options and fills the layout (version 2, filters by the rules of
+ * the specification). */
+fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate, const fm_cache_attr *attrs,
+                            int attr_count, const fm_cache_options *opts, const char *path, fm_error *err);
+/* The version-2 header: l->header_bytes bytes. */
+void cache_header_encode(const cache_layout *l, unsigned char *out);
+/* Reads a version-2 header of l->header_bytes bytes (the fixed part already gave the size). */
+fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const char *path, fm_error *err);
+
+/* Bytes of attribute i in one frame, and their sum over attributes. */
+size_t cache_attr_bytes(const cache_layout *l, int i);
+size_t cache_frame_bytes(const cache_layout *l);
+/* Largest compressed payload (size table and blocks) a chunk of this layout can have. */
+uint64_t cache_payload_bound(const cache_layout *l);
+/* Frame k is stored whole (not as a delta) when it is a key frame. */
+int cache_is_key_frame(const cache_layout *l, uint32_t k);
+int cache_attr_index(const cache_layout *l, fm_cache_attr attr);
+
+uint32_t cache_crc32(uint32_t crc, const void *data, size_t n);
+/* The chunk checksum: crc32 over chunk bytes [0, 12) and [16, 24 + payload). */
+uint32_t cache_chunk_crc(const unsigned char *chunk, uint64_t payload);
+
+/* Byte k of 4-byte word i goes to k * count + i (and back). */
+void cache_shuffle4(const unsigned char *in, size_t count, unsigned char *out);
+void cache_unshuffle4(const unsigned char *in, size_t count, unsigned char *out);
+void cache_xor(unsigned char *dst, const unsigned char *src, size_t n);
+/* Rounds each float to the nearest multiple of quantum, stored as the int32 multiple. Returns the
+ * index of the first value that does not fit (non-finite or |x / quantum| >= 2^31), or -1. */
+int64_t cache_quantise(const float *in, size_t count, double quantum, int32_t *out);
+void cache_dequantise(const int32_t *in, size_t count, double quantum, float *out);
+
+/* The writer's layout (run.c hands over the attributes it asks for). */
+const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
+
+/* For resume: the reader's layout, the end of chunk k, a chunk's check, and attribute i's stored
+ * words (after quantisation and shuffle, with deltas undone) at frame k. */
+const cache_layout *cache_reader_layout(const fm_cache_reader *r);
+uint64_t cache_reader_chunk_end(const fm_cache_reader *r, uint32_t k);
+fm_status cache_reader_check_chunk(fm_cache_reader *r, uint32_t k, fm_error *err);
+fm_status cache_reader_stored(fm_cache_reader *r, uint32_t k, int i, const unsigned char **words, fm_error *err);
+const uint64_t *cache_reader_offsets(const fm_cache_reader *r);
+
+#endif

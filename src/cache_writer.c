@@ -1,0 +1,381 @@
+/* The frame cache writer (docs/cache-format.md, format 2; cache_format.h has the layout).
+ *
+ * The step loop only pays for a copy: add_frame hands the frame over (waiting while the previous
+ * one is still being written) and a worker thread filters, compresses and appends it. The file's
+ * bytes do not depend on the timing. The writer works on PATH.partial and renames it to PATH only
+ * after the index and footer are on disk, so a file under the final name is always complete. */
+#define _POSIX_C_SOURCE 200809L
+#include "cache_format.h"
+
+#include <zstd.h>
+
+#include <errno.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+enum { ZSTD_WORKERS = 2 };
+
+struct fm_cache_writer {
+    fm_output_file out;      /* PATH.partial until finish() */
+    cache_layout l;
+    uint32_t handed;         /* frames handed over by add_frame (or kept by resume) */
+    size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's place in pending and prev (64-byte aligned) */
+    size_t largest;          /* bytes of the largest attribute */
+    unsigned char *prev;     /* delta: the previous frame's stored words */
+    unsigned char *quantised, *stored;
+    unsigned char *chunk;
+    ZSTD_CCtx *cctx;
+    uint64_t *offsets, *sizes;
+    uint32_t frames, index_cap;
+    uint64_t pos;
+    /* the worker */
+    pthread_t thread;
+    int thread_started;
+    pthread_mutex_t lock;
+    pthread_cond_t changed;
+    unsigned char *pending;  /* the frame handed over, attributes at attr_at */
+    int has_pending, stop;
+    fm_status worker_status; /* the first failure, reported by the next call */
+    fm_error worker_err;
+};
+
+static void *worker_main(void *arg);
+
+const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w) { return &w->l; }
+
+static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
+{
+    if (fwrite(data, 1, n, w->out.f) != n)
+        return fm_fail(err, FM_ERR_IO, "%s: write failed: %s", w->out.partial, strerror(errno));
+    w->pos += n;
+    return FM_OK;
+}
+
+static size_t align64(size_t n) { return (n + 63) / 64 * 64; }
+
+/* A writer with its buffers and compressor, without a file or a thread yet. */
+static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
+{
+    fm_cache_writer *w = calloc(1, sizeof *w);
+    if (!w) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    w->l = *l;
+    size_t total = 0;
+    for (int i = 0; i < l->attr_count; i++) {
+        w->attr_at[i] = total;
+        total += align64(cache_attr_bytes(l, i));
+        w->largest = FM_MAX(w->largest, cache_attr_bytes(l, i));
+    }
+    w->pending = fm_alloc(total);
+    w->prev = l->opts.delta ? fm_alloc(total) : NULL;
+    w->quantised = fm_alloc(w->largest);
+    w->stored = fm_alloc(w->largest);
+    w->chunk = malloc(CACHE_CHUNK_HEADER + cache_payload_bound(l));
+    w->cctx = ZSTD_createCCtx();
+    pthread_mutex_init(&w->lock, NULL);
+    pthread_cond_init(&w->changed, NULL);
+    if (!w->pending || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx) {
+        fm_cache_writer_abort(w);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)l->agents), NULL;
+    }
+    ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_compressionLevel, l->opts.compression_level);
+    /* zstd's own workers, a fixed number whatever the run's thread count: the compressed bytes
+     * depend on nbWorkers, so fixing it keeps caches identical for any --threads. Ignored (one
+     * thread) where libzstd lacks multithreading. The chunk's crc32 replaces zstd's checksum. */
+    ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_nbWorkers, ZSTD_WORKERS);
+    return w;
+}
+
+/* Starts the writer thread; on failure frees w (and deletes its partial file). */
+static fm_cache_writer *writer_start(fm_cache_writer *w, fm_error *err)
+{
+    if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+        fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", w->out.path);
+        fm_cache_writer_abort(w);
+        return NULL;
+    }
+    w->thread_started = 1;
+    return w;
+}
+
+fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents, double frame_rate,
+                                              const fm_cache_attr *attrs, int attr_count,
+                                              const fm_cache_options *opts, fm_error *err)
+{
+    cache_layout l;
+    fm_cache_options defaults = fm_default_cache_options();
+    if (cache_layout_init(&l, agents, frame_rate, attrs, attr_count, opts ? opts : &defaults, path, err) != FM_OK)
+        return NULL;
+    fm_cache_writer *w = writer_alloc(&l, err);
+    if (!w) return NULL;
+    unsigned char header[CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS];
+    cache_header_encode(&l, header);
+    if (fm_output_open(&w->out, path, err) != FM_OK || write_bytes(w, header, l.header_bytes, err) != FM_OK) {
+        fm_cache_writer_abort(w);
+        return NULL;
+    }
+    return writer_start(w, err);
+}
+
+fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, double frame_rate,
+                                        int level, fm_error *err)
+{
+    fm_cache_options opts = fm_default_cache_options();
+    opts.compression_level = level;
+    const fm_cache_attr tets = FM_ATTR_TET_VERTICES;
+    return fm_cache_writer_create_attrs(path, agents, frame_rate, &tets, 1, &opts, err);
+}
+
+/* Stored words and prev become the delta to the previous frame and the current frame's words. */
+static void delta_encode(unsigned char *stored, unsigned char *prev, size_t n)
+{
+    for (size_t j = 0; j < n; j++) {
+        unsigned char cur = stored[j];
+        stored[j] ^= prev[j];
+        prev[j] = cur;
+    }
+}
+
+/* Filters attribute i of frame k into w->stored (quantise, shuffle, delta). */
+static fm_status filter_attr(fm_cache_writer *w, int i, uint32_t k, fm_error *err)
+{
+    const unsigned char *src = w->pending + w->attr_at[i];
+    size_t bytes = cache_attr_bytes(&w->l, i);
+    uint32_t filters = w->l.filters[i];
+    if (filters & FILTER_QUANTISE) {
+        int64_t bad = cache_quantise((const float *)src, bytes / 4, w->l.opts.quantum, (int32_t *)w->quantised);
+        if (bad >= 0)
+            return fm_fail(err, FM_ERR_INPUT, "%s: frame %u, %s, agent %lld: %g is not a finite multiple of quantum %g below 2^31",
+                           w->out.path, k, w->l.attrs[i]->name, (long long)(bad / w->l.attrs[i]->components),
+                           (double)((const float *)src)[bad], w->l.opts.quantum);
+        src = w->quantised;
+    }
+    if (filters & FILTER_SHUFFLE4) cache_shuffle4(src, bytes / 4, w->stored);
+    else memcpy(w->stored, src, bytes);
+    if (!(filters & FILTER_DELTA)) return FM_OK;
+    unsigned char *prev = w->prev + w->attr_at[i];
+    if (cache_is_key_frame(&w->l, k)) memcpy(prev, w->stored, bytes);
+    else delta_encode(w->stored, prev, bytes);
+    return FM_OK;
+}
+
+static fm_status grow_index(fm_cache_writer *w, fm_error *err)
+{
+    if (w->frames < w->index_cap) return FM_OK;
+    uint32_t cap = w->index_cap ? 2 * w->index_cap : 256;
+    uint64_t *offsets = realloc(w->offsets, sizeof *offsets * cap);
+    if (offsets) w->offsets = offsets;
+    uint64_t *sizes = offsets ? realloc(w->sizes, sizeof *sizes * cap) : NULL;
+    if (!sizes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
+    w->sizes = sizes, w->index_cap = cap;
+    return FM_OK;
+}
+
+/* Filters, compresses and appends one frame (the worker's job). */
+static fm_status write_frame(fm_cache_writer *w, fm_error *err)
+{
+    const cache_layout *l = &w->l;
+    uint32_t k = w->frames;
+    fm_status st = grow_index(w, err);
+    size_t at = CACHE_CHUNK_HEADER + 8 * (size_t)l->attr_count, cap = CACHE_CHUNK_HEADER + cache_payload_bound(l);
+    for (int i = 0; i < l->attr_count && st == FM_OK; i++) {
+        if ((st = filter_attr(w, i, k, err)) != FM_OK) break;
+        size_t packed = ZSTD_compress2(w->cctx, w->chunk + at, cap - at, w->stored, cache_attr_bytes(l, i));
+        if (ZSTD_isError(packed))
+            return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->out.path, ZSTD_getErrorName(packed));
+        put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * i, packed);
+        at += packed;
+    }
+    if (st != FM_OK) return st;
+    memcpy(w->chunk, "FRAM", 4);
+    put_u32(w->chunk + 4, k);
+    put_u32(w->chunk + 8, cache_is_key_frame(l, k) ? CHUNK_KEY_FRAME : 0);
+    put_u64(w->chunk + 16, at - CACHE_CHUNK_HEADER);
+    put_u32(w->chunk + 12, cache_chunk_crc(w->chunk, at - CACHE_CHUNK_HEADER));
+    w->offsets[k] = w->pos, w->sizes[k] = at;
+    if ((st = write_bytes(w, w->chunk, at, err)) == FM_OK) w->frames++;
+    return st;
+}
+
+static void *worker_main(void *arg)
+{
+    fm_cache_writer *w = arg;
+    pthread_mutex_lock(&w->lock);
+    for (;;) {
+        while (!w->has_pending && !w->stop) pthread_cond_wait(&w->changed, &w->lock);
+        if (!w->has_pending) break;
+        pthread_mutex_unlock(&w->lock);
+        fm_error err = {0};
+        fm_status st = w->worker_status == FM_OK ? write_frame(w, &err) : FM_OK;
+        pthread_mutex_lock(&w->lock);
+        if (st != FM_OK) w->worker_status = st, w->worker_err = err;
+        w->has_pending = 0;
+        pthread_cond_broadcast(&w->changed);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+/* Waits until the worker holds no frame; returns its first failure. Called with the lock held. */
+static fm_status wait_idle(fm_cache_writer *w, fm_error *err)
+{
+    while (w->has_pending) pthread_cond_wait(&w->changed, &w->lock);
+    if (w->worker_status != FM_OK && err) *err = w->worker_err;
+    return w->worker_status;
+}
+
+fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    if (st == FM_OK) {
+        for (int i = 0; i < w->l.attr_count; i++) memcpy(w->pending + w->attr_at[i], data[i], cache_attr_bytes(&w->l, i));
+        w->has_pending = 1;
+        w->handed++;
+        pthread_cond_broadcast(&w->changed);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return st;
+}
+
+fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err)
+{
+    if (w->l.attr_count != 1 || w->l.attrs[0]->attr != FM_ATTR_TET_VERTICES)
+        return fm_fail(err, FM_ERR_USAGE, "%s: the cache holds %d attributes; frames go in with fm_cache_writer_add_frame_attrs",
+                       w->out.path, w->l.attr_count);
+    const void *data[1] = {verts};
+    return fm_cache_writer_add_frame_attrs(w, data, err);
+}
+
+uint32_t fm_cache_writer_frames(const fm_cache_writer *w) { return w->handed; }
+
+fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    if (st == FM_OK && (fflush(w->out.f) != 0 || fsync(fileno(w->out.f)) != 0))
+        st = fm_fail(err, FM_ERR_IO, "%s: cannot flush to disk: %s", w->out.partial, strerror(errno));
+    pthread_mutex_unlock(&w->lock);
+    return st;
+}
+
+/* Lets the worker finish what it holds and ends it; returns its first failure. */
+static fm_status stop_worker(fm_cache_writer *w, fm_error *err)
+{
+    if (!w->thread_started) return w->worker_status;
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err);
+    w->stop = 1;
+    pthread_cond_broadcast(&w->changed);
+    pthread_mutex_unlock(&w->lock);
+    pthread_join(w->thread, NULL);
+    w->thread_started = 0;
+    return st;
+}
+
+static void free_writer(fm_cache_writer *w)
+{
+    stop_worker(w, NULL);
+    pthread_mutex_destroy(&w->lock);
+    pthread_cond_destroy(&w->changed);
+    fm_free(w->pending), fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored);
+    free(w->chunk), free(w->offsets), free(w->sizes);
+    ZSTD_freeCCtx(w->cctx);
+    free(w);
+}
+
+static fm_status write_index_and_footer(fm_cache_writer *w, fm_error *err)
+{
+    uint64_t index_pos = w->pos;
+    size_t bytes = 16 + 16 * (size_t)w->frames;
+    unsigned char *index = malloc(bytes);
+    if (!index) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache index");
+    memcpy(index, "FIDX", 4);
+    put_u32(index + 4, w->frames);
+    for (uint32_t k = 0; k < w->frames; k++) {
+        put_u64(index + 8 + 16 * (size_t)k, w->offsets[k]);
+        put_u64(index + 16 + 16 * (size_t)k, w->sizes[k]);
+    }
+    put_u32(index + bytes - 8, cache_crc32(0, index, bytes - 8));
+    put_u32(index + bytes - 4, 0);
+    fm_status st = write_bytes(w, index, bytes, err);
+    free(index);
+    unsigned char footer[CACHE_FOOTER];
+    put_u64(footer, index_pos);
+    memcpy(footer + 8, CACHE_END_MAGIC, 8);
+    return st == FM_OK ? write_bytes(w, footer, sizeof footer, err) : st;
+}
+
+fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
+{
+    fm_status st = stop_worker(w, err);
+    if (st == FM_OK) st = write_index_and_footer(w, err);
+    if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
+    else fm_output_discard(&w->out);
+    free_writer(w);
+    return st;
+}
+
+void fm_cache_writer_abort(fm_cache_writer *w)
+{
+    if (!w) return;
+    stop_worker(w, NULL);
+    fm_output_discard(&w->out);
+    free_writer(w);
+}
+
+/* ---------------------------------------------------------------- resume */
+
+/* Checks the first `frames` chunks of the partial cache (headers and checksums), takes over
+ * their index entries and, for delta, the stored words of frame frames-1. */
+static fm_status take_over_prefix(fm_cache_writer *w, fm_cache_reader *r, uint32_t frames, fm_error *err)
+{
+    const cache_layout *l = cache_reader_layout(r);
+    if (fm_cache_frames(r) < frames)
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot resume after frame %u: only %u complete frames are readable",
+                       w->out.partial, frames, fm_cache_frames(r));
+    fm_status st = FM_OK;
+    w->pos = l->header_bytes;
+    for (uint32_t k = 0; k < frames && st == FM_OK; k++) {
+        if ((st = cache_reader_check_chunk(r, k, err)) != FM_OK || (st = grow_index(w, err)) != FM_OK) break;
+        w->offsets[k] = cache_reader_offsets(r)[k];
+        w->sizes[k] = cache_reader_chunk_end(r, k) - w->offsets[k];
+        w->pos = cache_reader_chunk_end(r, k);
+        w->frames = w->handed = k + 1;
+    }
+    for (int i = 0; i < l->attr_count && st == FM_OK && l->opts.delta && frames > 0; i++) {
+        const unsigned char *words;
+        if ((st = cache_reader_stored(r, frames - 1, i, &words, err)) == FM_OK)
+            memcpy(w->prev + w->attr_at[i], words, cache_attr_bytes(l, i));
+    }
+    return st;
+}
+
+fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err)
+{
+    fm_output_file probe;
+    if (strlen(path) >= sizeof probe.path) return fm_fail(err, FM_ERR_USAGE, "output path too long: %s", path), NULL;
+    snprintf(probe.partial, sizeof probe.partial, "%s.partial", path);
+    if (access(probe.partial, F_OK) != 0)
+        return fm_fail(err, FM_ERR_INPUT, "%s: nothing to resume: %s does not exist", path, probe.partial), NULL;
+    fm_cache_reader *r = fm_cache_open(probe.partial, err);
+    if (!r) return NULL;
+    if (cache_reader_layout(r)->version != CACHE_VERSION) {
+        fm_fail(err, FM_ERR_INPUT, "%s: cache format %u cannot be resumed (this build writes format %d)",
+                probe.partial, cache_reader_layout(r)->version, CACHE_VERSION);
+        return fm_cache_close(r), NULL;
+    }
+    fm_cache_writer *w = writer_alloc(cache_reader_layout(r), err);
+    if (!w) return fm_cache_close(r), NULL;
+    snprintf(w->out.partial, sizeof w->out.partial, "%s", probe.partial); /* for messages */
+    fm_status st = take_over_prefix(w, r, frames, err);
+    fm_cache_close(r);
+    if (st == FM_OK) st = fm_output_reopen(&w->out, path, w->pos, err);
+    if (st != FM_OK) {
+        free_writer(w); /* PATH.partial stays as it was */
+        return NULL;
+    }
+    return writer_start(w, err);
+}

@@ -1,0 +1,246 @@
+#!/usr/bin/env python3
+"""Tests python/flockmorph_cache.py against the C reader.
+
+Runs small scenes through the flockmorph CLI (a lossless cache, and one with delta encoding and
+quantisation), then compares every frame of every attribute the module returns with the bytes the
+C reader decodes (tests/cache_dump.c) and its metadata with `flockmorph inspect --json`. Also reads
+the committed format-1 fixture, a cache cut short (recovery with a warning), a flipped byte
+(checksum error) and files that are not caches.
+
+    test_reader.py --cli build/flockmorph --dump build/tests/cache_dump --tmp DIR --source REPO
+"""
+import argparse
+import json
+import os
+import random
+import shutil
+import subprocess
+import sys
+import unittest
+import warnings
+
+import numpy as np
+
+ARGS = None
+AGENTS = 150
+fmc = None  # the module under test, imported from --source/python
+
+
+def run(*cmd):
+    done = subprocess.run([str(c) for c in cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if done.returncode != 0:
+        raise AssertionError(f"{' '.join(map(str, cmd))}: exit {done.returncode}\n{done.stdout}\n{done.stderr}")
+    return done.stdout
+
+
+def tmp(name):
+    return os.path.join(ARGS.tmp, "py_" + name)
+
+
+def write_octahedron(path):
+    with open(path, "w") as f:
+        f.write("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n")
+        for s in range(8):  # one face per octant; a reflection reverses the winding
+            x, y, z = (2 if s & 1 else 1), (4 if s & 2 else 3), (6 if s & 4 else 5)
+            odd = ((s & 1) + (s >> 1 & 1) + (s >> 2 & 1)) & 1
+            f.write(f"f {x} {z if odd else y} {y if odd else z}\n")
+
+
+def run_scene(name, output):
+    """Runs the octahedron from x = -10 to x = +10 with the given "output" keys; the cache path."""
+    write_octahedron(tmp("octahedron.obj"))
+    scene = {"source": {"mesh": "py_octahedron.obj", "translate": [-10, 0, 0]},
+             "target": {"mesh": "py_octahedron.obj", "translate": [10, 0, 0]},
+             "n": AGENTS, "output": output}
+    with open(tmp(name + ".json"), "w") as f:
+        json.dump(scene, f)
+    outdir = tmp(name + "_out")
+    run(ARGS.cli, "run", tmp(name + ".json"), "-o", outdir, "--quiet")
+    return os.path.join(outdir, "frames.fmc")
+
+
+def c_frames(path, cache):
+    """Every frame's attributes as the C reader decodes them: {(frame, name): array}."""
+    dump = path + ".dump"
+    run(ARGS.dump, path, dump)
+    raw = np.fromfile(dump, dtype=np.uint8)
+    out, at = {}, 0
+    for k in range(cache.frames):
+        for name in cache.attributes:
+            _, components, scalar = next(v for v in fmc.ATTRIBUTES.values() if v[0] == name)
+            dtype = fmc._DTYPES[scalar]
+            n = cache.agents * components * dtype.itemsize
+            out[k, name] = raw[at:at + n].view(dtype).reshape(cache.agents, components)
+            at += n
+    assert at == raw.size, f"{dump}: {raw.size} bytes, expected {at}"
+    return out
+
+
+def inspect(path):
+    return json.loads(run(ARGS.cli, "inspect", path, "--json"))
+
+
+class CacheCase(unittest.TestCase):
+    lossless = compact = None
+
+    @classmethod
+    def setUpClass(cls):
+        if CacheCase.lossless is None:
+            CacheCase.lossless = run_scene("lossless", {})
+            CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001})
+
+    def assert_matches_c(self, path):
+        """Metadata as inspect reports it, and every frame bitwise equal to the C reader's, read in
+        order and again in a shuffled order (random access, across key intervals)."""
+        info = inspect(path)
+        with fmc.open(path) as cache:
+            self.assertEqual(cache.version, info["format_version"])
+            self.assertEqual(cache.agents, info["agents"])
+            self.assertEqual(cache.frames, info["frames"])
+            self.assertEqual(cache.frame_rate, info["frame_rate"])
+            self.assertEqual(cache.attributes, [a["name"] for a in info["attributes"]])
+            self.assertEqual(cache.options, info["options"])
+            self.assertEqual((cache.file_bytes, cache.raw_bytes, cache.compressed_bytes),
+                             (info["file_bytes"], info["raw_bytes"], info["compressed_bytes"]))
+            self.assertEqual(cache.complete, info["complete"])
+            want = c_frames(path, cache)
+            order = [(k, n) for k in range(cache.frames) for n in cache.attributes]
+            shuffled = order[:]
+            random.Random(7).shuffle(shuffled)
+            for k, name in order + shuffled:
+                got = cache.read(k, name)
+                expect = want[k, name]
+                self.assertEqual(got.dtype, expect.dtype, name)
+                self.assertEqual(got.shape, (cache.agents, 4, 3) if name == "tet_vertices" else expect.shape)
+                self.assertTrue(np.array_equal(got.reshape(expect.shape).view(np.uint8), expect.view(np.uint8)),
+                                f"{path}: frame {k} {name} differs from the C reader")
+            b = info["bounds"]["tet_vertices"]
+            if cache.frames == 0:
+                self.assertIsNone(cache.bounds())
+                self.assertIsNone(b)
+                return cache
+            lo, hi = cache.bounds()
+            np.testing.assert_allclose(lo, b["min"], rtol=1e-6)
+            np.testing.assert_allclose(hi, b["max"], rtol=1e-6)
+            return cache
+
+    def test_lossless_run(self):
+        cache = self.assert_matches_c(self.lossless)
+        self.assertEqual(cache.attributes, ["tet_vertices", "phase"])
+        with fmc.open(self.lossless) as c:
+            self.assertTrue((c.read(0, "phase") == 0).all() and (c.read(-1, "phase") == 3).all())
+            self.assertGreater(c.bounds()[1][0] - c.bounds()[0][0], 20)
+
+    def test_delta_and_quantum_run(self):
+        self.assert_matches_c(self.compact)
+        with fmc.open(self.lossless) as a, fmc.open(self.compact) as b:
+            self.assertEqual(b.options, {"compression_level": 1, "delta": True, "key_interval": 5, "quantum": 0.001})
+            worst = max(np.abs(a.read(k, "tet_vertices") - b.read(k, "tet_vertices")).max() for k in range(a.frames))
+            self.assertLessEqual(worst, 0.0005 + 1e-6)
+            self.assertGreater(worst, 0.0002)  # the values really were rounded
+
+    def test_recovers_a_cut_cache(self):
+        with open(self.compact, "rb") as f:
+            data = f.read()
+        cut = tmp("cut.fmc")
+        for size in (len(data) - 1, len(data) // 2, 200):
+            with open(cut, "wb") as f:
+                f.write(data[:size])
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                cache = fmc.open(cut)
+            self.assertEqual(len(caught), 1)
+            self.assertIn("recovered", str(caught[0].message))
+            self.assertIn(cut, str(caught[0].message))
+            self.assertFalse(cache.complete)
+            cache.close()
+            self.assert_matches_c(cut)
+
+    def test_flipped_byte_fails_its_checksum(self):
+        with open(self.lossless, "rb") as f:
+            data = bytearray(f.read())
+        with fmc.open(self.lossless) as c:
+            start = c._offsets[1]
+        data[start + 40] ^= 0x04
+        bad = tmp("flipped.fmc")
+        with open(bad, "wb") as f:
+            f.write(data)
+        with fmc.open(bad) as c:
+            with self.assertRaisesRegex(ValueError, "chunk 1: checksum mismatch") as e:
+                c.read(1, "tet_vertices")
+            self.assertIn(bad, str(e.exception))
+            c.read(0, "tet_vertices")
+            c.read(2, "phase")
+
+    def test_bad_arguments(self):
+        with fmc.open(self.lossless) as c:
+            with self.assertRaisesRegex(IndexError, "frame 100000 does not exist"):
+                c.read(100000, "phase")
+            with self.assertRaisesRegex(KeyError, "no 'velocity' attribute"):
+                c.read(0, "velocity")
+
+
+class FormatOne(unittest.TestCase):
+    """tests/data/cache_v1.fmc: 5 agents, 3 frames at 24 fps, float i of frame f = 0.001 i + f."""
+
+    def test_reads_the_fixture(self):
+        path = os.path.join(ARGS.source, "tests", "data", "cache_v1.fmc")
+        with fmc.open(path) as c:
+            self.assertEqual((c.version, c.agents, c.frames, c.frame_rate), (1, 5, 3, 24.0))
+            self.assertEqual(c.attributes, ["tet_vertices"])
+            for k in (2, 0, 1):
+                want = (0.001 * np.arange(60) + k).astype(np.float32).reshape(5, 4, 3)
+                self.assertTrue(np.array_equal(c.read(k, "tet_vertices"), want))
+
+    def test_zstd_checksum_catches_a_flip(self):
+        path = os.path.join(ARGS.source, "tests", "data", "cache_v1.fmc")
+        with open(path, "rb") as f:
+            data = bytearray(f.read())
+        with fmc.open(path) as c:
+            start = c._offsets[1]
+        data[start + 24 + 12] ^= 0x20
+        bad = tmp("v1_flipped.fmc")
+        with open(bad, "wb") as f:
+            f.write(data)
+        with fmc.open(bad) as c:
+            with self.assertRaisesRegex(ValueError, "frame 1 is corrupt"):
+                c.read(1, "tet_vertices")
+
+
+class NotACache(unittest.TestCase):
+    def expect_error(self, content, message):
+        path = tmp("bad.fmc")
+        with open(path, "wb") as f:
+            f.write(content)
+        with self.assertRaisesRegex(ValueError, message) as e:
+            fmc.open(path)
+        self.assertIn(path, str(e.exception))
+
+    def test_bad_files(self):
+        self.expect_error(b'{"agents": 5}\n' + b"x" * 100, "not a flockmorph cache")
+        self.expect_error(b"", "shorter than the cache header")
+        self.expect_error(b"FMCACHE1" + bytes([9, 0, 0, 0]) + bytes(52), "cache version 9 is not supported")
+        with open(CacheCase.lossless or run_scene("lossless", {}), "rb") as f:
+            header = bytearray(f.read(96))
+        header[20] ^= 1
+        self.expect_error(bytes(header), "header checksum mismatch")
+        with self.assertRaisesRegex(ValueError, "no such file"):
+            fmc.open(tmp("no_such.fmc"))
+
+
+def main():
+    global ARGS, fmc
+    parser = argparse.ArgumentParser()
+    for opt in ("--cli", "--dump", "--tmp", "--source"):
+        parser.add_argument(opt, required=True)
+    ARGS, rest = parser.parse_known_args()
+    os.makedirs(ARGS.tmp, exist_ok=True)
+    sys.path.insert(0, os.path.join(ARGS.source, "python"))
+    import flockmorph_cache
+    fmc = flockmorph_cache
+    assert shutil.which(ARGS.cli) or os.path.exists(ARGS.cli), ARGS.cli
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
+
+
+if __name__ == "__main__":
+    main()

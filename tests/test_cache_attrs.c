@@ -1,0 +1,242 @@
+/* Cache format 2: every attribute kind under every option (delta, key interval, quantum, level),
+ * random access against sequential reading, the quantisation bound, sizes, argument errors, and
+ * writer bytes that do not depend on the OpenMP thread count. */
+#define _POSIX_C_SOURCE 200809L
+#include "cache_helpers.h"
+
+#include <omp.h>
+
+static void test_attribute_table(void)
+{
+    const struct { fm_cache_attr attr; const char *name; int components; fm_cache_scalar scalar; size_t bytes; } want[] = {
+        {FM_ATTR_TET_VERTICES, "tet_vertices", 12, FM_SCALAR_F32, 48}, {FM_ATTR_POSITION, "position", 3, FM_SCALAR_F32, 12},
+        {FM_ATTR_VELOCITY, "velocity", 3, FM_SCALAR_F32, 12},        {FM_ATTR_ORIENTATION, "orientation", 4, FM_SCALAR_F32, 16},
+        {FM_ATTR_ID, "id", 1, FM_SCALAR_U32, 4},                     {FM_ATTR_PHASE, "phase", 1, FM_SCALAR_U8, 1},
+    };
+    for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
+        const fm_cache_attr_info *a = fm_cache_attr_describe(want[i].attr);
+        ENSURE(a && a->attr == want[i].attr && !strcmp(a->name, want[i].name) && a->components == want[i].components &&
+               a->scalar == want[i].scalar && a->bytes_per_agent == want[i].bytes);
+    }
+    ENSURE(fm_cache_attr_describe((fm_cache_attr)0) == NULL && fm_cache_attr_describe((fm_cache_attr)7) == NULL);
+    fm_cache_options o = fm_default_cache_options();
+    ENSURE(o.compression_level == 1 && o.delta == 0 && o.key_interval == 16 && o.quantum == 0);
+}
+
+/* Writes all six attributes under `opts` and reads every frame back twice: in order, and in a
+ * shuffled order with a second reader (random access, across key intervals with delta). */
+static void round_trip(const char *name, uint64_t agents, uint32_t frames, const fm_cache_options *opts, data_kind kind)
+{
+    char path[FM_PATH_MAX];
+    if (write_attrs_cache(tmp_path(path, name), agents, frames, ALL_ATTRS, ALL_ATTR_COUNT, opts, kind) != 0) return;
+    fm_error err = {0};
+    fm_cache_reader *seq = fm_cache_open(path, &err), *rnd = fm_cache_open(path, &err);
+    ENSURE_MSG(seq && rnd, "%s", err.message);
+    if (seq && rnd) {
+        ENSURE(fm_cache_version(seq) == 2 && fm_cache_agents(seq) == agents && fm_cache_frames(seq) == frames);
+        ENSURE(fm_cache_frame_rate(seq) == 25.0 && fm_cache_warning(seq)[0] == 0 && fm_cache_attr_count(seq) == ALL_ATTR_COUNT);
+        for (int i = 0; i < ALL_ATTR_COUNT; i++) ENSURE(fm_cache_attr_at(seq, i)->attr == ALL_ATTRS[i] && fm_cache_has_attr(seq, ALL_ATTRS[i]));
+        fm_cache_options got = fm_cache_get_options(seq);
+        ENSURE(got.compression_level == opts->compression_level && got.delta == (opts->delta != 0) &&
+               got.key_interval == opts->key_interval && got.quantum == opts->quantum);
+        for (uint32_t f = 0; f < frames; f++) frame_matches(seq, f, kind, opts->quantum, name);
+        uint64_t state = 77;
+        uint32_t order[64];
+        for (uint32_t i = 0; i < frames; i++) order[i] = i;
+        for (uint32_t i = frames - 1; i > 0; i--) {
+            uint32_t j = (uint32_t)(test_next_u64(&state) % (i + 1)), t = order[i];
+            order[i] = order[j], order[j] = t;
+        }
+        for (uint32_t i = 0; i < frames; i++) frame_matches(rnd, order[i], kind, opts->quantum, name);
+    }
+    fm_cache_close(seq), fm_cache_close(rnd);
+}
+
+static void test_round_trip_every_attribute_and_option(void)
+{
+    fm_cache_options o = fm_default_cache_options();
+    round_trip("attrs_lossless.fmc", 23, 9, &o, DATA_RANDOM);
+    o.delta = 1, o.key_interval = 4;
+    round_trip("attrs_delta.fmc", 23, 11, &o, DATA_RANDOM);       /* bitwise, NaN payloads included */
+    round_trip("attrs_delta_smooth.fmc", 500, 11, &o, DATA_SMOOTH);
+    o.key_interval = 1;
+    round_trip("attrs_delta_k1.fmc", 23, 5, &o, DATA_RANDOM);
+    o = fm_default_cache_options(), o.quantum = 1e-3;
+    round_trip("attrs_quantum.fmc", 300, 6, &o, DATA_SMOOTH);
+    o.delta = 1, o.key_interval = 3, o.compression_level = 19;
+    round_trip("attrs_quantum_delta.fmc", 300, 10, &o, DATA_SMOOTH);
+    o.quantum = 0.25;
+    round_trip("attrs_coarse.fmc", 50, 4, &o, DATA_SMOOTH);
+}
+
+/* Sequential reading decodes one chunk per frame, so random access must give the same bits even
+ * when it starts a key interval in the middle or jumps back; both equal what was written. */
+static void test_delta_random_access_matches_sequential(void)
+{
+    char path[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_POSITION, FM_ATTR_PHASE};
+    fm_cache_options o = fm_default_cache_options();
+    o.delta = 1, o.key_interval = 5;
+    if (write_attrs_cache(tmp_path(path, "delta_seq.fmc"), 64, 23, attrs, 2, &o, DATA_SMOOTH) != 0) return;
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    float seq[23][192], got[192];
+    for (uint32_t f = 0; f < 23; f++) ENSURE(fm_cache_read_attr(r, f, FM_ATTR_POSITION, seq[f], &err) == FM_OK);
+    const uint32_t jumps[] = {22, 3, 4, 9, 8, 10, 0, 21, 14, 13, 12, 6, 7, 19, 1, 20};
+    for (size_t i = 0; i < sizeof jumps / sizeof jumps[0]; i++) {
+        ENSURE(fm_cache_read_attr(r, jumps[i], FM_ATTR_POSITION, got, &err) == FM_OK);
+        ENSURE_MSG(memcmp(got, seq[jumps[i]], sizeof got) == 0, "frame %u differs after a jump", jumps[i]);
+    }
+    for (uint32_t f = 0; f < 23; f++) {
+        float want[192];
+        make_attr(FM_ATTR_POSITION, 64, f, DATA_SMOOTH, want);
+        ENSURE_MSG(memcmp(want, seq[f], sizeof want) == 0, "sequential frame %u differs from what was written", f);
+    }
+    fm_cache_close(r);
+}
+
+/* The bound: |read - written| <= quantum / 2 (plus the read float's own rounding), and the error
+ * really is that large, so the values were rounded; values beyond 2^31 quanta are refused. */
+static void test_quantisation_bound(void)
+{
+    char path[FM_PATH_MAX];
+    const double quantum = 0.01;
+    const fm_cache_attr attr = FM_ATTR_VELOCITY;
+    fm_cache_options o = fm_default_cache_options();
+    o.quantum = quantum;
+    enum { N = 4000 };
+    float in[3 * N], out[3 * N];
+    uint64_t state = 5;
+    for (int i = 0; i < 3 * N; i++) in[i] = (float)(200 * test_uniform(&state) - 100);
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create_attrs(tmp_path(path, "quantum.fmc"), N, 24, &attr, 1, &o, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return;
+    const void *data[1] = {in};
+    ENSURE(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK);
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE(r && fm_cache_read_attr(r, 0, attr, out, &err) == FM_OK);
+    double worst = 0;
+    for (int i = 0; i < 3 * N && r; i++) {
+        double e = fabs((double)out[i] - in[i]);
+        worst = fmax(worst, e);
+        ENSURE_MSG(e <= quantum / 2 + FLT_EPSILON * 100, "%.9g read back as %.9g", in[i], out[i]);
+        double m = (double)out[i] / quantum; /* a multiple of quantum, up to float rounding */
+        ENSURE_MSG(fabs(m - rint(m)) < 1e-3, "%.9g is not a multiple of %g", out[i], quantum);
+    }
+    ENSURE_MSG(worst > 0.45 * quantum, "largest error %g: values were not rounded to %g", worst, quantum);
+    fm_cache_close(r);
+
+    /* 1e8 / 1e-3 = 1e11 quanta: too many for int32 */
+    o.quantum = 1e-3;
+    w = fm_cache_writer_create_attrs(tmp_path(path, "quantum_big.fmc"), N, 24, &attr, 1, &o, &err);
+    ENSURE(w != NULL);
+    if (!w) return;
+    in[3 * 17 + 1] = 1e8f;
+    fm_status st = fm_cache_writer_add_frame_attrs(w, data, &err);
+    if (st == FM_OK) st = fm_cache_writer_finish(w, &err);
+    else fm_cache_writer_abort(w);
+    ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "velocity") && strstr(err.message, "agent 17") &&
+               strstr(err.message, "frame 0"), "status %d '%s'", (int)st, err.message);
+    ENSURE(!file_exists(path));
+}
+
+static void test_sizes(void)
+{
+    char path[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
+    if (write_attrs_cache(tmp_path(path, "sizes.fmc"), 200, 7, attrs, 3, NULL, DATA_SMOOTH) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && bytes, "%s", err.message);
+    if (r && bytes) {
+        uint64_t header = bytes_u32(bytes + 12), index = bytes_u64(bytes + len - 16), sum = 0;
+        ENSURE(header == 64 + 3 * 16 && fm_cache_file_bytes(r) == len);
+        ENSURE(fm_cache_raw_bytes(r) == 7ull * 200 * (48 + 4 + 1));
+        for (uint32_t f = 0; f < 7; f++) sum += fm_cache_frame_bytes(r, f);
+        ENSURE(fm_cache_frame_bytes(r, 7) == 0);
+        ENSURE(fm_cache_compressed_bytes(r) == sum && header + sum == index);
+        ENSURE(len == index + 16 + 16 * 7 + 16);
+        ENSURE(fm_cache_compressed_bytes(r) < fm_cache_raw_bytes(r)); /* ids and phases compress */
+    }
+    fm_cache_close(r);
+    free(bytes);
+}
+
+static void expect_create_fails(const fm_cache_attr *attrs, int n, const fm_cache_options *o, const char *what)
+{
+    char path[FM_PATH_MAX];
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create_attrs(tmp_path(path, "bad_args.fmc"), 10, 24, attrs, n, o, &err);
+    ENSURE_MSG(w == NULL && err.status == FM_ERR_USAGE && strstr(err.message, what), "'%s' lacks '%s'", err.message, what);
+    fm_cache_writer_abort(w);
+    ENSURE(!file_exists(path));
+}
+
+static void test_argument_errors(void)
+{
+    const fm_cache_attr twice[] = {FM_ATTR_POSITION, FM_ATTR_ID, FM_ATTR_POSITION}, unknown[] = {(fm_cache_attr)42};
+    fm_cache_options o = fm_default_cache_options();
+    expect_create_fails(twice, 3, &o, "'position' is given twice");
+    expect_create_fails(unknown, 1, &o, "unknown attribute kind 42");
+    expect_create_fails(ALL_ATTRS, 0, &o, "1 to 6 attributes");
+    o.key_interval = 0;
+    expect_create_fails(ALL_ATTRS, 1, &o, "key interval 0");
+    o = fm_default_cache_options(), o.quantum = -1;
+    expect_create_fails(ALL_ATTRS, 1, &o, "quantum");
+    o = fm_default_cache_options(), o.compression_level = 30;
+    expect_create_fails(ALL_ATTRS, 1, &o, "compression level 30");
+
+    /* the tet shorthand on a cache of other attributes, and reading a missing attribute */
+    char path[FM_PATH_MAX];
+    fm_error err = {0};
+    const fm_cache_attr two[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    fm_cache_writer *w = fm_cache_writer_create_attrs(tmp_path(path, "shorthand.fmc"), 2, 24, two, 2, NULL, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return;
+    float verts[24] = {0};
+    uint8_t phase[2] = {1, 3};
+    ENSURE(fm_cache_writer_add_frame(w, verts, &err) == FM_ERR_USAGE && strstr(err.message, "add_frame_attrs"));
+    const void *data[2] = {verts, phase};
+    ENSURE(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK);
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    float pos[6];
+    uint8_t got[2];
+    ENSURE(r && fm_cache_read_attr(r, 0, FM_ATTR_POSITION, pos, &err) == FM_ERR_INPUT && strstr(err.message, "no position attribute"));
+    ENSURE(r && fm_cache_read_attr(r, 0, FM_ATTR_PHASE, got, &err) == FM_OK && got[0] == 1 && got[1] == 3);
+    ENSURE(r && fm_cache_read_frame(r, 0, verts, &err) == FM_OK);
+    fm_cache_close(r);
+}
+
+/* The writer's bytes do not depend on OpenMP's thread count (zstd's workers are fixed); frames
+ * large enough for zstd to split them into several jobs. */
+static void test_bytes_independent_of_threads(void)
+{
+    char one[FM_PATH_MAX], two[FM_PATH_MAX];
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    fm_cache_options o = fm_default_cache_options();
+    o.delta = 1, o.key_interval = 2;
+    int before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    int a = write_attrs_cache(tmp_path(one, "threads1.fmc"), 60000, 3, attrs, 2, &o, DATA_SMOOTH);
+    omp_set_num_threads(2);
+    int b = write_attrs_cache(tmp_path(two, "threads2.fmc"), 60000, 3, attrs, 2, &o, DATA_SMOOTH);
+    omp_set_num_threads(before);
+    ENSURE(a == 0 && b == 0 && same_files(one, two));
+}
+
+int main(void)
+{
+    RUN_TEST(test_attribute_table);
+    RUN_TEST(test_round_trip_every_attribute_and_option);
+    RUN_TEST(test_delta_random_access_matches_sequential);
+    RUN_TEST(test_quantisation_bound);
+    RUN_TEST(test_sizes);
+    RUN_TEST(test_argument_errors);
+    RUN_TEST(test_bytes_independent_of_threads);
+    return test_result();
+}
