@@ -78,35 +78,6 @@ static void test_tets_ply_obj_through_assimp(void)
     if (write_frame(&f, FM_EXPORT_OBJ, "formats_tets.obj", path) == FM_OK) export_check_assimp_tets(path, v, NT, 1e-6);
 }
 
-/* The PLY point record: x y z [vx vy vz] id, checked byte for byte after the exact header. */
-static void check_point_ply_records(const char *path, const point_set *p, int with_velocity)
-{
-    char header[1024];
-    snprintf(header, sizeof header,
-             "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " points\n"
-             "element vertex %d\nproperty float x\nproperty float y\nproperty float z\n%sproperty int id\n"
-             "end_header\n", NP, with_velocity ? "property float vx\nproperty float vy\nproperty float vz\n" : "");
-    size_t hl = strlen(header), record = with_velocity ? 28 : 16;
-    unsigned char *buf = malloc(hl + record * NP + 1);
-    FILE *fp = fopen(path, "rb");
-    size_t got = fp && buf ? fread(buf, 1, hl + record * NP + 1, fp) : 0;
-    if (fp) fclose(fp);
-    ENSURE_MSG(got == hl + record * NP, "%s: %zu bytes, expected %zu", path, got, hl + record * NP);
-    if (got == hl + record * NP) {
-        ENSURE_MSG(memcmp(buf, header, hl) == 0, "%s: header %.*s", path, (int)hl, (const char *)buf);
-        size_t bad = 0;
-        for (size_t i = 0; i < NP; i++) {
-            const unsigned char *r = buf + hl + record * i;
-            int32_t id;
-            memcpy(&id, r + record - 4, 4);
-            bad += memcmp(r, p->pos + 3 * i, 12) != 0 || (uint32_t)id != p->ids[i];
-            bad += with_velocity && memcmp(r + 12, p->vel + 3 * i, 12) != 0;
-        }
-        ENSURE_MSG(bad == 0, "%s: %zu records differ", path, bad);
-    }
-    free(buf);
-}
-
 static void test_points_ply(void)
 {
     static point_set p;
@@ -115,11 +86,11 @@ static void test_points_ply(void)
     fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
     if (write_frame(&f, FM_EXPORT_PLY, "formats_points.ply", path) == FM_OK) {
         export_check_assimp_points(path, p.pos, NP, 0);
-        check_point_ply_records(path, &p, 1);
+        export_check_ply_points(path, p.pos, p.vel, p.ids, NP);
     }
     f.velocities = NULL;
     if (write_frame(&f, FM_EXPORT_PLY, "formats_points_novel.ply", path) == FM_OK)
-        check_point_ply_records(path, &p, 0);
+        export_check_ply_points(path, p.pos, NULL, p.ids, NP);
 }
 
 static void test_points_obj(void)

@@ -9,6 +9,7 @@
 #include <assimp/cimport.h>
 #include <assimp/scene.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -84,6 +85,37 @@ static inline void export_check_assimp_points(const char *path, const float *pos
     ENSURE_MSG(seen == n, "%s: assimp read %zu points, expected %zu", path, seen, n);
     ENSURE_MSG(bad == 0, "%s: %zu points differ from those written", path, bad);
     aiReleaseImport(scene);
+}
+
+/* A point PLY: the exact header, then per point x y z, vx vy vz (when vel is not NULL) and the
+ * int32 id, byte for byte. */
+static inline void export_check_ply_points(const char *path, const float *pos, const float *vel,
+                                           const uint32_t *ids, size_t n)
+{
+    char header[1024];
+    snprintf(header, sizeof header,
+             "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " points\n"
+             "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n%sproperty int id\n"
+             "end_header\n", n, vel ? "property float vx\nproperty float vy\nproperty float vz\n" : "");
+    size_t hl = strlen(header), record = vel ? 28 : 16, size = hl + record * n;
+    unsigned char *buf = malloc(size + 1);
+    FILE *fp = fopen(path, "rb");
+    size_t got = fp && buf ? fread(buf, 1, size + 1, fp) : 0;
+    if (fp) fclose(fp);
+    ENSURE_MSG(got == size, "%s: %zu bytes, expected %zu", path, got, size);
+    if (got == size) {
+        ENSURE_MSG(memcmp(buf, header, hl) == 0, "%s: header %.*s", path, (int)hl, (const char *)buf);
+        size_t bad = 0;
+        for (size_t i = 0; i < n; i++) {
+            const unsigned char *r = buf + hl + record * i;
+            int32_t id;
+            memcpy(&id, r + record - 4, 4);
+            bad += memcmp(r, pos + 3 * i, 12) != 0 || (uint32_t)id != (ids ? ids[i] : (uint32_t)i);
+            bad += vel && memcmp(r + 12, vel + 3 * i, 12) != 0;
+        }
+        ENSURE_MSG(bad == 0, "%s: %zu records differ", path, bad);
+    }
+    free(buf);
 }
 
 /* Runs tests/check_vtk.py with args; returns its exit status (-1 if it did not exit). quiet

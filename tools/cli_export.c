@@ -154,35 +154,6 @@ static int resolve_range(const frame_range *r, const char *cache, uint32_t frame
 
 /* ---------------------------------------------------------------- the cache's contents */
 
-/* The format-2 reader (fm_cache_has_attr, fm_cache_read_attr) is declared in flockmorph.h but not
- * implemented on this branch yet (branch `cache` brings it). Until it is merged every cache has
- * tet vertices and no point attributes; merging it means defining this to 1. */
-#ifndef CLI_EXPORT_CACHE_ATTRS
-#define CLI_EXPORT_CACHE_ATTRS 0
-#endif
-
-static int cache_has(const fm_cache_reader *r, fm_cache_attr attr)
-{
-#if CLI_EXPORT_CACHE_ATTRS
-    return fm_cache_has_attr(r, attr);
-#else
-    (void)r;
-    return attr == FM_ATTR_TET_VERTICES;
-#endif
-}
-
-static fm_status read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr attr, void *out, fm_error *err)
-{
-    if (attr == FM_ATTR_TET_VERTICES) return fm_cache_read_frame(r, frame, out, err);
-#if CLI_EXPORT_CACHE_ATTRS
-    return fm_cache_read_attr(r, frame, attr, out, err);
-#else
-    (void)out;
-    return fm_fail(err, FM_ERR_INTERNAL, "frame %u: the cache attribute %d needs the format-2 reader",
-                   (unsigned)frame, (int)attr);
-#endif
-}
-
 /* What every thread needs to export its frames: read-only once set up. */
 typedef struct export_job {
     const char *cache, *out_file; /* out_file: one frame to one file; NULL: a sequence into dir */
@@ -202,8 +173,8 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     job->frames = fm_cache_frames(r);
     job->frame_rate = fm_cache_frame_rate(r);
     job->agents = (size_t)fm_cache_agents(r);
-    job->points = !cache_has(r, FM_ATTR_TET_VERTICES) && cache_has(r, FM_ATTR_POSITION);
-    if (!job->points && !cache_has(r, FM_ATTR_TET_VERTICES)) {
+    job->points = !fm_cache_has_attr(r, FM_ATTR_TET_VERTICES) && fm_cache_has_attr(r, FM_ATTR_POSITION);
+    if (!job->points && !fm_cache_has_attr(r, FM_ATTR_TET_VERTICES)) {
         fprintf(stderr, "flockmorph: error: %s has neither tet vertices nor positions to export\n", job->cache);
         return FM_ERR_INPUT;
     }
@@ -213,9 +184,9 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
                 "positive one\n", job->cache, job->frame_rate);
         return FM_ERR_INPUT;
     }
-    job->cache_velocity = job->points && cache_has(r, FM_ATTR_VELOCITY);
-    job->cache_ids = cache_has(r, FM_ATTR_ID);
-    job->cache_phases = job->format == FM_EXPORT_VTK && cache_has(r, FM_ATTR_PHASE);
+    job->cache_velocity = job->points && fm_cache_has_attr(r, FM_ATTR_VELOCITY);
+    job->cache_ids = fm_cache_has_attr(r, FM_ATTR_ID);
+    job->cache_phases = job->format == FM_EXPORT_VTK && fm_cache_has_attr(r, FM_ATTR_PHASE);
     return 0;
 }
 
@@ -280,7 +251,7 @@ static fm_status positions(frame_source *s, const export_job *job, uint32_t k, u
     }
     float *p = s->slot[free_slot];
     s->slot_frame[free_slot] = -1;
-    fm_status st = job->points ? read_attr(s->r, k, FM_ATTR_POSITION, p, err)
+    fm_status st = job->points ? fm_cache_read_attr(s->r, k, FM_ATTR_POSITION, p, err)
                                : fm_cache_read_frame(s->r, k, s->tets, err);
     if (st != FM_OK) return st;
     if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
@@ -320,16 +291,16 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
         f->tet_vertices = s->tets;
     }
     if (st == FM_OK && job->need_velocity) {
-        st = job->cache_velocity ? read_attr(s->r, k, FM_ATTR_VELOCITY, s->velocity, err)
+        st = job->cache_velocity ? fm_cache_read_attr(s->r, k, FM_ATTR_VELOCITY, s->velocity, err)
                                  : difference_velocity(s, job, k, err);
         f->velocities = s->velocity;
     }
     if (st == FM_OK && job->cache_ids) {
-        st = read_attr(s->r, k, FM_ATTR_ID, s->ids, err);
+        st = fm_cache_read_attr(s->r, k, FM_ATTR_ID, s->ids, err);
         f->ids = s->ids;
     }
     if (st == FM_OK && job->cache_phases) {
-        st = read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
+        st = fm_cache_read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
         f->phases = s->phases;
     }
     return st;
