@@ -248,11 +248,15 @@ static fm_status check_frame(const fm_export_frame *frame, fm_export_format form
     size_t n = frame->n;
     if (n > 0 && !frame->tet_vertices && !frame->positions)
         return fm_fail(err, FM_ERR_USAGE, "export to '%s': neither tet vertices nor positions", path);
-    /* PLY indices and ids are int32; VTK and VDB are checked in their writers' types. */
+    /* PLY's indices and ids and VDB's ids are int32; VTK's are Int64 and UInt32. */
     size_t limit = frame->tet_vertices ? ((size_t)INT32_MAX + 1) / 4 : (size_t)INT32_MAX;
     if (format == FM_EXPORT_PLY && n > limit)
         return fm_fail(err, FM_ERR_INPUT, "cannot export %zu agents to '%s': PLY int indices allow "
                        "at most %zu", n, path, limit);
+    for (size_t i = 0; frame->ids && (format == FM_EXPORT_PLY || format == FM_EXPORT_VDB) && i < n; i++)
+        if (frame->ids[i] > (uint32_t)INT32_MAX)
+            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit "
+                           "the format's int32 id", path, i, (unsigned)frame->ids[i]);
     return FM_OK;
 }
 

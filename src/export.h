@@ -42,8 +42,9 @@ fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *dat
 /* export_vtk.c: the .vtu body for an fm_export_frame (tets as VTK_TETRA, points as VTK_VERTEX). */
 int fm_vtu_body(FILE *f, const void *frame);
 
-/* export_vdb.cpp: positions, velocities (NULL: zero) and ids (NULL: 0..n-1) as an OpenVDB
- * PointDataGrid named "points" with attributes P, v (vec3s) and id (int32). */
+/* export_vdb.cpp: positions, velocities (NULL: zero) and ids (NULL: 0..n-1; each at most
+ * INT32_MAX, as fm_export_frame_write checks) as an OpenVDB PointDataGrid named "points" with
+ * attributes P, v (vec3s) and id (int32). */
 fm_status fm_vdb_points_write(const float *positions, const float *velocities, const uint32_t *ids,
                               size_t n, const fm_export_options *opts, const char *path,
                               fm_error *err);

@@ -77,17 +77,13 @@ public:
     }
 };
 
-fm_status check_points(const float *pos, const uint32_t *ids, size_t n, double voxel,
-                       const char *path, fm_error *err)
+// Ids were checked to fit int32 by fm_export_frame_write.
+fm_status check_points(const float *pos, size_t n, double voxel, const char *path, fm_error *err)
 {
     for (size_t i = 0; i < 3 * n; i++)
         if (!std::isfinite(pos[i]))
             return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu has a non-finite position",
                            path, i / 3);
-    for (size_t i = 0; ids && i < n; i++)
-        if (ids[i] > (uint32_t)INT32_MAX)
-            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': id %u does not fit VDB's int32 id",
-                           path, (unsigned)ids[i]);
     if (voxel < 0 || !std::isfinite(voxel))
         return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': voxel size %g is not positive", path, voxel);
     return FM_OK;
@@ -223,7 +219,7 @@ extern "C" fm_status fm_vdb_points_write(const float *positions, const float *ve
                                          const char *path, fm_error *err)
 {
     if (n > 0 && !positions) return fm_fail(err, FM_ERR_USAGE, "export to '%s': no positions", path);
-    fm_status st = check_points(positions, ids, n, opts->voxel_size, path, err);
+    fm_status st = check_points(positions, n, opts->voxel_size, path, err);
     if (st != FM_OK) return st;
     try {
         return write_points(positions, velocities, ids, n, opts, path, err);

@@ -274,6 +274,29 @@ static void test_vdb_errors(void)
     ENSURE(fm_vdb_points_read(path, &n, &rp, &rv, &rid, NULL, &err) == FM_ERR_INPUT);
 }
 
+/* PLY and VDB store ids as int32: a larger id is refused, VTK's UInt32 takes it. */
+static void test_id_limits(void)
+{
+    float pos[6] = {0, 0, 0, 1, 1, 1};
+    uint32_t ids[2] = {5, 0x80000000u};
+    fm_export_frame f = {.n = 2, .positions = pos, .ids = ids};
+    static const fm_export_format formats[] = {FM_EXPORT_PLY, FM_EXPORT_VDB, FM_EXPORT_VTK};
+    for (int i = 0; i < 3; i++) {
+        char name[64], path[FM_PATH_MAX];
+        snprintf(name, sizeof name, "formats_ids.%s", fm_export_extension(formats[i]));
+        export_tmp(path, name);
+        remove(path);
+        fm_error err = {0};
+        fm_status st = fm_export_frame_write(&f, formats[i], NULL, path, &err);
+        if (formats[i] == FM_EXPORT_VTK) {
+            ENSURE_MSG(st == FM_OK, "%s: %s", name, err.message);
+        } else {
+            ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "2147483648"), "%s: %d %s", name, (int)st, err.message);
+            ENSURE(!export_file_exists(path));
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- every format */
 
 /* No agents: every format writes a valid empty file. */
@@ -350,6 +373,7 @@ int main(void)
     RUN_TEST(test_vdb_points);
     RUN_TEST(test_vdb_tets);
     RUN_TEST(test_vdb_errors);
+    RUN_TEST(test_id_limits);
     RUN_TEST(test_empty_frames);
     RUN_TEST(test_write_failure);
     RUN_TEST(test_format_names);

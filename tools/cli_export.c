@@ -229,8 +229,8 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
     if (job->cache_ids) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
     if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
-    for (int i = 0; i < POSITION_SLOTS; i++) {
-        s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for VDB */
+        if (job->points || job->format == FM_EXPORT_VDB) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
         s->slot_frame[i] = -1;
     }
     if (!failed) return FM_OK;
