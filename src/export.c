@@ -60,23 +60,27 @@ fm_export_options fm_default_export_options(void)
 
 /* ---------------------------------------------------------------- little-endian output */
 
-void fm_le_init(fm_le_writer *w, FILE *f)
-{
-    w->f = f;
-    w->used = 0;
-    w->failed = 0;
-}
-
-int fm_le_flush(fm_le_writer *w)
+static int le_flush(fm_le_writer *w)
 {
     if (!w->failed && w->used && fwrite(w->buf, 1, w->used, w->f) != w->used) w->failed = 1;
     w->used = 0;
     return w->failed ? -1 : 0;
 }
 
+int fm_le_write(FILE *f, fm_le_emit_fn emit, const void *data)
+{
+    fm_le_writer *w = malloc(sizeof *w); /* 64 KiB: not on the stack of a worker thread */
+    if (!w) return errno = ENOMEM, -1;
+    w->f = f, w->used = 0, w->failed = 0;
+    emit(w, data);
+    int rc = le_flush(w);
+    free(w);
+    return rc;
+}
+
 static unsigned char *le_reserve(fm_le_writer *w, size_t bytes)
 {
-    if (w->used + bytes > sizeof w->buf) fm_le_flush(w);
+    if (w->used + bytes > sizeof w->buf) le_flush(w);
     unsigned char *p = w->buf + w->used;
     w->used += bytes;
     return p;
@@ -110,6 +114,18 @@ static uint32_t agent_id(const fm_export_frame *frame, size_t i)
     return frame->ids ? frame->ids[i] : (uint32_t)i;
 }
 
+static void ply_tets_data(fm_le_writer *w, const void *data)
+{
+    const fm_export_frame *frame = data;
+    for (size_t i = 0; i < 12 * frame->n; i++) fm_le_f32(w, frame->tet_vertices[i]);
+    for (size_t t = 0; t < frame->n; t++) {
+        for (int j = 0; j < 4; j++) {
+            fm_le_u8(w, 3);
+            for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
+        }
+    }
+}
+
 static int ply_tets_body(FILE *f, const void *data)
 {
     const fm_export_frame *frame = data;
@@ -127,19 +143,17 @@ static int ply_tets_body(FILE *f, const void *data)
                 "end_header\n",
                 4 * n, 4 * n) < 0)
         return -1;
-    fm_le_writer *w = malloc(sizeof *w);
-    if (!w) return errno = ENOMEM, -1;
-    fm_le_init(w, f);
-    for (size_t i = 0; i < 12 * n; i++) fm_le_f32(w, frame->tet_vertices[i]);
-    for (size_t t = 0; t < n; t++) {
-        for (int j = 0; j < 4; j++) {
-            fm_le_u8(w, 3);
-            for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
-        }
+    return fm_le_write(f, ply_tets_data, frame);
+}
+
+static void ply_points_data(fm_le_writer *w, const void *data)
+{
+    const fm_export_frame *frame = data;
+    for (size_t i = 0; i < frame->n; i++) {
+        for (int k = 0; k < 3; k++) fm_le_f32(w, frame->positions[3 * i + k]);
+        for (int k = 0; frame->velocities && k < 3; k++) fm_le_f32(w, frame->velocities[3 * i + k]);
+        fm_le_u32(w, agent_id(frame, i));
     }
-    int rc = fm_le_flush(w);
-    free(w);
-    return rc;
 }
 
 /* Points: vertices only, with the velocity (when given) and the id as vertex properties. */
@@ -160,17 +174,7 @@ static int ply_points_body(FILE *f, const void *data)
                 "end_header\n",
                 frame->n, has_v ? "property float vx\nproperty float vy\nproperty float vz\n" : "") < 0)
         return -1;
-    fm_le_writer *w = malloc(sizeof *w);
-    if (!w) return errno = ENOMEM, -1;
-    fm_le_init(w, f);
-    for (size_t i = 0; i < frame->n; i++) {
-        for (int k = 0; k < 3; k++) fm_le_f32(w, frame->positions[3 * i + k]);
-        for (int k = 0; has_v && k < 3; k++) fm_le_f32(w, frame->velocities[3 * i + k]);
-        fm_le_u32(w, agent_id(frame, i));
-    }
-    int rc = fm_le_flush(w);
-    free(w);
-    return rc;
+    return fm_le_write(f, ply_points_data, frame);
 }
 
 /* ---------------------------------------------------------------- OBJ */

@@ -25,13 +25,15 @@ typedef struct fm_le_writer {
     unsigned char buf[1 << 16];
 } fm_le_writer;
 
-void fm_le_init(fm_le_writer *w, FILE *f);
 void fm_le_u8(fm_le_writer *w, uint8_t v);
 void fm_le_u32(fm_le_writer *w, uint32_t v);
 void fm_le_u64(fm_le_writer *w, uint64_t v);
 void fm_le_f32(fm_le_writer *w, float v);
-/* Writes out what is buffered; returns 0, or -1 if any write failed. */
-int fm_le_flush(fm_le_writer *w);
+
+/* Runs emit(w, data) on a writer over f and writes out what it buffered; 0, or -1 if a write
+ * failed (errno says why). */
+typedef void (*fm_le_emit_fn)(fm_le_writer *w, const void *data);
+int fm_le_write(FILE *f, fm_le_emit_fn emit, const void *data);
 
 /* A file's body: writes data to f, returns 0 or -1 on a failed write (errno says why). */
 typedef int (*fm_body_fn)(FILE *f, const void *data);

@@ -8,8 +8,6 @@
  * counter-clockwise), so the points go out as they are. Points are VTK_VERTEX cells (type 1). */
 #include "export.h"
 
-#include <errno.h>
-#include <stdlib.h>
 
 enum { VTK_VERTEX = 1, VTK_TETRA = 10 };
 
@@ -115,21 +113,26 @@ static int vtu_header(FILE *file, const fm_export_frame *f, const vtu_array *a, 
                ? -1 : 0;
 }
 
+typedef struct vtu_layout {
+    const fm_export_frame *frame;
+    vtu_array a[8];
+    int count;
+} vtu_layout;
+
+/* Each array as a UInt64 byte count and its values. */
+static void vtu_appended(fm_le_writer *w, const void *data)
+{
+    const vtu_layout *l = data;
+    for (int i = 0; i < l->count; i++) {
+        fm_le_u64(w, l->a[i].bytes);
+        l->a[i].emit(w, l->frame);
+    }
+}
+
 int fm_vtu_body(FILE *file, const void *data)
 {
-    const fm_export_frame *f = data;
-    vtu_array a[8];
-    int count = vtu_arrays(f, a);
-    if (vtu_header(file, f, a, count)) return -1;
-    fm_le_writer *w = malloc(sizeof *w);
-    if (!w) return errno = ENOMEM, -1;
-    fm_le_init(w, file);
-    for (int i = 0; i < count; i++) {
-        fm_le_u64(w, a[i].bytes);
-        a[i].emit(w, f);
-    }
-    int rc = fm_le_flush(w);
-    free(w);
-    if (rc) return -1;
+    vtu_layout l = {.frame = data};
+    l.count = vtu_arrays(l.frame, l.a);
+    if (vtu_header(file, l.frame, l.a, l.count) || fm_le_write(file, vtu_appended, &l)) return -1;
     return fputs("\n  </AppendedData>\n</VTKFile>\n", file) < 0 ? -1 : 0;
 }
