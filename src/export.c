@@ -109,6 +109,11 @@ void fm_le_f32(fm_le_writer *w, float v)
 
 /* ---------------------------------------------------------------- PLY */
 
+/* The header up to the vertices' coordinates; %zu is the vertex count. */
+#define PLY_VERTICES(what)                                                                          \
+    "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " " what "\n"    \
+    "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+
 static uint32_t agent_id(const fm_export_frame *frame, size_t i)
 {
     return frame->ids ? frame->ids[i] : (uint32_t)i;
@@ -131,13 +136,7 @@ static int ply_tets_body(FILE *f, const void *data)
     const fm_export_frame *frame = data;
     size_t n = frame->n;
     if (fprintf(f,
-                "ply\n"
-                "format binary_little_endian 1.0\n"
-                "comment flockmorph " FM_VERSION_STRING " tets\n"
-                "element vertex %zu\n"
-                "property float x\n"
-                "property float y\n"
-                "property float z\n"
+                PLY_VERTICES("tets")
                 "element face %zu\n"
                 "property list uchar int vertex_indices\n"
                 "end_header\n",
@@ -162,13 +161,7 @@ static int ply_points_body(FILE *f, const void *data)
     const fm_export_frame *frame = data;
     const int has_v = frame->velocities != NULL;
     if (fprintf(f,
-                "ply\n"
-                "format binary_little_endian 1.0\n"
-                "comment flockmorph " FM_VERSION_STRING " points\n"
-                "element vertex %zu\n"
-                "property float x\n"
-                "property float y\n"
-                "property float z\n"
+                PLY_VERTICES("points")
                 "%s"
                 "property int id\n"
                 "end_header\n",
