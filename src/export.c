@@ -1,137 +1,355 @@
-/* Export of tets as a triangle mesh: binary little-endian PLY or Wavefront OBJ.
+/* Exporters: one frame of tets or points to PLY, OBJ, VTK or VDB (include/flockmorph/export.h).
  *
  * Each tet becomes 4 vertices and 4 triangles (0,2,1), (0,1,3), (0,3,2), (1,2,3), which face
- * outward when the tet has positive signed volume det[v1-v0, v2-v0, v3-v0] > 0. The file is
- * written as PATH.partial and renamed to PATH only when every write succeeded. */
+ * outward when the tet has positive signed volume det[v1-v0, v2-v0, v3-v0] > 0. Points become
+ * vertices only. Every file is written as PATH.partial and renamed to PATH only when every write
+ * succeeded. */
 #define _POSIX_C_SOURCE 200809L
-#include "fm_internal.h"
+#include "export.h"
 
+#include <ctype.h>
 #include <errno.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
-static const int fm_tet_faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+const int fm_tet_faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
 
-typedef enum { FMT_UNKNOWN, FMT_PLY, FMT_OBJ } mesh_format;
+/* ---------------------------------------------------------------- formats and names */
 
-/* Case-insensitive comparison of the extension of path's last component with ext ("ply"). */
-static int has_extension(const char *path, const char *ext)
+static const struct {
+    fm_export_format format;
+    const char *name, *extension;
+} fm_formats[] = {{FM_EXPORT_PLY, "ply", "ply"},
+                  {FM_EXPORT_OBJ, "obj", "obj"},
+                  {FM_EXPORT_VTK, "vtk", "vtu"},
+                  {FM_EXPORT_VDB, "vdb", "vdb"}};
+#define FM_FORMAT_COUNT (sizeof fm_formats / sizeof fm_formats[0])
+
+fm_export_format fm_export_format_named(const char *name)
 {
-    const char *slash = strrchr(path, '/');
+    for (size_t i = 0; name && i < FM_FORMAT_COUNT; i++)
+        if (!strcasecmp(name, fm_formats[i].name)) return fm_formats[i].format;
+    return FM_EXPORT_UNKNOWN;
+}
+
+fm_export_format fm_export_format_of_path(const char *path)
+{
+    const char *slash = path ? strrchr(path, '/') : NULL;
     const char *base = slash ? slash + 1 : path;
-    const char *dot = strrchr(base, '.');
-    if (!dot) return 0;
-    const char *a = dot + 1;
-    for (; *a && *ext; a++, ext++) {
-        char c = *a;
-        if (c >= 'A' && c <= 'Z') c = (char)(c - 'A' + 'a');
-        if (c != *ext) return 0;
-    }
-    return *a == '\0' && *ext == '\0';
+    const char *dot = base ? strrchr(base, '.') : NULL;
+    for (size_t i = 0; dot && i < FM_FORMAT_COUNT; i++)
+        if (!strcasecmp(dot + 1, fm_formats[i].extension)) return fm_formats[i].format;
+    return FM_EXPORT_UNKNOWN;
 }
 
-static mesh_format format_of(const char *path)
+const char *fm_export_extension(fm_export_format format)
 {
-    if (has_extension(path, "ply")) return FMT_PLY;
-    if (has_extension(path, "obj")) return FMT_OBJ;
-    return FMT_UNKNOWN;
+    for (size_t i = 0; i < FM_FORMAT_COUNT; i++)
+        if (fm_formats[i].format == format) return fm_formats[i].extension;
+    return "";
 }
 
-static void put_u32le(unsigned char *p, uint32_t v)
+fm_export_options fm_default_export_options(void)
 {
-    p[0] = (unsigned char)(v & 0xffu);
-    p[1] = (unsigned char)((v >> 8) & 0xffu);
-    p[2] = (unsigned char)((v >> 16) & 0xffu);
-    p[3] = (unsigned char)((v >> 24) & 0xffu);
+    return (fm_export_options){.voxel_size = 0.0, .points_per_voxel = 8};
 }
 
-static void put_f32le(unsigned char *p, float f)
+/* ---------------------------------------------------------------- little-endian output */
+
+static int le_flush(fm_le_writer *w)
+{
+    if (!w->failed && w->used && fwrite(w->buf, 1, w->used, w->f) != w->used) w->failed = 1;
+    w->used = 0;
+    return w->failed ? -1 : 0;
+}
+
+int fm_le_write(FILE *f, fm_le_emit_fn emit, const void *data)
+{
+    fm_le_writer *w = malloc(sizeof *w); /* 64 KiB: not on the stack of a worker thread */
+    if (!w) return errno = ENOMEM, -1;
+    w->f = f, w->used = 0, w->failed = 0;
+    emit(w, data);
+    int rc = le_flush(w);
+    free(w);
+    return rc;
+}
+
+static unsigned char *le_reserve(fm_le_writer *w, size_t bytes)
+{
+    if (w->used + bytes > sizeof w->buf) le_flush(w);
+    unsigned char *p = w->buf + w->used;
+    w->used += bytes;
+    return p;
+}
+
+void fm_le_u8(fm_le_writer *w, uint8_t v) { *le_reserve(w, 1) = v; }
+
+void fm_le_u32(fm_le_writer *w, uint32_t v)
+{
+    unsigned char *p = le_reserve(w, 4);
+    for (int k = 0; k < 4; k++) p[k] = (unsigned char)(v >> (8 * k));
+}
+
+void fm_le_u64(fm_le_writer *w, uint64_t v)
+{
+    unsigned char *p = le_reserve(w, 8);
+    for (int k = 0; k < 8; k++) p[k] = (unsigned char)(v >> (8 * k));
+}
+
+void fm_le_f32(fm_le_writer *w, float v)
 {
     uint32_t bits;
-    memcpy(&bits, &f, sizeof bits);
-    put_u32le(p, bits);
+    memcpy(&bits, &v, sizeof bits);
+    fm_le_u32(w, bits);
 }
 
-/* Both writers return 0 on success, -1 on a failed write (errno says why). */
-static int write_ply(FILE *f, const float *verts, size_t n)
+/* ---------------------------------------------------------------- PLY */
+
+/* The header up to the vertices' coordinates; %zu is the vertex count. */
+#define PLY_VERTICES(what)                                                                          \
+    "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " " what "\n"    \
+    "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+
+static uint32_t agent_id(const fm_export_frame *frame, size_t i)
 {
+    return frame->ids ? frame->ids[i] : (uint32_t)i;
+}
+
+static void ply_tets_data(fm_le_writer *w, const void *data)
+{
+    const fm_export_frame *frame = data;
+    for (size_t i = 0; i < 12 * frame->n; i++) fm_le_f32(w, frame->tet_vertices[i]);
+    for (size_t t = 0; t < frame->n; t++) {
+        for (int j = 0; j < 4; j++) {
+            fm_le_u8(w, 3);
+            for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
+        }
+    }
+}
+
+static int ply_tets_body(FILE *f, const void *data)
+{
+    const fm_export_frame *frame = data;
+    size_t n = frame->n;
     if (fprintf(f,
-                "ply\n"
-                "format binary_little_endian 1.0\n"
-                "comment flockmorph " FM_VERSION_STRING " tets\n"
-                "element vertex %zu\n"
-                "property float x\n"
-                "property float y\n"
-                "property float z\n"
+                PLY_VERTICES("tets")
                 "element face %zu\n"
                 "property list uchar int vertex_indices\n"
                 "end_header\n",
                 4 * n, 4 * n) < 0)
         return -1;
+    return fm_le_write(f, ply_tets_data, frame);
+}
 
-    unsigned char buf[52]; /* 4 vertices × 12 bytes, or 4 faces × 13 bytes */
-    for (size_t t = 0; t < n; t++) {
-        for (int k = 0; k < 12; k++) put_f32le(buf + 4 * k, verts[12 * t + (size_t)k]);
-        if (fwrite(buf, 1, 48, f) != 48) return -1;
+static void ply_points_data(fm_le_writer *w, const void *data)
+{
+    const fm_export_frame *frame = data;
+    for (size_t i = 0; i < frame->n; i++) {
+        for (int k = 0; k < 3; k++) fm_le_f32(w, frame->positions[3 * i + k]);
+        for (int k = 0; frame->velocities && k < 3; k++) fm_le_f32(w, frame->velocities[3 * i + k]);
+        fm_le_u32(w, agent_id(frame, i));
     }
+}
+
+/* Points: vertices only, with the velocity (when given) and the id as vertex properties. */
+static int ply_points_body(FILE *f, const void *data)
+{
+    const fm_export_frame *frame = data;
+    const int has_v = frame->velocities != NULL;
+    if (fprintf(f,
+                PLY_VERTICES("points")
+                "%s"
+                "property int id\n"
+                "end_header\n",
+                frame->n, has_v ? "property float vx\nproperty float vy\nproperty float vz\n" : "") < 0)
+        return -1;
+    return fm_le_write(f, ply_points_data, frame);
+}
+
+/* ---------------------------------------------------------------- OBJ */
+
+/* %.9g gives every float back bit for bit. */
+static int obj_vertices(FILE *f, const float *v, size_t count)
+{
+    for (size_t i = 0; i < count; i++, v += 3)
+        if (fprintf(f, "v %.9g %.9g %.9g\n", (double)v[0], (double)v[1], (double)v[2]) < 0) return -1;
+    return 0;
+}
+
+static int obj_tets_body(FILE *f, const void *data)
+{
+    const fm_export_frame *frame = data;
+    size_t n = frame->n;
+    if (fprintf(f, "# flockmorph %s: %zu tets, 4 vertices and 4 triangles each\n",
+                FM_VERSION_STRING, n) < 0)
+        return -1;
+    if (obj_vertices(f, frame->tet_vertices, 4 * n)) return -1;
     for (size_t t = 0; t < n; t++) {
-        for (int j = 0; j < 4; j++) {
-            unsigned char *p = buf + 13 * j;
-            p[0] = 3;
-            for (int k = 0; k < 3; k++)
-                put_u32le(p + 1 + 4 * k, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
-        }
-        if (fwrite(buf, 1, 52, f) != 52) return -1;
+        size_t base = 4 * t + 1; /* OBJ indices are 1-based */
+        for (int j = 0; j < 4; j++)
+            if (fprintf(f, "f %zu %zu %zu\n", base + (size_t)fm_tet_faces[j][0],
+                        base + (size_t)fm_tet_faces[j][1], base + (size_t)fm_tet_faces[j][2]) < 0)
+                return -1;
     }
     return 0;
 }
 
-static int write_obj(FILE *f, const float *verts, size_t n)
+static int obj_points_body(FILE *f, const void *data)
 {
-    if (fprintf(f, "# flockmorph %s: %zu tets, 4 vertices and 4 triangles each\n",
-                FM_VERSION_STRING, n) < 0)
+    const fm_export_frame *frame = data;
+    if (fprintf(f, "# flockmorph %s: %zu points in agent id order\n", FM_VERSION_STRING,
+                frame->n) < 0)
         return -1;
-    for (size_t i = 0; i < 4 * n; i++) {
-        const float *v = verts + 3 * i;
-        if (fprintf(f, "v %.9g %.9g %.9g\n", (double)v[0], (double)v[1], (double)v[2]) < 0)
-            return -1;
+    return obj_vertices(f, frame->positions, frame->n);
+}
+
+/* ---------------------------------------------------------------- shared frame plumbing */
+
+fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *data, fm_error *err)
+{
+    fm_output_file out;
+    fm_status st = fm_output_open(&out, path, err);
+    if (st != FM_OK) return st;
+    errno = 0;
+    if (body(out.f, data)) {
+        int e = errno;
+        fm_output_discard(&out);
+        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
     }
+    return fm_output_commit(&out, NULL, err);
+}
+
+void fm_tet_centroids(const float *verts, size_t n, float *out)
+{
     for (size_t t = 0; t < n; t++) {
-        for (int j = 0; j < 4; j++) {
-            size_t base = 4 * t + 1; /* OBJ indices are 1-based */
-            if (fprintf(f, "f %zu %zu %zu\n", base + (size_t)fm_tet_faces[j][0],
-                        base + (size_t)fm_tet_faces[j][1], base + (size_t)fm_tet_faces[j][2]) < 0)
-                return -1;
-        }
+        const float *v = verts + 12 * t;
+        for (int k = 0; k < 3; k++)
+            out[3 * t + k] = (float)(0.25 * ((double)v[k] + v[3 + k] + v[6 + k] + v[9 + k]));
     }
-    return 0;
+}
+
+void fm_finite_difference(const float *before, const float *after, size_t n, double dt, float *out)
+{
+    for (size_t i = 0; i < 3 * n; i++) out[i] = (float)(((double)after[i] - before[i]) / dt);
+}
+
+/* What a format can hold; an error names the limit. */
+static fm_status check_frame(const fm_export_frame *frame, fm_export_format format, const char *path,
+                             fm_error *err)
+{
+    if (!frame) return fm_fail(err, FM_ERR_USAGE, "export to '%s': no frame given", path);
+    size_t n = frame->n;
+    if (n > 0 && !frame->tet_vertices && !frame->positions)
+        return fm_fail(err, FM_ERR_USAGE, "export to '%s': neither tet vertices nor positions", path);
+    /* PLY's indices and ids and VDB's ids are int32; VTK's are Int64 and UInt32. */
+    size_t limit = frame->tet_vertices ? ((size_t)INT32_MAX + 1) / 4 : (size_t)INT32_MAX;
+    if (format == FM_EXPORT_PLY && n > limit)
+        return fm_fail(err, FM_ERR_INPUT, "cannot export %zu agents to '%s': PLY int indices allow "
+                       "at most %zu", n, path, limit);
+    for (size_t i = 0; frame->ids && (format == FM_EXPORT_PLY || format == FM_EXPORT_VDB) && i < n; i++)
+        if (frame->ids[i] > (uint32_t)INT32_MAX)
+            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit "
+                           "the format's int32 id", path, i, (unsigned)frame->ids[i]);
+    return FM_OK;
+}
+
+/* VDB stores points: a tet's is its centroid. */
+static fm_status write_vdb(const fm_export_frame *frame, const fm_export_options *opts,
+                           const char *path, fm_error *err)
+{
+    if (!frame->tet_vertices || frame->positions)
+        return fm_vdb_points_write(frame->positions, frame->velocities, frame->ids, frame->n, opts,
+                                   path, err);
+    float *centroids = malloc(sizeof(float) * 3 * (frame->n ? frame->n : 1));
+    if (!centroids)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %zu centroids ('%s')", frame->n, path);
+    fm_tet_centroids(frame->tet_vertices, frame->n, centroids);
+    fm_status st = fm_vdb_points_write(centroids, frame->velocities, frame->ids, frame->n, opts,
+                                       path, err);
+    free(centroids);
+    return st;
+}
+
+fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format format,
+                                const fm_export_options *opts, const char *path, fm_error *err)
+{
+    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "export: no output path given");
+    fm_status st = check_frame(frame, format, path, err);
+    if (st != FM_OK) return st;
+    fm_export_options defaults = fm_default_export_options();
+    const int tets = frame->tet_vertices != NULL;
+    switch (format) {
+    case FM_EXPORT_PLY:
+        return fm_export_with_body(path, tets ? ply_tets_body : ply_points_body, frame, err);
+    case FM_EXPORT_OBJ:
+        return fm_export_with_body(path, tets ? obj_tets_body : obj_points_body, frame, err);
+    case FM_EXPORT_VTK:
+        return fm_export_with_body(path, fm_vtu_body, frame, err);
+    case FM_EXPORT_VDB:
+        return write_vdb(frame, opts ? opts : &defaults, path, err);
+    default:
+        return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': unknown format", path);
+    }
 }
 
 fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_error *err)
 {
     if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "export: no output path given");
     if (n > 0 && !verts) return fm_fail(err, FM_ERR_USAGE, "export to '%s': no vertices", path);
+    fm_export_format format = fm_export_format_of_path(path);
+    if (format == FM_EXPORT_UNKNOWN)
+        return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': unknown extension (accepted: "
+                       ".ply, .obj, .vtu, .vdb)", path);
+    static const float no_tets[12]; /* tet_vertices set, even for n = 0, makes it a tet file */
+    fm_export_frame frame = {.n = n, .tet_vertices = verts ? verts : no_tets};
+    return fm_export_frame_write(&frame, format, NULL, path, err);
+}
 
-    mesh_format fmt = format_of(path);
-    if (fmt == FMT_UNKNOWN)
-        return fm_fail(err, FM_ERR_USAGE,
-                       "cannot export to '%s': unknown extension (accepted: .ply, .obj)", path);
-    if (fmt == FMT_PLY && n > ((size_t)INT32_MAX + 1) / 4)
-        return fm_fail(err, FM_ERR_INPUT,
-                       "cannot export %zu tets to '%s': PLY int indices allow at most %zu", n,
-                       path, ((size_t)INT32_MAX + 1) / 4);
+/* ---------------------------------------------------------------- ParaView collection */
 
-    fm_output_file out;
-    fm_status st = fm_output_open(&out, path, err);
-    if (st != FM_OK) return st;
-    errno = 0;
-    int bad = fmt == FMT_PLY ? write_ply(out.f, verts, n) : write_obj(out.f, verts, n);
-    if (bad) {
-        int e = errno;
-        fm_output_discard(&out);
-        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
+/* XML attribute text: & < > " escaped. */
+static int put_xml_text(FILE *f, const char *s)
+{
+    for (; *s; s++) {
+        const char *e = *s == '&' ? "&amp;" : *s == '<' ? "&lt;" : *s == '>' ? "&gt;"
+                        : *s == '"' ? "&quot;" : NULL;
+        if (e ? fputs(e, f) < 0 : fputc(*s, f) == EOF) return -1;
     }
-    return fm_output_commit(&out, NULL, err);
+    return 0;
+}
+
+typedef struct pvd_list {
+    const char *const *files;
+    const double *times;
+    size_t count;
+} pvd_list;
+
+static int pvd_body(FILE *f, const void *data)
+{
+    const pvd_list *list = data;
+    if (fputs("<?xml version=\"1.0\"?>\n"
+              "<VTKFile type=\"Collection\" version=\"1.0\" byte_order=\"LittleEndian\" "
+              "header_type=\"UInt64\">\n  <Collection>\n", f) < 0)
+        return -1;
+    for (size_t i = 0; i < list->count; i++) {
+        if (fprintf(f, "    <DataSet timestep=\"%.17g\" group=\"\" part=\"0\" file=\"", list->times[i]) < 0 ||
+            put_xml_text(f, list->files[i]) || fputs("\"/>\n", f) < 0)
+            return -1;
+    }
+    return fputs("  </Collection>\n</VTKFile>\n", f) < 0 ? -1 : 0;
+}
+
+fm_status fm_export_pvd(const char *path, const char *const *files, const double *times,
+                        size_t count, fm_error *err)
+{
+    if (!path || !*path) return fm_fail(err, FM_ERR_USAGE, "export: no .pvd path given");
+    for (size_t i = 0; i < count; i++)
+        if (!isfinite(times[i]))
+            return fm_fail(err, FM_ERR_INPUT, "'%s': timestep %zu is not finite", path, i);
+    pvd_list list = {files, times, count};
+    return fm_export_with_body(path, pvd_body, &list, err);
 }

@@ -1,32 +1,505 @@
-/* flockmorph export: one frame of a cache as PLY or OBJ. */
+/* flockmorph export: frames of a cache as PLY, OBJ, VTK (.vtu + .pvd) or OpenVDB points, one file
+ * per frame (docs/export.md). Frames are written in parallel, each thread a contiguous block of
+ * frames with its own cache reader; every file depends only on its frame, not on the threads. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
+#include <limits.h>
+#include <math.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
 
 static const char *const USAGE_EXPORT =
-    "usage: flockmorph export CACHE -o FILE.ply|FILE.obj [--frame K]\n"
+    "usage: flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR [options]\n"
+    "       flockmorph export CACHE -o FILE.ply|FILE.obj|FILE.vtu|FILE.vdb [--frame K] [options]\n"
     "\n"
-    "Writes frame K (default: the last; negative counts from the end) as a triangle mesh with\n"
-    "four triangles per tet.\n";
+    "The first form writes one file per frame, DIR/<cache name>_<frame, 5 digits>.<ext>\n"
+    "(frames_00012.ply; ext is vtu for vtk), and for vtk also DIR/<cache name>.pvd, which lists\n"
+    "the frames with their times for ParaView. The second writes frame K (default: the last;\n"
+    "negative counts from the end) to FILE in the format of its extension.\n"
+    "\n"
+    "Tets become 4 triangles each (PLY, OBJ), VTK_TETRA cells with cell data agent_id (VTK), or\n"
+    "points at their centroids with velocity v and id (VDB).\n"
+    "\n"
+    "options:\n"
+    "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
+    "                 negative numbers count from the end (-1 is the last); default: every frame\n"
+    "  --voxel SIZE   VDB voxel size in world units (default: from the point density)\n"
+    "  --threads N    frames written at once (default: one per core); the files do not change\n"
+    "  --quiet        no progress display (it is shown only on a terminal anyway)\n"
+    "\n"
+    "docs/export.md says how Blender, Houdini and ParaView import each format.\n";
 
+/* ---------------------------------------------------------------- options */
+
+typedef struct export_options {
+    const char *cache, *out, *format_name, *frames;
+    long frame;
+    int has_frame, threads, quiet;
+    double voxel;
+} export_options;
+
+static int parse_voxel(const char *s, double *out)
+{
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v > 0) || !isfinite(v)) return -1;
+    *out = v;
+    return 0;
+}
+
+static int parse_option(int argc, char **argv, int *i, export_options *o)
+{
+    const char *a = argv[*i], *value = *i + 1 < argc ? argv[*i + 1] : NULL;
+    long v;
+    if (!value) return cli_usage_error(USAGE_EXPORT, "unknown or incomplete option '%s'", a);
+    ++*i;
+    if (!strcmp(a, "-o") || !strcmp(a, "--output")) o->out = value;
+    else if (!strcmp(a, "--format")) o->format_name = value;
+    else if (!strcmp(a, "--frames")) o->frames = value;
+    else if (!strcmp(a, "--frame")) {
+        if (cli_parse_int(value, -2000000000L, 2000000000L, &o->frame))
+            return cli_usage_error(USAGE_EXPORT, "--frame wants a whole number, not '%s'", value);
+        o->has_frame = 1;
+    } else if (!strcmp(a, "--voxel")) {
+        if (parse_voxel(value, &o->voxel))
+            return cli_usage_error(USAGE_EXPORT, "--voxel wants a positive size in world units, not '%s'", value);
+    } else if (!strcmp(a, "--threads")) {
+        if (cli_parse_int(value, 1, 1024, &v))
+            return cli_usage_error(USAGE_EXPORT, "--threads wants a whole number from 1 to 1024, not '%s'", value);
+        o->threads = (int)v;
+    } else return cli_usage_error(USAGE_EXPORT, "unknown or incomplete option '%s'", a);
+    return 0;
+}
+
+static int parse_options(int argc, char **argv, export_options *o)
+{
+    memset(o, 0, sizeof *o);
+    for (int i = 0; i < argc; i++) {
+        int rc;
+        if (!strcmp(argv[i], "--quiet") || !strcmp(argv[i], "-q")) o->quiet = 1;
+        else if (argv[i][0] == '-' && argv[i][1]) {
+            if ((rc = parse_option(argc, argv, &i, o))) return rc;
+        } else if (!o->cache) o->cache = argv[i];
+        else return cli_usage_error(USAGE_EXPORT, "unexpected argument '%s'", argv[i]);
+    }
+    if (!o->cache) return cli_usage_error(USAGE_EXPORT, "%s", "no cache file given");
+    if (!o->out) return cli_usage_error(USAGE_EXPORT, "%s", "no output given (-o DIR with --format, or -o FILE)");
+    if (o->has_frame && (o->frames || o->format_name))
+        return cli_usage_error(USAGE_EXPORT, "%s", "--frame K names one frame for -o FILE; with --format "
+                               "use --frames K (or A:B)");
+    if (o->frames && !o->format_name)
+        return cli_usage_error(USAGE_EXPORT, "--frames %s writes a sequence into a directory: give "
+                               "--format ply|obj|vtk|vdb", o->frames);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- frame ranges */
+
+/* A:B, A:, :B, : or K; each end a whole number, negative from the end. option and text are
+ * what the user wrote, for messages. */
+typedef struct frame_range {
+    long first, last;
+    int has_first, has_last;
+    const char *option;
+    char text[64];
+} frame_range;
+
+static int parse_end(const char *s, size_t len, long *v, int *has)
+{
+    char buf[32];
+    *has = len > 0;
+    if (!len) return 0;
+    if (len >= sizeof buf) return -1;
+    memcpy(buf, s, len);
+    buf[len] = '\0';
+    return cli_parse_int(buf, -2000000000L, 2000000000L, v);
+}
+
+static int parse_range(const char *spec, frame_range *r)
+{
+    const char *colon = strchr(spec, ':');
+    if (!colon) {
+        r->has_first = r->has_last = 1;
+        return cli_parse_int(spec, -2000000000L, 2000000000L, &r->first) ? -1 : (r->last = r->first, 0);
+    }
+    if (strchr(colon + 1, ':')) return -1;
+    return parse_end(spec, (size_t)(colon - spec), &r->first, &r->has_first) ||
+                   parse_end(colon + 1, strlen(colon + 1), &r->last, &r->has_last)
+               ? -1 : 0;
+}
+
+/* Resolves the range against the cache's frame count; prints an error naming the option. */
+static int resolve_range(const frame_range *r, const char *cache, uint32_t frames, uint32_t *first,
+                         uint32_t *last)
+{
+    const char *option = r->option, *spec = r->text;
+    long n = (long)frames, a = r->has_first ? r->first : 0, b = r->has_last ? r->last : -1;
+    if (a < 0) a += n;
+    if (b < 0) b += n;
+    if (n > 0 && a >= 0 && b < n && a <= b) {
+        *first = (uint32_t)a, *last = (uint32_t)b;
+        return 0;
+    }
+    if (n == 0) fprintf(stderr, "flockmorph: error: %s %s: %s has no frames\n", option, spec, cache);
+    else
+        fprintf(stderr, "flockmorph: error: %s %s: %s has %ld frames (0..%ld, or -%ld..-1 from the end), "
+                "and %s names %s\n", option, spec, cache, n, n - 1, n, spec,
+                a <= b ? "frames outside them" : "an empty range (its start is after its end)");
+    return FM_ERR_USAGE;
+}
+
+/* ---------------------------------------------------------------- the cache's contents */
+
+/* What every thread needs to export its frames: read-only once set up. */
+typedef struct export_job {
+    const char *cache, *out_file; /* out_file: one frame to one file; NULL: a sequence into dir */
+    char dir[FM_PATH_MAX], stem[256]; /* stem: the cache's name, cut to 255 bytes */
+    fm_export_format format;
+    fm_export_options opts;
+    uint32_t first, last, frames;
+    double frame_rate;
+    size_t agents;
+    int points;                   /* a point flock (positions) rather than tets */
+    int need_velocity;            /* VDB always; point flocks in every format */
+    int cache_velocity, cache_ids, cache_phases;
+} export_job;
+
+static int describe_cache(fm_cache_reader *r, export_job *job)
+{
+    job->frames = fm_cache_frames(r);
+    job->frame_rate = fm_cache_frame_rate(r);
+    job->agents = (size_t)fm_cache_agents(r);
+    job->points = !fm_cache_has_attr(r, FM_ATTR_TET_VERTICES) && fm_cache_has_attr(r, FM_ATTR_POSITION);
+    if (!job->points && !fm_cache_has_attr(r, FM_ATTR_TET_VERTICES)) {
+        fprintf(stderr, "flockmorph: error: %s has neither tet vertices nor positions to export\n", job->cache);
+        return FM_ERR_INPUT;
+    }
+    job->need_velocity = job->format == FM_EXPORT_VDB || job->points;
+    if ((job->need_velocity || job->format == FM_EXPORT_VTK) && !(job->frame_rate > 0 && isfinite(job->frame_rate))) {
+        fprintf(stderr, "flockmorph: error: %s has frame rate %g; velocities and timesteps need a "
+                "positive one\n", job->cache, job->frame_rate);
+        return FM_ERR_INPUT;
+    }
+    job->cache_velocity = job->points && fm_cache_has_attr(r, FM_ATTR_VELOCITY);
+    job->cache_ids = fm_cache_has_attr(r, FM_ATTR_ID);
+    job->cache_phases = job->format == FM_EXPORT_VTK && fm_cache_has_attr(r, FM_ATTR_PHASE);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- one thread's frames */
+
+enum { POSITION_SLOTS = 3 }; /* frames k - 1, k, k + 1 for the finite difference */
+
+/* A thread's reader and buffers. Positions (a point flock's, or tet centroids) are kept for the
+ * last three frames read, so a contiguous block of frames reads each frame once. */
+typedef struct frame_source {
+    fm_cache_reader *r;
+    float *tets, *velocity, *slot[POSITION_SLOTS];
+    long slot_frame[POSITION_SLOTS];
+    uint32_t *ids;
+    uint8_t *phases;
+} frame_source;
+
+static void source_close(frame_source *s)
+{
+    if (s->r) fm_cache_close(s->r);
+    free(s->tets), free(s->velocity), free(s->ids), free(s->phases);
+    for (int i = 0; i < POSITION_SLOTS; i++) free(s->slot[i]);
+    memset(s, 0, sizeof *s);
+}
+
+static void *alloc_or_flag(size_t bytes, int *failed)
+{
+    void *p = malloc(bytes ? bytes : 1);
+    if (!p) *failed = 1;
+    return p;
+}
+
+static fm_status source_open(frame_source *s, const export_job *job, fm_error *err)
+{
+    memset(s, 0, sizeof *s);
+    if (!(s->r = fm_cache_open(job->cache, err))) return err->status;
+    size_t n = job->agents;
+    int failed = 0;
+    if (!job->points) s->tets = alloc_or_flag(sizeof(float) * 12 * n, &failed);
+    if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    if (job->cache_ids) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
+    if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
+    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for VDB */
+        if (job->points || job->format == FM_EXPORT_VDB) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+        s->slot_frame[i] = -1;
+    }
+    if (!failed) return FM_OK;
+    source_close(s);
+    return fm_fail(err, FM_ERR_MEMORY, "out of memory for the buffers of %zu agents", n);
+}
+
+/* Frame k's positions (a point flock's own, or its tets' centroids) while frame `center` is
+ * exported: k is center or a neighbour, and the slots of the three stay. */
+static fm_status positions(frame_source *s, const export_job *job, uint32_t k, uint32_t center,
+                           const float **out, fm_error *err)
+{
+    int free_slot = 0;
+    for (int i = 0; i < POSITION_SLOTS; i++) {
+        if (s->slot_frame[i] == (long)k) return *out = s->slot[i], FM_OK;
+        long f = s->slot_frame[i];
+        if (f < 0 || f + 1 < (long)center || f > (long)center + 1) free_slot = i;
+    }
+    float *p = s->slot[free_slot];
+    s->slot_frame[free_slot] = -1;
+    fm_status st = job->points ? fm_cache_read_attr(s->r, k, FM_ATTR_POSITION, p, err)
+                               : fm_cache_read_frame(s->r, k, s->tets, err);
+    if (st != FM_OK) return st;
+    if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
+    s->slot_frame[free_slot] = (long)k;
+    *out = p;
+    return FM_OK;
+}
+
+/* Velocity by finite difference over the cache's frames: central inside, one-sided at frame 0
+ * and the last frame (so a frame's velocity does not depend on the range exported). */
+static fm_status difference_velocity(frame_source *s, const export_job *job, uint32_t k, fm_error *err)
+{
+    uint32_t before = k > 0 ? k - 1 : k, after = k + 1 < job->frames ? k + 1 : k;
+    const float *a, *b;
+    if (before == after) { /* a single frame: nothing moves */
+        memset(s->velocity, 0, sizeof(float) * 3 * job->agents);
+        return FM_OK;
+    }
+    fm_status st = positions(s, job, before, k, &a, err);
+    if (st == FM_OK) st = positions(s, job, after, k, &b, err);
+    double dt = (double)(after - before) / job->frame_rate;
+    if (st == FM_OK) fm_finite_difference(a, b, job->agents, dt, s->velocity);
+    return st;
+}
+
+/* Frame k as the exporters take it. */
+static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f,
+                            fm_error *err)
+{
+    memset(f, 0, sizeof *f);
+    f->n = job->agents;
+    fm_status st;
+    if (job->points || job->format == FM_EXPORT_VDB) { /* VDB writes tets as their centroids */
+        st = positions(s, job, k, k, &f->positions, err);
+    } else {
+        st = fm_cache_read_frame(s->r, k, s->tets, err);
+        f->tet_vertices = s->tets;
+    }
+    if (st == FM_OK && job->need_velocity) {
+        st = job->cache_velocity ? fm_cache_read_attr(s->r, k, FM_ATTR_VELOCITY, s->velocity, err)
+                                 : difference_velocity(s, job, k, err);
+        f->velocities = s->velocity;
+    }
+    if (st == FM_OK && job->cache_ids) {
+        st = fm_cache_read_attr(s->r, k, FM_ATTR_ID, s->ids, err);
+        f->ids = s->ids;
+    }
+    if (st == FM_OK && job->cache_phases) {
+        st = fm_cache_read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
+        f->phases = s->phases;
+    }
+    return st;
+}
+
+/* Room for any <stem>_<frame>.<ext>, and for DIR/ before it; paths of FM_PATH_MAX bytes or more
+ * are refused. */
+#define CLI_NAME_BUF 288
+#define CLI_PATH_BUF (FM_PATH_MAX + CLI_NAME_BUF)
+
+/* <stem>_<frame, 5 digits>.<ext>: the name the .pvd lists (relative to DIR). */
+static void frame_name(const export_job *job, uint32_t k, char name[CLI_NAME_BUF])
+{
+    snprintf(name, CLI_NAME_BUF, "%s_%05u.%s", job->stem, (unsigned)k, fm_export_extension(job->format));
+}
+
+/* DIR/<stem>_<frame, 5 digits>.<ext>; -1 if it is too long. */
+static int frame_path(const export_job *job, uint32_t k, char path[CLI_PATH_BUF])
+{
+    char name[CLI_NAME_BUF];
+    frame_name(job, k, name);
+    int len = snprintf(path, CLI_PATH_BUF, "%s/%s", job->dir, name);
+    return len < 0 || len >= FM_PATH_MAX ? -1 : 0;
+}
+
+static fm_status export_one(frame_source *s, const export_job *job, uint32_t k, fm_error *err)
+{
+    char path[CLI_PATH_BUF];
+    if (job->out_file) snprintf(path, sizeof path, "%s", job->out_file);
+    else if (frame_path(job, k, path))
+        return fm_fail(err, FM_ERR_USAGE, "the output path for frame %u is longer than %d bytes",
+                       (unsigned)k, FM_PATH_MAX - 1);
+    fm_export_frame frame;
+    fm_status st = load_frame(s, job, k, &frame, err);
+    return st == FM_OK ? fm_export_frame_write(&frame, job->format, &job->opts, path, err) : st;
+}
+
+/* ---------------------------------------------------------------- all frames, in parallel */
+
+typedef struct export_progress {
+    int show;
+    double start;
+    uint32_t done, total;
+    int failed;                   /* set once any frame failed: the others stop */
+    uint32_t error_frame;         /* the lowest frame that failed, and why */
+    fm_error error;
+} export_progress;
+
+static void note_result(export_progress *p, uint32_t k, fm_status st, const fm_error *err)
+{
+#pragma omp critical(export_progress)
+    {
+        if (st != FM_OK && (!p->failed || k < p->error_frame)) p->error = *err, p->error_frame = k;
+        if (st != FM_OK) {
+#pragma omp atomic write
+            p->failed = 1;
+        } else p->done++;
+        if (p->show && st == FM_OK)
+            fprintf(stderr, "\r\033[K  export: %u of %u frames  (%.0f s)", p->done, p->total,
+                    cli_seconds() - p->start);
+    }
+}
+
+static int failed_so_far(export_progress *p)
+{
+    int failed;
+#pragma omp atomic read
+    failed = p->failed;
+    return failed;
+}
+
+static void export_block(const export_job *job, export_progress *p)
+{
+    frame_source s;
+    fm_error err = {0};
+    fm_status st = source_open(&s, job, &err);
+    /* schedule(static) without a chunk size: each thread one contiguous block of frames */
+#pragma omp for schedule(static)
+    for (long k = (long)job->first; k <= (long)job->last; k++) {
+        if (failed_so_far(p)) continue;
+        if (st == FM_OK) {
+            fm_error frame_err = {0};
+            note_result(p, (uint32_t)k, export_one(&s, job, (uint32_t)k, &frame_err), &frame_err);
+        } else note_result(p, (uint32_t)k, st, &err);
+    }
+    if (st == FM_OK) source_close(&s);
+}
+
+static int export_frames(const export_job *job, int threads, int quiet)
+{
+    export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(),
+                         .total = job->last - job->first + 1};
+    int team = threads > 0 ? threads : omp_get_max_threads();
+    if ((uint32_t)team > p.total) team = (int)p.total;
+#pragma omp parallel num_threads(team)
+    export_block(job, &p);
+    if (p.show) fprintf(stderr, "\r\033[K");
+    return p.failed ? cli_report(&p.error) : 0;
+}
+
+/* The .pvd: every frame at timestep frame / frame rate (seconds of animation time). */
+static int write_pvd(const export_job *job, char pvd[CLI_PATH_BUF])
+{
+    size_t count = job->last - job->first + 1;
+    char (*names)[CLI_NAME_BUF] = malloc(sizeof *names * count);
+    const char **files = malloc(sizeof *files * count);
+    double *times = malloc(sizeof *times * count);
+    fm_error err = {0};
+    fm_status st = names && files && times ? FM_OK : fm_fail(&err, FM_ERR_MEMORY, "out of memory for the .pvd");
+    for (size_t i = 0; st == FM_OK && i < count; i++) {
+        uint32_t k = job->first + (uint32_t)i;
+        frame_name(job, k, names[i]);
+        files[i] = names[i];
+        times[i] = job->frame_rate > 0 ? k / job->frame_rate : (double)k;
+    }
+    if (st == FM_OK && snprintf(pvd, CLI_PATH_BUF, "%s/%s.pvd", job->dir, job->stem) >= FM_PATH_MAX)
+        st = fm_fail(&err, FM_ERR_USAGE, "the .pvd path is longer than %d bytes", FM_PATH_MAX - 1);
+    if (st == FM_OK) st = fm_export_pvd(pvd, files, times, count, &err);
+    free(names), free(files), free(times);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
+/* ---------------------------------------------------------------- the command */
+
+/* The cache's file name without its extension: frames.fmc -> frames. */
+static void cache_stem(const char *cache, char *stem, size_t size)
+{
+    const char *slash = strrchr(cache, '/'), *base = slash ? slash + 1 : cache;
+    const char *dot = strrchr(base, '.');
+    size_t len = dot && dot > base ? (size_t)(dot - base) : strlen(base);
+    snprintf(stem, size, "%.*s", (int)FM_MIN(len, size - 1), base);
+}
+
+/* Format, output and frames from the options, before the cache is opened. */
+static int plan_job(const export_options *o, export_job *job, frame_range *range)
+{
+    memset(job, 0, sizeof *job);
+    job->cache = o->cache;
+    job->opts = fm_default_export_options();
+    job->opts.voxel_size = o->voxel;
+    if (o->format_name) {
+        job->format = fm_export_format_named(o->format_name);
+        if (job->format == FM_EXPORT_UNKNOWN)
+            return cli_usage_error(USAGE_EXPORT, "--format wants ply, obj, vtk or vdb, not '%s'", o->format_name);
+        if (snprintf(job->dir, sizeof job->dir, "%s", o->out) >= (int)sizeof job->dir)
+            return cli_usage_error(USAGE_EXPORT, "-o %s: the path is too long", o->out);
+        cache_stem(o->cache, job->stem, sizeof job->stem);
+    } else {
+        job->format = fm_export_format_of_path(o->out);
+        if (job->format == FM_EXPORT_UNKNOWN)
+            return cli_usage_error(USAGE_EXPORT, "-o %s: unknown extension; give FILE.ply, .obj, .vtu or "
+                                   ".vdb, or --format ply|obj|vtk|vdb with -o DIR for a sequence", o->out);
+        job->out_file = o->out;
+    }
+    memset(range, 0, sizeof *range);
+    range->option = o->frames ? "--frames" : "--frame";
+    if (o->has_frame) snprintf(range->text, sizeof range->text, "%ld", o->frame);
+    else snprintf(range->text, sizeof range->text, "%s", o->frames ? o->frames : job->out_file ? "-1" : ":");
+    if (parse_range(range->text, range) || (o->frames && strlen(o->frames) >= sizeof range->text))
+        return cli_usage_error(USAGE_EXPORT, "--frames wants A:B, A:, :B or K (whole numbers, negative "
+                               "from the end), not '%s'", o->frames);
+    return 0;
+}
+
+static void print_summary(const export_job *job, const char *pvd)
+{
+    if (job->out_file) {
+        printf("frame %u of %s -> %s\n", (unsigned)job->first, job->cache, job->out_file);
+        return;
+    }
+    char first[CLI_PATH_BUF], last[CLI_PATH_BUF];
+    frame_path(job, job->first, first);
+    frame_path(job, job->last, last);
+    printf("frames %u..%u of %s -> %s%s%s (%u files)\n", (unsigned)job->first, (unsigned)job->last,
+           job->cache, first, job->last > job->first ? " .. " : "", job->last > job->first ? last : "",
+           (unsigned)(job->last - job->first + 1));
+    if (pvd[0]) printf("collection -> %s\n", pvd);
+}
 
 int cli_export(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_EXPORT), 0;
-    cli_frame_options o;
-    int rc = cli_parse_frame_options(argc, argv, USAGE_EXPORT, 0, &o);
+    export_options o;
+    export_job job;
+    frame_range range;
+    int rc = parse_options(argc, argv, &o);
+    if (!rc) rc = plan_job(&o, &job, &range);
     if (rc) return rc;
-    fm_cache_reader *r;
-    float *verts;
-    uint32_t frame;
-    if ((rc = cli_load_frame(&o, &r, &verts, &frame))) return rc;
     fm_error err = {0};
-    if (fm_export_tets(verts, fm_cache_agents(r), o.out, &err) != FM_OK) rc = cli_report(&err);
-    else printf("frame %u of %s -> %s\n", frame, o.cache, o.out);
-    free(verts);
+    fm_cache_reader *r = fm_cache_open(o.cache, &err);
+    if (!r) return cli_report(&err);
+    if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
+    rc = describe_cache(r, &job);
     fm_cache_close(r);
+    if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last);
+    if (!rc && !job.out_file) rc = cli_make_outdir(job.dir, NULL, 0);
+    if (!rc) rc = export_frames(&job, o.threads, o.quiet);
+    char pvd[CLI_PATH_BUF] = "";
+    if (!rc && !job.out_file && job.format == FM_EXPORT_VTK) rc = write_pvd(&job, pvd);
+    if (!rc) print_summary(&job, pvd);
     return rc;
 }
-

@@ -1,7 +1,7 @@
 /* flockmorph: the command line.
  *
  *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]
- *   flockmorph export CACHE -o FILE.ply|FILE.obj [--frame K]
+ *   flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR   (or -o FILE [--frame K])
  *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4 [--frames A:B] [--fps F] [options]
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
@@ -19,7 +19,7 @@ static const char *USAGE_MAIN =
     "\n"
     "commands:\n"
     "  run      simulate a scene file and write the frame cache and stats.json\n"
-    "  export   write one frame of a cache as PLY or OBJ\n"
+    "  export   write frames of a cache as PLY, OBJ, VTK or OpenVDB points\n"
     "  render   ray-cast a frame of a cache to a PNG, or frames to an MP4 (ffmpeg)\n"
     "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
     "  info     the same as 'inspect --json'\n"

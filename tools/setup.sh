@@ -22,6 +22,7 @@ packages=(
   libtbb-dev
   libblosc-dev
   libboost-iostreams-dev
+  python3
   python3-numpy
   python3-zstandard
   libxxhash-dev

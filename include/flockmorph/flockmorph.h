@@ -577,8 +577,8 @@ fm_status fm_flock_run(const fm_flock_model *model, fm_flock_state *state, fm_ca
 
 /* ---------------------------------------------------------------- export and preview */
 
-/* Writes tets (n × 12 floats) as a triangle mesh, 4 triangles per tet; the format comes from
- * the extension: .ply (binary little-endian) or .obj. */
+/* Writes tets (n × 12 floats) in the format of path's extension: .ply (binary little-endian)
+ * or .obj (4 triangles per tet), .vtu or .vdb (include/flockmorph/export.h, docs/export.md). */
 fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_error *err);
 
 /* The preview renderer (docs/render.md): Embree ray casting of tets (4 triangles each) or points
@@ -654,5 +654,7 @@ void fm_video_abort(fm_video_writer *v);                       /* frees v, remov
 #ifdef __cplusplus
 }
 #endif
+
+#include "flockmorph/export.h" /* the exporters: one frame as plain arrays to PLY, OBJ, VTK, VDB */
 
 #endif /* FLOCKMORPH_H */

@@ -1,0 +1,78 @@
+/* flockmorph exporters: one frame of agents, given as plain arrays, to the formats animation
+ * and analysis tools read (docs/export.md).
+ *
+ *   PLY   binary little-endian; tets as 4 triangles each, points as vertices with vx vy vz id
+ *   OBJ   tets as 4 triangles each, points as `v` lines
+ *   VTK   XML UnstructuredGrid (.vtu, appended raw data): VTK_TETRA or VTK_VERTEX cells
+ *   VDB   OpenVDB PointDataGrid: P, v (velocity) and id
+ *
+ * Every writer writes PATH.partial and renames it to PATH only when complete. Included by
+ * flockmorph.h; C++ only inside the engine (src/export_vdb.cpp). */
+#ifndef FLOCKMORPH_EXPORT_H
+#define FLOCKMORPH_EXPORT_H
+
+#include "flockmorph/flockmorph.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum fm_export_format {
+    FM_EXPORT_UNKNOWN = 0,
+    FM_EXPORT_PLY = 1,
+    FM_EXPORT_OBJ = 2,
+    FM_EXPORT_VTK = 3, /* one .vtu per frame; fm_export_pvd lists a sequence */
+    FM_EXPORT_VDB = 4
+} fm_export_format;
+
+/* "ply", "obj", "vtk", "vdb" (any case); FM_EXPORT_UNKNOWN otherwise. */
+fm_export_format fm_export_format_named(const char *name);
+/* From the extension of path's last component (.ply .obj .vtu .vdb, any case). */
+fm_export_format fm_export_format_of_path(const char *path);
+/* The file extension without the dot: "ply", "obj", "vtu", "vdb"; "" for FM_EXPORT_UNKNOWN. */
+const char *fm_export_extension(fm_export_format format);
+
+/* One frame, agents in id order. Either tet_vertices (a tet morph) or positions (a point flock)
+ * is set, and which one says what the file holds, also when n is 0; the optional arrays may be
+ * NULL. */
+typedef struct fm_export_frame {
+    size_t n;                  /* agents */
+    const float *tet_vertices; /* n × 12: 4 vertices × xyz per tet; NULL for a point flock */
+    const float *positions;    /* n × 3: points; for tets the centroids (VDB only; computed if NULL) */
+    const float *velocities;   /* n × 3: written for points (PLY, VTK) and by VDB; NULL: none / zero */
+    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 */
+    const uint8_t *phases;     /* n fm_phase values (VTK cell data for tets); NULL: not written */
+} fm_export_frame;
+
+typedef struct fm_export_options {
+    double voxel_size;      /* VDB: voxel size in world units; 0 = chosen from the point density */
+    int points_per_voxel;   /* VDB: the density target when voxel_size is 0 (default 8) */
+} fm_export_options;
+
+fm_export_options fm_default_export_options(void);
+
+/* Writes one frame to path in the given format. opts may be NULL for the defaults. */
+fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format format,
+                                const fm_export_options *opts, const char *path, fm_error *err);
+
+/* A ParaView collection (.pvd) listing files[i] (relative to the .pvd's directory) at
+ * timestep times[i] seconds. */
+fm_status fm_export_pvd(const char *path, const char *const *files, const double *times,
+                        size_t count, fm_error *err);
+
+/* Each tet's centroid (the mean of its 4 vertices, in double): n × 12 floats in, n × 3 out. */
+void fm_tet_centroids(const float *verts, size_t n, float *out);
+
+/* Velocity by finite difference: out = (after - before) / dt, n × 3 floats, in double. With
+ * before and after one frame apart on either side this is the central difference; with one of
+ * them the current frame, the one-sided difference at the ends of a sequence. */
+void fm_finite_difference(const float *before, const float *after, size_t n, double dt, float *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FLOCKMORPH_EXPORT_H */

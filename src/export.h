@@ -1,0 +1,63 @@
+/* Internal pieces of the exporters (include/flockmorph/export.h): the little-endian byte writer
+ * the binary formats share, the per-format writers, and the OpenVDB adapter. */
+#ifndef FM_EXPORT_H
+#define FM_EXPORT_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+#include <stdio.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The 4 outward triangles of a positively oriented tet (docs/cache-format.md). */
+extern const int fm_tet_faces[4][3];
+
+/* Buffered little-endian output to a FILE; `failed` latches the first failed write (errno
+ * then says why). The engine runs on little-endian hosts only (docs/cache-format.md), but the
+ * bytes are put one by one so the files do not depend on that. */
+typedef struct fm_le_writer {
+    FILE *f;
+    size_t used;
+    int failed;
+    unsigned char buf[1 << 16];
+} fm_le_writer;
+
+void fm_le_u8(fm_le_writer *w, uint8_t v);
+void fm_le_u32(fm_le_writer *w, uint32_t v);
+void fm_le_u64(fm_le_writer *w, uint64_t v);
+void fm_le_f32(fm_le_writer *w, float v);
+
+/* Runs emit(w, data) on a writer over f and writes out what it buffered; 0, or -1 if a write
+ * failed (errno says why). */
+typedef void (*fm_le_emit_fn)(fm_le_writer *w, const void *data);
+int fm_le_write(FILE *f, fm_le_emit_fn emit, const void *data);
+
+/* A file's body: writes data to f, returns 0 or -1 on a failed write (errno says why). */
+typedef int (*fm_body_fn)(FILE *f, const void *data);
+
+/* Opens path.partial, runs body, commits or discards: the one place write errors become messages. */
+fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *data, fm_error *err);
+
+/* export_vtk.c: the .vtu body for an fm_export_frame (tets as VTK_TETRA, points as VTK_VERTEX). */
+int fm_vtu_body(FILE *f, const void *frame);
+
+/* export_vdb.cpp: positions, velocities (NULL: zero) and ids (NULL: 0..n-1; each at most
+ * INT32_MAX, as fm_export_frame_write checks) as an OpenVDB PointDataGrid named "points" with
+ * attributes P, v (vec3s) and id (int32). */
+fm_status fm_vdb_points_write(const float *positions, const float *velocities, const uint32_t *ids,
+                              size_t n, const fm_export_options *opts, const char *path,
+                              fm_error *err);
+
+/* Reads the points back (for tests): malloc'ed arrays in the file's (leaf) order, which the ids
+ * identify; voxel_size (may be NULL) receives the grid's voxel size. */
+fm_status fm_vdb_points_read(const char *path, size_t *n, float **positions, float **velocities,
+                             int32_t **ids, double *voxel_size, fm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,563 @@
+/* `flockmorph export` on caches made here, whose agents move on known quadratic paths: a tet
+ * cache (format 1), point caches with and without velocity and ids, and a tet cache with phases
+ * (format 2). File names and counts for every --frames form, PLY/OBJ sequences re-imported with
+ * assimp, VTK checked with Python's xml module (tests/check_vtk.py), VDB read back with the
+ * cache's or the finite-difference velocities, byte-identical files for any thread count, and
+ * the usage and I/O errors. */
+#define _POSIX_C_SOURCE 200809L
+#include "export.h" /* fm_vdb_points_read */
+#include "test_export_helpers.h"
+
+#include <dirent.h>
+#include <stdint.h>
+#include <unistd.h>
+
+enum { AGENTS = 30, FRAMES = 9 };
+#define FRAMES_TEXT "9 frames" /* as the error messages count them */
+#define RATE 12.0
+
+/* What a test cache holds; every cache has AGENTS agents and FRAMES frames at RATE. */
+typedef struct test_cache {
+    const char *name;
+    int tets;          /* tet vertices, else positions */
+    int velocity, ids, phases;
+    char path[FM_PATH_MAX];
+} test_cache;
+
+static test_cache g_tets = {"seq.fmc", 1, 0, 0, 0, ""};             /* format 1, as fm_cache_writer_create */
+static test_cache g_points = {"points.fmc", 0, 1, 1, 0, ""};        /* position, velocity, id */
+static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, ""};     /* position only */
+static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, ""};   /* tet vertices and phase */
+static const char *g_cache = g_tets.path;
+
+static float g_frames[FRAMES][12 * AGENTS], g_pos[FRAMES][3 * AGENTS], g_vel[FRAMES][3 * AGENTS];
+static uint32_t g_ids[AGENTS];
+static uint8_t g_phase[FRAMES][AGENTS];
+static char g_err[1 << 14]; /* the last command's stderr */
+
+/* ---------------------------------------------------------------- the caches */
+
+/* Agent i's position (a tet's centroid) at time t: c0 + v t + a t^2 / 2, so the central difference
+ * at an inner frame is exactly v + a t there, and the one-sided ones are off by a dt / 2. */
+static void motion(int i, double c0[3], double v[3], double a[3])
+{
+    for (int k = 0; k < 3; k++) {
+        c0[k] = 3.0 * (i % 5) - 6 + k + 0.25 * (i / 5);
+        v[k] = 0.5 * ((i * 7 + k * 3) % 11) - 2.5;
+        a[k] = 0.2 * ((i * 5 + k) % 7) - 0.6;
+    }
+}
+
+static void make_frames(void)
+{
+    static const double shape[12] = {0, 0, 0, 0.4, 0, 0, 0, 0.4, 0, 0, 0, 0.4}; /* positive volume, mean 0.1 */
+    for (int f = 0; f < FRAMES; f++) {
+        double t = f / RATE;
+        for (int i = 0; i < AGENTS; i++) {
+            double c0[3], v[3], a[3];
+            motion(i, c0, v, a);
+            for (int j = 0; j < 12; j++)
+                g_frames[f][12 * i + j] = (float)(c0[j % 3] + v[j % 3] * t + 0.5 * a[j % 3] * t * t + shape[j] - 0.1);
+            for (int k = 0; k < 3; k++) {
+                g_pos[f][3 * i + k] = (float)(c0[k] + v[k] * t + 0.5 * a[k] * t * t);
+                g_vel[f][3 * i + k] = (float)(v[k] + a[k] * t);
+            }
+            g_phase[f][i] = (uint8_t)((i + f) % 4);
+        }
+    }
+    for (int i = 0; i < AGENTS; i++) g_ids[i] = (uint32_t)(100 + 3 * (AGENTS - i)); /* not the agent order */
+}
+
+static const void *attr_data(fm_cache_attr attr, int frame)
+{
+    switch (attr) {
+    case FM_ATTR_TET_VERTICES: return g_frames[frame];
+    case FM_ATTR_POSITION: return g_pos[frame];
+    case FM_ATTR_VELOCITY: return g_vel[frame];
+    case FM_ATTR_ID: return g_ids;
+    default: return g_phase[frame];
+    }
+}
+
+static void write_cache(test_cache *c)
+{
+    fm_cache_attr attrs[4];
+    int count = 0;
+    attrs[count++] = c->tets ? FM_ATTR_TET_VERTICES : FM_ATTR_POSITION;
+    if (c->velocity) attrs[count++] = FM_ATTR_VELOCITY;
+    if (c->ids) attrs[count++] = FM_ATTR_ID;
+    if (c->phases) attrs[count++] = FM_ATTR_PHASE;
+    fm_error err = {0};
+    fm_cache_options o = fm_default_cache_options();
+    export_tmp(c->path, c->name);
+    fm_cache_writer *w = c == &g_tets ? fm_cache_writer_create(c->path, AGENTS, RATE, 1, &err)
+                                      : fm_cache_writer_create_attrs(c->path, AGENTS, RATE, attrs, count, &o, &err);
+    ENSURE_MSG(w != NULL, "%s: %s", c->name, err.message);
+    for (int f = 0; w && f < FRAMES; f++) {
+        const void *data[4];
+        for (int a = 0; a < count; a++) data[a] = attr_data(attrs[a], f);
+        ENSURE(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK);
+    }
+    if (w) ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+}
+
+static void make_caches(void)
+{
+    make_frames();
+    write_cache(&g_tets);
+    write_cache(&g_points);
+    write_cache(&g_bare_points);
+    write_cache(&g_phased_tets);
+}
+
+/* ---------------------------------------------------------------- running the CLI */
+
+/* Runs `flockmorph export CACHE ARGS` (stdout discarded) on the tet cache; returns its exit status. */
+static int export_cmd_on(const char *cache, const char *args)
+{
+    char err_path[FM_PATH_MAX], cmd[4 * FM_PATH_MAX];
+    export_tmp(err_path, "seq_stderr.txt");
+    snprintf(cmd, sizeof cmd, "'%s' export '%s' %s >/dev/null 2>'%s'", FM_CLI, cache, args, err_path);
+    int status = system(cmd);
+    FILE *f = fopen(err_path, "r");
+    size_t n = f ? fread(g_err, 1, sizeof g_err - 1, f) : 0;
+    g_err[n] = 0;
+    if (f) fclose(f);
+    return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+static int export_cmd(const char *args) { return export_cmd_on(g_cache, args); }
+
+/* A fresh, empty scratch directory. */
+static char *fresh_dir(char *dir, const char *name)
+{
+    char cmd[2 * FM_PATH_MAX];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", export_tmp(dir, name));
+    ENSURE(system(cmd) == 0);
+    return dir;
+}
+
+static int compare_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* The directory's file names, sorted and joined by spaces. */
+static void list_dir(const char *dir, char *out, size_t size)
+{
+    char *names[256];
+    int n = 0;
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d)) && n < 256;)
+        if (e->d_name[0] != '.') names[n++] = strdup(e->d_name);
+    if (d) closedir(d);
+    qsort(names, (size_t)n, sizeof names[0], compare_names);
+    out[0] = 0;
+    for (int i = 0; i < n; i++) {
+        snprintf(out + strlen(out), size - strlen(out), "%s%s", i ? " " : "", names[i]);
+        free(names[i]);
+    }
+}
+
+/* seq_<first>.ext .. seq_<last>.ext (and seq.pvd, listed first as the sort puts it), joined. */
+static void expected_names(int first, int last, const char *ext, int pvd, char *out, size_t size)
+{
+    snprintf(out, size, "%s", pvd ? "seq.pvd" : "");
+    for (int k = first; k <= last; k++)
+        snprintf(out + strlen(out), size - strlen(out), "%sseq_%05d.%s", out[0] ? " " : "", k, ext);
+}
+
+/* ---------------------------------------------------------------- sequences */
+
+static void test_ply_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format ply --frames 2:5 -o '%s'", fresh_dir(dir, "seq_ply"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    expected_names(2, 5, "ply", 0, want, sizeof want);
+    ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
+    for (int k = 2; k <= 5; k++) {
+        snprintf(path, sizeof path, "%s/seq_%05d.ply", dir, k);
+        export_check_assimp_tets(path, g_frames[k], AGENTS, 0);
+    }
+}
+
+static void test_obj_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format obj --frames -2: -o '%s'", fresh_dir(dir, "seq_obj"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "seq_00007.obj seq_00008.obj"), "files '%s'", have);
+    for (int k = 7; k <= 8; k++) {
+        snprintf(path, sizeof path, "%s/seq_%05d.obj", dir, k);
+        export_check_assimp_tets(path, g_frames[k], AGENTS, 1e-6);
+    }
+}
+
+/* Every form of --frames names the files it should, and only those. */
+static void test_frame_ranges(void)
+{
+    static const struct { const char *spec; int first, last; } cases[] = {
+        {"3:", 3, FRAMES - 1}, {":2", 0, 2}, {"4", 4, 4}, {"-3:", FRAMES - 3, FRAMES - 1}, {"-3:-2", FRAMES - 3, FRAMES - 2},
+        {":", 0, FRAMES - 1}, {"-1", FRAMES - 1, FRAMES - 1}, {"0:0", 0, 0}, {NULL, 0, FRAMES - 1}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], frames[64] = "";
+        fresh_dir(dir, "seq_range");
+        if (cases[i].spec) snprintf(frames, sizeof frames, "--frames %s", cases[i].spec);
+        snprintf(args, sizeof args, "--format obj %s -o '%s' --quiet", frames, dir);
+        ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+        list_dir(dir, have, sizeof have);
+        expected_names(cases[i].first, cases[i].last, "obj", 0, want, sizeof want);
+        ENSURE_MSG(!strcmp(have, want), "--frames %s: files '%s', expected '%s'", cases[i].spec ? cases[i].spec : "(none)",
+                   have, want);
+    }
+}
+
+static void test_vtk_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], expected[FM_PATH_MAX];
+    char path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format vtk --frames 1:-2 -o '%s'", fresh_dir(dir, "seq_vtk"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    expected_names(1, FRAMES - 2, "vtu", 1, want, sizeof want);
+    ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
+    uint32_t ids[AGENTS];
+    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
+    for (int k = 1; k <= FRAMES - 2; k++) {
+        export_write_raw(export_tmp(expected, "seq_vtk.expected"), g_frames[k], sizeof g_frames[k], 0);
+        export_write_raw(expected, ids, sizeof ids, 1);
+        snprintf(path, sizeof path, "%s/seq_%05d.vtu", dir, k);
+        snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
+        ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    }
+    snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g", dir, RATE);
+    for (int k = 1; k <= FRAMES - 2; k++) snprintf(args + strlen(args), sizeof args - strlen(args), " %d", k);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+}
+
+/* ---------------------------------------------------------------- VDB and velocities */
+
+/* Agent i's position in a frame as the cache holds it: its tet's centroid or its position. */
+static void position(const test_cache *c, int frame, int i, double out[3])
+{
+    for (int k = 0; k < 3; k++) {
+        const float *v = g_frames[frame] + 12 * i + k;
+        out[k] = c->tets ? 0.25 * ((double)v[0] + v[3] + v[6] + v[9]) : g_pos[frame][3 * i + k];
+    }
+}
+
+/* The agent whose id this is, or -1. */
+static int agent_of(const test_cache *c, int32_t id)
+{
+    for (int i = 0; i < AGENTS; i++)
+        if ((c->ids ? (int64_t)g_ids[i] : i) == id) return i;
+    return -1;
+}
+
+/* How far one VDB point is from what it should be, as the worst so far in w[]: its position;
+ * then its velocity against the cache's (bits), or against the central difference of the
+ * cache's positions (one-sided at frames 0 and FRAMES - 1), in units of its float tolerance,
+ * and against the motion's own velocity (v + a t inside, a dt / 2 off at the ends). */
+static void compare_point(const test_cache *c, int k, int i, const float p[3], const float v[3], double w[3])
+{
+    int before = k > 0 ? k - 1 : k, after = k < FRAMES - 1 ? k + 1 : k;
+    double x[3], xb[3], xa[3], c0[3], mv[3], ma[3], t = k / RATE;
+    position(c, k, i, x), position(c, before, i, xb), position(c, after, i, xa);
+    motion(i, c0, mv, ma);
+    for (int d = 0; d < 3; d++) {
+        w[0] = fmax(w[0], fabs(p[d] - x[d]));
+        if (c->velocity) {
+            w[1] = fmax(w[1], memcmp(&v[d], &g_vel[k][3 * i + d], 4) ? INFINITY : 0);
+            continue;
+        }
+        double fd = (xa[d] - xb[d]) * RATE / (after - before);
+        /* the exporter's positions are floats: each off by up to half an ulp (2^-24 relative) */
+        double fd_tol = (fabs(xa[d]) + fabs(xb[d])) * 0x1p-24 * RATE / (after - before) + fabs(fd) * 1e-6;
+        double exact = mv[d] + ma[d] * t + (before == k ? 0.5 : after == k ? -0.5 : 0.0) * ma[d] / RATE;
+        w[1] = fmax(w[1], fabs(v[d] - fd) / fd_tol);
+        w[2] = fmax(w[2], fabs(v[d] - exact));
+    }
+}
+
+/* Reads a .vdb of frame k of cache c and checks every point: each id once, positions,
+ * velocities (compare_point). */
+static void check_vdb_frame(const test_cache *c, const char *path, int k)
+{
+    size_t n;
+    float *p, *v;
+    int32_t *id;
+    double voxel, worst[3] = {0, 0, 0};
+    fm_error err = {0};
+    fm_status st = fm_vdb_points_read(path, &n, &p, &v, &id, &voxel, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    if (st != FM_OK) return;
+    ENSURE_MSG(n == AGENTS, "%s: %zu points", path, n);
+    int seen[AGENTS] = {0};
+    for (size_t j = 0; j < n && n == AGENTS; j++) {
+        int i = agent_of(c, id[j]);
+        ENSURE_MSG(i >= 0 && !seen[i], "%s: id %d unknown or repeated", path, id[j]);
+        if (i < 0 || seen[i]++) continue;
+        compare_point(c, k, i, p + 3 * j, v + 3 * j, worst);
+    }
+    /* positions are floats (|x| < 16: 1e-6) stored by OpenVDB relative to their voxel */
+    ENSURE_MSG(worst[0] <= 2e-6 + voxel * 1e-6, "%s: a position is %g from the cache's", path, worst[0]);
+    ENSURE_MSG(worst[1] <= 1, "%s: a velocity is %g times the tolerance from the expected one", path, worst[1]);
+    /* float positions (ulp 1e-6 at |x| < 16) over 2 dt = 1/6 s: at most ~2e-5 */
+    ENSURE_MSG(worst[2] <= 1e-4, "%s: a velocity is %g from the motion's", path, worst[2]);
+    free(p), free(v), free(id);
+}
+
+static void test_vdb_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format vdb -o '%s'", fresh_dir(dir, "seq_vdb"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    expected_names(0, FRAMES - 1, "vdb", 0, want, sizeof want);
+    ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
+    for (int k = 0; k < FRAMES; k++) {
+        snprintf(path, sizeof path, "%s/seq_%05d.vdb", dir, k);
+        check_vdb_frame(&g_tets, path, k);
+    }
+    /* one frame alone has the same velocities (the difference spans the cache, not the range) */
+    snprintf(args, sizeof args, "--format vdb --frames 4 -o '%s' --voxel 0.5", fresh_dir(dir, "seq_vdb1"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/seq_00004.vdb", dir);
+    check_vdb_frame(&g_tets, path, 4);
+    size_t n;
+    float *p, *v;
+    int32_t *id;
+    double voxel = 0;
+    fm_error err = {0};
+    if (fm_vdb_points_read(path, &n, &p, &v, &id, &voxel, &err) == FM_OK) free(p), free(v), free(id);
+    ENSURE_MSG(voxel == 0.5, "--voxel 0.5 gave voxel %g", voxel);
+}
+
+/* ---------------------------------------------------------------- the single-file form */
+
+static void test_single_file(void)
+{
+    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX], expected[FM_PATH_MAX];
+    snprintf(args, sizeof args, "-o '%s'", export_tmp(path, "seq_last.ply"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    export_check_assimp_tets(path, g_frames[FRAMES - 1], AGENTS, 0);
+    snprintf(args, sizeof args, "-o '%s' --frame 3", export_tmp(path, "seq_three.vtu"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    uint32_t ids[AGENTS];
+    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
+    export_write_raw(export_tmp(expected, "seq_three.expected"), g_frames[3], sizeof g_frames[3], 0);
+    export_write_raw(expected, ids, sizeof ids, 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    snprintf(args, sizeof args, "-o '%s' --frame 0", export_tmp(path, "seq_first.vdb"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    check_vdb_frame(&g_tets, path, 0);
+}
+
+/* ---------------------------------------------------------------- point caches and phases */
+
+/* The velocities the exporter derives for a cache without them: the documented finite difference
+ * of the float positions, computed the same way, so equal bit for bit. */
+static void difference_velocity(int k, float out[3 * AGENTS])
+{
+    int before = k > 0 ? k - 1 : k, after = k < FRAMES - 1 ? k + 1 : k;
+    for (int i = 0; i < 3 * AGENTS; i++)
+        out[i] = (float)(((double)g_pos[after][i] - g_pos[before][i]) / ((after - before) / RATE));
+}
+
+static void test_point_cache(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], path[FM_PATH_MAX + 32], expected[FM_PATH_MAX];
+    snprintf(args, sizeof args, "--format ply --frames 1:2 -o '%s'", fresh_dir(dir, "pts_ply"));
+    ENSURE_MSG(export_cmd_on(g_points.path, args) == 0, "%s: %s", args, g_err);
+    for (int k = 1; k <= 2; k++) {
+        snprintf(path, sizeof path, "%s/points_%05d.ply", dir, k);
+        export_check_ply_points(path, g_pos[k], g_vel[k], g_ids, AGENTS);
+        export_check_assimp_points(path, g_pos[k], AGENTS, 0);
+    }
+    snprintf(args, sizeof args, "--format obj --frames -1 -o '%s'", fresh_dir(dir, "pts_obj"));
+    ENSURE_MSG(export_cmd_on(g_points.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/points_%05d.obj", dir, FRAMES - 1);
+    export_check_assimp_points(path, g_pos[FRAMES - 1], AGENTS, 1e-6);
+    snprintf(args, sizeof args, "--format vtk --frames :1 -o '%s'", fresh_dir(dir, "pts_vtk"));
+    ENSURE_MSG(export_cmd_on(g_points.path, args) == 0, "%s: %s", args, g_err);
+    for (int k = 0; k <= 1; k++) {
+        export_write_raw(export_tmp(expected, "pts_vtk.expected"), g_pos[k], sizeof g_pos[k], 0);
+        export_write_raw(expected, g_vel[k], sizeof g_vel[k], 1);
+        export_write_raw(expected, g_ids, sizeof g_ids, 1);
+        snprintf(path, sizeof path, "%s/points_%05d.vtu", dir, k);
+        snprintf(args, sizeof args, "vtu '%s' '%s' points", path, expected);
+        ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    }
+    snprintf(args, sizeof args, "pvd '%s/points.pvd' %.17g 0 1", dir, RATE);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    snprintf(args, sizeof args, "--format vdb -o '%s'", fresh_dir(dir, "pts_vdb"));
+    ENSURE_MSG(export_cmd_on(g_points.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    snprintf(want, sizeof want, "points_00000.vdb");
+    ENSURE_MSG(strstr(have, want) && strlen(have) == FRAMES * (strlen(want) + 1) - 1, "files '%s'", have);
+    for (int k = 0; k < FRAMES; k++) {
+        snprintf(path, sizeof path, "%s/points_%05d.vdb", dir, k);
+        check_vdb_frame(&g_points, path, k);
+    }
+}
+
+/* Positions only: ids 0..n-1 and the velocity from the finite difference, in VDB and PLY. */
+static void test_point_cache_without_velocity(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format vdb -o '%s'", fresh_dir(dir, "bare_vdb"));
+    ENSURE_MSG(export_cmd_on(g_bare_points.path, args) == 0, "%s: %s", args, g_err);
+    for (int k = 0; k < FRAMES; k++) {
+        snprintf(path, sizeof path, "%s/bare_%05d.vdb", dir, k);
+        check_vdb_frame(&g_bare_points, path, k);
+    }
+    snprintf(args, sizeof args, "--format ply --frames 0:4 -o '%s'", fresh_dir(dir, "bare_ply"));
+    ENSURE_MSG(export_cmd_on(g_bare_points.path, args) == 0, "%s: %s", args, g_err);
+    static float v[3 * AGENTS];
+    for (int k = 0; k <= 4; k += 4) { /* one-sided, then central */
+        difference_velocity(k, v);
+        snprintf(path, sizeof path, "%s/bare_%05d.ply", dir, k);
+        export_check_ply_points(path, g_pos[k], v, NULL, AGENTS);
+    }
+}
+
+/* A tet cache with phases gives VTK cell data phase beside agent_id. */
+static void test_phases_in_vtk(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], expected[FM_PATH_MAX];
+    snprintf(args, sizeof args, "--format vtk --frames 2 -o '%s'", fresh_dir(dir, "phase_vtk"));
+    ENSURE_MSG(export_cmd_on(g_phased_tets.path, args) == 0, "%s: %s", args, g_err);
+    uint32_t ids[AGENTS];
+    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
+    export_write_raw(export_tmp(expected, "phase_vtk.expected"), g_frames[2], sizeof g_frames[2], 0);
+    export_write_raw(expected, ids, sizeof ids, 1);
+    export_write_raw(expected, g_phase[2], sizeof g_phase[2], 1);
+    snprintf(path, sizeof path, "%s/phased_00002.vtu", dir);
+    FILE *f = fopen(path, "rb");
+    char head[4096] = "";
+    size_t len = f ? fread(head, 1, sizeof head - 1, f) : 0;
+    if (f) fclose(f);
+    head[len] = 0;
+    ENSURE_MSG(strstr(head, "Name=\"phase\""), "%s has no phase array", path);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+}
+
+/* ---------------------------------------------------------------- threads */
+
+static int same_bytes(const char *a, const char *b)
+{
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb, ca, cb;
+    while (same && ((ca = getc(fa)) != EOF) | ((cb = getc(fb)) != EOF)) same = ca == cb;
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
+/* The files do not depend on the thread count. */
+static void test_threads_do_not_change_files(void)
+{
+    static const char *const formats[] = {"ply", "vtk"};
+    for (int f = 0; f < 2; f++) {
+        char dirs[3][FM_PATH_MAX], args[3 * FM_PATH_MAX], name[64];
+        for (int t = 0; t < 3; t++) {
+            snprintf(name, sizeof name, "seq_threads%d", t + 1);
+            snprintf(args, sizeof args, "--format %s -o '%s' --threads %d", formats[f], fresh_dir(dirs[t], name), t + 1);
+            ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+        }
+        for (int k = 0; k < FRAMES; k++) {
+            char a[FM_PATH_MAX + 32], b[FM_PATH_MAX + 32];
+            snprintf(a, sizeof a, "%s/seq_%05d.%s", dirs[0], k, f ? "vtu" : "ply");
+            for (int t = 1; t < 3; t++) {
+                snprintf(b, sizeof b, "%s/seq_%05d.%s", dirs[t], k, f ? "vtu" : "ply");
+                ENSURE_MSG(same_bytes(a, b), "%s and %s differ", a, b);
+            }
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- errors */
+
+/* Exit status `code`, a message holding both words, and nothing written into dir. */
+static void expect_failure(const char *args, int code, const char *word1, const char *word2, const char *dir)
+{
+    int rc = export_cmd(args);
+    ENSURE_MSG(rc == code, "export %s: exit %d, expected %d: %s", args, rc, code, g_err);
+    ENSURE_MSG(strstr(g_err, word1) && strstr(g_err, word2), "export %s: message '%s' lacks '%s' or '%s'", args,
+               g_err, word1, word2);
+    char have[4096];
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!have[0], "export %s left '%s'", args, have);
+}
+
+static void test_usage_errors(void)
+{
+    /* options (%s: the output directory), and two words the message must hold */
+    static const struct { const char *options, *word1, *word2; } cases[] = {
+        {"--format ply --frames 5:2 -o '%s'", "--frames", FRAMES_TEXT},
+        {"--format ply --frames 0:99 -o '%s'", "--frames", FRAMES_TEXT},
+        {"--format ply --frames -10: -o '%s'", "--frames", FRAMES_TEXT},
+        {"--format ply --frames 9 -o '%s'", "--frames", FRAMES_TEXT},
+        {"--format ply --frames :-10 -o '%s'", "--frames", FRAMES_TEXT},
+        {"-o '%s/x.ply' --frame 9", "--frame 9", FRAMES_TEXT},
+        {"--format ply --frames abc -o '%s'", "--frames", "'abc'"},
+        {"--format ply --frames 1:2:3 -o '%s'", "--frames", "'1:2:3'"},
+        {"--format ply --frames 1-3 -o '%s'", "--frames", "'1-3'"},
+        {"--format ply --frames '' -o '%s'", "--frames", "A:B"},
+        {"--format ply --frames 1.5: -o '%s'", "--frames", "'1.5:'"},
+        {"--format stl -o '%s'", "--format", "'stl'"},
+        {"--frames 1:2 -o '%s'", "--frames 1:2", "--format"},
+        {"--format ply --frame 2 -o '%s'", "--frame K", "--frames"},
+        {"-o '%s/x.stl'", "-o", "extension"},
+        {"--format vdb --voxel -1 -o '%s'", "--voxel", "'-1'"},
+        {"--format ply --threads 0 -o '%s'", "--threads", "'0'"},
+    };
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    fresh_dir(dir, "seq_errors");
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        snprintf(args, sizeof args, cases[i].options, dir);
+        expect_failure(args, 1, cases[i].word1, cases[i].word2, dir);
+    }
+}
+
+static void test_io_errors(void)
+{
+    char dir[FM_PATH_MAX], file[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
+    fresh_dir(dir, "seq_io");
+    ENSURE(mkdir(dir, 0777) == 0);
+    snprintf(file, sizeof file, "%s/plain", dir);
+    export_write_raw(file, "x", 1, 0);
+    /* the output "directory" is a file, or lies under one: the user's -o, exit 1 (docs/errors.md) */
+    snprintf(args, sizeof args, "--format vtk -o '%s'", file);
+    ENSURE_MSG(export_cmd(args) == 1 && strstr(g_err, "not a directory"), "exit and message: %s", g_err);
+    snprintf(args, sizeof args, "--format vtk -o '%s/sub'", file);
+    ENSURE_MSG(export_cmd(args) == 1 && strstr(g_err, "cannot create the output directory"), "%s", g_err);
+    /* a frame's file cannot be written (a directory is in the way of its partial file) */
+    char blocker[FM_PATH_MAX + 64];
+    snprintf(blocker, sizeof blocker, "%s/seq_00003.ply.partial", dir);
+    ENSURE(mkdir(blocker, 0777) == 0);
+    snprintf(args, sizeof args, "--format ply -o '%s' --threads 2", dir);
+    ENSURE_MSG(export_cmd(args) == 3 && strstr(g_err, "seq_00003.ply"), "exit and message: %s", g_err);
+    snprintf(blocker, sizeof blocker, "%s/seq_00003.ply", dir);
+    ENSURE(!export_file_exists(blocker));
+}
+
+int main(void)
+{
+    make_caches();
+    RUN_TEST(test_ply_sequence);
+    RUN_TEST(test_obj_sequence);
+    RUN_TEST(test_frame_ranges);
+    RUN_TEST(test_vtk_sequence);
+    RUN_TEST(test_vdb_sequence);
+    RUN_TEST(test_single_file);
+    RUN_TEST(test_point_cache);
+    RUN_TEST(test_point_cache_without_velocity);
+    RUN_TEST(test_phases_in_vtk);
+    RUN_TEST(test_threads_do_not_change_files);
+    RUN_TEST(test_usage_errors);
+    RUN_TEST(test_io_errors);
+    return test_result();
+}

@@ -1,0 +1,382 @@
+/* The exporters on plain arrays (include/flockmorph/export.h), without a cache: tets and points
+ * to PLY and OBJ re-imported with assimp, VTK checked with Python's xml module
+ * (tests/check_vtk.py), OpenVDB points read back through the adapter. */
+#define _POSIX_C_SOURCE 200809L
+#include "export.h" /* fm_vdb_points_read */
+#include "test_export_helpers.h"
+
+#include <stdint.h>
+#include <unistd.h>
+
+enum { NT = 40, NP = 300 };
+
+static uint64_t rng_state = 0x51ed27f3a1c2b9e5ull;
+
+static double uniform(double lo, double hi) { return lo + (hi - lo) * test_uniform(&rng_state); }
+
+static double volume6(const float *t)
+{
+    double e[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) e[i][k] = (double)t[3 * (i + 1) + k] - t[k];
+    return e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+           e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+}
+
+/* n positively oriented tets scattered over [-20, 20]^3, each about a unit across. */
+static void random_tets(float *v, size_t n)
+{
+    for (size_t t = 0; t < n; t++) {
+        float *tv = v + 12 * t;
+        double c[3] = {uniform(-20, 20), uniform(-20, 20), uniform(-20, 20)};
+        do {
+            for (int k = 0; k < 12; k++) tv[k] = (float)(c[k % 3] + uniform(-0.5, 0.5));
+        } while (fabs(volume6(tv)) < 1e-3);
+        if (volume6(tv) < 0)
+            for (int k = 0; k < 3; k++) {
+                float tmp = tv[3 + k];
+                tv[3 + k] = tv[6 + k], tv[6 + k] = tmp;
+            }
+    }
+}
+
+typedef struct point_set {
+    float pos[3 * NP], vel[3 * NP];
+    uint32_t ids[NP];
+    uint8_t phases[NP];
+} point_set;
+
+static void random_points(point_set *p)
+{
+    for (size_t i = 0; i < NP; i++) {
+        for (int k = 0; k < 3; k++) p->pos[3 * i + k] = (float)uniform(-30, 30), p->vel[3 * i + k] = (float)uniform(-5, 5);
+        p->ids[i] = (uint32_t)(7 * (NP - i) + 1000); /* not the array order */
+        p->phases[i] = (uint8_t)(i % 4);
+    }
+}
+
+static fm_status write_frame(const fm_export_frame *f, fm_export_format format, const char *name, char *path)
+{
+    fm_error err = {0};
+    export_tmp(path, name);
+    remove(path);
+    fm_status st = fm_export_frame_write(f, format, NULL, path, &err);
+    ENSURE_MSG(st == FM_OK, "%s: %s", name, err.message);
+    return st;
+}
+
+/* ---------------------------------------------------------------- PLY and OBJ */
+
+static void test_tets_ply_obj_through_assimp(void)
+{
+    static float v[12 * NT];
+    random_tets(v, NT);
+    fm_export_frame f = {.n = NT, .tet_vertices = v};
+    char path[FM_PATH_MAX];
+    if (write_frame(&f, FM_EXPORT_PLY, "formats_tets.ply", path) == FM_OK) export_check_assimp_tets(path, v, NT, 0);
+    /* OBJ prints %.9g; assimp's own float parser reads it back to about 1e-7 */
+    if (write_frame(&f, FM_EXPORT_OBJ, "formats_tets.obj", path) == FM_OK) export_check_assimp_tets(path, v, NT, 1e-6);
+}
+
+static void test_points_ply(void)
+{
+    static point_set p;
+    random_points(&p);
+    char path[FM_PATH_MAX];
+    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
+    if (write_frame(&f, FM_EXPORT_PLY, "formats_points.ply", path) == FM_OK) {
+        export_check_assimp_points(path, p.pos, NP, 0);
+        export_check_ply_points(path, p.pos, p.vel, p.ids, NP);
+    }
+    f.velocities = NULL;
+    if (write_frame(&f, FM_EXPORT_PLY, "formats_points_novel.ply", path) == FM_OK)
+        export_check_ply_points(path, p.pos, NULL, p.ids, NP);
+}
+
+static void test_points_obj(void)
+{
+    static point_set p;
+    random_points(&p);
+    char path[FM_PATH_MAX], line[256];
+    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
+    if (write_frame(&f, FM_EXPORT_OBJ, "formats_points.obj", path) != FM_OK) return;
+    export_check_assimp_points(path, p.pos, NP, 1e-6);
+    FILE *fp = fopen(path, "r");
+    int v = 0, other = 0;
+    while (fp && fgets(line, sizeof line, fp)) v += line[0] == 'v' && line[1] == ' ', other += line[0] != 'v' && line[0] != '#';
+    if (fp) fclose(fp);
+    ENSURE_MSG(v == NP && other == 0, "%d v lines and %d others", v, other);
+}
+
+/* ---------------------------------------------------------------- VTK */
+
+static void test_vtu_tets(void)
+{
+    static float v[12 * NT];
+    static uint8_t phases[NT];
+    random_tets(v, NT);
+    uint32_t ids[NT];
+    for (int i = 0; i < NT; i++) ids[i] = (uint32_t)i, phases[i] = (uint8_t)(3 - i % 4);
+    char path[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    fm_export_frame f = {.n = NT, .tet_vertices = v, .phases = phases};
+    if (write_frame(&f, FM_EXPORT_VTK, "formats_tets.vtu", path) != FM_OK) return;
+    export_write_raw(export_tmp(expected, "formats_tets.expected"), v, sizeof v, 0);
+    export_write_raw(expected, ids, sizeof ids, 1);
+    export_write_raw(expected, phases, sizeof phases, 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    /* the checker can fail: one coordinate off by one ulp */
+    uint32_t bits;
+    memcpy(&bits, &v[17], 4), bits ^= 1, memcpy(&v[17], &bits, 4);
+    export_write_raw(expected, v, sizeof v, 0);
+    export_write_raw(expected, ids, sizeof ids, 1);
+    export_write_raw(expected, phases, sizeof phases, 1);
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed coordinate");
+}
+
+static void test_vtu_points(void)
+{
+    static point_set p;
+    random_points(&p);
+    char path[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
+    if (write_frame(&f, FM_EXPORT_VTK, "formats_points.vtu", path) != FM_OK) return;
+    export_write_raw(export_tmp(expected, "formats_points.expected"), p.pos, sizeof p.pos, 0);
+    export_write_raw(expected, p.vel, sizeof p.vel, 1);
+    export_write_raw(expected, p.ids, sizeof p.ids, 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' points", path, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    p.ids[NP / 2]++; /* and a changed id is caught */
+    export_write_raw(expected, p.pos, sizeof p.pos, 0);
+    export_write_raw(expected, p.vel, sizeof p.vel, 1);
+    export_write_raw(expected, p.ids, sizeof p.ids, 1);
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed id");
+}
+
+static void test_pvd(void)
+{
+    char pvd[FM_PATH_MAX], file[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    static const char *const names[] = {"formats_00003.vtu", "formats_00004.vtu", "formats_00009.vtu"};
+    const double rate = 30.0, times[] = {3 / rate, 4 / rate, 9 / rate};
+    for (int i = 0; i < 3; i++) export_write_raw(export_tmp(file, names[i]), "", 0, 0);
+    fm_error err = {0};
+    ENSURE_MSG(fm_export_pvd(export_tmp(pvd, "formats.pvd"), names, times, 3, &err) == FM_OK, "%s", err.message);
+    snprintf(args, sizeof args, "pvd '%s' 30 3 4 9", pvd);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    snprintf(args, sizeof args, "pvd '%s' 24 3 4 9", pvd); /* wrong times are caught */
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed wrong timesteps");
+    /* names are XML-escaped */
+    const char *odd[] = {"a&b<\"c\">.vtu"};
+    ENSURE_MSG(fm_export_pvd(pvd, odd, times, 1, &err) == FM_OK, "%s", err.message);
+    char text[1024] = "";
+    FILE *fp = fopen(pvd, "r");
+    size_t len = fp ? fread(text, 1, sizeof text - 1, fp) : 0;
+    if (fp) fclose(fp);
+    text[len] = 0;
+    ENSURE_MSG(strstr(text, "file=\"a&amp;b&lt;&quot;c&quot;&gt;.vtu\"") != NULL, "%s", text);
+    const double bad_time[] = {NAN};
+    ENSURE(fm_export_pvd(pvd, odd, bad_time, 1, &err) == FM_ERR_INPUT);
+}
+
+/* ---------------------------------------------------------------- VDB */
+
+/* Reads path back and checks it against positions, velocities and ids: each id once; positions
+ * to OpenVDB's float offset within a voxel; velocities bit for bit. */
+static void check_vdb(const char *path, const float *pos, const float *vel, const uint32_t *ids, size_t n,
+                      double *voxel)
+{
+    size_t m = 0;
+    float *rp, *rv;
+    int32_t *rid;
+    fm_error err = {0};
+    fm_status st = fm_vdb_points_read(path, &m, &rp, &rv, &rid, voxel, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    if (st != FM_OK) return;
+    ENSURE_MSG(m == n, "%s: %zu points read, %zu written", path, m, n);
+    size_t bad_pos = 0, bad_vel = 0, unmatched = 0;
+    for (size_t j = 0; j < m && m == n; j++) {
+        size_t i = 0;
+        while (i < n && (ids ? (int64_t)ids[i] : (int64_t)i) != rid[j]) i++;
+        if (i == n) {
+            unmatched++;
+            continue;
+        }
+        for (int k = 0; k < 3; k++) {
+            double want = pos[3 * i + k], tol = 4 * (*voxel * 0x1p-24 + fabs(want) * 0x1p-24);
+            bad_pos += !(fabs(rp[3 * j + k] - want) <= tol);
+            bad_vel += memcmp(&rv[3 * j + k], vel ? &vel[3 * i + k] : &(float){0}, 4) != 0;
+        }
+    }
+    ENSURE_MSG(unmatched == 0 && bad_pos == 0 && bad_vel == 0, "%s: %zu ids unmatched, %zu positions and "
+               "%zu velocity components differ", path, unmatched, bad_pos, bad_vel);
+    free(rp), free(rv), free(rid);
+}
+
+static void test_vdb_points(void)
+{
+    static point_set p;
+    random_points(&p);
+    char path[FM_PATH_MAX];
+    double voxel = 0;
+    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
+    if (write_frame(&f, FM_EXPORT_VDB, "formats_points.vdb", path) == FM_OK)
+        check_vdb(path, p.pos, p.vel, p.ids, NP, &voxel);
+    /* the automatic voxel holds about 8 points: 300 points over 60^3 give a voxel near 60 / (300/8)^(1/3) */
+    ENSURE_MSG(voxel > 60 / cbrt(NP / 8.0) / 3 && voxel < 60 / cbrt(NP / 8.0) * 3, "voxel %g", voxel);
+    fm_export_options o = fm_default_export_options();
+    o.voxel_size = 0.25;
+    fm_error err = {0};
+    ENSURE_MSG(fm_export_frame_write(&f, FM_EXPORT_VDB, &o, path, &err) == FM_OK, "%s", err.message);
+    check_vdb(path, p.pos, p.vel, p.ids, NP, &voxel);
+    ENSURE_MSG(voxel == 0.25, "voxel %g, asked for 0.25", voxel);
+}
+
+/* Tets become points at their centroids; no ids means ids 0..n-1, no velocities zero. */
+static void test_vdb_tets(void)
+{
+    static float v[12 * NT], c[3 * NT];
+    random_tets(v, NT);
+    for (int t = 0; t < NT; t++)
+        for (int k = 0; k < 3; k++)
+            c[3 * t + k] = (float)((v[12 * t + k] + (double)v[12 * t + 3 + k] + v[12 * t + 6 + k] + v[12 * t + 9 + k]) / 4);
+    char path[FM_PATH_MAX];
+    double voxel = 0;
+    fm_export_frame f = {.n = NT, .tet_vertices = v};
+    if (write_frame(&f, FM_EXPORT_VDB, "formats_tets.vdb", path) == FM_OK) check_vdb(path, c, NULL, NULL, NT, &voxel);
+}
+
+static void test_vdb_errors(void)
+{
+    float pos[6] = {0, 0, 0, 1, NAN, 0};
+    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    export_tmp(path, "formats_bad.vdb");
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    remove(path);
+    fm_export_frame f = {.n = 2, .positions = pos};
+    fm_error err = {0};
+    ENSURE(fm_export_frame_write(&f, FM_EXPORT_VDB, NULL, path, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "agent 1") && strstr(err.message, "non-finite"), "%s", err.message);
+    pos[4] = 1e9f; /* a billion units at a millimetre voxel is past int32 index space */
+    fm_export_options o = fm_default_export_options();
+    o.voxel_size = 1e-3;
+    ENSURE(fm_export_frame_write(&f, FM_EXPORT_VDB, &o, path, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "voxel size of at least"), "%s", err.message);
+    ENSURE(!export_file_exists(path) && !export_file_exists(partial));
+    /* reading something that is not a VDB fails with a message, not an exception */
+    size_t n;
+    float *rp, *rv;
+    int32_t *rid;
+    export_write_raw(path, "not a vdb file", 14, 0);
+    ENSURE(fm_vdb_points_read(path, &n, &rp, &rv, &rid, NULL, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, path) != NULL, "%s", err.message);
+    ENSURE(rp == NULL && n == 0);
+    remove(path);
+    ENSURE(fm_vdb_points_read(path, &n, &rp, &rv, &rid, NULL, &err) == FM_ERR_INPUT);
+}
+
+/* PLY and VDB store ids as int32: a larger id is refused, VTK's UInt32 takes it. */
+static void test_id_limits(void)
+{
+    float pos[6] = {0, 0, 0, 1, 1, 1};
+    uint32_t ids[2] = {5, 0x80000000u};
+    fm_export_frame f = {.n = 2, .positions = pos, .ids = ids};
+    static const fm_export_format formats[] = {FM_EXPORT_PLY, FM_EXPORT_VDB, FM_EXPORT_VTK};
+    for (int i = 0; i < 3; i++) {
+        char name[64], path[FM_PATH_MAX];
+        snprintf(name, sizeof name, "formats_ids.%s", fm_export_extension(formats[i]));
+        export_tmp(path, name);
+        remove(path);
+        fm_error err = {0};
+        fm_status st = fm_export_frame_write(&f, formats[i], NULL, path, &err);
+        if (formats[i] == FM_EXPORT_VTK) {
+            ENSURE_MSG(st == FM_OK, "%s: %s", name, err.message);
+        } else {
+            ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "2147483648"), "%s: %d %s", name, (int)st, err.message);
+            ENSURE(!export_file_exists(path));
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- every format */
+
+/* No agents: every format writes a valid empty file. */
+static void test_empty_frames(void)
+{
+    static const fm_export_format formats[] = {FM_EXPORT_PLY, FM_EXPORT_OBJ, FM_EXPORT_VTK, FM_EXPORT_VDB};
+    char name[64], path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    static const float none[12];
+    for (int i = 0; i < 4; i++) {
+        fm_export_frame f = {.n = 0, .tet_vertices = none};
+        snprintf(name, sizeof name, "formats_empty.%s", fm_export_extension(formats[i]));
+        write_frame(&f, formats[i], name, path);
+    }
+    snprintf(args, sizeof args, "vtu '%s' /dev/null tets", export_tmp(path, "formats_empty.vtu"));
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    double voxel;
+    check_vdb(export_tmp(path, "formats_empty.vdb"), NULL, NULL, NULL, 0, &voxel);
+}
+
+/* A write that fails (the partial file is /dev/full): FM_ERR_IO naming the path, no file left. */
+static void test_write_failure(void)
+{
+    if (!export_file_exists("/dev/full")) return;
+    static float v[12 * 2000];
+    random_tets(v, 2000);
+    static const fm_export_format formats[] = {FM_EXPORT_VTK, FM_EXPORT_VDB, FM_EXPORT_PLY};
+    for (int i = 0; i < 3; i++) {
+        char name[64], path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+        snprintf(name, sizeof name, "formats_full.%s", fm_export_extension(formats[i]));
+        export_tmp(path, name);
+        snprintf(partial, sizeof partial, "%s.partial", path);
+        remove(path), remove(partial);
+        ENSURE(symlink("/dev/full", partial) == 0);
+        fm_export_frame f = {.n = 2000, .tet_vertices = v};
+        fm_error err = {0};
+        fm_status st = fm_export_frame_write(&f, formats[i], NULL, path, &err);
+        ENSURE_MSG(st == FM_ERR_IO, "%s: status %d: %s", name, (int)st, err.message);
+        ENSURE_MSG(strstr(err.message, path) && strstr(err.message, "No space left"), "%s", err.message);
+        struct stat s;
+        ENSURE_MSG(!export_file_exists(path) && lstat(partial, &s) != 0, "%s: a file was left", name);
+        remove(partial);
+    }
+}
+
+static void test_format_names(void)
+{
+    ENSURE(fm_export_format_named("ply") == FM_EXPORT_PLY && fm_export_format_named("OBJ") == FM_EXPORT_OBJ);
+    ENSURE(fm_export_format_named("vtk") == FM_EXPORT_VTK && fm_export_format_named("Vdb") == FM_EXPORT_VDB);
+    ENSURE(fm_export_format_named("vtu") == FM_EXPORT_UNKNOWN && fm_export_format_named("") == FM_EXPORT_UNKNOWN);
+    ENSURE(fm_export_format_of_path("a/b.VTU") == FM_EXPORT_VTK && fm_export_format_of_path("x.vdb") == FM_EXPORT_VDB);
+    ENSURE(fm_export_format_of_path("a.vtk") == FM_EXPORT_UNKNOWN && fm_export_format_of_path("a.ply/b") == FM_EXPORT_UNKNOWN);
+    ENSURE(!strcmp(fm_export_extension(FM_EXPORT_VTK), "vtu") && !strcmp(fm_export_extension(FM_EXPORT_UNKNOWN), ""));
+}
+
+static void test_centroids_and_differences(void)
+{
+    const float tet[12] = {0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 4};
+    float c[3], d[3];
+    fm_tet_centroids(tet, 1, c);
+    ENSURE(c[0] == 0.25f && c[1] == 0.5f && c[2] == 1.0f);
+    const float a[3] = {1, 2, 3}, b[3] = {2, 0, 3.5f};
+    fm_finite_difference(a, b, 1, 0.5, d);
+    ENSURE(d[0] == 2.0f && d[1] == -4.0f && d[2] == 1.0f);
+}
+
+int main(void)
+{
+    RUN_TEST(test_tets_ply_obj_through_assimp);
+    RUN_TEST(test_points_ply);
+    RUN_TEST(test_points_obj);
+    RUN_TEST(test_vtu_tets);
+    RUN_TEST(test_vtu_points);
+    RUN_TEST(test_pvd);
+    RUN_TEST(test_vdb_points);
+    RUN_TEST(test_vdb_tets);
+    RUN_TEST(test_vdb_errors);
+    RUN_TEST(test_id_limits);
+    RUN_TEST(test_empty_frames);
+    RUN_TEST(test_write_failure);
+    RUN_TEST(test_format_names);
+    RUN_TEST(test_centroids_and_differences);
+    return test_result();
+}
