@@ -35,7 +35,14 @@ static inline fv fv_set1(float x) { return _mm256_set1_ps(x); }
 static inline fv fv_add(fv a, fv b) { return _mm256_add_ps(a, b); }
 static inline fv fv_sub(fv a, fv b) { return _mm256_sub_ps(a, b); }
 static inline fv fv_mul(fv a, fv b) { return _mm256_mul_ps(a, b); }
+static inline fv fv_div(fv a, fv b) { return _mm256_div_ps(a, b); }
+static inline fv fv_sqrt(fv a) { return _mm256_sqrt_ps(a); }
 static inline fv fv_lt(fv a, fv b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+static inline fv fv_gt(fv a, fv b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+/* table[idx[k]] in lane k */
+static inline fv fv_gather(const float *table, iv idx) { return _mm256_i32gather_ps(table, idx, 4); }
+static inline iv iv_eq_mask(iv a, int32_t b) { return _mm256_cmpeq_epi32(a, _mm256_set1_epi32(b)); }
+static inline fv iv_as_mask(iv m) { return _mm256_castsi256_ps(m); }
 /* mask ? a : b (mask lanes all ones or all zeros) */
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm256_blendv_ps(b, a, mask); }
 /* Lane k of a compare result as bit k. */
@@ -63,7 +70,18 @@ static inline fv fv_set1(float x) { return _mm_set1_ps(x); }
 static inline fv fv_add(fv a, fv b) { return _mm_add_ps(a, b); }
 static inline fv fv_sub(fv a, fv b) { return _mm_sub_ps(a, b); }
 static inline fv fv_mul(fv a, fv b) { return _mm_mul_ps(a, b); }
+static inline fv fv_div(fv a, fv b) { return _mm_div_ps(a, b); }
+static inline fv fv_sqrt(fv a) { return _mm_sqrt_ps(a); }
 static inline fv fv_lt(fv a, fv b) { return _mm_cmplt_ps(a, b); }
+static inline fv fv_gt(fv a, fv b) { return _mm_cmpgt_ps(a, b); }
+static inline fv fv_gather(const float *table, iv idx)
+{
+    int32_t i[4];
+    _mm_storeu_si128((__m128i *)i, idx);
+    return _mm_setr_ps(table[i[0]], table[i[1]], table[i[2]], table[i[3]]);
+}
+static inline iv iv_eq_mask(iv a, int32_t b) { return _mm_cmpeq_epi32(a, _mm_set1_epi32(b)); }
+static inline fv iv_as_mask(iv m) { return _mm_castsi128_ps(m); }
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
 static inline unsigned fv_mask(fv m) { return (unsigned)_mm_movemask_ps(m); }
 static inline iv iv_set1(int32_t x) { return _mm_set1_epi32(x); }
@@ -90,7 +108,13 @@ static inline fv fv_set1(float x) { return x; }
 static inline fv fv_add(fv a, fv b) { return a + b; }
 static inline fv fv_sub(fv a, fv b) { return a - b; }
 static inline fv fv_mul(fv a, fv b) { return a * b; }
+static inline fv fv_div(fv a, fv b) { return a / b; }
+static inline fv fv_sqrt(fv a) { return __builtin_sqrtf(a); }
 static inline fv fv_lt(fv a, fv b) { uint32_t m = a < b ? ~0u : 0u; fv r; memcpy(&r, &m, 4); return r; }
+static inline fv fv_gt(fv a, fv b) { return fv_lt(b, a); }
+static inline fv fv_gather(const float *table, iv idx) { return table[idx]; }
+static inline iv iv_eq_mask(iv a, int32_t b) { return a == b ? -1 : 0; }
+static inline fv iv_as_mask(iv m) { fv r; memcpy(&r, &m, 4); return r; }
 static inline fv fv_select(fv mask, fv a, fv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
 static inline unsigned fv_mask(fv m) { uint32_t b; memcpy(&b, &m, 4); return b != 0; }
 static inline iv iv_set1(int32_t x) { return x; }
