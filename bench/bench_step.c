@@ -4,6 +4,7 @@
  *
  * Launches every agent at t = 0, so all of them are in flight, then times S steps and one frame of
  * vertices. Prints one JSON object. The throughput-issue benchmark suite will extend this. */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime in strict C17 (clang's omp.h does not pull it in) */
 #include "flockmorph/flockmorph.h"
 
 #include <omp.h>

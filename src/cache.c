@@ -272,8 +272,9 @@ struct fm_cache_reader {
     uint32_t frames;
     uint64_t *offsets;
     size_t raw_bytes;
-    unsigned char *packed, *shuffled;
-    size_t packed_cap;
+    uint64_t file_bytes;
+    unsigned char *packed, *shuffled; /* allocated on the first read (reserve_buffers) */
+    size_t packed_cap, packed_alloc;
 };
 
 static fm_status read_at(fm_cache_reader *r, uint64_t pos, void *buf, size_t n, fm_error *err)
@@ -342,6 +343,7 @@ static fm_status read_index(fm_cache_reader *r, fm_error *err)
     unsigned char footer[16], h[8];
     if (fseeko(r->f, 0, SEEK_END) != 0) return fm_fail(err, FM_ERR_IO, "%s: cannot seek", r->path);
     uint64_t size = (uint64_t)ftello(r->f);
+    r->file_bytes = size;
     if (size < HEADER_BYTES + 24 || read_at(r, size - 16, footer, 16, err) != FM_OK || memcmp(footer + 8, END_MAGIC, 8) != 0)
         return scan_chunks(r, size, "incomplete cache (no index: the run did not finish or the file was cut short)", err);
     uint64_t index_pos = get_u64(footer);
@@ -373,12 +375,7 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     }
     fm_status st = read_header(r, err);
     if (st == FM_OK) st = read_index(r, err);
-    if (st == FM_OK) {
-        r->packed_cap = ZSTD_compressBound(r->raw_bytes);
-        r->packed = malloc(r->packed_cap);
-        r->shuffled = malloc(r->raw_bytes ? r->raw_bytes : 1);
-        if (!r->packed || !r->shuffled) st = fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", path);
-    }
+    r->packed_cap = ZSTD_compressBound(r->raw_bytes);
     if (st != FM_OK) {
         fm_cache_close(r);
         return NULL;
@@ -391,6 +388,20 @@ const char *fm_cache_warning(const fm_cache_reader *r) { return r->warning; }
 uint32_t fm_cache_frames(const fm_cache_reader *r) { return r->frames; }
 double fm_cache_frame_rate(const fm_cache_reader *r) { return r->frame_rate; }
 
+/* The read buffers are sized on the first read, not at open: a damaged header's agent count must
+ * not make open allocate terabytes, and a chunk's compressed size is checked against the file. */
+static fm_status reserve_buffers(fm_cache_reader *r, uint64_t packed, fm_error *err)
+{
+    if (packed > r->packed_alloc) {
+        unsigned char *grown = realloc(r->packed, packed);
+        if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", r->path);
+        r->packed = grown, r->packed_alloc = packed;
+    }
+    if (!r->shuffled && !(r->shuffled = malloc(r->raw_bytes ? r->raw_bytes : 1)))
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", r->path);
+    return FM_OK;
+}
+
 fm_status fm_cache_read_frame(fm_cache_reader *r, uint32_t frame, float *out, fm_error *err)
 {
     if (frame >= r->frames)
@@ -399,8 +410,10 @@ fm_status fm_cache_read_frame(fm_cache_reader *r, uint32_t frame, float *out, fm
     fm_status st = read_at(r, r->offsets[frame], h, sizeof h, err);
     if (st != FM_OK) return st;
     uint64_t packed = get_u64(h + 8);
-    if (memcmp(h, "FRAM", 4) != 0 || get_u32(h + 4) != frame || packed > r->packed_cap || get_u64(h + 16) != r->raw_bytes)
+    if (memcmp(h, "FRAM", 4) != 0 || get_u32(h + 4) != frame || packed > r->packed_cap || get_u64(h + 16) != r->raw_bytes ||
+        packed > r->file_bytes - r->offsets[frame] - CHUNK_HEADER_BYTES)
         return fm_fail(err, FM_ERR_INPUT, "%s: frame %u: damaged chunk header", r->path, frame);
+    if ((st = reserve_buffers(r, packed, err)) != FM_OK) return st;
     if ((st = read_at(r, r->offsets[frame] + CHUNK_HEADER_BYTES, r->packed, packed, err)) != FM_OK) return st;
     size_t got = ZSTD_decompress(r->shuffled, r->raw_bytes, r->packed, packed);
     if (ZSTD_isError(got) || got != r->raw_bytes)

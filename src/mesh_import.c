@@ -133,7 +133,10 @@ static fm_status take_scene(const struct aiScene *scene, const char *name, fm_me
     return st;
 }
 
-static const unsigned IMPORT_FLAGS = aiProcess_Triangulate | aiProcess_PreTransformVertices;
+/* ValidateDataStructure runs first and rejects what a damaged file leaves behind (a face without
+ * indices, an index past the vertices); without it, assimp's later steps abort the process. */
+static const unsigned IMPORT_FLAGS =
+    aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices;
 
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {

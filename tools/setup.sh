@@ -22,6 +22,9 @@ packages=(
   libblosc-dev
   libboost-iostreams-dev
 )
+# Packages a calling script needs besides these (tools/fuzz.sh and tools/run-tsan.sh: clang).
+read -r -a extra_packages <<< "${FM_EXTRA_PACKAGES:-}"
+packages+=("${extra_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
