@@ -298,6 +298,8 @@ static fm_status read_header(fm_cache_reader *r, fm_error *err)
         return fm_fail(err, FM_ERR_INPUT, "%s: unsupported attribute layout, filter or codec", r->path);
     r->agents = get_u64(h + 16);
     memcpy(&r->frame_rate, h + 40, 8);
+    if (!(r->frame_rate > 0 && r->frame_rate <= 1e9))
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: frame rate %g", r->path, r->frame_rate);
     if (r->agents > ((uint64_t)1 << 40)) return fm_fail(err, FM_ERR_INPUT, "%s: implausible agent count", r->path);
     r->raw_bytes = (size_t)r->agents * FLOATS_PER_AGENT * sizeof(float);
     return FM_OK;

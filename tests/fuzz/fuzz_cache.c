@@ -3,6 +3,7 @@
 #define _GNU_SOURCE
 #include "fuzz_check.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -49,6 +50,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_ASSERT(err.status != FM_OK);
         fuzz_expect_clean(err.status, &err);
     } else {
+        /* what open promises: a usable frame rate, an index no larger than the file */
+        FUZZ_ASSERT(isfinite(fm_cache_frame_rate(r)) && fm_cache_frame_rate(r) > 0);
+        FUZZ_ASSERT((uint64_t)fm_cache_frames(r) * 8 <= size && fm_cache_warning(r) != NULL);
         read_every_frame(r);
         fm_cache_close(r);
     }
