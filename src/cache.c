@@ -377,11 +377,11 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     }
     fm_status st = read_header(r, err);
     if (st == FM_OK) st = read_index(r, err);
-    r->packed_cap = ZSTD_compressBound(r->raw_bytes);
     if (st != FM_OK) {
         fm_cache_close(r);
         return NULL;
     }
+    r->packed_cap = ZSTD_compressBound(r->raw_bytes);
     return r;
 }
 

@@ -613,9 +613,9 @@ fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scen
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", name ? name : "");
+    const char *file = def->scene_path[0] ? def->scene_path : "scene";
     /* json_locate walks a NUL-terminated text; jansson rejects embedded NULs itself. */
     char *copy = malloc(len + 1);
-    const char *file = def->scene_path[0] ? def->scene_path : "scene";
     if (!copy) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the scene text", file);
     memcpy(copy, text, len);
     copy[len] = 0;

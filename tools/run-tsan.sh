@@ -22,8 +22,10 @@ export TSAN_OPTIONS="ignore_noninstrumented_modules=1 log_path=$reports/report s
 status=0
 ctest --test-dir build-tsan -R "$tests" --output-on-failure || status=1
 if compgen -G "$reports/report*" > /dev/null; then
-  echo "run-tsan: ThreadSanitizer reports:"
-  cat "$reports"/report*
+  echo "run-tsan: ThreadSanitizer reports (all of them in $reports/):"
+  grep -h "^SUMMARY" "$reports"/report* | sort | uniq -c
+  echo "run-tsan: the first one:"
+  awk '/^==================$/ && seen++ == 1 {exit} {print}' $(ls "$reports"/report* | head -1)
   status=1
 fi
 [ $status -eq 0 ] && echo "run-tsan: no data races"
