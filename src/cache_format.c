@@ -130,6 +130,8 @@ fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const cha
     l->opts.delta = (get_u32(h + 28) & HEADER_DELTA) != 0;
     l->opts.compression_level = (int)get_u32(h + 36);
     l->frame_rate = get_f64(h + 40);
+    if (!(l->frame_rate > 0 && l->frame_rate <= 1e9))
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: frame rate %g", path, l->frame_rate);
     l->opts.key_interval = (int)get_u32(h + 48);
     l->opts.quantum = get_f64(h + 56);
     if (get_u32(h + 32) != CACHE_CODEC_ZSTD || (get_u32(h + 28) & ~(uint32_t)HEADER_DELTA) != 0)

@@ -51,6 +51,8 @@ static fm_status read_header_v1(fm_cache_reader *r, const unsigned char *h, fm_e
     l->header_bytes = CACHE_FIXED_HEADER;
     l->agents = get_u64(h + 16);
     l->frame_rate = get_f64(h + 40);
+    if (!(l->frame_rate > 0 && l->frame_rate <= 1e9))
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: frame rate %g", r->path, l->frame_rate);
     l->attr_count = 1;
     l->attrs[0] = fm_cache_attr_describe(FM_ATTR_TET_VERTICES);
     l->filters[0] = FILTER_SHUFFLE4;

@@ -118,22 +118,39 @@ static fm_status check_finite(const fm_mesh *mesh, const char *path, fm_error *e
     return FM_OK;
 }
 
+/* Triangles of an imported assimp scene (NULL: the import failed) into out, welded. */
+static fm_status take_scene(const struct aiScene *scene, const char *name, fm_mesh *out, fm_error *err)
+{
+    if (!scene)
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
+                       "STL, OFF, glTF", name, aiGetErrorString());
+    fm_status st = gather_triangles(scene, name, out, err);
+    aiReleaseImport(scene);
+    if (st == FM_OK) st = check_finite(out, name, err);
+    if (st == FM_OK) st = weld_vertices(out, err);
+    if (st != FM_OK) fm_mesh_free(out);
+    return st;
+}
+
+/* ValidateDataStructure runs first and rejects what a damaged file leaves behind (a face without
+ * indices, an index past the vertices); without it, assimp's later steps abort the process. */
+static const unsigned IMPORT_FLAGS =
+    aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices;
+
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
     memset(out, 0, sizeof *out);
     fm_status st = fm_check_input_file(path, "mesh", err);
     if (st != FM_OK) return st;
-    const struct aiScene *scene =
-        aiImportFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);
-    if (!scene)
-        return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
-                       "STL, OFF, glTF", path, aiGetErrorString());
-    st = gather_triangles(scene, path, out, err);
-    aiReleaseImport(scene);
-    if (st == FM_OK) st = check_finite(out, path, err);
-    if (st == FM_OK) st = weld_vertices(out, err);
-    if (st != FM_OK) fm_mesh_free(out);
-    return st;
+    return take_scene(aiImportFile(path, IMPORT_FLAGS), path, out, err);
+}
+
+fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,
+                        fm_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (len == 0 || len > UINT32_MAX) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh data is empty or too large", name);
+    return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, out, err);
 }
 
 typedef struct directed_edge {

@@ -22,6 +22,10 @@ typedef struct fm_tets {
 
 /* mesh_import.c */
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
+/* The same from len bytes in memory; format is the file extension ("obj", "ply", "off", "stl")
+ * and name stands for the file in messages. */
+fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,
+                        fm_error *err);
 void fm_mesh_free(fm_mesh *mesh);
 /* Every edge shared by exactly two faces with opposite directions, no zero-area triangle, and a
  * volume inside; names the first bad edge or triangle (numbered from 1 in file order). */

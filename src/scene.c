@@ -873,7 +873,7 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     return check_consistency(&w, def);
 }
 
-static char *read_text(const char *path, fm_status *st, fm_error *err)
+static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_error *err)
 {
     if ((*st = fm_check_input_file(path, "scene file", err)) != FM_OK) return NULL;
     FILE *f = fopen(path, "rb");
@@ -898,6 +898,7 @@ static char *read_text(const char *path, fm_status *st, fm_error *err)
         return NULL;
     }
     text[len] = 0;
+    *out_len = len;
     return text;
 }
 
@@ -909,7 +910,8 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
         return;
     }
     fm_status st;
-    char *text = read_text(file, &st, NULL);
+    size_t len;
+    char *text = read_text(file, &len, &st, NULL);
     json_t *root = text ? json_loads(text, JSON_REJECT_DUPLICATES, NULL) : NULL; /* locate needs valid JSON */
     int line = 0, col = 0;
     if (root) {
@@ -923,24 +925,41 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     else snprintf(out, size, "%s: %s", file, key);
 }
 
-fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
+fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
-    snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
-    fm_status st = FM_OK;
-    char *text = read_text(path, &st, err);
-    if (!text) return st;
+    snprintf(def->scene_path, sizeof def->scene_path, "%s", name ? name : "");
+    const char *file = def->scene_path[0] ? def->scene_path : "scene";
+    /* json_locate walks a NUL-terminated text; jansson rejects embedded NULs itself. */
+    char *copy = malloc(len + 1);
+    if (!copy) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the scene text", file);
+    memcpy(copy, text, len);
+    copy[len] = 0;
     json_error_t jerr;
-    json_t *root = json_loads(text, JSON_REJECT_DUPLICATES, &jerr);
+    fm_status st;
+    json_t *root = json_loadb(copy, len, JSON_REJECT_DUPLICATES, &jerr);
     if (!root) {
-        st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", path, jerr.line, jerr.column, jerr.text);
+        st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", file, jerr.line, jerr.column, jerr.text);
     } else {
-        where w = {path, text, err, {{0}}, {{0}}, 0, 0, ""};
+        where w = {def->scene_path, copy, err, {{0}}, {{0}}, 0, 0, ""};
         st = read_scene(&w, root, def);
         if (st == FM_OK) st = check_consistency(&w, def);
         if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(&w, def);
         json_decref(root);
     }
+    free(copy);
+    return st;
+}
+
+fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
+{
+    *def = fm_default_scene_def();
+    snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
+    size_t len = 0;
+    fm_status st = FM_OK;
+    char *text = read_text(path, &len, &st, err);
+    if (!text) return st;
+    st = fm_scene_parse(text, len, path, def, err);
     free(text);
     return st;
 }

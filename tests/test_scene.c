@@ -359,6 +359,23 @@ static fm_scene_def def_with_meshes(void)
     return d;
 }
 
+/* fm_scene_parse: a text in memory, not NUL-terminated, named "shots/s.json" in messages and
+ * for resolving relative mesh paths; a NUL inside the text is a syntax error, not the text's end. */
+static void test_parse_from_memory(void)
+{
+    const char text[] = "{" MESHES ", \"speed0\": 3}XXXX";
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(fm_scene_parse(text, strlen(text) - 4, "shots/s.json", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(!strcmp(d.source.path, "shots/a.obj") && !strcmp(d.scene_path, "shots/s.json") && d.speed0 == 3);
+    const char bad[] = "{" MESHES ",\n \"speed0\": -1}";
+    ENSURE(fm_scene_parse(bad, strlen(bad), "shots/s.json", &d, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(!strncmp(err.message, "shots/s.json:2:12: speed0:", 26), "%s", err.message);
+    const char with_nul[] = "{" MESHES "}\0 garbage";
+    ENSURE(fm_scene_parse(with_nul, sizeof with_nul - 1, "s.json", &d, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(!strncmp(err.message, "s.json:1:", 9), "%s", err.message);
+}
+
 static void expect_invalid(const fm_scene_def *d, const char *what)
 {
     fm_error err = {0};
@@ -408,5 +425,6 @@ int main(void)
     RUN_TEST(test_missing_mesh);
     RUN_TEST(test_missing_scene_file);
     RUN_TEST(test_validate);
+    RUN_TEST(test_parse_from_memory);
     return test_result();
 }

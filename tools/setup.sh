@@ -36,6 +36,9 @@ packages=(
 if [ "${FM_WITH_BLENDER:-0}" = 1 ]; then
   packages+=(blender)
 fi
+# Packages a calling script needs besides these (tools/fuzz.sh and tools/run-tsan.sh: clang).
+read -r -a extra_packages <<< "${FM_EXTRA_PACKAGES:-}"
+packages+=("${extra_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -219,6 +219,11 @@ fm_scene_def fm_default_scene_def(void);
  * "FILE:LINE:COLUMN: ..." in err->message. */
 fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err);
 
+/* The same from a scene text in memory (len bytes, no NUL needed). `name` stands for the file in
+ * messages and relative mesh paths are resolved against its directory. */
+fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def,
+                         fm_error *err);
+
 /* Checks a definition built in code (fm_scene_load calls it too). */
 fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err);
 
