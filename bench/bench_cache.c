@@ -1,6 +1,6 @@
 /* Cache writer throughput on the words scene (examples/words/scene.json) at a chosen agent count.
  *
- *   bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR]
+ *   bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] [--scene FILE]
  *
  * 1. Runs F frames without a cache: the step rate without writing.
  * 2. Runs the same F frames (same seed, same frames) writing a cache of tet_vertices and phase,
@@ -143,19 +143,21 @@ int main(int argc, char **argv)
 {
     long agents = 100000, frame_count = 48, threads = omp_get_max_threads();
     double launch_seconds = 1;
-    const char *dir = "/tmp";
+    const char *dir = "/tmp", *scene = FM_SOURCE_DIR "/examples/words/scene.json";
     for (int i = 1; i + 1 < argc; i += 2) {
         if (!strcmp(argv[i], "--agents")) agents = atol(argv[i + 1]);
         else if (!strcmp(argv[i], "--frames")) frame_count = atol(argv[i + 1]);
         else if (!strcmp(argv[i], "--launch-seconds")) launch_seconds = atof(argv[i + 1]);
         else if (!strcmp(argv[i], "--threads")) threads = atol(argv[i + 1]);
         else if (!strcmp(argv[i], "--dir")) dir = argv[i + 1];
+        else if (!strcmp(argv[i], "--scene")) scene = argv[i + 1];
         else
-            return fprintf(stderr, "usage: bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR]\n"), 1;
+            return fprintf(stderr, "usage: bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] "
+                                   "[--scene FILE]\n"), 1;
     }
     fm_scene_def def;
     fm_error err = {0};
-    if (fm_scene_load(FM_SOURCE_DIR "/examples/words/scene.json", &def, &err) != FM_OK)
+    if (fm_scene_load(scene, &def, &err) != FM_OK)
         return fprintf(stderr, "bench_cache: %s\n", err.message), 2;
     def.n = agents;
     def.launch_rate = (double)agents / launch_seconds;
