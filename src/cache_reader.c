@@ -302,6 +302,19 @@ static fm_status alloc_buffers(fm_cache_reader *r, fm_error *err)
     return FM_OK;
 }
 
+/* The frames of agents × bytes per agent must come from the chunks of this file, and zstd shrinks by
+ * at most about 2^15:1 (a run-length block): a header claiming far more is damaged, not a huge
+ * cache, and must not make open allocate terabytes (fuzz regression huge_agent_count). */
+static fm_status check_plausible(const fm_cache_reader *r, fm_error *err)
+{
+    uint64_t raw = 0;
+    for (int i = 0; i < r->l.attr_count; i++) raw += cache_attr_bytes(&r->l, i);
+    if (r->frames > 0 && raw / 65536 > r->file_bytes)
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: frames of %llu agents cannot come from a file of %llu bytes",
+                       r->path, (unsigned long long)r->l.agents, (unsigned long long)r->file_bytes);
+    return FM_OK;
+}
+
 fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
 {
     fm_cache_reader *r = calloc(1, sizeof *r);
@@ -318,7 +331,8 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     if (st == FM_OK && fseeko(r->f, 0, SEEK_END) != 0) st = fm_fail(err, FM_ERR_IO, "%s: cannot seek", path);
     if (st == FM_OK) r->file_bytes = (uint64_t)ftello(r->f);
     if (st == FM_OK) st = read_index(r, err);
-    if (st == FM_OK) st = alloc_buffers(r, err);
+    if (st == FM_OK) st = check_plausible(r, err);
+    if (st == FM_OK && r->frames > 0) st = alloc_buffers(r, err); /* no frames: nothing to read into */
     if (st != FM_OK) {
         fm_cache_close(r);
         return NULL;
