@@ -17,6 +17,10 @@ static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t s
     fm_sample_opts opts = fm_default_sample_opts();
     opts.method = (fm_sample_method)m->def.flock.sampling;
     opts.seed = fm_random_bits(m->def.seed, stream, 0);
+    const fm_flock_def *f = &m->def.flock;
+    opts.iterations = f->mosaic_iterations, opts.manhattan = f->mosaic_distance == FM_MOSAIC_MANHATTAN;
+    opts.k = f->mosaic_k, opts.w = f->mosaic_w, opts.step = f->mosaic_step;
+    opts.lambda = f->stratified_lambda, opts.oversample = f->stratified_oversample;
     return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
 }
 

@@ -1,8 +1,9 @@
-/* The frame loop shared by the tetra morph (fm_run, run.c) and the shape flock (fm_flock_run,
- * flock_run.c): frame 0 is the state before any step; then each frame takes steps_per_frame steps
- * (fewer for the last one if the simulation finishes inside it) and is written, until the
- * simulation finishes or frame_limit frames are written. The loop measures the time spent stepping
- * and writing. */
+/* The plain frame loop, used by the shape flock (fm_flock_run, flock_run.c): frame 0 is the state
+ * before any step; then each frame takes steps_per_frame steps (fewer for the last one if the
+ * simulation finishes inside it) and is written, until the simulation finishes or frame_limit
+ * frames are written. The loop measures the time spent stepping and writing. The tetra morph does
+ * not use it: fm_run_controlled (run.c) has its own loop of the same shape, because it also stops on
+ * a flag, calls the checkpoint hook and resumes from a checkpoint's frame count. */
 #ifndef FM_FRAME_LOOP_H
 #define FM_FRAME_LOOP_H
 

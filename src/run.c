@@ -1,5 +1,4 @@
 /* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
-#include "frame_loop.h"
 #include "sim.h"
 #include "cache_format.h"
 

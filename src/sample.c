@@ -200,7 +200,6 @@ static fm_status resolve_opts(const fm_sample_opts *in, fm_sample_opts *o, fm_er
     if (st == FM_OK) st = check_option(o->step, "step", 0, err);
     if (st == FM_OK && o->oversample != 0) st = check_option(o->oversample, "oversample", 1, err);
     if (st != FM_OK) return st;
-    if (o->iterations == 0) o->iterations = d.iterations;
     if (o->k == 0) o->k = d.k;
     if (o->w == 0) o->w = d.w;
     if (o->lambda == 0) o->lambda = d.lambda;

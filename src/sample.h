@@ -21,8 +21,8 @@
 
 typedef enum fm_sample_method { FM_SAMPLE_RANDOM = 0, FM_SAMPLE_MOSAIC = 1, FM_SAMPLE_STRATIFIED = 2 } fm_sample_method;
 
-/* Defaults; a field left 0 takes its default, so a zeroed struct is a valid request for random
- * sampling with seed 0. */
+/* Defaults; a field left 0 takes its default (except iterations: 0 keeps the mosaic's random
+ * start), so a zeroed struct is a valid request for random sampling with seed 0. */
 #define FM_SAMPLE_MOSAIC_ITERATIONS 30 /* the paper gives no count: see docs/sampling.md */
 #define FM_SAMPLE_MOSAIC_K 2.0         /* eq 1: "k is 2.0 in our current implementation" */
 #define FM_SAMPLE_MOSAIC_W 0.9         /* eq 3: "we choose w as 0.9" */
@@ -33,7 +33,7 @@ typedef enum fm_sample_method { FM_SAMPLE_RANDOM = 0, FM_SAMPLE_MOSAIC = 1, FM_S
 typedef struct fm_sample_opts {
     fm_sample_method method;
     uint64_t seed;
-    int iterations;     /* mosaic: repulsion iterations (eq 5 applied this many times) */
+    int iterations;     /* mosaic: repulsion iterations (eq 5 applied this many times; 0 = none) */
     int manhattan;      /* mosaic: 1 = Manhattan dis_ij (Table I line 4), 0 = Euclidean. The same
                            metric both selects the neighbours (dis_ij < A) and enters E_ij (eq 2) */
     double k;           /* mosaic eq 1: neighbourhood A = k sqrt(M/N), M the surface area */

@@ -8,6 +8,7 @@
 #include "fm_internal.h"
 #include "fuzzy.h"
 #include "json_locate.h"
+#include "sample.h" /* the sampling defaults */
 
 #include <jansson.h>
 
@@ -36,6 +37,9 @@ static fm_flock_def fm_default_flock_def(void)
     static const double damping[3][2] = {{0, 1}, {1, 1}, {3, 0}}, external[2][2] = {{0, 0.1}, {3, 1}};
     fm_flock_def f = {
         .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_RANDOM, .mass = 1,
+        .mosaic_iterations = FM_SAMPLE_MOSAIC_ITERATIONS, .mosaic_distance = FM_MOSAIC_EUCLIDEAN,
+        .mosaic_k = FM_SAMPLE_MOSAIC_K, .mosaic_w = FM_SAMPLE_MOSAIC_W, .mosaic_step = FM_SAMPLE_MOSAIC_STEP,
+        .stratified_lambda = FM_SAMPLE_LAMBDA, .stratified_oversample = FM_SAMPLE_OVERSAMPLE,
         .max_speed = {8, 12}, .max_force = {15, 30},
         .separation = {{20, 40}, {240, 300}, {1.5, 2}},  /* J: a third of SCF's, see docs/shape-flock.md */
         .cohesion = {{10, 40}, {240, 300}, {0.8, 1.2}},
@@ -104,11 +108,13 @@ typedef struct param {
 static const char *const MODE_NAMES[] = {"tetra_morph", "shape_flock", NULL};
 static const char *const SAMPLING_NAMES[] = {"random", "mosaic", "stratified", NULL};
 static const char *const MATCH_NAMES[] = {"random", "spherical", NULL};
+static const char *const DISTANCE_NAMES[] = {"euclidean", "manhattan", NULL};
 static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
 static const char *const DEFORM_NAMES[] = {"none", "wave", "pulse", "sequence", NULL};
 static const struct { const char *key; const char *const *names; } ENUM_NAMES[] = {
     {"mode", MODE_NAMES}, {"shape_flock.sampling", SAMPLING_NAMES}, {"shape_flock.match", MATCH_NAMES},
     {"shape_flock.arrival.mode", ARRIVAL_NAMES}, {"shape_flock.deform.type", DEFORM_NAMES},
+    {"shape_flock.mosaic.distance", DISTANCE_NAMES},
 };
 
 static const char *const *enum_names(const param *p)
@@ -136,6 +142,16 @@ static int applies(const param *p, fm_mode mode)
     for (size_t i = 0; i < sizeof TETRA_ONLY / sizeof TETRA_ONLY[0]; i++)
         if (has_prefix(p->key, TETRA_ONLY[i])) return mode == FM_MODE_TETRA_MORPH;
     return 1;
+}
+
+/* The sampling method a key of the group "shape_flock.mosaic" or "shape_flock.stratified" belongs
+ * to, as named in SAMPLING_NAMES; -1 for any other key. Such a key with another method is an error,
+ * as a key of the other mode is. */
+static int sampling_of(const param *p)
+{
+    if (has_prefix(p->key, "shape_flock.mosaic")) return FM_FLOCK_SAMPLE_MOSAIC;
+    if (has_prefix(p->key, "shape_flock.stratified")) return FM_FLOCK_SAMPLE_STRATIFIED;
+    return -1;
 }
 
 #define OFF(field) offsetof(fm_scene_def, field)
@@ -183,7 +199,14 @@ static const param PARAMS[] = {
     {"path.attraction", P_DOUBLE, OFF(path_attraction), 0, 1e6, 0},
     {"phase2.switch", P_SWITCH, OFF(phase_switch), 0, 0, 0},
     {"phase2.switch_distance", P_DOUBLE, OFF(switch_distance), -1e9, 1e9, 0},
-    {"shape_flock.sampling", P_ENUM, OFF(flock.sampling), 0, 0, 0},
+    {"shape_flock.sampling", P_ENUM, OFF(flock.sampling), 0, 0, 0}, /* before the two groups below */
+    {"shape_flock.mosaic.iterations", P_INT32, OFF(flock.mosaic_iterations), 0, 1e5, 0},
+    {"shape_flock.mosaic.distance", P_ENUM, OFF(flock.mosaic_distance), 0, 0, 0},
+    {"shape_flock.mosaic.k", P_DOUBLE, OFF(flock.mosaic_k), 0, 16, OPEN_MIN},
+    {"shape_flock.mosaic.w", P_DOUBLE, OFF(flock.mosaic_w), 0, 16, OPEN_MIN},
+    {"shape_flock.mosaic.step", P_DOUBLE, OFF(flock.mosaic_step), 0, 4, OPEN_MIN},
+    {"shape_flock.stratified.lambda", P_DOUBLE, OFF(flock.stratified_lambda), 0, 100, OPEN_MIN},
+    {"shape_flock.stratified.oversample", P_DOUBLE, OFF(flock.stratified_oversample), 1, 16, 0},
     {"shape_flock.match", P_ENUM, OFF(flock.match), 0, 0, 0},
     {"shape_flock.mass", P_DOUBLE, OFF(flock.mass), 0, 1e9, OPEN_MIN},
     {"shape_flock.max_speed", P_RANGE, OFF(flock.max_speed), 0, 1e9, OPEN_MIN},
@@ -685,6 +708,20 @@ static fm_status check_unknown_keys(where *w, const json_t *obj, const char *pre
     return FM_OK;
 }
 
+/* A key given in the scene (w points at it) must belong to its mode and, for the sampling
+ * groups, to its sampling method ("mode" and "shape_flock.sampling" are read before them). */
+static fm_status check_applies(where *w, const param *p, const fm_scene_def *def)
+{
+    const int method = sampling_of(p);
+    w->at_key = 1;
+    if (!applies(p, def->mode)) return fail_at(w, p->key, "does not apply to mode \"%s\"", MODE_NAMES[def->mode]);
+    if (method >= 0 && method != (int)def->flock.sampling)
+        return fail_at(w, p->key, "applies only with shape_flock.sampling \"%s\" (this scene's is \"%s\")",
+                       SAMPLING_NAMES[method], SAMPLING_NAMES[def->flock.sampling]);
+    w->at_key = 0;
+    return FM_OK;
+}
+
 static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
 {
     if (!json_is_object(root)) {
@@ -695,10 +732,8 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
     for (size_t i = 0; i < PARAM_COUNT && st == FM_OK; i++) { /* "mode" comes first */
         const json_t *v;
         st = lookup(w, root, PARAMS[i].key, &v);
-        if (st == FM_OK && v && !applies(&PARAMS[i], def->mode)) {
-            w->at_key = 1;
-            st = fail_at(w, PARAMS[i].key, "does not apply to mode \"%s\"", MODE_NAMES[def->mode]);
-        } else if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
+        if (st == FM_OK && v) st = check_applies(w, &PARAMS[i], def);
+        if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
         else if (st == FM_OK && PARAMS[i].type == P_MESH) {
             where_set_key(w, PARAMS[i].key);
             w->depth = 0;

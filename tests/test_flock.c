@@ -4,6 +4,7 @@
  * a deforming target (procedural and mesh sequence) and the flock tracks it; scene keys of the
  * other mode are refused. */
 #include "flockmorph/flockmorph.h"
+#include "sample.h" /* the sampler's defaults and fm_points_nn_stats */
 #include "test_macros.h"
 
 #include <stdlib.h>
@@ -348,6 +349,8 @@ static void test_mesh_sequence_moves_the_destinations(void)
     ENSURE_MSG(strstr(err.message, "seq_01.obj") && strstr(err.message, "connectivity"), "%s", err.message);
 }
 
+#define MESHES "\"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}"
+
 static fm_status load_text(const char *text, fm_scene_def *def, fm_error *err)
 {
     char path[FM_PATH_MAX];
@@ -400,6 +403,83 @@ static void test_scene_keys_belong_to_their_mode(void)
     ENSURE_MSG(strstr(err.message, "mode: expected \"tetra_morph\" or \"shape_flock\""), "%s", err.message);
 }
 
+/* The sampling groups: values reach fm_flock_def, the defaults are the sampler's own, bad values
+ * and keys of the other method are refused at their line and column. */
+static void test_sampling_keys_are_read_and_checked(void)
+{
+    fm_scene_def def = fm_default_scene_def();
+    ENSURE(def.flock.mosaic_iterations == FM_SAMPLE_MOSAIC_ITERATIONS && def.flock.mosaic_k == FM_SAMPLE_MOSAIC_K);
+    ENSURE(def.flock.mosaic_w == FM_SAMPLE_MOSAIC_W && def.flock.mosaic_step == FM_SAMPLE_MOSAIC_STEP);
+    ENSURE(def.flock.mosaic_distance == FM_MOSAIC_EUCLIDEAN && def.flock.stratified_lambda == FM_SAMPLE_LAMBDA);
+    ENSURE(def.flock.stratified_oversample == FM_SAMPLE_OVERSAMPLE);
+    fm_error err = {0};
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, " MESHES ",\n \"shape_flock\": {\"mosaic\": {\"iterations\": 0, "
+                     "\"distance\": \"manhattan\", \"k\": 3, \"w\": 0.5, \"step\": 0.1}}}", &def, &err) == FM_OK);
+    ENSURE_MSG(err.status == FM_OK, "%s", err.message);
+    ENSURE(def.flock.mosaic_iterations == 0 && def.flock.mosaic_distance == FM_MOSAIC_MANHATTAN);
+    ENSURE(def.flock.mosaic_k == 3 && def.flock.mosaic_w == 0.5 && def.flock.mosaic_step == 0.1);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, " MESHES ",\n \"shape_flock\": {\"sampling\": \"stratified\", "
+                     "\"stratified\": {\"lambda\": 2, \"oversample\": 3}}}", &def, &err) == FM_OK);
+    ENSURE(def.flock.stratified_lambda == 2 && def.flock.stratified_oversample == 3);
+
+    /* line 2 is ` "shape_flock": {GROUP}}`: GROUP starts at column 18 */
+    static const struct { const char *group, *want; } bad[] = {
+        {"\"mosaic\": {\"iterations\": -1}", ":2:43: shape_flock.mosaic.iterations: -1 is out of range: must be >= 0"},
+        {"\"mosaic\": {\"iterations\": 2.5}", ":2:43: shape_flock.mosaic.iterations: expected an integer"},
+        {"\"mosaic\": {\"k\": 0}", ":2:34: shape_flock.mosaic.k: 0 is out of range: must be > 0"},
+        {"\"mosaic\": {\"w\": -0.9}", ":2:34: shape_flock.mosaic.w: -0.9 is out of range"},
+        {"\"mosaic\": {\"step\": 5}", ":2:37: shape_flock.mosaic.step: 5 is out of range: must be <= 4"},
+        {"\"mosaic\": {\"distance\": \"chebyshev\"}", ":2:41: shape_flock.mosaic.distance: expected \"euclidean\" or \"manhattan\""},
+        {"\"mosaic\": {\"sigma\": 1}", ":2:29: shape_flock.mosaic.sigma: unknown key"},
+        {"\"sampling\": \"stratified\", \"stratified\": {\"oversample\": 0.5}",
+         ":2:73: shape_flock.stratified.oversample: 0.5 is out of range: must be >= 1"},
+        {"\"sampling\": \"stratified\", \"mosaic\": {\"k\": 3}",
+         ":2:55: shape_flock.mosaic.k: applies only with shape_flock.sampling \"mosaic\" (this scene's is \"stratified\")"},
+        {"\"stratified\": {\"lambda\": 2}",
+         ":2:33: shape_flock.stratified.lambda: applies only with shape_flock.sampling \"stratified\" (this scene's is \"mosaic\")"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char text[512];
+        snprintf(text, sizeof text, "{\"mode\": \"shape_flock\", \"n\": 10, " MESHES ",\n \"shape_flock\": {%s}}", bad[i].group);
+        ENSURE(load_text(text, &def, &err) == FM_ERR_INPUT);
+        ENSURE_MSG(strstr(err.message, bad[i].want), "%s: want '%s', got '%s'", bad[i].group, bad[i].want, err.message);
+    }
+}
+
+/* The nearest-neighbour CV of the destinations of a 2000-agent flock sampled as given. */
+static double destination_cv(fm_flock_sampling sampling, int iterations, fm_mosaic_distance distance)
+{
+    fm_scene_def def = flock_def(2000);
+    def.flock.sampling = sampling, def.flock.mosaic_iterations = iterations, def.flock.mosaic_distance = distance;
+    fm_flock_model *m = build(&def);
+    if (!m) return NAN;
+    float *c2 = malloc(sizeof(float) * 3 * 2000);
+    fm_flock_model_endpoints(m, NULL, c2);
+    double mean = 0, cv = NAN;
+    fm_error err = {0};
+    ENSURE_MSG(fm_points_nn_stats(c2, 2000, 0, &mean, &cv, &err) == FM_OK, "%s", err.message);
+    free(c2);
+    fm_flock_model_destroy(m);
+    return cv;
+}
+
+/* The scene's mosaic settings reach the sampler: no iterations leave the random start (the same
+ * points as random sampling, so the same CV), 30 make the spacing far more even (docs/sampling.md:
+ * about a tenth of random's CV), and the Manhattan distance gives another, less even, arrangement. */
+static void test_sampling_keys_reach_the_sampler(void)
+{
+    const double random = destination_cv(FM_FLOCK_SAMPLE_RANDOM, 0, FM_MOSAIC_EUCLIDEAN);
+    const double none = destination_cv(FM_FLOCK_SAMPLE_MOSAIC, 0, FM_MOSAIC_EUCLIDEAN);
+    const double relaxed = destination_cv(FM_FLOCK_SAMPLE_MOSAIC, 30, FM_MOSAIC_EUCLIDEAN);
+    const double manhattan = destination_cv(FM_FLOCK_SAMPLE_MOSAIC, 30, FM_MOSAIC_MANHATTAN);
+    printf("  nearest-neighbour CV: random %.3f, mosaic 0 iterations %.3f, 30 %.3f, 30 Manhattan %.3f\n", random, none,
+           relaxed, manhattan);
+    ENSURE_NEAR(none, random, 1e-9);
+    ENSURE_MSG(none > 0.4, "the random start has a CV of %g (uniform random points: about 0.52)", none);
+    ENSURE_MSG(relaxed < 0.4 * none, "30 iterations: CV %g against %g for none", relaxed, none);
+    ENSURE_MSG(manhattan > relaxed && manhattan < 0.6 * none, "Manhattan: CV %g (Euclidean %g, none %g)", manhattan, relaxed, none);
+}
+
 int main(void)
 {
     RUN_TEST(test_static_target_every_agent_binds);
@@ -410,5 +490,7 @@ int main(void)
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
     RUN_TEST(test_scene_keys_belong_to_their_mode);
+    RUN_TEST(test_sampling_keys_are_read_and_checked);
+    RUN_TEST(test_sampling_keys_reach_the_sampler);
     return test_result();
 }

@@ -6,6 +6,7 @@
 #include "prep.h"
 #include "sample.h"
 #include "test_macros.h"
+#include "test_mesh_helpers.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -23,15 +24,6 @@ static fm_mesh load_mesh(const char *name)
     fm_error err = {0};
     ENSURE_MSG(fm_mesh_load(path, &m, &err) == FM_OK, "%s", err.message);
     return m;
-}
-
-static double bbox_diagonal(const fm_mesh *m)
-{
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, d2 = 0;
-    for (int64_t i = 0; i < m->nv; i++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], m->v[3 * i + k]), hi[k] = fmax(hi[k], m->v[3 * i + k]);
-    for (int k = 0; k < 3; k++) d2 += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-    return sqrt(d2);
 }
 
 static fm_samples sample(const fm_mesh *m, int64_t n, fm_sample_method method, uint64_t seed, int threads)

@@ -121,6 +121,8 @@ typedef enum fm_flock_sampling {
     FM_FLOCK_SAMPLE_RANDOM = 0, FM_FLOCK_SAMPLE_MOSAIC = 1, FM_FLOCK_SAMPLE_STRATIFIED = 2
 } fm_flock_sampling;
 typedef enum fm_flock_match { FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1 } fm_flock_match;
+/* The mosaic's dis_ij (SCF eqs 1-2): it both selects the neighbours and enters E_ij. */
+typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN = 1 } fm_mosaic_distance;
 typedef enum fm_flock_arrival { FM_ARRIVAL_BIND = 0, FM_ARRIVAL_FLOAT = 1 } fm_flock_arrival;
 typedef enum fm_deform_kind {
     FM_DEFORM_NONE = 0,     /* a static target */
@@ -133,6 +135,15 @@ typedef enum fm_deform_kind {
 typedef struct fm_flock_def {
     fm_flock_sampling sampling;  /* how the source and target surfaces are sampled */
     fm_flock_match match;        /* agent-to-destination correspondence */
+    /* surface mosaic sampling (docs/sampling.md; M the surface area, N = n) */
+    int32_t mosaic_iterations;   /* eq 5 applications; 0 keeps the random start */
+    fm_mosaic_distance mosaic_distance;
+    double mosaic_k;             /* eq 1: neighbourhood A = k sqrt(M/N) */
+    double mosaic_w;             /* eq 3: sigma = w sqrt(M/N) */
+    double mosaic_step;          /* eq 5's delta t in units of sqrt(M/N) */
+    /* stratified sampling */
+    double stratified_lambda;    /* the density lambda e^(-lambda d), d in voxel edges */
+    double stratified_oversample;/* occupied voxels per sample before minimum-distance elimination, >= 1 */
     double mass;                 /* m of eq 9; every force is divided by it */
     double max_speed[2];         /* MaxSpeed range, units/s */
     double max_force[2];         /* MaxForce range (bounds the boids steering force), units/s^2 * mass */
