@@ -128,7 +128,7 @@ static int run_once(const fm_model *m, int threads, long steps, float *frame, st
     r->stage_ns[FM_STAGE_COUNT] = 1e9 * synth / agent_steps;
     r->hash = state_hash(s, frame);
     r->in_flight = s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING];
-    r->path_ns_simd = time_path_kernel(m, s, FM_SIMD_AVX2);
+    r->path_ns_simd = time_path_kernel(m, s, fm_simd_level()); /* the level in use (FM_SIMD may lower it) */
     r->path_ns_scalar = time_path_kernel(m, s, FM_SIMD_SCALAR);
     fm_state_destroy(s);
     return 0;
