@@ -17,9 +17,11 @@
 /* Contact keeps tets this many voxels clear of the surface, above float round-off. */
 #define CONTACT_MARGIN 0.02f
 
-float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z, float g[3])
+/* d_t refined where the grid is too coarse: the exact callback within exact_band of the surface;
+ * g becomes the unit gradient. dg and g come from the grid at (x, y, z). */
+static float refine_distance(const fm_obstacle_view *o, float x, float y, float z, float dg, float g[3])
 {
-    float d = fm_sdf_sample(&o->sdf, x, y, z, g);
+    float d = dg;
     if (o->exact && fabsf(d) < o->exact_band) {
         double p[3] = {x, y, z}, n[3] = {0, 0, 0};
         d = (float)o->exact(o->exact_ctx, p, n);
@@ -28,6 +30,21 @@ float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z,
     float len = sqrtf(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
     if (len > 0) g[0] /= len, g[1] /= len, g[2] /= len;
     return d;
+}
+
+float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z, float g[3])
+{
+    return refine_distance(o, x, y, z, fm_sdf_sample(&o->sdf, x, y, z, g), g);
+}
+
+/* Can a tet of radius rx whose centroid is dg from the surface (the grid's value) come within rx of
+ * it by moving `reach`? Not if dg - rx > 2 reach + 2 voxels: the trilinear field changes by at most
+ * sqrt(3) per unit of distance, and the exact refinement differs from the grid by well under a
+ * voxel. The look-ahead of eq 8 and the contact step are both skipped for such agents, which are
+ * most of the flock. */
+static int beyond_reach(const fm_obstacle_view *o, float dg, float rx, float reach)
+{
+    return dg - rx > 2 * reach + 2 * o->sdf.voxel;
 }
 
 /* A unit vector perpendicular to the unit vector g, the same for the same g: horizontal (g x z)
@@ -69,9 +86,33 @@ static float radius_now(const fm_radius_view *r, int64_t a, double time)
     return r->rest[i] * (float)(1.0 - (1.0 - r->shrink) * s);
 }
 
+static float speed_of(const float v[3]) { return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
 float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
                       float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
-                      int64_t end, double time, float dt)
+                      int64_t end, double time, float dt, fm_obstacle_scratch sc)
+{
+    float clearance = INFINITY;
+    for (int64_t a = begin; a < end; a++) {
+        if (phase[a] != phase_sel) continue;
+        float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
+        float rx = radius_now(r, a, time), dg = fm_sdf_sample(&o->sdf, x, y, z, g);
+        sc.d_grid[a] = dg, sc.radius[a] = rx; /* for fm_kernel_contact */
+        float d = refine_distance(o, x, y, z, dg, g);
+        clearance = fminf(clearance, d - rx);
+        if (beyond_reach(o, dg, rx, speed_of(vg) * dt)) continue; /* eq 8's look-ahead cannot collide */
+        float g_ahead[3];
+        float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
+        if (!(d_ahead < rx)) continue; /* eq 8, second case: V_syn */
+        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
+        v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
+    }
+    return clearance;
+}
+
+float fm_kernel_avoid_ref(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                          float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                          int64_t end, double time, float dt)
 {
     float clearance = INFINITY;
     for (int64_t a = begin; a < end; a++) {
@@ -82,23 +123,22 @@ float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const 
         clearance = fminf(clearance, d - rx);
         float g_ahead[3];
         float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
-        if (!(d_ahead < rx)) continue; /* eq 8, second case: V_syn */
-        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
+        if (!(d_ahead < rx)) continue;
+        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg);
         v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
     }
     return clearance;
 }
 
-void fm_kernel_contact(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+void fm_kernel_contact(const fm_obstacle_view *o, fm_obstacle_scratch sc, const float *const p[3],
                        float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
-                       int64_t end, double time, float dt)
+                       int64_t end, float dt)
 {
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         float x = p[0][a], y = p[1][a], z = p[2][a], vv[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
-        float rx = radius_now(r, a, time);
-        float reach = sqrtf(vv[0] * vv[0] + vv[1] * vv[1] + vv[2] * vv[2]) * dt;
-        if (fm_sdf_sample(&o->sdf, x, y, z, g) - rx > 2 * reach + 2 * o->sdf.voxel) continue; /* far: cheap exit */
+        float rx = sc.radius[a];
+        if (beyond_reach(o, sc.d_grid[a], rx, speed_of(vv) * dt)) continue; /* far: cheap exit */
         /* Project the end point out along grad d_t; a few passes, since sliding into a concave
          * corner or past a thin feature meets another face. */
         float target = rx + CONTACT_MARGIN * o->sdf.voxel; /* a hair outside, against round-off */

@@ -27,6 +27,13 @@ typedef struct fm_radius_view {
     double launch_rate;   /* agent id i launched at i / launch_rate */
 } fm_radius_view;
 
+/* Per-agent scratch that fm_kernel_avoid fills for fm_kernel_contact in the same step (the agents
+ * have not moved in between): the grid's d_t at the centroid and R_X. */
+typedef struct fm_obstacle_scratch {
+    float *d_grid;
+    float *radius;
+} fm_obstacle_scratch;
+
 /* d_t and its unit gradient at (x, y, z): the grid, or the exact callback near the surface. */
 float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z, float g[3]);
 
@@ -35,7 +42,12 @@ float fm_obstacle_distance(const fm_obstacle_view *o, float x, float y, float z,
  * smallest clearance d_t(x) - R_X over those agents (INFINITY if none). */
 float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
                       float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
-                      int64_t end, double time, float dt);
+                      int64_t end, double time, float dt, fm_obstacle_scratch scratch);
+/* The scalar reference twin: the look-ahead sampled for every agent, however far from the
+ * obstacles (fm_kernel_avoid skips it where it cannot collide; tests compare the two). */
+float fm_kernel_avoid_ref(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+                          float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
+                          int64_t end, double time, float dt);
 
 /* Contact (beyond the paper): after V_la is added (eq 8), an agent whose tet would end the step
  * inside an obstacle (d_t(x + v dt) < R_X) is turned so that it ends the step at d_t = R_X,
@@ -43,8 +55,8 @@ float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const 
  * not clear it, its step is shortened (down to none: it is clear where it stands). Eq 7 slides along the surface
  * at the agent's position, which a concave corner or an MDE push can still carry into the
  * obstacle. */
-void fm_kernel_contact(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
+void fm_kernel_contact(const fm_obstacle_view *o, fm_obstacle_scratch scratch, const float *const p[3],
                        float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
-                       int64_t end, double time, float dt);
+                       int64_t end, float dt);
 
 #endif

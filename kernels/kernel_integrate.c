@@ -30,6 +30,7 @@ int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], c
 {
     if (!target_sdf) { /* the sphere test vectorises; the distance switch samples a grid per agent */
         switch (fm_simd_level()) {
+        case FM_SIMD_AVX512: return fm_integrate_sphere_avx512(p, v, phase, begin, end, dt, sphere, entered);
         case FM_SIMD_AVX2: return fm_integrate_sphere_avx2(p, v, phase, begin, end, dt, sphere, entered);
         case FM_SIMD_SSE2: return fm_integrate_sphere_base(p, v, phase, begin, end, dt, sphere, entered);
         default: break;

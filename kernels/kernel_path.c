@@ -17,6 +17,7 @@ void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3]
                                int64_t begin, int64_t end, float speed, float *const v[3])
 {
     switch (fm_simd_level()) {
+    case FM_SIMD_AVX512: fm_kernel_global_velocity_avx512(path, p, phase, begin, end, speed, v); break;
     case FM_SIMD_AVX2: fm_kernel_global_velocity_avx2(path, p, phase, begin, end, speed, v); break;
     case FM_SIMD_SSE2: fm_kernel_global_velocity_base(path, p, phase, begin, end, speed, v); break;
     default: fm_kernel_global_velocity_ref(path, p, phase, begin, end, speed, v);

@@ -57,5 +57,7 @@ void fm_kernel_global_velocity_base(const fm_path_view *path, const float *const
                                     int64_t begin, int64_t end, float speed, float *const v[3]);
 void fm_kernel_global_velocity_avx2(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
                                     int64_t begin, int64_t end, float speed, float *const v[3]);
+void fm_kernel_global_velocity_avx512(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
+                                      int64_t begin, int64_t end, float speed, float *const v[3]);
 
 #endif

@@ -11,6 +11,7 @@ static fm_simd cpu_best(void)
 {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq")) return FM_SIMD_AVX512;
     if (__builtin_cpu_supports("avx2")) return FM_SIMD_AVX2;
     if (__builtin_cpu_supports("sse2")) return FM_SIMD_SSE2;
 #endif
@@ -21,7 +22,10 @@ static fm_simd from_environment(fm_simd best)
 {
     const char *e = getenv("FM_SIMD");
     if (!e) return best;
-    fm_simd want = !strcmp(e, "scalar") ? FM_SIMD_SCALAR : !strcmp(e, "sse2") ? FM_SIMD_SSE2 : FM_SIMD_AVX2;
+    fm_simd want = !strcmp(e, "scalar") ? FM_SIMD_SCALAR
+                   : !strcmp(e, "sse2")  ? FM_SIMD_SSE2
+                   : !strcmp(e, "avx2")  ? FM_SIMD_AVX2
+                                         : FM_SIMD_AVX512;
     return want < best ? want : best;
 }
 
@@ -45,6 +49,6 @@ fm_simd fm_simd_set_level(fm_simd level)
 
 const char *fm_simd_name(fm_simd level)
 {
-    static const char *const names[] = {"scalar", "sse2", "avx2"};
-    return level >= FM_SIMD_SCALAR && level <= FM_SIMD_AVX2 ? names[level] : "?";
+    static const char *const names[] = {"scalar", "sse2", "avx2", "avx512"};
+    return level >= FM_SIMD_SCALAR && level <= FM_SIMD_AVX512 ? names[level] : "?";
 }

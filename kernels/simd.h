@@ -1,10 +1,11 @@
 /* One small wide-vector layer for the kernels: FM_W float lanes of the widest instruction set this
- * translation unit is compiled for (AVX2: 8, SSE2: 4, otherwise 1).
+ * translation unit is compiled for (AVX-512: 16, AVX2: 8, SSE2: 4, otherwise 1).
  *
- * A kernel with a SIMD body is compiled twice: kernels/<name>.c for the baseline (SSE2 on x86-64)
- * and kernels/<name>_avx2.c, which only includes it again under -mavx2 (CMakeLists.txt). Its
- * entry point picks the variant at run time (fm_simd_level(), from cpuid, overridable with the
- * environment variable FM_SIMD=scalar|sse2|avx2 or fm_simd_set_level). Every kernel keeps a scalar
+ * A kernel with a SIMD body is compiled three times: kernels/<name>.c for the baseline (SSE2 on
+ * x86-64), kernels/<name>_avx2.c and kernels/<name>_avx512.c, which only include it again under
+ * -mavx2 and -mavx512f -mavx512dq (CMakeLists.txt). Its entry point picks the variant at run time
+ * (fm_simd_level(), from cpuid, overridable with the environment variable
+ * FM_SIMD=scalar|sse2|avx2|avx512 or fm_simd_set_level). Every kernel keeps a scalar
  * reference twin (the _ref functions) that the tests compare with: the vector bodies use the same
  * IEEE operations in the same order (no FMA contraction: -ffp-contract=off), so they match it bit
  * for bit.
@@ -16,7 +17,8 @@
 #include <stdint.h>
 #include <string.h>
 
-typedef enum fm_simd { FM_SIMD_SCALAR = 0, FM_SIMD_SSE2 = 1, FM_SIMD_AVX2 = 2 } fm_simd;
+typedef enum fm_simd { FM_SIMD_SCALAR = 0, FM_SIMD_SSE2 = 1, FM_SIMD_AVX2 = 2, FM_SIMD_AVX512 = 3 } fm_simd;
+#define FM_SIMD_BEST FM_SIMD_AVX512
 
 /* The level the kernels use: the best the CPU has, unless FM_SIMD or fm_simd_set_level says less. */
 fm_simd fm_simd_level(void);
@@ -24,7 +26,39 @@ fm_simd fm_simd_level(void);
 fm_simd fm_simd_set_level(fm_simd level);
 const char *fm_simd_name(fm_simd level);
 
-#if defined(__AVX2__)
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+#include <immintrin.h>
+#define FM_W 16
+/* Compares give __mmask16 here; the layer widens them to all-ones lanes, as the narrower levels
+ * have them, so kernels are written once. */
+typedef __m512 fv;
+typedef __m512i iv;
+static inline fv fv_load(const float *p) { return _mm512_loadu_ps(p); }
+static inline void fv_store(float *p, fv x) { _mm512_storeu_ps(p, x); }
+static inline fv fv_set1(float x) { return _mm512_set1_ps(x); }
+static inline fv fv_add(fv a, fv b) { return _mm512_add_ps(a, b); }
+static inline fv fv_sub(fv a, fv b) { return _mm512_sub_ps(a, b); }
+static inline fv fv_mul(fv a, fv b) { return _mm512_mul_ps(a, b); }
+static inline fv fv_div(fv a, fv b) { return _mm512_div_ps(a, b); }
+static inline fv fv_sqrt(fv a) { return _mm512_sqrt_ps(a); }
+static inline fv fv_from_mask(__mmask16 m) { return _mm512_castsi512_ps(_mm512_movm_epi32(m)); }
+static inline __mmask16 fv_to_mask(fv m) { return _mm512_movepi32_mask(_mm512_castps_si512(m)); }
+static inline fv fv_lt(fv a, fv b) { return fv_from_mask(_mm512_cmp_ps_mask(a, b, _CMP_LT_OQ)); }
+static inline fv fv_gt(fv a, fv b) { return fv_from_mask(_mm512_cmp_ps_mask(a, b, _CMP_GT_OQ)); }
+static inline fv fv_gather(const float *table, iv idx) { return _mm512_i32gather_ps(idx, table, 4); }
+static inline iv iv_eq_mask(iv a, int32_t b) { return _mm512_movm_epi32(_mm512_cmpeq_epi32_mask(a, _mm512_set1_epi32(b))); }
+static inline fv iv_as_mask(iv m) { return _mm512_castsi512_ps(m); }
+static inline fv fv_select(fv mask, fv a, fv b) { return _mm512_mask_blend_ps(fv_to_mask(mask), b, a); }
+static inline unsigned fv_mask(fv m) { return (unsigned)fv_to_mask(m); }
+static inline iv iv_set1(int32_t x) { return _mm512_set1_epi32(x); }
+static inline iv iv_select(fv mask, iv a, iv b) { return _mm512_mask_blend_epi32(fv_to_mask(mask), b, a); }
+static inline void iv_store(int32_t *p, iv x) { _mm512_storeu_si512((void *)p, x); }
+static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
+{
+    __m128i b = _mm_loadu_si128((const __m128i *)p);
+    return (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(b, _mm_set1_epi8((char)value))) & 0xffffu;
+}
+#elif defined(__AVX2__)
 #include <immintrin.h>
 #define FM_W 8
 typedef __m256 fv;
@@ -123,9 +157,12 @@ static inline void iv_store(int32_t *p, iv x) { *p = x; }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { return *p == value; }
 #endif
 
-/* Names a SIMD variant of a kernel: <name>_avx2 in the -mavx2 copy (whose wrapper defines
- * FM_SIMD_AVX2_COPY), <name>_base in the baseline one (SSE2 on x86-64, wider with FM_NATIVE). */
-#if defined(FM_SIMD_AVX2_COPY)
+/* Names a SIMD variant of a kernel: <name>_avx512 and <name>_avx2 in the -mavx512f and -mavx2
+ * copies (whose wrappers define FM_SIMD_AVX512_COPY or FM_SIMD_AVX2_COPY), <name>_base in the
+ * baseline one (SSE2 on x86-64, wider with FM_NATIVE). */
+#if defined(FM_SIMD_AVX512_COPY)
+#define FM_SIMD_VARIANT(name) name##_avx512
+#elif defined(FM_SIMD_AVX2_COPY)
 #define FM_SIMD_VARIANT(name) name##_avx2
 #else
 #define FM_SIMD_VARIANT(name) name##_base

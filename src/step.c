@@ -72,6 +72,15 @@ static void build_neighbour_grid(const fm_model *m, fm_state *s)
     fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end, mde_cell(m), s->threads);
 }
 
+/* Avoidance leaves d_t and R_X per agent for the contact step. The store borrows the re-sort's
+ * scratch for them (16 bytes per agent, idle once the step's re-sort is done), so they cost no
+ * memory. */
+static fm_obstacle_scratch obstacle_scratch(const fm_state *s)
+{
+    float *d_grid = s->sort_scratch;
+    return (fm_obstacle_scratch){d_grid, d_grid + s->n};
+}
+
 static fm_radius_view radius_view(const fm_model *m, const fm_state *s)
 {
     return (fm_radius_view){m->src_radius, s->id, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
@@ -101,21 +110,22 @@ static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_
     if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
     fm_obstacle_view o;
     fm_radius_view r;
+    const fm_obstacle_scratch sc = obstacle_scratch(s);
     int steer_phase2 = m->obstacles && def->avoid_in_phase2;
     bc->clearance = INFINITY;
     if (m->obstacles) { /* V_grn -> V_oa where the look-ahead collides (eqs 7-8) */
         o = obstacle_view(m), r = radius_view(m, s);
-        bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt);
+        bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt, sc);
     }
     if (steer_phase2) {
         fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, begin, end, (float)def->speed0);
-        fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt);
+        fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt, sc);
     }
     bc->flying = 0;
     for (int64_t a = begin; a < end; a++) bc->flying += s->phase[a] == FM_PHASE_FLYING;
     bc->mde = def->d_min > 0 ? add_mde(m, s, begin, end) : 0; /* + V_la */
-    if (m->obstacles) fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt);
-    if (steer_phase2) fm_kernel_contact(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt);
+    if (m->obstacles) fm_kernel_contact(&o, sc, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, dt);
+    if (steer_phase2) fm_kernel_contact(&o, sc, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, dt);
 }
 
 /* Stage 4 for one block: each agent moves only itself. */

@@ -17,6 +17,8 @@ static fm_obstacle_view plane_view(float k_a)
 }
 
 static const float zero_radius[4] = {0, 0, 0, 0};
+static float scratch_d[4], scratch_r[4];
+static fm_obstacle_scratch scratch1(void) { return (fm_obstacle_scratch){scratch_d, scratch_r}; }
 static const int32_t identity_ids[4] = {0, 1, 2, 3};
 
 static void test_outside_influence_keeps_v_grn(void)
@@ -27,7 +29,7 @@ static void test_outside_influence_keeps_v_grn(void)
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
     float *v[3] = {vx, vy, vz};
-    float c = fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f);
+    float c = fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f, scratch1());
     ENSURE(vx[0] == 1.5f && vy[0] == 0.5f && vz[0] == 0); /* d = 3 > k_a: V_oa = V_grn */
     ENSURE_NEAR(c, 3.0, 1e-5);
 }
@@ -41,7 +43,7 @@ static void test_on_the_surface_v_oa_is_tangent(void)
     uint8_t phase[2] = {1, 1};
     const float *p[3] = {x, y, z};
     float *v[3] = {vx, vy, vz};
-    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 2, 0.0, 0.1f);
+    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 2, 0.0, 0.1f, scratch1());
     for (int a = 0; a < 2; a++) {
         ENSURE_NEAR(vx[a], 0.0, 1e-6);                                   /* no normal component */
         ENSURE_NEAR(sqrt(vy[a] * vy[a] + vz[a] * vz[a]), 2.0, 1e-5);     /* D * speed0 */
@@ -58,7 +60,7 @@ static void test_eq7_blend(void)
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
     float *v[3] = {vx, vy, vz};
-    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f); /* look-ahead: x + 1 is inside */
+    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f, scratch1()); /* look-ahead: x + 1 is inside */
     ENSURE_NEAR(vx[0], 5.0, 1e-4);
     /* D is the tangential part (0, 0, 1) nudged sideways by the bias, normalised */
     ENSURE_NEAR(sqrt(vy[0] * vy[0] + (vz[0] - 0.5) * (vz[0] - 0.5)), 1.0, 1e-4);
@@ -72,7 +74,7 @@ static void test_no_look_ahead_collision_keeps_v_grn(void)
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
     float *v[3] = {vx, vy, vz};
-    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f); /* moving away: eq 8's second case */
+    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f, scratch1()); /* moving away: eq 8's second case */
     ENSURE(vx[0] == -1.0f && vy[0] == 0 && vz[0] == 0);
 }
 
@@ -86,10 +88,88 @@ static void test_contact_stops_at_the_surface(void)
     uint8_t phase[1] = {1};
     const float *p[3] = {x, y, z};
     float *v[3] = {vx, vy, vz};
-    fm_kernel_contact(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f);
+    float d_grid[1], rx[1];
+    fm_obstacle_scratch sc = {d_grid, rx};
+    float keep[3] = {vx[0], vy[0], vz[0]};
+    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, 1, 0.0, 0.1f, sc); /* fills the scratch */
+    ENSURE_NEAR(d_grid[0], 0.4, 1e-5);
+    ENSURE(rx[0] == 0.2f);
+    vx[0] = keep[0], vy[0] = keep[1], vz[0] = keep[2]; /* as if MDE pushed it back in */
+    fm_kernel_contact(&o, sc, p, v, phase, 1, 0, 1, 0.1f);
     float end = 5.0f - (x[0] + vx[0] * 0.1f);
     ENSURE_MSG(end >= 0.2f && end < 0.21f, "ends at clearance %g", end - 0.2f);
     ENSURE(vy[0] == 1.0f); /* the tangential part is kept */
+}
+
+/* A sphere of radius 2 at the origin as a 48^3 grid of voxel 0.125, with the exact distance as the
+ * refinement near it: what the engine builds from OpenVDB and Embree. */
+enum { SN = 48 };
+static float sphere_grid[SN * SN * SN];
+static double sphere_exact(const void *ctx, const double p[3], double n[3])
+{
+    (void)ctx;
+    double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    for (int k = 0; k < 3; k++) n[k] = r > 0 ? p[k] / r : (k == 0);
+    return r - 2.0;
+}
+static fm_obstacle_view sphere_view(void)
+{
+    const float voxel = 0.125f, origin = -3.0f;
+    for (int k = 0; k < SN; k++)
+        for (int j = 0; j < SN; j++)
+            for (int i = 0; i < SN; i++) {
+                double p[3] = {origin + voxel * i, origin + voxel * j, origin + voxel * k}, n[3];
+                double d = sphere_exact(NULL, p, n);
+                sphere_grid[i + SN * (j + SN * k)] = (float)(d > 0.75 ? 0.75 : d < -0.75 ? -0.75 : d);
+            }
+    fm_sdf_view sdf = {sphere_grid, {SN, SN, SN}, {origin, origin, origin}, voxel, 0.75f};
+    return (fm_obstacle_view){sdf, 0.5f, 2.0f, sphere_exact, NULL, 0.2f + 2 * voxel};
+}
+
+static uint32_t lcg(uint32_t *s) { return *s = *s * 1664525u + 1013904223u; }
+static float uniform(uint32_t *s, float lo, float hi) { return lo + (hi - lo) * (float)(lcg(s) >> 8) / 16777216.0f; }
+
+/* The kernel skips eq 8's look-ahead where it cannot reach the obstacle; its reference twin samples
+ * it for every agent. On agents everywhere around the sphere (far, in the band, touching, inside,
+ * on voxel borders, at rest, fast) they must agree bit for bit, and the skip must have happened. */
+static void test_avoid_matches_reference(void)
+{
+    fm_obstacle_view o = sphere_view();
+    enum { N = 4096 };
+    static float x[N], y[N], z[N], vx[N], vy[N], vz[N], wx[N], wy[N], wz[N], radius[N], d_grid[N], rx[N];
+    static float ox[N], oy[N], oz[N];
+    static uint8_t phase[N];
+    static int32_t ids[N];
+    uint32_t seed = 12345;
+    for (int a = 0; a < N; a++) {
+        float r = a % 7 == 0 ? 2.0f + 0.125f * (float)(a % 5) : uniform(&seed, 0.5f, 3.6f); /* some on voxel nodes */
+        float th = uniform(&seed, 0, 3.14159f), ph = uniform(&seed, 0, 6.28318f);
+        x[a] = r * sinf(th) * cosf(ph), y[a] = r * sinf(th) * sinf(ph), z[a] = r * cosf(th);
+        float speed = a % 11 == 0 ? 0.0f : uniform(&seed, 0.1f, 4.0f);
+        vx[a] = wx[a] = -x[a] / r * speed + uniform(&seed, -1, 1);
+        vy[a] = wy[a] = -y[a] / r * speed, vz[a] = wz[a] = -z[a] / r * speed;
+        ox[a] = vx[a], oy[a] = vy[a], oz[a] = vz[a];
+        radius[a] = uniform(&seed, 0.0f, 0.2f);
+        phase[a] = a % 13 == 0 ? 2 : 1;
+        ids[a] = a;
+    }
+    fm_radius_view r = {radius, ids, 0.5f, 0.25f, 1000.0};
+    const float *p[3] = {x, y, z};
+    float *v[3] = {vx, vy, vz}, *w[3] = {wx, wy, wz};
+    float c = fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, N, 1.0, 0.05f, (fm_obstacle_scratch){d_grid, rx});
+    float c_ref = fm_kernel_avoid_ref(&o, &r, p, w, phase, 1, 0, N, 1.0, 0.05f);
+    ENSURE(c == c_ref);
+    int same = 1, skipped = 0, steered = 0;
+    for (int a = 0; a < N; a++) {
+        same &= vx[a] == wx[a] && vy[a] == wy[a] && vz[a] == wz[a];
+        if (phase[a] != 1) continue;
+        float speed = sqrtf(vx[a] * vx[a] + vy[a] * vy[a] + vz[a] * vz[a]);
+        skipped += d_grid[a] - rx[a] > 2 * speed * 0.05f + 2 * o.sdf.voxel;
+        steered += vx[a] != ox[a] || vy[a] != oy[a] || vz[a] != oz[a];
+    }
+    ENSURE_MSG(same, "fm_kernel_avoid differs from fm_kernel_avoid_ref");
+    ENSURE_MSG(skipped > N / 4 && skipped < N, "look-ahead skipped for %d of %d agents", skipped, N);
+    ENSURE_MSG(steered > N / 20, "eq 7 steered only %d agents", steered); /* the test reaches the sliding case */
 }
 
 int main(void)
@@ -99,5 +179,6 @@ int main(void)
     RUN_TEST(test_eq7_blend);
     RUN_TEST(test_no_look_ahead_collision_keeps_v_grn);
     RUN_TEST(test_contact_stops_at_the_surface);
+    RUN_TEST(test_avoid_matches_reference);
     return test_result();
 }

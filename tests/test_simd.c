@@ -54,7 +54,7 @@ static void test_path_kernel_matches_reference(void)
 {
     static path_case c;
     static float want[3][AGENTS], got[3][AGENTS];
-    const fm_simd best = fm_simd_set_level(FM_SIMD_AVX2);
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
     printf("  cpu best: %s\n", fm_simd_name(best));
     for (uint64_t seed = 1; seed <= 4; seed++) {
         make_path_case(&c, seed);
@@ -87,7 +87,7 @@ static void test_integrate_matches_reference(void)
     }
     for (int a = 0; a < 30; a++) p0[0][a] = 1.0f, p0[1][a] = p0[2][a] = 0, v[0][a] = v[1][a] = v[2][a] = 0, phase[a] = 1;
     const fm_sphere_view sphere = {{0, 0, 0}, 1.0f}; /* agents 0..29 sit exactly on the sphere: not inside */
-    const fm_simd best = fm_simd_set_level(FM_SIMD_AVX2);
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
     float *vp[3] = {v[0], v[1], v[2]};
     memcpy(want_p, p0, sizeof p0);
     float *wp[3] = {want_p[0], want_p[1], want_p[2]};
@@ -109,10 +109,10 @@ static void test_integrate_matches_reference(void)
 /* The level can be forced down and never above what the CPU has. */
 static void test_level_is_capped(void)
 {
-    fm_simd best = fm_simd_set_level(FM_SIMD_AVX2);
+    fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
     ENSURE(fm_simd_set_level(FM_SIMD_SCALAR) == FM_SIMD_SCALAR);
     ENSURE(fm_simd_level() == FM_SIMD_SCALAR);
-    ENSURE(fm_simd_set_level(FM_SIMD_AVX2) == best);
+    ENSURE(fm_simd_set_level(FM_SIMD_BEST) == best);
 }
 
 int main(void)
