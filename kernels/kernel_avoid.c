@@ -83,7 +83,7 @@ static float radius_now(const fm_radius_view *r, int64_t a, double time)
     double tau = time - (double)i / r->launch_rate;
     double s = r->shrink_time > 0 ? tau / r->shrink_time : 1.0;
     s = s < 0 ? 0 : s > 1 ? 1 : s;
-    return r->rest[i] * (float)(1.0 - (1.0 - r->shrink) * s);
+    return r->rest[a] * (float)(1.0 - (1.0 - r->shrink) * s);
 }
 
 static float speed_of(const float v[3]) { return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }

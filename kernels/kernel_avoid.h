@@ -20,8 +20,8 @@ typedef struct fm_obstacle_view {
 
 /* The tets' bounding radius R_X at a given moment: rest radius times the launch shrink. */
 typedef struct fm_radius_view {
-    const float *rest;    /* per agent id: radius of the tet's minimal bounding sphere at rest */
-    const int32_t *id;    /* agent id of each store slot (the store is re-sorted) */
+    const float *rest;    /* per store slot: radius of the tet's minimal bounding sphere at rest */
+    const int32_t *id;    /* agent id of each store slot (the store is re-sorted): its launch time */
     float shrink;         /* FM §6 shrink factor and its duration */
     float shrink_time;
     double launch_rate;   /* agent id i launched at i / launch_rate */

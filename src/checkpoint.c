@@ -339,7 +339,8 @@ static fm_status check_state(const source *src, const fm_state *s)
 {
     int64_t n = s->n, count[4] = {0, 0, 0, 0};
     for (int64_t a = 0; a < n; a++) {
-        if (s->phase[a] > FM_PHASE_ARRIVED || s->perm[a] >= 12 || s->target[a] < -1 || s->target[a] >= n)
+        if (s->phase[a] > FM_PHASE_ARRIVED || s->perm[a] >= 12 || s->target[a] < -1 || s->target[a] >= n ||
+            s->id[a] < 0 || s->id[a] >= n)
             return damaged(src, "agent values out of range");
         count[s->phase[a]]++;
     }
@@ -362,6 +363,7 @@ fm_status fm_checkpoint_load(const char *path, const fm_model *m, fm_state *s, f
     if (st == FM_OK) st = read_stats(&src, &h, stats);
     if (st == FM_OK) st = read_members(&src, s);
     if (st == FM_OK) st = check_state(&src, s);
+    if (st == FM_OK) fm_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
     if (src.f) fclose(src.f);
     if (st != FM_OK) fm_run_stats_free(stats);
     return st;

@@ -16,6 +16,7 @@ static const double STATE_PER_AGENT =
     + 6                                                 /* phase, perm, morph_safe, entered, member, mde_needed */
     + sizeof(int64_t)                                   /* target */
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
+    + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */
     + (double)sizeof(block_counts) / FM_BLOCK;
 /* Frames of tet vertices (48 B) and phases (1 B): run.c's buffers; the cache writer's hand-over
  * copy, the previous frame when delta is on (cache_writer.c), its quantise and filter buffers (the

@@ -109,6 +109,8 @@ void fm_state_resort(const fm_model *m, fm_state *s)
         permute(s->v[k], sizeof(float), order, count, tmp, s->threads);
         permute(s->p2[k], sizeof(float), order, count, tmp, s->threads);
     }
+    for (int j = 0; j < 12; j++) permute(s->rest_rel[j], sizeof(float), order, count, tmp, s->threads);
+    permute(s->rest_radius, sizeof(float), order, count, tmp, s->threads);
     permute(s->id, sizeof(int32_t), order, count, tmp, s->threads);
     permute(s->phase, 1, order, count, tmp, s->threads);
     permute(s->target, sizeof(int64_t), order, count, tmp, s->threads);

@@ -75,6 +75,10 @@ struct fm_state {
     double time;
     int threads;
     float *p[3];             /* tet centroid */
+    float *rest_rel[12];     /* the model's src_rel of the slot's agent (SoA, rebuilt from id by
+                                fm_state_fill_rest, moved by the re-sort): the step and the synthesis
+                                read it in store order instead of gathering it by id */
+    float *rest_radius;      /* the same for src_radius (R_X at rest) */
     float *v[3];             /* velocity of the last step */
     uint8_t *phase;          /* fm_phase */
     int64_t *target;         /* target slot, -1 before phase 2 */
@@ -105,6 +109,14 @@ struct fm_state {
     float min_clearance;     /* smallest d_t - R_X seen in phase 1 (INFINITY without obstacles) */
     double stage_seconds[FM_STAGE_COUNT]; /* wall time per stage, summed over steps */
 };
+
+/* state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
+void fm_state_fill_rest(const fm_model *m, fm_state *s);
+/* The rest vertices of slot a's tet relative to its centroid (12 floats). */
+static inline void fm_state_rest_tet(const fm_state *s, int64_t a, float out[12])
+{
+    for (int j = 0; j < 12; j++) out[j] = s->rest_rel[j][a];
+}
 
 /* resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
  * agent's id and state. */

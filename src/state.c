@@ -39,6 +39,8 @@ static int alloc_arrays(fm_state *s)
         ok &= (s->v[k] = fm_alloc(sizeof(float) * n)) != NULL;
         ok &= (s->p2[k] = fm_alloc(sizeof(float) * n)) != NULL;
     }
+    for (int j = 0; j < 12; j++) ok &= (s->rest_rel[j] = fm_alloc(sizeof(float) * n)) != NULL;
+    ok &= (s->rest_radius = fm_alloc(sizeof(float) * n)) != NULL;
     ok &= (s->id = fm_alloc(sizeof(int32_t) * n)) != NULL;
     ok &= (s->phase = fm_alloc(n)) != NULL;
     ok &= (s->target = fm_alloc(sizeof(int64_t) * n)) != NULL;
@@ -98,6 +100,7 @@ fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
     }
     for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
     for (int64_t a = 0; a < s->n; a++) s->target[a] = -1, s->id[a] = (int32_t)a;
+    fm_state_fill_rest(m, s);
     s->count[FM_PHASE_WAITING] = s->n;
     s->min_clearance = INFINITY;
     return s;
@@ -107,6 +110,8 @@ void fm_state_destroy(fm_state *s)
 {
     if (!s) return;
     for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
+    for (int j = 0; j < 12; j++) fm_free(s->rest_rel[j]);
+    fm_free(s->rest_radius);
     fm_free(s->id), fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
     fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
     fm_free(s->blocks), fm_free(s->member), fm_free(s->mde_needed);
@@ -115,6 +120,16 @@ void fm_state_destroy(fm_state *s)
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     free(s);
+}
+
+void fm_state_fill_rest(const fm_model *m, fm_state *s)
+{
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++) {
+        const size_t i = (size_t)s->id[a];
+        for (int j = 0; j < 12; j++) s->rest_rel[j][a] = m->src_rel[12 * i + (size_t)j];
+        s->rest_radius[a] = m->src_radius[i];
+    }
 }
 
 fm_state_info fm_state_get_info(const fm_state *s)
@@ -163,7 +178,8 @@ static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double t
 {
     const fm_scene_def *def = &m->def;
     const int32_t i = s->id[a];
-    const float *rest = m->src_rel + 12 * (size_t)i;
+    float rest[12];
+    fm_state_rest_tet(s, a, rest);
     double launch = (double)i / m->launch_rate, tf = s->tf[a];
     double u = tf > 0 ? (time - s->t2[a]) / tf : 1.0;
     u = u < 0 ? 0 : u > 1 ? 1 : u;
@@ -186,13 +202,15 @@ static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *ou
 {
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
     const int32_t i = s->id[a];
+    float rest[12];
     switch (s->phase[a]) {
     case FM_PHASE_WAITING:
-        place_tet(c, 1.0, NULL, m->src_rel + 12 * (size_t)i, out);
+        fm_state_rest_tet(s, a, rest);
+        place_tet(c, 1.0, NULL, rest, out);
         break;
     case FM_PHASE_FLYING:
-        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)i / m->launch_rate), NULL,
-                  m->src_rel + 12 * (size_t)i, out);
+        fm_state_rest_tet(s, a, rest);
+        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)i / m->launch_rate), NULL, rest, out);
         break;
     case FM_PHASE_HOMING:
         homing_tet(m, s, a, s->time, out);

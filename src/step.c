@@ -83,7 +83,7 @@ static fm_obstacle_scratch obstacle_scratch(const fm_state *s)
 
 static fm_radius_view radius_view(const fm_model *m, const fm_state *s)
 {
-    return (fm_radius_view){m->src_radius, s->id, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
+    return (fm_radius_view){s->rest_radius, s->id, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
 }
 
 /* MDE (FM §5.4): V_la gathered from the grid's neighbours and added to the flying agents. */
@@ -177,9 +177,10 @@ static int64_t setup_morphs(const fm_model *m, fm_state *s, int64_t begin, int64
     for (int64_t a = begin; a < end; a++) {
         if (!s->entered[a]) continue;
         const int64_t slot = s->target[a];
-        float dst[12];
+        float src[12], dst[12];
+        fm_state_rest_tet(s, a, src);
         for (int i = 0; i < 12; i++) dst[i] = m->tgt_f[12 * slot + i] - m->tgt_c[i % 3][slot];
-        s->morph_safe[a] = (uint8_t)fm_morph_setup(m->src_rel + 12 * (size_t)s->id[a], dst,
+        s->morph_safe[a] = (uint8_t)fm_morph_setup(src, dst,
                                                    s->morph + FM_MORPH_FLOATS * a, &s->perm[a]);
         fallbacks += s->morph_safe[a];
     }

@@ -66,6 +66,13 @@ static void test_resort_keeps_ids_state_and_frame(void)
     int64_t bad_ids = 0;
     for (int64_t a = 0; a < n; a++) bad_ids += s->id[a] < 0 || s->id[a] >= n || seen[s->id[a]]++;
     ENSURE_MSG(bad_ids == 0, "%lld slots with a bad or repeated id", (long long)bad_ids);
+    int64_t stale_rest = 0; /* the store-order copies of the rest tet moved with their agents */
+    for (int64_t a = 0; a < n; a++) {
+        const int32_t i = s->id[a];
+        stale_rest += s->rest_radius[a] != model->src_radius[i];
+        for (int j = 0; j < 12; j++) stale_rest += s->rest_rel[j][a] != model->src_rel[12 * (size_t)i + (size_t)j];
+    }
+    ENSURE_MSG(stale_rest == 0, "%lld rest values not those of the slot's agent", (long long)stale_rest);
     ENSURE_MSG(memcmp(before, after, sizeof *before * (size_t)n) == 0, "an agent's state changed in the re-sort");
     ENSURE_MSG(memcmp(frame0, frame1, sizeof(float) * 12 * (size_t)n) == 0, "the frame changed in the re-sort");
     /* layout: arrived, then in flight, then waiting in id order */
