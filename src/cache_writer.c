@@ -1,9 +1,10 @@
-/* The frame cache writer (docs/cache-format.md, format 2; cache_format.h has the layout).
+/* The frame cache writer (docs/cache-format.md, format 3; cache_format.h has the layout).
  *
  * The step loop only pays for a copy: add_frame hands the frame over (waiting while the previous
  * one is still being written) and a worker thread filters, compresses and appends it. The file's
  * bytes do not depend on the timing. The writer works on PATH.partial and renames it to PATH only
- * after the index and footer are on disk, so a file under the final name is always complete. */
+ * after the index, the footer and the header's frame count are on disk, so a file under the final
+ * name is always complete. Until then the header's frame count is 0 ("still being written"). */
 #define _POSIX_C_SOURCE 200809L
 #include "cache_format.h"
 
@@ -111,8 +112,8 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
         return NULL;
     fm_cache_writer *w = writer_alloc(&l, err);
     if (!w) return NULL;
-    unsigned char header[CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS];
-    cache_header_encode(&l, header);
+    unsigned char header[CACHE_MAX_HEADER];
+    cache_header_encode(&l, header); /* frame count 0 until finish() */
     if (fm_output_open(&w->out, path, err) != FM_OK || write_bytes(w, header, l.header_bytes, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return NULL;
@@ -309,10 +310,24 @@ static fm_status write_index_and_footer(fm_cache_writer *w, fm_error *err)
     return st == FM_OK ? write_bytes(w, footer, sizeof footer, err) : st;
 }
 
+/* The header's frame count, 0 since create, becomes F once the index is written; the header crc
+ * is recomputed with it. fm_output_commit then fsyncs and renames. */
+static fm_status patch_header_frames(fm_cache_writer *w, fm_error *err)
+{
+    unsigned char header[CACHE_MAX_HEADER];
+    w->l.header_frames = w->frames;
+    cache_header_encode(&w->l, header);
+    if (fseeko(w->out.f, 0, SEEK_SET) != 0 || fwrite(header, 1, w->l.header_bytes, w->out.f) != w->l.header_bytes)
+        return fm_fail(err, FM_ERR_IO, "%s: cannot write the header's frame count: %s%s", w->out.partial, strerror(errno),
+                       fm_write_hint(errno));
+    return FM_OK;
+}
+
 fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 {
     fm_status st = stop_worker(w, err);
     if (st == FM_OK) st = write_index_and_footer(w, err);
+    if (st == FM_OK) st = patch_header_frames(w, err);
     if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
     else fm_output_keep_partial(&w->out); /* its complete frames stay readable */
     free_writer(w);
@@ -327,7 +342,9 @@ void fm_cache_writer_abort(fm_cache_writer *w)
     free_writer(w);
 }
 
-/* Stops the writer and keeps PATH.partial with the frames written so far (for --resume). */
+/* Stops the writer and keeps PATH.partial with the frames written so far (for --resume). Its
+ * header's frame count stays 0: the file is unfinished (a resumed writer appends to it), and a
+ * reader finds its frames by walking the chunks in any case. */
 void fm_cache_writer_close_partial(fm_cache_writer *w)
 {
     if (!w) return;

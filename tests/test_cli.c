@@ -302,7 +302,8 @@ static void test_inspect_json(void)
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (!j || !r) return json_decref(j), fm_cache_close(r);
     uint32_t frames = fm_cache_frames(r);
-    ENSURE(jnum(j, "format_version") == 2 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "format_version") == 3 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "header_frames") == frames && fm_cache_header_frames(r) == frames);
     ENSURE(jnum(j, "frame_rate") == 24 && fabs(jnum(j, "duration_seconds") - (frames - 1) / 24.0) < 1e-9);
     json_t *attrs = json_object_get(j, "attributes");
     ENSURE(json_array_size(attrs) == 2);
@@ -324,7 +325,7 @@ static void test_inspect_json(void)
     }
     json_t *fb = json_object_get(j, "frame_bytes");
     ENSURE(jnum(fb, "min") == lo && jnum(fb, "max") == hi && fabs(jnum(fb, "mean") - (double)sum / frames) < 1e-6);
-    ENSURE(sum + 64 + 2 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
+    ENSURE(sum + 72 + 2 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
     double blo[3], bhi[3];
     cache_bounds(r, blo, bhi);
     json_t *b = json_object_get(json_object_get(j, "bounds"), "tet_vertices");
@@ -346,8 +347,8 @@ static void test_inspect_text_and_recovered(void)
     if (!g_cache[0]) return;
     snprintf(args, sizeof args, "inspect '%s'", g_cache);
     ENSURE_EXIT(args, 0);
-    snprintf(buf, sizeof buf, "frames        %lld\n", g_frames);
-    ENSURE_MSG(strstr(g_out, "format        2\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
+    snprintf(buf, sizeof buf, "frames        %lld (the header states %lld)\n", g_frames, g_frames);
+    ENSURE_MSG(strstr(g_out, "format        3\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
                strstr(g_out, "attributes    tet_vertices (12 x f32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
                strstr(g_out, "bounds        tet_vertices: ["), "%s", g_out);
     FILE *in = fopen(g_cache, "rb"), *out = fopen(tmp_path(cut, "cut.fmc"), "wb");
@@ -360,6 +361,7 @@ static void test_inspect_text_and_recovered(void)
     ENSURE_MSG(strstr(g_err, "warning: ") && strstr(g_err, "recovered"), "%s", g_err);
     ENSURE(j && json_is_false(json_object_get(j, "complete")) && strstr(json_string_value(json_object_get(j, "warning")), "recovered"));
     ENSURE(j && jnum(j, "frames") >= 1 && jnum(j, "frames") < g_frames && jnum(j, "file_bytes") == 3000);
+    ENSURE(j && jnum(j, "header_frames") == g_frames); /* a finished cache cut short: its header is intact */
     json_decref(j);
     snprintf(args, sizeof args, "inspect '%s'", cut);
     ENSURE_EXIT(args, 0);
