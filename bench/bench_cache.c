@@ -3,8 +3,8 @@
  *   bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] [--scene FILE]
  *
  * 1. Runs F frames without a cache: the step rate without writing.
- * 2. Runs the same F frames (same seed, same frames) writing a cache of tet_vertices and phase,
- *    as `flockmorph run` does, once per variant (lossless, delta, quantum 1e-4, delta + quantum):
+ * 2. Runs the same F frames (same seed, same frames) writing a cache of tet_vertices, id and
+ *    phase, as `flockmorph run` does, once per variant (lossless, delta, quantum 1e-4, delta + quantum):
  *    the step rate with writing (wall time, finish included) and the compression ratio.
  * 3. Feeds the frames, read back into memory, to a bare writer as fast as it takes them: the
  *    writer's own throughput in raw and compressed MB/s (MB = 10^6 bytes).
@@ -49,7 +49,8 @@ static const variant VARIANTS[] = {
     {"lossless", 0, 0}, {"delta", 1, 0}, {"quantum_1e-4", 0, 1e-4}, {"delta_quantum_1e-4", 1, 1e-4}};
 #define VARIANT_COUNT (sizeof VARIANTS / sizeof VARIANTS[0])
 
-static const fm_cache_attr ATTRS[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+static const fm_cache_attr ATTRS[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE}; /* as tools/cli_run.c */
+enum { ATTR_COUNT = sizeof ATTRS / sizeof ATTRS[0] };
 
 static fm_cache_options options_for(const variant *v, const fm_scene_def *def)
 {
@@ -70,7 +71,7 @@ static timing timed_run(const fm_model *model, int threads, double frame_rate, c
     timing t0 = start_timing();
     fm_cache_writer *w = NULL;
     if (path) w = fm_cache_writer_create_attrs(path, (uint64_t)fm_model_get_info(model).agents,
-                                               frame_rate, ATTRS, 2, opts, &err);
+                                               frame_rate, ATTRS, ATTR_COUNT, opts, &err);
     if (path && !w) fprintf(stderr, "bench_cache: %s\n", err.message), exit(3);
     fm_status st = fm_run(model, state, w, NULL, NULL, rs, &err);
     if (st == FM_OK && w) st = fm_cache_writer_finish(w, &err);
@@ -81,11 +82,13 @@ static timing timed_run(const fm_model *model, int threads, double frame_rate, c
     return t;
 }
 
-/* The frames of a cache in memory, attributes one after another per frame. */
+/* The frames of a cache in memory, attributes one after another per frame; the ids (0 … n−1,
+ * the same in every frame) once. */
 typedef struct frames {
     uint32_t count;
     uint64_t agents;
     float *tets;
+    uint32_t *ids;
     uint8_t *phases;
 } frames;
 
@@ -94,10 +97,13 @@ static frames load_frames(const char *path)
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(path, &err);
     if (!r) fprintf(stderr, "bench_cache: %s\n", err.message), exit(2);
-    frames f = {fm_cache_frames(r), fm_cache_agents(r), NULL, NULL};
+    frames f = {fm_cache_frames(r), fm_cache_agents(r), NULL, NULL, NULL};
     f.tets = malloc(sizeof(float) * 12 * f.agents * f.count);
+    f.ids = malloc(sizeof(uint32_t) * f.agents);
     f.phases = malloc(f.agents * f.count);
-    if (!f.tets || !f.phases) fprintf(stderr, "bench_cache: out of memory for the frames\n"), exit(4);
+    if (!f.tets || !f.ids || !f.phases) fprintf(stderr, "bench_cache: out of memory for the frames\n"), exit(4);
+    if (f.count > 0 && fm_cache_read_attr(r, 0, FM_ATTR_ID, f.ids, &err) != FM_OK)
+        fprintf(stderr, "bench_cache: %s\n", err.message), exit(2);
     for (uint32_t k = 0; k < f.count; k++)
         if (fm_cache_read_attr(r, k, FM_ATTR_TET_VERTICES, f.tets + 12 * f.agents * k, &err) != FM_OK ||
             fm_cache_read_attr(r, k, FM_ATTR_PHASE, f.phases + f.agents * k, &err) != FM_OK)
@@ -111,10 +117,10 @@ static timing timed_writer(const frames *f, const char *path, const fm_cache_opt
 {
     fm_error err = {0};
     timing t0 = start_timing();
-    fm_cache_writer *w = fm_cache_writer_create_attrs(path, f->agents, 24, ATTRS, 2, opts, &err);
+    fm_cache_writer *w = fm_cache_writer_create_attrs(path, f->agents, 24, ATTRS, ATTR_COUNT, opts, &err);
     fm_status st = w ? FM_OK : err.status;
     for (uint32_t k = 0; k < f->count && st == FM_OK; k++) {
-        const void *data[2] = {f->tets + 12 * f->agents * k, f->phases + f->agents * k};
+        const void *data[ATTR_COUNT] = {f->tets + 12 * f->agents * k, f->ids, f->phases + f->agents * k};
         st = fm_cache_writer_add_frame_attrs(w, data, &err);
     }
     if (st == FM_OK) st = fm_cache_writer_finish(w, &err);
@@ -169,7 +175,7 @@ int main(int argc, char **argv)
 
     fm_run_stats base;
     timing plain = timed_run(model, (int)threads, def.frame_rate, NULL, NULL, &base);
-    double agent_steps = (double)agents * (double)base.steps, raw_frame = (double)agents * 49;
+    double agent_steps = (double)agents * (double)base.steps, raw_frame = (double)agents * (48 + 4 + 1);
     printf("{\"agents\": %ld, \"frames\": %lld, \"steps\": %lld, \"threads\": %ld, \"launch_seconds\": %g, "
            "\"preprocess_seconds\": %.2f,\n \"raw_mb_per_frame\": %.3f,\n"
            " \"no_cache\": {\"wall_seconds\": %.3f, \"cpu_seconds\": %.3f, \"agent_steps_per_second\": %.4g},\n"
@@ -203,7 +209,7 @@ int main(int argc, char **argv)
         remove(path);
     }
     printf("\n ],\n \"load_average\": %.1f}\n", load_average());
-    free(f.tets), free(f.phases);
+    free(f.tets), free(f.ids), free(f.phases);
     fm_model_destroy(model);
     return 0;
 }

@@ -100,6 +100,9 @@ void cache_dequantise(const int32_t *in, size_t count, double quantum, float *ou
 
 /* The writer's layout (run.c hands over the attributes it asks for). */
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
+/* The agents' ids 0 … n−1 as the `id` attribute of a frame in id order (both runs hand over their
+ * frames in id order); NULL if the cache has no id attribute. */
+const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w);
 
 /* For resume: the reader's layout, the end of chunk k, a chunk's check, and attribute i's stored
  * words (after quantisation and shuffle, with deltas undone) at frame k. */

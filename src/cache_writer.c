@@ -26,6 +26,7 @@ struct fm_cache_writer {
     size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's place in pending and prev (64-byte aligned) */
     size_t largest;          /* bytes of the largest attribute */
     unsigned char *prev;     /* delta: the previous frame's stored words */
+    uint32_t *ids;           /* 0 … n−1 when the layout has the id attribute */
     unsigned char *quantised, *stored;
     unsigned char *chunk;
     ZSTD_CCtx *cctx;
@@ -46,6 +47,7 @@ struct fm_cache_writer {
 static void *worker_main(void *arg);
 
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w) { return &w->l; }
+const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w) { return w->ids; }
 
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
@@ -75,9 +77,13 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
     w->stored = fm_alloc(w->largest);
     w->chunk = malloc(CACHE_CHUNK_HEADER + cache_payload_bound(l));
     w->cctx = ZSTD_createCCtx();
+    int with_ids = cache_attr_index(l, FM_ATTR_ID) >= 0;
+    if (with_ids && (w->ids = fm_alloc(sizeof(uint32_t) * (size_t)l->agents)) != NULL)
+        for (uint64_t a = 0; a < l->agents; a++) w->ids[a] = (uint32_t)a;
     pthread_mutex_init(&w->lock, NULL);
     pthread_cond_init(&w->changed, NULL);
-    if (!w->pending || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx) {
+    if (!w->pending || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx ||
+        (with_ids && !w->ids)) {
         fm_cache_writer_abort(w);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)l->agents), NULL;
     }
@@ -282,7 +288,7 @@ static void free_writer(fm_cache_writer *w)
     stop_worker(w, NULL);
     pthread_mutex_destroy(&w->lock);
     pthread_cond_destroy(&w->changed);
-    fm_free(w->pending), fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored);
+    fm_free(w->pending), fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored), fm_free(w->ids);
     free(w->chunk), free(w->offsets), free(w->sizes);
     ZSTD_freeCCtx(w->cctx);
     free(w);

@@ -306,16 +306,18 @@ static void test_inspect_json(void)
     ENSURE(jnum(j, "header_frames") == frames && fm_cache_header_frames(r) == frames);
     ENSURE(jnum(j, "frame_rate") == 24 && fabs(jnum(j, "duration_seconds") - (frames - 1) / 24.0) < 1e-9);
     json_t *attrs = json_object_get(j, "attributes");
-    ENSURE(json_array_size(attrs) == 2);
+    ENSURE(json_array_size(attrs) == 3 && fm_cache_attr_count(r) == 3);
     ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 0), "name")), "tet_vertices"));
     ENSURE(jnum(json_array_get(attrs, 0), "components") == 12);
-    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "phase"));
-    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u8"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "id"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u32"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 2), "name")), "phase"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 2), "type")), "u8"));
     json_t *o = json_object_get(j, "options");
     ENSURE(jnum(o, "compression_level") == 1 && json_is_true(json_object_get(o, "delta")) && jnum(o, "key_interval") == 16 && jnum(o, "quantum") == 0);
     struct stat st;
     ENSURE(stat(g_cache, &st) == 0 && jnum(j, "file_bytes") == (double)st.st_size);
-    ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));
+    ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 4 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));
     ENSURE(jnum(j, "compressed_bytes") == fm_cache_compressed_bytes(r));
     ENSURE(fabs(jnum(j, "compression_ratio") - jnum(j, "raw_bytes") / jnum(j, "compressed_bytes")) < 1e-6);
     uint64_t lo = UINT64_MAX, hi = 0, sum = 0;
@@ -325,7 +327,7 @@ static void test_inspect_json(void)
     }
     json_t *fb = json_object_get(j, "frame_bytes");
     ENSURE(jnum(fb, "min") == lo && jnum(fb, "max") == hi && fabs(jnum(fb, "mean") - (double)sum / frames) < 1e-6);
-    ENSURE(sum + 72 + 2 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
+    ENSURE(sum + 72 + 3 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
     double blo[3], bhi[3];
     cache_bounds(r, blo, bhi);
     json_t *b = json_object_get(json_object_get(j, "bounds"), "tet_vertices");
@@ -349,7 +351,7 @@ static void test_inspect_text_and_recovered(void)
     ENSURE_EXIT(args, 0);
     snprintf(buf, sizeof buf, "frames        %lld (the header states %lld)\n", g_frames, g_frames);
     ENSURE_MSG(strstr(g_out, "format        3\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
-               strstr(g_out, "attributes    tet_vertices (12 x f32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
+               strstr(g_out, "attributes    tet_vertices (12 x f32), id (1 x u32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
                strstr(g_out, "bounds        tet_vertices: ["), "%s", g_out);
     FILE *in = fopen(g_cache, "rb"), *out = fopen(tmp_path(cut, "cut.fmc"), "wb");
     ENSURE(in && out);

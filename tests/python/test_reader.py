@@ -129,10 +129,12 @@ class CacheCase(unittest.TestCase):
 
     def test_lossless_run(self):
         cache = self.assert_matches_c(self.lossless)
-        self.assertEqual(cache.attributes, ["tet_vertices", "phase"])
+        self.assertEqual(cache.attributes, ["tet_vertices", "id", "phase"])
         self.assertEqual((cache.version, cache.header_frames), (3, cache.frames))
         with fmc.open(self.lossless) as c:
             self.assertTrue((c.read(0, "phase") == 0).all() and (c.read(-1, "phase") == 3).all())
+            self.assertEqual(c.read(c.frames // 2, "id").dtype, np.uint32)
+            self.assertEqual(c.read(c.frames // 2, "id").reshape(-1).tolist(), list(range(AGENTS)))
             self.assertGreater(c.bounds()[1][0] - c.bounds()[0][0], 20)
 
     def test_delta_and_quantum_run(self):
@@ -188,8 +190,8 @@ class CacheCase(unittest.TestCase):
         with open(self.lossless, "rb") as f:
             data = bytearray(f.read())
         with fmc.open(self.lossless) as c:
-            start = c._offsets[1]
-        data[start + 40] ^= 0x04
+            start = c._offsets[1] + 24 + 8 * len(c.attributes)  # the first block's data
+        data[start + 16] ^= 0x04
         bad = tmp("flipped.fmc")
         with open(bad, "wb") as f:
             f.write(data)
@@ -268,7 +270,7 @@ class NotACache(unittest.TestCase):
         self.expect_error(b"", "shorter than the cache header")
         self.expect_error(b"FMCACHE1" + bytes([9, 0, 0, 0]) + bytes(52), "cache version 9 is not supported")
         with open(CacheCase.lossless or run_scene("lossless", {"delta": False}), "rb") as f:
-            header = bytearray(f.read(72 + 2 * 16))
+            header = bytearray(f.read(72 + 3 * 16))
         header[20] ^= 1
         self.expect_error(bytes(header), "header checksum mismatch")
         with self.assertRaisesRegex(ValueError, "no such file"):
