@@ -370,6 +370,30 @@ static void test_inspect_text_and_recovered(void)
     ENSURE_MSG(strstr(g_out, "status        recovered"), "%s", g_out);
 }
 
+/* docs/cache-format.md's "Inspecting a cache" table lists exactly the keys inspect --json prints,
+ * in the same order. */
+static void test_inspect_keys_are_documented(void)
+{
+    static char doc[1 << 17];
+    ENSURE(g_cache[0] && slurp(FM_SOURCE_DIR "/docs/cache-format.md", doc, sizeof doc) > 0);
+    json_t *j = g_cache[0] ? inspect_json(g_cache, 0) : NULL;
+    const char *at = strstr(doc, "## Inspecting a cache"), *end = at ? strstr(at + 3, "\n## ") : NULL;
+    ENSURE_MSG(j && at && end, "%s", "no inspect output or no 'Inspecting a cache' section");
+    if (!j || !at || !end) return json_decref(j);
+    size_t documented = 0;
+    void *iter = json_object_iter(j); /* jansson keeps the keys in the order they were read */
+    for (const char *row = strstr(at, "\n| `"); row && row < end; row = strstr(row + 1, "\n| `")) {
+        char name[64] = "";
+        sscanf(row, "\n| `%63[^`]`", name);
+        const char *key = iter ? json_object_iter_key(iter) : "(none)";
+        ENSURE_MSG(!strcmp(name, key), "documented key %zu is '%s', inspect prints '%s'", documented, name, key);
+        iter = iter ? json_object_iter_next(j, iter) : NULL;
+        documented++;
+    }
+    ENSURE_MSG(documented == json_object_size(j), "%zu keys documented, inspect prints %zu", documented, json_object_size(j));
+    json_decref(j);
+}
+
 static void test_inspect_errors(void)
 {
     char args[3 * FM_PATH_MAX], path[FM_PATH_MAX];
@@ -445,6 +469,7 @@ int main(void)
     RUN_TEST(test_inspect_json);
     RUN_TEST(test_inspect_text_and_recovered);
     RUN_TEST(test_inspect_errors);
+    RUN_TEST(test_inspect_keys_are_documented);
     RUN_TEST(test_run_writes_phases);
     RUN_TEST(test_run_cache_options);
     return test_result();
