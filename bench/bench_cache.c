@@ -1,6 +1,6 @@
 /* Cache writer throughput on the words scene (examples/words/scene.json) at a chosen agent count.
  *
- *   bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] [--scene FILE]
+ *   bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] [--scene FILE] [--level L]
  *
  * 1. Runs F frames without a cache: the step rate without writing.
  * 2. Runs the same F frames (same seed, same frames) writing a cache of tet_vertices, id and
@@ -11,6 +11,7 @@
  * The scene's launch rate is raised so every agent launches within the first S seconds (default
  * 1 s): all of them move, the hard case for compression. Prints one JSON object. */
 #define _POSIX_C_SOURCE 200809L
+#include "cache_format.h" /* fm_cache_writer_wait_seconds */
 #include "flockmorph/flockmorph.h"
 
 #include <omp.h>
@@ -61,9 +62,9 @@ static fm_cache_options options_for(const variant *v, const fm_scene_def *def)
 }
 
 /* One run of the scene from a fresh state, writing to `path` under `opts` (NULL: no cache).
- * Returns its time (finish included); stats in *rs. */
+ * Returns its time (finish included); stats in *rs, the step loop's wait for the writer in *wait. */
 static timing timed_run(const fm_model *model, int threads, double frame_rate, const char *path,
-                        const fm_cache_options *opts, fm_run_stats *rs)
+                        const fm_cache_options *opts, fm_run_stats *rs, double *wait)
 {
     fm_error err = {0};
     fm_state *state = fm_state_create(model, threads, &err);
@@ -74,6 +75,7 @@ static timing timed_run(const fm_model *model, int threads, double frame_rate, c
                                                frame_rate, ATTRS, ATTR_COUNT, opts, &err);
     if (path && !w) fprintf(stderr, "bench_cache: %s\n", err.message), exit(3);
     fm_status st = fm_run(model, state, w, NULL, NULL, rs, &err);
+    *wait = w ? fm_cache_writer_wait_seconds(w) : 0;
     if (st == FM_OK && w) st = fm_cache_writer_finish(w, &err);
     else if (w) fm_cache_writer_abort(w);
     timing t = since(t0);
@@ -148,6 +150,7 @@ static double file_size(const char *path)
 int main(int argc, char **argv)
 {
     long agents = 100000, frame_count = 48, threads = omp_get_max_threads();
+    int level = 0, level_given = 0;
     double launch_seconds = 1;
     const char *dir = "/tmp", *scene = FM_SOURCE_DIR "/examples/words/scene.json";
     for (int i = 1; i + 1 < argc; i += 2) {
@@ -157,9 +160,10 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--threads")) threads = atol(argv[i + 1]);
         else if (!strcmp(argv[i], "--dir")) dir = argv[i + 1];
         else if (!strcmp(argv[i], "--scene")) scene = argv[i + 1];
+        else if (!strcmp(argv[i], "--level")) level = atoi(argv[i + 1]), level_given = 1;
         else
             return fprintf(stderr, "usage: bench_cache [--agents N] [--frames F] [--launch-seconds S] [--threads T] [--dir DIR] "
-                                   "[--scene FILE]\n"), 1;
+                                   "[--scene FILE] [--level L]\n"), 1;
     }
     fm_scene_def def;
     fm_error err = {0};
@@ -168,13 +172,15 @@ int main(int argc, char **argv)
     def.n = agents;
     def.launch_rate = (double)agents / launch_seconds;
     def.frame_limit = (int32_t)frame_count;
+    if (level_given) def.compression_level = level;
     double t0 = now();
     fm_model *model = fm_model_build(&def, NULL, NULL, &err);
     if (!model) return fprintf(stderr, "bench_cache: %s\n", err.message), 2;
     double prep = now() - t0;
 
     fm_run_stats base;
-    timing plain = timed_run(model, (int)threads, def.frame_rate, NULL, NULL, &base);
+    double no_wait;
+    timing plain = timed_run(model, (int)threads, def.frame_rate, NULL, NULL, &base, &no_wait);
     double agent_steps = (double)agents * (double)base.steps, raw_frame = (double)agents * (48 + 4 + 1);
     printf("{\"agents\": %ld, \"frames\": %lld, \"steps\": %lld, \"threads\": %ld, \"launch_seconds\": %g, "
            "\"preprocess_seconds\": %.2f,\n \"raw_mb_per_frame\": %.3f,\n"
@@ -189,21 +195,22 @@ int main(int argc, char **argv)
     for (size_t v = 0; v < VARIANT_COUNT; v++) {
         fm_cache_options opts = options_for(&VARIANTS[v], &def);
         fm_run_stats rs;
+        double wait;
         snprintf(path, sizeof path, "%s/bench_cache_%s.fmc", dir, VARIANTS[v].name);
-        timing run = timed_run(model, (int)threads, def.frame_rate, path, &opts, &rs);
+        timing run = timed_run(model, (int)threads, def.frame_rate, path, &opts, &rs, &wait);
         fm_cache_reader *r = fm_cache_open(path, &err);
         if (!r) return fprintf(stderr, "bench_cache: %s\n", err.message), 2;
         double raw = (double)fm_cache_raw_bytes(r), packed = (double)fm_cache_compressed_bytes(r);
         fm_cache_close(r);
         if (v == 0) f = load_frames(path);
         timing writer = timed_writer(&f, path, &opts);
-        printf("%s\n  {\"name\": \"%s\", \"delta\": %s, \"key_interval\": %d, \"quantum\": %g, "
-               "\"run_wall_seconds\": %.3f, \"run_cpu_seconds\": %.3f, \"agent_steps_per_second\": %.4g, "
+        printf("%s\n  {\"name\": \"%s\", \"level\": %d, \"delta\": %s, \"key_interval\": %d, \"quantum\": %g, "
+               "\"run_wall_seconds\": %.3f, \"run_cpu_seconds\": %.3f, \"run_wait_seconds\": %.3f, \"agent_steps_per_second\": %.4g, "
                "\"slowdown\": %.3f, \"compression_ratio\": %.3f, \"file_mb\": %.2f,\n"
                "   \"writer_wall_seconds\": %.3f, \"writer_cpu_seconds\": %.3f, \"writer_raw_mb_per_second\": %.1f, "
                "\"writer_compressed_mb_per_second\": %.1f, \"writer_raw_mb_per_cpu_second\": %.1f}",
-               v ? "," : "", VARIANTS[v].name, opts.delta ? "true" : "false", opts.key_interval, opts.quantum,
-               run.wall, run.cpu, agent_steps / run.wall, run.wall / plain.wall, raw / packed, file_size(path) / 1e6,
+               v ? "," : "", VARIANTS[v].name, opts.compression_level, opts.delta ? "true" : "false", opts.key_interval, opts.quantum,
+               run.wall, run.cpu, wait, agent_steps / run.wall, run.wall / plain.wall, raw / packed, file_size(path) / 1e6,
                writer.wall, writer.cpu, raw / writer.wall / 1e6, packed / writer.wall / 1e6, raw / writer.cpu / 1e6);
         fm_run_stats_free(&rs);
         remove(path);

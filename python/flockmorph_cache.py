@@ -253,7 +253,7 @@ class Cache:
             self._fail(f"damaged header: frame rate {rate}")
         if codec != 1 or flags & ~1:
             self._fail("unsupported codec or flags")
-        if not 1 <= level <= 19 or not 1 <= key <= MAX_KEY_INTERVAL or not (quantum >= 0 and np.isfinite(quantum)):
+        if not (-7 <= level <= -1 or 1 <= level <= 19) or not 1 <= key <= MAX_KEY_INTERVAL or not (quantum >= 0 and np.isfinite(quantum)):
             self._fail("bad options in the header")
         if not 1 <= count <= MAX_ATTRS or size != records + ATTR_RECORD * count:
             self._fail(f"bad attribute count {count} for a {size}-byte header")

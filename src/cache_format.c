@@ -35,8 +35,9 @@ fm_cache_options fm_default_cache_options(void)
 /* status: FM_ERR_USAGE for options given by a caller, FM_ERR_INPUT for options read from a file. */
 static fm_status check_options(const fm_cache_options *o, fm_status status, const char *path, fm_error *err)
 {
-    if (o->compression_level < 1 || o->compression_level > 19)
-        return fm_fail(err, status, "%s: compression level %d is outside 1..19", path, o->compression_level);
+    if (o->compression_level < CACHE_MIN_LEVEL || o->compression_level == 0 || o->compression_level > CACHE_MAX_LEVEL)
+        return fm_fail(err, status, "%s: compression level %d is outside %d..-1 and 1..%d", path, o->compression_level,
+                       CACHE_MIN_LEVEL, CACHE_MAX_LEVEL);
     if (o->key_interval < 1 || o->key_interval > CACHE_MAX_KEY_INTERVAL)
         return fm_fail(err, status, "%s: key interval %d is outside 1..%d", path, o->key_interval, CACHE_MAX_KEY_INTERVAL);
     if (!(o->quantum >= 0) || !isfinite(o->quantum))

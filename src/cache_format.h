@@ -30,6 +30,9 @@ enum {
     CACHE_CODEC_ZSTD = 1,
     CACHE_DEFAULT_KEY_INTERVAL = 16,
     CACHE_MAX_KEY_INTERVAL = 1 << 16,
+    CACHE_MIN_LEVEL = -7, /* zstd's fast levels -7 ... -1 (ZSTD_c_compressionLevel < 0), and 1 ... 19 */
+    CACHE_MAX_LEVEL = 19,
+    CACHE_WRITER_SLOTS = 2, /* frames handed over and not yet written before add_frame waits */
     CACHE_MAX_HEADER = CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS,
 };
 
@@ -103,6 +106,8 @@ const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
 /* The agents' ids 0 … n−1 as the `id` attribute of a frame in id order (both runs hand over their
  * frames in id order); NULL if the cache has no id attribute. */
 const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w);
+/* Seconds add_frame has waited for the writer so far (bench_cache): 0 when it keeps up. */
+double fm_cache_writer_wait_seconds(const fm_cache_writer *w);
 
 /* For resume: the reader's layout, the end of chunk k, a chunk's check, and attribute i's stored
  * words (after quantisation and shuffle, with deltas undone) at frame k. */

@@ -161,7 +161,6 @@ static const bound_case BOUND_CASES[] = {
     {"\"morph\": {\"shrink\": @}", "morph.shrink", 1},
     {"\"morph\": {\"shrink_time\": @}", "morph.shrink_time", 0},
     {"\"morph\": {\"morph_fraction\": @}", "morph.morph_fraction", 1},
-    {"\"output\": {\"compression_level\": @}", "output.compression_level", 1},
     {"\"style\": {\"omega2\": @}", "style.omega2", 0},
     {"\"style\": {\"grid\": [4, @, 4]}", "style.grid", 0},
     {"\"style\": {\"fields\": [{\"type\": \"curl_noise\", \"gain\": @}]}", "style.fields[0].gain", 0},

@@ -69,6 +69,10 @@ static void test_round_trip_every_attribute_and_option(void)
     round_trip("attrs_quantum_delta.fmc", 300, 10, &o, DATA_SMOOTH);
     o.quantum = 0.25;
     round_trip("attrs_coarse.fmc", 50, 4, &o, DATA_SMOOTH);
+    o = fm_default_cache_options(), o.compression_level = -7; /* zstd's fastest level allowed */
+    round_trip("attrs_fast.fmc", 23, 9, &o, DATA_RANDOM);
+    o.compression_level = -1, o.quantum = 1e-3;
+    round_trip("attrs_fast_quantum.fmc", 300, 6, &o, DATA_SMOOTH);
 }
 
 /* Sequential reading decodes one chunk per frame, so random access must give the same bits even
@@ -192,6 +196,10 @@ static void test_argument_errors(void)
     expect_create_fails(ALL_ATTRS, 1, &o, "quantum");
     o = fm_default_cache_options(), o.compression_level = 30;
     expect_create_fails(ALL_ATTRS, 1, &o, "compression level 30");
+    o.compression_level = 0;
+    expect_create_fails(ALL_ATTRS, 1, &o, "compression level 0 is outside -7..-1 and 1..19");
+    o.compression_level = -8;
+    expect_create_fails(ALL_ATTRS, 1, &o, "compression level -8");
 
     /* the tet shorthand on a cache of other attributes, and reading a missing attribute */
     char path[FM_PATH_MAX];
