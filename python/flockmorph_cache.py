@@ -1,4 +1,4 @@
-"""Reads flockmorph frame caches (.fmc, formats 1 and 2; docs/cache-format.md) into numpy arrays.
+"""Reads flockmorph frame caches (.fmc, formats 1, 2 and 3; docs/cache-format.md) into numpy arrays.
 
     import flockmorph_cache
     with flockmorph_cache.open("out/frames.fmc") as cache:
@@ -10,9 +10,10 @@
 Frames are read by random access through the cache's index; every chunk's crc32 is checked
 before it is decoded (format 1: zstd's own checksum). With delta encoding a frame is rebuilt from
 the key frame before it, and the last decoded frame is kept, so reading frames in order decodes
-one chunk each. A cache without a valid index (a run that was killed) is opened up to its last
-complete frame, with a warnings.warn. A file that is not a valid cache raises ValueError naming
-the file; a frame that does not exist raises IndexError, an attribute the cache lacks KeyError.
+one chunk each. A cache without a valid index, or (format 3) whose header still states 0 frames
+(a run that was killed), is opened up to its last complete frame, with a warnings.warn. A file that
+is not a valid cache, or whose header states another frame count than its index, raises ValueError
+naming the file; a frame that does not exist raises IndexError, an attribute the cache lacks KeyError.
 
 Needs numpy and a zstd decoder: the zstandard module (Debian python3-zstandard) or, without it,
 libzstd.so.1 through ctypes.
@@ -33,7 +34,9 @@ __all__ = ["open", "Cache", "ATTRIBUTES"]
 
 MAGIC = b"FMCACHE1"
 END_MAGIC = b"FMCEND\0\0"
-HEADER = 64
+HEADER = 64  # the bytes every version starts with (all of format 1's header)
+VERSION = 3
+FIXED_HEADER = {2: 64, 3: 72}  # where the attribute records start
 ATTR_RECORD = 16
 CHUNK_HEADER = 24
 FOOTER = 16
@@ -120,7 +123,8 @@ class _Attr:
 class Cache:
     """An open cache. Attributes: path, version, agents, frames, frame_rate, attributes (names),
     options (dict: compression_level, delta, key_interval, quantum), complete, warning (str or
-    None), file_bytes, raw_bytes, compressed_bytes."""
+    None), file_bytes, raw_bytes, compressed_bytes, header_frames (the frame count the format-3
+    header states: 0 while the writer runs, and in formats 1 and 2)."""
 
     def __init__(self, path):
         self.path = str(path)
@@ -217,12 +221,13 @@ class Cache:
         if len(h) < HEADER:
             self._fail(f"truncated: {len(h)} bytes, shorter than the cache header")
         self.version = struct.unpack_from("<I", h, 8)[0]
+        self.header_frames = 0
         if self.version == 1:
             self._read_header_v1(h)
-        elif self.version == 2:
-            self._read_header_v2(h)
+        elif self.version in FIXED_HEADER:
+            self._read_header_attrs(h)
         else:
-            self._fail(f"cache version {self.version} is not supported (this reader reads 1 and 2)")
+            self._fail(f"cache version {self.version} is not supported (this reader reads 1 to {VERSION})")
         if self.agents > 1 << 40:
             self._fail("implausible agent count")
         self.attributes = [a.name for a in self._attrs]
@@ -235,26 +240,33 @@ class Cache:
         self.options = {"compression_level": level, "delta": False, "key_interval": 16, "quantum": 0.0}
         self._attrs = [_Attr(1, SHUFFLE4, agents)]
 
-    def _read_header_v2(self, fixed):
-        size = struct.unpack_from("<I", fixed, 12)[0]
-        if size < HEADER + ATTR_RECORD or size > HEADER + ATTR_RECORD * MAX_ATTRS or (size - HEADER) % ATTR_RECORD:
+    def _read_header_attrs(self, first):
+        """Formats 2 and 3: the options and the attribute records after the first 64 bytes."""
+        size, records = struct.unpack_from("<I", first, 12)[0], FIXED_HEADER[self.version]
+        if size < records + ATTR_RECORD or size > records + ATTR_RECORD * MAX_ATTRS or (size - records) % ATTR_RECORD:
             self._fail(f"bad header size {size}")
-        h = fixed + self._read_at(HEADER, size - HEADER)
+        h = first + self._read_at(HEADER, size - HEADER)
         (_, _, _, agents, count, flags, codec, level, rate, key, crc, quantum) = struct.unpack_from("<8sIIQIIIidIId", h)
         if zlib.crc32(h[56:], zlib.crc32(b"\0\0\0\0", zlib.crc32(h[:52]))) != crc:
             self._fail("header checksum mismatch")
+        if not 0 < rate <= 1e9:
+            self._fail(f"damaged header: frame rate {rate}")
         if codec != 1 or flags & ~1:
             self._fail("unsupported codec or flags")
-        if not 1 <= level <= 19 or not 1 <= key <= MAX_KEY_INTERVAL or not (quantum >= 0 and np.isfinite(quantum)):
+        if not (-7 <= level <= -1 or 1 <= level <= 19) or not 1 <= key <= MAX_KEY_INTERVAL or not (quantum >= 0 and np.isfinite(quantum)):
             self._fail("bad options in the header")
-        if not 1 <= count <= MAX_ATTRS or size != HEADER + ATTR_RECORD * count:
+        if not 1 <= count <= MAX_ATTRS or size != records + ATTR_RECORD * count:
             self._fail(f"bad attribute count {count} for a {size}-byte header")
+        if self.version >= 3:
+            self.header_frames, reserved = struct.unpack_from("<II", h, 64)
+            if reserved:
+                self._fail("damaged header: reserved bytes 68..71 are not 0")
         delta = bool(flags & 1)
         self.agents, self.frame_rate, self._header_bytes = agents, rate, size
         self.options = {"compression_level": level, "delta": delta, "key_interval": key, "quantum": quantum}
         self._attrs = []
         for i in range(count):
-            kind, scalar, components, filters = struct.unpack_from("<IIII", h, HEADER + ATTR_RECORD * i)
+            kind, scalar, components, filters = struct.unpack_from("<IIII", h, records + ATTR_RECORD * i)
             if kind not in ATTRIBUTES:
                 self._fail(f"attribute {i} has unknown kind {kind}")
             name, want_components, want_scalar = ATTRIBUTES[kind]
@@ -298,11 +310,15 @@ class Cache:
             if any(o < self._header_bytes or o + s > index_pos for o, s in zip(self._offsets, self._sizes)):
                 return self._scan("the frame index is damaged")
         self.frames = frames
+        if self.version >= 3 and self.header_frames == 0 and frames > 0:  # stopped after the index, before the header
+            return self._scan("incomplete cache (frame count 0 in the header: the writer did not finish)")
+        if self.header_frames not in (0, frames):
+            self._fail(f"damaged cache: the header says {self.header_frames} frames but the index lists {frames}")
         self.complete = True
         self._summarise()
 
     def _chunk_bytes(self, h, k):
-        """The chunk's bytes if h (its header, and the size table in format 2) is frame k's, else None."""
+        """The chunk's bytes if h (its header, and the size table in formats 2 and 3) is frame k's, else None."""
         tag, frame = struct.unpack_from("<4sI", h)
         if tag != b"FRAM" or frame != k:
             return None
@@ -324,7 +340,8 @@ class Cache:
         """Walks the chunks from the header; every complete one is a readable frame."""
         head = CHUNK_HEADER + (0 if self.version == 1 else 8 * len(self._attrs))
         pos, self._offsets, self._sizes = self._header_bytes, [], []
-        while pos + head <= self.file_bytes:
+        announced = self.header_frames  # a finished file cut short: no more frames than this
+        while pos + head <= self.file_bytes and not (announced and len(self._offsets) == announced):
             self._f.seek(pos)
             n = self._chunk_bytes(self._f.read(head), len(self._offsets))
             if n is None or pos + n > self.file_bytes:
@@ -335,6 +352,8 @@ class Cache:
         self.frames = len(self._offsets)
         self.complete = False
         self.warning = f"{self.path}: {why}; recovered the {self.frames} complete frames before byte {pos}"
+        if announced:
+            self.warning += f" (the header announces {announced})"
         warnings.warn(self.warning, stacklevel=5)  # the caller of open()
         self._summarise()
 

@@ -35,8 +35,9 @@ fm_cache_options fm_default_cache_options(void)
 /* status: FM_ERR_USAGE for options given by a caller, FM_ERR_INPUT for options read from a file. */
 static fm_status check_options(const fm_cache_options *o, fm_status status, const char *path, fm_error *err)
 {
-    if (o->compression_level < 1 || o->compression_level > 19)
-        return fm_fail(err, status, "%s: compression level %d is outside 1..19", path, o->compression_level);
+    if (o->compression_level < CACHE_MIN_LEVEL || o->compression_level == 0 || o->compression_level > CACHE_MAX_LEVEL)
+        return fm_fail(err, status, "%s: compression level %d is outside %d..-1 and 1..%d", path, o->compression_level,
+                       CACHE_MIN_LEVEL, CACHE_MAX_LEVEL);
     if (o->key_interval < 1 || o->key_interval > CACHE_MAX_KEY_INTERVAL)
         return fm_fail(err, status, "%s: key interval %d is outside 1..%d", path, o->key_interval, CACHE_MAX_KEY_INTERVAL);
     if (!(o->quantum >= 0) || !isfinite(o->quantum))
@@ -64,6 +65,7 @@ fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate,
     if (st != FM_OK) return st;
     l->version = CACHE_VERSION;
     l->header_bytes = CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * (uint32_t)attr_count;
+    l->header_frames = 0; /* unknown until the writer finishes */
     l->agents = agents;
     l->frame_rate = frame_rate;
     l->opts = *opts;
@@ -80,8 +82,14 @@ fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate,
     return FM_OK;
 }
 
+uint32_t cache_fixed_header_bytes(uint32_t version)
+{
+    return version >= 3 ? CACHE_FIXED_HEADER : CACHE_FIXED_HEADER_V2;
+}
+
 void cache_header_encode(const cache_layout *l, unsigned char *h)
 {
+    uint32_t records = cache_fixed_header_bytes(l->version);
     memset(h, 0, l->header_bytes);
     memcpy(h, CACHE_MAGIC, 8);
     put_u32(h + 8, l->version);
@@ -94,8 +102,9 @@ void cache_header_encode(const cache_layout *l, unsigned char *h)
     put_f64(h + 40, l->frame_rate);
     put_u32(h + 48, (uint32_t)l->opts.key_interval);
     put_f64(h + 56, l->opts.quantum);
+    if (l->version >= 3) put_u32(h + 64, l->header_frames); /* h + 68 stays 0 (reserved) */
     for (int i = 0; i < l->attr_count; i++) {
-        unsigned char *a = h + CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * i;
+        unsigned char *a = h + records + CACHE_ATTR_RECORD * i;
         put_u32(a, (uint32_t)l->attrs[i]->attr);
         put_u32(a + 4, (uint32_t)l->attrs[i]->scalar);
         put_u32(a + 8, (uint32_t)l->attrs[i]->components);
@@ -138,11 +147,14 @@ fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const cha
         return fm_fail(err, FM_ERR_INPUT, "%s: unsupported codec or flags", path);
     fm_status st = check_options(&l->opts, FM_ERR_INPUT, path, err);
     if (st != FM_OK) return st;
-    uint32_t count = get_u32(h + 24);
-    if (count < 1 || count > CACHE_MAX_ATTRS || l->header_bytes != CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * count)
+    uint32_t count = get_u32(h + 24), records = cache_fixed_header_bytes(l->version);
+    if (count < 1 || count > CACHE_MAX_ATTRS || l->header_bytes != records + CACHE_ATTR_RECORD * count)
         return fm_fail(err, FM_ERR_INPUT, "%s: bad attribute count %u for a %u-byte header", path, count, l->header_bytes);
+    l->header_frames = l->version >= 3 ? get_u32(h + 64) : 0;
+    if (l->version >= 3 && get_u32(h + 68) != 0)
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: reserved bytes 68..71 are not 0", path);
     for (uint32_t i = 0; i < count; i++) {
-        st = decode_attr(l, (int)i, h + CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * i, path, err);
+        st = decode_attr(l, (int)i, h + records + CACHE_ATTR_RECORD * i, path, err);
         if (st != FM_OK) return st;
     }
     return FM_OK;

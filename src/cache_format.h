@@ -1,13 +1,14 @@
 /* The native frame cache's on-disk layout and filters, shared by the writer (cache_writer.c) and
  * the reader (cache_reader.c). docs/cache-format.md is the specification; the names here follow it.
  *
- * Format 2:
- *   header   64 bytes + 16 per attribute: magic, version, agents, attributes, options, frame rate,
- *            crc32 of the header
+ * Format 3 (format 2 plus the frame count in the header):
+ *   header   72 bytes + 16 per attribute: magic, version, agents, attributes, options, frame rate,
+ *            crc32 of the header, frame count (0 until the writer finishes)
  *   chunks   one per frame: "FRAM", frame, flags, crc32, payload size; then one u64 compressed size
  *            per attribute and one zstd frame per attribute (each attribute decodes on its own)
  *   index    "FIDX", frame count, (offset, size) per chunk, crc32
  *   footer   u64 offset of the index, "FMCEND\0\0"
+ * Format 2 (read only): format 3 without the frame count, a 64-byte fixed header.
  * Format 1 (read only): one attribute (tet vertices), 24-byte chunks without crc32 (zstd's own
  * checksum instead), an index of offsets only. */
 #ifndef FM_CACHE_FORMAT_H
@@ -19,8 +20,9 @@
 #include <string.h>
 
 enum {
-    CACHE_VERSION = 2,
-    CACHE_FIXED_HEADER = 64,
+    CACHE_VERSION = 3,
+    CACHE_FIXED_HEADER = 72,    /* format 3 */
+    CACHE_FIXED_HEADER_V2 = 64, /* formats 1 and 2: the bytes every reader reads first */
     CACHE_ATTR_RECORD = 16,
     CACHE_CHUNK_HEADER = 24,
     CACHE_FOOTER = 16,
@@ -28,6 +30,10 @@ enum {
     CACHE_CODEC_ZSTD = 1,
     CACHE_DEFAULT_KEY_INTERVAL = 16,
     CACHE_MAX_KEY_INTERVAL = 1 << 16,
+    CACHE_MIN_LEVEL = -7, /* zstd's fast levels -7 ... -1 (ZSTD_c_compressionLevel < 0), and 1 ... 19 */
+    CACHE_MAX_LEVEL = 19,
+    CACHE_WRITER_SLOTS = 2, /* frames handed over and not yet written before add_frame waits */
+    CACHE_MAX_HEADER = CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS,
 };
 
 /* Per-attribute filter bits (header attribute record, offset 12). */
@@ -52,6 +58,7 @@ static inline double get_f64(const unsigned char *p) { double x; memcpy(&x, p, 8
 typedef struct cache_layout {
     uint32_t version;
     uint32_t header_bytes;
+    uint32_t header_frames;  /* format 3: the frame count in the header, 0 until the writer finishes */
     uint64_t agents;
     double frame_rate;
     int attr_count;
@@ -60,14 +67,17 @@ typedef struct cache_layout {
     fm_cache_options opts;
 } cache_layout;
 
-/* Checks the attribute list and options and fills the layout (version 2, filters by the rules of
- * the specification). */
+/* Checks the attribute list and options and fills the layout (the current version, filters by the
+ * rules of the specification, frame count 0). */
 fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate, const fm_cache_attr *attrs,
                             int attr_count, const fm_cache_options *opts, const char *path, fm_error *err);
-/* The version-2 header: l->header_bytes bytes. */
+/* The header of l->version (2 or 3): l->header_bytes bytes. */
 void cache_header_encode(const cache_layout *l, unsigned char *out);
-/* Reads a version-2 header of l->header_bytes bytes (the fixed part already gave the size). */
+/* Reads a version-2 or -3 header of l->header_bytes bytes (l->version and the size already read). */
 fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const char *path, fm_error *err);
+
+/* Where the attribute records start: after the fixed part of the header of that version. */
+uint32_t cache_fixed_header_bytes(uint32_t version);
 
 /* Bytes of attribute i in one frame, and their sum over attributes. */
 size_t cache_attr_bytes(const cache_layout *l, int i);
@@ -93,6 +103,11 @@ void cache_dequantise(const int32_t *in, size_t count, double quantum, float *ou
 
 /* The writer's layout (run.c hands over the attributes it asks for). */
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
+/* The agents' ids 0 … n−1 as the `id` attribute of a frame in id order (both runs hand over their
+ * frames in id order); NULL if the cache has no id attribute. */
+const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w);
+/* Seconds add_frame has waited for the writer so far (bench_cache): 0 when it keeps up. */
+double fm_cache_writer_wait_seconds(const fm_cache_writer *w);
 
 /* For resume: the reader's layout, the end of chunk k, a chunk's check, and attribute i's stored
  * words (after quantisation and shuffle, with deltas undone) at frame k. */

@@ -1,4 +1,4 @@
-/* The frame cache reader: formats 1 and 2 (docs/cache-format.md; cache_format.h has the layout).
+/* The frame cache reader: formats 1, 2 and 3 (docs/cache-format.md; cache_format.h has the layout).
  *
  * Random access by frame through the index. With delta encoding a frame is rebuilt from the last
  * key frame before it; the last decoded frame of each attribute is kept, so reading frames in
@@ -48,7 +48,7 @@ static fm_status read_header_v1(fm_cache_reader *r, const unsigned char *h, fm_e
     if (get_u32(h + 24) != V1_FLOATS_PER_AGENT || get_u32(h + 28) != V1_FILTER_SHUFFLE4 || get_u32(h + 32) != CACHE_CODEC_ZSTD)
         return fm_fail(err, FM_ERR_INPUT, "%s: unsupported attribute layout, filter or codec", r->path);
     cache_layout *l = &r->l;
-    l->header_bytes = CACHE_FIXED_HEADER;
+    l->header_bytes = CACHE_FIXED_HEADER_V2;
     l->agents = get_u64(h + 16);
     l->frame_rate = get_f64(h + 40);
     if (!(l->frame_rate > 0 && l->frame_rate <= 1e9))
@@ -62,21 +62,23 @@ static fm_status read_header_v1(fm_cache_reader *r, const unsigned char *h, fm_e
     return FM_OK;
 }
 
-static fm_status read_header_v2(fm_cache_reader *r, const unsigned char *fixed, fm_error *err)
+/* Formats 2 and 3: the attribute records and the rest of the header after the first 64 bytes. */
+static fm_status read_header_attrs(fm_cache_reader *r, const unsigned char *first, fm_error *err)
 {
-    unsigned char h[CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS];
-    r->l.header_bytes = get_u32(fixed + 12);
-    if (r->l.header_bytes < CACHE_FIXED_HEADER + CACHE_ATTR_RECORD || r->l.header_bytes > sizeof h ||
-        (r->l.header_bytes - CACHE_FIXED_HEADER) % CACHE_ATTR_RECORD != 0)
+    unsigned char h[CACHE_MAX_HEADER];
+    uint32_t records = cache_fixed_header_bytes(r->l.version);
+    r->l.header_bytes = get_u32(first + 12);
+    if (r->l.header_bytes < records + CACHE_ATTR_RECORD || r->l.header_bytes > records + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS ||
+        (r->l.header_bytes - records) % CACHE_ATTR_RECORD != 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: bad header size %u", r->path, r->l.header_bytes);
-    memcpy(h, fixed, CACHE_FIXED_HEADER);
-    fm_status st = read_at(r, CACHE_FIXED_HEADER, h + CACHE_FIXED_HEADER, r->l.header_bytes - CACHE_FIXED_HEADER, err);
+    memcpy(h, first, CACHE_FIXED_HEADER_V2);
+    fm_status st = read_at(r, CACHE_FIXED_HEADER_V2, h + CACHE_FIXED_HEADER_V2, r->l.header_bytes - CACHE_FIXED_HEADER_V2, err);
     return st == FM_OK ? cache_header_decode(&r->l, h, r->path, err) : st;
 }
 
 static fm_status read_header(fm_cache_reader *r, fm_error *err)
 {
-    unsigned char h[CACHE_FIXED_HEADER] = {0};
+    unsigned char h[CACHE_FIXED_HEADER_V2] = {0};
     size_t got = fread(h, 1, sizeof h, r->f);
     if (memcmp(h, CACHE_MAGIC, got < 8 ? got : 8) != 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: not a flockmorph cache (bad magic)", r->path);
@@ -85,9 +87,9 @@ static fm_status read_header(fm_cache_reader *r, fm_error *err)
     r->l.version = get_u32(h + 8);
     fm_status st;
     if (r->l.version == 1) st = read_header_v1(r, h, err);
-    else if (r->l.version == CACHE_VERSION) st = read_header_v2(r, h, err);
+    else if (r->l.version == 2 || r->l.version == CACHE_VERSION) st = read_header_attrs(r, h, err);
     else
-        return fm_fail(err, FM_ERR_INPUT, "%s: cache version %u is not supported (this build reads 1 and %d)", r->path,
+        return fm_fail(err, FM_ERR_INPUT, "%s: cache version %u is not supported (this build reads 1 to %d)", r->path,
                        r->l.version, CACHE_VERSION);
     if (st == FM_OK && r->l.agents > ((uint64_t)1 << 40))
         return fm_fail(err, FM_ERR_INPUT, "%s: implausible agent count", r->path);
@@ -207,10 +209,13 @@ static fm_status scan_chunks(fm_cache_reader *r, const char *why, fm_error *err)
     size_t head = CACHE_CHUNK_HEADER + (r->l.version == 1 ? 0 : 8 * (size_t)r->l.attr_count);
     unsigned char h[CACHE_CHUNK_HEADER + 8 * CACHE_MAX_ATTRS];
     fm_error ignored;
+    uint32_t announced = r->l.header_frames; /* format 3, a finished file cut short: no more than this */
     r->frames = 0;
     for (;;) {
         uint64_t bytes;
-        if (pos + head > r->file_bytes || read_at(r, pos, h, head, &ignored) != FM_OK) break;
+        if ((announced && r->frames == announced) || pos + head > r->file_bytes ||
+            read_at(r, pos, h, head, &ignored) != FM_OK)
+            break;
         if (!chunk_header_ok(r, h, r->frames, &bytes) || pos + bytes > r->file_bytes ||
             (r->l.version != 1 && !block_sizes_ok(r, h + CACHE_CHUNK_HEADER, bytes - CACHE_CHUNK_HEADER)))
             break;
@@ -219,8 +224,10 @@ static fm_status scan_chunks(fm_cache_reader *r, const char *why, fm_error *err)
         r->frames++;
         pos += bytes;
     }
-    snprintf(r->warning, sizeof r->warning, "%s: %s; recovered the %u complete frames before byte %llu",
-             r->path, why, r->frames, (unsigned long long)pos);
+    int n = snprintf(r->warning, sizeof r->warning, "%s: %s; recovered the %u complete frames before byte %llu",
+                     r->path, why, r->frames, (unsigned long long)pos);
+    if (announced && n > 0 && (size_t)n < sizeof r->warning)
+        snprintf(r->warning + n, sizeof r->warning - (size_t)n, " (the header announces %u)", announced);
     return FM_OK;
 }
 
@@ -257,7 +264,7 @@ static int read_index_v2(fm_cache_reader *r, uint64_t index_pos, uint32_t frames
     return ok;
 }
 
-/* Bytes of an index of F frames: format 1 "FIDX", F, offsets; format 2 adds sizes and a crc32. */
+/* Bytes of an index of F frames: format 1 "FIDX", F, offsets; formats 2 and 3 add sizes and a crc32. */
 static uint64_t index_bytes(const fm_cache_reader *r, uint64_t frames)
 {
     return r->l.version == 1 ? 8 + 8 * frames : 16 + 16 * frames;
@@ -280,6 +287,20 @@ static fm_status read_index(fm_cache_reader *r, fm_error *err)
     fm_status st;
     if (!read_index_v2(r, index_pos, get_u32(h + 4), err, &st) && st == FM_OK) return scan_chunks(r, damaged, err);
     return st;
+}
+
+/* Format 3: the header's frame count is 0 while the writer runs and F once it has finished
+ * (docs/cache-format.md, Writing and completeness). With a valid index, 0 means the writer stopped
+ * between the footer and the header (recovered like a file without footer); any other count must
+ * equal the index's. An empty finished cache has 0 in both. */
+static fm_status check_header_frames(fm_cache_reader *r, fm_error *err)
+{
+    uint32_t announced = r->l.header_frames;
+    if (r->l.version < 3 || r->warning[0] || announced == r->frames) return FM_OK;
+    if (announced == 0)
+        return scan_chunks(r, "incomplete cache (frame count 0 in the header: the writer did not finish)", err);
+    return fm_fail(err, FM_ERR_INPUT, "%s: damaged cache: the header says %u frames but the index lists %u", r->path,
+                   announced, r->frames);
 }
 
 /* ---------------------------------------------------------------- open, close */
@@ -331,6 +352,7 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     if (st == FM_OK && fseeko(r->f, 0, SEEK_END) != 0) st = fm_fail(err, FM_ERR_IO, "%s: cannot seek", path);
     if (st == FM_OK) r->file_bytes = (uint64_t)ftello(r->f);
     if (st == FM_OK) st = read_index(r, err);
+    if (st == FM_OK) st = check_header_frames(r, err);
     if (st == FM_OK) st = check_plausible(r, err);
     if (st == FM_OK && r->frames > 0) st = alloc_buffers(r, err); /* no frames: nothing to read into */
     if (st != FM_OK) {
@@ -357,6 +379,7 @@ const char *fm_cache_warning(const fm_cache_reader *r) { return r->warning; }
 uint32_t fm_cache_frames(const fm_cache_reader *r) { return r->frames; }
 double fm_cache_frame_rate(const fm_cache_reader *r) { return r->l.frame_rate; }
 uint32_t fm_cache_version(const fm_cache_reader *r) { return r->l.version; }
+uint32_t fm_cache_header_frames(const fm_cache_reader *r) { return r->l.header_frames; }
 fm_cache_options fm_cache_get_options(const fm_cache_reader *r) { return r->l.opts; }
 int fm_cache_attr_count(const fm_cache_reader *r) { return r->l.attr_count; }
 int fm_cache_has_attr(const fm_cache_reader *r, fm_cache_attr attr) { return cache_attr_index(&r->l, attr) >= 0; }

@@ -1,9 +1,11 @@
-/* The frame cache writer (docs/cache-format.md, format 2; cache_format.h has the layout).
+/* The frame cache writer (docs/cache-format.md, format 3; cache_format.h has the layout).
  *
- * The step loop only pays for a copy: add_frame hands the frame over (waiting while the previous
- * one is still being written) and a worker thread filters, compresses and appends it. The file's
- * bytes do not depend on the timing. The writer works on PATH.partial and renames it to PATH only
- * after the index and footer are on disk, so a file under the final name is always complete. */
+ * The step loop only pays for a copy: add_frame hands the frame over into a ring of two (waiting
+ * only while two frames are still to be written) and a worker thread filters, compresses and
+ * appends them in order. The file's bytes do not depend on the timing. The writer works on
+ * PATH.partial and renames it to PATH only after the index, the footer and the header's frame
+ * count are on disk, so a file under the final name is always complete. Until then the header's
+ * frame count is 0 ("still being written"). */
 #define _POSIX_C_SOURCE 200809L
 #include "cache_format.h"
 
@@ -22,9 +24,10 @@ struct fm_cache_writer {
     fm_output_file out;      /* PATH.partial until finish() */
     cache_layout l;
     uint32_t handed;         /* frames handed over by add_frame (or kept by resume) */
-    size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's place in pending and prev (64-byte aligned) */
+    size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's place in a slot and prev (64-byte aligned) */
     size_t largest;          /* bytes of the largest attribute */
     unsigned char *prev;     /* delta: the previous frame's stored words */
+    uint32_t *ids;           /* 0 … n−1 when the layout has the id attribute */
     unsigned char *quantised, *stored;
     unsigned char *chunk;
     ZSTD_CCtx *cctx;
@@ -36,15 +39,21 @@ struct fm_cache_writer {
     int thread_started;
     pthread_mutex_t lock;
     pthread_cond_t changed;
-    unsigned char *pending;  /* the frame handed over, attributes at attr_at */
-    int has_pending, stop;
+    /* A ring of frames handed over, attributes at attr_at. With two, the step loop hands frame k+1
+     * over while k is being written instead of waiting for it (docs/performance.md#cache-writer). */
+    unsigned char *slot[CACHE_WRITER_SLOTS];
+    int next, queued;        /* the slot the worker takes next; frames handed over and not yet written */
+    int stop;
     fm_status worker_status; /* the first failure, reported by the next call */
     fm_error worker_err;
+    double wait_seconds;     /* add_frame's time waiting for a free slot: 0 when the writer keeps up */
 };
 
 static void *worker_main(void *arg);
 
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w) { return &w->l; }
+const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w) { return w->ids; }
+double fm_cache_writer_wait_seconds(const fm_cache_writer *w) { return w->wait_seconds; }
 
 static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_error *err)
 {
@@ -68,15 +77,20 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
         total += align64(cache_attr_bytes(l, i));
         w->largest = FM_MAX(w->largest, cache_attr_bytes(l, i));
     }
-    w->pending = fm_alloc(total);
+    int slots_ok = 1;
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) slots_ok &= (w->slot[s] = fm_alloc(total)) != NULL;
     w->prev = l->opts.delta ? fm_alloc(total) : NULL;
     w->quantised = fm_alloc(w->largest);
     w->stored = fm_alloc(w->largest);
     w->chunk = malloc(CACHE_CHUNK_HEADER + cache_payload_bound(l));
     w->cctx = ZSTD_createCCtx();
+    int with_ids = cache_attr_index(l, FM_ATTR_ID) >= 0;
+    if (with_ids && (w->ids = fm_alloc(sizeof(uint32_t) * (size_t)l->agents)) != NULL)
+        for (uint64_t a = 0; a < l->agents; a++) w->ids[a] = (uint32_t)a;
     pthread_mutex_init(&w->lock, NULL);
     pthread_cond_init(&w->changed, NULL);
-    if (!w->pending || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx) {
+    if (!slots_ok || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx ||
+        (with_ids && !w->ids)) {
         fm_cache_writer_abort(w);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)l->agents), NULL;
     }
@@ -111,8 +125,8 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
         return NULL;
     fm_cache_writer *w = writer_alloc(&l, err);
     if (!w) return NULL;
-    unsigned char header[CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS];
-    cache_header_encode(&l, header);
+    unsigned char header[CACHE_MAX_HEADER];
+    cache_header_encode(&l, header); /* frame count 0 until finish() */
     if (fm_output_open(&w->out, path, err) != FM_OK || write_bytes(w, header, l.header_bytes, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return NULL;
@@ -140,9 +154,9 @@ static void delta_encode(unsigned char *stored, unsigned char *prev, size_t n)
 }
 
 /* Filters attribute i of frame k into w->stored (quantise, shuffle, delta). */
-static fm_status filter_attr(fm_cache_writer *w, int i, uint32_t k, fm_error *err)
+static fm_status filter_attr(fm_cache_writer *w, const unsigned char *frame, int i, uint32_t k, fm_error *err)
 {
-    const unsigned char *src = w->pending + w->attr_at[i];
+    const unsigned char *src = frame + w->attr_at[i];
     size_t bytes = cache_attr_bytes(&w->l, i);
     uint32_t filters = w->l.filters[i];
     if (filters & FILTER_QUANTISE) {
@@ -175,14 +189,14 @@ static fm_status grow_index(fm_cache_writer *w, fm_error *err)
 }
 
 /* Filters, compresses and appends one frame (the worker's job). */
-static fm_status write_frame(fm_cache_writer *w, fm_error *err)
+static fm_status write_frame(fm_cache_writer *w, const unsigned char *frame, fm_error *err)
 {
     const cache_layout *l = &w->l;
     uint32_t k = w->frames;
     fm_status st = grow_index(w, err);
     size_t at = CACHE_CHUNK_HEADER + 8 * (size_t)l->attr_count, cap = CACHE_CHUNK_HEADER + cache_payload_bound(l);
     for (int i = 0; i < l->attr_count && st == FM_OK; i++) {
-        if ((st = filter_attr(w, i, k, err)) != FM_OK) break;
+        if ((st = filter_attr(w, frame, i, k, err)) != FM_OK) break;
         size_t packed = ZSTD_compress2(w->cctx, w->chunk + at, cap - at, w->stored, cache_attr_bytes(l, i));
         if (ZSTD_isError(packed))
             return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->out.path, ZSTD_getErrorName(packed));
@@ -205,38 +219,51 @@ static void *worker_main(void *arg)
     fm_cache_writer *w = arg;
     pthread_mutex_lock(&w->lock);
     for (;;) {
-        while (!w->has_pending && !w->stop) pthread_cond_wait(&w->changed, &w->lock);
-        if (!w->has_pending) break;
+        while (!w->queued && !w->stop) pthread_cond_wait(&w->changed, &w->lock);
+        if (!w->queued) break;
+        const unsigned char *frame = w->slot[w->next]; /* add_frame does not touch a queued slot */
         pthread_mutex_unlock(&w->lock);
         fm_error err = {0};
-        fm_status st = w->worker_status == FM_OK ? write_frame(w, &err) : FM_OK;
+        fm_status st = w->worker_status == FM_OK ? write_frame(w, frame, &err) : FM_OK;
         pthread_mutex_lock(&w->lock);
         if (st != FM_OK) w->worker_status = st, w->worker_err = err;
-        w->has_pending = 0;
+        w->next = (w->next + 1) % CACHE_WRITER_SLOTS;
+        w->queued--;
         pthread_cond_broadcast(&w->changed);
     }
     pthread_mutex_unlock(&w->lock);
     return NULL;
 }
 
-/* Waits until the worker holds no frame; returns its first failure. Called with the lock held. */
-static fm_status wait_idle(fm_cache_writer *w, fm_error *err)
+/* Waits until at most `queued` frames are waiting for the worker; returns its first failure.
+ * Called with the lock held. */
+static fm_status wait_queue(fm_cache_writer *w, int queued, fm_error *err)
 {
-    while (w->has_pending) pthread_cond_wait(&w->changed, &w->lock);
+    while (w->queued > queued) pthread_cond_wait(&w->changed, &w->lock);
     if (w->worker_status != FM_OK && err) *err = w->worker_err;
     return w->worker_status;
 }
 
+/* Waits until the worker has written every frame handed over. Called with the lock held. */
+static fm_status wait_idle(fm_cache_writer *w, fm_error *err) { return wait_queue(w, 0, err); }
+
+/* The frame goes into the ring's next free slot; the copy runs outside the lock, since the worker
+ * only reads queued slots (one producer: the slot's place stays (next + queued) mod slots as the
+ * worker advances next and lowers queued together). */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err)
 {
+    double t0 = fm_seconds();
     pthread_mutex_lock(&w->lock);
-    fm_status st = wait_idle(w, err);
-    if (st == FM_OK) {
-        for (int i = 0; i < w->l.attr_count; i++) memcpy(w->pending + w->attr_at[i], data[i], cache_attr_bytes(&w->l, i));
-        w->has_pending = 1;
-        w->handed++;
-        pthread_cond_broadcast(&w->changed);
-    }
+    fm_status st = wait_queue(w, CACHE_WRITER_SLOTS - 1, err);
+    w->wait_seconds += fm_seconds() - t0;
+    unsigned char *slot = w->slot[(w->next + w->queued) % CACHE_WRITER_SLOTS];
+    pthread_mutex_unlock(&w->lock);
+    if (st != FM_OK) return st;
+    for (int i = 0; i < w->l.attr_count; i++) memcpy(slot + w->attr_at[i], data[i], cache_attr_bytes(&w->l, i));
+    pthread_mutex_lock(&w->lock);
+    w->queued++;
+    w->handed++;
+    pthread_cond_broadcast(&w->changed);
     pthread_mutex_unlock(&w->lock);
     return st;
 }
@@ -281,7 +308,8 @@ static void free_writer(fm_cache_writer *w)
     stop_worker(w, NULL);
     pthread_mutex_destroy(&w->lock);
     pthread_cond_destroy(&w->changed);
-    fm_free(w->pending), fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored);
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) fm_free(w->slot[s]);
+    fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored), fm_free(w->ids);
     free(w->chunk), free(w->offsets), free(w->sizes);
     ZSTD_freeCCtx(w->cctx);
     free(w);
@@ -309,10 +337,24 @@ static fm_status write_index_and_footer(fm_cache_writer *w, fm_error *err)
     return st == FM_OK ? write_bytes(w, footer, sizeof footer, err) : st;
 }
 
+/* The header's frame count, 0 since create, becomes F once the index is written; the header crc
+ * is recomputed with it. fm_output_commit then fsyncs and renames. */
+static fm_status patch_header_frames(fm_cache_writer *w, fm_error *err)
+{
+    unsigned char header[CACHE_MAX_HEADER];
+    w->l.header_frames = w->frames;
+    cache_header_encode(&w->l, header);
+    if (fseeko(w->out.f, 0, SEEK_SET) != 0 || fwrite(header, 1, w->l.header_bytes, w->out.f) != w->l.header_bytes)
+        return fm_fail(err, FM_ERR_IO, "%s: cannot write the header's frame count: %s%s", w->out.partial, strerror(errno),
+                       fm_write_hint(errno));
+    return FM_OK;
+}
+
 fm_status fm_cache_writer_finish(fm_cache_writer *w, fm_error *err)
 {
     fm_status st = stop_worker(w, err);
     if (st == FM_OK) st = write_index_and_footer(w, err);
+    if (st == FM_OK) st = patch_header_frames(w, err);
     if (st == FM_OK) st = fm_output_commit(&w->out, NULL, err);
     else fm_output_keep_partial(&w->out); /* its complete frames stay readable */
     free_writer(w);
@@ -327,7 +369,9 @@ void fm_cache_writer_abort(fm_cache_writer *w)
     free_writer(w);
 }
 
-/* Stops the writer and keeps PATH.partial with the frames written so far (for --resume). */
+/* Stops the writer and keeps PATH.partial with the frames written so far (for --resume). Its
+ * header's frame count stays 0: the file is unfinished (a resumed writer appends to it), and a
+ * reader finds its frames by walking the chunks in any case. */
 void fm_cache_writer_close_partial(fm_cache_writer *w)
 {
     if (!w) return;

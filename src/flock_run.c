@@ -1,5 +1,6 @@
 /* fm_flock_run: the shape flock's frames through the shared frame loop, and its end-state
  * measures (distance to the destinations, the bound fraction, the tracking lag). */
+#include "cache_format.h"
 #include "flock.h"
 #include "frame_loop.h"
 
@@ -7,7 +8,8 @@
 #include <string.h>
 
 /* The attributes of a flock cache, in the order fm_flock_run hands them over. */
-static const fm_cache_attr FLOCK_ATTRS[] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_PHASE};
+static const fm_cache_attr FLOCK_ATTRS[] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_ID,
+                                            FM_ATTR_PHASE};
 enum { FLOCK_ATTR_COUNT = sizeof FLOCK_ATTRS / sizeof FLOCK_ATTRS[0] };
 
 fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *m, const fm_cache_options *opts, fm_error *err)
@@ -49,7 +51,8 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
     fm_flock_frame(r->s, r->position, r->velocity, r->orientation, r->phase);
     fm_status st = FM_OK;
     if (r->cache) {
-        const void *data[FLOCK_ATTR_COUNT] = {r->position, r->velocity, r->orientation, r->phase};
+        const void *data[FLOCK_ATTR_COUNT] = {r->position, r->velocity, r->orientation, fm_cache_writer_ids(r->cache),
+                                              r->phase}; /* ids 0 … n−1: frames are in id order */
         st = fm_cache_writer_add_frame_attrs(r->cache, data, err);
     }
     if (r->m->info.deforming && r->s->time >= r->m->path_time && frame > 0) { /* tracking lag */

@@ -2,6 +2,7 @@
  * frame buffers and the neighbour grid (docs/limits.md), so that a run too large for the machine
  * is refused before anything big is allocated. */
 #define _POSIX_C_SOURCE 200809L
+#include "cache_format.h"
 #include "sim.h"
 
 #include <stdio.h>
@@ -18,13 +19,16 @@ static const double STATE_PER_AGENT =
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
     + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */
     + (double)sizeof(block_counts) / FM_BLOCK;
-/* Frames of tet vertices (48 B) and phases (1 B): run.c's buffers; the cache writer's hand-over
- * copy, the previous frame when delta is on (cache_writer.c), its quantise and filter buffers (the
- * largest attribute) and the chunk (zstd's output bound: 1/256 more than its input). */
+/* Frames of tet vertices (48 B) and phases (1 B): run.c's buffers. The cache writer's frame also
+ * holds the ids (4 B, tools/cli_run.c's attribute list): its two hand-over slots, the previous
+ * frame when delta is on (cache_writer.c), its quantise and filter buffers (the largest attribute),
+ * the chunk (zstd's output bound: 1/256 more than its input) and the ids it hands over itself. */
 static double frames_per_agent(const fm_scene_def *def)
 {
-    const double frame = 12 * sizeof(float) + 1, largest = 12 * sizeof(float);
-    return frame + frame * (def->cache_delta ? 2 : 1) + 2 * largest + frame * (1 + 1.0 / 256);
+    const double run_frame = 12 * sizeof(float) + 1, largest = 12 * sizeof(float);
+    const double cached = run_frame + sizeof(uint32_t);
+    return run_frame + cached * (CACHE_WRITER_SLOTS + (def->cache_delta ? 1 : 0)) + 2 * largest + cached * (1 + 1.0 / 256) +
+           sizeof(uint32_t);
 }
 /* Preprocessing holds both tet sets in double (subdivided to n), the two orders and the model. */
 static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + 2 * sizeof(int64_t);

@@ -53,7 +53,7 @@ static int each_target_taken_once(const fm_state *s)
 }
 
 /* Hands the frame to the cache in the attributes it was created with: the tetra morph has tet
- * vertices and phases. */
+ * vertices, ids and phases. */
 static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
                              fm_error *err)
 {
@@ -62,6 +62,7 @@ static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const fl
     for (int i = 0; i < l->attr_count; i++) {
         if (l->attrs[i]->attr == FM_ATTR_TET_VERTICES) data[i] = verts;
         else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_state_phases(s, phases), data[i] = phases;
+        else if (l->attrs[i]->attr == FM_ATTR_ID) data[i] = fm_cache_writer_ids(cache); /* frames are in id order */
         else return fm_fail(err, FM_ERR_USAGE, "the tetra morph cannot write the cache attribute '%s'", l->attrs[i]->name);
     }
     return fm_cache_writer_add_frame_attrs(cache, data, err);

@@ -182,7 +182,7 @@ static const param PARAMS[] = {
     {"morph.morph_fraction", P_DOUBLE, OFF(morph_fraction), 0, 1, OPEN_MIN | OPEN_MAX},
     {"seed", P_UINT64, OFF(seed), 0, 0, 0},
     {"output.cache", P_NAME, OFF(cache_name), 0, 0, 0},
-    {"output.compression_level", P_INT32, OFF(compression_level), 1, 19, 0},
+    {"output.compression_level", P_INT32, OFF(compression_level), -7, 19, 0}, /* 0 is refused below */
     {"output.delta", P_BOOL, OFF(cache_delta), 0, 0, 0},
     {"output.key_interval", P_INT32, OFF(cache_key_interval), 1, 65536, 0},
     {"output.quantum", P_DOUBLE, OFF(cache_quantum), 0, 1e6, 0},
@@ -766,6 +766,10 @@ static fm_status check_field_vectors(where *w, const fm_scene_def *def)
 /* Checks that span several parameters. */
 static fm_status check_consistency(where *w, const fm_scene_def *def)
 {
+    if (def->compression_level == 0) { /* zstd reads 0 as its default, 3: say which one */
+        where_set_key(w, "output.compression_level");
+        return fail_at(w, "output.compression_level", "0 is not a level: use 1 ... 19, or -7 ... -1 for zstd's fast levels");
+    }
     if (def->time_step > 0) {
         double steps = (1.0 / def->frame_rate) / def->time_step;
         where_set_key(w, "time.time_step");

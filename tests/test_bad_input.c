@@ -161,7 +161,6 @@ static const bound_case BOUND_CASES[] = {
     {"\"morph\": {\"shrink\": @}", "morph.shrink", 1},
     {"\"morph\": {\"shrink_time\": @}", "morph.shrink_time", 0},
     {"\"morph\": {\"morph_fraction\": @}", "morph.morph_fraction", 1},
-    {"\"output\": {\"compression_level\": @}", "output.compression_level", 1},
     {"\"style\": {\"omega2\": @}", "style.omega2", 0},
     {"\"style\": {\"grid\": [4, @, 4]}", "style.grid", 0},
     {"\"style\": {\"fields\": [{\"type\": \"curl_noise\", \"gain\": @}]}", "style.fields[0].gain", 0},
@@ -394,8 +393,12 @@ static void test_memory_estimate_matches_allocations(void)
     fm_model *model = fm_model_build(&def, NULL, NULL, &err);
     fm_state *state = model ? fm_state_create(model, 1, &err) : NULL;
     float *frame = malloc(sizeof(float) * 12 * (size_t)def.n);
-    fm_cache_writer *w = state ? fm_cache_writer_create(tmp_path(cache, "estimate.fmc"), (uint64_t)def.n, 24, 1, &err) : NULL;
-    ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
+    uint8_t *phases = malloc((size_t)def.n);
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE}; /* as tools/cli_run.c */
+    fm_cache_writer *w = state ? fm_cache_writer_create_attrs(tmp_path(cache, "estimate.fmc"), (uint64_t)def.n, 24, attrs, 3,
+                                                              NULL, &err)
+                               : NULL;
+    ENSURE_MSG(w != NULL && frame != NULL && phases != NULL, "%s", err.message);
     double used = allocated_bytes() - before;
     fm_memory_estimate e = fm_memory_estimate_run(&def, def.n);
     double estimated = (e.model + e.state + e.frames) * (double)def.n;
@@ -403,7 +406,7 @@ static void test_memory_estimate_matches_allocations(void)
                used, estimated, used / (double)def.n, estimated / (double)def.n);
     printf("  allocated %.1f bytes per agent, estimated %.1f\n", used / (double)def.n, estimated / (double)def.n);
     fm_cache_writer_abort(w);
-    free(frame);
+    free(frame), free(phases);
     fm_state_destroy(state);
     fm_model_destroy(model);
 }

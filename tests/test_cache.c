@@ -5,6 +5,7 @@
 #include "cache_helpers.h"
 
 #include <unistd.h>
+#include <zlib.h>
 
 static uint64_t rng_state = 0x2545f4914f6cdd1dull;
 
@@ -197,7 +198,7 @@ static void expect_open_fails(const char *path, const char *what)
                err.message, what);
 }
 
-/* ---------------------------------------------------------------- damaged files (format 2) */
+/* ---------------------------------------------------------------- damaged files (format 3) */
 
 /* A cache cut at every byte: a cut inside the header is an error; any later cut opens with a
  * warning and exactly the frames whose chunks are complete, equal to what was written. */
@@ -214,7 +215,7 @@ static void test_truncated_at_every_byte(void)
     if (!bytes) return;
     size_t header = bytes_u32(bytes + 12), ends[FRAMES];
     for (uint32_t k = 0; k < FRAMES; k++) ends[k] = chunk_end(bytes, len, k);
-    ENSURE(header == 64 + 2 * 16 && chunk_start(bytes, len, 0) == header);
+    ENSURE(header == 72 + 2 * 16 && chunk_start(bytes, len, 0) == header);
     tmp_path(cut, "cut.fmc");
     for (size_t at = 0; at < len; at++) {
         write_all(cut, bytes, at);
@@ -232,8 +233,9 @@ static void test_truncated_at_every_byte(void)
         uint32_t complete = 0;
         while (complete < FRAMES && ends[complete] <= at) complete++;
         ENSURE_MSG(fm_cache_frames(r) == complete, "cut at %zu: %u frames, %u complete", at, fm_cache_frames(r), complete);
-        ENSURE_MSG(strstr(fm_cache_warning(r), cut) && strstr(fm_cache_warning(r), "recovered"), "cut at %zu: warning '%s'",
-                   at, fm_cache_warning(r));
+        ENSURE_MSG(strstr(fm_cache_warning(r), cut) && strstr(fm_cache_warning(r), "recovered") &&
+                   strstr(fm_cache_warning(r), "(the header announces 5)"), "cut at %zu: warning '%s'", at, fm_cache_warning(r));
+        ENSURE(fm_cache_header_frames(r) == FRAMES);
         for (uint32_t f = 0; f < fm_cache_frames(r); f++) frame_matches(r, f, DATA_SMOOTH, 0, "truncated");
         fm_cache_close(r);
     }
@@ -341,6 +343,145 @@ static void test_damaged_header_and_index(void)
     free(bytes);
 }
 
+/* ---------------------------------------------------------------- the header's frame count (format 3) */
+
+/* Sets the frame count at header offset 64 and recomputes the header crc (offset 52) to match, as
+ * zlib's crc32 of the header with the crc field 0: a header that is consistent in itself. */
+static void set_header_frames(unsigned char *bytes, uint32_t frames)
+{
+    uint32_t size = bytes_u32(bytes + 12), crc;
+    memcpy(bytes + 64, &frames, 4);
+    memset(bytes + 52, 0, 4);
+    crc = (uint32_t)crc32(0, bytes, size);
+    memcpy(bytes + 52, &crc, 4);
+}
+
+static const fm_cache_attr COUNT_ATTRS[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
+
+/* A finished cache states its frame count in the header, equal to the frames that read back; an
+ * empty one states 0 and is still complete. */
+static void test_header_frame_count_when_finished(void)
+{
+    char path[FM_PATH_MAX];
+    if (write_attrs_cache(tmp_path(path, "count.fmc"), 4, 6, COUNT_ATTRS, 3, NULL, DATA_SMOOTH) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    ENSURE(bytes && len > 72 && bytes_u32(bytes + 8) == 3 && bytes_u32(bytes + 64) == 6 && bytes_u32(bytes + 68) == 0);
+    free(bytes);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    ENSURE(fm_cache_header_frames(r) == 6 && fm_cache_frames(r) == 6 && fm_cache_warning(r)[0] == 0);
+    uint32_t readable = 0;
+    float buf[48];
+    while (readable < 100 && fm_cache_read_frame(r, readable, buf, &err) == FM_OK) readable++;
+    ENSURE_MSG(readable == fm_cache_header_frames(r) && err.status == FM_ERR_USAGE, "%u frames read, the header says %u",
+               readable, fm_cache_header_frames(r));
+    for (uint32_t f = 0; f < readable; f++) frame_matches(r, f, DATA_SMOOTH, 0, "count");
+    fm_cache_close(r);
+    if (write_attrs_cache(tmp_path(path, "count_empty.fmc"), 4, 0, COUNT_ATTRS, 3, NULL, DATA_SMOOTH) != 0) return;
+    r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && fm_cache_header_frames(r) == 0 && fm_cache_frames(r) == 0 && fm_cache_warning(r)[0] == 0, "%s",
+               r ? fm_cache_warning(r) : err.message);
+    fm_cache_close(r);
+}
+
+/* A header whose (checksummed) frame count is not the index's is refused; a count of 0 next to a
+ * valid index (the writer stopped between the footer and the header) is recovered by walking. */
+static void test_header_frame_count_disagrees(void)
+{
+    char path[FM_PATH_MAX];
+    if (write_attrs_cache(tmp_path(path, "count_bad.fmc"), 4, 6, COUNT_ATTRS, 3, NULL, DATA_SMOOTH) != 0) return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    if (!bytes) return;
+    const uint32_t wrong[] = {7, 5, 1, UINT32_MAX};
+    for (int i = 0; i < 4; i++) {
+        char want[96];
+        set_header_frames(bytes, wrong[i]);
+        write_all(path, bytes, len);
+        snprintf(want, sizeof want, "the header says %u frames but the index lists 6", wrong[i]);
+        expect_open_fails(path, want);
+    }
+    set_header_frames(bytes, 0);
+    write_all(path, bytes, len);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (r) {
+        ENSURE_MSG(fm_cache_frames(r) == 6 && strstr(fm_cache_warning(r), "frame count 0 in the header") &&
+                   strstr(fm_cache_warning(r), "recovered the 6 complete frames"), "'%s'", fm_cache_warning(r));
+        for (uint32_t f = 0; f < 6; f++) frame_matches(r, f, DATA_SMOOTH, 0, "count 0");
+        fm_cache_close(r);
+    }
+    free(bytes);
+}
+
+static void add_count_frame(fm_cache_writer *w, uint32_t f)
+{
+    uint8_t tets[4 * 48], ids[4 * 4], phases[4];
+    make_attr(FM_ATTR_TET_VERTICES, 4, f, DATA_SMOOTH, tets);
+    make_attr(FM_ATTR_ID, 4, f, DATA_SMOOTH, ids);
+    make_attr(FM_ATTR_PHASE, 4, f, DATA_SMOOTH, phases);
+    const void *data[3] = {tets, ids, phases};
+    fm_error err = {0};
+    ENSURE_MSG(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK, "%s", err.message);
+}
+
+/* Opens `file` and checks it holds `frames` complete frames, recovered with a warning, and a header
+ * frame count of 0. */
+static void expect_unfinished(const char *file, uint32_t frames, const char *label)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(file, &err);
+    ENSURE_MSG(r != NULL, "%s: %s", label, err.message);
+    if (!r) return;
+    ENSURE_MSG(fm_cache_header_frames(r) == 0 && fm_cache_frames(r) == frames && strstr(fm_cache_warning(r), "recovered"),
+               "%s: %u frames (want %u), header %u, '%s'", label, fm_cache_frames(r), frames, fm_cache_header_frames(r),
+               fm_cache_warning(r));
+    for (uint32_t f = 0; f < fm_cache_frames(r); f++) frame_matches(r, f, DATA_SMOOTH, 0, label);
+    fm_cache_close(r);
+}
+
+/* While the writer runs, and in a file closed as partial (an interrupted run), the header's count
+ * is 0 and the file opens up to its last complete frame, also when cut inside a chunk; a resumed
+ * writer patches the true count in when it finishes. */
+static void test_header_frame_count_while_writing(void)
+{
+    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16], cut[FM_PATH_MAX];
+    partial_name(partial, tmp_path(path, "count_run.fmc"));
+    remove(path), remove(partial);
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create_attrs(path, 4, 25.0, COUNT_ATTRS, 3, NULL, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return;
+    for (uint32_t f = 0; f < 3; f++) add_count_frame(w, f);
+    ENSURE(fm_cache_writer_flush(w, &err) == FM_OK);
+    expect_unfinished(partial, 3, "flushed");
+    add_count_frame(w, 3);
+    fm_cache_writer_close_partial(w);
+    expect_unfinished(partial, 4, "closed as partial");
+    size_t len;
+    unsigned char *bytes = read_all(partial, &len);
+    if (!bytes) return;
+    ENSURE(bytes_u32(bytes + 64) == 0);
+    write_all(tmp_path(cut, "count_cut.fmc"), bytes, len - 3); /* inside the last chunk */
+    expect_unfinished(cut, 3, "cut mid-chunk");
+    free(bytes);
+    w = fm_cache_writer_resume(path, 4, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return;
+    for (uint32_t f = 4; f < 6; f++) add_count_frame(w, f);
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && fm_cache_header_frames(r) == 6 && fm_cache_frames(r) == 6 && !fm_cache_warning(r)[0], "%s", err.message);
+    fm_cache_close(r);
+    char whole[FM_PATH_MAX];
+    if (write_attrs_cache(tmp_path(whole, "count_whole.fmc"), 4, 6, COUNT_ATTRS, 3, NULL, DATA_SMOOTH) == 0)
+        ENSURE_MSG(same_files(path, whole), "a resumed cache differs from one written in one go");
+}
+
 /* ---------------------------------------------------------------- format 1 */
 
 /* tests/data/cache_v1.fmc was written by the format-1 writer (commit a2f5f1b): 5 agents, 3 frames
@@ -406,6 +547,49 @@ static void test_format_1_damaged(void)
     free(bytes);
 }
 
+/* tests/data/cache_v2.fmc was written by the format-2 writer (commit 712c02c): 5 agents, 4 frames
+ * at 24 fps, tet_vertices and phase, zstd level 3, delta with key interval 2; float i of frame f =
+ * 0.001 i + f, the phase of agent a at frame f = (a + f) mod 4. */
+static const char V2_FIXTURE[] = FM_SOURCE_DIR "/tests/data/cache_v2.fmc";
+
+static void v2_frame_matches(fm_cache_reader *r, uint32_t f)
+{
+    float got[60], want[60];
+    uint8_t phase[5];
+    fm_error err = {0};
+    v1_frame(want, f);
+    ENSURE_MSG(fm_cache_read_frame(r, f, got, &err) == FM_OK && memcmp(got, want, sizeof want) == 0,
+               "format 2 frame %u: %s", f, err.message);
+    ENSURE_MSG(fm_cache_read_attr(r, f, FM_ATTR_PHASE, phase, &err) == FM_OK, "%s", err.message);
+    for (int a = 0; a < 5; a++) ENSURE_MSG(phase[a] == (a + f) % 4, "format 2 frame %u: phase[%d] = %u", f, a, phase[a]);
+}
+
+static void test_reads_format_2(void)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(V2_FIXTURE, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    ENSURE(fm_cache_version(r) == 2 && fm_cache_agents(r) == 5 && fm_cache_frames(r) == 4 && fm_cache_header_frames(r) == 0);
+    ENSURE(fm_cache_frame_rate(r) == 24.0 && fm_cache_warning(r)[0] == 0 && fm_cache_attr_count(r) == 2);
+    fm_cache_options o = fm_cache_get_options(r);
+    ENSURE(o.compression_level == 3 && o.delta == 1 && o.key_interval == 2 && o.quantum == 0);
+    const uint32_t order[] = {3, 0, 1, 2, 2, 0, 3};
+    for (int i = 0; i < 7; i++) v2_frame_matches(r, order[i]);
+    fm_cache_close(r);
+    /* cut inside its last chunk: the first three frames are recovered */
+    char path[FM_PATH_MAX];
+    size_t len;
+    unsigned char *bytes = read_all(V2_FIXTURE, &len);
+    if (!bytes) return;
+    write_all(tmp_path(path, "v2_cut.fmc"), bytes, chunk_end(bytes, len, 3) - 1);
+    r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && fm_cache_frames(r) == 3 && strstr(fm_cache_warning(r), "recovered"), "%s", r ? fm_cache_warning(r) : err.message);
+    for (uint32_t f = 0; r && f < 3; f++) v2_frame_matches(r, f);
+    fm_cache_close(r);
+    free(bytes);
+}
+
 static void test_not_a_cache(void)
 {
     char path[FM_PATH_MAX], text[1024];
@@ -428,7 +612,7 @@ static void test_bad_version(void)
     bytes[8] = 7; /* version field */
     write_all(path, bytes, len);
     free(bytes);
-    expect_open_fails(path, "version 7");
+    expect_open_fails(path, "version 7 is not supported (this build reads 1 to 3)");
 }
 
 /* A write that fails on the writer thread (the partial file is a symlink to /dev/full, which
@@ -444,7 +628,7 @@ static void test_write_failure_on_the_writer_thread(void)
     remove(path), remove(partial);
     if (symlink("/dev/full", partial) != 0) return;
     fm_error err = {0};
-    /* the 64-byte header is buffered by stdio, so creation succeeds */
+    /* the header is buffered by stdio, so creation succeeds */
     fm_cache_writer *w = fm_cache_writer_create(path, 100000, 24, 1, &err);
     ENSURE_MSG(w != NULL, "%s", err.message);
     if (!w) return remove(partial), (void)0;
@@ -475,6 +659,10 @@ int main(void)
     RUN_TEST(test_damaged_header_and_index);
     RUN_TEST(test_reads_format_1);
     RUN_TEST(test_format_1_damaged);
+    RUN_TEST(test_reads_format_2);
+    RUN_TEST(test_header_frame_count_when_finished);
+    RUN_TEST(test_header_frame_count_disagrees);
+    RUN_TEST(test_header_frame_count_while_writing);
     RUN_TEST(test_not_a_cache);
     RUN_TEST(test_bad_version);
     return test_result();

@@ -1,4 +1,4 @@
-/* Cache format 2: every attribute kind under every option (delta, key interval, quantum, level),
+/* Cache format 3: every attribute kind under every option (delta, key interval, quantum, level),
  * random access against sequential reading, the quantisation bound, sizes, argument errors, and
  * writer bytes that do not depend on the OpenMP thread count. */
 #define _POSIX_C_SOURCE 200809L
@@ -33,7 +33,8 @@ static void round_trip(const char *name, uint64_t agents, uint32_t frames, const
     fm_cache_reader *seq = fm_cache_open(path, &err), *rnd = fm_cache_open(path, &err);
     ENSURE_MSG(seq && rnd, "%s", err.message);
     if (seq && rnd) {
-        ENSURE(fm_cache_version(seq) == 2 && fm_cache_agents(seq) == agents && fm_cache_frames(seq) == frames);
+        ENSURE(fm_cache_version(seq) == 3 && fm_cache_agents(seq) == agents && fm_cache_frames(seq) == frames);
+        ENSURE(fm_cache_header_frames(seq) == frames);
         ENSURE(fm_cache_frame_rate(seq) == 25.0 && fm_cache_warning(seq)[0] == 0 && fm_cache_attr_count(seq) == ALL_ATTR_COUNT);
         for (int i = 0; i < ALL_ATTR_COUNT; i++) ENSURE(fm_cache_attr_at(seq, i)->attr == ALL_ATTRS[i] && fm_cache_has_attr(seq, ALL_ATTRS[i]));
         fm_cache_options got = fm_cache_get_options(seq);
@@ -68,6 +69,10 @@ static void test_round_trip_every_attribute_and_option(void)
     round_trip("attrs_quantum_delta.fmc", 300, 10, &o, DATA_SMOOTH);
     o.quantum = 0.25;
     round_trip("attrs_coarse.fmc", 50, 4, &o, DATA_SMOOTH);
+    o = fm_default_cache_options(), o.compression_level = -7; /* zstd's fastest level allowed */
+    round_trip("attrs_fast.fmc", 23, 9, &o, DATA_RANDOM);
+    o.compression_level = -1, o.quantum = 1e-3;
+    round_trip("attrs_fast_quantum.fmc", 300, 6, &o, DATA_SMOOTH);
 }
 
 /* Sequential reading decodes one chunk per frame, so random access must give the same bits even
@@ -156,7 +161,7 @@ static void test_sizes(void)
     ENSURE_MSG(r && bytes, "%s", err.message);
     if (r && bytes) {
         uint64_t header = bytes_u32(bytes + 12), index = bytes_u64(bytes + len - 16), sum = 0;
-        ENSURE(header == 64 + 3 * 16 && fm_cache_file_bytes(r) == len);
+        ENSURE(header == 72 + 3 * 16 && fm_cache_file_bytes(r) == len);
         ENSURE(fm_cache_raw_bytes(r) == 7ull * 200 * (48 + 4 + 1));
         for (uint32_t f = 0; f < 7; f++) sum += fm_cache_frame_bytes(r, f);
         ENSURE(fm_cache_frame_bytes(r, 7) == 0);
@@ -191,6 +196,10 @@ static void test_argument_errors(void)
     expect_create_fails(ALL_ATTRS, 1, &o, "quantum");
     o = fm_default_cache_options(), o.compression_level = 30;
     expect_create_fails(ALL_ATTRS, 1, &o, "compression level 30");
+    o.compression_level = 0;
+    expect_create_fails(ALL_ATTRS, 1, &o, "compression level 0 is outside -7..-1 and 1..19");
+    o.compression_level = -8;
+    expect_create_fails(ALL_ATTRS, 1, &o, "compression level -8");
 
     /* the tet shorthand on a cache of other attributes, and reading a missing attribute */
     char path[FM_PATH_MAX];

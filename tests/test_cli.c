@@ -302,19 +302,22 @@ static void test_inspect_json(void)
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (!j || !r) return json_decref(j), fm_cache_close(r);
     uint32_t frames = fm_cache_frames(r);
-    ENSURE(jnum(j, "format_version") == 2 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "format_version") == 3 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "header_frames") == frames && fm_cache_header_frames(r) == frames);
     ENSURE(jnum(j, "frame_rate") == 24 && fabs(jnum(j, "duration_seconds") - (frames - 1) / 24.0) < 1e-9);
     json_t *attrs = json_object_get(j, "attributes");
-    ENSURE(json_array_size(attrs) == 2);
+    ENSURE(json_array_size(attrs) == 3 && fm_cache_attr_count(r) == 3);
     ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 0), "name")), "tet_vertices"));
     ENSURE(jnum(json_array_get(attrs, 0), "components") == 12);
-    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "phase"));
-    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u8"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "name")), "id"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 1), "type")), "u32"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 2), "name")), "phase"));
+    ENSURE(!strcmp(json_string_value(json_object_get(json_array_get(attrs, 2), "type")), "u8"));
     json_t *o = json_object_get(j, "options");
     ENSURE(jnum(o, "compression_level") == 1 && json_is_true(json_object_get(o, "delta")) && jnum(o, "key_interval") == 16 && jnum(o, "quantum") == 0);
     struct stat st;
     ENSURE(stat(g_cache, &st) == 0 && jnum(j, "file_bytes") == (double)st.st_size);
-    ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));
+    ENSURE(jnum(j, "raw_bytes") == (double)frames * AGENTS * (48 + 4 + 1) && jnum(j, "raw_bytes") == fm_cache_raw_bytes(r));
     ENSURE(jnum(j, "compressed_bytes") == fm_cache_compressed_bytes(r));
     ENSURE(fabs(jnum(j, "compression_ratio") - jnum(j, "raw_bytes") / jnum(j, "compressed_bytes")) < 1e-6);
     uint64_t lo = UINT64_MAX, hi = 0, sum = 0;
@@ -324,7 +327,7 @@ static void test_inspect_json(void)
     }
     json_t *fb = json_object_get(j, "frame_bytes");
     ENSURE(jnum(fb, "min") == lo && jnum(fb, "max") == hi && fabs(jnum(fb, "mean") - (double)sum / frames) < 1e-6);
-    ENSURE(sum + 64 + 2 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
+    ENSURE(sum + 72 + 3 * 16 + 16 + 16 * frames + 16 == (uint64_t)st.st_size);
     double blo[3], bhi[3];
     cache_bounds(r, blo, bhi);
     json_t *b = json_object_get(json_object_get(j, "bounds"), "tet_vertices");
@@ -346,9 +349,9 @@ static void test_inspect_text_and_recovered(void)
     if (!g_cache[0]) return;
     snprintf(args, sizeof args, "inspect '%s'", g_cache);
     ENSURE_EXIT(args, 0);
-    snprintf(buf, sizeof buf, "frames        %lld\n", g_frames);
-    ENSURE_MSG(strstr(g_out, "format        2\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
-               strstr(g_out, "attributes    tet_vertices (12 x f32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
+    snprintf(buf, sizeof buf, "frames        %lld (the header states %lld)\n", g_frames, g_frames);
+    ENSURE_MSG(strstr(g_out, "format        3\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
+               strstr(g_out, "attributes    tet_vertices (12 x f32), id (1 x u32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
                strstr(g_out, "bounds        tet_vertices: ["), "%s", g_out);
     FILE *in = fopen(g_cache, "rb"), *out = fopen(tmp_path(cut, "cut.fmc"), "wb");
     ENSURE(in && out);
@@ -360,10 +363,35 @@ static void test_inspect_text_and_recovered(void)
     ENSURE_MSG(strstr(g_err, "warning: ") && strstr(g_err, "recovered"), "%s", g_err);
     ENSURE(j && json_is_false(json_object_get(j, "complete")) && strstr(json_string_value(json_object_get(j, "warning")), "recovered"));
     ENSURE(j && jnum(j, "frames") >= 1 && jnum(j, "frames") < g_frames && jnum(j, "file_bytes") == 3000);
+    ENSURE(j && jnum(j, "header_frames") == g_frames); /* a finished cache cut short: its header is intact */
     json_decref(j);
     snprintf(args, sizeof args, "inspect '%s'", cut);
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(strstr(g_out, "status        recovered"), "%s", g_out);
+}
+
+/* docs/cache-format.md's "Inspecting a cache" table lists exactly the keys inspect --json prints,
+ * in the same order. */
+static void test_inspect_keys_are_documented(void)
+{
+    static char doc[1 << 17];
+    ENSURE(g_cache[0] && slurp(FM_SOURCE_DIR "/docs/cache-format.md", doc, sizeof doc) > 0);
+    json_t *j = g_cache[0] ? inspect_json(g_cache, 0) : NULL;
+    const char *at = strstr(doc, "## Inspecting a cache"), *end = at ? strstr(at + 3, "\n## ") : NULL;
+    ENSURE_MSG(j && at && end, "%s", "no inspect output or no 'Inspecting a cache' section");
+    if (!j || !at || !end) return json_decref(j);
+    size_t documented = 0;
+    void *iter = json_object_iter(j); /* jansson keeps the keys in the order they were read */
+    for (const char *row = strstr(at, "\n| `"); row && row < end; row = strstr(row + 1, "\n| `")) {
+        char name[64] = "";
+        sscanf(row, "\n| `%63[^`]`", name);
+        const char *key = iter ? json_object_iter_key(iter) : "(none)";
+        ENSURE_MSG(!strcmp(name, key), "documented key %zu is '%s', inspect prints '%s'", documented, name, key);
+        iter = iter ? json_object_iter_next(j, iter) : NULL;
+        documented++;
+    }
+    ENSURE_MSG(documented == json_object_size(j), "%zu keys documented, inspect prints %zu", documented, json_object_size(j));
+    json_decref(j);
 }
 
 static void test_inspect_errors(void)
@@ -441,6 +469,7 @@ int main(void)
     RUN_TEST(test_inspect_json);
     RUN_TEST(test_inspect_text_and_recovered);
     RUN_TEST(test_inspect_errors);
+    RUN_TEST(test_inspect_keys_are_documented);
     RUN_TEST(test_run_writes_phases);
     RUN_TEST(test_run_cache_options);
     return test_result();

@@ -19,9 +19,23 @@
 #include <string.h>
 #include <sys/wait.h>
 
+/* Every agent's id in the middle frame is its place in the frame: frames are in id order. */
+static void ids_are_the_id_order(fm_cache_reader *r, const char *name)
+{
+    uint64_t n = fm_cache_agents(r);
+    uint32_t *id = malloc(sizeof *id * (n ? n : 1));
+    fm_error err = {0};
+    ENSURE_MSG(id && fm_cache_read_attr(r, fm_cache_frames(r) / 2, FM_ATTR_ID, id, &err) == FM_OK, "%s: %s", name, err.message);
+    uint64_t wrong = 0;
+    for (uint64_t a = 0; id && a < n; a++) wrong += id[a] != a;
+    ENSURE_MSG(wrong == 0, "%s: %llu agents have an id other than their index", name, (unsigned long long)wrong);
+    free(id);
+}
+
 /* Runs the example as a user does and returns its stats.json (NULL if the run failed), after the
- * checks every run must pass: a complete cache with the given attributes, as many frames and
- * agents as stats.json says. */
+ * checks every run must pass: a complete cache with exactly the given attributes in that order
+ * (the header stating its frame count), as many frames and agents as stats.json says, and ids
+ * 0 … n−1. */
 static json_t *run_cli(const char *name, const fm_cache_attr *attrs, int attr_count)
 {
     char out[FM_PATH_MAX], cmd[4 * FM_PATH_MAX], stats_path[FM_PATH_MAX + 16];
@@ -45,7 +59,11 @@ static json_t *run_cli(const char *name, const fm_cache_attr *attrs, int attr_co
     if (!r) return stats;
     ENSURE(fm_cache_agents(r) == (uint64_t)json_integer_value(json_object_get(stats, "agents")));
     ENSURE(fm_cache_frames(r) == (uint32_t)json_integer_value(json_object_get(stats, "frames")));
-    for (int i = 0; i < attr_count; i++) ENSURE_MSG(fm_cache_has_attr(r, attrs[i]), "%s: attribute %d missing", name, attrs[i]);
+    ENSURE(fm_cache_header_frames(r) == fm_cache_frames(r));
+    ENSURE_MSG(fm_cache_attr_count(r) == attr_count, "%s: %d attributes, expected %d", name, fm_cache_attr_count(r), attr_count);
+    for (int i = 0; i < attr_count && i < fm_cache_attr_count(r); i++)
+        ENSURE_MSG(fm_cache_attr_at(r, i)->attr == attrs[i], "%s: attribute %d is %s", name, i, fm_cache_attr_at(r, i)->name);
+    ids_are_the_id_order(r, name);
     fm_cache_close(r);
     return stats;
 }
@@ -53,8 +71,8 @@ static json_t *run_cli(const char *name, const fm_cache_attr *attrs, int attr_co
 /* Runs a tetra-morph example and checks the end state every such scene must reach. */
 static json_t *run_example(const char *name)
 {
-    const fm_cache_attr attrs[2] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
-    json_t *stats = run_cli(name, attrs, 2);
+    const fm_cache_attr attrs[3] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
+    json_t *stats = run_cli(name, attrs, 3);
     if (!stats) return NULL;
     ENSURE_MSG(json_is_true(json_object_get(stats, "all_arrived")), "%s: not every agent arrived", name);
     ENSURE(json_is_true(json_object_get(stats, "target_tets_filled_once")));
@@ -86,8 +104,8 @@ static void test_castling_example_passes_the_king(void)
 /* A shape-flock example: its cache holds the flock's attributes. */
 static json_t *run_flock_example(const char *name)
 {
-    const fm_cache_attr attrs[4] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_PHASE};
-    json_t *stats = run_cli(name, attrs, 4);
+    const fm_cache_attr attrs[5] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_ID, FM_ATTR_PHASE};
+    json_t *stats = run_cli(name, attrs, 5);
     if (stats) ENSURE(!strcmp(json_string_value(json_object_get(stats, "mode")), "shape_flock"));
     return stats;
 }

@@ -1,6 +1,6 @@
 /* `flockmorph export` on caches made here, whose agents move on known quadratic paths: a tet
  * cache (format 1), point caches with and without velocity and ids, and a tet cache with phases
- * (format 2). File names and counts for every --frames form, PLY/OBJ sequences re-imported with
+ * (format 3). File names and counts for every --frames form, PLY/OBJ sequences re-imported with
  * assimp, VTK checked with Python's xml module (tests/check_vtk.py), VDB read back with the
  * cache's or the finite-difference velocities, byte-identical files for any thread count, and
  * the usage and I/O errors. */

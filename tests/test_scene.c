@@ -263,6 +263,10 @@ static void test_out_of_range(void)
     expect_error_at("range_shrink.json", "{" MESHES ",\n  \"morph\": {\"shrink\": @-0.5}}", "morph.shrink");
     expect_error_at("range_level.json", "{" MESHES ",\n  \"output\": {\"compression_level\": @25}}",
                     "output.compression_level");
+    expect_error_at("range_level_fast.json", "{" MESHES ",\n  \"output\": {\"compression_level\": @-8}}",
+                    "output.compression_level: -8 is out of range: must be >= -7");
+    expect_error_at("range_level_zero.json", "{" MESHES ",\n  \"output\": {\"compression_level\": @0}}",
+                    "output.compression_level: 0 is not a level");
     expect_error_at("range_key.json", "{" MESHES ",\n  \"output\": {\"key_interval\": @0}}", "output.key_interval");
     expect_error_at("range_quantum.json", "{" MESHES ",\n  \"output\": {\"quantum\": @-1}}", "output.quantum");
     expect_error_at("range_fraction.json", "{" MESHES ",\n  \"morph\": {\"morph_fraction\": @1.5}}",

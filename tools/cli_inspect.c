@@ -13,10 +13,12 @@
 static const char *const USAGE_INSPECT =
     "usage: flockmorph inspect CACHE [--json]\n"
     "\n"
-    "Prints the cache's format version, agents, frames, frame rate and duration, attributes, the\n"
-    "options it was written with, file size, raw and compressed bytes, compression ratio, chunk sizes\n"
-    "per frame, the bounds of its positions and tet vertices over all frames, and whether it is\n"
-    "complete or was recovered from a run that did not finish (with a warning).\n"
+    "Prints the cache's format version, agents, frames (and, from format 3, the frame count its\n"
+    "header states), frame rate and duration, attributes, the options it was written with, file\n"
+    "size, raw and compressed bytes, compression ratio, chunk sizes per frame, the bounds of its\n"
+    "positions and tet vertices over all frames, and whether it is complete or was recovered from a\n"
+    "run that did not finish (with a warning). docs/cache-format.md#inspecting-a-cache lists the\n"
+    "JSON keys.\n"
     "\n"
     "  --json   one JSON object instead of text (`flockmorph info CACHE` is the same)\n";
 
@@ -92,9 +94,12 @@ static json_t *inspect_json(fm_cache_reader *r, const char *path, fm_error *err)
         json_object_set_new(bounds, fm_cache_attr_describe(geometric[i])->name, b);
     }
     const char *warning = fm_cache_warning(r);
-    return json_pack("{s:s, s:i, s:I, s:I, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:o, s:o, s:o, s:b, s:o}",
+    /* formats 1 and 2 have no frame count in the header */
+    json_t *header_frames = fm_cache_version(r) >= 3 ? json_integer(fm_cache_header_frames(r)) : json_null();
+    return json_pack("{s:s, s:i, s:I, s:I, s:o, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:o, s:o, s:o, s:b, s:o}",
                      "path", path, "format_version", (int)fm_cache_version(r),
-                     "agents", (json_int_t)fm_cache_agents(r), "frames", (json_int_t)frames, "frame_rate", rate,
+                     "agents", (json_int_t)fm_cache_agents(r), "frames", (json_int_t)frames,
+                     "header_frames", header_frames, "frame_rate", rate,
                      "duration_seconds", frames > 1 && rate > 0 ? (frames - 1) / rate : 0.0,
                      "attributes", attributes_json(r), "options", options_json(r),
                      "file_bytes", (json_int_t)fm_cache_file_bytes(r), "raw_bytes", (json_int_t)raw,
@@ -123,7 +128,12 @@ static void print_human(json_t *j)
     printf("status        %s\n", json_is_true(json_object_get(j, "complete")) ? "complete" : "recovered (no valid index; see the warning)");
     printf("format        %lld\n", (long long)num(j, "format_version"));
     printf("agents        %lld\n", (long long)num(j, "agents"));
-    printf("frames        %lld\n", (long long)num(j, "frames"));
+    printf("frames        %lld", (long long)num(j, "frames"));
+    json_t *header_frames = json_object_get(j, "header_frames");
+    if (json_is_integer(header_frames))
+        printf(" (the header states %lld%s)", (long long)json_integer_value(header_frames),
+               json_integer_value(header_frames) || json_is_true(json_object_get(j, "complete")) ? "" : ": the writer did not finish");
+    printf("\n");
     printf("frame rate    %g fps, duration %.4g s (first to last frame)\n", json_real_value(json_object_get(j, "frame_rate")),
            json_real_value(json_object_get(j, "duration_seconds")));
     printf("attributes    ");

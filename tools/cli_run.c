@@ -210,9 +210,9 @@ static int open_run(const run_options *o, const fm_scene_def *def, const fm_mode
         fm_cache_options copts = fm_default_cache_options();
         copts.compression_level = def->compression_level;
         copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
-        const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+        const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
         *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)fm_model_get_info(model).agents, def->frame_rate,
-                                              attrs, 2, &copts, &err);
+                                              attrs, 3, &copts, &err);
         return *cache ? 0 : cli_report(&err);
     }
     if (fm_checkpoint_load(files->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);

@@ -346,7 +346,7 @@ double fm_cache_frame_rate(const fm_cache_reader *r);
 fm_status fm_cache_read_frame(fm_cache_reader *r, uint32_t frame, float *out, fm_error *err);
 void fm_cache_close(fm_cache_reader *r);
 
-/* ---------------------------------------------------------------- cache attributes (format 2)
+/* ---------------------------------------------------------------- cache attributes (formats 2 and 3)
  *
  * A cache holds, per frame, one array per attribute, agents in id order. The tetra morph writes
  * tet vertices and phase; point flocks (the shape-constrained flock) write position, velocity and
@@ -393,7 +393,7 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
                                               const fm_cache_options *opts, fm_error *err);
 /* data[i] points at agents × attribute i's values, in the order given to create_attrs. */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err);
-/* Reopens PATH.partial left by an interrupted run (format 2), checks its first `frames` chunks
+/* Reopens PATH.partial left by an interrupted run (format 3), checks its first `frames` chunks
  * (headers and crc32), drops anything after them, and continues writing with the attributes and
  * options of its header (checkpoint / resume). Given the same further frames the finished file is
  * byte-identical to an uninterrupted one. Fails, leaving the file alone, if fewer frames are
@@ -421,7 +421,11 @@ uint64_t fm_cache_file_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_raw_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_compressed_bytes(const fm_cache_reader *r);
 uint64_t fm_cache_frame_bytes(const fm_cache_reader *r, uint32_t frame); /* one chunk; 0 past the end */
-uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1 or 2 */
+uint32_t fm_cache_version(const fm_cache_reader *r);                     /* 1, 2 or 3 */
+/* The frame count the header states (format 3): 0 while the writer runs and in a partial file,
+ * else equal to fm_cache_frames (fm_cache_open refuses a file where it differs from the index).
+ * Formats 1 and 2 have none: 0. */
+uint32_t fm_cache_header_frames(const fm_cache_reader *r);
 /* The options the cache was written with (format 1: its level, no delta, no quantum). */
 fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 

@@ -224,6 +224,9 @@ class BlenderCase(unittest.TestCase):
         scene.frame_set(1 + k)
         phase = attribute(evaluated(obj), "phase", "value", 1, np.int32)
         np.testing.assert_array_equal(phase[:, 0], np.repeat(c.read(k, "phase")[:, 0], 4))
+        ids = attribute(evaluated(obj), "id", "value", 1, np.int32)  # a tet's id on its four vertices
+        np.testing.assert_array_equal(ids[:, 0], np.repeat(c.read(k, "id")[:, 0], 4))
+        self.assertEqual(ids[-1, 0], c.agents - 1)
 
     def test_frame_range_step_start_and_scale(self):
         c = self.tets

@@ -12,7 +12,7 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-/* Frames larger than this are not read (the caller must hold agents × 12 floats). */
+/* Frames larger than this are not read (the caller must hold agents × bytes per agent). */
 enum { MAX_FRAME_BYTES = 16 << 20 };
 
 static int write_all(int fd, const uint8_t *data, size_t size)
@@ -25,16 +25,18 @@ static int write_all(int fd, const uint8_t *data, size_t size)
     return 0;
 }
 
+/* Every attribute of every frame the cache lists (formats 2 and 3 have several). */
 static void read_every_frame(fm_cache_reader *r)
 {
     uint64_t agents = fm_cache_agents(r);
     if (agents > MAX_FRAME_BYTES / 48) return;
-    float *frame = malloc(agents ? agents * 48 : 1);
+    void *frame = malloc(agents ? agents * 48 : 1); /* 48 bytes per agent: the largest attribute */
     FUZZ_ASSERT(frame != NULL);
-    for (uint32_t f = 0; f < fm_cache_frames(r); f++) {
-        fm_error err = {0};
-        fuzz_expect_clean(fm_cache_read_frame(r, f, frame, &err), &err);
-    }
+    for (uint32_t f = 0; f < fm_cache_frames(r); f++)
+        for (int i = 0; i < fm_cache_attr_count(r); i++) {
+            fm_error err = {0};
+            fuzz_expect_clean(fm_cache_read_attr(r, f, fm_cache_attr_at(r, i)->attr, frame, &err), &err);
+        }
     free(frame);
 }
 
@@ -53,6 +55,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         /* what open promises: a usable frame rate, an index no larger than the file */
         FUZZ_ASSERT(isfinite(fm_cache_frame_rate(r)) && fm_cache_frame_rate(r) > 0);
         FUZZ_ASSERT((uint64_t)fm_cache_frames(r) * 8 <= size && fm_cache_warning(r) != NULL);
+        /* format 3: a complete cache's header states its frame count (0 only if it is empty) */
+        FUZZ_ASSERT(fm_cache_version(r) < 3 || fm_cache_warning(r)[0] || fm_cache_header_frames(r) == fm_cache_frames(r));
         read_every_frame(r);
         fm_cache_close(r);
     }

@@ -15,9 +15,11 @@ import os
 import random
 import shutil
 import subprocess
+import struct
 import sys
 import unittest
 import warnings
+import zlib
 
 import numpy as np
 
@@ -87,7 +89,8 @@ class CacheCase(unittest.TestCase):
     def setUpClass(cls):
         if CacheCase.lossless is None:
             CacheCase.lossless = run_scene("lossless", {"delta": False})
-            CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001})
+            CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001,
+                                                      "compression_level": -3})
 
     def assert_matches_c(self, path):
         """Metadata as inspect reports it, and every frame bitwise equal to the C reader's, read in
@@ -97,6 +100,7 @@ class CacheCase(unittest.TestCase):
             self.assertEqual(cache.version, info["format_version"])
             self.assertEqual(cache.agents, info["agents"])
             self.assertEqual(cache.frames, info["frames"])
+            self.assertEqual(cache.header_frames, info["header_frames"] or 0)
             self.assertEqual(cache.frame_rate, info["frame_rate"])
             self.assertEqual(cache.attributes, [a["name"] for a in info["attributes"]])
             self.assertEqual(cache.options, info["options"])
@@ -126,15 +130,18 @@ class CacheCase(unittest.TestCase):
 
     def test_lossless_run(self):
         cache = self.assert_matches_c(self.lossless)
-        self.assertEqual(cache.attributes, ["tet_vertices", "phase"])
+        self.assertEqual(cache.attributes, ["tet_vertices", "id", "phase"])
+        self.assertEqual((cache.version, cache.header_frames), (3, cache.frames))
         with fmc.open(self.lossless) as c:
             self.assertTrue((c.read(0, "phase") == 0).all() and (c.read(-1, "phase") == 3).all())
+            self.assertEqual(c.read(c.frames // 2, "id").dtype, np.uint32)
+            self.assertEqual(c.read(c.frames // 2, "id").reshape(-1).tolist(), list(range(AGENTS)))
             self.assertGreater(c.bounds()[1][0] - c.bounds()[0][0], 20)
 
     def test_delta_and_quantum_run(self):
         self.assert_matches_c(self.compact)
         with fmc.open(self.lossless) as a, fmc.open(self.compact) as b:
-            self.assertEqual(b.options, {"compression_level": 1, "delta": True, "key_interval": 5, "quantum": 0.001})
+            self.assertEqual(b.options, {"compression_level": -3, "delta": True, "key_interval": 5, "quantum": 0.001})
             worst = max(np.abs(a.read(k, "tet_vertices") - b.read(k, "tet_vertices")).max() for k in range(a.frames))
             self.assertLessEqual(worst, 0.0005 + 1e-6)
             self.assertGreater(worst, 0.0002)  # the values really were rounded
@@ -156,12 +163,36 @@ class CacheCase(unittest.TestCase):
             cache.close()
             self.assert_matches_c(cut)
 
+    def test_header_frame_count(self):
+        """A header count other than the index's is refused; 0 (the writer did not finish) recovers."""
+        with open(self.compact, "rb") as f:
+            data = bytearray(f.read())
+        frames = struct.unpack_from("<I", data, 64)[0]
+        self.assertGreater(frames, 5)
+        bad = tmp("count.fmc")
+        for count in (frames + 1, frames - 1, 0):
+            struct.pack_into("<I", data, 64, count)
+            struct.pack_into("<I", data, 52, 0)  # the crc field is 0 while the crc is computed
+            struct.pack_into("<I", data, 52, zlib.crc32(data[:struct.unpack_from("<I", data, 12)[0]]))
+            with open(bad, "wb") as f:
+                f.write(data)
+            if count:
+                with self.assertRaisesRegex(ValueError, f"the header says {count} frames but the index lists {frames}"):
+                    fmc.open(bad)
+                continue
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                with fmc.open(bad) as cache:
+                    self.assertEqual((cache.frames, cache.header_frames, cache.complete), (frames, 0, False))
+            self.assertIn("frame count 0 in the header", str(caught[0].message))
+            self.assert_matches_c(bad)
+
     def test_flipped_byte_fails_its_checksum(self):
         with open(self.lossless, "rb") as f:
             data = bytearray(f.read())
         with fmc.open(self.lossless) as c:
-            start = c._offsets[1]
-        data[start + 40] ^= 0x04
+            start = c._offsets[1] + 24 + 8 * len(c.attributes)  # the first block's data
+        data[start + 16] ^= 0x04
         bad = tmp("flipped.fmc")
         with open(bad, "wb") as f:
             f.write(data)
@@ -207,6 +238,25 @@ class FormatOne(unittest.TestCase):
                 c.read(1, "tet_vertices")
 
 
+class FormatTwo(unittest.TestCase):
+    """tests/data/cache_v2.fmc: 5 agents, 4 frames at 24 fps, tet_vertices (float i of frame f =
+    0.001 i + f) and phase ((a + f) mod 4), delta with key interval 2, level 3."""
+
+    def test_reads_the_fixture(self):
+        path = os.path.join(ARGS.source, "tests", "data", "cache_v2.fmc")
+        with fmc.open(path) as c:
+            self.assertEqual((c.version, c.agents, c.frames, c.header_frames, c.complete), (2, 5, 4, 0, True))
+            self.assertEqual(c.options, {"compression_level": 3, "delta": True, "key_interval": 2, "quantum": 0.0})
+            for k in (3, 0, 2, 1, 3):
+                want = (0.001 * np.arange(60) + k).astype(np.float32).reshape(5, 4, 3)
+                self.assertTrue(np.array_equal(c.read(k, "tet_vertices"), want))
+                self.assertEqual(c.read(k, "phase").reshape(-1).tolist(), [(a + k) % 4 for a in range(5)])
+        copy = tmp("v2.fmc")  # the C reader's dump goes next to the file, not into the source tree
+        shutil.copyfile(path, copy)
+        self.assertIsNone(inspect(copy)["header_frames"])
+        CacheCase.assert_matches_c(self, copy)
+
+
 class NotACache(unittest.TestCase):
     def expect_error(self, content, message):
         path = tmp("bad.fmc")
@@ -221,7 +271,7 @@ class NotACache(unittest.TestCase):
         self.expect_error(b"", "shorter than the cache header")
         self.expect_error(b"FMCACHE1" + bytes([9, 0, 0, 0]) + bytes(52), "cache version 9 is not supported")
         with open(CacheCase.lossless or run_scene("lossless", {"delta": False}), "rb") as f:
-            header = bytearray(f.read(96))
+            header = bytearray(f.read(72 + 3 * 16))
         header[20] ^= 1
         self.expect_error(bytes(header), "header checksum mismatch")
         with self.assertRaisesRegex(ValueError, "no such file"):
