@@ -40,7 +40,7 @@ typedef struct mde_agent {
     float x, y, z;
     int32_t a;
     int32_t m;         /* hits buffered */
-    int32_t zeros;     /* hits at distance 0, the agent itself included */
+    int32_t zeros;     /* hits at distance 0 (the agent itself is never a hit) */
     int64_t pairs;     /* hits at distance > 0 */
     float acc[3][4];   /* v_la so far, per lane (the scalar path; SSE2 keeps them in registers) */
     int32_t hit[MDE_HITS + 4];
@@ -89,6 +89,7 @@ static int runs_overlap(const uint32_t s[9], uint32_t mask)
 
 #if MDE_SSE2
 typedef struct mde_vec {
+    __m128i self; /* the agent's index: its own entry is not a neighbour */
     __m128 x, y, z, d2min, dmin, push, one;
     __m128 vx, vy, vz; /* lane sums */
 } mde_vec;
@@ -125,14 +126,16 @@ static inline void flush_hits(mde_agent *s, mde_vec *v, const fm_grid_quad *q)
 }
 
 /* Tests the 4 entries of quad gq, those in [kb, ke) (lanes of kv = 4 gq + lane between kb1 = kb - 1
- * and ke, exclusive); appends the hits (d2 < d2min, the agent itself included) at hit + m; returns
+ * and ke, exclusive); appends the hits (d2 < d2min, not the agent itself) at hit + m; returns
  * the new m. */
 static inline int32_t test_quad(int32_t *hit, int32_t m, const mde_vec *v, const fm_grid_quad *q, int32_t gq,
                                 __m128i kb1, __m128i ke)
 {
     const fm_grid_quad *p = q + gq;
     __m128i kv = _mm_add_epi32(_mm_set1_epi32(4 * gq), _mm_setr_epi32(0, 1, 2, 3));
-    __m128 valid = _mm_castsi128_ps(_mm_and_si128(_mm_cmpgt_epi32(kv, kb1), _mm_cmplt_epi32(kv, ke)));
+    __m128i in_range = _mm_and_si128(_mm_cmpgt_epi32(kv, kb1), _mm_cmplt_epi32(kv, ke));
+    __m128i self = _mm_cmpeq_epi32(_mm_load_si128((const __m128i *)p->i), v->self);
+    __m128 valid = _mm_castsi128_ps(_mm_andnot_si128(self, in_range));
     __m128 dx = _mm_sub_ps(v->x, _mm_load_ps(p->x));
     __m128 dy = _mm_sub_ps(v->y, _mm_load_ps(p->y));
     __m128 dz = _mm_sub_ps(v->z, _mm_load_ps(p->z));
@@ -192,7 +195,7 @@ static void scan_range(mde_agent *s, mde_vec *v, const fm_grid_quad *q, int32_t 
     int32_t gq = kb >> 2;
     do {
         for (int32_t k = 4 * gq; k < 4 * gq + 8; k++) {
-            if (k < kb || k >= ke) continue;
+            if (k < kb || k >= ke || q[k >> 2].i[k & 3] == s->a) continue;
             float dx = s->x - MDE_X(q, k), dy = s->y - MDE_Y(q, k), dz = s->z - MDE_Z(q, k);
             float d2 = dx * dx + dy * dy + dz * dz;
             if (d2 < v->d2min) s->hit[s->m++] = k;
@@ -415,22 +418,23 @@ int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *
         s.m = 0, s.zeros = 0, s.pairs = 0;
 #if MDE_SSE2
         v.x = _mm_set1_ps(s.x), v.y = _mm_set1_ps(s.y), v.z = _mm_set1_ps(s.z);
+        v.self = _mm_set1_epi32(s.a);
         v.vx = v.vy = v.vz = _mm_setzero_ps();
 #else
         for (int k = 0; k < 3; k++)
             for (int l = 0; l < 4; l++) s.acc[k][l] = 0;
 #endif
         for (int r = 0; r < pl->nr; r++) scan_range(&s, &v, quad, pl->rk[2 * r], pl->rk[2 * r + 1]);
-        flush_hits(&s, &v, quad);
+        if (s.m > 0) flush_hits(&s, &v, quad); /* most agents have no neighbour within d_min */
 #if MDE_SSE2
         float out[3] = {lane_sum(v.vx), lane_sum(v.vy), lane_sum(v.vz)};
 #else
         float out[3];
         for (int k = 0; k < 3; k++) out[k] = (s.acc[k][0] + s.acc[k][1]) + (s.acc[k][2] + s.acc[k][3]);
 #endif
-        if (s.zeros > 1) { /* coincident agents besides itself */
+        if (s.zeros > 0) { /* coincident agents */
             coincident(&s, g, push, pl->rk, pl->nr, out);
-            s.pairs += s.zeros - 1;
+            s.pairs += s.zeros;
         }
         vx[a] = out[0], vy[a] = out[1], vz[a] = out[2];
         needed[a] = s.pairs > 0;
