@@ -358,6 +358,42 @@ static void test_mesh_degenerate(void)
     expect_bad_mesh("tilted.obj", "the mesh encloses no volume");
 }
 
+/* The octahedron with its first triangle wound the other way: closed and manifold, but that
+ * triangle faces inward, so each of its edges runs the same way in it and in its neighbour. */
+static void test_mesh_flipped_triangle(void)
+{
+    char path[FM_PATH_MAX], text[1024];
+    write_octahedron(tmp_path(path, "flipped.obj"));
+    slurp(path, text, sizeof text);
+    char *face = strstr(text, "\nf ") + 1;
+    int a, b, c, len;
+    ENSURE(sscanf(face, "f %d %d %d%n", &a, &b, &c, &len) == 3);
+    char flipped[64];
+    snprintf(flipped, sizeof flipped, "f %d %d %d", a, c, b); /* same length: indices below 10 */
+    memcpy(face, flipped, (size_t)len);
+    write_mesh("flipped.obj", text);
+    expect_bad_mesh("flipped.obj", "of triangle 1 runs the same way in both of its triangles: their orientations disagree");
+}
+
+/* A ninth triangle whose first two corners are the same point given twice (vertex 7 repeats vertex
+ * 1; the import welds equal positions). */
+static void test_mesh_repeated_corner(void)
+{
+    char path[FM_PATH_MAX], text[1024];
+    write_octahedron(tmp_path(path, "repeated_corner.obj"));
+    slurp(path, text, sizeof text);
+    strncat(text, "v 1 0 0\nf 1 7 3\n", sizeof text - strlen(text) - 1);
+    write_mesh("repeated_corner.obj", text);
+    expect_bad_mesh("repeated_corner.obj", "triangle 9 is degenerate (two corners at the same position)");
+}
+
+/* An OBJ of lines only: assimp reads it, but there is no surface. */
+static void test_mesh_lines_only(void)
+{
+    write_mesh("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nl 1 2\nl 2 3\nl 3 4\nl 4 1\n");
+    expect_bad_mesh("lines.obj", "the mesh has no triangles");
+}
+
 /* ---------------------------------------------------------------- n */
 
 static void test_n_too_small(void)
@@ -675,6 +711,9 @@ int main(void)
     RUN_TEST(test_mesh_non_manifold);
     RUN_TEST(test_mesh_self_intersecting);
     RUN_TEST(test_mesh_degenerate);
+    RUN_TEST(test_mesh_flipped_triangle);
+    RUN_TEST(test_mesh_repeated_corner);
+    RUN_TEST(test_mesh_lines_only);
     RUN_TEST(test_n_too_small);
     RUN_TEST(test_memory_estimate_matches_allocations);
     RUN_TEST(test_n_too_large_for_memory);
