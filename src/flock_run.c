@@ -65,18 +65,18 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
     return st;
 }
 
-fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
-                       void *user, fm_flock_run_stats *stats, fm_error *err)
+fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,
+                                  const fm_flock_run_control *c, fm_flock_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
     const size_t n = (size_t)s->n;
     flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
-                   fm_alloc(n), cache, progress, user, stats, 0};
+                   fm_alloc(n), cache, c->progress, c->progress_user, stats, 0};
     fm_status st = r.position && r.velocity && r.orientation && r.phase
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
-        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit};
+        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit, c->stop};
         fm_loop_times times;
         st = fm_frame_loop_run(&loop, &times, err);
         stats->frames = times.frames;
@@ -91,4 +91,11 @@ fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writ
     stats->tracking_lag = stats->tracking_frames > 0 ? r.lag_sum / (double)stats->tracking_frames : NAN;
     fm_free(r.position), fm_free(r.velocity), fm_free(r.orientation), fm_free(r.phase);
     return st;
+}
+
+fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
+                       void *user, fm_flock_run_stats *stats, fm_error *err)
+{
+    const fm_flock_run_control c = {progress, user, NULL};
+    return fm_flock_run_controlled(m, s, cache, &c, stats, err);
 }

@@ -24,6 +24,7 @@ size_t __sanitizer_get_current_allocated_bytes(void); /* libasan's (gcc installs
 #define LEFT "\"translate\": [-10, 0, 0]"
 #define RIGHT "\"translate\": [10, 0, 0]"
 #define OCTAHEDRON "bad_octahedron.obj"
+#define FLOCK ",\n  \"mode\": \"shape_flock\"" /* the member that makes a scene a shape flock */
 
 static char *tmp_path(char *buf, const char *name)
 {
@@ -564,8 +565,9 @@ static void test_output_directory(void)
 
 /* ---------------------------------------------------------------- resource limits */
 
-/* Reads every frame of a cache into one array (frames × agents × 12 floats). */
-static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, char *warning, size_t size)
+/* Reads attribute `attr` (`floats` per agent) of every frame of a cache into one array. */
+static float *read_attr_frames(const char *path, fm_cache_attr attr, int floats, uint32_t *frames, uint64_t *agents,
+                               char *warning, size_t size)
 {
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(path, &err);
@@ -573,31 +575,38 @@ static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, 
     if (!r) return NULL;
     *frames = fm_cache_frames(r), *agents = fm_cache_agents(r);
     snprintf(warning, size, "%s", fm_cache_warning(r));
-    size_t per_frame = 12 * (size_t)*agents;
+    size_t per_frame = (size_t)floats * (size_t)*agents;
     float *all = malloc(sizeof(float) * per_frame * (*frames ? *frames : 1));
     for (uint32_t f = 0; all && f < *frames; f++)
-        ENSURE_MSG(fm_cache_read_frame(r, f, all + per_frame * f, &err) == FM_OK, "%s", err.message);
+        ENSURE_MSG(fm_cache_read_attr(r, f, attr, all + per_frame * f, &err) == FM_OK, "%s", err.message);
     fm_cache_close(r);
     return all;
 }
 
-/* The file-size limit stops the cache midway: exit 3 naming the file and the reason, nothing under
- * the final name, no stats.json (not even the last run's), and the partial cache holds complete
- * frames equal to the unlimited run's. */
-static void test_file_size_limit(void)
+/* Every frame's tet vertices (frames × agents × 12 floats). */
+static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, char *warning, size_t size)
+{
+    return read_attr_frames(path, FM_ATTR_TET_VERTICES, 12, frames, agents, warning, size);
+}
+
+/* The file-size limit stops the cache of `scene_path` midway: exit 3 naming the file and the
+ * reason, nothing under the final name, no stats.json (not even the last run's), and the partial
+ * cache holds complete frames whose `attr` (`floats` per agent) equals the unlimited run's. */
+static void expect_file_size_limit(const char *scene_path, const char *outdir, fm_cache_attr attr, int floats)
 {
     char cache[FM_PATH_MAX + 16], partial[FM_PATH_MAX + 32], stats[FM_PATH_MAX + 16], warning[FM_PATH_MAX + 200];
-    const char *path = plain_scene("limit.json", ",\n  \"n\": 300");
-    ENSURE(run_scene(NULL, path, "limit_full") == 0);
+    char cut_dir[64];
+    snprintf(cut_dir, sizeof cut_dir, "%.50s_cut", outdir);
+    ENSURE(run_scene(NULL, scene_path, outdir) == 0);
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     struct stat st;
     ENSURE(stat(cache, &st) == 0);
     uint32_t frames = 0, got = 0;
     uint64_t agents = 0, got_agents = 0;
-    float *full = read_frames(cache, &frames, &agents, warning, sizeof warning);
+    float *full = read_attr_frames(cache, attr, floats, &frames, &agents, warning, sizeof warning);
     ENSURE(full != NULL && frames > 4);
 
-    tmp_path(g_outdir, "limit_cut");
+    tmp_path(g_outdir, cut_dir);
     mkdir(g_outdir, 0755);
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     snprintf(partial, sizeof partial, "%s.partial", cache);
@@ -605,21 +614,32 @@ static void test_file_size_limit(void)
     write_text(cache, "an older run's cache"), write_text(stats, "{\"all_arrived\": true}");
     remove(partial);
     char args[3 * FM_PATH_MAX];
-    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, g_outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
     cli_env limited = {(long long)st.st_size / 2, 0};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
                   "complete frames written before the error are in", "no stats.json", NULL});
     ENSURE_MSG(!exists(cache) && !exists(stats), "a final cache or stats.json is left in %s", g_outdir);
-    float *cut = read_frames(partial, &got, &got_agents, warning, sizeof warning);
+    float *cut = read_attr_frames(partial, attr, floats, &got, &got_agents, warning, sizeof warning);
     ENSURE_MSG(got >= 1 && got < frames && got_agents == agents, "%u of %u frames recovered", got, frames);
     ENSURE_MSG(strstr(warning, "incomplete cache") != NULL, "warning '%s'", warning);
-    if (full && cut) ENSURE(memcmp(full, cut, sizeof(float) * 12 * (size_t)agents * got) == 0);
+    if (full && cut) ENSURE(memcmp(full, cut, sizeof(float) * (size_t)floats * (size_t)agents * got) == 0);
     char said[64];
     snprintf(said, sizeof said, "the %u complete frames", got);
     ENSURE_MSG(strstr(g_err, said) != NULL, "'%s' not in %s", said, g_err);
     free(full), free(cut);
     remove(partial);
+}
+
+static void test_file_size_limit(void)
+{
+    expect_file_size_limit(plain_scene("limit.json", ",\n  \"n\": 300"), "limit", FM_ATTR_TET_VERTICES, 12);
+}
+
+/* The shape flock's cache under the same limit: its positions up to the last complete frame. */
+static void test_flock_file_size_limit(void)
+{
+    expect_file_size_limit(plain_scene("flock_limit.json", FLOCK ",\n  \"n\": 300"), "flock_limit", FM_ATTR_POSITION, 3);
 }
 
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
@@ -723,6 +743,7 @@ int main(void)
     RUN_TEST(test_source_target_overlap_warns);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
+    RUN_TEST(test_flock_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_disk_full);
     return test_result();

@@ -104,8 +104,8 @@ static void write_octahedron(const char *path, double r)
     fclose(f);
 }
 
-/* The test scene in dir (with its mesh), `seed` varying the parameters. */
-static void write_scene(const char *dir, int seed)
+/* Creates dir with the mesh oct.obj and opens dir/scene.json for writing (NULL on failure). */
+static FILE *create_scene(const char *dir)
 {
     char path[FM_PATH_MAX];
     mkdir(dir, 0777);
@@ -113,7 +113,14 @@ static void write_scene(const char *dir, int seed)
     write_octahedron(path, 1.0);
     snprintf(path, sizeof path, "%s/scene.json", dir);
     FILE *f = fopen(path, "w");
-    ENSURE(f != NULL);
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    return f;
+}
+
+/* The test scene in dir (with its mesh), `seed` varying the parameters. */
+static void write_scene(const char *dir, int seed)
+{
+    FILE *f = create_scene(dir);
     if (!f) return;
     fprintf(f, "{\n"
                "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
@@ -377,7 +384,7 @@ static void clear_outputs(const char *out)
 }
 
 /* Starts `flockmorph run SCENE -o OUT ARGS...` with stdout and stderr to OUT.log; returns its pid. */
-static pid_t start_run(const char *out, const char *extra)
+static pid_t start_scene(const char *scene, const char *out, const char *extra)
 {
     char log[FM_PATH_MAX];
     snprintf(log, sizeof log, "%s.log", out);
@@ -385,7 +392,7 @@ static pid_t start_run(const char *out, const char *extra)
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 1, log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    char *argv[16] = {(char *)FM_CLI, "run", SCENE, "-o", (char *)out, "--threads", "1", "--quiet"};
+    char *argv[16] = {(char *)FM_CLI, "run", (char *)scene, "-o", (char *)out, "--threads", "1", "--quiet"};
     char words[256];
     snprintf(words, sizeof words, "%s", extra);
     int argc = 8;
@@ -396,6 +403,8 @@ static pid_t start_run(const char *out, const char *extra)
     posix_spawn_file_actions_destroy(&fa);
     return pid;
 }
+
+static pid_t start_run(const char *out, const char *extra) { return start_scene(SCENE, out, extra); }
 
 /* The child's exit status, 128 + signal if a signal ended it. */
 static int wait_status(pid_t pid)
@@ -550,6 +559,105 @@ static void test_cli_refuses_other_scene_and_damage(void)
     ensure_refused(DIR_, OUT, "nothing to resume");
 }
 
+/* ---------------------------------------------------------------- the shape flock: interrupted, not resumed */
+
+#define FLOCK_DIR DIR_ "/flock"
+#define FLOCK_SCENE FLOCK_DIR "/scene.json"
+#define FLOCK_OUT FLOCK_DIR "/out"
+
+/* The scene and its uninterrupted run, kept as FLOCK_DIR/ref.fmc and ref.json. */
+static void flock_reference_run(void)
+{
+    FILE *f = create_scene(FLOCK_DIR);
+    if (!f) return;
+    fprintf(f, "{\n"
+               "  \"mode\": \"shape_flock\",\n"
+               "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
+               "  \"target\": {\"mesh\": \"oct.obj\", \"translate\": [10, 0, 0]},\n"
+               "  \"n\": 2000, \"seed\": 3\n"
+               "}\n");
+    fclose(f);
+    clear_outputs(FLOCK_OUT);
+    ENSURE_MSG(wait_status(start_scene(FLOCK_SCENE, FLOCK_OUT, "")) == 0, "see %s.log", FLOCK_OUT);
+    ENSURE(rename(FLOCK_OUT "/frames.fmc", FLOCK_DIR "/ref.fmc") == 0 && rename(FLOCK_OUT "/stats.json", FLOCK_DIR "/ref.json") == 0);
+}
+
+/* Frame `frame` of every attribute of an open cache, one after the other, into buf (malloc'ed). */
+static size_t read_all_attrs(fm_cache_reader *r, uint32_t frame, unsigned char **buf)
+{
+    size_t bytes = 0, at = 0;
+    for (int i = 0; i < fm_cache_attr_count(r); i++) bytes += fm_cache_attr_at(r, i)->bytes_per_agent * fm_cache_agents(r);
+    *buf = malloc(bytes);
+    fm_error err = {0};
+    for (int i = 0; *buf && i < fm_cache_attr_count(r); i++) {
+        const fm_cache_attr_info *a = fm_cache_attr_at(r, i);
+        ENSURE_MSG(fm_cache_read_attr(r, frame, a->attr, *buf + at, &err) == FM_OK, "%s", err.message);
+        at += a->bytes_per_agent * fm_cache_agents(r);
+    }
+    return bytes;
+}
+
+/* The first fm_cache_frames(partial) frames of `partial` hold the bytes of `whole`'s, attribute by
+ * attribute; returns that frame count (0 if unreadable). */
+static uint32_t ensure_prefix_of(const char *partial, const char *whole)
+{
+    fm_error err = {0};
+    fm_cache_reader *p = fm_cache_open(partial, &err), *w = p ? fm_cache_open(whole, &err) : NULL;
+    ENSURE_MSG(p && w, "%s", err.message);
+    uint32_t frames = p && w ? fm_cache_frames(p) : 0;
+    ENSURE_MSG(!w || frames < fm_cache_frames(w), "%u of %u frames", frames, w ? fm_cache_frames(w) : 0);
+    for (uint32_t f = 0; f < frames; f++) {
+        unsigned char *a, *b;
+        size_t na = read_all_attrs(p, f, &a), nb = read_all_attrs(w, f, &b);
+        ENSURE_MSG(a && b && na == nb && memcmp(a, b, na) == 0, "frame %u differs from the uninterrupted run's", f);
+        free(a), free(b);
+    }
+    fm_cache_close(p), fm_cache_close(w);
+    return frames;
+}
+
+/* SIGTERM or SIGINT mid-run: the run stops at the end of a frame and exits 128 + the signal; the
+ * frames so far are readable in frames.fmc.partial (the uninterrupted run's, bit for bit); neither
+ * frames.fmc nor stats.json is left, not even the previous run's. */
+static void flock_interrupt(int sig, int status, double fraction)
+{
+    clear_outputs(FLOCK_OUT);
+    copy_file(FLOCK_DIR "/ref.fmc", FLOCK_OUT "/frames.fmc");
+    copy_file(FLOCK_DIR "/ref.json", FLOCK_OUT "/stats.json");
+    pid_t pid = start_scene(FLOCK_SCENE, FLOCK_OUT, "");
+    ENSURE_MSG(wait_for_size(pid, FLOCK_OUT "/frames.fmc.partial", (long long)(fraction * (double)file_size(FLOCK_DIR "/ref.fmc"))),
+               "the flock run ended before it could be interrupted");
+    kill(pid, sig);
+    int rc = wait_status(pid);
+    size_t len;
+    char *log = slurp(FLOCK_OUT ".log", &len);
+    ENSURE_MSG(rc == status, "exit %d, expected %d: %s", rc, status, log ? log : "");
+    ENSURE_MSG(!exists(FLOCK_OUT "/frames.fmc") && !exists(FLOCK_OUT "/stats.json"), "a cache or stats.json is left");
+    uint32_t frames = ensure_prefix_of(FLOCK_OUT "/frames.fmc.partial", FLOCK_DIR "/ref.fmc");
+    char said[256];
+    snprintf(said, sizeof said, "interrupted after frame %u\nflockmorph: the %u complete frames written before the "
+             "interruption are in " FLOCK_OUT "/frames.fmc.partial", frames - 1, frames);
+    ENSURE_MSG(frames >= 2 && log && strstr(log, said) && strstr(log, "no stats.json"), "'%s' not in: %s", said, log ? log : "");
+    free(log);
+}
+
+static void test_flock_sigterm_keeps_partial_cache(void) { flock_interrupt(SIGTERM, 143, 0.3); }
+static void test_flock_sigint_keeps_partial_cache(void) { flock_interrupt(SIGINT, 130, 0.6); }
+
+/* The shape flock has no checkpoints: --resume and --checkpoint-every are refused (exit 1). */
+static void test_flock_refuses_checkpoint_options(void)
+{
+    static const char *const options[] = {"--resume", "--checkpoint-every 5"};
+    for (int i = 0; i < 2; i++) {
+        int rc = wait_status(start_scene(FLOCK_SCENE, FLOCK_OUT, options[i]));
+        size_t len;
+        char *log = slurp(FLOCK_OUT ".log", &len);
+        ENSURE_MSG(rc == 1 && log && strstr(log, "--resume and --checkpoint-every apply to the tetra morph only"),
+                   "%s: exit %d: %s", options[i], rc, log ? log : "");
+        free(log);
+    }
+}
+
 int main(void)
 {
     write_scene(DIR_, 7);
@@ -568,5 +676,9 @@ int main(void)
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);
+    flock_reference_run();
+    RUN_TEST(test_flock_sigterm_keeps_partial_cache);
+    RUN_TEST(test_flock_sigint_keeps_partial_cache);
+    RUN_TEST(test_flock_refuses_checkpoint_options);
     return test_result();
 }

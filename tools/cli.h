@@ -6,6 +6,7 @@
 #include "fm_internal.h"
 
 #include <jansson.h>
+#include <signal.h>
 #include <stdint.h>
 
 /* Commands: argc/argv start after the command's name. Each returns the process exit status. */
@@ -63,6 +64,21 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
 double cli_agent_steps_per_second(const cli_run_record *r);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
+/* A new run first removes the previous run's cache and stats.json, so that should this one fail,
+ * the old results cannot pass for its own. */
+void cli_remove_previous_results(const char *cache, const char *stats);
+/* After a failed or stopped run whose cache was left as CACHE.partial: says how many complete frames
+ * it holds (written `before`: "before the error", ...), or removes it when it holds none; and that no
+ * stats.json was written. */
+void cli_report_partial_cache(const char *cache, const char *before);
+/* A run that failed while writing (disk full, file-size limit): prints err, keeps the cache's frames
+ * so far as CACHE.partial (cache may already be gone: NULL) and reports them; returns the exit status. */
+int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, const char *cache_path);
+/* SIGINT / SIGTERM while catching (cli_catch_stop_signals(1)): the first sets cli_stop_signal to
+ * the signal's number, which both modes' runs read at every frame boundary (the exit status is then
+ * 128 + it); a second one ends the process at once. cli_catch_stop_signals(0) restores the default. */
+extern volatile sig_atomic_t cli_stop_signal;
+void cli_catch_stop_signals(int catch);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

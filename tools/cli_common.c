@@ -6,6 +6,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -256,4 +257,57 @@ void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outp
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
     snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
     out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+}
+
+void cli_remove_previous_results(const char *cache, const char *stats)
+{
+    remove(cache), remove(stats);
+}
+
+void cli_report_partial_cache(const char *cache, const char *before)
+{
+    char partial[FM_PATH_MAX + 320];
+    snprintf(partial, sizeof partial, "%s.partial", cache);
+    fm_error ignored = {0};
+    fm_cache_reader *r = fm_cache_open(partial, &ignored);
+    if (r && fm_cache_frames(r) > 0)
+        fprintf(stderr, "flockmorph: the %u complete frames written %s are in %s (flockmorph inspect, export and "
+                "render read it); delete it to free the space\n", fm_cache_frames(r), before, partial);
+    else
+        remove(partial);
+    fm_cache_close(r);
+    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
+}
+
+int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, const char *cache_path)
+{
+    int rc = cli_report(err);
+    fm_cache_writer_close_partial(cache);
+    cli_report_partial_cache(cache_path, "before the error");
+    return rc;
+}
+
+volatile sig_atomic_t cli_stop_signal;
+
+/* The first SIGINT / SIGTERM asks the run to stop at the end of the frame; a second one (an
+ * impatient user) takes the default action at once. */
+static void on_stop_signal(int sig)
+{
+    if (cli_stop_signal) {
+        signal(sig, SIG_DFL);
+        raise(sig);
+        return;
+    }
+    cli_stop_signal = sig;
+}
+
+void cli_catch_stop_signals(int catch)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = catch ? on_stop_signal : SIG_DFL;
+    sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
 }

@@ -7,7 +7,6 @@
 
 #include <errno.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,7 +31,9 @@ static const char *const USAGE_RUN =
     "                        checkpoints are for the tetra morph only)\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
-    "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
+    "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n"
+    "The shape flock has no checkpoints: it refuses --resume and --checkpoint-every, and a signal\n"
+    "stops it at the end of the frame, keeping the frames so far readable as <cache>.partial.\n";
 
 enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
 static const char CHECKPOINT_NAME[] = "checkpoint.fmck";
@@ -155,31 +156,6 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     return cli_write_json(path, j);
 }
 
-/* SIGINT / SIGTERM: the first asks fm_run_controlled to checkpoint and stop at the end of the
- * frame; a second one (an impatient user) takes the default action at once. */
-static volatile sig_atomic_t g_stop_signal;
-
-static void on_stop_signal(int sig)
-{
-    if (g_stop_signal) {
-        signal(sig, SIG_DFL);
-        raise(sig);
-        return;
-    }
-    g_stop_signal = sig;
-}
-
-static void handle_stop_signals(void (*handler)(int))
-{
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = handler;
-    sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-}
-
 static fm_status save_checkpoint(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
 {
     return fm_checkpoint_save(path, m, s, rs, err);
@@ -206,7 +182,7 @@ static int open_run(const run_options *o, const fm_scene_def *def, const fm_mode
             fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
                     "continues such a run)\n", files->checkpoint);
         remove_checkpoint(files); /* this run's cache replaces the one it describes */
-        remove(files->cache), remove(files->stats); /* the previous run's results must not pass for this one's */
+        cli_remove_previous_results(files->cache, files->stats);
         fm_cache_options copts = fm_default_cache_options();
         copts.compression_level = def->compression_level;
         copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
@@ -248,33 +224,17 @@ static int report_interrupted(const run_options *o, fm_cache_writer *cache, cons
     fm_cache_writer_close_partial(cache);
     fprintf(stderr, "flockmorph: interrupted at frame %lld; checkpoint written; resume with: ", (long long)rs->frames - 1);
     print_resume_command(o);
-    return 128 + g_stop_signal;
-}
-
-/* A failed run without a checkpoint leaves its cache as PATH.partial: say how much of it is
- * readable, or remove it when nothing is. */
-static void report_partial_cache(const run_files *files)
-{
-    char partial[sizeof files->cache + 16];
-    snprintf(partial, sizeof partial, "%s.partial", files->cache);
-    fm_error ignored = {0};
-    fm_cache_reader *r = fm_cache_open(partial, &ignored);
-    if (r && fm_cache_frames(r) > 0)
-        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph inspect, "
-                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
-    else
-        remove(partial);
-    fm_cache_close(r);
-    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
+    return 128 + cli_stop_signal;
 }
 
 /* A run that failed (a full disk, say) after a checkpoint can still be resumed once the cause is
- * fixed: keep the checkpoint and the partial cache. Without one, the partial cache goes. */
+ * fixed: keep the checkpoint and the partial cache. Without one, the partial cache stays readable
+ * up to its last complete frame (or goes, if it has none). */
 static int report_failed(const run_options *o, const run_files *files, fm_cache_writer *cache, const fm_error *err)
 {
+    if (access(files->checkpoint, F_OK) != 0) return cli_fail_keeping_partial_cache(err, cache, files->cache);
     int rc = cli_report(err);
     fm_cache_writer_close_partial(cache);
-    if (access(files->checkpoint, F_OK) != 0) return report_partial_cache(files), rc;
     fprintf(stderr, "flockmorph: the last checkpoint and the partial cache are kept; once the problem is fixed, "
             "resume with: ");
     print_resume_command(o);
@@ -289,7 +249,7 @@ static fm_run_control run_control(const run_options *o, const run_files *files, 
     c.checkpoint = save_checkpoint, c.checkpoint_user = (void *)files->checkpoint;
     c.checkpoint_every = o->checkpoint_every > 0 ? o->checkpoint_every : 0;
     c.checkpoint_seconds = o->checkpoint_every < 0 ? DEFAULT_CHECKPOINT_SECONDS : 0;
-    c.stop = &g_stop_signal;
+    c.stop = &cli_stop_signal;
     return c;
 }
 
@@ -298,11 +258,8 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const ru
                       fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying, run_warnings *warnings)
 {
     fm_error err = {0};
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) { /* finish keeps PATH.partial on failure */
-        int rc = cli_report(&err);
-        report_partial_cache(files);
-        return fm_run_stats_free(rs), rc;
-    }
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
+        return fm_run_stats_free(rs), cli_fail_keeping_partial_cache(&err, NULL, files->cache);
     if (!rs->all_arrived) {
         char text[256];
         snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
@@ -340,9 +297,9 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     if (rc) return fm_state_destroy(state), rc;
     cli_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_control control = run_control(o, &files, &rp);
-    handle_stop_signals(on_stop_signal);
+    cli_catch_stop_signals(1); /* fm_run_controlled checkpoints and stops at the end of the frame */
     fm_status st = fm_run_controlled(model, state, cache, &control, &rs, &err);
-    handle_stop_signals(SIG_DFL);
+    cli_catch_stop_signals(0);
     if (show) fprintf(stderr, "\n");
     int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
     fm_state_destroy(state);

@@ -47,6 +47,16 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_flock
     return cli_write_json(path, j);
 }
 
+/* After SIGINT / SIGTERM: the frames written so far stay readable as CACHE.partial (the shape flock
+ * has no checkpoints, so the run cannot be resumed); exit 128 + the signal. */
+static int report_interrupted(fm_cache_writer *cache, const cli_outputs *out, const fm_flock_run_stats *rs)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: interrupted after frame %lld\n", (long long)rs->frames - 1);
+    cli_report_partial_cache(out->cache, "before the interruption");
+    return 128 + cli_stop_signal;
+}
+
 static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_flock_model *model, double prep_seconds)
 {
     fm_error err = {0};
@@ -55,16 +65,21 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_
     if (!state) return cli_report(&err);
     cli_outputs out;
     cli_run_outputs(o, def, &out);
+    cli_remove_previous_results(out.cache, out.stats);
     fm_cache_options copts = cli_cache_options(def);
     fm_cache_writer *cache = fm_flock_cache_create(out.cache, model, &copts, &err);
     if (!cache) return fm_flock_state_destroy(state), cli_report(&err);
     cli_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
     fm_flock_run_stats rs;
-    fm_status st = fm_flock_run(model, state, cache, frame_progress, &fp, &rs, &err);
+    const fm_flock_run_control control = {frame_progress, &fp, &cli_stop_signal};
+    cli_catch_stop_signals(1); /* the run stops at the end of the frame */
+    fm_status st = fm_flock_run_controlled(model, state, cache, &control, &rs, &err);
+    cli_catch_stop_signals(0);
     if (fp.show) fprintf(stderr, "\n");
     fm_flock_state_destroy(state);
-    if (st != FM_OK) return fm_cache_writer_abort(cache), cli_report(&err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_report(&err);
+    if (st == FM_STOPPED) return report_interrupted(cache, &out, &rs);
+    if (st != FM_OK) return cli_fail_keeping_partial_cache(&err, cache, out.cache);
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_fail_keeping_partial_cache(&err, NULL, out.cache);
     const cli_run_record record = {"shape_flock", mi.agents, rs.frames, rs.steps, mi.time_step, prep_seconds,
                                    rs.simulate_seconds, rs.output_seconds, out.threads, out.cache};
     int rc = write_stats(out.stats, def, &mi, &rs, &record);

@@ -32,8 +32,9 @@ typedef enum fm_status {
     FM_ERR_IO = 3,       /* cannot read or write a file */
     FM_ERR_MEMORY = 4,   /* allocation failed */
     FM_ERR_INTERNAL = 5, /* a library failed in a way the input does not explain */
-    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint
-                            (the CLI then exits 128 + the signal's number) */
+    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint,
+                            or fm_flock_run_controlled at a frame boundary (the CLI then exits 128
+                            + the signal's number) */
 } fm_status;
 
 typedef struct fm_error {
@@ -579,6 +580,19 @@ typedef void (*fm_flock_progress_fn)(const fm_flock_info *info, int64_t frame, v
  * writing each frame to `cache` (from fm_flock_cache_create; may be NULL). */
 fm_status fm_flock_run(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
                        fm_flock_progress_fn progress, void *user, fm_flock_run_stats *stats, fm_error *err);
+
+typedef struct fm_flock_run_control {
+    fm_flock_progress_fn progress;   /* after every frame; may be NULL */
+    void *progress_user;
+    volatile sig_atomic_t *stop;     /* may be NULL; read at every frame boundary: when non-zero, the
+                                        run returns FM_STOPPED there (unless that frame already ends
+                                        it), every frame so far handed to the cache and `stats`
+                                        filled in for them. The shape flock has no checkpoints. */
+} fm_flock_run_control;
+
+/* fm_flock_run with a stop flag (the CLI's SIGINT / SIGTERM). */
+fm_status fm_flock_run_controlled(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
+                                  const fm_flock_run_control *control, fm_flock_run_stats *stats, fm_error *err);
 
 /* ---------------------------------------------------------------- export and preview */
 
