@@ -80,12 +80,6 @@ static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, f
                        "or leave n out (default max(n1, n2))", where, (long long)m->n, (long long)most,
                        src->n >= dst->n ? m->def.source.path : m->def.target.path, (long long)most);
     }
-    if (m->def.d_min > 0 && m->n > FM_GRID_MAX_CAPACITY) {
-        char where[FM_PATH_MAX + 64];
-        fm_scene_key_location(&m->def, "n", where, sizeof where);
-        return fm_fail(err, FM_ERR_INPUT, "%s: %lld agents is more than the MDE neighbour grid holds (%lld); lower n "
-                       "or turn MDE off (mde.d_min 0)", where, (long long)m->n, (long long)FM_GRID_MAX_CAPACITY);
-    }
     return fm_memory_check(&m->def, m->n, err);
 }
 

@@ -445,23 +445,65 @@ static void test_memory_estimate_matches_allocations(void)
     fm_model_destroy(model);
 }
 
-/* n beyond physical memory is refused before anything is built, with the estimate. */
-static void test_n_too_large_for_memory(void)
+/* The same for the shape flock: model, agent store (with its neighbour grid), the run's frame
+ * (position, velocity, orientation, phase) and the cache writer for 200000 agents. */
+static void test_flock_memory_estimate_matches_allocations(void)
+{
+    char mesh[FM_PATH_MAX], cache[FM_PATH_MAX];
+    write_octahedron(tmp_path(mesh, "octahedron.obj"));
+    fm_scene_def def = fm_default_scene_def();
+    def.mode = FM_MODE_SHAPE_FLOCK;
+    snprintf(def.source.path, sizeof def.source.path, "%s", mesh);
+    snprintf(def.target.path, sizeof def.target.path, "%s", mesh);
+    def.source.translate[0] = -10, def.target.translate[0] = 10;
+    def.n = 200000;
+    fm_error err = {0};
+    double before = allocated_bytes();
+    fm_flock_model *model = fm_flock_model_build(&def, NULL, NULL, &err);
+    fm_flock_state *state = model ? fm_flock_state_create(model, 1, &err) : NULL;
+    void *frame = malloc((sizeof(float) * 10 + 1) * (size_t)def.n);
+    fm_cache_writer *w = state ? fm_flock_cache_create(tmp_path(cache, "flock_estimate.fmc"), model, NULL, &err) : NULL;
+    ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
+    double used = allocated_bytes() - before;
+    fm_memory_estimate e = fm_memory_estimate_for(&def, def.n);
+    double estimated = e.per_agent * (double)def.n;
+    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
+               used, estimated, used / (double)def.n, estimated / (double)def.n);
+    printf("  allocated %.1f bytes per agent, estimated %.1f (model %.1f, store %.1f, frames %.1f, grid %.1f)\n",
+           used / (double)def.n, e.per_agent, e.model, e.state, e.frames, e.grid);
+    fm_cache_writer_abort(w);
+    free(frame);
+    fm_flock_state_destroy(state);
+    fm_flock_model_destroy(model);
+}
+
+/* n beyond physical memory is refused before anything is built, with the estimate of the scene's
+ * mode (`mode_member` selects it). */
+static void expect_n_too_large(const char *name, fm_mode mode, const char *mode_member)
 {
     fm_scene_def def = fm_default_scene_def();
-    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_run(&def, 1000).per_agent;
+    def.mode = mode;
+    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_for(&def, 1000).per_agent;
     long long n = (long long)(1.25 * physical / per_agent);
     if (physical <= 0 || n > 1000000000) {
         printf("  (skipped: this machine's memory fits the largest n a scene accepts)\n");
         return;
     }
-    char extra[64], where[FM_PATH_MAX + 32], need[96];
-    snprintf(extra, sizeof extra, ",\n  \"n\": %lld", n);
-    const char *path = plain_scene("n_large.json", extra);
+    char extra[96], where[FM_PATH_MAX + 32], need[96];
+    snprintf(extra, sizeof extra, "%s,\n  \"n\": %lld", mode_member, n);
+    const char *path = plain_scene(name, extra);
     snprintf(extra, sizeof extra, "%lld", n);
-    fm_memory_estimate e = fm_memory_estimate_run(&def, n);
+    fm_memory_estimate e = fm_memory_estimate_for(&def, n);
     snprintf(need, sizeof need, "n: %lld agents need about %.1f GiB (%.0f bytes per agent", n, e.total / 1073741824.0, e.per_agent);
     EXPECT_RUN(path, 2, scene_position(extra, where, sizeof where), need, "physical memory", "docs/limits.md");
+}
+
+static void test_n_too_large_for_memory(void) { expect_n_too_large("n_large.json", FM_MODE_TETRA_MORPH, ""); }
+
+/* The shape flock's own estimate (fm_flock_memory_estimate), checked before its per-agent arrays. */
+static void test_flock_n_too_large_for_memory(void)
+{
+    expect_n_too_large("flock_n_large.json", FM_MODE_SHAPE_FLOCK, FLOCK);
 }
 
 /* ---------------------------------------------------------------- the path and obstacles */
@@ -736,7 +778,9 @@ int main(void)
     RUN_TEST(test_mesh_lines_only);
     RUN_TEST(test_n_too_small);
     RUN_TEST(test_memory_estimate_matches_allocations);
+    RUN_TEST(test_flock_memory_estimate_matches_allocations);
     RUN_TEST(test_n_too_large_for_memory);
+    RUN_TEST(test_flock_n_too_large_for_memory);
     RUN_TEST(test_path_too_short);
     RUN_TEST(test_path_end_inside_obstacle);
     RUN_TEST(test_obstacle_overlaps_source_or_target);
