@@ -415,17 +415,35 @@ static double allocated_bytes(void)
 #endif
 }
 
-/* The estimate follows the real allocations: model, agent store, the run's frame and the cache
- * writer's buffers for 200000 agents, measured by the allocator. */
-static void test_memory_estimate_matches_allocations(void)
+/* The octahedron 20 units from itself with 200000 agents, in `mode`. */
+static fm_scene_def estimate_scene(fm_mode mode)
 {
-    char mesh[FM_PATH_MAX], cache[FM_PATH_MAX];
+    char mesh[FM_PATH_MAX];
     write_octahedron(tmp_path(mesh, "octahedron.obj"));
     fm_scene_def def = fm_default_scene_def();
+    def.mode = mode;
     snprintf(def.source.path, sizeof def.source.path, "%s", mesh);
     snprintf(def.target.path, sizeof def.target.path, "%s", mesh);
     def.source.translate[0] = -10, def.target.translate[0] = 10;
     def.n = 200000;
+    return def;
+}
+
+/* The bytes allocated since `before` are within 5 % of `per_agent` × n. */
+static void expect_estimate(const fm_scene_def *def, double before, double per_agent, const char *parts)
+{
+    double used = allocated_bytes() - before, estimated = per_agent * (double)def->n;
+    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
+               used, estimated, used / (double)def->n, per_agent);
+    printf("  allocated %.1f bytes per agent, estimated %.1f%s\n", used / (double)def->n, per_agent, parts);
+}
+
+/* The estimate follows the real allocations: model, agent store, the run's frame and the cache
+ * writer's buffers for 200000 agents, measured by the allocator. */
+static void test_memory_estimate_matches_allocations(void)
+{
+    char cache[FM_PATH_MAX];
+    fm_scene_def def = estimate_scene(FM_MODE_TETRA_MORPH);
     fm_error err = {0};
     double before = allocated_bytes();
     fm_model *model = fm_model_build(&def, NULL, NULL, &err);
@@ -433,12 +451,8 @@ static void test_memory_estimate_matches_allocations(void)
     float *frame = malloc(sizeof(float) * 12 * (size_t)def.n);
     fm_cache_writer *w = state ? fm_cache_writer_create(tmp_path(cache, "estimate.fmc"), (uint64_t)def.n, 24, 1, &err) : NULL;
     ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
-    double used = allocated_bytes() - before;
     fm_memory_estimate e = fm_memory_estimate_run(&def, def.n);
-    double estimated = (e.model + e.state + e.frames) * (double)def.n;
-    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
-               used, estimated, used / (double)def.n, estimated / (double)def.n);
-    printf("  allocated %.1f bytes per agent, estimated %.1f\n", used / (double)def.n, estimated / (double)def.n);
+    expect_estimate(&def, before, e.model + e.state + e.frames, "");
     fm_cache_writer_abort(w);
     free(frame);
     fm_state_destroy(state);
@@ -446,17 +460,11 @@ static void test_memory_estimate_matches_allocations(void)
 }
 
 /* The same for the shape flock: model, agent store (with its neighbour grid), the run's frame
- * (position, velocity, orientation, phase) and the cache writer for 200000 agents. */
+ * (position, velocity, orientation, phase) and the cache writer. */
 static void test_flock_memory_estimate_matches_allocations(void)
 {
-    char mesh[FM_PATH_MAX], cache[FM_PATH_MAX];
-    write_octahedron(tmp_path(mesh, "octahedron.obj"));
-    fm_scene_def def = fm_default_scene_def();
-    def.mode = FM_MODE_SHAPE_FLOCK;
-    snprintf(def.source.path, sizeof def.source.path, "%s", mesh);
-    snprintf(def.target.path, sizeof def.target.path, "%s", mesh);
-    def.source.translate[0] = -10, def.target.translate[0] = 10;
-    def.n = 200000;
+    char cache[FM_PATH_MAX], parts[128];
+    fm_scene_def def = estimate_scene(FM_MODE_SHAPE_FLOCK);
     fm_error err = {0};
     double before = allocated_bytes();
     fm_flock_model *model = fm_flock_model_build(&def, NULL, NULL, &err);
@@ -464,13 +472,9 @@ static void test_flock_memory_estimate_matches_allocations(void)
     void *frame = malloc((sizeof(float) * 10 + 1) * (size_t)def.n);
     fm_cache_writer *w = state ? fm_flock_cache_create(tmp_path(cache, "flock_estimate.fmc"), model, NULL, &err) : NULL;
     ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
-    double used = allocated_bytes() - before;
     fm_memory_estimate e = fm_memory_estimate_for(&def, def.n);
-    double estimated = e.per_agent * (double)def.n;
-    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
-               used, estimated, used / (double)def.n, estimated / (double)def.n);
-    printf("  allocated %.1f bytes per agent, estimated %.1f (model %.1f, store %.1f, frames %.1f, grid %.1f)\n",
-           used / (double)def.n, e.per_agent, e.model, e.state, e.frames, e.grid);
+    snprintf(parts, sizeof parts, " (model %.1f, store %.1f, frames %.1f, grid %.1f)", e.model, e.state, e.frames, e.grid);
+    expect_estimate(&def, before, e.per_agent, parts);
     fm_cache_writer_abort(w);
     free(frame);
     fm_flock_state_destroy(state);
