@@ -179,12 +179,19 @@ static const bound_case BOUND_CASES[] = {
     {"\"mde\": {\"speed\": @}", "mde.speed", 0},
 };
 
+/* `text` with its '@' replaced by `value`, into out. */
+static const char *put_value(const char *text, const char *value, char *out, size_t size)
+{
+    const char *at = strchr(text, '@');
+    snprintf(out, size, "%.*s%s%s", (int)(at - text), text, value, at + 1);
+    return out;
+}
+
 /* Writes the case's scene with `value` at the '@'. */
 static const char *write_bound_case(const bound_case *c, const char *value, int source_member)
 {
     char member[512], extra[600];
-    const char *at = strchr(c->member, '@');
-    snprintf(member, sizeof member, "%.*s%s%s", (int)(at - c->member), c->member, value, at + 1);
+    put_value(c->member, value, member, sizeof member);
     snprintf(extra, sizeof extra, ",\n  %s", member);
     return source_member ? scene("bound.json", OCTAHEDRON, member, RIGHT, "") : plain_scene("bound.json", extra);
 }
@@ -209,6 +216,58 @@ static void test_numeric_keys_out_of_range(void)
     const bound_case source_scale = {"\"scale\": @", "source.scale", 1};
     expect_below_bound(&source_scale, "0", 1);
     expect_below_bound(&source_scale, "-2", 1);
+}
+
+/* A bad value of a shape-flock key: `member` (inside "shape_flock") with '@' where `value` goes. */
+typedef struct flock_value_case {
+    const char *member, *value;
+    const char *key;  /* as the message names it */
+    const char *what; /* the rest of the message */
+} flock_value_case;
+
+static const flock_value_case FLOCK_VALUE_CASES[] = {
+    {"\"kalman\": {\"q\": @}", "-1", "shape_flock.kalman.q", "-1 is out of range: must be >= 0"},
+    {"\"kalman\": {\"r_position\": @}", "0", "shape_flock.kalman.r_position", "0 is out of range: must be > 0"},
+    {"\"kalman\": {\"r_velocity\": @}", "-2", "shape_flock.kalman.r_velocity", "-2 is out of range: must be > 0"},
+    {"\"kalman\": {\"q\": @}", "\"big\"", "shape_flock.kalman.q", "expected a number, got a string"},
+    {"\"separation\": {\"radius_j\": @}", "-1", "shape_flock.separation.radius_j", "-1 is out of range: must be >= 0"},
+    {"\"cohesion\": {\"radius_j\": [2, @]}", "-3", "shape_flock.cohesion.radius_j", "-3 is out of range: must be >= 0"},
+    {"\"alignment\": {\"angle\": @}", "0", "shape_flock.alignment.angle", "0 is out of range: must be > 0"},
+    {"\"separation\": {\"angle\": [90, @]}", "361", "shape_flock.separation.angle", "361 is out of range: must be <= 360"},
+    {"\"cohesion\": {\"angle\": @}", "720", "shape_flock.cohesion.angle", "720 is out of range: must be <= 360"},
+    {"\"alignment\": {\"weight\": @}", "-0.5", "shape_flock.alignment.weight", "-0.5 is out of range: must be >= 0"},
+    {"\"max_speed\": @", "0", "shape_flock.max_speed", "0 is out of range: must be > 0"},
+    {"\"max_speed\": @", "[12, 8]", "shape_flock.max_speed", "the range [12, 8] runs backwards"},
+    {"\"max_force\": @", "-1", "shape_flock.max_force", "-1 is out of range: must be >= 0"},
+    {"\"mass\": @", "0", "shape_flock.mass", "0 is out of range: must be > 0"},
+    {"\"damping\": @", "-1", "shape_flock.damping", "-1 is out of range: must be >= 0"},
+    {"\"external_gain\": @", "-1", "shape_flock.external_gain", "-1 is out of range: must be >= 0"},
+    {"\"path_time\": @", "-1", "shape_flock.path_time", "-1 is out of range: must be >= 0"},
+    {"\"fuzzy\": {\"homing\": [[0, 1], [2, @]]}", "-1", "shape_flock.fuzzy.homing", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"radius\": @}", "-1", "shape_flock.arrival.radius", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"time\": @}", "0", "shape_flock.arrival.time", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"turn_rate\": @}", "0", "shape_flock.arrival.turn_rate", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"bind_distance\": @}", "-1", "shape_flock.arrival.bind_distance", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"float_period\": @}", "0", "shape_flock.arrival.float_period", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"mode\": @}", "\"hover\"", "shape_flock.arrival.mode", "expected \"bind\" or \"float\""},
+    {"\"sampling\": @", "\"poisson\"", "shape_flock.sampling", "expected \"random\", \"mosaic\" or \"stratified\""},
+    {"\"deform\": {\"type\": \"wave\", \"period\": @}", "0", "shape_flock.deform.period", "0 is out of range: must be > 0"},
+    {"\"deform\": {\"type\": \"wave\", \"wavelength\": @}", "-4", "shape_flock.deform.wavelength", "-4 is out of range: must be > 0"},
+    {"\"kalman\": {@: 1}", "\"qq\"", "shape_flock.kalman.qq", "unknown key"}, /* '@' at the key */
+};
+
+/* Each bad flock value: exit 2, the '@''s FILE:LINE:COL, the key and what is wrong. */
+static void test_flock_values_out_of_range(void)
+{
+    for (size_t i = 0; i < sizeof FLOCK_VALUE_CASES / sizeof FLOCK_VALUE_CASES[0]; i++) {
+        const flock_value_case *c = &FLOCK_VALUE_CASES[i];
+        char extra[600], filled[640], where[FM_PATH_MAX + 32], expect[FM_PATH_MAX + 96];
+        snprintf(extra, sizeof extra, FLOCK ",\n  \"shape_flock\": {%s}", c->member);
+        plain_scene("flock_value.json", extra);
+        scene_position("@", where, sizeof where);
+        snprintf(expect, sizeof expect, "%s%s: %s", where, c->key, c->what);
+        EXPECT_RUN(plain_scene("flock_value.json", put_value(extra, c->value, filled, sizeof filled)), 2, expect);
+    }
 }
 
 /* The octahedron scene with `extra`: exit 2, the position of `at` in the text, the key, `what`. */
@@ -770,6 +829,7 @@ int main(void)
     RUN_TEST(test_numeric_keys_out_of_range);
     RUN_TEST(test_scene_consistency);
     RUN_TEST(test_output_cache_name);
+    RUN_TEST(test_flock_values_out_of_range);
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
     RUN_TEST(test_mesh_garbage_bytes);
