@@ -599,16 +599,53 @@ static void test_path_end_inside_obstacle(void)
                "the source centroid C_S (where the path starts) (-10, 0, 0) lies inside obstacles.meshes[0]");
 }
 
-static void test_obstacle_overlaps_source_or_target(void)
+/* An obstacle crossing the source, around the target, inside the source: exit 2 naming the
+ * obstacle and how it overlaps; `mode_member` selects the mode, `agents` what the message calls them. */
+static void expect_obstacle_overlaps(const char *mode_member, const char *agents)
 {
-    char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("obstacle_cross.json", OBSTACLE_AT("\"translate\": [-9, 0, 0]"));
+    char where[FM_PATH_MAX + 32], extra[512], would[64];
+    snprintf(would, sizeof would, "; %s would start or end inside it", agents);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [-9, 0, 0]"), mode_member);
+    const char *path = plain_scene("obstacle_cross.json", extra);
     EXPECT_RUN(path, 2, scene_position("{\"mesh\": \"" OCTAHEDRON "\", \"translate\": [-9", where, sizeof where),
-               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect");
-    path = plain_scene("obstacle_around.json", OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"));
-    EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]");
-    path = plain_scene("obstacle_inside.json", OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"));
-    EXPECT_RUN(path, 2, "the obstacle overlaps the source: obstacles.meshes[0] lies inside the source");
+               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect", would);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"), mode_member);
+    path = plain_scene("obstacle_around.json", extra);
+    EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]", would);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"), mode_member);
+    path = plain_scene("obstacle_inside.json", extra);
+    EXPECT_RUN(path, 2, "the obstacle overlaps the source: obstacles.meshes[0] lies inside the source", would);
+}
+
+static void test_obstacle_overlaps_source_or_target(void) { expect_obstacle_overlaps("", "tets"); }
+
+/* The shape flock refuses the same obstacles: its agents start and end on the two surfaces. */
+static void test_flock_obstacle_overlaps_source_or_target(void)
+{
+    expect_obstacle_overlaps(FLOCK ",\n  \"n\": 200", "agents");
+}
+
+/* What the shape flock does not refuse (docs/errors.md says why): a path point inside an obstacle
+ * (no agent has to reach it: each follows its own copy of the path from its start to its
+ * destination, SCF eq 12), and an obstacle in the hollow of an open surface (it has no inside). */
+static void test_flock_obstacle_allowed(void)
+{
+    const char *path = plain_scene("flock_obstacle_path.json", FLOCK ",\n  \"n\": 200,\n  \"path\": {\"points\": [[0.2, 0, 0]]}"
+                                   OBSTACLE_AT("\"translate\": [0, 0, 0]"));
+    EXPECT_RUN(path, 0, "");
+    /* the octahedron's lower half (the four triangles at vertex 6, -z): an open bowl */
+    char bowl[FM_PATH_MAX], text[1024], open_text[1024] = "";
+    write_octahedron(tmp_path(bowl, "bowl.obj"));
+    slurp(bowl, text, sizeof text);
+    for (char *line = strtok(text, "\n"); line; line = strtok(NULL, "\n")) {
+        int a, b, c;
+        if (line[0] == 'f' && (sscanf(line, "f %d %d %d", &a, &b, &c) != 3 || (a != 6 && b != 6 && c != 6))) continue;
+        strncat(open_text, line, sizeof open_text - strlen(open_text) - 2), strcat(open_text, "\n");
+    }
+    write_mesh("bowl.obj", open_text);
+    path = scene("flock_bowl.json", "bad_bowl.obj", LEFT ", \"scale\": 3", RIGHT,
+                 FLOCK ",\n  \"n\": 200" OBSTACLE_AT("\"translate\": [-9.7, 0, -1], \"scale\": 0.3"));
+    EXPECT_RUN(path, 0, "");
 }
 
 /* FM assumes source and target apart; overlapping ones run, with a warning on stderr and in
@@ -848,6 +885,8 @@ int main(void)
     RUN_TEST(test_path_too_short);
     RUN_TEST(test_path_end_inside_obstacle);
     RUN_TEST(test_obstacle_overlaps_source_or_target);
+    RUN_TEST(test_flock_obstacle_overlaps_source_or_target);
+    RUN_TEST(test_flock_obstacle_allowed);
     RUN_TEST(test_source_target_overlap_warns);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
