@@ -85,12 +85,9 @@ int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,
  * the old results cannot pass for its own. */
 void cli_remove_previous_results(const char *cache, const char *stats);
-/* After a failed or stopped run whose cache was left as CACHE.partial: says how many complete frames
- * it holds (written `before`: "before the error", ...), or removes it when it holds none; and that no
- * stats.json was written. */
-void cli_report_partial_cache(const char *cache, const char *before);
 /* A run that failed while writing (disk full, file-size limit): prints err, keeps the cache's frames
- * so far as CACHE.partial (cache may already be gone: NULL) and reports them; returns the exit status. */
+ * so far as CACHE.partial (cache may already be gone: NULL), says how many complete frames it holds
+ * (or removes it when it holds none) and that no stats.json was written; returns the exit status. */
 int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, const char *cache_path);
 /* SIGINT / SIGTERM while catching (cli_catch_stop_signals(1)): the first sets cli_stop_signal to
  * the signal's number, which both modes' runs read at every frame boundary (the exit status is then

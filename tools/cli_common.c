@@ -335,15 +335,16 @@ void cli_remove_previous_results(const char *cache, const char *stats)
     remove(cache), remove(stats);
 }
 
-void cli_report_partial_cache(const char *cache, const char *before)
+/* The partial cache of a failed run: how many complete frames it holds, or removed if none. */
+static void report_partial_cache(const char *cache)
 {
     char partial[FM_PATH_MAX + 320];
     snprintf(partial, sizeof partial, "%s.partial", cache);
     fm_error ignored = {0};
     fm_cache_reader *r = fm_cache_open(partial, &ignored);
     if (r && fm_cache_frames(r) > 0)
-        fprintf(stderr, "flockmorph: the %u complete frames written %s are in %s (flockmorph inspect, export and "
-                "render read it); delete it to free the space\n", fm_cache_frames(r), before, partial);
+        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph inspect, "
+                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
     else
         remove(partial);
     fm_cache_close(r);
@@ -354,7 +355,7 @@ int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, 
 {
     int rc = cli_report(err);
     fm_cache_writer_close_partial(cache);
-    cli_report_partial_cache(cache_path, "before the error");
+    report_partial_cache(cache_path);
     return rc;
 }
 
