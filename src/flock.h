@@ -82,7 +82,13 @@ struct fm_flock_state {
     int grid_ready;
     flock_block *blocks;
     int64_t count[4];
+    double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */
 };
+
+/* flock_state.c: the members a checkpoint saves (checkpoint.c), as fm_state_members for the tetra
+ * morph's store. */
+extern const fm_state_member fm_flock_state_members[];
+extern const int fm_flock_state_member_count;
 
 /* flock_target.c: the target's vertices at time t (nv * 3 doubles) */
 fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_error *err);

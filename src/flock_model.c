@@ -188,7 +188,9 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
         scene_bounds(m, &source);
         set_info(m);
     }
-    if (st == FM_OK && def->obstacle_count > 0 && !(m->obstacles = fm_obstacles_from_scene(def, def->k_a, err)))
+    /* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
+    if (st == FM_OK && def->obstacle_count > 0 &&
+        !(m->obstacles = fm_obstacles_from_scene(def, def->k_a, &source, &m->target.mesh, err)))
         st = err ? err->status : FM_ERR_INPUT;
     fm_mesh_free(&source);
     if (progress && st == FM_OK) progress("ready", 1.0, user);
@@ -202,6 +204,7 @@ fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn pro
         fm_fail(err, FM_ERR_USAGE, "fm_flock_model_build: the scene's mode is not \"shape_flock\"");
         return NULL;
     }
+    if (fm_memory_check(def, def->n, err) != FM_OK) return NULL; /* before the per-agent arrays */
     fm_flock_model *m = calloc(1, sizeof *m);
     if (!m) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");

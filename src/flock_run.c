@@ -27,7 +27,8 @@ typedef struct flock_run {
     fm_flock_progress_fn progress;
     void *user;
     fm_flock_run_stats *stats;
-    double lag_sum;
+    const fm_flock_run_control *control;
+    double simulate0, output0; /* the seconds of the sessions before a resume */
 } flock_run;
 
 static void flock_step(void *sim)
@@ -58,7 +59,7 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
     if (r->m->info.deforming && r->s->time >= r->m->path_time && frame > 0) { /* tracking lag */
         double mean, max;
         fm_flock_distance(r->s, &mean, &max);
-        r->lag_sum += mean;
+        r->s->lag_sum += mean;
         r->stats->tracking_frames++;
     }
     if (r->progress && frame > 0) {
@@ -68,30 +69,57 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
     return st;
 }
 
-fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
-                       void *user, fm_flock_run_stats *stats, fm_error *err)
+/* The run's statistics after `times` (this session's), on top of the sessions before. */
+static void add_times(const flock_run *r, const fm_loop_times *times, fm_flock_run_stats *stats)
 {
-    memset(stats, 0, sizeof *stats);
+    stats->frames = times->frames;
+    stats->simulate_seconds = r->simulate0 + times->simulate_seconds;
+    stats->output_seconds = r->output0 + times->output_seconds;
+}
+
+/* The loop's checkpoint: the cache flushed, so its first `frames` frames are on disk, then the hook. */
+static fm_status flock_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
+{
+    const flock_run *r = sim;
+    fm_status st = r->cache ? fm_cache_writer_flush(r->cache, err) : FM_OK;
+    if (st != FM_OK || !r->control->checkpoint) return st;
+    fm_flock_run_stats now = *r->stats;
+    add_times(r, times, &now);
+    return r->control->checkpoint(r->m, r->s, &now, r->control->checkpoint_user, err);
+}
+
+fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,
+                                  const fm_flock_run_control *c, fm_flock_run_stats *stats, fm_error *err)
+{
+    if (!c->resume) memset(stats, 0, sizeof *stats), s->lag_sum = 0;
     const size_t n = (size_t)s->n;
     flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
-                   fm_alloc(n), cache, progress, user, stats, 0};
+                   fm_alloc(n), cache, c->progress, c->progress_user, stats, c, stats->simulate_seconds,
+                   stats->output_seconds};
     fm_status st = r.position && r.velocity && r.orientation && r.phase
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
-        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit};
+        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit,
+                                    c->stop, c->resume ? stats->frames : 0, flock_checkpoint, c->checkpoint_every,
+                                    c->checkpoint_seconds};
         fm_loop_times times;
         st = fm_frame_loop_run(&loop, &times, err);
-        stats->frames = times.frames;
-        stats->simulate_seconds = times.simulate_seconds;
-        stats->output_seconds = times.output_seconds;
+        add_times(&r, &times, stats);
     }
     stats->steps = s->step;
     stats->all_bound = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !flock_finished(&r);
     fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
     stats->bound_fraction = (double)s->count[FM_PHASE_ARRIVED] / (double)s->n;
-    stats->tracking_lag = stats->tracking_frames > 0 ? r.lag_sum / (double)stats->tracking_frames : NAN;
+    stats->tracking_lag = stats->tracking_frames > 0 ? s->lag_sum / (double)stats->tracking_frames : NAN;
     fm_free(r.position), fm_free(r.velocity), fm_free(r.orientation), fm_free(r.phase);
     return st;
+}
+
+fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
+                       void *user, fm_flock_run_stats *stats, fm_error *err)
+{
+    const fm_flock_run_control c = {.progress = progress, .progress_user = user};
+    return fm_flock_run_controlled(m, s, cache, &c, stats, err);
 }

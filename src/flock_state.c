@@ -5,8 +5,30 @@
 
 #include <math.h>
 #include <omp.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Every member that carries the run from one step to the next (a checkpoint saves exactly these):
+ * positions, velocities, orientations, phases, bind times, the destinations and the leaders (each
+ * step differences them for their velocities), the shared Kalman covariance, the counters and the
+ * tracking lag's running sum. Not listed: what each step rebuilds before reading it (dest_v and
+ * leader_v, by those differences; a static target's dest_v stays 0; acc, ext, w_homing, mesh_v,
+ * eval, the grid, blocks), member (always 1) and the style fields, whose baked grid is a pure
+ * function of time and seed. */
+#define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_flock_state, member), bytes, 1}
+#define AGENT_XYZ(member) AGENT_ARRAY(member[0], sizeof(float)), AGENT_ARRAY(member[1], sizeof(float)), \
+                          AGENT_ARRAY(member[2], sizeof(float))
+#define SCALAR(member) {#member, offsetof(fm_flock_state, member), sizeof(((fm_flock_state *)0)->member), 0}
+const fm_state_member fm_flock_state_members[] = {
+    AGENT_XYZ(p), AGENT_XYZ(v), AGENT_ARRAY(orient, 4 * sizeof(float)), AGENT_ARRAY(phase, sizeof(uint8_t)),
+    AGENT_ARRAY(t_bind, sizeof(float)), AGENT_XYZ(dest), AGENT_XYZ(leader),
+    SCALAR(step), SCALAR(time), SCALAR(kalman), SCALAR(count), SCALAR(lag_sum),
+};
+#undef AGENT_ARRAY
+#undef AGENT_XYZ
+#undef SCALAR
+const int fm_flock_state_member_count = (int)(sizeof fm_flock_state_members / sizeof fm_flock_state_members[0]);
 
 static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv)
 {

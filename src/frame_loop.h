@@ -1,13 +1,22 @@
-/* The plain frame loop, used by the shape flock (fm_flock_run, flock_run.c): frame 0 is the state
- * before any step; then each frame takes steps_per_frame steps (fewer for the last one if the
- * simulation finishes inside it) and is written, until the simulation finishes or frame_limit
- * frames are written. The loop measures the time spent stepping and writing. The tetra morph does
- * not use it: fm_run_controlled (run.c) has its own loop of the same shape, because it also stops on
- * a flag, calls the checkpoint hook and resumes from a checkpoint's frame count. */
+/* The frame loop of the shape flock (fm_flock_run, flock_run.c): frame 0 is the state before any
+ * step; then each frame takes steps_per_frame steps (fewer for the last one if the simulation
+ * finishes inside it) and is written, until the simulation finishes or frame_limit frames are
+ * written. The loop measures the time spent stepping and writing. At every frame boundary it reads
+ * a stop flag (a checkpoint, then FM_STOPPED) and takes the checkpoints that are due; a resumed run
+ * continues after the frames it had written. The tetra morph's loop (run.c) does the same around
+ * its own per-frame statistics and shares the checkpoint clock. */
 #ifndef FM_FRAME_LOOP_H
 #define FM_FRAME_LOOP_H
 
 #include "fm_internal.h"
+
+#include <signal.h>
+
+typedef struct fm_loop_times {
+    int64_t frames;          /* frames written (the resumed run's earlier ones included) */
+    double simulate_seconds; /* in step(), this session */
+    double output_seconds;   /* in frame(), this session */
+} fm_loop_times;
 
 typedef struct fm_frame_loop {
     void *sim;
@@ -16,13 +25,19 @@ typedef struct fm_frame_loop {
     fm_status (*frame)(void *sim, int64_t frame, fm_error *err); /* computes and writes frame `frame` */
     int32_t steps_per_frame;
     int32_t frame_limit;
+    volatile sig_atomic_t *stop;  /* may be NULL; non-zero: checkpoint and FM_STOPPED after the frame being written */
+    int64_t resume_frames;        /* 0: a new run, frame 0 first; F > 0: frames 0 .. F-1 were written before */
+    fm_status (*checkpoint)(void *sim, const fm_loop_times *times, fm_error *err); /* NULL: none */
+    int64_t checkpoint_every;     /* frames between checkpoints; 0: not by count */
+    double checkpoint_seconds;    /* wall time between checkpoints; 0: not by time */
 } fm_frame_loop;
 
-typedef struct fm_loop_times {
-    int64_t frames;          /* frames written */
-    double simulate_seconds; /* in step() */
-    double output_seconds;   /* in frame() */
-} fm_loop_times;
+/* When the last checkpoint was taken: every `every` frames and/or `seconds` of wall time. */
+typedef struct fm_checkpoint_clock {
+    int64_t last_frames;
+    double last_time;
+} fm_checkpoint_clock;
+int fm_checkpoint_due(int64_t every, double seconds, const fm_checkpoint_clock *clock, int64_t frames);
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err);
 

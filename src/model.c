@@ -80,12 +80,6 @@ static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, f
                        "or leave n out (default max(n1, n2))", where, (long long)m->n, (long long)most,
                        src->n >= dst->n ? m->def.source.path : m->def.target.path, (long long)most);
     }
-    if (m->def.d_min > 0 && m->n > FM_GRID_MAX_CAPACITY) {
-        char where[FM_PATH_MAX + 64];
-        fm_scene_key_location(&m->def, "n", where, sizeof where);
-        return fm_fail(err, FM_ERR_INPUT, "%s: %lld agents is more than the MDE neighbour grid holds (%lld); lower n "
-                       "or turn MDE off (mde.d_min 0)", where, (long long)m->n, (long long)FM_GRID_MAX_CAPACITY);
-    }
     return fm_memory_check(&m->def, m->n, err);
 }
 
@@ -110,8 +104,18 @@ static fm_status refuse_overlap(const fm_scene_def *def, const fm_mesh *obstacle
     int overlap = fm_meshes_overlap(obstacle, key, shape, shape_name, how, sizeof how, err);
     if (overlap <= 0) return overlap < 0 ? (err ? err->status : FM_ERR_INTERNAL) : FM_OK;
     fm_scene_key_location(def, key, where, sizeof where);
-    return fm_fail(err, FM_ERR_INPUT, "%s: the obstacle overlaps %s: %s; tets would start or end inside it. Move "
-                   "it clear (translate) or make it smaller (scale)", where, shape_name, how);
+    return fm_fail(err, FM_ERR_INPUT, "%s: the obstacle overlaps %s: %s; %s would start or end inside it. Move "
+                   "it clear (translate) or make it smaller (scale)", where, shape_name, how,
+                   def->mode == FM_MODE_SHAPE_FLOCK ? "agents" : "tets");
+}
+
+/* An obstacle may overlap neither the source nor the target: agents (tets or points) would start
+ * or finish inside it (FM §5.3 assumes free space). */
+static fm_status refuse_overlaps(const fm_scene_def *def, const fm_mesh *obstacle, const char *key,
+                                 const fm_mesh *source, const fm_mesh *target, fm_error *err)
+{
+    fm_status st = refuse_overlap(def, obstacle, key, source, "the source", err);
+    return st == FM_OK ? refuse_overlap(def, obstacle, key, target, "the target", err) : st;
 }
 
 /* The path's ends: C_S, C_T (FM eq 3's Q_0 and Q_{m+1}) and the first and last control points. */
@@ -267,8 +271,7 @@ static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
         st = load_mesh(def, &def->obstacles[i], key, &s->obstacles[i], err);
-        if (st == FM_OK) st = refuse_overlap(def, &s->obstacles[i], key, &s->src_mesh, "the source", err);
-        if (st == FM_OK) st = refuse_overlap(def, &s->obstacles[i], key, &s->dst_mesh, "the target", err);
+        if (st == FM_OK) st = refuse_overlaps(def, &s->obstacles[i], key, &s->src_mesh, &s->dst_mesh, err);
         if (st == FM_OK) st = check_path_ends(def, &s->obstacles[i], key, cs, ct, err);
     }
     return st;
@@ -295,7 +298,8 @@ static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_r
     return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
 }
 
-fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_error *err)
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
+                                      fm_error *err)
 {
     fm_mesh *meshes = calloc((size_t)def->obstacle_count, sizeof *meshes);
     if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles"), NULL;
@@ -304,6 +308,7 @@ fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
         st = load_mesh(def, &def->obstacles[i], key, &meshes[i], err);
+        if (st == FM_OK && source && target) st = refuse_overlaps(def, &meshes[i], key, source, target, err);
     }
     fm_obstacles *out = st == FM_OK ? obstacle_grid(def, meshes, reach, err) : NULL;
     for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);

@@ -48,8 +48,11 @@ double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double clo
 
 /* The scene's obstacles (obstacles.meshes, each loaded, checked closed and placed) with a band wide
    enough for `reach` (FM eq 7's k_a plus the largest agent radius), the voxel obstacles.voxel or
-   1/160 of their extent plus the reach. Errors name "obstacles.meshes[i]". NULL on failure. (model.c) */
-fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, fm_error *err);
+   1/160 of their extent plus the reach. Given the placed source and target meshes, an obstacle that
+   overlaps either is refused, as in the tetra morph. Errors name "obstacles.meshes[i]". NULL on
+   failure. (model.c) */
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
+                                      fm_error *err);
 
 /* Internal: obstacles_vdb.cpp, OpenVDB behind extern "C" (never throws). Builds the clamped dense
    grid of the closed triangle soup (v: 3 doubles per vertex; tri: 3 indices per triangle) and

@@ -20,7 +20,10 @@ typedef struct fm_tets {
     int64_t n;
 } fm_tets;
 
-/* mesh_import.c */
+/* mesh_import.c (C linkage: tetra_tetgen.cpp uses the edge check) */
+#ifdef __cplusplus
+extern "C" {
+#endif
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
 /* The same from len bytes in memory; format is the file extension ("obj", "ply", "off", "stl")
  * and name stands for the file in messages. */
@@ -37,6 +40,9 @@ fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair
                              fm_error *err);
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
 double fm_mesh_signed_volume(const fm_mesh *mesh);
+#ifdef __cplusplus
+}
+#endif
 
 /* tetra_tetgen.cpp: TetGen behind extern "C"; never throws, never exits. */
 #ifdef __cplusplus
@@ -44,9 +50,10 @@ extern "C" {
 #endif
 fm_status fm_tetrahedralize(const fm_mesh *mesh, double quality, double max_volume,
                             const char *name, fm_tets *out, fm_error *err);
-/* Do two closed meshes (each valid alone) share any volume? TetGen's self-intersection detection
- * runs on both surfaces together; if they do not cross, one may still hold the other, which a
- * winding-number test of one vertex decides. Returns 1 and describes the overlap in `how` (naming
+/* Do two meshes (each valid alone) share any volume? TetGen's self-intersection detection runs on
+ * both surfaces together; if they do not cross, one may still hold the other, which a
+ * winding-number test of one vertex decides. The shape flock samples open surfaces too: only a
+ * closed mesh (fm_mesh_pair_edges) can hold the other. Returns 1 and describes the overlap in `how` (naming
  * triangles of a and b, numbered from 1), 0 if they are apart, -1 with err set if the check
  * itself failed. */
 int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_mesh *b, const char *name_b, char *how,

@@ -1,4 +1,5 @@
 /* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
+#include "frame_loop.h" /* the checkpoint clock */
 #include "sim.h"
 #include "cache_format.h"
 
@@ -135,21 +136,14 @@ static int run_done(const fm_model *m, const fm_state *s, const fm_run_stats *st
 }
 
 /* When to call the checkpoint hook: every `checkpoint_every` frames and/or `checkpoint_seconds`. */
-typedef struct checkpoint_clock {
-    int64_t last_frames;
-    double last_time;
-} checkpoint_clock;
-
-static int checkpoint_due(const fm_run_control *c, const checkpoint_clock *clock, const fm_run_stats *stats)
+static int checkpoint_due(const fm_run_control *c, const fm_checkpoint_clock *clock, const fm_run_stats *stats)
 {
-    if (!c->checkpoint) return 0;
-    if (c->checkpoint_every > 0 && stats->frames - clock->last_frames >= c->checkpoint_every) return 1;
-    return c->checkpoint_seconds > 0 && fm_seconds() - clock->last_time >= c->checkpoint_seconds;
+    return c->checkpoint && fm_checkpoint_due(c->checkpoint_every, c->checkpoint_seconds, clock, stats->frames);
 }
 
 /* Flushes the cache so its first stats->frames frames are on disk, then calls the hook. */
 static fm_status checkpoint(const fm_model *m, const fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
-                            checkpoint_clock *clock, const fm_run_stats *stats, fm_error *err)
+                            fm_checkpoint_clock *clock, const fm_run_stats *stats, fm_error *err)
 {
     fm_status st = cache ? fm_cache_writer_flush(cache, err) : FM_OK;
     if (st == FM_OK && c->checkpoint) st = c->checkpoint(m, s, stats, c->checkpoint_user, err);
@@ -194,7 +188,7 @@ fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cac
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
     int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps;
-    checkpoint_clock clock = {stats->frames, fm_seconds()};
+    fm_checkpoint_clock clock = {stats->frames, fm_seconds()};
     fm_status st = FM_OK;
     if (c->resume) fm_state_tet_vertices(m, s, verts); /* the last frame, should the run be complete */
     else st = emit_frame(m, s, verts, phases, cache, stats, err);

@@ -149,19 +149,25 @@ typedef struct fm_state_member {
 extern const fm_state_member fm_state_members[];
 extern const int fm_state_member_count;
 
-/* memory.c: bytes a run of n agents needs (docs/limits.md). */
+/* memory.c: bytes a run of n agents needs (docs/limits.md), for either mode. */
 typedef struct fm_memory_estimate {
     double model, state, frames, grid; /* bytes per agent while stepping: model, agent store, frame
                                           buffers (run, cache writer, zstd output), MDE grid */
     double per_agent;                  /* their sum */
     double fixed;                      /* bytes that do not grow with n: libraries, field and distance grids */
     double run;                        /* per_agent * n + fixed */
-    double preprocess;                 /* peak while preparing: both tet sets in double, orders, model */
+    double preprocess_per_agent;       /* bytes per agent at the preparation's peak: the tetra morph's
+                                          tet sets in double, orders and model; the flock's model,
+                                          samples and the sampler's scratch */
+    double preprocess;                 /* preprocess_per_agent * n + fixed */
     double total;                      /* the larger of run and preprocess */
 } fm_memory_estimate;
-fm_memory_estimate fm_memory_estimate_run(const fm_scene_def *def, int64_t n);
+fm_memory_estimate fm_memory_estimate_run(const fm_scene_def *def, int64_t n);   /* the tetra morph */
+fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n); /* the shape flock */
+fm_memory_estimate fm_memory_estimate_for(const fm_scene_def *def, int64_t n);   /* the scene's mode */
 double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
-/* FM_ERR_INPUT naming the scene's n, the estimate and the machine's memory if it does not fit. */
+/* FM_ERR_INPUT naming the scene's n, the estimate (of the scene's mode) and the machine's memory
+ * if it does not fit, or the neighbour grid's capacity if n exceeds it. */
 fm_status fm_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
 /* morph.c */

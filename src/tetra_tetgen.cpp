@@ -219,6 +219,13 @@ bool boxes_apart(const fm_mesh *a, const fm_mesh *b)
     return false;
 }
 
+// A closed, consistently oriented surface: only such a mesh has an inside.
+bool encloses(const fm_mesh *m)
+{
+    fm_error ignored = {};
+    return fm_mesh_pair_edges(m, "", nullptr, nullptr, &ignored) == FM_OK;
+}
+
 } // namespace
 
 extern "C" int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_mesh *b, const char *name_b,
@@ -240,11 +247,11 @@ extern "C" int fm_meshes_overlap(const fm_mesh *a, const char *name_a, const fm_
                           "%zu intersecting triangles)", in_a, name_a, in_b, name_b, crossing.size());
             return 1;
         }
-        if (std::fabs(fm_mesh_winding_number(b, a->v)) > 0.5) {
+        if (encloses(b) && std::fabs(fm_mesh_winding_number(b, a->v)) > 0.5) {
             std::snprintf(how, how_size, "%s lies inside %s", name_a, name_b);
             return 1;
         }
-        if (std::fabs(fm_mesh_winding_number(a, b->v)) > 0.5) {
+        if (encloses(a) && std::fabs(fm_mesh_winding_number(a, b->v)) > 0.5) {
             std::snprintf(how, how_size, "%s lies inside %s", name_b, name_a);
             return 1;
         }

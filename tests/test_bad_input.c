@@ -24,6 +24,7 @@ size_t __sanitizer_get_current_allocated_bytes(void); /* libasan's (gcc installs
 #define LEFT "\"translate\": [-10, 0, 0]"
 #define RIGHT "\"translate\": [10, 0, 0]"
 #define OCTAHEDRON "bad_octahedron.obj"
+#define FLOCK ",\n  \"mode\": \"shape_flock\"" /* the member that makes a scene a shape flock */
 
 static char *tmp_path(char *buf, const char *name)
 {
@@ -177,12 +178,19 @@ static const bound_case BOUND_CASES[] = {
     {"\"mde\": {\"speed\": @}", "mde.speed", 0},
 };
 
+/* `text` with its '@' replaced by `value`, into out. */
+static const char *put_value(const char *text, const char *value, char *out, size_t size)
+{
+    const char *at = strchr(text, '@');
+    snprintf(out, size, "%.*s%s%s", (int)(at - text), text, value, at + 1);
+    return out;
+}
+
 /* Writes the case's scene with `value` at the '@'. */
 static const char *write_bound_case(const bound_case *c, const char *value, int source_member)
 {
     char member[512], extra[600];
-    const char *at = strchr(c->member, '@');
-    snprintf(member, sizeof member, "%.*s%s%s", (int)(at - c->member), c->member, value, at + 1);
+    put_value(c->member, value, member, sizeof member);
     snprintf(extra, sizeof extra, ",\n  %s", member);
     return source_member ? scene("bound.json", OCTAHEDRON, member, RIGHT, "") : plain_scene("bound.json", extra);
 }
@@ -207,6 +215,58 @@ static void test_numeric_keys_out_of_range(void)
     const bound_case source_scale = {"\"scale\": @", "source.scale", 1};
     expect_below_bound(&source_scale, "0", 1);
     expect_below_bound(&source_scale, "-2", 1);
+}
+
+/* A bad value of a shape-flock key: `member` (inside "shape_flock") with '@' where `value` goes. */
+typedef struct flock_value_case {
+    const char *member, *value;
+    const char *key;  /* as the message names it */
+    const char *what; /* the rest of the message */
+} flock_value_case;
+
+static const flock_value_case FLOCK_VALUE_CASES[] = {
+    {"\"kalman\": {\"q\": @}", "-1", "shape_flock.kalman.q", "-1 is out of range: must be >= 0"},
+    {"\"kalman\": {\"r_position\": @}", "0", "shape_flock.kalman.r_position", "0 is out of range: must be > 0"},
+    {"\"kalman\": {\"r_velocity\": @}", "-2", "shape_flock.kalman.r_velocity", "-2 is out of range: must be > 0"},
+    {"\"kalman\": {\"q\": @}", "\"big\"", "shape_flock.kalman.q", "expected a number, got a string"},
+    {"\"separation\": {\"radius_j\": @}", "-1", "shape_flock.separation.radius_j", "-1 is out of range: must be >= 0"},
+    {"\"cohesion\": {\"radius_j\": [2, @]}", "-3", "shape_flock.cohesion.radius_j", "-3 is out of range: must be >= 0"},
+    {"\"alignment\": {\"angle\": @}", "0", "shape_flock.alignment.angle", "0 is out of range: must be > 0"},
+    {"\"separation\": {\"angle\": [90, @]}", "361", "shape_flock.separation.angle", "361 is out of range: must be <= 360"},
+    {"\"cohesion\": {\"angle\": @}", "720", "shape_flock.cohesion.angle", "720 is out of range: must be <= 360"},
+    {"\"alignment\": {\"weight\": @}", "-0.5", "shape_flock.alignment.weight", "-0.5 is out of range: must be >= 0"},
+    {"\"max_speed\": @", "0", "shape_flock.max_speed", "0 is out of range: must be > 0"},
+    {"\"max_speed\": @", "[12, 8]", "shape_flock.max_speed", "the range [12, 8] runs backwards"},
+    {"\"max_force\": @", "-1", "shape_flock.max_force", "-1 is out of range: must be >= 0"},
+    {"\"mass\": @", "0", "shape_flock.mass", "0 is out of range: must be > 0"},
+    {"\"damping\": @", "-1", "shape_flock.damping", "-1 is out of range: must be >= 0"},
+    {"\"external_gain\": @", "-1", "shape_flock.external_gain", "-1 is out of range: must be >= 0"},
+    {"\"path_time\": @", "-1", "shape_flock.path_time", "-1 is out of range: must be >= 0"},
+    {"\"fuzzy\": {\"homing\": [[0, 1], [2, @]]}", "-1", "shape_flock.fuzzy.homing", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"radius\": @}", "-1", "shape_flock.arrival.radius", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"time\": @}", "0", "shape_flock.arrival.time", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"turn_rate\": @}", "0", "shape_flock.arrival.turn_rate", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"bind_distance\": @}", "-1", "shape_flock.arrival.bind_distance", "-1 is out of range: must be >= 0"},
+    {"\"arrival\": {\"float_period\": @}", "0", "shape_flock.arrival.float_period", "0 is out of range: must be > 0"},
+    {"\"arrival\": {\"mode\": @}", "\"hover\"", "shape_flock.arrival.mode", "expected \"bind\" or \"float\""},
+    {"\"sampling\": @", "\"poisson\"", "shape_flock.sampling", "expected \"random\", \"mosaic\" or \"stratified\""},
+    {"\"deform\": {\"type\": \"wave\", \"period\": @}", "0", "shape_flock.deform.period", "0 is out of range: must be > 0"},
+    {"\"deform\": {\"type\": \"wave\", \"wavelength\": @}", "-4", "shape_flock.deform.wavelength", "-4 is out of range: must be > 0"},
+    {"\"kalman\": {@: 1}", "\"qq\"", "shape_flock.kalman.qq", "unknown key"}, /* '@' at the key */
+};
+
+/* Each bad flock value: exit 2, the '@''s FILE:LINE:COL, the key and what is wrong. */
+static void test_flock_values_out_of_range(void)
+{
+    for (size_t i = 0; i < sizeof FLOCK_VALUE_CASES / sizeof FLOCK_VALUE_CASES[0]; i++) {
+        const flock_value_case *c = &FLOCK_VALUE_CASES[i];
+        char extra[600], filled[640], where[FM_PATH_MAX + 32], expect[FM_PATH_MAX + 96];
+        snprintf(extra, sizeof extra, FLOCK ",\n  \"shape_flock\": {%s}", c->member);
+        plain_scene("flock_value.json", extra);
+        scene_position("@", where, sizeof where);
+        snprintf(expect, sizeof expect, "%s%s: %s", where, c->key, c->what);
+        EXPECT_RUN(plain_scene("flock_value.json", put_value(extra, c->value, filled, sizeof filled)), 2, expect);
+    }
 }
 
 /* The octahedron scene with `extra`: exit 2, the position of `at` in the text, the key, `what`. */
@@ -357,6 +417,42 @@ static void test_mesh_degenerate(void)
     expect_bad_mesh("tilted.obj", "the mesh encloses no volume");
 }
 
+/* The octahedron with its first triangle wound the other way: closed and manifold, but that
+ * triangle faces inward, so each of its edges runs the same way in it and in its neighbour. */
+static void test_mesh_flipped_triangle(void)
+{
+    char path[FM_PATH_MAX], text[1024];
+    write_octahedron(tmp_path(path, "flipped.obj"));
+    slurp(path, text, sizeof text);
+    char *face = strstr(text, "\nf ") + 1;
+    int a, b, c, len;
+    ENSURE(sscanf(face, "f %d %d %d%n", &a, &b, &c, &len) == 3);
+    char flipped[64];
+    snprintf(flipped, sizeof flipped, "f %d %d %d", a, c, b); /* same length: indices below 10 */
+    memcpy(face, flipped, (size_t)len);
+    write_mesh("flipped.obj", text);
+    expect_bad_mesh("flipped.obj", "of triangle 1 runs the same way in both of its triangles: their orientations disagree");
+}
+
+/* A ninth triangle whose first two corners are the same point given twice (vertex 7 repeats vertex
+ * 1; the import welds equal positions). */
+static void test_mesh_repeated_corner(void)
+{
+    char path[FM_PATH_MAX], text[1024];
+    write_octahedron(tmp_path(path, "repeated_corner.obj"));
+    slurp(path, text, sizeof text);
+    strncat(text, "v 1 0 0\nf 1 7 3\n", sizeof text - strlen(text) - 1);
+    write_mesh("repeated_corner.obj", text);
+    expect_bad_mesh("repeated_corner.obj", "triangle 9 is degenerate (two corners at the same position)");
+}
+
+/* An OBJ of lines only: assimp reads it, but there is no surface. */
+static void test_mesh_lines_only(void)
+{
+    write_mesh("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nl 1 2\nl 2 3\nl 3 4\nl 4 1\n");
+    expect_bad_mesh("lines.obj", "the mesh has no triangles");
+}
+
 /* ---------------------------------------------------------------- n */
 
 static void test_n_too_small(void)
@@ -377,17 +473,35 @@ static double allocated_bytes(void)
 #endif
 }
 
-/* The estimate follows the real allocations: model, agent store, the run's frame and the cache
- * writer's buffers for 200000 agents, measured by the allocator. */
-static void test_memory_estimate_matches_allocations(void)
+/* The octahedron 20 units from itself with 200000 agents, in `mode`. */
+static fm_scene_def estimate_scene(fm_mode mode)
 {
-    char mesh[FM_PATH_MAX], cache[FM_PATH_MAX];
+    char mesh[FM_PATH_MAX];
     write_octahedron(tmp_path(mesh, "octahedron.obj"));
     fm_scene_def def = fm_default_scene_def();
+    def.mode = mode;
     snprintf(def.source.path, sizeof def.source.path, "%s", mesh);
     snprintf(def.target.path, sizeof def.target.path, "%s", mesh);
     def.source.translate[0] = -10, def.target.translate[0] = 10;
     def.n = 200000;
+    return def;
+}
+
+/* The bytes allocated since `before` are within 5 % of `per_agent` × n. */
+static void expect_estimate(const fm_scene_def *def, double before, double per_agent, const char *parts)
+{
+    double used = allocated_bytes() - before, estimated = per_agent * (double)def->n;
+    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
+               used, estimated, used / (double)def->n, per_agent);
+    printf("  allocated %.1f bytes per agent, estimated %.1f%s\n", used / (double)def->n, per_agent, parts);
+}
+
+/* The estimate follows the real allocations: model, agent store, the run's frame and the cache
+ * writer's buffers for 200000 agents, measured by the allocator. */
+static void test_memory_estimate_matches_allocations(void)
+{
+    char cache[FM_PATH_MAX];
+    fm_scene_def def = estimate_scene(FM_MODE_TETRA_MORPH);
     fm_error err = {0};
     double before = allocated_bytes();
     fm_model *model = fm_model_build(&def, NULL, NULL, &err);
@@ -399,35 +513,63 @@ static void test_memory_estimate_matches_allocations(void)
                                                               NULL, &err)
                                : NULL;
     ENSURE_MSG(w != NULL && frame != NULL && phases != NULL, "%s", err.message);
-    double used = allocated_bytes() - before;
     fm_memory_estimate e = fm_memory_estimate_run(&def, def.n);
-    double estimated = (e.model + e.state + e.frames) * (double)def.n;
-    ENSURE_MSG(used > 0.95 * estimated && used < 1.05 * estimated, "allocated %.0f bytes, estimated %.0f (%.1f vs %.1f per agent)",
-               used, estimated, used / (double)def.n, estimated / (double)def.n);
-    printf("  allocated %.1f bytes per agent, estimated %.1f\n", used / (double)def.n, estimated / (double)def.n);
+    expect_estimate(&def, before, e.model + e.state + e.frames, "");
     fm_cache_writer_abort(w);
     free(frame), free(phases);
     fm_state_destroy(state);
     fm_model_destroy(model);
 }
 
-/* n beyond physical memory is refused before anything is built, with the estimate. */
-static void test_n_too_large_for_memory(void)
+/* The same for the shape flock: model, agent store (with its neighbour grid), the run's frame
+ * (position, velocity, orientation, phase) and the cache writer. */
+static void test_flock_memory_estimate_matches_allocations(void)
+{
+    char cache[FM_PATH_MAX], parts[128];
+    fm_scene_def def = estimate_scene(FM_MODE_SHAPE_FLOCK);
+    fm_error err = {0};
+    double before = allocated_bytes();
+    fm_flock_model *model = fm_flock_model_build(&def, NULL, NULL, &err);
+    fm_flock_state *state = model ? fm_flock_state_create(model, 1, &err) : NULL;
+    void *frame = malloc((sizeof(float) * 10 + 1) * (size_t)def.n);
+    fm_cache_writer *w = state ? fm_flock_cache_create(tmp_path(cache, "flock_estimate.fmc"), model, NULL, &err) : NULL;
+    ENSURE_MSG(w != NULL && frame != NULL, "%s", err.message);
+    fm_memory_estimate e = fm_memory_estimate_for(&def, def.n);
+    snprintf(parts, sizeof parts, " (model %.1f, store %.1f, frames %.1f, grid %.1f)", e.model, e.state, e.frames, e.grid);
+    expect_estimate(&def, before, e.per_agent, parts);
+    fm_cache_writer_abort(w);
+    free(frame);
+    fm_flock_state_destroy(state);
+    fm_flock_model_destroy(model);
+}
+
+/* n beyond physical memory is refused before anything is built, with the estimate of the scene's
+ * mode (`mode_member` selects it). */
+static void expect_n_too_large(const char *name, fm_mode mode, const char *mode_member)
 {
     fm_scene_def def = fm_default_scene_def();
-    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_run(&def, 1000).per_agent;
+    def.mode = mode;
+    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_for(&def, 1000).per_agent;
     long long n = (long long)(1.25 * physical / per_agent);
     if (physical <= 0 || n > 1000000000) {
         printf("  (skipped: this machine's memory fits the largest n a scene accepts)\n");
         return;
     }
-    char extra[64], where[FM_PATH_MAX + 32], need[96];
-    snprintf(extra, sizeof extra, ",\n  \"n\": %lld", n);
-    const char *path = plain_scene("n_large.json", extra);
+    char extra[96], where[FM_PATH_MAX + 32], need[96];
+    snprintf(extra, sizeof extra, "%s,\n  \"n\": %lld", mode_member, n);
+    const char *path = plain_scene(name, extra);
     snprintf(extra, sizeof extra, "%lld", n);
-    fm_memory_estimate e = fm_memory_estimate_run(&def, n);
+    fm_memory_estimate e = fm_memory_estimate_for(&def, n);
     snprintf(need, sizeof need, "n: %lld agents need about %.1f GiB (%.0f bytes per agent", n, e.total / 1073741824.0, e.per_agent);
     EXPECT_RUN(path, 2, scene_position(extra, where, sizeof where), need, "physical memory", "docs/limits.md");
+}
+
+static void test_n_too_large_for_memory(void) { expect_n_too_large("n_large.json", FM_MODE_TETRA_MORPH, ""); }
+
+/* The shape flock's own estimate (fm_flock_memory_estimate), checked before its per-agent arrays. */
+static void test_flock_n_too_large_for_memory(void)
+{
+    expect_n_too_large("flock_n_large.json", FM_MODE_SHAPE_FLOCK, FLOCK);
 }
 
 /* ---------------------------------------------------------------- the path and obstacles */
@@ -460,16 +602,53 @@ static void test_path_end_inside_obstacle(void)
                "the source centroid C_S (where the path starts) (-10, 0, 0) lies inside obstacles.meshes[0]");
 }
 
-static void test_obstacle_overlaps_source_or_target(void)
+/* An obstacle crossing the source, around the target, inside the source: exit 2 naming the
+ * obstacle and how it overlaps; `mode_member` selects the mode, `agents` what the message calls them. */
+static void expect_obstacle_overlaps(const char *mode_member, const char *agents)
 {
-    char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("obstacle_cross.json", OBSTACLE_AT("\"translate\": [-9, 0, 0]"));
+    char where[FM_PATH_MAX + 32], extra[512], would[64];
+    snprintf(would, sizeof would, "; %s would start or end inside it", agents);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [-9, 0, 0]"), mode_member);
+    const char *path = plain_scene("obstacle_cross.json", extra);
     EXPECT_RUN(path, 2, scene_position("{\"mesh\": \"" OCTAHEDRON "\", \"translate\": [-9", where, sizeof where),
-               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect");
-    path = plain_scene("obstacle_around.json", OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"));
-    EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]");
-    path = plain_scene("obstacle_inside.json", OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"));
-    EXPECT_RUN(path, 2, "the obstacle overlaps the source: obstacles.meshes[0] lies inside the source");
+               "obstacles.meshes[0]: the obstacle overlaps the source: their surfaces intersect", would);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [10, 0, 0], \"scale\": 3"), mode_member);
+    path = plain_scene("obstacle_around.json", extra);
+    EXPECT_RUN(path, 2, "the obstacle overlaps the target: the target lies inside obstacles.meshes[0]", would);
+    snprintf(extra, sizeof extra, "%s" OBSTACLE_AT("\"translate\": [-10, 0, 0], \"scale\": 0.3"), mode_member);
+    path = plain_scene("obstacle_inside.json", extra);
+    EXPECT_RUN(path, 2, "the obstacle overlaps the source: obstacles.meshes[0] lies inside the source", would);
+}
+
+static void test_obstacle_overlaps_source_or_target(void) { expect_obstacle_overlaps("", "tets"); }
+
+/* The shape flock refuses the same obstacles: its agents start and end on the two surfaces. */
+static void test_flock_obstacle_overlaps_source_or_target(void)
+{
+    expect_obstacle_overlaps(FLOCK ",\n  \"n\": 200", "agents");
+}
+
+/* What the shape flock does not refuse (docs/errors.md says why): a path point inside an obstacle
+ * (no agent has to reach it: each follows its own copy of the path from its start to its
+ * destination, SCF eq 12), and an obstacle in the hollow of an open surface (it has no inside). */
+static void test_flock_obstacle_allowed(void)
+{
+    const char *path = plain_scene("flock_obstacle_path.json", FLOCK ",\n  \"n\": 200,\n  \"path\": {\"points\": [[0.2, 0, 0]]}"
+                                   OBSTACLE_AT("\"translate\": [0, 0, 0]"));
+    EXPECT_RUN(path, 0, "");
+    /* the octahedron's lower half (the four triangles at vertex 6, -z): an open bowl */
+    char bowl[FM_PATH_MAX], text[1024], open_text[1024] = "";
+    write_octahedron(tmp_path(bowl, "bowl.obj"));
+    slurp(bowl, text, sizeof text);
+    for (char *line = strtok(text, "\n"); line; line = strtok(NULL, "\n")) {
+        int a, b, c;
+        if (line[0] == 'f' && (sscanf(line, "f %d %d %d", &a, &b, &c) != 3 || (a != 6 && b != 6 && c != 6))) continue;
+        strncat(open_text, line, sizeof open_text - strlen(open_text) - 2), strcat(open_text, "\n");
+    }
+    write_mesh("bowl.obj", open_text);
+    path = scene("flock_bowl.json", "bad_bowl.obj", LEFT ", \"scale\": 3", RIGHT,
+                 FLOCK ",\n  \"n\": 200" OBSTACLE_AT("\"translate\": [-9.7, 0, -1], \"scale\": 0.3"));
+    EXPECT_RUN(path, 0, "");
 }
 
 /* FM assumes source and target apart; overlapping ones run, with a warning on stderr and in
@@ -531,8 +710,9 @@ static void test_output_directory(void)
 
 /* ---------------------------------------------------------------- resource limits */
 
-/* Reads every frame of a cache into one array (frames × agents × 12 floats). */
-static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, char *warning, size_t size)
+/* Reads attribute `attr` (`floats` per agent) of every frame of a cache into one array. */
+static float *read_attr_frames(const char *path, fm_cache_attr attr, int floats, uint32_t *frames, uint64_t *agents,
+                               char *warning, size_t size)
 {
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(path, &err);
@@ -540,31 +720,38 @@ static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, 
     if (!r) return NULL;
     *frames = fm_cache_frames(r), *agents = fm_cache_agents(r);
     snprintf(warning, size, "%s", fm_cache_warning(r));
-    size_t per_frame = 12 * (size_t)*agents;
+    size_t per_frame = (size_t)floats * (size_t)*agents;
     float *all = malloc(sizeof(float) * per_frame * (*frames ? *frames : 1));
     for (uint32_t f = 0; all && f < *frames; f++)
-        ENSURE_MSG(fm_cache_read_frame(r, f, all + per_frame * f, &err) == FM_OK, "%s", err.message);
+        ENSURE_MSG(fm_cache_read_attr(r, f, attr, all + per_frame * f, &err) == FM_OK, "%s", err.message);
     fm_cache_close(r);
     return all;
 }
 
-/* The file-size limit stops the cache midway: exit 3 naming the file and the reason, nothing under
- * the final name, no stats.json (not even the last run's), and the partial cache holds complete
- * frames equal to the unlimited run's. */
-static void test_file_size_limit(void)
+/* Every frame's tet vertices (frames × agents × 12 floats). */
+static float *read_frames(const char *path, uint32_t *frames, uint64_t *agents, char *warning, size_t size)
+{
+    return read_attr_frames(path, FM_ATTR_TET_VERTICES, 12, frames, agents, warning, size);
+}
+
+/* The file-size limit stops the cache of `scene_path` midway: exit 3 naming the file and the
+ * reason, nothing under the final name, no stats.json (not even the last run's), and the partial
+ * cache holds complete frames whose `attr` (`floats` per agent) equals the unlimited run's. */
+static void expect_file_size_limit(const char *scene_path, const char *outdir, fm_cache_attr attr, int floats)
 {
     char cache[FM_PATH_MAX + 16], partial[FM_PATH_MAX + 32], stats[FM_PATH_MAX + 16], warning[FM_PATH_MAX + 200];
-    const char *path = plain_scene("limit.json", ",\n  \"n\": 300");
-    ENSURE(run_scene(NULL, path, "limit_full") == 0);
+    char cut_dir[64];
+    snprintf(cut_dir, sizeof cut_dir, "%.50s_cut", outdir);
+    ENSURE(run_scene(NULL, scene_path, outdir) == 0);
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     struct stat st;
     ENSURE(stat(cache, &st) == 0);
     uint32_t frames = 0, got = 0;
     uint64_t agents = 0, got_agents = 0;
-    float *full = read_frames(cache, &frames, &agents, warning, sizeof warning);
+    float *full = read_attr_frames(cache, attr, floats, &frames, &agents, warning, sizeof warning);
     ENSURE(full != NULL && frames > 4);
 
-    tmp_path(g_outdir, "limit_cut");
+    tmp_path(g_outdir, cut_dir);
     mkdir(g_outdir, 0755);
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     snprintf(partial, sizeof partial, "%s.partial", cache);
@@ -572,21 +759,32 @@ static void test_file_size_limit(void)
     write_text(cache, "an older run's cache"), write_text(stats, "{\"all_arrived\": true}");
     remove(partial);
     char args[3 * FM_PATH_MAX];
-    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, g_outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
     cli_env limited = {(long long)st.st_size / 2, 0};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
                   "complete frames written before the error are in", "no stats.json", NULL});
     ENSURE_MSG(!exists(cache) && !exists(stats), "a final cache or stats.json is left in %s", g_outdir);
-    float *cut = read_frames(partial, &got, &got_agents, warning, sizeof warning);
+    float *cut = read_attr_frames(partial, attr, floats, &got, &got_agents, warning, sizeof warning);
     ENSURE_MSG(got >= 1 && got < frames && got_agents == agents, "%u of %u frames recovered", got, frames);
     ENSURE_MSG(strstr(warning, "incomplete cache") != NULL, "warning '%s'", warning);
-    if (full && cut) ENSURE(memcmp(full, cut, sizeof(float) * 12 * (size_t)agents * got) == 0);
+    if (full && cut) ENSURE(memcmp(full, cut, sizeof(float) * (size_t)floats * (size_t)agents * got) == 0);
     char said[64];
     snprintf(said, sizeof said, "the %u complete frames", got);
     ENSURE_MSG(strstr(g_err, said) != NULL, "'%s' not in %s", said, g_err);
     free(full), free(cut);
     remove(partial);
+}
+
+static void test_file_size_limit(void)
+{
+    expect_file_size_limit(plain_scene("limit.json", ",\n  \"n\": 300"), "limit", FM_ATTR_TET_VERTICES, 12);
+}
+
+/* The shape flock's cache under the same limit: its positions up to the last complete frame. */
+static void test_flock_file_size_limit(void)
+{
+    expect_file_size_limit(plain_scene("flock_limit.json", FLOCK ",\n  \"n\": 300"), "flock_limit", FM_ATTR_POSITION, 3);
 }
 
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
@@ -671,6 +869,7 @@ int main(void)
     RUN_TEST(test_numeric_keys_out_of_range);
     RUN_TEST(test_scene_consistency);
     RUN_TEST(test_output_cache_name);
+    RUN_TEST(test_flock_values_out_of_range);
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
     RUN_TEST(test_mesh_garbage_bytes);
@@ -678,15 +877,23 @@ int main(void)
     RUN_TEST(test_mesh_non_manifold);
     RUN_TEST(test_mesh_self_intersecting);
     RUN_TEST(test_mesh_degenerate);
+    RUN_TEST(test_mesh_flipped_triangle);
+    RUN_TEST(test_mesh_repeated_corner);
+    RUN_TEST(test_mesh_lines_only);
     RUN_TEST(test_n_too_small);
     RUN_TEST(test_memory_estimate_matches_allocations);
+    RUN_TEST(test_flock_memory_estimate_matches_allocations);
     RUN_TEST(test_n_too_large_for_memory);
+    RUN_TEST(test_flock_n_too_large_for_memory);
     RUN_TEST(test_path_too_short);
     RUN_TEST(test_path_end_inside_obstacle);
     RUN_TEST(test_obstacle_overlaps_source_or_target);
+    RUN_TEST(test_flock_obstacle_overlaps_source_or_target);
+    RUN_TEST(test_flock_obstacle_allowed);
     RUN_TEST(test_source_target_overlap_warns);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
+    RUN_TEST(test_flock_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_disk_full);
     return test_result();

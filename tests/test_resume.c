@@ -6,6 +6,7 @@
  * baked wind with MDE on, so every kind of state the step carries is exercised. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "flock.h"
 #include "sim.h"
 #include "test_macros.h"
 
@@ -104,8 +105,8 @@ static void write_octahedron(const char *path, double r)
     fclose(f);
 }
 
-/* The test scene in dir (with its mesh), `seed` varying the parameters. */
-static void write_scene(const char *dir, int seed)
+/* Creates dir with the mesh oct.obj and opens dir/scene.json for writing (NULL on failure). */
+static FILE *create_scene(const char *dir)
 {
     char path[FM_PATH_MAX];
     mkdir(dir, 0777);
@@ -113,7 +114,14 @@ static void write_scene(const char *dir, int seed)
     write_octahedron(path, 1.0);
     snprintf(path, sizeof path, "%s/scene.json", dir);
     FILE *f = fopen(path, "w");
-    ENSURE(f != NULL);
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    return f;
+}
+
+/* The test scene in dir (with its mesh), `seed` varying the parameters. */
+static void write_scene(const char *dir, int seed)
+{
+    FILE *f = create_scene(dir);
     if (!f) return;
     fprintf(f, "{\n"
                "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
@@ -377,7 +385,7 @@ static void clear_outputs(const char *out)
 }
 
 /* Starts `flockmorph run SCENE -o OUT ARGS...` with stdout and stderr to OUT.log; returns its pid. */
-static pid_t start_run(const char *out, const char *extra)
+static pid_t start_scene(const char *scene, const char *out, const char *extra)
 {
     char log[FM_PATH_MAX];
     snprintf(log, sizeof log, "%s.log", out);
@@ -385,7 +393,7 @@ static pid_t start_run(const char *out, const char *extra)
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 1, log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    char *argv[16] = {(char *)FM_CLI, "run", SCENE, "-o", (char *)out, "--threads", "1", "--quiet"};
+    char *argv[16] = {(char *)FM_CLI, "run", (char *)scene, "-o", (char *)out, "--threads", "1", "--quiet"};
     char words[256];
     snprintf(words, sizeof words, "%s", extra);
     int argc = 8;
@@ -396,6 +404,8 @@ static pid_t start_run(const char *out, const char *extra)
     posix_spawn_file_actions_destroy(&fa);
     return pid;
 }
+
+static pid_t start_run(const char *out, const char *extra) { return start_scene(SCENE, out, extra); }
 
 /* The child's exit status, 128 + signal if a signal ended it. */
 static int wait_status(pid_t pid)
@@ -423,71 +433,6 @@ static int wait_for_size(pid_t pid, const char *path, long long bytes)
     }
 }
 
-/* The uninterrupted run, kept as DIR_/ref.fmc and DIR_/ref.json for the comparisons. Every run
- * of these tests writes to the same OUT so stats.json's "cache" path is the same too. */
-#define OUT DIR_ "/out"
-static long long g_ref_bytes; /* the reference cache's size: interruptions happen at fractions of it */
-
-static void reference_run(void)
-{
-    clear_outputs(OUT);
-    ENSURE_MSG(run_to_end(OUT, "") == 0, "see %s.log", OUT);
-    ENSURE(rename(OUT "/frames.fmc", DIR_ "/ref.fmc") == 0 && rename(OUT "/stats.json", DIR_ "/ref.json") == 0);
-    g_ref_bytes = file_size(DIR_ "/ref.fmc");
-}
-
-/* Resumes the run in OUT and compares the finished cache and stats.json with the reference. */
-static void resume_and_compare(const char *what)
-{
-    int rc = run_to_end(OUT, "--resume");
-    size_t len;
-    char *log = slurp(OUT ".log", &len);
-    ENSURE_MSG(rc == 0, "%s: resume exited %d: %s", what, rc, log ? log : "");
-    free(log);
-    ENSURE_MSG(same_bytes(OUT "/frames.fmc", DIR_ "/ref.fmc"), "%s: the resumed cache differs", what);
-    char *a = stats_without_timings(OUT "/stats.json"), *b = stats_without_timings(DIR_ "/ref.json");
-    ENSURE_MSG(a && b && strcmp(a, b) == 0, "%s: stats.json differs:\n%s\nvs\n%s", what, a ? a : "", b ? b : "");
-    free(a), free(b);
-    ENSURE_MSG(!exists(OUT "/checkpoint.fmck") && !exists(OUT "/frames.fmc.partial"), "%s: leftovers", what);
-}
-
-static void test_kill9_then_resume(void)
-{
-    clear_outputs(OUT);
-    pid_t pid = start_run(OUT, "--checkpoint-every 5");
-    int alive = wait_for_size(pid, OUT "/checkpoint.fmck", 0);
-    alive = alive && wait_for_size(pid, OUT "/frames.fmc.partial", g_ref_bytes / 2); /* many frames later */
-    ENSURE_MSG(alive, "the run ended before it could be killed");
-    kill(pid, SIGKILL);
-    ENSURE(wait_status(pid) == 128 + SIGKILL);
-    ENSURE(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial") && !exists(OUT "/frames.fmc"));
-    resume_and_compare("kill -9");
-}
-
-/* Interrupts a run with `sig` once it has written some frames, checks the exit status, the
- * message and the files left, then resumes it. */
-static void interrupt_then_resume(int sig, int status, double fraction, const char *what)
-{
-    clear_outputs(OUT);
-    pid_t pid = start_run(OUT, "");
-    ENSURE_MSG(wait_for_size(pid, OUT "/frames.fmc.partial", (long long)(fraction * (double)g_ref_bytes)),
-               "%s: the run ended too soon", what);
-    kill(pid, sig);
-    int rc = wait_status(pid);
-    size_t len;
-    char *log = slurp(OUT ".log", &len);
-    ENSURE_MSG(rc == status, "%s: exit %d, expected %d: %s", what, rc, status, log ? log : "");
-    ENSURE_MSG(log && strstr(log, "interrupted at frame ") && strstr(log, "checkpoint written; resume with: flockmorph run ")
-               && strstr(log, " -o " OUT " --resume"), "%s: %s", what, log ? log : "");
-    free(log);
-    ENSURE_MSG(exists(OUT "/checkpoint.fmck") && exists(OUT "/frames.fmc.partial") && !exists(OUT "/frames.fmc"),
-               "%s: the checkpoint and partial cache should be kept", what);
-    resume_and_compare(what);
-}
-
-static void test_sigint_then_resume(void) { interrupt_then_resume(SIGINT, 130, 0.6, "SIGINT"); }
-static void test_sigterm_then_resume(void) { interrupt_then_resume(SIGTERM, 143, 0.3, "SIGTERM"); }
-
 static void copy_file(const char *from, const char *to)
 {
     size_t len;
@@ -498,6 +443,132 @@ static void copy_file(const char *from, const char *to)
     if (f) fclose(f);
     free(bytes);
 }
+
+/* DIR/NAME in one of a few rotating buffers (a test names a handful of files at once). */
+static const char *in(const char *dir, const char *name)
+{
+    static char bufs[8][FM_PATH_MAX];
+    static int next;
+    char *buf = bufs[next++ % 8];
+    snprintf(buf, FM_PATH_MAX, "%s/%s", dir, name);
+    return buf;
+}
+
+/* A scene whose interrupted runs are compared with its uninterrupted one, kept as DIR/ref.fmc and
+ * DIR/ref.json. Every run of a case writes to the same OUT, so stats.json's "cache" path is the same
+ * too. */
+typedef struct run_case {
+    const char *scene, *dir, *out;
+    long long ref_bytes; /* the reference cache's size: interruptions happen at fractions of it */
+} run_case;
+
+#define OUT DIR_ "/out"
+static run_case g_tetra = {SCENE, DIR_, OUT, 0};
+
+static void reference_run(run_case *c)
+{
+    clear_outputs(c->out);
+    ENSURE_MSG(wait_status(start_scene(c->scene, c->out, "")) == 0, "see %s.log", c->out);
+    ENSURE(rename(in(c->out, "frames.fmc"), in(c->dir, "ref.fmc")) == 0);
+    ENSURE(rename(in(c->out, "stats.json"), in(c->dir, "ref.json")) == 0);
+    c->ref_bytes = file_size(in(c->dir, "ref.fmc"));
+}
+
+/* Resumes the run in OUT and compares the finished cache and stats.json with the reference. */
+static void resume_and_compare(const run_case *c, const char *what)
+{
+    int rc = wait_status(start_scene(c->scene, c->out, "--resume"));
+    size_t len;
+    char log_path[FM_PATH_MAX + 8];
+    snprintf(log_path, sizeof log_path, "%s.log", c->out);
+    char *log = slurp(log_path, &len);
+    ENSURE_MSG(rc == 0, "%s: resume exited %d: %s", what, rc, log ? log : "");
+    free(log);
+    ENSURE_MSG(same_bytes(in(c->out, "frames.fmc"), in(c->dir, "ref.fmc")), "%s: the resumed cache differs", what);
+    char *a = stats_without_timings(in(c->out, "stats.json")), *b = stats_without_timings(in(c->dir, "ref.json"));
+    ENSURE_MSG(a && b && strcmp(a, b) == 0, "%s: stats.json differs:\n%s\nvs\n%s", what, a ? a : "", b ? b : "");
+    free(a), free(b);
+    ENSURE_MSG(!exists(in(c->out, "checkpoint.fmck")) && !exists(in(c->out, "frames.fmc.partial")), "%s: leftovers", what);
+}
+
+/* Frame `frame` of every attribute of an open cache, one after the other, into buf (malloc'ed). */
+static size_t read_all_attrs(fm_cache_reader *r, uint32_t frame, unsigned char **buf)
+{
+    size_t bytes = 0, at = 0;
+    for (int i = 0; i < fm_cache_attr_count(r); i++) bytes += fm_cache_attr_at(r, i)->bytes_per_agent * fm_cache_agents(r);
+    *buf = malloc(bytes);
+    fm_error err = {0};
+    for (int i = 0; *buf && i < fm_cache_attr_count(r); i++) {
+        const fm_cache_attr_info *a = fm_cache_attr_at(r, i);
+        ENSURE_MSG(fm_cache_read_attr(r, frame, a->attr, *buf + at, &err) == FM_OK, "%s", err.message);
+        at += a->bytes_per_agent * fm_cache_agents(r);
+    }
+    return bytes;
+}
+
+/* The complete frames of `partial` (at least 2, fewer than `whole` has) hold the bytes of `whole`'s,
+ * attribute by attribute. */
+static void ensure_prefix_of(const char *partial, const char *whole)
+{
+    fm_error err = {0};
+    fm_cache_reader *p = fm_cache_open(partial, &err), *w = p ? fm_cache_open(whole, &err) : NULL;
+    ENSURE_MSG(p && w, "%s", err.message);
+    uint32_t frames = p && w ? fm_cache_frames(p) : 0;
+    ENSURE_MSG(frames >= 2 && (!w || frames < fm_cache_frames(w)), "%u of %u frames", frames, w ? fm_cache_frames(w) : 0);
+    for (uint32_t f = 0; f < frames; f++) {
+        unsigned char *a, *b;
+        size_t na = read_all_attrs(p, f, &a), nb = read_all_attrs(w, f, &b);
+        ENSURE_MSG(a && b && na == nb && memcmp(a, b, na) == 0, "frame %u differs from the uninterrupted run's", f);
+        free(a), free(b);
+    }
+    fm_cache_close(p), fm_cache_close(w);
+}
+
+static void kill9_then_resume(const run_case *c)
+{
+    clear_outputs(c->out);
+    pid_t pid = start_scene(c->scene, c->out, "--checkpoint-every 5");
+    int alive = wait_for_size(pid, in(c->out, "checkpoint.fmck"), 0);
+    alive = alive && wait_for_size(pid, in(c->out, "frames.fmc.partial"), c->ref_bytes / 2); /* many frames later */
+    ENSURE_MSG(alive, "the run ended before it could be killed");
+    kill(pid, SIGKILL);
+    ENSURE(wait_status(pid) == 128 + SIGKILL);
+    ENSURE(exists(in(c->out, "checkpoint.fmck")) && exists(in(c->out, "frames.fmc.partial")) &&
+           !exists(in(c->out, "frames.fmc")));
+    resume_and_compare(c, "kill -9");
+}
+
+/* Interrupts a run with `sig` once it has written some frames (the previous run's results lying
+ * in OUT), checks the exit status, the message and the files left: the checkpoint, and the partial
+ * cache whose frames are the uninterrupted run's, no frames.fmc, no stats.json. Then resumes it. */
+static void interrupt_then_resume(const run_case *c, int sig, int status, double fraction, const char *what)
+{
+    clear_outputs(c->out);
+    copy_file(in(c->dir, "ref.fmc"), in(c->out, "frames.fmc"));
+    copy_file(in(c->dir, "ref.json"), in(c->out, "stats.json"));
+    pid_t pid = start_scene(c->scene, c->out, "");
+    ENSURE_MSG(wait_for_size(pid, in(c->out, "frames.fmc.partial"), (long long)(fraction * (double)c->ref_bytes)),
+               "%s: the run ended too soon", what);
+    kill(pid, sig);
+    int rc = wait_status(pid);
+    size_t len;
+    char log_path[FM_PATH_MAX + 8], resume[FM_PATH_MAX + 32];
+    snprintf(log_path, sizeof log_path, "%s.log", c->out);
+    snprintf(resume, sizeof resume, " -o %s --resume", c->out);
+    char *log = slurp(log_path, &len);
+    ENSURE_MSG(rc == status, "%s: exit %d, expected %d: %s", what, rc, status, log ? log : "");
+    ENSURE_MSG(log && strstr(log, "interrupted at frame ") && strstr(log, "checkpoint written; resume with: flockmorph run ")
+               && strstr(log, resume), "%s: %s", what, log ? log : "");
+    free(log);
+    ENSURE_MSG(exists(in(c->out, "checkpoint.fmck")) && !exists(in(c->out, "frames.fmc")) && !exists(in(c->out, "stats.json")),
+               "%s: the checkpoint should be kept, no cache or stats.json left", what);
+    ensure_prefix_of(in(c->out, "frames.fmc.partial"), in(c->dir, "ref.fmc"));
+    resume_and_compare(c, what);
+}
+
+static void test_kill9_then_resume(void) { kill9_then_resume(&g_tetra); }
+static void test_sigint_then_resume(void) { interrupt_then_resume(&g_tetra, SIGINT, 130, 0.6, "SIGINT"); }
+static void test_sigterm_then_resume(void) { interrupt_then_resume(&g_tetra, SIGTERM, 143, 0.3, "SIGTERM"); }
 
 /* `flockmorph run scene -o out --resume` exits 2 naming `why`, and writes no cache. */
 static void ensure_refused(const char *scene_dir, const char *out, const char *why)
@@ -515,19 +586,25 @@ static void ensure_refused(const char *scene_dir, const char *out, const char *w
     ENSURE(file_size(cache) == cache_before);
 }
 
-static void test_cli_refuses_other_scene_and_damage(void)
+/* A checkpoint and partial cache of the (tetra) test scene in OUT, copied to `other_out` too. */
+static void interrupted_run_copied_to(const char *other_out)
 {
-    /* a checkpoint and partial cache of the test scene */
     clear_outputs(OUT);
     pid_t pid = start_run(OUT, "");
     ENSURE(wait_for_size(pid, OUT "/frames.fmc.partial", 300000));
     kill(pid, SIGINT);
     ENSURE(wait_status(pid) == 130);
+    mkdir(other_out, 0777);
+    clear_outputs(other_out);
+    copy_file(OUT "/checkpoint.fmck", in(other_out, "checkpoint.fmck"));
+    copy_file(OUT "/frames.fmc.partial", in(other_out, "frames.fmc.partial"));
+}
+
+static void test_cli_refuses_other_scene_and_damage(void)
+{
     const char *other = DIR_ "/other";
     write_scene(other, 8); /* another seed */
-    mkdir(DIR_ "/other/out", 0777);
-    copy_file(OUT "/checkpoint.fmck", DIR_ "/other/out/checkpoint.fmck");
-    copy_file(OUT "/frames.fmc.partial", DIR_ "/other/out/frames.fmc.partial");
+    interrupted_run_copied_to(DIR_ "/other/out");
     ensure_refused(other, DIR_ "/other/out", "written for a different scene");
 
     size_t len;
@@ -550,6 +627,87 @@ static void test_cli_refuses_other_scene_and_damage(void)
     ensure_refused(DIR_, OUT, "nothing to resume");
 }
 
+/* ---------------------------------------------------------------- the shape flock */
+
+/* A waving target (destinations and their velocities change every step, the tracking lag sums up),
+ * a baked wind and a vortex (the style-field grid), an obstacle's push and floating agents: every
+ * kind of state the flock's step carries. */
+#define FLOCK_DIR DIR_ "/flock"
+static run_case g_flock = {FLOCK_DIR "/scene.json", FLOCK_DIR, FLOCK_DIR "/out", 0};
+
+static void write_flock_scene(void)
+{
+    FILE *f = create_scene(FLOCK_DIR);
+    if (!f) return;
+    fprintf(f, "{\n"
+               "  \"mode\": \"shape_flock\",\n"
+               "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
+               "  \"target\": {\"mesh\": \"oct.obj\", \"translate\": [10, 0, 0], \"scale\": 2},\n"
+               "  \"n\": 1500, \"seed\": 3, \"speed0\": 6,\n"
+               "  \"time\": {\"frame_rate\": 24, \"time_step\": 0.0208333333333333333, \"frame_limit\": 100},\n"
+               "  \"path\": {\"points\": [[0, 5, 0]]},\n"
+               "  \"obstacles\": {\"meshes\": [{\"mesh\": \"oct.obj\", \"translate\": [0, 2, 0]}], \"k_a\": 1.0},\n"
+               "  \"style\": {\"grid\": [12, 12, 12], \"fields\": [{\"type\": \"wind\", \"direction\": [0, 1, 0],\n"
+               "             \"speed\": 0.3, \"turbulence\": 0.3, \"scale\": 2, \"period\": 1},\n"
+               "             {\"type\": \"vortex\", \"center\": [0, 0, 0], \"axis\": [0, 0, 1], \"strength\": 0.3}]},\n"
+               "  \"shape_flock\": {\"sampling\": \"random\", \"path_time\": 2,\n"
+               "                  \"arrival\": {\"mode\": \"float\"},\n"
+               "                  \"deform\": {\"type\": \"wave\", \"amplitude\": 0.3, \"period\": 1}}\n"
+               "}\n");
+    fclose(f);
+}
+
+static void test_flock_kill9_then_resume(void) { kill9_then_resume(&g_flock); }
+static void test_flock_sigint_then_resume(void) { interrupt_then_resume(&g_flock, SIGINT, 130, 0.6, "flock SIGINT"); }
+static void test_flock_sigterm_then_resume(void) { interrupt_then_resume(&g_flock, SIGTERM, 143, 0.3, "flock SIGTERM"); }
+
+/* In process: a flock checkpoint restores the store into a fresh state (another thread count), and
+ * is refused for the model of the same scene with other meshes under the same file names. */
+static void test_flock_checkpoint_restores_or_refuses_model(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    ENSURE(fm_scene_load(g_flock.scene, &def, &err) == FM_OK);
+    fm_flock_model *m = fm_flock_model_build(&def, NULL, NULL, &err);
+    fm_flock_state *s = m ? fm_flock_state_create(m, 1, &err) : NULL, *t = m ? fm_flock_state_create(m, 2, &err) : NULL;
+    ENSURE_MSG(s && t, "%s", err.message);
+    if (!s || !t) return;
+    for (int k = 0; k < 30; k++) fm_flock_step(m, s);
+    s->lag_sum = 0.25;
+    const char *path = in(FLOCK_DIR, "inprocess.fmck");
+    fm_flock_run_stats saved = {.frames = 3, .simulate_seconds = 1.5, .tracking_frames = 2}, got;
+    ENSURE_MSG(fm_flock_checkpoint_save(path, m, s, &saved, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_flock_checkpoint_load(path, m, t, &got, &err) == FM_OK, "%s", err.message);
+    ENSURE(got.frames == 3 && got.simulate_seconds == 1.5 && got.tracking_frames == 2);
+    ENSURE(t->step == 30 && t->time == s->time && t->lag_sum == 0.25 && !memcmp(&t->kalman, &s->kalman, sizeof s->kalman));
+    for (int k = 0; k < 3; k++) ENSURE(!memcmp(t->p[k], s->p[k], sizeof(float) * (size_t)s->n));
+    ENSURE(!memcmp(t->orient, s->orient, sizeof(float) * 4 * (size_t)s->n) && !memcmp(t->phase, s->phase, (size_t)s->n));
+
+    const char *other = FLOCK_DIR "/other";
+    mkdir(other, 0777);
+    copy_file(g_flock.scene, in(other, "scene.json"));
+    write_octahedron(in(other, "oct.obj"), 1.1);
+    fm_scene_def def2;
+    ENSURE(fm_scene_load(in(other, "scene.json"), &def2, &err) == FM_OK);
+    fm_flock_model *m2 = fm_flock_model_build(&def2, NULL, NULL, &err);
+    fm_flock_state *u = m2 ? fm_flock_state_create(m2, 1, &err) : NULL;
+    ENSURE_MSG(u != NULL, "%s", err.message);
+    if (u) {
+        ENSURE(fm_flock_checkpoint_load(path, m2, u, &got, &err) == FM_ERR_INPUT);
+        ENSURE_MSG(strstr(err.message, "written for a different model: the samples"), "%s", err.message);
+    }
+    fm_flock_state_destroy(u), fm_flock_model_destroy(m2);
+    fm_flock_state_destroy(s), fm_flock_state_destroy(t), fm_flock_model_destroy(m);
+}
+
+/* One mode's checkpoint is another scene's for the other mode: refused, nothing changed. */
+static void test_flock_refuses_tetra_checkpoint(void)
+{
+    interrupted_run_copied_to(g_flock.out);
+    ensure_refused(FLOCK_DIR, g_flock.out, "written for a different scene");
+    ENSURE(exists(in(g_flock.out, "checkpoint.fmck")) && exists(in(g_flock.out, "frames.fmc.partial")));
+}
+
 int main(void)
 {
     write_scene(DIR_, 7);
@@ -563,10 +721,17 @@ int main(void)
     RUN_TEST(test_damaged_checkpoints_refused);
     RUN_TEST(test_other_scene_or_model_refused);
     fm_model_destroy(g_model);
-    reference_run();
+    reference_run(&g_tetra);
     RUN_TEST(test_kill9_then_resume);
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);
+    write_flock_scene();
+    reference_run(&g_flock);
+    RUN_TEST(test_flock_kill9_then_resume);
+    RUN_TEST(test_flock_sigint_then_resume);
+    RUN_TEST(test_flock_sigterm_then_resume);
+    RUN_TEST(test_flock_refuses_tetra_checkpoint);
+    RUN_TEST(test_flock_checkpoint_restores_or_refuses_model);
     return test_result();
 }

@@ -6,6 +6,7 @@
 #include "fm_internal.h"
 
 #include <jansson.h>
+#include <signal.h>
 #include <stdint.h>
 
 /* Commands: argc/argv start after the command's name. Each returns the process exit status. */
@@ -30,16 +31,34 @@ int cli_make_outdir(const char *dir, const char *const *names, int count);
 /* `run`: its options, and the shape flock's half of it (cli_run_flock.c). */
 typedef struct cli_run_options {
     const char *scene, *outdir;
-    int threads, quiet;
+    int threads, quiet, resume;
+    long checkpoint_every; /* -1: by wall time (the default) */
 } cli_run_options;
 int cli_run_flock(const cli_run_options *o, const fm_scene_def *def);
-/* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json) and with how many threads. */
+/* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json, OUTDIR/checkpoint.fmck) and with
+ * how many threads. */
 typedef struct cli_outputs {
     char cache[FM_PATH_MAX + 300];
     char stats[FM_PATH_MAX + 16];
+    char checkpoint[FM_PATH_MAX + 32];
     int threads;
 } cli_outputs;
 void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out);
+/* The checkpoint's frames (--checkpoint-every K: K; by default none: cli_checkpoint_seconds). */
+int64_t cli_checkpoint_every(const cli_run_options *o);
+double cli_checkpoint_seconds(const cli_run_options *o);
+/* A new run (not --resume): warns if an interrupted run's checkpoint is in the way, and removes it
+ * with the previous run's cache and stats.json. */
+void cli_start_over(const cli_outputs *out);
+void cli_remove_checkpoint(const cli_outputs *out); /* and its .partial */
+/* --resume: the checkpoint checked against the scene (fm_checkpoint_check), before preprocessing. */
+int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def);
+/* After a stop (FM_STOPPED: the checkpoint is written): keeps the cache's frames as .partial for
+ * --resume and prints how to resume; returns 128 + the signal. */
+int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
+/* After a failed run: with a checkpoint, keeps it and the partial cache and prints how to resume
+ * once the cause is fixed; without, as cli_fail_keeping_partial_cache. Returns the exit status. */
+int cli_report_failed(const cli_run_options *o, const cli_outputs *out, fm_cache_writer *cache, const fm_error *err);
 /* The frame progress line's state (shown on a terminal unless --quiet). */
 typedef struct cli_progress {
     int show;
@@ -63,6 +82,18 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
 double cli_agent_steps_per_second(const cli_run_record *r);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
+/* A new run first removes the previous run's cache and stats.json, so that should this one fail,
+ * the old results cannot pass for its own. */
+void cli_remove_previous_results(const char *cache, const char *stats);
+/* A run that failed while writing (disk full, file-size limit): prints err, keeps the cache's frames
+ * so far as CACHE.partial (cache may already be gone: NULL), says how many complete frames it holds
+ * (or removes it when it holds none) and that no stats.json was written; returns the exit status. */
+int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, const char *cache_path);
+/* SIGINT / SIGTERM while catching (cli_catch_stop_signals(1)): the first sets cli_stop_signal to
+ * the signal's number, which both modes' runs read at every frame boundary (the exit status is then
+ * 128 + it); a second one ends the process at once. cli_catch_stop_signals(0) restores the default. */
+extern volatile sig_atomic_t cli_stop_signal;
+void cli_catch_stop_signals(int catch);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

@@ -6,6 +6,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -255,5 +256,130 @@ void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outp
 {
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
     snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
+    snprintf(out->checkpoint, sizeof out->checkpoint, "%s/checkpoint.fmck", o->outdir);
     out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+}
+
+enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
+
+int64_t cli_checkpoint_every(const cli_run_options *o) { return o->checkpoint_every > 0 ? o->checkpoint_every : 0; }
+
+double cli_checkpoint_seconds(const cli_run_options *o) { return o->checkpoint_every < 0 ? DEFAULT_CHECKPOINT_SECONDS : 0; }
+
+void cli_remove_checkpoint(const cli_outputs *out)
+{
+    char partial[sizeof out->checkpoint + 16];
+    snprintf(partial, sizeof partial, "%s.partial", out->checkpoint); /* left if killed while writing one */
+    remove(out->checkpoint), remove(partial);
+}
+
+void cli_start_over(const cli_outputs *out)
+{
+    if (access(out->checkpoint, F_OK) == 0)
+        fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
+                "continues such a run)\n", out->checkpoint);
+    cli_remove_checkpoint(out); /* this run's cache replaces the one it describes */
+    cli_remove_previous_results(out->cache, out->stats);
+}
+
+int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def)
+{
+    cli_outputs out;
+    fm_error err = {0};
+    cli_run_outputs(o, def, &out);
+    return fm_checkpoint_check(out.checkpoint, def, &err) == FM_OK ? 0 : cli_report(&err);
+}
+
+/* Prints an argument so a shell reads it back unchanged. */
+static void print_shell_word(FILE *f, const char *s)
+{
+    if (s[strspn(s, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./=:,+@%")] == 0) {
+        fputs(s, f);
+        return;
+    }
+    fputc('\'', f);
+    for (; *s; s++) *s == '\'' ? fputs("'\\''", f) : fputc(*s, f);
+    fputc('\'', f);
+}
+
+static void print_resume_command(const cli_run_options *o)
+{
+    fputs("flockmorph run ", stderr);
+    print_shell_word(stderr, o->scene);
+    fputs(" -o ", stderr);
+    print_shell_word(stderr, o->outdir);
+    fputs(" --resume\n", stderr);
+}
+
+int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int64_t frames)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: interrupted at frame %lld; checkpoint written; resume with: ", (long long)frames - 1);
+    print_resume_command(o);
+    return 128 + cli_stop_signal;
+}
+
+int cli_report_failed(const cli_run_options *o, const cli_outputs *out, fm_cache_writer *cache, const fm_error *err)
+{
+    if (access(out->checkpoint, F_OK) != 0) return cli_fail_keeping_partial_cache(err, cache, out->cache);
+    int rc = cli_report(err);
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: the last checkpoint and the partial cache are kept; once the problem is fixed, "
+            "resume with: ");
+    print_resume_command(o);
+    return rc;
+}
+
+void cli_remove_previous_results(const char *cache, const char *stats)
+{
+    remove(cache), remove(stats);
+}
+
+/* The partial cache of a failed run: how many complete frames it holds, or removed if none. */
+static void report_partial_cache(const char *cache)
+{
+    char partial[FM_PATH_MAX + 320];
+    snprintf(partial, sizeof partial, "%s.partial", cache);
+    fm_error ignored = {0};
+    fm_cache_reader *r = fm_cache_open(partial, &ignored);
+    if (r && fm_cache_frames(r) > 0)
+        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph inspect, "
+                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
+    else
+        remove(partial);
+    fm_cache_close(r);
+    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
+}
+
+int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, const char *cache_path)
+{
+    int rc = cli_report(err);
+    fm_cache_writer_close_partial(cache);
+    report_partial_cache(cache_path);
+    return rc;
+}
+
+volatile sig_atomic_t cli_stop_signal;
+
+/* The first SIGINT / SIGTERM asks the run to stop at the end of the frame; a second one (an
+ * impatient user) takes the default action at once. */
+static void on_stop_signal(int sig)
+{
+    if (cli_stop_signal) {
+        signal(sig, SIG_DFL);
+        raise(sig);
+        return;
+    }
+    cli_stop_signal = sig;
+}
+
+void cli_catch_stop_signals(int catch)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = catch ? on_stop_signal : SIG_DFL;
+    sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
 }

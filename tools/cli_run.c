@@ -3,11 +3,9 @@
 #include "cli.h"
 
 #include <jansson.h>
-#include <omp.h>
 
 #include <errno.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -29,21 +27,12 @@ static const char *const USAGE_RUN =
     "  --checkpoint-every K  save the run to OUTDIR/checkpoint.fmck every K frames; 0: only when\n"
     "                        interrupted (default: every 60 s of wall time)\n"
     "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene;\n"
-    "                        checkpoints are for the tetra morph only)\n"
+    "                        either mode)\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
 
-enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
-static const char CHECKPOINT_NAME[] = "checkpoint.fmck";
-
-typedef struct run_options {
-    const char *scene, *outdir;
-    int threads, quiet, resume;
-    long checkpoint_every; /* -1: by wall time (the default) */
-} run_options;
-
-static int parse_run(int argc, char **argv, run_options *o)
+static int parse_run(int argc, char **argv, cli_run_options *o)
 {
     memset(o, 0, sizeof *o);
     o->checkpoint_every = -1;
@@ -155,61 +144,19 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     return cli_write_json(path, j);
 }
 
-/* SIGINT / SIGTERM: the first asks fm_run_controlled to checkpoint and stop at the end of the
- * frame; a second one (an impatient user) takes the default action at once. */
-static volatile sig_atomic_t g_stop_signal;
-
-static void on_stop_signal(int sig)
-{
-    if (g_stop_signal) {
-        signal(sig, SIG_DFL);
-        raise(sig);
-        return;
-    }
-    g_stop_signal = sig;
-}
-
-static void handle_stop_signals(void (*handler)(int))
-{
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = handler;
-    sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-}
-
 static fm_status save_checkpoint(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
 {
     return fm_checkpoint_save(path, m, s, rs, err);
 }
 
-typedef struct run_files {
-    char cache[FM_PATH_MAX + 300], stats[FM_PATH_MAX + 16], checkpoint[FM_PATH_MAX + 32];
-} run_files;
-
-static void remove_checkpoint(const run_files *files)
-{
-    char partial[sizeof files->checkpoint + 16];
-    snprintf(partial, sizeof partial, "%s.partial", files->checkpoint); /* left if killed while writing one */
-    remove(files->checkpoint), remove(partial);
-}
-
 /* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
-static int open_run(const run_options *o, const fm_scene_def *def, const fm_model *model, const run_files *files,
+static int open_run(const cli_run_options *o, const fm_scene_def *def, const fm_model *model, const cli_outputs *files,
                     fm_state *state, fm_run_stats *rs, fm_cache_writer **cache)
 {
     fm_error err = {0};
     if (!o->resume) {
-        if (access(files->checkpoint, F_OK) == 0)
-            fprintf(stderr, "flockmorph: warning: starting over: %s of an interrupted run is removed (--resume "
-                    "continues such a run)\n", files->checkpoint);
-        remove_checkpoint(files); /* this run's cache replaces the one it describes */
-        remove(files->cache), remove(files->stats); /* the previous run's results must not pass for this one's */
-        fm_cache_options copts = fm_default_cache_options();
-        copts.compression_level = def->compression_level;
-        copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+        cli_start_over(files);
+        fm_cache_options copts = cli_cache_options(def);
         const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
         *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)fm_model_get_info(model).agents, def->frame_rate,
                                               attrs, 3, &copts, &err);
@@ -221,88 +168,25 @@ static int open_run(const run_options *o, const fm_scene_def *def, const fm_mode
     return 0;
 }
 
-/* Prints an argument so a shell reads it back unchanged. */
-static void print_shell_word(FILE *f, const char *s)
-{
-    if (s[strspn(s, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./=:,+@%")] == 0) {
-        fputs(s, f);
-        return;
-    }
-    fputc('\'', f);
-    for (; *s; s++) *s == '\'' ? fputs("'\\''", f) : fputc(*s, f);
-    fputc('\'', f);
-}
-
-static void print_resume_command(const run_options *o)
-{
-    fputs("flockmorph run ", stderr);
-    print_shell_word(stderr, o->scene);
-    fputs(" -o ", stderr);
-    print_shell_word(stderr, o->outdir);
-    fputs(" --resume\n", stderr);
-}
-
-/* After a stop: the cache keeps its frames as .partial for --resume; exit 128 + signal. */
-static int report_interrupted(const run_options *o, fm_cache_writer *cache, const fm_run_stats *rs)
-{
-    fm_cache_writer_close_partial(cache);
-    fprintf(stderr, "flockmorph: interrupted at frame %lld; checkpoint written; resume with: ", (long long)rs->frames - 1);
-    print_resume_command(o);
-    return 128 + g_stop_signal;
-}
-
-/* A failed run without a checkpoint leaves its cache as PATH.partial: say how much of it is
- * readable, or remove it when nothing is. */
-static void report_partial_cache(const run_files *files)
-{
-    char partial[sizeof files->cache + 16];
-    snprintf(partial, sizeof partial, "%s.partial", files->cache);
-    fm_error ignored = {0};
-    fm_cache_reader *r = fm_cache_open(partial, &ignored);
-    if (r && fm_cache_frames(r) > 0)
-        fprintf(stderr, "flockmorph: the %u complete frames written before the error are in %s (flockmorph inspect, "
-                "export and render read it); delete it to free the space\n", fm_cache_frames(r), partial);
-    else
-        remove(partial);
-    fm_cache_close(r);
-    fprintf(stderr, "flockmorph: no stats.json was written: the run did not finish\n");
-}
-
-/* A run that failed (a full disk, say) after a checkpoint can still be resumed once the cause is
- * fixed: keep the checkpoint and the partial cache. Without one, the partial cache goes. */
-static int report_failed(const run_options *o, const run_files *files, fm_cache_writer *cache, const fm_error *err)
-{
-    int rc = cli_report(err);
-    fm_cache_writer_close_partial(cache);
-    if (access(files->checkpoint, F_OK) != 0) return report_partial_cache(files), rc;
-    fprintf(stderr, "flockmorph: the last checkpoint and the partial cache are kept; once the problem is fixed, "
-            "resume with: ");
-    print_resume_command(o);
-    return rc;
-}
-
-static fm_run_control run_control(const run_options *o, const run_files *files, cli_progress *rp)
+static fm_run_control run_control(const cli_run_options *o, const cli_outputs *files, cli_progress *rp)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = frame_progress, c.progress_user = rp;
     c.resume = o->resume;
     c.checkpoint = save_checkpoint, c.checkpoint_user = (void *)files->checkpoint;
-    c.checkpoint_every = o->checkpoint_every > 0 ? o->checkpoint_every : 0;
-    c.checkpoint_seconds = o->checkpoint_every < 0 ? DEFAULT_CHECKPOINT_SECONDS : 0;
-    c.stop = &g_stop_signal;
+    c.checkpoint_every = cli_checkpoint_every(o);
+    c.checkpoint_seconds = cli_checkpoint_seconds(o);
+    c.stop = &cli_stop_signal;
     return c;
 }
 
 /* The cache, stats.json and the summary of a finished run; the checkpoint is no longer needed. */
-static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const run_files *files, fm_cache_writer *cache,
+static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const cli_outputs *files, fm_cache_writer *cache,
                       fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying, run_warnings *warnings)
 {
     fm_error err = {0};
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) { /* finish keeps PATH.partial on failure */
-        int rc = cli_report(&err);
-        report_partial_cache(files);
-        return fm_run_stats_free(rs), rc;
-    }
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
+        return fm_run_stats_free(rs), cli_fail_keeping_partial_cache(&err, NULL, files->cache);
     if (!rs->all_arrived) {
         char text[256];
         snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
@@ -314,14 +198,14 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const ru
     int rc = write_stats(files->stats, def, mi, rs, &record, warnings);
     fm_run_stats_free(rs);
     if (rc) return rc;
-    remove_checkpoint(files);
+    cli_remove_checkpoint(files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
            (long long)rs->steps, rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0.0);
     printf("cache: %s\nstats: %s\n", files->cache, files->stats);
     return 0;
 }
 
-static int simulate(const run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds,
+static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds,
                     run_warnings *warnings)
 {
     fm_error err = {0};
@@ -329,40 +213,29 @@ static int simulate(const run_options *o, const fm_scene_def *def, fm_model *mod
     fm_model_info mi = fm_model_get_info(model);
     fm_state *state = fm_state_create(model, o->threads, &err);
     if (!state) return cli_report(&err);
-    int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
-    run_files files;
-    snprintf(files.cache, sizeof files.cache, "%s/%s", o->outdir, def->cache_name);
-    snprintf(files.stats, sizeof files.stats, "%s/stats.json", o->outdir);
-    snprintf(files.checkpoint, sizeof files.checkpoint, "%s/%s", o->outdir, CHECKPOINT_NAME);
+    cli_outputs files;
+    cli_run_outputs(o, def, &files);
     fm_cache_writer *cache = NULL;
     fm_run_stats rs;
     int rc = open_run(o, def, model, &files, state, &rs, &cache);
     if (rc) return fm_state_destroy(state), rc;
     cli_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_control control = run_control(o, &files, &rp);
-    handle_stop_signals(on_stop_signal);
+    cli_catch_stop_signals(1); /* fm_run_controlled checkpoints and stops at the end of the frame */
     fm_status st = fm_run_controlled(model, state, cache, &control, &rs, &err);
-    handle_stop_signals(SIG_DFL);
+    cli_catch_stop_signals(0);
     if (show) fprintf(stderr, "\n");
     int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
     fm_state_destroy(state);
-    if (st == FM_STOPPED) return fm_run_stats_free(&rs), report_interrupted(o, cache, &rs);
-    if (st != FM_OK) return fm_run_stats_free(&rs), report_failed(o, &files, cache, &err);
-    return finish_run(def, &mi, &files, cache, &rs, threads, prep_seconds, still_flying, warnings);
-}
-
-static int check_checkpoint(const run_options *o, const fm_scene_def *def)
-{
-    char path[FM_PATH_MAX + 32];
-    fm_error err = {0};
-    snprintf(path, sizeof path, "%s/%s", o->outdir, CHECKPOINT_NAME);
-    return fm_checkpoint_check(path, def, &err) == FM_OK ? 0 : cli_report(&err);
+    if (st == FM_STOPPED) return fm_run_stats_free(&rs), cli_report_interrupted(o, cache, rs.frames);
+    if (st != FM_OK) return fm_run_stats_free(&rs), cli_report_failed(o, &files, cache, &err);
+    return finish_run(def, &mi, &files, cache, &rs, files.threads, prep_seconds, still_flying, warnings);
 }
 
 int cli_run(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_RUN), 0;
-    run_options o;
+    cli_run_options o;
     int rc = parse_run(argc, argv, &o);
     if (rc) return rc;
     fm_error err = {0};
@@ -370,13 +243,8 @@ int cli_run(int argc, char **argv)
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
     const char *outputs[] = {def.cache_name, "stats.json"};
     if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
-    if (def.mode == FM_MODE_SHAPE_FLOCK) {
-        if (o.resume || o.checkpoint_every > 0)
-            return cli_usage_error(USAGE_RUN, "%s", "--resume and --checkpoint-every apply to the tetra morph only");
-        const cli_run_options flock = {o.scene, o.outdir, o.threads, o.quiet};
-        return cli_run_flock(&flock, &def);
-    }
-    if (o.resume && (rc = check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
+    if (o.resume && (rc = cli_check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
+    if (def.mode == FM_MODE_SHAPE_FLOCK) return cli_run_flock(&o, &def);
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
     fm_model *model = fm_model_build(&def, cli_prep_progress, &show, &err);

@@ -47,6 +47,28 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_flock
     return cli_write_json(path, j);
 }
 
+static fm_status save_checkpoint(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *rs,
+                                 void *path, fm_error *err)
+{
+    return fm_flock_checkpoint_save(path, m, s, rs, err);
+}
+
+/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
+static int open_run(const cli_run_options *o, const fm_scene_def *def, const fm_flock_model *model,
+                    const cli_outputs *out, fm_flock_state *state, fm_flock_run_stats *rs, fm_cache_writer **cache)
+{
+    fm_error err = {0};
+    if (!o->resume) {
+        cli_start_over(out);
+        fm_cache_options copts = cli_cache_options(def);
+        *cache = fm_flock_cache_create(out->cache, model, &copts, &err);
+        return *cache ? 0 : cli_report(&err);
+    }
+    if (fm_flock_checkpoint_load(out->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);
+    *cache = fm_cache_writer_resume(out->cache, (uint32_t)rs->frames, &err);
+    return *cache ? 0 : cli_report(&err);
+}
+
 static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_flock_model *model, double prep_seconds)
 {
     fm_error err = {0};
@@ -55,20 +77,25 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_
     if (!state) return cli_report(&err);
     cli_outputs out;
     cli_run_outputs(o, def, &out);
-    fm_cache_options copts = cli_cache_options(def);
-    fm_cache_writer *cache = fm_flock_cache_create(out.cache, model, &copts, &err);
-    if (!cache) return fm_flock_state_destroy(state), cli_report(&err);
-    cli_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
+    fm_cache_writer *cache = NULL;
     fm_flock_run_stats rs;
-    fm_status st = fm_flock_run(model, state, cache, frame_progress, &fp, &rs, &err);
+    int rc = open_run(o, def, model, &out, state, &rs, &cache);
+    if (rc) return fm_flock_state_destroy(state), rc;
+    cli_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
+    const fm_flock_run_control control = {frame_progress, &fp, &cli_stop_signal, o->resume, save_checkpoint,
+                                          out.checkpoint, cli_checkpoint_every(o), cli_checkpoint_seconds(o)};
+    cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
+    fm_status st = fm_flock_run_controlled(model, state, cache, &control, &rs, &err);
+    cli_catch_stop_signals(0);
     if (fp.show) fprintf(stderr, "\n");
     fm_flock_state_destroy(state);
-    if (st != FM_OK) return fm_cache_writer_abort(cache), cli_report(&err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_report(&err);
+    if (st == FM_STOPPED) return cli_report_interrupted(o, cache, rs.frames);
+    if (st != FM_OK) return cli_report_failed(o, &out, cache, &err);
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_fail_keeping_partial_cache(&err, NULL, out.cache);
     const cli_run_record record = {"shape_flock", mi.agents, rs.frames, rs.steps, mi.time_step, prep_seconds,
                                    rs.simulate_seconds, rs.output_seconds, out.threads, out.cache};
-    int rc = write_stats(out.stats, def, &mi, &rs, &record);
-    if (rc) return rc;
+    if ((rc = write_stats(out.stats, def, &mi, &rs, &record))) return rc;
+    cli_remove_checkpoint(&out); /* the run is complete */
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s; bound %.1f%%, distance to destination mean %.3g max %.3g\n",
            (long long)mi.agents, (long long)rs.frames, (long long)rs.steps, cli_agent_steps_per_second(&record),
            100 * rs.bound_fraction, rs.final_mean_distance, rs.final_max_distance);

@@ -32,8 +32,9 @@ typedef enum fm_status {
     FM_ERR_IO = 3,       /* cannot read or write a file */
     FM_ERR_MEMORY = 4,   /* allocation failed */
     FM_ERR_INTERNAL = 5, /* a library failed in a way the input does not explain */
-    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint
-                            (the CLI then exits 128 + the signal's number) */
+    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint,
+                            or fm_flock_run_controlled at a frame boundary (the CLI then exits 128
+                            + the signal's number) */
 } fm_status;
 
 typedef struct fm_error {
@@ -594,6 +595,40 @@ typedef void (*fm_flock_progress_fn)(const fm_flock_info *info, int64_t frame, v
  * writing each frame to `cache` (from fm_flock_cache_create; may be NULL). */
 fm_status fm_flock_run(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
                        fm_flock_progress_fn progress, void *user, fm_flock_run_stats *stats, fm_error *err);
+
+/* Called by fm_flock_run_controlled at a frame boundary once the cache is flushed (its first
+ * stats->frames frames are on disk); typically calls fm_flock_checkpoint_save. A failure ends the run. */
+typedef fm_status (*fm_flock_checkpoint_fn)(const fm_flock_model *model, const fm_flock_state *state,
+                                            const fm_flock_run_stats *stats, void *user, fm_error *err);
+
+/* As fm_run_control, for the shape flock. */
+typedef struct fm_flock_run_control {
+    fm_flock_progress_fn progress;   /* after every frame; may be NULL */
+    void *progress_user;
+    volatile sig_atomic_t *stop;     /* may be NULL; read at every frame boundary: when non-zero, the
+                                        run checkpoints there (if it has a hook) and returns
+                                        FM_STOPPED (unless that frame already ends it), every frame
+                                        so far handed to the cache and `stats` filled in for them */
+    int resume;                      /* 1: state and stats were restored by fm_flock_checkpoint_load */
+    fm_flock_checkpoint_fn checkpoint; /* NULL: no checkpoints */
+    void *checkpoint_user;
+    int64_t checkpoint_every;        /* every this many frames; 0: not by frame count */
+    double checkpoint_seconds;       /* ... or this much wall time; 0: not by time */
+} fm_flock_run_control;
+
+/* fm_flock_run with checkpoints, a stop flag and resume: the cache of a run stopped and resumed any
+ * number of times is bitwise that of an uninterrupted run, and so are its stats (timings aside). */
+fm_status fm_flock_run_controlled(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
+                                  const fm_flock_run_control *control, fm_flock_run_stats *stats, fm_error *err);
+
+/* The shape flock's checkpoint: the same file as fm_checkpoint_save's (docs/resume.md) with the
+ * flock's store and statistics. fm_checkpoint_check serves both modes. */
+fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *model, const fm_flock_state *state,
+                                   const fm_flock_run_stats *stats, fm_error *err);
+/* Restores it into `state` (fresh from fm_flock_state_create for `model`) and `stats`, after the
+ * checks of fm_checkpoint_check and a check that `model` is the one it was written from. */
+fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *model, fm_flock_state *state,
+                                   fm_flock_run_stats *stats, fm_error *err);
 
 /* ---------------------------------------------------------------- export and preview */
 
