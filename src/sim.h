@@ -9,7 +9,7 @@
 
 #include <stdint.h>
 
-enum { FM_BLOCK = 4096 };        /* agents per scheduler block */
+enum { FM_BLOCK = 1024 };        /* agents per scheduler block: small enough that 10^4 agents make ten */
 enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
 enum { FM_MODEL_MAX_WARNINGS = 8 };
 
