@@ -3,9 +3,8 @@
  * It shares the tetra morph's machinery: SoA arrays from fm_alloc indexed by agent id, FM_BLOCK
  * blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
- * distance field (obstacles.h) and the cache; its frames run through the plain frame loop
- * (frame_loop.h), of which the tetra morph's run.c is the form with checkpoints. Why its store is
- * not fm_state: docs/architecture.md, "What the two modes share". */
+ * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
+ * fm_state: docs/architecture.md, "What the two modes share". */
 #ifndef FM_FLOCK_H
 #define FM_FLOCK_H
 

@@ -1,14 +1,19 @@
-/* The shape flock's frame loop (frame_loop.h) and the checkpoint clock it shares with the tetra
- * morph's loop in run.c. */
+/* The frame loop of both modes (frame_loop.h). */
 #include "frame_loop.h"
 
-int fm_checkpoint_due(int64_t every, double seconds, const fm_checkpoint_clock *clock, int64_t frames)
+/* When the last checkpoint was taken: every `every` frames and/or `seconds` of wall time. */
+typedef struct checkpoint_clock {
+    int64_t last_frames;
+    double last_time;
+} checkpoint_clock;
+
+static int checkpoint_due(int64_t every, double seconds, const checkpoint_clock *clock, int64_t frames)
 {
     if (every > 0 && frames - clock->last_frames >= every) return 1;
     return seconds > 0 && fm_seconds() - clock->last_time >= seconds;
 }
 
-static fm_status checkpoint(const fm_frame_loop *loop, fm_checkpoint_clock *clock, const fm_loop_times *times,
+static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, const fm_loop_times *times,
                             fm_error *err)
 {
     fm_status st = loop->checkpoint ? loop->checkpoint(loop->sim, times, err) : FM_OK;
@@ -19,7 +24,7 @@ static fm_status checkpoint(const fm_frame_loop *loop, fm_checkpoint_clock *cloc
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err)
 {
     *times = (fm_loop_times){loop->resume_frames, 0, 0};
-    fm_checkpoint_clock clock = {times->frames, fm_seconds()};
+    checkpoint_clock clock = {times->frames, fm_seconds()};
     fm_status st = FM_OK;
     if (!loop->resume_frames) {
         double t0 = fm_seconds();
@@ -32,7 +37,7 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_
             st = checkpoint(loop, &clock, times, err);
             return st == FM_OK ? FM_STOPPED : st;
         }
-        if (loop->checkpoint && fm_checkpoint_due(loop->checkpoint_every, loop->checkpoint_seconds, &clock, times->frames) &&
+        if (loop->checkpoint && checkpoint_due(loop->checkpoint_every, loop->checkpoint_seconds, &clock, times->frames) &&
             (st = checkpoint(loop, &clock, times, err)) != FM_OK)
             break;
         double t0 = fm_seconds();

@@ -1,10 +1,9 @@
-/* The frame loop of the shape flock (fm_flock_run, flock_run.c): frame 0 is the state before any
- * step; then each frame takes steps_per_frame steps (fewer for the last one if the simulation
+/* The frame loop of both modes (fm_run, run.c; fm_flock_run, flock_run.c): frame 0 is the state
+ * before any step; then each frame takes steps_per_frame steps (fewer for the last one if the simulation
  * finishes inside it) and is written, until the simulation finishes or frame_limit frames are
  * written. The loop measures the time spent stepping and writing. At every frame boundary it reads
  * a stop flag (a checkpoint, then FM_STOPPED) and takes the checkpoints that are due; a resumed run
- * continues after the frames it had written. The tetra morph's loop (run.c) does the same around
- * its own per-frame statistics and shares the checkpoint clock. */
+ * continues after the frames it had written. */
 #ifndef FM_FRAME_LOOP_H
 #define FM_FRAME_LOOP_H
 
@@ -31,13 +30,6 @@ typedef struct fm_frame_loop {
     int64_t checkpoint_every;     /* frames between checkpoints; 0: not by count */
     double checkpoint_seconds;    /* wall time between checkpoints; 0: not by time */
 } fm_frame_loop;
-
-/* When the last checkpoint was taken: every `every` frames and/or `seconds` of wall time. */
-typedef struct fm_checkpoint_clock {
-    int64_t last_frames;
-    double last_time;
-} fm_checkpoint_clock;
-int fm_checkpoint_due(int64_t every, double seconds, const fm_checkpoint_clock *clock, int64_t frames);
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err);
 

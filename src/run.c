@@ -1,5 +1,6 @@
-/* fm_run: the frame loop around fm_step, with the end-state checks reported in stats.json. */
-#include "frame_loop.h" /* the checkpoint clock */
+/* fm_run: fm_step in the shared frame loop (frame_loop.h), with the end-state checks reported in
+ * stats.json. */
+#include "frame_loop.h"
 #include "sim.h"
 #include "cache_format.h"
 
@@ -73,13 +74,9 @@ static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const fl
 static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
                             fm_run_stats *stats, fm_error *err)
 {
-    double t0 = fm_seconds();
     fm_state_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    fm_status st = cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
-    stats->frames++;
-    stats->output_seconds += fm_seconds() - t0;
-    return st;
+    return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
 }
 
 void fm_run_stats_free(fm_run_stats *stats)
@@ -100,14 +97,14 @@ static fm_status mde_room(fm_run_stats *stats, int64_t count, int64_t *capacity,
     return FM_OK;
 }
 
-/* Records the frame's MDE fraction (FM Table I's last column) from the step counters. */
-static fm_status record_mde(const fm_state *s, int64_t *flying_before, int64_t *mde_before, fm_run_stats *stats,
-                            int64_t *capacity, fm_error *err)
+/* Records frame k's MDE fraction (FM Table I's last column, k >= 1) from the step counters. */
+static fm_status record_mde(const fm_state *s, int64_t k, int64_t *flying_before, int64_t *mde_before,
+                            fm_run_stats *stats, int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
-    fm_status st = mde_room(stats, stats->frames - 1, capacity, err);
+    fm_status st = mde_room(stats, k, capacity, err);
     if (st != FM_OK) return st;
-    stats->mde_fraction[stats->frames - 2] = flying > 0 ? (double)mde / (double)flying : NAN;
+    stats->mde_fraction[k - 1] = flying > 0 ? (double)mde / (double)flying : NAN;
     *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
     return FM_OK;
 }
@@ -130,27 +127,6 @@ fm_run_control fm_default_run_control(void)
     return c;
 }
 
-static int run_done(const fm_model *m, const fm_state *s, const fm_run_stats *stats)
-{
-    return s->count[FM_PHASE_ARRIVED] == s->n || stats->frames >= m->def.frame_limit;
-}
-
-/* When to call the checkpoint hook: every `checkpoint_every` frames and/or `checkpoint_seconds`. */
-static int checkpoint_due(const fm_run_control *c, const fm_checkpoint_clock *clock, const fm_run_stats *stats)
-{
-    return c->checkpoint && fm_checkpoint_due(c->checkpoint_every, c->checkpoint_seconds, clock, stats->frames);
-}
-
-/* Flushes the cache so its first stats->frames frames are on disk, then calls the hook. */
-static fm_status checkpoint(const fm_model *m, const fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
-                            fm_checkpoint_clock *clock, const fm_run_stats *stats, fm_error *err)
-{
-    fm_status st = cache ? fm_cache_writer_flush(cache, err) : FM_OK;
-    if (st == FM_OK && c->checkpoint) st = c->checkpoint(m, s, stats, c->checkpoint_user, err);
-    clock->last_frames = stats->frames, clock->last_time = fm_seconds();
-    return st;
-}
-
 /* The end-state checks and totals of stats.json. */
 static void finish_stats(const fm_model *m, const fm_state *s, const float *verts, fm_run_stats *stats)
 {
@@ -164,49 +140,83 @@ static void finish_stats(const fm_model *m, const fm_state *s, const float *vert
     stats->min_obstacle_clearance = s->min_clearance;
 }
 
-/* Simulates and writes one frame. */
-static fm_status next_frame(const fm_model *m, fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
-                            fm_run_stats *stats, int64_t *flying_before, int64_t *mde_before, int64_t *capacity,
-                            fm_error *err)
+/* The tetra morph in the shared frame loop (frame_loop.h): its callbacks and what they carry. */
+typedef struct tetra_run {
+    const fm_model *m;
+    fm_state *s;
+    fm_cache_writer *cache;
+    const fm_run_control *c;
+    fm_run_stats *stats;
+    float *verts;
+    uint8_t *phases;
+    int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
+    double simulate0, output0;                   /* the seconds of the sessions before a resume */
+} tetra_run;
+
+static void tetra_step(void *sim)
 {
-    double t0 = fm_seconds();
-    for (int32_t k = 0; k < m->steps_per_frame && s->count[FM_PHASE_ARRIVED] < s->n; k++) fm_step(m, s);
-    stats->simulate_seconds += fm_seconds() - t0;
-    fm_status st = emit_frame(m, s, verts, phases, cache, stats, err);
-    return st == FM_OK ? record_mde(s, flying_before, mde_before, stats, capacity, err) : st;
+    tetra_run *r = sim;
+    fm_step(r->m, r->s);
+}
+
+static int tetra_finished(const void *sim)
+{
+    const tetra_run *r = sim;
+    return r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+}
+
+/* Frame k: written, its MDE fraction recorded, the progress reported. */
+static fm_status tetra_frame(void *sim, int64_t k, fm_error *err)
+{
+    tetra_run *r = sim;
+    fm_status st = emit_frame(r->m, r->s, r->verts, r->phases, r->cache, r->stats, err);
+    if (st != FM_OK || k == 0) return st;
+    st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
+    if (st == FM_OK && r->c->progress) {
+        fm_state_info info = fm_state_get_info(r->s);
+        r->c->progress(&info, k, r->c->progress_user);
+    }
+    return st;
+}
+
+/* The run's frame count and seconds after `times` (this session's), on top of the sessions before. */
+static void add_times(const tetra_run *r, const fm_loop_times *times, fm_run_stats *stats)
+{
+    stats->frames = times->frames;
+    stats->simulate_seconds = r->simulate0 + times->simulate_seconds;
+    stats->output_seconds = r->output0 + times->output_seconds;
+}
+
+/* The loop's checkpoint: the cache flushed, so its first `frames` frames are on disk, then the hook. */
+static fm_status tetra_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
+{
+    const tetra_run *r = sim;
+    fm_status st = r->cache ? fm_cache_writer_flush(r->cache, err) : FM_OK;
+    if (st != FM_OK || !r->c->checkpoint) return st;
+    add_times(r, times, r->stats);
+    return r->c->checkpoint(r->m, r->s, r->stats, r->c->checkpoint_user, err);
 }
 
 fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
                             fm_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
-    float *verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n);
-    uint8_t *phases = fm_alloc((size_t)s->n);
-    int64_t capacity = 0; /* a resumed run's array holds exactly its frames so far */
-    if (!verts || !phases || mde_room(stats, FM_MAX(stats->frames, 1), &capacity, err) != FM_OK) {
-        fm_free(verts), fm_free(phases), fm_run_stats_free(stats);
+    tetra_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
+                   s->flying_agent_steps, s->mde_agent_steps, 0, stats->simulate_seconds, stats->output_seconds};
+    /* capacity 0: a resumed run's array holds exactly its frames so far */
+    if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->frames, 1), &r.capacity, err) != FM_OK) {
+        fm_free(r.verts), fm_free(r.phases), fm_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
-    int64_t flying_before = s->flying_agent_steps, mde_before = s->mde_agent_steps;
-    fm_checkpoint_clock clock = {stats->frames, fm_seconds()};
-    fm_status st = FM_OK;
-    if (c->resume) fm_state_tet_vertices(m, s, verts); /* the last frame, should the run be complete */
-    else st = emit_frame(m, s, verts, phases, cache, stats, err);
-    while (st == FM_OK && !run_done(m, s, stats)) {
-        if (c->stop && *c->stop) {
-            st = checkpoint(m, s, cache, c, &clock, stats, err);
-            if (st == FM_OK) st = FM_STOPPED;
-            break;
-        }
-        if (checkpoint_due(c, &clock, stats) && (st = checkpoint(m, s, cache, c, &clock, stats, err)) != FM_OK) break;
-        st = next_frame(m, s, verts, phases, cache, stats, &flying_before, &mde_before, &capacity, err);
-        if (c->progress) {
-            fm_state_info info = fm_state_get_info(s);
-            c->progress(&info, stats->frames - 1, c->progress_user);
-        }
-    }
-    finish_stats(m, s, verts, stats);
-    fm_free(verts), fm_free(phases);
+    if (c->resume) fm_state_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
+    const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit,
+                                c->stop, c->resume ? stats->frames : 0, tetra_checkpoint,
+                                c->checkpoint ? c->checkpoint_every : 0, c->checkpoint ? c->checkpoint_seconds : 0};
+    fm_loop_times times;
+    fm_status st = fm_frame_loop_run(&loop, &times, err);
+    add_times(&r, &times, stats);
+    finish_stats(m, s, r.verts, stats);
+    fm_free(r.verts), fm_free(r.phases);
     return st;
 }
 
