@@ -88,24 +88,32 @@ static float radius_now(const fm_radius_view *r, int64_t a, double time)
 
 static float speed_of(const float v[3]) { return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
+/* Eq 8 for one agent whose grid distance dg and unit gradient g at its centroid are known; with
+ * `skip_far`, the look-ahead is not sampled where it cannot reach the obstacle. Returns d_t - R_X. */
+static float avoid_agent(const fm_obstacle_view *o, const float *const p[3], float *const v[3], int64_t a,
+                         float rx, float dg, float g[3], float dt, int skip_far)
+{
+    float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]};
+    float d = refine_distance(o, x, y, z, dg, g);
+    if (skip_far && beyond_reach(o, dg, rx, speed_of(vg) * dt)) return d - rx; /* eq 8's look-ahead cannot collide */
+    float g_ahead[3];
+    float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
+    if (!(d_ahead < rx)) return d - rx; /* eq 8, second case: V_syn */
+    slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
+    v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
+    return d - rx;
+}
+
 float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const float *const p[3],
                       float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
                       int64_t end, double time, float dt, fm_obstacle_scratch sc)
 {
-    float clearance = INFINITY;
+    float clearance = INFINITY, g[3];
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
-        float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
-        float rx = radius_now(r, a, time), dg = fm_sdf_sample(&o->sdf, x, y, z, g);
+        float rx = radius_now(r, a, time), dg = fm_sdf_sample(&o->sdf, p[0][a], p[1][a], p[2][a], g);
         sc.d_grid[a] = dg, sc.radius[a] = rx; /* for fm_kernel_contact */
-        float d = refine_distance(o, x, y, z, dg, g);
-        clearance = fminf(clearance, d - rx);
-        if (beyond_reach(o, dg, rx, speed_of(vg) * dt)) continue; /* eq 8's look-ahead cannot collide */
-        float g_ahead[3];
-        float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
-        if (!(d_ahead < rx)) continue; /* eq 8, second case: V_syn */
-        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
-        v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
+        clearance = fminf(clearance, avoid_agent(o, p, v, a, rx, dg, g, dt, 1));
     }
     return clearance;
 }
@@ -114,18 +122,11 @@ float fm_kernel_avoid_ref(const fm_obstacle_view *o, const fm_radius_view *r, co
                           float *const v[3], const uint8_t *phase, uint8_t phase_sel, int64_t begin,
                           int64_t end, double time, float dt)
 {
-    float clearance = INFINITY;
+    float clearance = INFINITY, g[3];
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
-        float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]}, g[3];
-        float rx = radius_now(r, a, time);
-        float d = fm_obstacle_distance(o, x, y, z, g);
-        clearance = fminf(clearance, d - rx);
-        float g_ahead[3];
-        float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
-        if (!(d_ahead < rx)) continue;
-        slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg);
-        v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
+        float dg = fm_sdf_sample(&o->sdf, p[0][a], p[1][a], p[2][a], g);
+        clearance = fminf(clearance, avoid_agent(o, p, v, a, radius_now(r, a, time), dg, g, dt, 0));
     }
     return clearance;
 }
