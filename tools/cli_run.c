@@ -200,7 +200,7 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const cl
     if (rc) return rc;
     cli_remove_checkpoint(files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
-           (long long)rs->steps, rs->simulate_seconds > 0 ? (double)mi->agents * (double)rs->steps / rs->simulate_seconds : 0.0);
+           (long long)rs->steps, cli_agent_steps_per_second(&record));
     printf("cache: %s\nstats: %s\n", files->cache, files->stats);
     return 0;
 }

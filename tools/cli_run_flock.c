@@ -1,5 +1,5 @@
 /* flockmorph run for a shape-flock scene ("mode": "shape_flock"): sample, simulate, write the cache
- * (position, velocity, orientation, phase) and stats.json. */
+ * (position, velocity, orientation, id, phase) and stats.json. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
