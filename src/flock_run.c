@@ -77,12 +77,10 @@ static void add_times(const flock_run *r, const fm_loop_times *times, fm_flock_r
     stats->output_seconds = r->output0 + times->output_seconds;
 }
 
-/* The loop's checkpoint: the cache flushed, so its first `frames` frames are on disk, then the hook. */
+/* The loop's checkpoint (the cache already flushed): the statistics so far, then the hook. */
 static fm_status flock_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
 {
     const flock_run *r = sim;
-    fm_status st = r->cache ? fm_cache_writer_flush(r->cache, err) : FM_OK;
-    if (st != FM_OK || !r->control->checkpoint) return st;
     fm_flock_run_stats now = *r->stats;
     add_times(r, times, &now);
     return r->control->checkpoint(r->m, r->s, &now, r->control->checkpoint_user, err);
@@ -101,8 +99,8 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit,
-                                    c->stop, c->resume ? stats->frames : 0, flock_checkpoint, c->checkpoint_every,
-                                    c->checkpoint_seconds};
+                                    c->stop, c->resume ? stats->frames : 0, c->checkpoint ? flock_checkpoint : NULL,
+                                    c->checkpoint_every, c->checkpoint_seconds, cache};
         fm_loop_times times;
         st = fm_frame_loop_run(&loop, &times, err);
         add_times(&r, &times, stats);

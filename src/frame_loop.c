@@ -16,7 +16,8 @@ static int checkpoint_due(int64_t every, double seconds, const checkpoint_clock 
 static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, const fm_loop_times *times,
                             fm_error *err)
 {
-    fm_status st = loop->checkpoint ? loop->checkpoint(loop->sim, times, err) : FM_OK;
+    fm_status st = loop->cache ? fm_cache_writer_flush(loop->cache, err) : FM_OK;
+    if (st == FM_OK && loop->checkpoint) st = loop->checkpoint(loop->sim, times, err);
     clock->last_frames = times->frames, clock->last_time = fm_seconds();
     return st;
 }

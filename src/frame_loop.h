@@ -29,6 +29,8 @@ typedef struct fm_frame_loop {
     fm_status (*checkpoint)(void *sim, const fm_loop_times *times, fm_error *err); /* NULL: none */
     int64_t checkpoint_every;     /* frames between checkpoints; 0: not by count */
     double checkpoint_seconds;    /* wall time between checkpoints; 0: not by time */
+    fm_cache_writer *cache;       /* may be NULL; flushed before every checkpoint (and on a stop), so
+                                     the cache on disk holds the frames the checkpoint counts */
 } fm_frame_loop;
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err);

@@ -187,12 +187,10 @@ static void add_times(const tetra_run *r, const fm_loop_times *times, fm_run_sta
     stats->output_seconds = r->output0 + times->output_seconds;
 }
 
-/* The loop's checkpoint: the cache flushed, so its first `frames` frames are on disk, then the hook. */
+/* The loop's checkpoint (the cache already flushed): the statistics so far, then the hook. */
 static fm_status tetra_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
 {
     const tetra_run *r = sim;
-    fm_status st = r->cache ? fm_cache_writer_flush(r->cache, err) : FM_OK;
-    if (st != FM_OK || !r->c->checkpoint) return st;
     add_times(r, times, r->stats);
     return r->c->checkpoint(r->m, r->s, r->stats, r->c->checkpoint_user, err);
 }
@@ -210,8 +208,8 @@ fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cac
     }
     if (c->resume) fm_state_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
     const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit,
-                                c->stop, c->resume ? stats->frames : 0, tetra_checkpoint,
-                                c->checkpoint ? c->checkpoint_every : 0, c->checkpoint ? c->checkpoint_seconds : 0};
+                                c->stop, c->resume ? stats->frames : 0, c->checkpoint ? tetra_checkpoint : NULL,
+                                c->checkpoint_every, c->checkpoint_seconds, cache};
     fm_loop_times times;
     fm_status st = fm_frame_loop_run(&loop, &times, err);
     add_times(&r, &times, stats);
