@@ -7,7 +7,7 @@
  * N = 10^4 and 10^5, random and stratified also at 10^6. Prints one JSON object; per run the
  * wall and CPU seconds (all threads; on a shared machine the wall time varies), and the mean and coefficient of variation of the nearest-neighbour distances (lower
  * CV = more uniform). */
-#include "prep.h"
+#include "geom.h"
 #include "sample.h"
 
 #include <omp.h>

@@ -8,7 +8,7 @@
  * (FM §6, what a renderer needs each step). Prints one JSON object. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
-#include "sim.h"
+#include "morph.h"
 
 #include <math.h>
 #include <omp.h>

@@ -16,7 +16,7 @@
 #include "flockmorph/flockmorph.h"
 #include "kernels.h"
 #include "roofline.h"
-#include "sim.h"
+#include "morph.h"
 #include "simd.h"
 
 #include <math.h>

@@ -4,7 +4,7 @@
 #ifndef FM_BENCH_ROOFLINE_H
 #define FM_BENCH_ROOFLINE_H
 
-#include "sim.h"
+#include "morph.h"
 
 #include <immintrin.h>
 #include <math.h>

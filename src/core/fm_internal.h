@@ -11,6 +11,11 @@
 
 #define FM_ALIGN 64
 
+/* The block scheduler: a mode's agents are split into blocks of FM_BLOCK, handed to OpenMP
+ * threads; per-block results are combined in block order, so no result depends on the thread
+ * count. Small enough that 10^4 agents make ten blocks. */
+enum { FM_BLOCK = 1024 };
+
 /* Records status and a printf-style message in err (if not NULL) and returns status. */
 fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
@@ -44,13 +49,6 @@ void fm_output_discard(fm_output_file *o);
  * at their end, to continue writing (resume). */
 fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
-/* scene.c: feeds `add` every value a scene file can set, each after its key, in the parameter
- * table's order: a canonical byte stream of the definition (no padding, no bytes past a string's
- * end), which checkpoints hash. Mesh file names are left out (where a file lies does not change
- * the run; the model hash covers the meshes), and so is scene_path. */
-typedef void (*fm_bytes_fn)(const void *bytes, size_t n, void *user);
-void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user);
-
 /* Closes PATH.partial and leaves it on disk (a cache that stopped early stays readable). */
 void fm_output_keep_partial(fm_output_file *o);
 
@@ -62,11 +60,6 @@ fm_status fm_check_input_file(const char *path, const char *what, fm_error *err)
 /* What the user can do about a failed write with this errno ("" if nothing specific): disk full,
  * file-size limit, read-only file system. */
 const char *fm_write_hint(int errnum);
-
-/* scene.c: "FILE:LINE:COL: key" for a key of the loaded scene (a dotted path, list elements as
- * "obstacles.meshes[1]"), found by reading the scene file again; "FILE: key" when it cannot be
- * located, "key" for a definition built in code. For errors found after loading (model build). */
-void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size);
 
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);

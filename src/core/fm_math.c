@@ -603,3 +603,9 @@ int fm_min_sphere(const double *xyz, size_t n, uint64_t seed, double center[3], 
     *radius = sqrt(r2);
     return 0;
 }
+
+void fm_grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count)
+{
+    for (int64_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
+}

@@ -60,4 +60,7 @@ fm_mat3 fm_rotation_axis_angle(const double axis[3], double theta);
    to any point, so every point is inside to rounding. */
 int fm_min_sphere(const double *xyz, size_t n, uint64_t seed, double center[3], double *radius);
 
+/* Grows the box [lo, hi] to hold `count` points (3 doubles each). */
+void fm_grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count);
+
 #endif

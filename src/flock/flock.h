@@ -1,6 +1,6 @@
 /* The shape-constrained flock (SCF): the internal layout of fm_flock_model and fm_flock_state.
  *
- * It shares the tetra morph's machinery: SoA arrays from fm_alloc indexed by agent id, FM_BLOCK
+ * It shares the machinery of the wings below (docs/architecture.md): SoA arrays from fm_alloc indexed by agent id, FM_BLOCK
  * blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
  * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
@@ -8,15 +8,17 @@
 #ifndef FM_FLOCK_H
 #define FM_FLOCK_H
 
-#include "bspline.h"
+#include "checkpoint.h"
 #include "fields.h"
-#include "fuzzy.h"
+#include "flock_bspline.h"
+#include "flock_fuzzy.h"
+#include "flock_kalman.h"
 #include "grid.h"
-#include "kalman.h"
 #include "kernel_boids.h"
+#include "memory.h"
 #include "obstacles.h"
 #include "sample.h"
-#include "sim.h"
+#include "scene_internal.h"
 
 #include <stdint.h>
 
@@ -84,15 +86,19 @@ struct fm_flock_state {
     double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */
 };
 
-/* flock_state.c: the members a checkpoint saves (checkpoint.c), as fm_state_members for the tetra
- * morph's store. */
-extern const fm_state_member fm_flock_state_members[];
+/* flock_state.c: the members a checkpoint saves (checkpoint.h), in file order. */
+extern const fm_store_member fm_flock_state_members[];
 extern const int fm_flock_state_member_count;
 
 /* flock_target.c: the target's vertices at time t (nv * 3 doubles) */
 fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_error *err);
 void fm_flock_target_free(fm_flock_target *t);
 void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def, double time, double *out);
+
+/* flock_memory.c: the shape flock's bytes for n agents (docs/limits.md), and the refusal of a run
+ * that does not fit (memory.h). */
+fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n);
+fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
 /* flock_state.c */
 void fm_flock_update_orientation(float *q, const float v[3]);

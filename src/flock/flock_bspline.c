@@ -1,5 +1,5 @@
 /* Interpolating uniform cubic B-spline with an arc-length table (SCF eqs 10-12; see bspline.h). */
-#include "bspline.h"
+#include "flock_bspline.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -6,7 +6,7 @@
 #ifndef FM_FUZZY_H
 #define FM_FUZZY_H
 
-#include "fm_internal.h"
+#include "scene_internal.h"
 
 typedef struct fm_fuzzy {
     int32_t count;                     /* >= 1 */
@@ -15,8 +15,7 @@ typedef struct fm_fuzzy {
     float slope[FM_FUZZY_MAX_POINTS];  /* (w[i+1] - w[i]) / (d[i+1] - d[i]) */
 } fm_fuzzy;
 
-/* Checks def (1 .. FM_FUZZY_MAX_POINTS points, finite, d strictly increasing, w >= 0) and fills c;
- * errors name `key` ("shape_flock.fuzzy.homing"). */
+/* Checks def (fm_fuzzy_def_check) and fills c; errors name `key` ("shape_flock.fuzzy.homing"). */
 fm_status fm_fuzzy_init(fm_fuzzy *c, const fm_fuzzy_def *def, const char *key, fm_error *err);
 
 /* The weight at distance d (NaN gives the first point's weight). */

@@ -204,7 +204,7 @@ fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn pro
         fm_fail(err, FM_ERR_USAGE, "fm_flock_model_build: the scene's mode is not \"shape_flock\"");
         return NULL;
     }
-    if (fm_memory_check(def, def->n, err) != FM_OK) return NULL; /* before the per-agent arrays */
+    if (fm_flock_memory_check(def, def->n, err) != FM_OK) return NULL; /* before the per-agent arrays */
     fm_flock_model *m = calloc(1, sizeof *m);
     if (!m) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");

@@ -20,7 +20,7 @@
 #define AGENT_XYZ(member) AGENT_ARRAY(member[0], sizeof(float)), AGENT_ARRAY(member[1], sizeof(float)), \
                           AGENT_ARRAY(member[2], sizeof(float))
 #define SCALAR(member) {#member, offsetof(fm_flock_state, member), sizeof(((fm_flock_state *)0)->member), 0}
-const fm_state_member fm_flock_state_members[] = {
+const fm_store_member fm_flock_state_members[] = {
     AGENT_XYZ(p), AGENT_XYZ(v), AGENT_ARRAY(orient, 4 * sizeof(float)), AGENT_ARRAY(phase, sizeof(uint8_t)),
     AGENT_ARRAY(t_bind, sizeof(float)), AGENT_XYZ(dest), AGENT_XYZ(leader),
     SCALAR(step), SCALAR(time), SCALAR(kalman), SCALAR(count), SCALAR(lag_sum),

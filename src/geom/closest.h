@@ -9,7 +9,7 @@
 #ifndef FM_CLOSEST_H
 #define FM_CLOSEST_H
 
-#include "prep.h"
+#include "geom.h"
 
 #include <stdint.h>
 

@@ -1,5 +1,5 @@
 /* Mesh import through assimp's C API, exact vertex welding, and the closed-manifold check. */
-#include "prep.h"
+#include "geom.h"
 
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>

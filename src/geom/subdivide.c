@@ -4,7 +4,7 @@
  * the largest face, 1-to-2 at the midpoint of the longest edge. Each child replaces one vertex of
  * the parent by the new point, so children keep the parent's orientation and their volumes sum to
  * the parent's exactly (up to round-off). */
-#include "prep.h"
+#include "geom.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -16,7 +16,7 @@
 #include <vector>
 
 extern "C" {
-#include "prep.h"
+#include "geom.h"
 }
 
 namespace {

@@ -1,15 +1,17 @@
 /* The prepared model and the agent store (internal layout of fm_model and fm_state). */
-#ifndef FM_SIM_H
-#define FM_SIM_H
+#ifndef FM_MORPH_H
+#define FM_MORPH_H
 
-#include "fm_internal.h"
+#include "checkpoint.h"
 #include "fields.h"
+#include "fm_internal.h"
 #include "grid.h"
+#include "memory.h"
 #include "obstacles.h"
+#include "scene_internal.h"
 
 #include <stdint.h>
 
-enum { FM_BLOCK = 1024 };        /* agents per scheduler block: small enough that 10^4 agents make ten */
 enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
 enum { FM_MODEL_MAX_WARNINGS = 8 };
 
@@ -60,7 +62,7 @@ extern const char *const fm_stage_names[FM_STAGE_COUNT];
 /* Everything the step mutates. Arrays are 64-byte aligned and indexed by store slot; id[slot] is
  * the agent's id (its launch rank, the index of the model's per-agent arrays). Every
  * FM_RESORT_INTERVAL steps the in-flight agents are re-sorted by the Morton code of their position
- * (resort.c), so neighbours in space are neighbours in memory. The slots are laid out as
+ * (morph_resort.c), so neighbours in space are neighbours in memory. The slots are laid out as
  *
  *     [0, active_begin)            arrived before the last re-sort
  *     [active_begin, active_end)   in flight (and agents that arrived since the last re-sort)
@@ -110,7 +112,7 @@ struct fm_state {
     double stage_seconds[FM_STAGE_COUNT]; /* wall time per stage, summed over steps */
 };
 
-/* state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
+/* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
 void fm_state_fill_rest(const fm_model *m, fm_state *s);
 /* The rest vertices of slot a's tet relative to its centroid (12 floats). */
 static inline void fm_state_rest_tet(const fm_state *s, int64_t a, float out[12])
@@ -118,7 +120,7 @@ static inline void fm_state_rest_tet(const fm_state *s, int64_t a, float out[12]
     for (int j = 0; j < 12; j++) out[j] = s->rest_rel[j][a];
 }
 
-/* resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
+/* morph_resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
  * agent's id and state. */
 void fm_state_resort(const fm_model *m, fm_state *s);
 fm_status fm_state_alloc_sort(fm_state *s);
@@ -135,42 +137,16 @@ static inline void fm_active_block(const fm_state *s, int64_t b, int64_t *begin,
     *end = FM_MIN(*begin + FM_BLOCK, s->active_end);
 }
 
-/* One member of fm_state that a step changes and a later step reads: what a checkpoint saves
- * (checkpoint.c). A per-agent array (the member is a pointer) holds n elements of `bytes` each; a
- * scalar member is `bytes` bytes of the struct itself. */
-typedef struct fm_state_member {
-    const char *name;
-    size_t offset;   /* offsetof(fm_state, member) */
-    size_t bytes;    /* per agent for an array, in all for a scalar */
-    int per_agent;
-} fm_state_member;
-
-/* state.c: the table of every saved member, in file order. */
-extern const fm_state_member fm_state_members[];
+/* morph_state.c: the table of every member a checkpoint saves (checkpoint.h), in file order. */
+extern const fm_store_member fm_state_members[];
 extern const int fm_state_member_count;
 
-/* memory.c: bytes a run of n agents needs (docs/limits.md), for either mode. */
-typedef struct fm_memory_estimate {
-    double model, state, frames, grid; /* bytes per agent while stepping: model, agent store, frame
-                                          buffers (run, cache writer, zstd output), MDE grid */
-    double per_agent;                  /* their sum */
-    double fixed;                      /* bytes that do not grow with n: libraries, field and distance grids */
-    double run;                        /* per_agent * n + fixed */
-    double preprocess_per_agent;       /* bytes per agent at the preparation's peak: the tetra morph's
-                                          tet sets in double, orders and model; the flock's model,
-                                          samples and the sampler's scratch */
-    double preprocess;                 /* preprocess_per_agent * n + fixed */
-    double total;                      /* the larger of run and preprocess */
-} fm_memory_estimate;
-fm_memory_estimate fm_memory_estimate_run(const fm_scene_def *def, int64_t n);   /* the tetra morph */
-fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n); /* the shape flock */
-fm_memory_estimate fm_memory_estimate_for(const fm_scene_def *def, int64_t n);   /* the scene's mode */
-double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
-/* FM_ERR_INPUT naming the scene's n, the estimate (of the scene's mode) and the machine's memory
- * if it does not fit, or the neighbour grid's capacity if n exceeds it. */
-fm_status fm_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
+/* morph_memory.c: the tetra morph's bytes for n agents (docs/limits.md), and the refusal of a run
+ * that does not fit (memory.h). */
+fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n);
+fm_status fm_morph_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
-/* morph.c */
+/* morph_tet.c */
 extern const uint8_t fm_even_permutations[12][4];
 /* Chooses the correspondence and A = RS for one agent: src and dst are 12 floats each, relative
  * to their centroids, both positively oriented. Returns 1 if the safe form had to be used. */

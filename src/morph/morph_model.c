@@ -1,7 +1,7 @@
 /* fm_model_build: scene -> meshes -> TetGen -> subdivision -> orders -> path -> bounding sphere.
  * Everything here runs once; the result is immutable (MuJoCo's mjModel). */
-#include "prep.h"
-#include "sim.h"
+#include "geom.h"
+#include "morph.h"
 #include "fm_math.h"
 
 #include <math.h>
@@ -23,18 +23,6 @@ typedef struct prep_scratch {
     fm_mesh *obstacles;  /* obstacle meshes, placed (def.obstacle_count) */
 } prep_scratch;
 
-/* Prefixes err's message with where the scene sets `key` ("scene.json:3:14: source.mesh: ..."). */
-static fm_status name_key(const fm_scene_def *def, fm_status st, const char *key, fm_error *err)
-{
-    if (st != FM_OK && err) {
-        char msg[sizeof err->message], where[FM_PATH_MAX + 64];
-        snprintf(msg, sizeof msg, "%s", err->message);
-        fm_scene_key_location(def, key, where, sizeof where);
-        fm_fail(err, st, "%s: %s", where, msg);
-    }
-    return st;
-}
-
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
 static void warn(fm_model *m, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 static void warn(fm_model *m, const char *key, const char *fmt, ...)
@@ -49,23 +37,13 @@ static void warn(fm_model *m, const char *key, const char *fmt, ...)
     snprintf(m->warnings[m->warning_count++], sizeof m->warnings[0], "%.200s: %s", where, what);
 }
 
-/* Loads, checks and places one mesh. */
-static fm_status load_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
-                           fm_error *err)
-{
-    fm_status st = fm_mesh_load(ref->path, mesh, err);
-    if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
-    if (st == FM_OK) fm_mesh_place(mesh, ref);
-    return name_key(def, st, key, err);
-}
-
 /* Loads, checks, places and tetrahedralizes one mesh. */
 static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
                               fm_tets *tets, fm_error *err)
 {
-    fm_status st = load_mesh(def, ref, key, mesh, err);
+    fm_status st = fm_scene_mesh_load(def, ref, key, mesh, err);
     if (st != FM_OK) return st;
-    return name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
+    return fm_scene_name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
 }
 
 /* FM §4: n >= max(n1, n2); say which mesh needs more. */
@@ -80,7 +58,7 @@ static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, f
                        "or leave n out (default max(n1, n2))", where, (long long)m->n, (long long)most,
                        src->n >= dst->n ? m->def.source.path : m->def.target.path, (long long)most);
     }
-    return fm_memory_check(&m->def, m->n, err);
+    return fm_morph_memory_check(&m->def, m->n, err);
 }
 
 static double total_volume(const fm_tets *tets, double centroid[3])
@@ -94,28 +72,6 @@ static double total_volume(const fm_tets *tets, double centroid[3])
     }
     for (int k = 0; k < 3; k++) centroid[k] = vol > 0 ? c[k] / vol : 0;
     return vol;
-}
-
-/* Refuses an obstacle that shares volume with the source or target. */
-static fm_status refuse_overlap(const fm_scene_def *def, const fm_mesh *obstacle, const char *key, const fm_mesh *shape,
-                                const char *shape_name, fm_error *err)
-{
-    char how[512], where[FM_PATH_MAX + 64];
-    int overlap = fm_meshes_overlap(obstacle, key, shape, shape_name, how, sizeof how, err);
-    if (overlap <= 0) return overlap < 0 ? (err ? err->status : FM_ERR_INTERNAL) : FM_OK;
-    fm_scene_key_location(def, key, where, sizeof where);
-    return fm_fail(err, FM_ERR_INPUT, "%s: the obstacle overlaps %s: %s; %s would start or end inside it. Move "
-                   "it clear (translate) or make it smaller (scale)", where, shape_name, how,
-                   def->mode == FM_MODE_SHAPE_FLOCK ? "agents" : "tets");
-}
-
-/* An obstacle may overlap neither the source nor the target: agents (tets or points) would start
- * or finish inside it (FM §5.3 assumes free space). */
-static fm_status refuse_overlaps(const fm_scene_def *def, const fm_mesh *obstacle, const char *key,
-                                 const fm_mesh *source, const fm_mesh *target, fm_error *err)
-{
-    fm_status st = refuse_overlap(def, obstacle, key, source, "the source", err);
-    return st == FM_OK ? refuse_overlap(def, obstacle, key, target, "the target", err) : st;
 }
 
 /* The path's ends: C_S, C_T (FM eq 3's Q_0 and Q_{m+1}) and the first and last control points. */
@@ -239,19 +195,13 @@ static fm_status tet_radii(fm_model *m, float *max_radius, fm_error *err)
     return FM_OK;
 }
 
-static void grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count)
-{
-    for (int64_t i = 0; i < count; i++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
-}
-
 /* The scene's extent (source, target, path), padded: the style-field grid spans it. */
 static void scene_bounds(fm_model *m, const prep_scratch *s)
 {
     for (int k = 0; k < 3; k++) m->scene_lo[k] = INFINITY, m->scene_hi[k] = -INFINITY;
-    grow_bounds(m->scene_lo, m->scene_hi, s->src_mesh.v, s->src_mesh.nv);
-    grow_bounds(m->scene_lo, m->scene_hi, s->dst_mesh.v, s->dst_mesh.nv);
-    grow_bounds(m->scene_lo, m->scene_hi, s->path.q, s->path.count);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, s->src_mesh.v, s->src_mesh.nv);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, s->dst_mesh.v, s->dst_mesh.nv);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, s->path.q, s->path.count);
     double pad = 0;
     for (int k = 0; k < 3; k++) pad = fmax(pad, 0.15 * (m->scene_hi[k] - m->scene_lo[k]));
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
@@ -270,61 +220,27 @@ static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
     for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
-        st = load_mesh(def, &def->obstacles[i], key, &s->obstacles[i], err);
-        if (st == FM_OK) st = refuse_overlaps(def, &s->obstacles[i], key, &s->src_mesh, &s->dst_mesh, err);
+        st = fm_obstacle_mesh_load(def, i, &s->src_mesh, &s->dst_mesh, &s->obstacles[i], err);
         if (st == FM_OK) st = check_path_ends(def, &s->obstacles[i], key, cs, ct, err);
     }
     return st;
 }
 
-/* Builds d_t (FM §5.3) with a band covering k_a plus the largest tet radius, so the look-ahead of
- * eq 8 always reads real distances. */
-/* The distance grid of placed obstacle meshes, with a band wide enough for `reach` (FM eq 7's k_a
- * plus the largest agent radius); the voxel is obstacles.voxel or 1/160 of the extent. */
-static fm_obstacles *obstacle_grid(const fm_scene_def *def, const fm_mesh *meshes, double reach, fm_error *err)
-{
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
-    for (int i = 0; i < def->obstacle_count; i++) grow_bounds(lo, hi, meshes[i].v, meshes[i].nv);
-    for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k] + 2 * reach);
-    double voxel = def->obstacle_voxel > 0 ? def->obstacle_voxel : extent / 160;
-    fm_obstacles *o = fm_obstacles_build(meshes, def->obstacle_count, voxel, reach + 2 * voxel, err);
-    if (!o) name_key(def, err ? err->status : FM_ERR_INPUT, "obstacles.voxel", err);
-    return o;
-}
-
 static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_radius, fm_error *err)
 {
-    m->obstacles = obstacle_grid(&m->def, s->obstacles, m->def.k_a + max_radius, err);
+    m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, m->def.k_a + max_radius, err);
     return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
-}
-
-fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
-                                      fm_error *err)
-{
-    fm_mesh *meshes = calloc((size_t)def->obstacle_count, sizeof *meshes);
-    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles"), NULL;
-    fm_status st = FM_OK;
-    for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
-        char key[48];
-        snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
-        st = load_mesh(def, &def->obstacles[i], key, &meshes[i], err);
-        if (st == FM_OK && source && target) st = refuse_overlaps(def, &meshes[i], key, source, target, err);
-    }
-    fm_obstacles *out = st == FM_OK ? obstacle_grid(def, meshes, reach, err) : NULL;
-    for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
-    free(meshes);
-    return out;
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
 static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *err)
 {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
-    grow_bounds(lo, hi, target->v, target->nv);
+    fm_grow_bounds(lo, hi, target->v, target->nv);
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);
     double voxel = extent / 160, band = fabs(m->def.switch_distance) + 3 * voxel;
     m->target_sdf = fm_obstacles_build(target, 1, voxel, band, err);
-    return m->target_sdf ? FM_OK : name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
+    return m->target_sdf ? FM_OK : fm_scene_name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
 }
 
 static void set_timing(fm_model *m)
@@ -378,7 +294,7 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
     report(progress, user, "order", 0.8);
     st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err);
-    if (st != FM_OK) return name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
+    if (st != FM_OK) return fm_scene_name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
     m->info.key_points = s->path.count;
     s->d1 = malloc(sizeof(int64_t) * (size_t)m->n);
     s->d2 = malloc(sizeof(int64_t) * (size_t)m->n);
@@ -405,7 +321,7 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
 fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
-    if (def->n > 0 && fm_memory_check(def, def->n, err) != FM_OK) return NULL; /* before TetGen runs */
+    if (def->n > 0 && fm_morph_memory_check(def, def->n, err) != FM_OK) return NULL; /* before TetGen runs */
     fm_model *m = calloc(1, sizeof *m);
     if (!m) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");

@@ -8,7 +8,7 @@
  * range. The sort is a stable LSD radix sort on (key, slot), so the order, like everything else in the
  * step, does not depend on the thread count. Every per-slot array moves with its agent; id[] says who
  * is where. */
-#include "sim.h"
+#include "morph.h"
 
 #include <assert.h>
 #include <string.h>

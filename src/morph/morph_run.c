@@ -1,7 +1,7 @@
 /* fm_run: fm_step in the shared frame loop (frame_loop.h), with the end-state checks reported in
  * stats.json. */
 #include "frame_loop.h"
-#include "sim.h"
+#include "morph.h"
 #include "cache_format.h"
 
 #include <math.h>

@@ -1,5 +1,5 @@
 /* The agent store (structure of arrays) and the frame: every tet's four vertices (FM §6). */
-#include "sim.h"
+#include "morph.h"
 
 #include <math.h>
 #include <omp.h>
@@ -13,7 +13,7 @@
  * grid, blocks), and the style fields, whose baked grid is a pure function of time and seed. */
 #define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_state, member), bytes, 1}
 #define SCALAR(member) {#member, offsetof(fm_state, member), sizeof(((fm_state *)0)->member), 0}
-const fm_state_member fm_state_members[] = {
+const fm_store_member fm_state_members[] = {
     AGENT_ARRAY(p[0], sizeof(float)), AGENT_ARRAY(p[1], sizeof(float)), AGENT_ARRAY(p[2], sizeof(float)),
     AGENT_ARRAY(v[0], sizeof(float)), AGENT_ARRAY(v[1], sizeof(float)), AGENT_ARRAY(v[2], sizeof(float)),
     AGENT_ARRAY(phase, sizeof(uint8_t)),

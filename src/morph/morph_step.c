@@ -17,7 +17,7 @@
  * positions and stage 4 only moves an agent itself, with a barrier between them, so every agent
  * sees the same neighbours whatever the thread count; per-block counts are combined in block
  * order. */
-#include "sim.h"
+#include "morph.h"
 #include "kernels.h"
 #include "kernel_avoid.h"
 #include "kernel_mde.h"

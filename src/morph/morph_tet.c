@@ -15,7 +15,7 @@
  * Only n and theta are stored per agent. A is rebuilt from the two tets' vertices in double each
  * time it is needed and S = R(n, theta)^T A, so A(1) = A to double precision however
  * ill-conditioned S is (a float copy of S would not be: its error scales with |S|). */
-#include "sim.h"
+#include "morph.h"
 #include "fm_math.h"
 
 #include <math.h>

@@ -15,20 +15,12 @@
 #ifndef FM_SAMPLE_H
 #define FM_SAMPLE_H
 
-#include "prep.h" /* fm_mesh: welded closed triangle mesh, doubles */
+#include "geom.h" /* fm_mesh: welded closed triangle mesh, doubles */
+#include "scene_internal.h" /* the sampling defaults */
 
 #include <stdint.h>
 
 typedef enum fm_sample_method { FM_SAMPLE_RANDOM = 0, FM_SAMPLE_MOSAIC = 1, FM_SAMPLE_STRATIFIED = 2 } fm_sample_method;
-
-/* Defaults; a field left 0 takes its default (except iterations: 0 keeps the mosaic's random
- * start), so a zeroed struct is a valid request for random sampling with seed 0. */
-#define FM_SAMPLE_MOSAIC_ITERATIONS 30 /* the paper gives no count: see docs/sampling.md */
-#define FM_SAMPLE_MOSAIC_K 2.0         /* eq 1: "k is 2.0 in our current implementation" */
-#define FM_SAMPLE_MOSAIC_W 0.9         /* eq 3: "we choose w as 0.9" */
-#define FM_SAMPLE_MOSAIC_STEP 0.25     /* eq 5's delta t, in units of sqrt(M/N) (the paper gives none) */
-#define FM_SAMPLE_LAMBDA 1.0           /* the paper gives none; per voxel edge, see below */
-#define FM_SAMPLE_OVERSAMPLE 2.0       /* stratified candidates per sample (the paper gives none) */
 
 typedef struct fm_sample_opts {
     fm_sample_method method;

@@ -6,9 +6,8 @@
  * parsing) and the key. */
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
-#include "fuzzy.h"
 #include "json_locate.h"
-#include "sample.h" /* the sampling defaults */
+#include "scene_internal.h"
 
 #include <jansson.h>
 
@@ -857,8 +856,7 @@ static fm_status check_table(where *w, const param *table, size_t count, const v
         else if (p->type == P_ENUM && (*(const int *)field < 0 || *(const int *)field >= name_count(enum_names(p))))
             st = fail_at(w, KEY(w, p), "unknown value %d", *(const int *)field);
         else if (p->type == P_FUZZY) {
-            fm_fuzzy curve;
-            st = fm_fuzzy_init(&curve, (const fm_fuzzy_def *)field, KEY(w, p), w->err);
+            st = fm_fuzzy_def_check((const fm_fuzzy_def *)field, KEY(w, p), w->err);
         }
         w->label[0] = 0;
         if (st != FM_OK) return st;
@@ -1065,4 +1063,31 @@ static void feed_table(const param *table, size_t count, const void *base, const
 void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user)
 {
     feed_table(PARAMS, PARAM_COUNT, def, def, add, user);
+}
+
+fm_status fm_fuzzy_def_check(const fm_fuzzy_def *def, const char *key, fm_error *err)
+{
+    if (def->count < 1 || def->count > FM_FUZZY_MAX_POINTS)
+        return fm_fail(err, FM_ERR_INPUT, "%s: a weight curve needs 1 to %d points, got %d", key, FM_FUZZY_MAX_POINTS,
+                       def->count);
+    for (int32_t i = 0; i < def->count; i++) {
+        if (!isfinite(def->d[i]) || !isfinite(def->w[i]) || def->d[i] < 0 || def->w[i] < 0)
+            return fm_fail(err, FM_ERR_INPUT, "%s[%d]: distance and weight must be finite and >= 0", key, i);
+        if (i > 0 && !((float)def->d[i] > (float)def->d[i - 1]))
+            return fm_fail(err, FM_ERR_INPUT, "%s[%d]: the distances must increase (%g after %g)", key, i, def->d[i],
+                           def->d[i - 1]);
+    }
+    return FM_OK;
+}
+
+/* Prefixes err's message with where the scene sets `key` ("scene.json:3:14: source.mesh: ..."). */
+fm_status fm_scene_name_key(const fm_scene_def *def, fm_status st, const char *key, fm_error *err)
+{
+    if (st != FM_OK && err) {
+        char msg[sizeof err->message], where[FM_PATH_MAX + 64];
+        snprintf(msg, sizeof msg, "%s", err->message);
+        fm_scene_key_location(def, key, where, sizeof where);
+        fm_fail(err, st, "%s: %s", where, msg);
+    }
+    return st;
 }

@@ -10,7 +10,7 @@
 #define FM_OBSTACLES_H
 
 #include "kernel_sdf.h"
-#include "prep.h"
+#include "geom.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -46,11 +46,21 @@ fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
    does not depend on it. Thread-safe: callable from OpenMP threads concurrently. */
 double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double closest[3], double normal[3]);
 
-/* The scene's obstacles (obstacles.meshes, each loaded, checked closed and placed) with a band wide
-   enough for `reach` (FM eq 7's k_a plus the largest agent radius), the voxel obstacles.voxel or
-   1/160 of their extent plus the reach. Given the placed source and target meshes, an obstacle that
-   overlaps either is refused, as in the tetra morph. Errors name "obstacles.meshes[i]". NULL on
-   failure. (model.c) */
+/* scene_obstacles.c: the scene's meshes and obstacles as both modes load them. */
+
+/* Loads, checks closed and places one mesh of the scene; errors name where the scene sets `key`. */
+fm_status fm_scene_mesh_load(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
+                             fm_error *err);
+/* Obstacle i (obstacles.meshes[i]) loaded, checked and placed; given the placed source and target
+   meshes (both or neither), one that overlaps either is refused: agents would start or finish
+   inside it. */
+fm_status fm_obstacle_mesh_load(const fm_scene_def *def, int i, const fm_mesh *source, const fm_mesh *target,
+                                fm_mesh *mesh, fm_error *err);
+/* The distance grid of the scene's placed obstacle meshes with a band wide enough for `reach`
+   (FM eq 7's k_a plus the largest agent radius), so the look-ahead of eq 8 always reads real
+   distances; the voxel is obstacles.voxel or 1/160 of the extent plus the reach. */
+fm_obstacles *fm_obstacles_grid(const fm_scene_def *def, const fm_mesh *meshes, double reach, fm_error *err);
+/* Both: every obstacle of the scene, then its grid. NULL on failure. */
 fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
                                       fm_error *err);
 

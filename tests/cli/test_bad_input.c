@@ -5,7 +5,8 @@
  * complete frame. The bad meshes are written here (under the test's scratch directory). */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
-#include "sim.h"
+#include "modes.h"
+#include "morph.h"
 #include "test_macros.h"
 #include "test_cli_helpers.h"
 
@@ -513,7 +514,7 @@ static void test_memory_estimate_matches_allocations(void)
                                                               NULL, &err)
                                : NULL;
     ENSURE_MSG(w != NULL && frame != NULL && phases != NULL, "%s", err.message);
-    fm_memory_estimate e = fm_memory_estimate_run(&def, def.n);
+    fm_memory_estimate e = fm_morph_memory_estimate(&def, def.n);
     expect_estimate(&def, before, e.model + e.state + e.frames, "");
     fm_cache_writer_abort(w);
     free(frame), free(phases);

@@ -7,7 +7,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
 #include "flock.h"
-#include "sim.h"
+#include "morph.h"
 #include "test_macros.h"
 
 #include <errno.h>
@@ -177,7 +177,7 @@ static void run_whole(const char *cache, fm_run_stats *rs)
 static void ensure_same_state(const fm_state *a, const fm_state *b)
 {
     for (int i = 0; i < fm_state_member_count; i++) {
-        const fm_state_member *mb = &fm_state_members[i];
+        const fm_store_member *mb = &fm_state_members[i];
         const char *pa = (const char *)a + mb->offset, *pb = (const char *)b + mb->offset;
         size_t bytes = mb->bytes;
         if (mb->per_agent) {

@@ -1,7 +1,7 @@
 /* The shape flock's global path (SCF eqs 10-12): the B-spline passes through its points, is C1 at
  * the joints, its arc-length parameterisation has constant speed, and eq 12 maps it onto every
  * agent's endpoints. */
-#include "bspline.h"
+#include "flock_bspline.h"
 #include "test_macros.h"
 
 #include <math.h>

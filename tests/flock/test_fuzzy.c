@@ -1,7 +1,7 @@
 /* Fuzzy weight curves (SCF Figure 6): continuous (sampled densely, no step larger than the steepest
  * piece allows), through their points, flat beyond their ends; bad curves are refused; the scene
  * defaults are valid curves. */
-#include "fuzzy.h"
+#include "flock_fuzzy.h"
 #include "test_macros.h"
 
 #include <string.h>

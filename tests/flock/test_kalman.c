@@ -1,7 +1,7 @@
 /* Kalman homing (SCF eq 9): an agent driven only by the homing force tracks a leader moving at
  * constant velocity; the tracking lag shrinks as R falls, vanishes in the steady state, and R -> 0
  * puts the agent on its leader. */
-#include "kalman.h"
+#include "flock_kalman.h"
 #include "test_macros.h"
 
 #include <math.h>

@@ -2,7 +2,7 @@
  * The first byte picks the format, the rest is the file: '0' OBJ, '1' PLY, '2' OFF, '3' STL (any
  * byte works, modulo 4). */
 #include "fuzz_check.h"
-#include "prep.h"
+#include "geom.h"
 
 #include <math.h>
 #include <stdint.h>

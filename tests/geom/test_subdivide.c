@@ -1,5 +1,5 @@
 /* Subdivision to n tets (FM eqs 1-2): counts, exact volume, orientation, the three schemes. */
-#include "prep.h"
+#include "geom.h"
 #include "test_macros.h"
 
 #include <stdlib.h>

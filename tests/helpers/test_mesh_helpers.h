@@ -3,7 +3,7 @@
 #ifndef FM_TEST_MESH_HELPERS_H
 #define FM_TEST_MESH_HELPERS_H
 
-#include "prep.h"
+#include "geom.h"
 
 #include <math.h>
 

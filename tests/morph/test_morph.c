@@ -1,6 +1,6 @@
 /* The tet morph (FM §6): A(0) = I, A(1) maps the source tet onto its target, det A(t) > 0 for all
  * t, the smallest-rotation correspondence, and the launch shrink. */
-#include "sim.h"
+#include "morph.h"
 #include "fm_math.h"
 #include "test_macros.h"
 

@@ -3,7 +3,7 @@
  * scenario with MDE and an obstacle gives the same cache bytes for 1, 2 and 3 threads and for every
  * SIMD level. */
 #include "flockmorph/flockmorph.h"
-#include "sim.h"
+#include "morph.h"
 #include "simd.h"
 #include "test_macros.h"
 

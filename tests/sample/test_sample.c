@@ -3,7 +3,7 @@
  * margin on two meshes, determinism for a seed and across thread counts, evaluation on deformed
  * meshes, the agent-sample correspondence, the uniformity measure itself, and bad input. */
 #include "closest.h"
-#include "prep.h"
+#include "geom.h"
 #include "sample.h"
 #include "test_macros.h"
 #include "test_mesh_helpers.h"

@@ -1,0 +1,82 @@
+/* The shape flock's checkpoint: the same file as the tetra morph's (docs/resume.md) with the
+ * flock's store (fm_flock_state_members), its statistics, the hash of its model and the checks of
+ * restored values, handed to the checkpoint writer (world/checkpoint.h). */
+#include "checkpoint.h"
+#include "flock.h"
+
+#include <string.h>
+
+static const fm_store_member FLOCK_RUN_STATS[] = {
+    FM_STORE_SCALAR(fm_flock_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_flock_run_stats, output_seconds),
+    FM_STORE_SCALAR(fm_flock_run_stats, tracking_frames),
+};
+
+static void hash_floats3(fm_hash *h, float *const a[3], size_t n)
+{
+    for (int k = 0; k < 3; k++) fm_hash_bytes(a[k], sizeof(float) * n, h);
+}
+
+/* Everything of the flock model the step reads: the samples (start, destination and its triangle
+ * and barycentrics), each agent's parameters, the target's meshes, the path and the obstacles. */
+static uint64_t flock_model_hash(const fm_flock_model *m)
+{
+    fm_hash *h = fm_hash_begin();
+    if (!h) return 0;
+    const size_t n = (size_t)m->n, nv = (size_t)m->target.mesh.nv;
+    const fm_samples *d = &m->target.dest;
+    fm_hash_bytes(&m->n, sizeof m->n, h);
+    hash_floats3(h, m->start, n), hash_floats3(h, m->dest0, n);
+    hash_floats3(h, m->radius, n), hash_floats3(h, m->cos_half, n), hash_floats3(h, m->weight, n);
+    fm_hash_bytes(m->max_speed, sizeof(float) * n, h), fm_hash_bytes(m->max_force, sizeof(float) * n, h);
+    fm_hash_bytes(d->p, sizeof(float) * 3 * n, h), fm_hash_bytes(d->bary, sizeof(float) * 3 * n, h);
+    fm_hash_bytes(d->tri, sizeof(int32_t) * n, h);
+    fm_hash_bytes(m->target.mesh.v, sizeof(double) * 3 * nv, h);
+    fm_hash_bytes(m->target.mesh.tri, sizeof(int32_t) * 3 * (size_t)m->target.mesh.nt, h);
+    if (m->target.frames) fm_hash_bytes(m->target.frames, sizeof(double) * 3 * nv * (size_t)m->def.flock.deform_frames, h);
+    if (m->path.ctrl) fm_hash_bytes(m->path.ctrl, sizeof(double) * 3 * ((size_t)m->path.count + 2), h);
+    fm_hash_bytes(&m->path.length, sizeof m->path.length, h);
+    fm_hash_bytes(m->o1, sizeof m->o1, h), fm_hash_bytes(m->o2, sizeof m->o2, h);
+    fm_hash_bytes(&m->path_time, sizeof m->path_time, h), fm_hash_bytes(&m->dt, sizeof m->dt, h);
+    fm_hash_bytes(&m->steps_per_frame, sizeof m->steps_per_frame, h), fm_hash_bytes(&m->max_radius, sizeof m->max_radius, h);
+    fm_hash_bytes(m->scene_lo, sizeof m->scene_lo, h), fm_hash_bytes(m->scene_hi, sizeof m->scene_hi, h);
+    fm_hash_sdf(h, m->obstacles);
+    return fm_hash_end(h);
+}
+
+/* The shape flock's restored values: phases in range and counted, a step and time that fit. */
+static const char *check_state(const void *state)
+{
+    const fm_flock_state *s = state;
+    int64_t count[4] = {0, 0, 0, 0};
+    for (int64_t a = 0; a < s->n; a++) {
+        if (s->phase[a] > FM_PHASE_ARRIVED) return "agent values out of range";
+        count[s->phase[a]]++;
+    }
+    if (memcmp(count, s->count, sizeof count) != 0 || s->step < 0 || !(s->time >= 0))
+        return "counters inconsistent with the agents";
+    return NULL;
+}
+
+static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats)
+{
+    return (fm_ckpt_store){fm_flock_state_members, fm_flock_state_member_count, (void *)s, s->n, FLOCK_RUN_STATS,
+                           (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]), (void *)stats, NULL, &m->def,
+                           flock_model_hash(m), "the samples, the path (or the obstacles)", check_state,
+                           stats->frames};
+}
+
+fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
+                                   const fm_flock_run_stats *stats, fm_error *err)
+{
+    const fm_ckpt_store c = flock_store(m, s, stats);
+    return fm_ckpt_save(path, &c, err);
+}
+
+fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s,
+                                   fm_flock_run_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    fm_ckpt_store c = flock_store(m, s, stats);
+    return fm_ckpt_load(path, &c, &stats->frames, err);
+}
+

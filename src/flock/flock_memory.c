@@ -1,0 +1,58 @@
+/* The shape flock's memory estimate (memory.h, docs/limits.md): its model, store, frame and the
+ * sampler's peak per agent, and the boids' neighbour grid, always. */
+#include "flock.h"
+#include "memory.h"
+
+/* The shape flock (flock_model.c, flock_state.c, flock_run.c). The model: start and destination at
+ * time 0 (6 floats), the boids parameters (3 rules x radius, angle, weight; max speed and force)
+ * and the destination's sample (a point, barycentrics, a triangle). */
+static const double FLOCK_MODEL_PER_AGENT = sizeof(float) * (6 + 3 * FM_BOIDS_RULES + 2) + sizeof(float) * 6 + sizeof(int32_t);
+/* The store: p, v, dest, dest_v, leader, leader_v, acc, ext (3 floats each), the orientation, the
+ * bind time and homing weight, phase and grid membership, the per-block counts. */
+static const double FLOCK_STATE_PER_AGENT = sizeof(float) * (8 * 3 + 4 + 2) + 2 + (double)sizeof(flock_block) / FM_BLOCK;
+/* A deforming target's destinations, evaluated each step (3 floats). */
+static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
+/* The frame: position, velocity (3 floats), orientation (4) and phase (1 byte). */
+static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST_ATTR = sizeof(float) * 4;
+
+/* The peak of preprocessing, while the target is sampled: the model, the agent-sample match
+ * (int64) and the source's samples (point, barycentrics, triangle), plus the sampler's own arrays
+ * per sample (sample.c, sample_mosaic.c, sample_stratified.c): the double points and triangles;
+ * for mosaic also a float copy, the neighbour grid, the moved points and the Hilbert sort's keys
+ * and copies; for stratified the candidates (point in double, triangle) and their elimination's
+ * float copy, flags, neighbours, keys, heap and grid, 1.1 x oversample candidates per sample. */
+static double flock_preprocess_per_agent(const fm_scene_def *def, int64_t n)
+{
+    const double samples = sizeof(float) * 6 + sizeof(int32_t), points = sizeof(double) * 3 + sizeof(int32_t);
+    const double grid = n > 0 ? fm_memory_grid_bytes(n) / (double)n : 0;
+    double sampler = points;
+    if (def->flock.sampling == FM_FLOCK_SAMPLE_MOSAIC)
+        sampler += sizeof(float) * 3 + grid + points + sizeof(fm_keyed) + points;
+    else if (def->flock.sampling == FM_FLOCK_SAMPLE_STRATIFIED) {
+        const double candidate = points + 4 /* padding */ + sizeof(float) * 3 + 1 + sizeof(int64_t) + sizeof(double) +
+                                 sizeof(double) + sizeof(int64_t) + grid;
+        sampler += 1.1 * FM_SAMPLE_OVERSAMPLE * candidate;
+    }
+    return FLOCK_MODEL_PER_AGENT + sizeof(int64_t) + samples + sampler;
+}
+
+fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
+{
+    fm_memory_estimate e = {0};
+    double agents = (double)n;
+    e.model = FLOCK_MODEL_PER_AGENT;
+    e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0);
+    e.frames = fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
+    e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents : 0; /* the boids' neighbour grid, always */
+    e.fixed = fm_memory_fixed_bytes(def);
+    e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
+    fm_memory_total(&e, n);
+    return e;
+}
+
+
+fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *err)
+{
+    const fm_memory_need need = {fm_flock_memory_estimate(def, n), "boids'", NULL};
+    return fm_memory_check(def, n, &need, err);
+}

@@ -1,0 +1,80 @@
+/* The tetra morph's checkpoint (docs/resume.md): its store's members (fm_state_members), its
+ * statistics with the per-frame MDE fractions, the hash of its model and the checks of restored
+ * values, handed to the checkpoint writer (world/checkpoint.h). */
+#include "checkpoint.h"
+#include "morph.h"
+
+#include <string.h>
+
+/* The tetra morph's statistics (the MDE fractions follow per frame). */
+static const fm_store_member RUN_STATS[] = {
+    FM_STORE_SCALAR(fm_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_run_stats, output_seconds),
+};
+
+/* Everything of the model the step reads: if TetGen, the subdivision or an obstacle mesh came out
+ * differently, the resumed frames would not continue the saved ones. */
+static uint64_t model_hash(const fm_model *m)
+{
+    fm_hash *h = fm_hash_begin();
+    if (!h) return 0;
+    size_t n = (size_t)m->n, keys = (size_t)m->key_count;
+    fm_hash_bytes(&m->n, sizeof m->n, h);
+    fm_hash_bytes(m->src_rel, sizeof(float) * 12 * n, h);
+    fm_hash_bytes(m->tgt, sizeof(double) * 12 * n, h);
+    fm_hash_bytes(m->src_radius, sizeof(float) * n, h);
+    for (int k = 0; k < 3; k++) {
+        fm_hash_bytes(m->src_c[k], sizeof(float) * n, h), fm_hash_bytes(m->tgt_c[k], sizeof(float) * n, h);
+        fm_hash_bytes(m->key_q[k], sizeof(float) * keys, h), fm_hash_bytes(m->key_f[k], sizeof(float) * keys, h);
+    }
+    fm_hash_bytes(m->sphere_c, sizeof m->sphere_c, h), fm_hash_bytes(&m->sphere_r, sizeof m->sphere_r, h);
+    fm_hash_bytes(m->scene_lo, sizeof m->scene_lo, h), fm_hash_bytes(m->scene_hi, sizeof m->scene_hi, h);
+    fm_hash_bytes(&m->dt, sizeof m->dt, h), fm_hash_bytes(&m->steps_per_frame, sizeof m->steps_per_frame, h);
+    fm_hash_bytes(&m->launch_rate, sizeof m->launch_rate, h);
+    fm_hash_sdf(h, m->obstacles), fm_hash_sdf(h, m->target_sdf);
+    return fm_hash_end(h);
+}
+
+/* The restored values that index arrays must be in range (a checksum proves the file is as
+ * written, not that the writer was sound). */
+static const char *check_state(const void *state)
+{
+    const fm_state *s = state;
+    int64_t n = s->n, count[4] = {0, 0, 0, 0};
+    for (int64_t a = 0; a < n; a++) {
+        if (s->phase[a] > FM_PHASE_ARRIVED || s->perm[a] >= 12 || s->target[a] < -1 || s->target[a] >= n ||
+            s->id[a] < 0 || s->id[a] >= n)
+            return "agent values out of range";
+        count[s->phase[a]]++;
+    }
+    if (memcmp(count, s->count, sizeof count) != 0 || s->launched < 0 || s->launched > n || s->next_slot < 0 ||
+        s->next_slot > n || s->step < 0)
+        return "counters inconsistent with the agents";
+    return NULL;
+}
+
+/* The tetra morph's store and statistics (per-frame MDE fractions included). */
+static fm_ckpt_store tetra_store(const fm_model *m, const fm_state *s, const fm_run_stats *stats)
+{
+    return (fm_ckpt_store){fm_state_members, fm_state_member_count, (void *)s, s->n, RUN_STATS,
+                           (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), (void *)stats, (double **)&stats->mde_fraction,
+                           &m->def, model_hash(m), "the tets after TetGen and subdivision (or the obstacles)",
+                           check_state, stats->frames};
+}
+
+fm_status fm_checkpoint_save(const char *path, const fm_model *m, const fm_state *s, const fm_run_stats *stats,
+                             fm_error *err)
+{
+    const fm_ckpt_store c = tetra_store(m, s, stats);
+    return fm_ckpt_save(path, &c, err);
+}
+
+fm_status fm_checkpoint_load(const char *path, const fm_model *m, fm_state *s, fm_run_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    fm_ckpt_store c = tetra_store(m, s, stats);
+    fm_status st = fm_ckpt_load(path, &c, &stats->frames, err);
+    if (st == FM_OK) fm_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
+    if (st != FM_OK) fm_run_stats_free(stats);
+    return st;
+}
+

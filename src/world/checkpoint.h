@@ -1,0 +1,61 @@
+/* Checkpoints (checkpoint.c, docs/resume.md): the file that lets a run resume at a frame boundary
+ * with the bytes of an uninterrupted one. The writer knows no mode: a mode hands it an
+ * fm_ckpt_store with its store's member table, its statistics table, its model hash and the checks
+ * of the restored values. */
+#ifndef FM_CHECKPOINT_H
+#define FM_CHECKPOINT_H
+
+#include "obstacles.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* One member of a mode's agent store (or of its run statistics) that a step changes and a later
+ * step reads. A per-agent array (the member is a pointer) holds n elements of `bytes` each; a
+ * scalar member is `bytes` bytes of the struct itself. */
+typedef struct fm_store_member {
+    const char *name;
+    size_t offset;   /* offsetof(the struct, member) */
+    size_t bytes;    /* per agent for an array, in all for a scalar */
+    int per_agent;
+} fm_store_member;
+
+/* A scalar member of struct `type`. */
+#define FM_STORE_SCALAR(type, member) {#member, offsetof(type, member), sizeof(((type *)0)->member), 0}
+
+/* What one mode's checkpoint holds besides its header: the run's statistics (the scalars of the
+ * `stats` table, then frames - 1 doubles per frame, if any) and the store's members. */
+typedef struct fm_ckpt_store {
+    const fm_store_member *members;
+    int member_count;
+    void *state;                  /* the mode's store the members are offsets into */
+    int64_t n;
+    const fm_store_member *stats; /* scalars of the run's statistics, offsets into run_stats */
+    int stats_count;
+    void *run_stats;
+    double **per_frame;           /* NULL, or the statistics' per-frame array (malloc'ed on load) */
+    const fm_scene_def *def;
+    uint64_t model_hash;          /* of every model array the step reads (fm_hash_*) */
+    const char *model_what;       /* what differs when the model hash does not match, for the message */
+    const char *(*check)(const void *state); /* after a load: NULL, or what is out of range */
+    int64_t frames;               /* frames written, frame 0 included */
+} fm_ckpt_store;
+
+/* Writes c to `path` (as PATH.partial, fsync'ed, then renamed; the directory synced). */
+fm_status fm_ckpt_save(const char *path, const fm_ckpt_store *c, fm_error *err);
+/* Restores c's state and statistics (the state fresh from the mode's create) after the checks of
+ * fm_ckpt_check, a check of the agent count and model hash, and c->check; *frames gets the frame
+ * count the file states. */
+fm_status fm_ckpt_load(const char *path, fm_ckpt_store *c, int64_t *frames, fm_error *err);
+/* Readable, undamaged (checksum), this version, the same scene parameters, the same member table. */
+fm_status fm_ckpt_check(const char *path, const fm_scene_def *def, const fm_store_member *members, int count,
+                        fm_error *err);
+
+/* XXH3-64 over a mode's model arrays: begin, feed, end (NULL from begin: out of memory). */
+typedef struct XXH3_state_s fm_hash;
+fm_hash *fm_hash_begin(void);
+void fm_hash_bytes(const void *bytes, size_t n, void *hash);
+uint64_t fm_hash_end(fm_hash *hash);
+void fm_hash_sdf(fm_hash *hash, const fm_obstacles *o); /* a distance grid, or "none" */
+
+#endif

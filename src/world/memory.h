@@ -1,0 +1,45 @@
+/* What a run of n agents needs in memory (memory.c, docs/limits.md). Each mode estimates its own
+ * model, store and preparation (morph_memory.c, flock_memory.c) from the shared parts here, and
+ * hands fm_memory_check the estimate, so that a run too large for the machine is refused before
+ * anything big is allocated. */
+#ifndef FM_MEMORY_H
+#define FM_MEMORY_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+
+typedef struct fm_memory_estimate {
+    double model, state, frames, grid; /* bytes per agent while stepping: model, agent store, frame
+                                          buffers (run, cache writer, zstd output), neighbour grid */
+    double per_agent;                  /* their sum */
+    double fixed;                      /* bytes that do not grow with n: libraries, field and distance grids */
+    double run;                        /* per_agent * n + fixed */
+    double preprocess_per_agent;       /* bytes per agent at the preparation's peak */
+    double preprocess;                 /* preprocess_per_agent * n + fixed */
+    double total;                      /* the larger of run and preprocess */
+} fm_memory_estimate;
+
+/* A mode's estimate and its neighbour grid, for fm_memory_check. */
+typedef struct fm_memory_need {
+    fm_memory_estimate estimate;
+    const char *grid;      /* the grid's user for the refusal ("boids'", "MDE"); NULL: no grid */
+    const char *grid_hint; /* appended to the grid's refusal (" or turn MDE off ..."); may be NULL */
+} fm_memory_need;
+
+/* Per agent: a frame of `frame` bytes whose largest attribute takes `largest`, in the run's
+ * buffers, the cache writer's and zstd's output. */
+double fm_memory_frames_per_agent(const fm_scene_def *def, double frame, double largest);
+/* The neighbour grid (grid.c) for n agents, in bytes. */
+double fm_memory_grid_bytes(int64_t n);
+/* Bytes that do not grow with n: the libraries, a baked field grid, the distance grids. */
+double fm_memory_fixed_bytes(const fm_scene_def *def);
+/* Fills per_agent, run, preprocess and total from the parts. */
+void fm_memory_total(fm_memory_estimate *e, int64_t n);
+double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
+
+/* FM_ERR_INPUT naming the scene's n, the estimate and the machine's memory if it does not fit, or
+ * the neighbour grid's capacity if n exceeds it. */
+fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_need *need, fm_error *err);
+
+#endif
