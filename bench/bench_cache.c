@@ -63,24 +63,24 @@ static fm_cache_options options_for(const variant *v, const fm_scene_def *def)
 
 /* One run of the scene from a fresh state, writing to `path` under `opts` (NULL: no cache).
  * Returns its time (finish included); stats in *rs, the step loop's wait for the writer in *wait. */
-static timing timed_run(const fm_model *model, int threads, double frame_rate, const char *path,
-                        const fm_cache_options *opts, fm_run_stats *rs, double *wait)
+static timing timed_run(const fm_morph_model *model, int threads, double frame_rate, const char *path,
+                        const fm_cache_options *opts, fm_morph_run_stats *rs, double *wait)
 {
     fm_error err = {0};
-    fm_state *state = fm_state_create(model, threads, &err);
+    fm_morph_state *state = fm_morph_state_create(model, threads, &err);
     if (!state) fprintf(stderr, "bench_cache: %s\n", err.message), exit(4);
     timing t0 = start_timing();
     fm_cache_writer *w = NULL;
-    if (path) w = fm_cache_writer_create_attrs(path, (uint64_t)fm_model_get_info(model).agents,
+    if (path) w = fm_cache_writer_create_attrs(path, (uint64_t)fm_morph_model_get_info(model).agents,
                                                frame_rate, ATTRS, ATTR_COUNT, opts, &err);
     if (path && !w) fprintf(stderr, "bench_cache: %s\n", err.message), exit(3);
-    fm_status st = fm_run(model, state, w, NULL, NULL, rs, &err);
+    fm_status st = fm_morph_run(model, state, w, NULL, NULL, rs, &err);
     *wait = w ? fm_cache_writer_wait_seconds(w) : 0;
     if (st == FM_OK && w) st = fm_cache_writer_finish(w, &err);
     else if (w) fm_cache_writer_abort(w);
     timing t = since(t0);
     if (st != FM_OK) fprintf(stderr, "bench_cache: %s\n", err.message), exit((int)st);
-    fm_state_destroy(state);
+    fm_morph_state_destroy(state);
     return t;
 }
 
@@ -174,11 +174,11 @@ int main(int argc, char **argv)
     def.frame_limit = (int32_t)frame_count;
     if (level_given) def.compression_level = level;
     double t0 = now();
-    fm_model *model = fm_model_build(&def, NULL, NULL, &err);
+    fm_morph_model *model = fm_morph_model_build(&def, NULL, NULL, &err);
     if (!model) return fprintf(stderr, "bench_cache: %s\n", err.message), 2;
     double prep = now() - t0;
 
-    fm_run_stats base;
+    fm_morph_run_stats base;
     double no_wait;
     timing plain = timed_run(model, (int)threads, def.frame_rate, NULL, NULL, &base, &no_wait);
     double agent_steps = (double)agents * (double)base.steps, raw_frame = (double)agents * (48 + 4 + 1);
@@ -188,13 +188,13 @@ int main(int argc, char **argv)
            " \"variants\": [",
            agents, (long long)base.frames, (long long)base.steps, threads, launch_seconds, prep, raw_frame / 1e6,
            plain.wall, plain.cpu, agent_steps / plain.wall);
-    fm_run_stats_free(&base);
+    fm_morph_run_stats_free(&base);
 
     char path[4096];
     frames f = {0};
     for (size_t v = 0; v < VARIANT_COUNT; v++) {
         fm_cache_options opts = options_for(&VARIANTS[v], &def);
-        fm_run_stats rs;
+        fm_morph_run_stats rs;
         double wait;
         snprintf(path, sizeof path, "%s/bench_cache_%s.fmc", dir, VARIANTS[v].name);
         timing run = timed_run(model, (int)threads, def.frame_rate, path, &opts, &rs, &wait);
@@ -212,11 +212,11 @@ int main(int argc, char **argv)
                v ? "," : "", VARIANTS[v].name, opts.compression_level, opts.delta ? "true" : "false", opts.key_interval, opts.quantum,
                run.wall, run.cpu, wait, agent_steps / run.wall, run.wall / plain.wall, raw / packed, file_size(path) / 1e6,
                writer.wall, writer.cpu, raw / writer.wall / 1e6, packed / writer.wall / 1e6, raw / writer.cpu / 1e6);
-        fm_run_stats_free(&rs);
+        fm_morph_run_stats_free(&rs);
         remove(path);
     }
     printf("\n ],\n \"load_average\": %.1f}\n", load_average());
     free(f.tets), free(f.ids), free(f.phases);
-    fm_model_destroy(model);
+    fm_morph_model_destroy(model);
     return 0;
 }

@@ -36,35 +36,35 @@ int main(int argc, char **argv)
     def.n = agents;
     def.launch_rate = 1e12; /* everyone in flight from the first step */
     double t0 = fm_seconds();
-    fm_model *model = fm_model_build(&def, NULL, NULL, &err);
+    fm_morph_model *model = fm_morph_model_build(&def, NULL, NULL, &err);
     if (!model) return fprintf(stderr, "bench_step: %s\n", err.message), 2;
     double prep = fm_seconds() - t0;
     /* MDE's d_min is a distance between neighbouring tets: keep it in proportion to the tet size,
      * which shrinks as n^(-1/3) from the scene's own count (the larger tet count of its meshes). */
-    fm_model_info mi = fm_model_get_info(model);
+    fm_morph_model_info mi = fm_morph_model_get_info(model);
     double scene_n = (double)(mi.source_tets > mi.target_tets ? mi.source_tets : mi.target_tets);
     model->def.d_min *= cbrt(scene_n / (double)agents);
-    fm_state *state = fm_state_create(model, (int)threads, &err);
+    fm_morph_state *state = fm_morph_state_create(model, (int)threads, &err);
     float *frame = malloc(sizeof(float) * 12 * (size_t)agents);
     if (!state || !frame) return fprintf(stderr, "bench_step: out of memory\n"), 4;
-    fm_step(model, state); /* warm-up: launches everyone, touches every page */
+    fm_morph_step(model, state); /* warm-up: launches everyone, touches every page */
     memset(state->stage_seconds, 0, sizeof state->stage_seconds);
     double synth_seconds = 0;
     struct timespec c0, c1;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &c0);
     t0 = fm_seconds();
     for (long s = 0; s < steps; s++) {
-        fm_step(model, state);
+        fm_morph_step(model, state);
         if (synthesis) {
             double t1 = fm_seconds();
-            fm_state_tet_vertices(model, state, frame);
+            fm_morph_tet_vertices(model, state, frame);
             synth_seconds += fm_seconds() - t1;
         }
     }
     double seconds = fm_seconds() - t0;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &c1);
     double cpu_seconds = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
-    fm_state_info info = fm_state_get_info(state);
+    fm_morph_info info = fm_morph_get_info(state);
     double agent_steps = (double)agents * (double)steps;
     printf("{\"scene\": \"%s\", \"agents\": %ld, \"threads\": %ld, \"steps\": %ld, \"in_flight\": %lld, "
            "\"d_min\": %.5g, \"rest_spacing\": %.5g, \"preprocess_seconds\": %.3f, \"agent_steps_per_second\": %.4g, \"steps_per_second\": %.4g, "
@@ -75,7 +75,7 @@ int main(int argc, char **argv)
         printf("\"%s\": %.2f, ", fm_stage_names[k], 1e9 * state->stage_seconds[k] / agent_steps);
     printf("\"synthesis\": %.2f}}\n", 1e9 * synth_seconds / agent_steps);
     free(frame);
-    fm_state_destroy(state);
-    fm_model_destroy(model);
+    fm_morph_state_destroy(state);
+    fm_morph_model_destroy(model);
     return 0;
 }

@@ -62,7 +62,7 @@ static uint64_t fnv(uint64_t h, const void *data, size_t n)
     return h;
 }
 
-static uint64_t state_hash(const fm_state *s, const float *frame)
+static uint64_t state_hash(const fm_morph_state *s, const float *frame)
 {
     uint64_t h = 0xcbf29ce484222325ull;
     h = fnv(h, frame, sizeof(float) * 12 * (size_t)s->n);
@@ -80,7 +80,7 @@ typedef struct step_result {
 } step_result;
 
 /* Times the path kernel (FM eq 3) alone on the state's agents at the given SIMD level. */
-static double time_path_kernel(const fm_model *m, fm_state *s, fm_simd level)
+static double time_path_kernel(const fm_morph_model *m, fm_morph_state *s, fm_simd level)
 {
     fm_simd before = fm_simd_level();
     fm_simd_set_level(level);
@@ -106,18 +106,18 @@ static long repetitions(int64_t n, long steps)
 }
 
 /* One repetition: a fresh state, a warm-up step, then S timed steps each with the synthesis. */
-static int run_once(const fm_model *m, int threads, long steps, float *frame, step_result *r, double *seconds)
+static int run_once(const fm_morph_model *m, int threads, long steps, float *frame, step_result *r, double *seconds)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(m, threads, &err);
+    fm_morph_state *s = fm_morph_state_create(m, threads, &err);
     if (!s) return fprintf(stderr, "bench_suite: %s\n", err.message), -1;
-    fm_step(m, s); /* launches everyone, touches every page */
+    fm_morph_step(m, s); /* launches everyone, touches every page */
     memset(s->stage_seconds, 0, sizeof s->stage_seconds);
     double synth = 0, t0 = fm_seconds();
     for (long k = 0; k < steps; k++) {
-        fm_step(m, s);
+        fm_morph_step(m, s);
         double t1 = fm_seconds();
-        fm_state_tet_vertices(m, s, frame);
+        fm_morph_tet_vertices(m, s, frame);
         synth += fm_seconds() - t1;
     }
     *seconds = fm_seconds() - t0;
@@ -130,12 +130,12 @@ static int run_once(const fm_model *m, int threads, long steps, float *frame, st
     r->in_flight = s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING];
     r->path_ns_simd = time_path_kernel(m, s, fm_simd_level()); /* the level in use (FM_SIMD may lower it) */
     r->path_ns_scalar = time_path_kernel(m, s, FM_SIMD_SCALAR);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
     return 0;
 }
 
 /* The fastest of repetitions(n, S) runs; every run must end in the same bits. */
-static int run_steps(const fm_model *m, int threads, long steps, step_result *r)
+static int run_steps(const fm_morph_model *m, int threads, long steps, step_result *r)
 {
     float *frame = fm_alloc(sizeof(float) * 12 * (size_t)m->n);
     if (!frame) return fprintf(stderr, "bench_suite: out of memory\n"), -1;
@@ -158,25 +158,25 @@ static int run_steps(const fm_model *m, int threads, long steps, step_result *r)
 }
 
 /* ns per agent of a step in which every agent waits at the source: what idle agents cost. */
-static double idle_ns_per_agent(fm_model *m, long steps)
+static double idle_ns_per_agent(fm_morph_model *m, long steps)
 {
     const double rate = m->launch_rate;
     m->launch_rate = 1e-9; /* agent 0 launches, nobody else */
     fm_error err = {0};
-    fm_state *s = fm_state_create(m, 1, &err);
+    fm_morph_state *s = fm_morph_state_create(m, 1, &err);
     double ns = NAN;
     if (s) {
-        fm_step(m, s);
+        fm_morph_step(m, s);
         double t0 = fm_seconds();
-        for (long k = 0; k < steps; k++) fm_step(m, s);
+        for (long k = 0; k < steps; k++) fm_morph_step(m, s);
         ns = 1e9 * (fm_seconds() - t0) / ((double)m->n * (double)steps);
     }
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
     m->launch_rate = rate;
     return ns;
 }
 
-static fm_model *build(const options *o, long agents, double *prep)
+static fm_morph_model *build(const options *o, long agents, double *prep)
 {
     fm_scene_def def;
     fm_error err = {0};
@@ -184,12 +184,12 @@ static fm_model *build(const options *o, long agents, double *prep)
     def.n = agents;
     def.launch_rate = 1e12; /* everyone in flight from the first step */
     double t0 = fm_seconds();
-    fm_model *m = fm_model_build(&def, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&def, NULL, NULL, &err);
     *prep = fm_seconds() - t0;
     if (!m) return fprintf(stderr, "bench_suite: %s\n", err.message), NULL;
     /* MDE's d_min is a distance between neighbouring tets: keep it in proportion to the tet size,
      * which shrinks as n^(-1/3) from the scene's own count. */
-    fm_model_info mi = fm_model_get_info(m);
+    fm_morph_model_info mi = fm_morph_model_get_info(m);
     double scene_n = (double)(mi.source_tets > mi.target_tets ? mi.source_tets : mi.target_tets);
     if (agents > scene_n) m->def.d_min *= cbrt(scene_n / (double)agents);
     return m;
@@ -206,15 +206,15 @@ static int bench_size(const options *o, long agents, const fm_machine *mc, int f
 {
     double prep;
     fprintf(stderr, "bench_suite: n = %ld: building\n", agents);
-    fm_model *m = build(o, agents, &prep);
+    fm_morph_model *m = build(o, agents, &prep);
     if (!m) return -1;
     step_result one, many;
     fprintf(stderr, "bench_suite: n = %ld: %ld steps, 1 thread\n", agents, o->steps);
-    if (run_steps(m, 1, o->steps, &one)) return fm_model_destroy(m), -1;
+    if (run_steps(m, 1, o->steps, &one)) return fm_morph_model_destroy(m), -1;
     many = one;
     if (o->threads > 1) {
         fprintf(stderr, "bench_suite: n = %ld: %ld steps, %ld threads\n", agents, o->steps, o->threads);
-        if (run_steps(m, (int)o->threads, o->steps, &many)) return fm_model_destroy(m), -1;
+        if (run_steps(m, (int)o->threads, o->steps, &many)) return fm_morph_model_destroy(m), -1;
     }
     double idle_ns = idle_ns_per_agent(m, o->steps);
     fm_cost cost = fm_step_cost(m, many.stage_ns);
@@ -237,7 +237,7 @@ static int bench_size(const options *o, long agents, const fm_machine *mc, int f
            many.agent_steps_per_second / one.agent_steps_per_second,
            one.hash != 0 && one.hash == many.hash ? "true" : "false", idle_ns, many.repetitions);
     fflush(stdout);
-    fm_model_destroy(m);
+    fm_morph_model_destroy(m);
     return 0;
 }
 
@@ -254,10 +254,10 @@ static void bench_scenarios(int threads)
         fm_scene_def def;
         fm_error err = {0};
         fprintf(stderr, "bench_suite: scenario %s\n", TABLE_I[i].name);
-        fm_model *m = fm_scene_load(path, &def, &err) == FM_OK ? fm_model_build(&def, NULL, NULL, &err) : NULL;
-        fm_state *s = m ? fm_state_create(m, threads, &err) : NULL;
-        fm_run_stats rs = {0};
-        if (!s || fm_run(m, s, NULL, NULL, NULL, &rs, &err) != FM_OK) {
+        fm_morph_model *m = fm_scene_load(path, &def, &err) == FM_OK ? fm_morph_model_build(&def, NULL, NULL, &err) : NULL;
+        fm_morph_state *s = m ? fm_morph_state_create(m, threads, &err) : NULL;
+        fm_morph_run_stats rs = {0};
+        if (!s || fm_morph_run(m, s, NULL, NULL, NULL, &rs, &err) != FM_OK) {
             fprintf(stderr, "bench_suite: %s: %s\n", TABLE_I[i].name, err.message);
         } else {
             printf("%s\n    {\"scenario\": \"%s\", \"agents\": %lld, \"steps_per_second\": %.1f, \"mde_percent\": %.2f, "
@@ -265,9 +265,9 @@ static void bench_scenarios(int threads)
                    i ? "," : "", TABLE_I[i].name, (long long)m->n, (double)rs.steps / rs.simulate_seconds,
                    100 * rs.mde_fraction_mean, TABLE_I[i].fps, TABLE_I[i].mde);
         }
-        fm_run_stats_free(&rs);
-        fm_state_destroy(s);
-        fm_model_destroy(m);
+        fm_morph_run_stats_free(&rs);
+        fm_morph_state_destroy(s);
+        fm_morph_model_destroy(m);
     }
     printf("\n  ]");
 }

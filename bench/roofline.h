@@ -117,7 +117,7 @@ typedef struct fm_cost {
     double bytes, flops;
 } fm_cost;
 
-static fm_cost fm_step_cost(const fm_model *m, const double *stage_ns)
+static fm_cost fm_step_cost(const fm_morph_model *m, const double *stage_ns)
 {
     (void)stage_ns;
     const double keys = m->key_count;
@@ -154,7 +154,7 @@ static fm_roofline fm_roofline_of(const fm_cost *c, double agent_steps_per_secon
 }
 
 /* Peak resident memory of the process per agent (VmHWM from /proc/self/status). */
-static double fm_bytes_per_agent(const fm_model *m)
+static double fm_bytes_per_agent(const fm_morph_model *m)
 {
     FILE *f = fopen("/proc/self/status", "r");
     char line[256];

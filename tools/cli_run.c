@@ -57,7 +57,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     return 0;
 }
 
-static void frame_progress(const fm_state_info *info, int64_t frame, void *user)
+static void frame_progress(const fm_morph_info *info, int64_t frame, void *user)
 {
     const cli_progress *p = user;
     if (!p->show) return;
@@ -100,7 +100,7 @@ static json_t *velocity_json(const fm_scene_def *def)
                      "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere");
 }
 
-static json_t *mde_frames_json(const fm_run_stats *rs)
+static json_t *mde_frames_json(const fm_morph_run_stats *rs)
 {
     json_t *a = json_array();
     for (int64_t f = 0; f + 1 < rs->frames; f++)
@@ -119,7 +119,7 @@ static void add_warning(run_warnings *w, const char *text)
     json_array_append_new(w->list, json_string(text));
 }
 
-static int write_stats(const char *path, const fm_scene_def *def, const fm_model_info *mi, const fm_run_stats *rs,
+static int write_stats(const char *path, const fm_scene_def *def, const fm_morph_model_info *mi, const fm_morph_run_stats *rs,
                        const cli_run_record *record, const run_warnings *warnings)
 {
     json_t *j = cli_stats_json(def, record);
@@ -144,27 +144,27 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_model
     return cli_write_json(path, j);
 }
 
-static fm_status save_checkpoint(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
+static fm_status save_checkpoint(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *rs, void *path, fm_error *err)
 {
-    return fm_checkpoint_save(path, m, s, rs, err);
+    return fm_morph_checkpoint_save(path, m, s, rs, err);
 }
 
 /* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
-static int open_run(const cli_run_options *o, const fm_scene_def *def, const fm_model *model, const cli_outputs *files,
-                    fm_state *state, fm_run_stats *rs, fm_cache_writer **cache)
+static int open_run(const cli_run_options *o, const fm_scene_def *def, const fm_morph_model *model, const cli_outputs *files,
+                    fm_morph_state *state, fm_morph_run_stats *rs, fm_cache_writer **cache)
 {
     fm_error err = {0};
     if (!o->resume) {
         cli_start_over(files);
         fm_cache_options copts = cli_cache_options(def);
         const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
-        *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)fm_model_get_info(model).agents, def->frame_rate,
+        *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)fm_morph_model_get_info(model).agents, def->frame_rate,
                                               attrs, 3, &copts, &err);
         return *cache ? 0 : cli_report(&err);
     }
-    if (fm_checkpoint_load(files->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);
+    if (fm_morph_checkpoint_load(files->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);
     *cache = fm_cache_writer_resume(files->cache, (uint32_t)rs->frames, &err);
-    if (!*cache) return fm_run_stats_free(rs), cli_report(&err);
+    if (!*cache) return fm_morph_run_stats_free(rs), cli_report(&err);
     return 0;
 }
 
@@ -181,12 +181,12 @@ static fm_run_control run_control(const cli_run_options *o, const cli_outputs *f
 }
 
 /* The cache, stats.json and the summary of a finished run; the checkpoint is no longer needed. */
-static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const cli_outputs *files, fm_cache_writer *cache,
-                      fm_run_stats *rs, int threads, double prep_seconds, int64_t still_flying, run_warnings *warnings)
+static int finish_run(const fm_scene_def *def, const fm_morph_model_info *mi, const cli_outputs *files, fm_cache_writer *cache,
+                      fm_morph_run_stats *rs, int threads, double prep_seconds, int64_t still_flying, run_warnings *warnings)
 {
     fm_error err = {0};
     if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
-        return fm_run_stats_free(rs), cli_fail_keeping_partial_cache(&err, NULL, files->cache);
+        return fm_morph_run_stats_free(rs), cli_fail_keeping_partial_cache(&err, NULL, files->cache);
     if (!rs->all_arrived) {
         char text[256];
         snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
@@ -196,7 +196,7 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const cl
     const cli_run_record record = {"tetra_morph", mi->agents, rs->frames, rs->steps, mi->time_step, prep_seconds,
                                    rs->simulate_seconds, rs->output_seconds, threads, files->cache};
     int rc = write_stats(files->stats, def, mi, rs, &record, warnings);
-    fm_run_stats_free(rs);
+    fm_morph_run_stats_free(rs);
     if (rc) return rc;
     cli_remove_checkpoint(files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s\n", (long long)mi->agents, (long long)rs->frames,
@@ -205,30 +205,30 @@ static int finish_run(const fm_scene_def *def, const fm_model_info *mi, const cl
     return 0;
 }
 
-static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_model *model, double prep_seconds,
+static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_morph_model *model, double prep_seconds,
                     run_warnings *warnings)
 {
     fm_error err = {0};
     int show = !o->quiet && isatty(STDERR_FILENO);
-    fm_model_info mi = fm_model_get_info(model);
-    fm_state *state = fm_state_create(model, o->threads, &err);
+    fm_morph_model_info mi = fm_morph_model_get_info(model);
+    fm_morph_state *state = fm_morph_state_create(model, o->threads, &err);
     if (!state) return cli_report(&err);
     cli_outputs files;
     cli_run_outputs(o, def, &files);
     fm_cache_writer *cache = NULL;
-    fm_run_stats rs;
+    fm_morph_run_stats rs;
     int rc = open_run(o, def, model, &files, state, &rs, &cache);
-    if (rc) return fm_state_destroy(state), rc;
+    if (rc) return fm_morph_state_destroy(state), rc;
     cli_progress rp = {show, mi.agents, cli_seconds()};
     fm_run_control control = run_control(o, &files, &rp);
-    cli_catch_stop_signals(1); /* fm_run_controlled checkpoints and stops at the end of the frame */
-    fm_status st = fm_run_controlled(model, state, cache, &control, &rs, &err);
+    cli_catch_stop_signals(1); /* fm_morph_run_controlled checkpoints and stops at the end of the frame */
+    fm_status st = fm_morph_run_controlled(model, state, cache, &control, &rs, &err);
     cli_catch_stop_signals(0);
     if (show) fprintf(stderr, "\n");
-    int64_t still_flying = mi.agents - fm_state_get_info(state).count[FM_PHASE_ARRIVED];
-    fm_state_destroy(state);
-    if (st == FM_STOPPED) return fm_run_stats_free(&rs), cli_report_interrupted(o, cache, rs.frames);
-    if (st != FM_OK) return fm_run_stats_free(&rs), cli_report_failed(o, &files, cache, &err);
+    int64_t still_flying = mi.agents - fm_morph_get_info(state).count[FM_PHASE_ARRIVED];
+    fm_morph_state_destroy(state);
+    if (st == FM_STOPPED) return fm_morph_run_stats_free(&rs), cli_report_interrupted(o, cache, rs.frames);
+    if (st != FM_OK) return fm_morph_run_stats_free(&rs), cli_report_failed(o, &files, cache, &err);
     return finish_run(def, &mi, &files, cache, &rs, files.threads, prep_seconds, still_flying, warnings);
 }
 
@@ -247,15 +247,15 @@ int cli_run(int argc, char **argv)
     if (def.mode == FM_MODE_SHAPE_FLOCK) return cli_run_flock(&o, &def);
     int show = !o.quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
-    fm_model *model = fm_model_build(&def, cli_prep_progress, &show, &err);
+    fm_morph_model *model = fm_morph_model_build(&def, cli_prep_progress, &show, &err);
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n");
     if (!model) return cli_report(&err);
     run_warnings warnings = {json_array()};
-    for (int i = 0; i < fm_model_warning_count(model); i++) add_warning(&warnings, fm_model_warning(model, i));
+    for (int i = 0; i < fm_morph_model_warning_count(model); i++) add_warning(&warnings, fm_morph_model_warning(model, i));
     rc = simulate(&o, &def, model, prep_seconds, &warnings);
     json_decref(warnings.list);
-    fm_model_destroy(model);
+    fm_morph_model_destroy(model);
     return rc;
 }
 

@@ -4,9 +4,9 @@
  *
  * The flow follows MuJoCo's model/data split:
  *   fm_scene_def   parameters (from a scene file or fm_default_scene_def())
- *   fm_model       everything immutable after preprocessing: tets, orders, path, bounding sphere
- *   fm_state       everything the step mutates: the agent store, the clock, counters
- *   fm_step(model, state) advances one time step; fm_state_tet_vertices() gives a frame.
+ *   fm_morph_model       everything immutable after preprocessing: tets, orders, path, bounding sphere
+ *   fm_morph_state       everything the step mutates: the agent store, the clock, counters
+ *   fm_morph_step(model, state) advances one time step; fm_morph_tet_vertices() gives a frame.
  *
  * Every fallible call takes an fm_error* and returns an fm_status (or NULL for constructors);
  * on failure err->message says what went wrong and names the file, line, key or element.
@@ -32,7 +32,7 @@ typedef enum fm_status {
     FM_ERR_IO = 3,       /* cannot read or write a file */
     FM_ERR_MEMORY = 4,   /* allocation failed */
     FM_ERR_INTERNAL = 5, /* a library failed in a way the input does not explain */
-    FM_STOPPED = 6       /* not an error: fm_run_controlled stopped on request after its checkpoint,
+    FM_STOPPED = 6       /* not an error: fm_morph_run_controlled stopped on request after its checkpoint,
                             or fm_flock_run_controlled at a frame boundary (the CLI then exits 128
                             + the signal's number) */
 } fm_status;
@@ -241,16 +241,16 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err);
 
 /* ---------------------------------------------------------------- model */
 
-typedef struct fm_model fm_model;
+typedef struct fm_morph_model fm_morph_model;
 
 /* Progress of long preprocessing stages; may be NULL. fraction is in [0, 1]. */
 typedef void (*fm_progress_fn)(const char *stage, double fraction, void *user);
 
-fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
+fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
                          fm_error *err);
-void fm_model_destroy(fm_model *model);
+void fm_morph_model_destroy(fm_morph_model *model);
 
-typedef struct fm_model_info {
+typedef struct fm_morph_model_info {
     int64_t agents;             /* n */
     int64_t source_tets;        /* n1: TetGen's count before subdivision */
     int64_t target_tets;        /* n2 */
@@ -264,22 +264,22 @@ typedef struct fm_model_info {
     double time_step;           /* seconds per step */
     int32_t steps_per_frame;
     double launch_rate;         /* agents per second, after the default is applied */
-} fm_model_info;
+} fm_morph_model_info;
 
-fm_model_info fm_model_get_info(const fm_model *model);
+fm_morph_model_info fm_morph_model_get_info(const fm_morph_model *model);
 
 /* Input the engine accepts but the paper does not expect (source and target overlapping, FM §4),
  * one message per warning, naming the scene file and key. The CLI prints them and lists them in
  * stats.json "warnings". */
-int fm_model_warning_count(const fm_model *model);
-const char *fm_model_warning(const fm_model *model, int i);
+int fm_morph_model_warning_count(const fm_morph_model *model);
+const char *fm_morph_model_warning(const fm_morph_model *model, int i);
 
 /* Target tet j's four vertices (12 floats, x y z per vertex) in world units. */
-const float *fm_model_target_tet(const fm_model *model, int64_t j);
+const float *fm_morph_model_target_tet(const fm_morph_model *model, int64_t j);
 
 /* ---------------------------------------------------------------- state */
 
-typedef struct fm_state fm_state;
+typedef struct fm_morph_state fm_morph_state;
 
 typedef enum fm_phase {
     FM_PHASE_WAITING = 0,  /* not launched yet, at rest in the source */
@@ -289,12 +289,12 @@ typedef enum fm_phase {
 } fm_phase;
 
 /* threads <= 0 uses OpenMP's default. Results do not depend on the thread count. */
-fm_state *fm_state_create(const fm_model *model, int threads, fm_error *err);
-void fm_state_destroy(fm_state *state);
+fm_morph_state *fm_morph_state_create(const fm_morph_model *model, int threads, fm_error *err);
+void fm_morph_state_destroy(fm_morph_state *state);
 
-void fm_step(const fm_model *model, fm_state *state);
+void fm_morph_step(const fm_morph_model *model, fm_morph_state *state);
 
-typedef struct fm_state_info {
+typedef struct fm_morph_info {
     int64_t step;
     double time;               /* seconds of animation time */
     int64_t count[4];          /* agents per fm_phase */
@@ -303,19 +303,19 @@ typedef struct fm_state_info {
     int64_t flying_agent_steps;/* phase-1 agent-steps so far ... */
     int64_t mde_agent_steps;   /* ... and those among them that MDE pushed (FM §5.4) */
     double min_obstacle_clearance; /* smallest d_t - R_X seen in phase 1; +inf without obstacles */
-} fm_state_info;
+} fm_morph_info;
 
-fm_state_info fm_state_get_info(const fm_state *state);
+fm_morph_info fm_morph_get_info(const fm_morph_state *state);
 
 /* Writes every agent's tet, 12 floats per agent (4 vertices × xyz), agents in id order.
  * Computes the morph (FM §6) for agents in phase 2. */
-void fm_state_tet_vertices(const fm_model *model, const fm_state *state, float *out);
+void fm_morph_tet_vertices(const fm_morph_model *model, const fm_morph_state *state, float *out);
 
 /* Target tet index each agent holds (-1 while it has none), agents in id order. */
-void fm_state_targets(const fm_state *state, int64_t *out);
+void fm_morph_targets(const fm_morph_state *state, int64_t *out);
 
 /* Each agent's fm_phase (one byte per agent), agents in id order. */
-void fm_state_phases(const fm_state *state, uint8_t *out);
+void fm_morph_phases(const fm_morph_state *state, uint8_t *out);
 
 /* ---------------------------------------------------------------- cache */
 
@@ -432,10 +432,10 @@ fm_cache_options fm_cache_get_options(const fm_cache_reader *r);
 
 /* ---------------------------------------------------------------- run */
 
-typedef struct fm_run_stats {
+typedef struct fm_morph_run_stats {
     int64_t frames;                 /* frames written, frame 0 (the rest state) included */
     int64_t steps;
-    double simulate_seconds;        /* time spent in fm_step */
+    double simulate_seconds;        /* time spent in fm_morph_step */
     double output_seconds;          /* time spent computing and writing frames */
     int all_arrived;
     int stopped_at_frame_limit;
@@ -444,33 +444,33 @@ typedef struct fm_run_stats {
     int target_tets_filled_once;    /* every target tet taken by exactly one agent */
     int64_t morph_fallbacks;
     double *mde_fraction;           /* per frame after frame 0: MDE agent-steps / phase-1 agent-steps,
-                                       NaN for frames with nobody in phase 1; free with fm_run_stats_free */
+                                       NaN for frames with nobody in phase 1; free with fm_morph_run_stats_free */
     double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */
     double min_obstacle_clearance;  /* smallest d_t - R_X in phase 1; +inf without obstacles */
-} fm_run_stats;
+} fm_morph_run_stats;
 
-void fm_run_stats_free(fm_run_stats *stats);
+void fm_morph_run_stats_free(fm_morph_run_stats *stats);
 
 /* Called after every frame; may be NULL. */
-typedef void (*fm_run_progress_fn)(const fm_state_info *info, int64_t frame, void *user);
+typedef void (*fm_run_progress_fn)(const fm_morph_info *info, int64_t frame, void *user);
 
 /* Steps until every agent has arrived or def.frame_limit frames are written, writing each frame
  * to `cache` (may be NULL) and measuring the run. */
-fm_status fm_run(const fm_model *model, fm_state *state, fm_cache_writer *cache,
-                 fm_run_progress_fn progress, void *user, fm_run_stats *stats, fm_error *err);
+fm_status fm_morph_run(const fm_morph_model *model, fm_morph_state *state, fm_cache_writer *cache,
+                 fm_run_progress_fn progress, void *user, fm_morph_run_stats *stats, fm_error *err);
 
 /* ---------------------------------------------------------------- checkpoint and resume */
 
-/* Called by fm_run_controlled at a frame boundary once the cache is flushed, so the cache's first
- * stats->frames frames are on disk; typically calls fm_checkpoint_save. A failure ends the run. */
-typedef fm_status (*fm_run_checkpoint_fn)(const fm_model *model, const fm_state *state, const fm_run_stats *stats,
+/* Called by fm_morph_run_controlled at a frame boundary once the cache is flushed, so the cache's first
+ * stats->frames frames are on disk; typically calls fm_morph_checkpoint_save. A failure ends the run. */
+typedef fm_status (*fm_run_checkpoint_fn)(const fm_morph_model *model, const fm_morph_state *state, const fm_morph_run_stats *stats,
                                           void *user, fm_error *err);
 
 typedef struct fm_run_control {
     fm_run_progress_fn progress;     /* after every frame; may be NULL */
     void *progress_user;
     int resume;                      /* 0: a new run (frame 0 is written first, stats start at zero);
-                                        1: state and stats were restored by fm_checkpoint_load and the
+                                        1: state and stats were restored by fm_morph_checkpoint_load and the
                                         run continues after frame stats->frames - 1 */
     fm_run_checkpoint_fn checkpoint; /* NULL: no checkpoints */
     void *checkpoint_user;
@@ -485,26 +485,26 @@ typedef struct fm_run_control {
 /* No checkpoints, no stop flag, a new run. */
 fm_run_control fm_default_run_control(void);
 
-/* fm_run with checkpoints, a stop flag and resume. The cache and stats of a run stopped and resumed
+/* fm_morph_run with checkpoints, a stop flag and resume. The cache and stats of a run stopped and resumed
  * any number of times are bitwise those of an uninterrupted run (timings aside). */
-fm_status fm_run_controlled(const fm_model *model, fm_state *state, fm_cache_writer *cache,
-                            const fm_run_control *control, fm_run_stats *stats, fm_error *err);
+fm_status fm_morph_run_controlled(const fm_morph_model *model, fm_morph_state *state, fm_cache_writer *cache,
+                            const fm_run_control *control, fm_morph_run_stats *stats, fm_error *err);
 
 /* Writes the run's state and statistics after stats->frames frames to `path` (as PATH.partial,
  * fsync'ed, then renamed): docs/resume.md describes the file. */
-fm_status fm_checkpoint_save(const char *path, const fm_model *model, const fm_state *state,
-                             const fm_run_stats *stats, fm_error *err);
+fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *model, const fm_morph_state *state,
+                             const fm_morph_run_stats *stats, fm_error *err);
 
 /* Checks a checkpoint file against a scene before the (long) model build: readable, undamaged
  * (checksum), this version's layout, written for the same scene parameters. FM_ERR_INPUT with a
  * message saying which, FM_ERR_IO if it cannot be read. */
 fm_status fm_checkpoint_check(const char *path, const fm_scene_def *def, fm_error *err);
 
-/* Restores a checkpoint into `state` (fresh from fm_state_create for `model`) and `stats` (free
- * them with fm_run_stats_free), after the checks of fm_checkpoint_check and a check that `model`
+/* Restores a checkpoint into `state` (fresh from fm_morph_state_create for `model`) and `stats` (free
+ * them with fm_morph_run_stats_free), after the checks of fm_checkpoint_check and a check that `model`
  * is the one it was written from (same tets after TetGen and subdivision, same obstacles). On
  * failure state is unusable and stats hold nothing to free. */
-fm_status fm_checkpoint_load(const char *path, const fm_model *model, fm_state *state, fm_run_stats *stats,
+fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *model, fm_morph_state *state, fm_morph_run_stats *stats,
                              fm_error *err);
 
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
@@ -621,7 +621,7 @@ typedef struct fm_flock_run_control {
 fm_status fm_flock_run_controlled(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
                                   const fm_flock_run_control *control, fm_flock_run_stats *stats, fm_error *err);
 
-/* The shape flock's checkpoint: the same file as fm_checkpoint_save's (docs/resume.md) with the
+/* The shape flock's checkpoint: the same file as fm_morph_checkpoint_save's (docs/resume.md) with the
  * flock's store and statistics. fm_checkpoint_check serves both modes. */
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *model, const fm_flock_state *state,
                                    const fm_flock_run_stats *stats, fm_error *err);

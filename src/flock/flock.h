@@ -4,7 +4,7 @@
  * blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
  * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
- * fm_state: docs/architecture.md, "What the two modes share". */
+ * fm_morph_state: docs/architecture.md, "What the two modes share". */
 #ifndef FM_FLOCK_H
 #define FM_FLOCK_H
 

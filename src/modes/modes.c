@@ -12,5 +12,5 @@ fm_status fm_checkpoint_check(const char *path, const fm_scene_def *def, fm_erro
 {
     if (def->mode == FM_MODE_SHAPE_FLOCK)
         return fm_ckpt_check(path, def, fm_flock_state_members, fm_flock_state_member_count, err);
-    return fm_ckpt_check(path, def, fm_state_members, fm_state_member_count, err);
+    return fm_ckpt_check(path, def, fm_morph_state_members, fm_morph_state_member_count, err);
 }

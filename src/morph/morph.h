@@ -1,4 +1,4 @@
-/* The prepared model and the agent store (internal layout of fm_model and fm_state). */
+/* The prepared model and the agent store (internal layout of fm_morph_model and fm_morph_state). */
 #ifndef FM_MORPH_H
 #define FM_MORPH_H
 
@@ -15,11 +15,11 @@
 enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
 enum { FM_MODEL_MAX_WARNINGS = 8 };
 
-/* Immutable after fm_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
+/* Immutable after fm_morph_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
-struct fm_model {
+struct fm_morph_model {
     fm_scene_def def;
-    fm_model_info info;
+    fm_morph_model_info info;
     int64_t n;
     float *src_rel;          /* 12 per agent: rest vertices minus rest centroid */
     float *src_c[3];         /* rest centroid, SoA */
@@ -39,7 +39,7 @@ struct fm_model {
     double dt;
     int32_t steps_per_frame;
     double launch_rate;
-    char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_model_warning) */
+    char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_morph_model_warning) */
     int warning_count;
 };
 
@@ -52,7 +52,7 @@ typedef struct block_counts {
     float clearance;          /* smallest d_t - R_X in phase 1 */
 } block_counts;
 
-/* Stages of fm_step, timed into fm_state.stage_seconds for the benchmarks. */
+/* Stages of fm_morph_step, timed into fm_morph_state.stage_seconds for the benchmarks. */
 typedef enum fm_stage {
     FM_STAGE_RESORT, FM_STAGE_LAUNCH, FM_STAGE_FIELDS, FM_STAGE_GRID, FM_STAGE_VELOCITY, FM_STAGE_MOVE,
     FM_STAGE_HANDOUT, FM_STAGE_MORPH, FM_STAGE_COUNT
@@ -69,7 +69,7 @@ extern const char *const fm_stage_names[FM_STAGE_COUNT];
  *     [active_end, n)              waiting to launch, in id order
  *
  * so the step only visits the active range: idle agents cost nothing. */
-struct fm_state {
+struct fm_morph_state {
     int64_t n;
     int32_t *id;             /* agent id of each slot */
     int64_t active_begin, active_end;
@@ -78,7 +78,7 @@ struct fm_state {
     int threads;
     float *p[3];             /* tet centroid */
     float *rest_rel[12];     /* the model's src_rel of the slot's agent (SoA, rebuilt from id by
-                                fm_state_fill_rest, moved by the re-sort): the step and the synthesis
+                                fm_morph_state_fill_rest, moved by the re-sort): the step and the synthesis
                                 read it in store order instead of gathering it by id */
     float *rest_radius;      /* the same for src_radius (R_X at rest) */
     float *v[3];             /* velocity of the last step */
@@ -113,33 +113,33 @@ struct fm_state {
 };
 
 /* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
-void fm_state_fill_rest(const fm_model *m, fm_state *s);
+void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s);
 /* The rest vertices of slot a's tet relative to its centroid (12 floats). */
-static inline void fm_state_rest_tet(const fm_state *s, int64_t a, float out[12])
+static inline void fm_morph_state_rest_tet(const fm_morph_state *s, int64_t a, float out[12])
 {
     for (int j = 0; j < 12; j++) out[j] = s->rest_rel[j][a];
 }
 
 /* morph_resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
  * agent's id and state. */
-void fm_state_resort(const fm_model *m, fm_state *s);
-fm_status fm_state_alloc_sort(fm_state *s);
-void fm_state_free_sort(fm_state *s);
+void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s);
+fm_status fm_morph_state_alloc_sort(fm_morph_state *s);
+void fm_morph_state_free_sort(fm_morph_state *s);
 
 /* Slots of scheduler block b of the active range. */
-static inline int64_t fm_active_blocks(const fm_state *s)
+static inline int64_t fm_active_blocks(const fm_morph_state *s)
 {
     return (s->active_end - s->active_begin + FM_BLOCK - 1) / FM_BLOCK;
 }
-static inline void fm_active_block(const fm_state *s, int64_t b, int64_t *begin, int64_t *end)
+static inline void fm_active_block(const fm_morph_state *s, int64_t b, int64_t *begin, int64_t *end)
 {
     *begin = s->active_begin + b * FM_BLOCK;
     *end = FM_MIN(*begin + FM_BLOCK, s->active_end);
 }
 
 /* morph_state.c: the table of every member a checkpoint saves (checkpoint.h), in file order. */
-extern const fm_store_member fm_state_members[];
-extern const int fm_state_member_count;
+extern const fm_store_member fm_morph_state_members[];
+extern const int fm_morph_state_member_count;
 
 /* morph_memory.c: the tetra morph's bytes for n agents (docs/limits.md), and the refusal of a run
  * that does not fit (memory.h). */

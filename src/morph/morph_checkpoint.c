@@ -1,4 +1,4 @@
-/* The tetra morph's checkpoint (docs/resume.md): its store's members (fm_state_members), its
+/* The tetra morph's checkpoint (docs/resume.md): its store's members (fm_morph_state_members), its
  * statistics with the per-frame MDE fractions, the hash of its model and the checks of restored
  * values, handed to the checkpoint writer (world/checkpoint.h). */
 #include "checkpoint.h"
@@ -8,12 +8,12 @@
 
 /* The tetra morph's statistics (the MDE fractions follow per frame). */
 static const fm_store_member RUN_STATS[] = {
-    FM_STORE_SCALAR(fm_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_run_stats, output_seconds),
+    FM_STORE_SCALAR(fm_morph_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_morph_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_morph_run_stats, output_seconds),
 };
 
 /* Everything of the model the step reads: if TetGen, the subdivision or an obstacle mesh came out
  * differently, the resumed frames would not continue the saved ones. */
-static uint64_t model_hash(const fm_model *m)
+static uint64_t model_hash(const fm_morph_model *m)
 {
     fm_hash *h = fm_hash_begin();
     if (!h) return 0;
@@ -38,7 +38,7 @@ static uint64_t model_hash(const fm_model *m)
  * written, not that the writer was sound). */
 static const char *check_state(const void *state)
 {
-    const fm_state *s = state;
+    const fm_morph_state *s = state;
     int64_t n = s->n, count[4] = {0, 0, 0, 0};
     for (int64_t a = 0; a < n; a++) {
         if (s->phase[a] > FM_PHASE_ARRIVED || s->perm[a] >= 12 || s->target[a] < -1 || s->target[a] >= n ||
@@ -53,28 +53,28 @@ static const char *check_state(const void *state)
 }
 
 /* The tetra morph's store and statistics (per-frame MDE fractions included). */
-static fm_ckpt_store tetra_store(const fm_model *m, const fm_state *s, const fm_run_stats *stats)
+static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats)
 {
-    return (fm_ckpt_store){fm_state_members, fm_state_member_count, (void *)s, s->n, RUN_STATS,
+    return (fm_ckpt_store){fm_morph_state_members, fm_morph_state_member_count, (void *)s, s->n, RUN_STATS,
                            (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), (void *)stats, (double **)&stats->mde_fraction,
                            &m->def, model_hash(m), "the tets after TetGen and subdivision (or the obstacles)",
                            check_state, stats->frames};
 }
 
-fm_status fm_checkpoint_save(const char *path, const fm_model *m, const fm_state *s, const fm_run_stats *stats,
+fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
                              fm_error *err)
 {
     const fm_ckpt_store c = tetra_store(m, s, stats);
     return fm_ckpt_save(path, &c, err);
 }
 
-fm_status fm_checkpoint_load(const char *path, const fm_model *m, fm_state *s, fm_run_stats *stats, fm_error *err)
+fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
     fm_ckpt_store c = tetra_store(m, s, stats);
     fm_status st = fm_ckpt_load(path, &c, &stats->frames, err);
-    if (st == FM_OK) fm_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
-    if (st != FM_OK) fm_run_stats_free(stats);
+    if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
+    if (st != FM_OK) fm_morph_run_stats_free(stats);
     return st;
 }
 

@@ -1,4 +1,4 @@
-/* fm_model_build: scene -> meshes -> TetGen -> subdivision -> orders -> path -> bounding sphere.
+/* fm_morph_model_build: scene -> meshes -> TetGen -> subdivision -> orders -> path -> bounding sphere.
  * Everything here runs once; the result is immutable (MuJoCo's mjModel). */
 #include "geom.h"
 #include "morph.h"
@@ -24,8 +24,8 @@ typedef struct prep_scratch {
 } prep_scratch;
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
-static void warn(fm_model *m, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static void warn(fm_model *m, const char *key, const char *fmt, ...)
+static void warn(fm_morph_model *m, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void warn(fm_morph_model *m, const char *key, const char *fmt, ...)
 {
     if (m->warning_count == FM_MODEL_MAX_WARNINGS) return;
     char what[768], where[FM_PATH_MAX + 64];
@@ -47,7 +47,7 @@ static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, c
 }
 
 /* FM §4: n >= max(n1, n2); say which mesh needs more. */
-static fm_status choose_n(fm_model *m, const fm_tets *src, const fm_tets *dst, fm_error *err)
+static fm_status choose_n(fm_morph_model *m, const fm_tets *src, const fm_tets *dst, fm_error *err)
 {
     int64_t most = FM_MAX(src->n, dst->n);
     m->n = m->def.n > 0 ? m->def.n : most;
@@ -96,7 +96,7 @@ static fm_status check_path_ends(const fm_scene_def *def, const fm_mesh *obstacl
 
 /* FM §4 assumes the source and target apart; overlapping ones still run (agents launched inside
  * the target's bounding sphere go straight to phase 2), so this only warns. */
-static fm_status warn_if_shapes_overlap(fm_model *m, const prep_scratch *s, fm_error *err)
+static fm_status warn_if_shapes_overlap(fm_morph_model *m, const prep_scratch *s, fm_error *err)
 {
     char how[512];
     int overlap = fm_meshes_overlap(&s->src_mesh, "the source", &s->dst_mesh, "the target", how, sizeof how, err);
@@ -107,7 +107,7 @@ static fm_status warn_if_shapes_overlap(fm_model *m, const prep_scratch *s, fm_e
     return FM_OK;
 }
 
-static fm_status alloc_model_arrays(fm_model *m, fm_error *err)
+static fm_status alloc_model_arrays(fm_morph_model *m, fm_error *err)
 {
     size_t n = (size_t)m->n;
     m->src_rel = fm_alloc(sizeof(float) * 12 * n);
@@ -123,7 +123,7 @@ static fm_status alloc_model_arrays(fm_model *m, fm_error *err)
 }
 
 /* Stores source tets in launch order, as centroid + centroid-relative vertices. */
-static void store_sources(fm_model *m, const fm_tets *src, const int64_t *d1)
+static void store_sources(fm_morph_model *m, const fm_tets *src, const int64_t *d1)
 {
     for (int64_t a = 0; a < m->n; a++) {
         const double *t = src->v + 12 * d1[a];
@@ -134,7 +134,7 @@ static void store_sources(fm_model *m, const fm_tets *src, const int64_t *d1)
     }
 }
 
-static void store_targets(fm_model *m, const fm_tets *dst, const int64_t *d2)
+static void store_targets(fm_morph_model *m, const fm_tets *dst, const int64_t *d2)
 {
     for (int64_t s = 0; s < m->n; s++) {
         const double *t = dst->v + 12 * d2[s];
@@ -146,7 +146,7 @@ static void store_targets(fm_model *m, const fm_tets *dst, const int64_t *d2)
     }
 }
 
-static fm_status store_path(fm_model *m, const fm_path *path, fm_error *err)
+static fm_status store_path(fm_morph_model *m, const fm_path *path, fm_error *err)
 {
     m->key_count = path->count;
     for (int k = 0; k < 3; k++) {
@@ -168,7 +168,7 @@ static fm_status store_path(fm_model *m, const fm_path *path, fm_error *err)
     return FM_OK;
 }
 
-static fm_status bounding_sphere(fm_model *m, const fm_mesh *target, fm_error *err)
+static fm_status bounding_sphere(fm_morph_model *m, const fm_mesh *target, fm_error *err)
 {
     double c[3], r;
     if (fm_min_sphere(target->v, (size_t)target->nv, m->def.seed, c, &r) != 0)
@@ -180,7 +180,7 @@ static fm_status bounding_sphere(fm_model *m, const fm_mesh *target, fm_error *e
 }
 
 /* R_X of FM eq 8: the radius of each source tet's minimal bounding sphere, at rest. */
-static fm_status tet_radii(fm_model *m, float *max_radius, fm_error *err)
+static fm_status tet_radii(fm_morph_model *m, float *max_radius, fm_error *err)
 {
     m->src_radius = fm_alloc(sizeof(float) * (size_t)m->n);
     if (!m->src_radius) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
@@ -196,7 +196,7 @@ static fm_status tet_radii(fm_model *m, float *max_radius, fm_error *err)
 }
 
 /* The scene's extent (source, target, path), padded: the style-field grid spans it. */
-static void scene_bounds(fm_model *m, const prep_scratch *s)
+static void scene_bounds(fm_morph_model *m, const prep_scratch *s)
 {
     for (int k = 0; k < 3; k++) m->scene_lo[k] = INFINITY, m->scene_hi[k] = -INFINITY;
     fm_grow_bounds(m->scene_lo, m->scene_hi, s->src_mesh.v, s->src_mesh.nv);
@@ -209,7 +209,7 @@ static void scene_bounds(fm_model *m, const prep_scratch *s)
 
 /* Loads the obstacle meshes and refuses obstacles that overlap the source or target, or that hold
  * an end of the path: the tets would start or finish inside them (FM §5.3 assumes free space). */
-static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
+static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     s->obstacles = calloc((size_t)def->obstacle_count, sizeof *s->obstacles);
@@ -226,14 +226,14 @@ static fm_status load_obstacles(fm_model *m, prep_scratch *s, fm_error *err)
     return st;
 }
 
-static fm_status build_obstacles(fm_model *m, const prep_scratch *s, float max_radius, fm_error *err)
+static fm_status build_obstacles(fm_morph_model *m, const prep_scratch *s, float max_radius, fm_error *err)
 {
     m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, m->def.k_a + max_radius, err);
     return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
-static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *err)
+static fm_status build_target_sdf(fm_morph_model *m, const fm_mesh *target, fm_error *err)
 {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
     fm_grow_bounds(lo, hi, target->v, target->nv);
@@ -243,7 +243,7 @@ static fm_status build_target_sdf(fm_model *m, const fm_mesh *target, fm_error *
     return m->target_sdf ? FM_OK : fm_scene_name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
 }
 
-static void set_timing(fm_model *m)
+static void set_timing(fm_morph_model *m)
 {
     double frame = 1.0 / m->def.frame_rate;
     /* the scene's time_step divides the frame interval (validated); snap it so frames land on k/frame_rate */
@@ -266,7 +266,7 @@ static void free_scratch(prep_scratch *s, int count)
 }
 
 /* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
-static fm_status prepare_inputs(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
@@ -281,7 +281,7 @@ static fm_status prepare_inputs(fm_model *m, prep_scratch *s, fm_progress_fn pro
     return choose_n(m, &s->src, &s->dst, err);
 }
 
-static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     fm_status st = prepare_inputs(m, s, progress, user, err);
@@ -318,11 +318,11 @@ static fm_status build(fm_model *m, prep_scratch *s, fm_progress_fn progress, vo
     return FM_OK;
 }
 
-fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
     if (def->n > 0 && fm_morph_memory_check(def, def->n, err) != FM_OK) return NULL; /* before TetGen runs */
-    fm_model *m = calloc(1, sizeof *m);
+    fm_morph_model *m = calloc(1, sizeof *m);
     if (!m) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");
         return NULL;
@@ -333,13 +333,13 @@ fm_model *fm_model_build(const fm_scene_def *def, fm_progress_fn progress, void 
     fm_status st = build(m, &scratch, progress, user, err);
     free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
-        fm_model_destroy(m);
+        fm_morph_model_destroy(m);
         return NULL;
     }
     return m;
 }
 
-void fm_model_destroy(fm_model *m)
+void fm_morph_model_destroy(fm_morph_model *m)
 {
     if (!m) return;
     fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius);
@@ -352,10 +352,10 @@ void fm_model_destroy(fm_model *m)
     free(m);
 }
 
-fm_model_info fm_model_get_info(const fm_model *m) { return m->info; }
+fm_morph_model_info fm_morph_model_get_info(const fm_morph_model *m) { return m->info; }
 
-int fm_model_warning_count(const fm_model *m) { return m->warning_count; }
+int fm_morph_model_warning_count(const fm_morph_model *m) { return m->warning_count; }
 
-const char *fm_model_warning(const fm_model *m, int i) { return i >= 0 && i < m->warning_count ? m->warnings[i] : ""; }
+const char *fm_morph_model_warning(const fm_morph_model *m, int i) { return i >= 0 && i < m->warning_count ? m->warnings[i] : ""; }
 
-const float *fm_model_target_tet(const fm_model *m, int64_t j) { return m->tgt_f + 12 * j; }
+const float *fm_morph_model_target_tet(const fm_morph_model *m, int64_t j) { return m->tgt_f + 12 * j; }

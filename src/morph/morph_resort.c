@@ -35,7 +35,7 @@ static uint32_t lattice(float x, double lo, double scale)
     return q >= (1 << MORTON_BITS) - 1 ? (1u << MORTON_BITS) - 1 : (uint32_t)q;
 }
 
-static void compute_keys(const fm_model *m, const fm_state *s, uint32_t *key)
+static void compute_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t *key)
 {
     double scale[3];
     for (int k = 0; k < 3; k++) {
@@ -57,7 +57,7 @@ static void compute_keys(const fm_model *m, const fm_state *s, uint32_t *key)
 
 /* Stable LSD radix sort of slots 0..count-1 by key; returns the slots in sorted order (in one of
  * the two halves of s->sort_slots). */
-static const int32_t *radix_sort(fm_state *s, int64_t count)
+static const int32_t *radix_sort(fm_morph_state *s, int64_t count)
 {
     uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->n;
     int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->n;
@@ -97,7 +97,7 @@ static void permute(void *array, size_t size, const int32_t *order, int64_t coun
     memcpy(array, scratch, size * (size_t)count);
 }
 
-void fm_state_resort(const fm_model *m, fm_state *s)
+void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)
 {
     const int64_t count = s->active_end;
     if (count == 0) return;
@@ -124,7 +124,7 @@ void fm_state_resort(const fm_model *m, fm_state *s)
     s->active_begin = arrived;
 }
 
-fm_status fm_state_alloc_sort(fm_state *s)
+fm_status fm_morph_state_alloc_sort(fm_morph_state *s)
 {
     size_t n = (size_t)s->n;
     s->sort_scratch = fm_alloc(16 * n);
@@ -133,7 +133,7 @@ fm_status fm_state_alloc_sort(fm_state *s)
     return s->sort_scratch && s->sort_keys && s->sort_slots ? FM_OK : FM_ERR_MEMORY;
 }
 
-void fm_state_free_sort(fm_state *s)
+void fm_morph_state_free_sort(fm_morph_state *s)
 {
     fm_free(s->sort_scratch), fm_free(s->sort_keys), fm_free(s->sort_slots);
     s->sort_scratch = NULL, s->sort_keys = NULL, s->sort_slots = NULL;

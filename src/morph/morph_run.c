@@ -1,4 +1,4 @@
-/* fm_run: fm_step in the shared frame loop (frame_loop.h), with the end-state checks reported in
+/* fm_morph_run: fm_morph_step in the shared frame loop (frame_loop.h), with the end-state checks reported in
  * stats.json. */
 #include "frame_loop.h"
 #include "morph.h"
@@ -25,7 +25,7 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 }
 
 /* Largest distance between an agent's vertex and its target tet's matching vertex. */
-static double max_vertex_error(const fm_model *m, const fm_state *s, const float *verts)
+static double max_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts)
 {
     double worst = 0;
     for (int64_t a = 0; a < s->n; a++) { /* slot a holds agent id[a]; verts are in id order */
@@ -39,7 +39,7 @@ static double max_vertex_error(const fm_model *m, const fm_state *s, const float
     return worst;
 }
 
-static int each_target_taken_once(const fm_state *s)
+static int each_target_taken_once(const fm_morph_state *s)
 {
     if (s->n < 1) return 1;
     uint8_t *taken = calloc((size_t)s->n, 1);
@@ -56,14 +56,14 @@ static int each_target_taken_once(const fm_state *s)
 
 /* Hands the frame to the cache in the attributes it was created with: the tetra morph has tet
  * vertices, ids and phases. */
-static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
+static fm_status cache_frame(const fm_morph_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
                              fm_error *err)
 {
     const cache_layout *l = fm_cache_writer_layout(cache);
     const void *data[CACHE_MAX_ATTRS];
     for (int i = 0; i < l->attr_count; i++) {
         if (l->attrs[i]->attr == FM_ATTR_TET_VERTICES) data[i] = verts;
-        else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_state_phases(s, phases), data[i] = phases;
+        else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_morph_phases(s, phases), data[i] = phases;
         else if (l->attrs[i]->attr == FM_ATTR_ID) data[i] = fm_cache_writer_ids(cache); /* frames are in id order */
         else return fm_fail(err, FM_ERR_USAGE, "the tetra morph cannot write the cache attribute '%s'", l->attrs[i]->name);
     }
@@ -71,22 +71,22 @@ static fm_status cache_frame(const fm_state *s, fm_cache_writer *cache, const fl
 }
 
 /* Frame k: the tet vertices (and phases), written to the cache, with the inverted-tet count. */
-static fm_status emit_frame(const fm_model *m, const fm_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
-                            fm_run_stats *stats, fm_error *err)
+static fm_status emit_frame(const fm_morph_model *m, const fm_morph_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
+                            fm_morph_run_stats *stats, fm_error *err)
 {
-    fm_state_tet_vertices(m, s, verts);
+    fm_morph_tet_vertices(m, s, verts);
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
     return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
 }
 
-void fm_run_stats_free(fm_run_stats *stats)
+void fm_morph_run_stats_free(fm_morph_run_stats *stats)
 {
     free(stats->mde_fraction);
     stats->mde_fraction = NULL;
 }
 
 /* Makes room for `count` per-frame values, growing by doubling from 1024. */
-static fm_status mde_room(fm_run_stats *stats, int64_t count, int64_t *capacity, fm_error *err)
+static fm_status mde_room(fm_morph_run_stats *stats, int64_t count, int64_t *capacity, fm_error *err)
 {
     if (count <= *capacity) return FM_OK;
     int64_t cap = *capacity > 0 ? *capacity : 1024;
@@ -98,8 +98,8 @@ static fm_status mde_room(fm_run_stats *stats, int64_t count, int64_t *capacity,
 }
 
 /* Records frame k's MDE fraction (FM Table I's last column, k >= 1) from the step counters. */
-static fm_status record_mde(const fm_state *s, int64_t k, int64_t *flying_before, int64_t *mde_before,
-                            fm_run_stats *stats, int64_t *capacity, fm_error *err)
+static fm_status record_mde(const fm_morph_state *s, int64_t k, int64_t *flying_before, int64_t *mde_before,
+                            fm_morph_run_stats *stats, int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
     fm_status st = mde_room(stats, k, capacity, err);
@@ -111,7 +111,7 @@ static fm_status record_mde(const fm_state *s, int64_t k, int64_t *flying_before
 
 /* FM Table I's MDE column: the mean over the frames that had agents in phase 1, summed in frame
  * order (so a resumed run adds the same numbers in the same order). */
-static double mde_mean(const fm_run_stats *stats)
+static double mde_mean(const fm_morph_run_stats *stats)
 {
     double sum = 0;
     int64_t frames = 0;
@@ -128,7 +128,7 @@ fm_run_control fm_default_run_control(void)
 }
 
 /* The end-state checks and totals of stats.json. */
-static void finish_stats(const fm_model *m, const fm_state *s, const float *verts, fm_run_stats *stats)
+static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const float *verts, fm_morph_run_stats *stats)
 {
     stats->steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
@@ -142,11 +142,11 @@ static void finish_stats(const fm_model *m, const fm_state *s, const float *vert
 
 /* The tetra morph in the shared frame loop (frame_loop.h): its callbacks and what they carry. */
 typedef struct tetra_run {
-    const fm_model *m;
-    fm_state *s;
+    const fm_morph_model *m;
+    fm_morph_state *s;
     fm_cache_writer *cache;
     const fm_run_control *c;
-    fm_run_stats *stats;
+    fm_morph_run_stats *stats;
     float *verts;
     uint8_t *phases;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
@@ -156,7 +156,7 @@ typedef struct tetra_run {
 static void tetra_step(void *sim)
 {
     tetra_run *r = sim;
-    fm_step(r->m, r->s);
+    fm_morph_step(r->m, r->s);
 }
 
 static int tetra_finished(const void *sim)
@@ -173,14 +173,14 @@ static fm_status tetra_frame(void *sim, int64_t k, fm_error *err)
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
     if (st == FM_OK && r->c->progress) {
-        fm_state_info info = fm_state_get_info(r->s);
+        fm_morph_info info = fm_morph_get_info(r->s);
         r->c->progress(&info, k, r->c->progress_user);
     }
     return st;
 }
 
 /* The run's frame count and seconds after `times` (this session's), on top of the sessions before. */
-static void add_times(const tetra_run *r, const fm_loop_times *times, fm_run_stats *stats)
+static void add_times(const tetra_run *r, const fm_loop_times *times, fm_morph_run_stats *stats)
 {
     stats->frames = times->frames;
     stats->simulate_seconds = r->simulate0 + times->simulate_seconds;
@@ -195,18 +195,18 @@ static fm_status tetra_checkpoint(void *sim, const fm_loop_times *times, fm_erro
     return r->c->checkpoint(r->m, r->s, r->stats, r->c->checkpoint_user, err);
 }
 
-fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cache, const fm_run_control *c,
-                            fm_run_stats *stats, fm_error *err)
+fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, const fm_run_control *c,
+                            fm_morph_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
     tetra_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
                    s->flying_agent_steps, s->mde_agent_steps, 0, stats->simulate_seconds, stats->output_seconds};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->frames, 1), &r.capacity, err) != FM_OK) {
-        fm_free(r.verts), fm_free(r.phases), fm_run_stats_free(stats);
+        fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
-    if (c->resume) fm_state_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
+    if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
     const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit,
                                 c->stop, c->resume ? stats->frames : 0, c->checkpoint ? tetra_checkpoint : NULL,
                                 c->checkpoint_every, c->checkpoint_seconds, cache};
@@ -218,10 +218,10 @@ fm_status fm_run_controlled(const fm_model *m, fm_state *s, fm_cache_writer *cac
     return st;
 }
 
-fm_status fm_run(const fm_model *m, fm_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
-                 void *user, fm_run_stats *stats, fm_error *err)
+fm_status fm_morph_run(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
+                 void *user, fm_morph_run_stats *stats, fm_error *err)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = progress, c.progress_user = user;
-    return fm_run_controlled(m, s, cache, &c, stats, err);
+    return fm_morph_run_controlled(m, s, cache, &c, stats, err);
 }

@@ -11,9 +11,9 @@
  * exactly these (checkpoint.c), so a new per-agent array or evolving counter is one line here.
  * Not listed: the scratch each step rebuilds before reading it (entered, member, vla, mde_needed,
  * grid, blocks), and the style fields, whose baked grid is a pure function of time and seed. */
-#define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_state, member), bytes, 1}
-#define SCALAR(member) {#member, offsetof(fm_state, member), sizeof(((fm_state *)0)->member), 0}
-const fm_store_member fm_state_members[] = {
+#define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_morph_state, member), bytes, 1}
+#define SCALAR(member) {#member, offsetof(fm_morph_state, member), sizeof(((fm_morph_state *)0)->member), 0}
+const fm_store_member fm_morph_state_members[] = {
     AGENT_ARRAY(p[0], sizeof(float)), AGENT_ARRAY(p[1], sizeof(float)), AGENT_ARRAY(p[2], sizeof(float)),
     AGENT_ARRAY(v[0], sizeof(float)), AGENT_ARRAY(v[1], sizeof(float)), AGENT_ARRAY(v[2], sizeof(float)),
     AGENT_ARRAY(phase, sizeof(uint8_t)),
@@ -28,9 +28,9 @@ const fm_store_member fm_state_members[] = {
     SCALAR(step), SCALAR(time), SCALAR(launched), SCALAR(next_slot), SCALAR(count),
     SCALAR(morph_fallbacks), SCALAR(mde_agent_steps), SCALAR(flying_agent_steps), SCALAR(min_clearance),
 };
-const int fm_state_member_count = (int)(sizeof fm_state_members / sizeof fm_state_members[0]);
+const int fm_morph_state_member_count = (int)(sizeof fm_morph_state_members / sizeof fm_morph_state_members[0]);
 
-static int alloc_arrays(fm_state *s)
+static int alloc_arrays(fm_morph_state *s)
 {
     size_t n = (size_t)s->n;
     int ok = 1;
@@ -54,11 +54,11 @@ static int alloc_arrays(fm_state *s)
     ok &= (s->member = fm_alloc(n)) != NULL;
     ok &= (s->mde_needed = fm_alloc(n)) != NULL;
     for (int k = 0; k < 3; k++) ok &= (s->vla[k] = fm_alloc(sizeof(float) * n)) != NULL;
-    return ok && fm_state_alloc_sort(s) == FM_OK;
+    return ok && fm_morph_state_alloc_sort(s) == FM_OK;
 }
 
 /* The parts of the store only some scenes need: style fields and the MDE grid. */
-static fm_status create_velocity_model(const fm_model *m, fm_state *s, fm_error *err)
+static fm_status create_velocity_model(const fm_morph_model *m, fm_morph_state *s, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     if (def->field_count > 0) {
@@ -75,9 +75,9 @@ static fm_status create_velocity_model(const fm_model *m, fm_state *s, fm_error 
     return FM_OK;
 }
 
-fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
+fm_morph_state *fm_morph_state_create(const fm_morph_model *m, int threads, fm_error *err)
 {
-    fm_state *s = calloc(1, sizeof *s);
+    fm_morph_state *s = calloc(1, sizeof *s);
     if (!s) {
         fm_fail(err, FM_ERR_MEMORY, "out of memory");
         return NULL;
@@ -90,23 +90,23 @@ fm_state *fm_state_create(const fm_model *m, int threads, fm_error *err)
     }
     s->threads = threads > 0 ? threads : omp_get_max_threads();
     if (!alloc_arrays(s)) {
-        fm_state_destroy(s);
+        fm_morph_state_destroy(s);
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
         return NULL;
     }
     if (create_velocity_model(m, s, err) != FM_OK) {
-        fm_state_destroy(s);
+        fm_morph_state_destroy(s);
         return NULL;
     }
     for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
     for (int64_t a = 0; a < s->n; a++) s->target[a] = -1, s->id[a] = (int32_t)a;
-    fm_state_fill_rest(m, s);
+    fm_morph_state_fill_rest(m, s);
     s->count[FM_PHASE_WAITING] = s->n;
     s->min_clearance = INFINITY;
     return s;
 }
 
-void fm_state_destroy(fm_state *s)
+void fm_morph_state_destroy(fm_morph_state *s)
 {
     if (!s) return;
     for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
@@ -116,13 +116,13 @@ void fm_state_destroy(fm_state *s)
     fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
     fm_free(s->blocks), fm_free(s->member), fm_free(s->mde_needed);
     for (int k = 0; k < 3; k++) fm_free(s->vla[k]);
-    fm_state_free_sort(s);
+    fm_morph_state_free_sort(s);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     free(s);
 }
 
-void fm_state_fill_rest(const fm_model *m, fm_state *s)
+void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->n; a++) {
@@ -132,9 +132,9 @@ void fm_state_fill_rest(const fm_model *m, fm_state *s)
     }
 }
 
-fm_state_info fm_state_get_info(const fm_state *s)
+fm_morph_info fm_morph_get_info(const fm_morph_state *s)
 {
-    fm_state_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks,
+    fm_morph_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks,
                           .flying_agent_steps = s->flying_agent_steps, .mde_agent_steps = s->mde_agent_steps,
                           .min_obstacle_clearance = s->min_clearance};
     memcpy(info.count, s->count, sizeof info.count);
@@ -142,12 +142,12 @@ fm_state_info fm_state_get_info(const fm_state *s)
     return info;
 }
 
-void fm_state_targets(const fm_state *s, int64_t *out)
+void fm_morph_targets(const fm_morph_state *s, int64_t *out)
 {
     for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->target[a];
 }
 
-void fm_state_phases(const fm_state *s, uint8_t *out)
+void fm_morph_phases(const fm_morph_state *s, uint8_t *out)
 {
     for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->phase[a]; /* slot order in, id order out */
 }
@@ -165,7 +165,7 @@ static void place_tet(const float *c, double scale, const double *mat, const flo
 }
 
 /* Target tet slot's vertices relative to its centroid, in the agent's vertex order. */
-static void target_relative(const fm_model *m, int64_t slot, const uint8_t *perm, float *rel)
+static void target_relative(const fm_morph_model *m, int64_t slot, const uint8_t *perm, float *rel)
 {
     for (int i = 0; i < 4; i++)
         for (int k = 0; k < 3; k++)
@@ -174,12 +174,12 @@ static void target_relative(const fm_model *m, int64_t slot, const uint8_t *perm
 
 /* Phase 2 shape (FM §6): A(t) on the shrunk tet for the first morph_fraction of the flight, then
  * the shrunk target tet enlarges to full size as it reaches its place. */
-static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double time, float *out)
+static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double time, float *out)
 {
     const fm_scene_def *def = &m->def;
     const int32_t i = s->id[a];
     float rest[12];
-    fm_state_rest_tet(s, a, rest);
+    fm_morph_state_rest_tet(s, a, rest);
     double launch = (double)i / m->launch_rate, tf = s->tf[a];
     double u = tf > 0 ? (time - s->t2[a]) / tf : 1.0;
     u = u < 0 ? 0 : u > 1 ? 1 : u;
@@ -198,18 +198,18 @@ static void homing_tet(const fm_model *m, const fm_state *s, int64_t a, double t
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
 }
 
-static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *out)
+static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, float *out)
 {
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
     const int32_t i = s->id[a];
     float rest[12];
     switch (s->phase[a]) {
     case FM_PHASE_WAITING:
-        fm_state_rest_tet(s, a, rest);
+        fm_morph_state_rest_tet(s, a, rest);
         place_tet(c, 1.0, NULL, rest, out);
         break;
     case FM_PHASE_FLYING:
-        fm_state_rest_tet(s, a, rest);
+        fm_morph_state_rest_tet(s, a, rest);
         place_tet(c, fm_shrink_scale(&m->def, s->time - (double)i / m->launch_rate), NULL, rest, out);
         break;
     case FM_PHASE_HOMING:
@@ -223,7 +223,7 @@ static void agent_tet(const fm_model *m, const fm_state *s, int64_t a, float *ou
 }
 
 /* Slot order in, id order out: each tet is written where its agent id says. */
-void fm_state_tet_vertices(const fm_model *m, const fm_state *s, float *out)
+void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out)
 {
     int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)

@@ -1,4 +1,4 @@
-/* fm_step: one time step of the tetra flock morph (FM §5).
+/* fm_morph_step: one time step of the tetra flock morph (FM §5).
  *
  * The pipeline, in order:
  *   0. re-sort      every FM_RESORT_INTERVAL steps, the in-flight agents by position (resort.c)
@@ -25,7 +25,7 @@
 #include <math.h>
 
 /* Waiting agents are the slots from active_end on, in id order: launching moves the boundary. */
-static void launch_due_agents(const fm_model *m, fm_state *s)
+static void launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
 {
     int64_t due = (int64_t)floor(m->launch_rate * s->time) + 1; /* agent id i launches at i / rate */
     if (due > s->n) due = s->n;
@@ -46,7 +46,7 @@ static double exact_distance(const void *ctx, const double p[3], double normal[3
 
 /* d_t from the grid, but exact (Embree) wherever the eq 8 look-ahead decides contact: within the
  * largest tet radius plus two voxels of the surface, since the grid errs by up to a voxel there. */
-static fm_obstacle_view obstacle_view(const fm_model *m)
+static fm_obstacle_view obstacle_view(const fm_morph_model *m)
 {
     fm_sdf_view sdf = fm_obstacles_sdf(m->obstacles);
     return (fm_obstacle_view){sdf, (float)m->def.k_a, (float)m->def.speed0, exact_distance, m->obstacles,
@@ -58,14 +58,14 @@ static fm_obstacle_view obstacle_view(const fm_model *m)
  * every cell holds one agent or none and each of an agent's 9 rows is a random place in the table:
  * a cache miss each, whatever the store's order. With cells about the spacing, agents next to each
  * other in the (re-sorted) store share rows, and the walk trims the rows to those within d_min. */
-static float mde_cell(const fm_model *m)
+static float mde_cell(const fm_morph_model *m)
 {
     double spacing = cbrt(m->info.source_volume / (double)m->n);
     return (float)fmax(m->def.d_min, spacing);
 }
 
 /* Stage 2: the neighbour grid over this step's flying agents. */
-static void build_neighbour_grid(const fm_model *m, fm_state *s)
+static void build_neighbour_grid(const fm_morph_model *m, fm_morph_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->active_end; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
@@ -75,19 +75,19 @@ static void build_neighbour_grid(const fm_model *m, fm_state *s)
 /* Avoidance leaves d_t and R_X per agent for the contact step. The store borrows the re-sort's
  * scratch for them (16 bytes per agent, idle once the step's re-sort is done), so they cost no
  * memory. */
-static fm_obstacle_scratch obstacle_scratch(const fm_state *s)
+static fm_obstacle_scratch obstacle_scratch(const fm_morph_state *s)
 {
     float *d_grid = s->sort_scratch;
     return (fm_obstacle_scratch){d_grid, d_grid + s->n};
 }
 
-static fm_radius_view radius_view(const fm_model *m, const fm_state *s)
+static fm_radius_view radius_view(const fm_morph_model *m, const fm_morph_state *s)
 {
     return (fm_radius_view){s->rest_radius, s->id, (float)m->def.shrink, (float)m->def.shrink_time, m->launch_rate};
 }
 
 /* MDE (FM §5.4): V_la gathered from the grid's neighbours and added to the flying agents. */
-static int64_t add_mde(const fm_model *m, fm_state *s, int64_t begin, int64_t end)
+static int64_t add_mde(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
 {
     const fm_scene_def *def = &m->def;
     float push = (float)(def->mde_speed > 0 ? def->mde_speed : def->speed0);
@@ -99,7 +99,7 @@ static int64_t add_mde(const fm_model *m, fm_state *s, int64_t begin, int64_t en
 }
 
 /* Stage 3 for one block: velocities from positions at the start of the step (FM eq 8). */
-static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_t end, block_counts *bc)
+static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end, block_counts *bc)
 {
     const fm_scene_def *def = &m->def;
     const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]}, {m->key_f[0], m->key_f[1], m->key_f[2]},
@@ -129,7 +129,7 @@ static void velocity_block(const fm_model *m, fm_state *s, int64_t begin, int64_
 }
 
 /* Stage 4 for one block: each agent moves only itself. */
-static void move_block(const fm_model *m, fm_state *s, int64_t begin, int64_t end, double t_end,
+static void move_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end, double t_end,
                        block_counts *bc)
 {
     const fm_sphere_view sphere = {{m->sphere_c[0], m->sphere_c[1], m->sphere_c[2]}, m->sphere_r};
@@ -147,7 +147,7 @@ static void move_block(const fm_model *m, fm_state *s, int64_t begin, int64_t en
 }
 
 /* Stage 5 (FM §5.5): the k-th agent to enter phase 2 takes target slot k (D2 order). */
-static void hand_out_targets(const fm_model *m, fm_state *s, const block_counts *bc, int64_t blocks,
+static void hand_out_targets(const fm_morph_model *m, fm_morph_state *s, const block_counts *bc, int64_t blocks,
                              double t_end)
 {
     for (int64_t b = 0; b < blocks; b++) {
@@ -171,14 +171,14 @@ static void hand_out_targets(const fm_model *m, fm_state *s, const block_counts 
     }
 }
 
-static int64_t setup_morphs(const fm_model *m, fm_state *s, int64_t begin, int64_t end)
+static int64_t setup_morphs(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
 {
     int64_t fallbacks = 0;
     for (int64_t a = begin; a < end; a++) {
         if (!s->entered[a]) continue;
         const int64_t slot = s->target[a];
         float src[12], dst[12];
-        fm_state_rest_tet(s, a, src);
+        fm_morph_state_rest_tet(s, a, src);
         for (int i = 0; i < 12; i++) dst[i] = m->tgt_f[12 * slot + i] - m->tgt_c[i % 3][slot];
         s->morph_safe[a] = (uint8_t)fm_morph_setup(src, dst,
                                                    s->morph + FM_MORPH_FLOATS * a, &s->perm[a]);
@@ -191,19 +191,19 @@ const char *const fm_stage_names[FM_STAGE_COUNT] = {"resort", "launch", "fields"
                                                      "handout", "morph"};
 
 /* Adds the time since *t to stage k and restarts *t. */
-static void lap(fm_state *s, fm_stage k, double *t)
+static void lap(fm_morph_state *s, fm_stage k, double *t)
 {
     double now = fm_seconds();
     s->stage_seconds[k] += now - *t;
     *t = now;
 }
 
-void fm_step(const fm_model *m, fm_state *s)
+void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     block_counts *bc = s->blocks;
     double t = fm_seconds();
-    if (s->step % FM_RESORT_INTERVAL == 0) fm_state_resort(m, s);
+    if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_state_resort(m, s);
     lap(s, FM_STAGE_RESORT, &t);
     launch_due_agents(m, s);
     const int64_t blocks = fm_active_blocks(s);

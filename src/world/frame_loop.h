@@ -1,4 +1,4 @@
-/* The frame loop of both modes (fm_run, run.c; fm_flock_run, flock_run.c): frame 0 is the state
+/* The frame loop of both modes (fm_morph_run, morph_run.c; fm_flock_run, flock_run.c): frame 0 is the state
  * before any step; then each frame takes steps_per_frame steps (fewer for the last one if the simulation
  * finishes inside it) and is written, until the simulation finishes or frame_limit frames are
  * written. The loop measures the time spent stepping and writing. At every frame boundary it reads

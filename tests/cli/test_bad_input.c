@@ -505,8 +505,8 @@ static void test_memory_estimate_matches_allocations(void)
     fm_scene_def def = estimate_scene(FM_MODE_TETRA_MORPH);
     fm_error err = {0};
     double before = allocated_bytes();
-    fm_model *model = fm_model_build(&def, NULL, NULL, &err);
-    fm_state *state = model ? fm_state_create(model, 1, &err) : NULL;
+    fm_morph_model *model = fm_morph_model_build(&def, NULL, NULL, &err);
+    fm_morph_state *state = model ? fm_morph_state_create(model, 1, &err) : NULL;
     float *frame = malloc(sizeof(float) * 12 * (size_t)def.n);
     uint8_t *phases = malloc((size_t)def.n);
     const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE}; /* as tools/cli_run.c */
@@ -518,8 +518,8 @@ static void test_memory_estimate_matches_allocations(void)
     expect_estimate(&def, before, e.model + e.state + e.frames, "");
     fm_cache_writer_abort(w);
     free(frame), free(phases);
-    fm_state_destroy(state);
-    fm_model_destroy(model);
+    fm_morph_state_destroy(state);
+    fm_morph_model_destroy(model);
 }
 
 /* The same for the shape flock: model, agent store (with its neighbour grid), the run's frame

@@ -139,12 +139,12 @@ static void write_scene(const char *dir, int seed)
 
 /* ---------------------------------------------------------------- in process */
 
-static fm_model *g_model;
+static fm_morph_model *g_model;
 static fm_scene_def g_def;
 
-static fm_status save_hook(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *path, fm_error *err)
+static fm_status save_hook(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *rs, void *path, fm_error *err)
 {
-    return fm_checkpoint_save(path, m, s, rs, err);
+    return fm_morph_checkpoint_save(path, m, s, rs, err);
 }
 
 typedef struct stop_after {
@@ -153,7 +153,7 @@ typedef struct stop_after {
     volatile sig_atomic_t flag;
 } stop_after;
 
-static void stop_progress(const fm_state_info *info, int64_t frame, void *user)
+static void stop_progress(const fm_morph_info *info, int64_t frame, void *user)
 {
     stop_after *sa = user;
     int all_phases = info->count[0] > 0 && info->count[1] > 0 && info->count[2] > 0 && info->count[3] > 0;
@@ -161,23 +161,23 @@ static void stop_progress(const fm_state_info *info, int64_t frame, void *user)
 }
 
 /* An uninterrupted run to `cache`. */
-static void run_whole(const char *cache, fm_run_stats *rs)
+static void run_whole(const char *cache, fm_morph_run_stats *rs)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(g_model, 1, &err);
+    fm_morph_state *s = fm_morph_state_create(g_model, 1, &err);
     fm_cache_writer *w = fm_cache_writer_create(cache, (uint64_t)g_model->n, g_def.frame_rate, g_def.compression_level, &err);
     ENSURE_MSG(s && w, "%s", err.message);
     if (!s || !w) return;
-    ENSURE_MSG(fm_run(g_model, s, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_morph_run(g_model, s, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
     ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
 }
 
 /* Every saved member of two states holds the same bytes. */
-static void ensure_same_state(const fm_state *a, const fm_state *b)
+static void ensure_same_state(const fm_morph_state *a, const fm_morph_state *b)
 {
-    for (int i = 0; i < fm_state_member_count; i++) {
-        const fm_store_member *mb = &fm_state_members[i];
+    for (int i = 0; i < fm_morph_state_member_count; i++) {
+        const fm_store_member *mb = &fm_morph_state_members[i];
         const char *pa = (const char *)a + mb->offset, *pb = (const char *)b + mb->offset;
         size_t bytes = mb->bytes;
         if (mb->per_agent) {
@@ -191,10 +191,10 @@ static void ensure_same_state(const fm_state *a, const fm_state *b)
 /* Runs until the progress callback raises the stop flag after frame `stop_frame` (< 0: once
  * agents are in every phase), checkpointing every 5 frames; returns the stopped state (the caller
  * destroys it). */
-static fm_state *run_until_stopped(const char *cache, const char *ckpt, int64_t stop_frame, fm_run_stats *rs)
+static fm_morph_state *run_until_stopped(const char *cache, const char *ckpt, int64_t stop_frame, fm_morph_run_stats *rs)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(g_model, 2, &err);
+    fm_morph_state *s = fm_morph_state_create(g_model, 2, &err);
     fm_cache_writer *w = fm_cache_writer_create(cache, (uint64_t)g_model->n, g_def.frame_rate, g_def.compression_level, &err);
     ENSURE_MSG(s && w, "%s", err.message);
     if (!s || !w) return s;
@@ -203,7 +203,7 @@ static fm_state *run_until_stopped(const char *cache, const char *ckpt, int64_t 
     c.progress = stop_progress, c.progress_user = &sa;
     c.checkpoint = save_hook, c.checkpoint_user = (void *)ckpt, c.checkpoint_every = 5;
     c.stop = &sa.flag;
-    ENSURE_MSG(fm_run_controlled(g_model, s, w, &c, rs, &err) == FM_STOPPED, "%s", err.message);
+    ENSURE_MSG(fm_morph_run_controlled(g_model, s, w, &c, rs, &err) == FM_STOPPED, "%s", err.message);
     ENSURE_MSG(sa.stopped_after >= 0 && rs->frames == sa.stopped_after + 1, "stopped with %lld frames, expected %lld",
                (long long)rs->frames, (long long)sa.stopped_after + 1);
     fm_cache_writer_close_partial(w);
@@ -213,13 +213,13 @@ static fm_state *run_until_stopped(const char *cache, const char *ckpt, int64_t 
 static void test_stop_restore_continue_same_bytes(void)
 {
     const char *whole = DIR_ "/whole.fmc", *cache = DIR_ "/stopped.fmc", *ckpt = DIR_ "/inproc.fmck";
-    fm_run_stats ref, first, rest;
+    fm_morph_run_stats ref, first, rest;
     run_whole(whole, &ref);
     ENSURE_MSG(ref.frames > 40 && ref.all_arrived, "the scene should take a while and finish: %lld frames", (long long)ref.frames);
-    fm_state *stopped = run_until_stopped(cache, ckpt, -1, &first); /* agents in every phase */
+    fm_morph_state *stopped = run_until_stopped(cache, ckpt, -1, &first); /* agents in every phase */
     fm_error err = {0};
-    fm_state *s = fm_state_create(g_model, 1, &err);
-    ENSURE_MSG(s && fm_checkpoint_load(ckpt, g_model, s, &rest, &err) == FM_OK, "%s", err.message);
+    fm_morph_state *s = fm_morph_state_create(g_model, 1, &err);
+    ENSURE_MSG(s && fm_morph_checkpoint_load(ckpt, g_model, s, &rest, &err) == FM_OK, "%s", err.message);
     if (stopped && s) ensure_same_state(stopped, s);
     ENSURE(rest.frames == first.frames && rest.inverted_tet_frames == first.inverted_tet_frames);
     ENSURE(memcmp(rest.mde_fraction, first.mde_fraction, sizeof(double) * (size_t)(first.frames - 1)) == 0);
@@ -228,7 +228,7 @@ static void test_stop_restore_continue_same_bytes(void)
     fm_run_control c = fm_default_run_control();
     c.resume = 1;
     if (s && w) {
-        ENSURE_MSG(fm_run_controlled(g_model, s, w, &c, &rest, &err) == FM_OK, "%s", err.message);
+        ENSURE_MSG(fm_morph_run_controlled(g_model, s, w, &c, &rest, &err) == FM_OK, "%s", err.message);
         ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
     }
     ENSURE_MSG(same_bytes(whole, cache), "the resumed cache differs from the uninterrupted one");
@@ -239,8 +239,8 @@ static void test_stop_restore_continue_same_bytes(void)
     ENSURE(rest.final_max_vertex_error == ref.final_max_vertex_error);
     ENSURE(memcmp(&rest.min_obstacle_clearance, &ref.min_obstacle_clearance, sizeof(double)) == 0);
     ENSURE_MSG(ref.min_obstacle_clearance < 1.0, "the flock should pass the obstacle (clearance %g)", ref.min_obstacle_clearance);
-    fm_run_stats_free(&ref), fm_run_stats_free(&first), fm_run_stats_free(&rest);
-    fm_state_destroy(stopped), fm_state_destroy(s);
+    fm_morph_run_stats_free(&ref), fm_morph_run_stats_free(&first), fm_morph_run_stats_free(&rest);
+    fm_morph_state_destroy(stopped), fm_morph_state_destroy(s);
 }
 
 typedef struct flush_probe {
@@ -252,7 +252,7 @@ typedef struct flush_probe {
 } flush_probe;
 
 /* A checkpoint hook that checks the cache's frames are on disk when it is called. */
-static fm_status probe_hook(const fm_model *m, const fm_state *s, const fm_run_stats *rs, void *user, fm_error *err)
+static fm_status probe_hook(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *rs, void *user, fm_error *err)
 {
     flush_probe *p = user;
     (void)m, (void)s, (void)err;
@@ -268,19 +268,19 @@ static fm_status probe_hook(const fm_model *m, const fm_state *s, const fm_run_s
 static int64_t run_probed(flush_probe *p, int64_t every, double seconds)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(g_model, 1, &err);
+    fm_morph_state *s = fm_morph_state_create(g_model, 1, &err);
     fm_cache_writer *w = fm_cache_writer_create(DIR_ "/probe.fmc", (uint64_t)g_model->n, 24, 1, &err);
     ENSURE(s && w);
     if (!s || !w) return 0;
     *p = (flush_probe){DIR_ "/probe.fmc.partial", w, 0, {0}, 1};
     fm_run_control c = fm_default_run_control();
     c.checkpoint = probe_hook, c.checkpoint_user = p, c.checkpoint_every = every, c.checkpoint_seconds = seconds;
-    fm_run_stats rs;
-    ENSURE(fm_run_controlled(g_model, s, w, &c, &rs, &err) == FM_OK);
+    fm_morph_run_stats rs;
+    ENSURE(fm_morph_run_controlled(g_model, s, w, &c, &rs, &err) == FM_OK);
     ENSURE_MSG(p->on_disk_ok, "a checkpoint was taken before its frames were on disk");
     fm_cache_writer_abort(w);
-    fm_run_stats_free(&rs);
-    fm_state_destroy(s);
+    fm_morph_run_stats_free(&rs);
+    fm_morph_state_destroy(s);
     return rs.frames;
 }
 
@@ -298,9 +298,9 @@ static void test_checkpoints_every_k_frames_after_flush(void)
 /* A checkpoint after 24 frames, written by run_until_stopped; returns its bytes. */
 static char *checkpoint_bytes(size_t *len)
 {
-    fm_run_stats rs;
-    fm_state *s = run_until_stopped(DIR_ "/damage.fmc", DIR_ "/damage.fmck", 23, &rs);
-    fm_run_stats_free(&rs), fm_state_destroy(s);
+    fm_morph_run_stats rs;
+    fm_morph_state *s = run_until_stopped(DIR_ "/damage.fmc", DIR_ "/damage.fmck", 23, &rs);
+    fm_morph_run_stats_free(&rs), fm_morph_state_destroy(s);
     return slurp(DIR_ "/damage.fmck", len);
 }
 
@@ -310,11 +310,11 @@ static fm_status load_bytes(const char *bytes, size_t len, fm_error *err)
     if (!f) return FM_ERR_IO;
     fwrite(bytes, 1, len, f);
     fclose(f);
-    fm_state *s = fm_state_create(g_model, 1, err);
-    fm_run_stats rs;
-    fm_status st = fm_checkpoint_load(DIR_ "/damaged.fmck", g_model, s, &rs, err);
-    if (st == FM_OK) fm_run_stats_free(&rs);
-    fm_state_destroy(s);
+    fm_morph_state *s = fm_morph_state_create(g_model, 1, err);
+    fm_morph_run_stats rs;
+    fm_status st = fm_morph_checkpoint_load(DIR_ "/damaged.fmck", g_model, s, &rs, err);
+    if (st == FM_OK) fm_morph_run_stats_free(&rs);
+    fm_morph_state_destroy(s);
     return st;
 }
 
@@ -364,14 +364,14 @@ static void test_other_scene_or_model_refused(void)
     write_octahedron(DIR_ "/bigger/oct.obj", 1.05);
     other = g_def;
     snprintf(other.target.path, sizeof other.target.path, "%s", DIR_ "/bigger/oct.obj");
-    fm_model *m = fm_model_build(&other, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&other, NULL, NULL, &err);
     ENSURE_MSG(m != NULL, "%s", err.message);
-    fm_state *s = m ? fm_state_create(m, 1, &err) : NULL;
-    fm_run_stats rs;
-    if (s) ENSURE(fm_checkpoint_load(DIR_ "/damage.fmck", m, s, &rs, &err) == FM_ERR_INPUT);
+    fm_morph_state *s = m ? fm_morph_state_create(m, 1, &err) : NULL;
+    fm_morph_run_stats rs;
+    if (s) ENSURE(fm_morph_checkpoint_load(DIR_ "/damage.fmck", m, s, &rs, &err) == FM_ERR_INPUT);
     ENSURE_MSG(strstr(err.message, "different model"), "%s", err.message);
-    fm_state_destroy(s);
-    fm_model_destroy(m);
+    fm_morph_state_destroy(s);
+    fm_morph_model_destroy(m);
 }
 
 /* ---------------------------------------------------------------- the command line */
@@ -712,7 +712,7 @@ int main(void)
 {
     write_scene(DIR_, 7);
     fm_error err = {0};
-    if (fm_scene_load(SCENE, &g_def, &err) != FM_OK || !(g_model = fm_model_build(&g_def, NULL, NULL, &err))) {
+    if (fm_scene_load(SCENE, &g_def, &err) != FM_OK || !(g_model = fm_morph_model_build(&g_def, NULL, NULL, &err))) {
         fprintf(stderr, "cannot build the test scene: %s\n", err.message);
         return 1;
     }
@@ -720,7 +720,7 @@ int main(void)
     RUN_TEST(test_checkpoints_every_k_frames_after_flush);
     RUN_TEST(test_damaged_checkpoints_refused);
     RUN_TEST(test_other_scene_or_model_refused);
-    fm_model_destroy(g_model);
+    fm_morph_model_destroy(g_model);
     reference_run(&g_tetra);
     RUN_TEST(test_kill9_then_resume);
     RUN_TEST(test_sigint_then_resume);

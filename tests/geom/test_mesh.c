@@ -1,4 +1,4 @@
-/* Mesh import through the public API: fm_model_build on small meshes written here in OBJ, PLY,
+/* Mesh import through the public API: fm_morph_model_build on small meshes written here in OBJ, PLY,
  * STL, OFF and glTF, and the closed-manifold and self-intersection checks with their messages. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
@@ -177,10 +177,10 @@ static void expect_cube_builds(const char *path)
 {
     fm_scene_def d = scene(path, path);
     fm_error err = {0};
-    fm_model *m = fm_model_build(&d, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&d, NULL, NULL, &err);
     ENSURE_MSG(m != NULL, "%s: %s", path, err.message);
     if (!m) return;
-    fm_model_info mi = fm_model_get_info(m);
+    fm_morph_model_info mi = fm_morph_model_get_info(m);
     ENSURE(mi.source_tets > 0 && mi.target_tets > 0);
     ENSURE_MSG(mi.agents == (mi.source_tets > mi.target_tets ? mi.source_tets : mi.target_tets),
                "%s: %lld agents, %lld and %lld tets", path, (long long)mi.agents, (long long)mi.source_tets,
@@ -192,7 +192,7 @@ static void expect_cube_builds(const char *path)
     ENSURE_NEAR(mi.source_centroid[1], 1.0, 1e-9);
     ENSURE_NEAR(mi.target_centroid[0], 6.0, 1e-9);
     ENSURE_NEAR(mi.target_centroid[2], 2.5, 1e-9);
-    fm_model_destroy(m);
+    fm_morph_model_destroy(m);
 }
 
 /* Builds with `bad` as the source (or the target) and a good cube as the other; expects failure
@@ -204,9 +204,9 @@ static void expect_mesh_error(const char *bad, int as_target, fm_status status, 
     write_obj(tmp_path(good, "good.obj"), &c);
     fm_scene_def d = as_target ? scene(good, bad) : scene(bad, good);
     fm_error err = {0};
-    fm_model *m = fm_model_build(&d, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&d, NULL, NULL, &err);
     ENSURE_MSG(m == NULL, "%s built a model", bad);
-    fm_model_destroy(m);
+    fm_morph_model_destroy(m);
     ENSURE_MSG(err.status == status, "%s: status %d, expected %d (%s)", bad, (int)err.status, (int)status, err.message);
     ENSURE_MSG(strstr(err.message, bad) != NULL, "the path is not in '%s'", err.message);
     ENSURE_MSG(strstr(err.message, what) != NULL, "'%s' not in '%s'", what, err.message);
@@ -327,11 +327,11 @@ static void test_two_disjoint_cubes(void)
     write_obj(tmp_path(path, "two_cubes.obj"), &m);
     fm_scene_def d = scene(path, path);
     fm_error err = {0};
-    fm_model *model = fm_model_build(&d, NULL, NULL, &err);
+    fm_morph_model *model = fm_morph_model_build(&d, NULL, NULL, &err);
     ENSURE_MSG(model != NULL, "%s", err.message);
     if (!model) return;
-    ENSURE_NEAR(fm_model_get_info(model).source_volume, 2.0, 2e-9);
-    fm_model_destroy(model);
+    ENSURE_NEAR(fm_morph_model_get_info(model).source_volume, 2.0, 2e-9);
+    fm_morph_model_destroy(model);
 }
 
 /* A cube with a cubic cavity: the inner surface faces inward, so the solid is 4^3 - 2^3 = 56.
@@ -349,14 +349,14 @@ static void test_cavity_not_filled(void)
     write_obj(tmp_path(path, "cavity.obj"), &m);
     fm_scene_def d = scene(path, path);
     fm_error err = {0};
-    fm_model *model = fm_model_build(&d, NULL, NULL, &err);
+    fm_morph_model *model = fm_morph_model_build(&d, NULL, NULL, &err);
     if (!model) {
         ENSURE_MSG(err.status == FM_ERR_INPUT && strstr(err.message, path), "%s", err.message);
         return;
     }
-    ENSURE_NEAR(fm_model_get_info(model).source_volume, 56.0, 56e-9);
-    ENSURE_NEAR(fm_model_get_info(model).target_volume, 56.0, 56e-9);
-    fm_model_destroy(model);
+    ENSURE_NEAR(fm_morph_model_get_info(model).source_volume, 56.0, 56e-9);
+    ENSURE_NEAR(fm_morph_model_get_info(model).target_volume, 56.0, 56e-9);
+    fm_morph_model_destroy(model);
 }
 
 /* ---------------------------------------------------------------- unreadable files */
@@ -388,9 +388,9 @@ static void test_missing_file(void)
     tmp_path(path, "does_not_exist.obj");
     fm_scene_def d = scene(path, good);
     fm_error err = {0};
-    fm_model *m = fm_model_build(&d, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&d, NULL, NULL, &err);
     ENSURE(m == NULL);
-    fm_model_destroy(m);
+    fm_morph_model_destroy(m);
     ENSURE_MSG(err.status == FM_ERR_IO || err.status == FM_ERR_INPUT, "status %d", (int)err.status);
     ENSURE_MSG(strstr(err.message, path) != NULL, "'%s'", err.message);
 }

@@ -20,7 +20,7 @@ static fm_scene_def words_def(void)
     return def;
 }
 
-static fm_model *model;
+static fm_morph_model *model;
 
 static char *slurp(const char *path, long *len)
 {
@@ -35,16 +35,16 @@ static char *slurp(const char *path, long *len)
     return buf;
 }
 
-static void run_to_cache(int threads, const char *path, fm_run_stats *rs)
+static void run_to_cache(int threads, const char *path, fm_morph_run_stats *rs)
 {
     fm_error err = {0};
-    fm_state *state = fm_state_create(model, threads, &err);
-    fm_cache_writer *w = fm_cache_writer_create(path, (uint64_t)fm_model_get_info(model).agents, 24, 3, &err);
+    fm_morph_state *state = fm_morph_state_create(model, threads, &err);
+    fm_cache_writer *w = fm_cache_writer_create(path, (uint64_t)fm_morph_model_get_info(model).agents, 24, 3, &err);
     ENSURE(state && w);
-    ENSURE_MSG(fm_run(model, state, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
-    fm_run_stats_free(rs);
+    ENSURE_MSG(fm_morph_run(model, state, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
+    fm_morph_run_stats_free(rs);
     ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
-    fm_state_destroy(state);
+    fm_morph_state_destroy(state);
 }
 
 static int compare_vertices(const void *a, const void *b)
@@ -66,7 +66,7 @@ static void canonical(float *tets, int64_t n)
 
 static void test_last_frame_is_the_target_and_threads_agree(void)
 {
-    fm_run_stats r1, r2;
+    fm_morph_run_stats r1, r2;
     const char *p1 = FM_TEST_TMP "/e2e_threads1.fmc", *p2 = FM_TEST_TMP "/e2e_threads2.fmc";
     run_to_cache(1, p1, &r1);
     run_to_cache(2, p2, &r2);
@@ -85,7 +85,7 @@ static void test_last_frame_is_the_target_and_threads_agree(void)
     int64_t n = (int64_t)fm_cache_agents(r);
     float *last = malloc(sizeof(float) * 12 * (size_t)n), *target = malloc(sizeof(float) * 12 * (size_t)n);
     ENSURE(fm_cache_read_frame(r, fm_cache_frames(r) - 1, last, &err) == FM_OK);
-    for (int64_t j = 0; j < n; j++) memcpy(target + 12 * j, fm_model_target_tet(model, j), 12 * sizeof(float));
+    for (int64_t j = 0; j < n; j++) memcpy(target + 12 * j, fm_morph_model_target_tet(model, j), 12 * sizeof(float));
     canonical(last, n), canonical(target, n);
     double worst = 0; /* every target tet is in the last frame, once */
     for (int64_t i = 0; i < 12 * n; i++) worst = fmax(worst, fabs((double)last[i] - target[i]));
@@ -96,7 +96,7 @@ static void test_last_frame_is_the_target_and_threads_agree(void)
 
 static void test_same_seed_same_bytes(void)
 {
-    fm_run_stats rs;
+    fm_morph_run_stats rs;
     const char *p1 = FM_TEST_TMP "/e2e_seed_a.fmc", *p2 = FM_TEST_TMP "/e2e_threads2.fmc";
     run_to_cache(2, p1, &rs);
     long n1, n2;
@@ -110,15 +110,15 @@ static void test_same_seed_same_bytes(void)
 static void test_launch_and_hand_out_orders(void)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(model, 2, &err);
-    int64_t n = fm_model_get_info(model).agents, *targets = malloc(sizeof(int64_t) * (size_t)n);
+    fm_morph_state *s = fm_morph_state_create(model, 2, &err);
+    int64_t n = fm_morph_model_get_info(model).agents, *targets = malloc(sizeof(int64_t) * (size_t)n);
     uint8_t *seen = malloc((size_t)n);
     int ok_launch = 1, ok_slots = 1;
-    while (!fm_state_get_info(s).all_arrived && fm_state_get_info(s).step < 5000) {
-        double t_before = fm_state_get_info(s).time;
-        fm_step(model, s);
-        fm_state_info info = fm_state_get_info(s);
-        fm_state_targets(s, targets);
+    while (!fm_morph_get_info(s).all_arrived && fm_morph_get_info(s).step < 5000) {
+        double t_before = fm_morph_get_info(s).time;
+        fm_morph_step(model, s);
+        fm_morph_info info = fm_morph_get_info(s);
+        fm_morph_targets(s, targets);
         memset(seen, 0, (size_t)n);
         int64_t handed = 0;
         for (int64_t a = 0; a < n; a++)
@@ -130,21 +130,21 @@ static void test_launch_and_hand_out_orders(void)
         for (int64_t k = 0; k < handed; k++) ok_slots &= seen[k];
         ok_launch &= info.count[FM_PHASE_WAITING] == n - (int64_t)fmin((double)n, floor(3000.0 * t_before) + 1);
     }
-    ENSURE(fm_state_get_info(s).all_arrived);
+    ENSURE(fm_morph_get_info(s).all_arrived);
     ENSURE(ok_slots);
     ENSURE(ok_launch);
     free(targets), free(seen);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
 }
 
 /* Frame 0 is the source at rest: its tets' volume is the source volume. */
 static void test_first_frame_is_the_source(void)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(model, 2, &err);
-    fm_model_info mi = fm_model_get_info(model);
+    fm_morph_state *s = fm_morph_state_create(model, 2, &err);
+    fm_morph_model_info mi = fm_morph_model_get_info(model);
     float *v = malloc(sizeof(float) * 12 * (size_t)mi.agents);
-    fm_state_tet_vertices(model, s, v);
+    fm_morph_tet_vertices(model, s, v);
     double vol = 0;
     for (int64_t i = 0; i < mi.agents; i++) {
         const float *t = v + 12 * i;
@@ -155,14 +155,14 @@ static void test_first_frame_is_the_source(void)
     ENSURE_NEAR(vol, mi.source_volume, 1e-4 * mi.source_volume);
     ENSURE(mi.agents == (mi.source_tets > mi.target_tets ? mi.source_tets : mi.target_tets));
     free(v);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
 }
 
 int main(void)
 {
     fm_error err = {0};
     fm_scene_def def = words_def();
-    model = fm_model_build(&def, NULL, NULL, &err);
+    model = fm_morph_model_build(&def, NULL, NULL, &err);
     if (!model) {
         fprintf(stderr, "model: %s\n", err.message);
         return 1;
@@ -171,6 +171,6 @@ int main(void)
     RUN_TEST(test_same_seed_same_bytes);
     RUN_TEST(test_launch_and_hand_out_orders);
     RUN_TEST(test_first_frame_is_the_source);
-    fm_model_destroy(model);
+    fm_morph_model_destroy(model);
     return test_result();
 }

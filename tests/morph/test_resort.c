@@ -11,11 +11,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-static fm_model *model;
+static fm_morph_model *model;
 
 /* examples/castling at its own n, cut to a few seconds: path, baked curl noise, the king as an
  * obstacle, MDE. */
-static fm_model *castling(void)
+static fm_morph_model *castling(void)
 {
     fm_scene_def def;
     fm_error err = {0};
@@ -23,7 +23,7 @@ static fm_model *castling(void)
     snprintf(path, sizeof path, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
     ENSURE_MSG(fm_scene_load(path, &def, &err) == FM_OK, "%s", err.message);
     def.frame_limit = 60;
-    fm_model *m = fm_model_build(&def, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(&def, NULL, NULL, &err);
     ENSURE_MSG(m, "%s", err.message);
     return m;
 }
@@ -34,7 +34,7 @@ typedef struct agent_record {
     uint8_t phase, perm, safe;
 } agent_record;
 
-static void snapshot(const fm_state *s, agent_record *by_id)
+static void snapshot(const fm_morph_state *s, agent_record *by_id)
 {
     memset(by_id, 0, sizeof *by_id * (size_t)s->n);
     for (int64_t a = 0; a < s->n; a++) {
@@ -51,18 +51,18 @@ static void test_resort_keeps_ids_state_and_frame(void)
     fm_error err = {0};
     const double rate = model->launch_rate;
     model->launch_rate = 1000; /* slower launches: some agents arrive while others still wait */
-    fm_state *s = fm_state_create(model, 2, &err);
+    fm_morph_state *s = fm_morph_state_create(model, 2, &err);
     ENSURE(s);
-    for (int i = 0; i < 75 * FM_RESORT_INTERVAL + 3; i++) fm_step(model, s);
+    for (int i = 0; i < 75 * FM_RESORT_INTERVAL + 3; i++) fm_morph_step(model, s);
     const int64_t n = s->n;
     agent_record *before = malloc(sizeof *before * (size_t)n), *after = malloc(sizeof *after * (size_t)n);
     float *frame0 = malloc(sizeof(float) * 12 * (size_t)n), *frame1 = malloc(sizeof(float) * 12 * (size_t)n);
     uint8_t *seen = calloc((size_t)n, 1);
     snapshot(s, before);
-    fm_state_tet_vertices(model, s, frame0);
-    fm_state_resort(model, s);
+    fm_morph_tet_vertices(model, s, frame0);
+    fm_morph_state_resort(model, s);
     snapshot(s, after);
-    fm_state_tet_vertices(model, s, frame1);
+    fm_morph_tet_vertices(model, s, frame1);
     int64_t bad_ids = 0;
     for (int64_t a = 0; a < n; a++) bad_ids += s->id[a] < 0 || s->id[a] >= n || seen[s->id[a]]++;
     ENSURE_MSG(bad_ids == 0, "%lld slots with a bad or repeated id", (long long)bad_ids);
@@ -87,12 +87,12 @@ static void test_resort_keeps_ids_state_and_frame(void)
                "the test wants all three ranges non-empty: %lld %lld %lld", (long long)s->active_begin,
                (long long)s->active_end, (long long)n);
     free(before), free(after), free(frame0), free(frame1), free(seen);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
     model->launch_rate = rate;
 }
 
 /* Mean distance between agents next to each other in the store: the re-sort's purpose. */
-static double neighbour_gap(const fm_state *s)
+static double neighbour_gap(const fm_morph_state *s)
 {
     double sum = 0;
     for (int64_t a = s->active_begin + 1; a < s->active_end; a++) {
@@ -106,27 +106,27 @@ static double neighbour_gap(const fm_state *s)
 static void test_resort_brings_neighbours_together(void)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(model, 1, &err);
-    for (int i = 0; i < 6 * FM_RESORT_INTERVAL - 1; i++) fm_step(model, s);
+    fm_morph_state *s = fm_morph_state_create(model, 1, &err);
+    for (int i = 0; i < 6 * FM_RESORT_INTERVAL - 1; i++) fm_morph_step(model, s);
     double gap_before = neighbour_gap(s);
-    fm_state_resort(model, s);
+    fm_morph_state_resort(model, s);
     double gap_after = neighbour_gap(s);
     printf("  mean gap between store neighbours: %.4f before, %.4f after the re-sort\n", gap_before, gap_after);
     ENSURE(gap_after < 0.5 * gap_before);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
 }
 
 static size_t run_cache(int threads, const char *path)
 {
     fm_error err = {0};
-    fm_state *s = fm_state_create(model, threads, &err);
+    fm_morph_state *s = fm_morph_state_create(model, threads, &err);
     fm_cache_writer *w = fm_cache_writer_create(path, (uint64_t)s->n, 24, 1, &err);
-    fm_run_stats rs;
-    ENSURE_MSG(fm_run(model, s, w, NULL, NULL, &rs, &err) == FM_OK, "%s", err.message);
+    fm_morph_run_stats rs;
+    ENSURE_MSG(fm_morph_run(model, s, w, NULL, NULL, &rs, &err) == FM_OK, "%s", err.message);
     ENSURE(rs.mde_fraction_mean > 0); /* MDE did push agents */
-    fm_run_stats_free(&rs);
+    fm_morph_run_stats_free(&rs);
     ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
-    fm_state_destroy(s);
+    fm_morph_state_destroy(s);
     FILE *f = fopen(path, "rb");
     fseek(f, 0, SEEK_END);
     size_t size = (size_t)ftell(f);
@@ -175,6 +175,6 @@ int main(void)
     RUN_TEST(test_resort_keeps_ids_state_and_frame);
     RUN_TEST(test_resort_brings_neighbours_together);
     RUN_TEST(test_threads_and_simd_levels_give_the_same_cache);
-    fm_model_destroy(model);
+    fm_morph_model_destroy(model);
     return fm_test_failures != 0;
 }

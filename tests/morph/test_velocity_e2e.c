@@ -33,19 +33,19 @@ static fm_scene_def scene(void)
     return d;
 }
 
-static int run(const fm_scene_def *d, int threads, const char *cache, fm_run_stats *rs)
+static int run(const fm_scene_def *d, int threads, const char *cache, fm_morph_run_stats *rs)
 {
     fm_error err = {0};
-    fm_model *m = fm_model_build(d, NULL, NULL, &err);
+    fm_morph_model *m = fm_morph_model_build(d, NULL, NULL, &err);
     ENSURE_MSG(m != NULL, "%s", err.message);
     if (!m) return -1;
-    fm_state *s = fm_state_create(m, threads, &err);
-    fm_cache_writer *w = cache ? fm_cache_writer_create(cache, (uint64_t)fm_model_get_info(m).agents, 24, 1, &err) : NULL;
+    fm_morph_state *s = fm_morph_state_create(m, threads, &err);
+    fm_cache_writer *w = cache ? fm_cache_writer_create(cache, (uint64_t)fm_morph_model_get_info(m).agents, 24, 1, &err) : NULL;
     ENSURE(s && (w || !cache));
-    ENSURE_MSG(fm_run(m, s, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_morph_run(m, s, w, NULL, NULL, rs, &err) == FM_OK, "%s", err.message);
     if (w) ENSURE(fm_cache_writer_finish(w, &err) == FM_OK);
-    fm_state_destroy(s);
-    fm_model_destroy(m);
+    fm_morph_state_destroy(s);
+    fm_morph_model_destroy(m);
     return 0;
 }
 
@@ -66,7 +66,7 @@ static int same_file(const char *a, const char *b)
 static void test_full_model_threads_agree_and_everyone_arrives(void)
 {
     fm_scene_def d = scene();
-    fm_run_stats r1, r2;
+    fm_morph_run_stats r1, r2;
     const char *c1 = FM_TEST_TMP "/velocity_t1.fmc", *c2 = FM_TEST_TMP "/velocity_t2.fmc";
     if (run(&d, 1, c1, &r1) || run(&d, 2, c2, &r2)) return;
     ENSURE(r1.all_arrived && r2.all_arrived);
@@ -76,7 +76,7 @@ static void test_full_model_threads_agree_and_everyone_arrives(void)
     ENSURE_MSG(r1.min_obstacle_clearance < 0.5, "the obstacle was never approached (%g)", r1.min_obstacle_clearance);
     ENSURE_MSG(r1.mde_fraction_mean > 0, "MDE never acted");
     ENSURE(same_file(c1, c2)); /* bitwise the same for 1 and 2 threads */
-    fm_run_stats_free(&r1), fm_run_stats_free(&r2);
+    fm_morph_run_stats_free(&r1), fm_morph_run_stats_free(&r2);
 }
 
 static void test_beyond_the_paper_options_complete(void)
@@ -85,12 +85,12 @@ static void test_beyond_the_paper_options_complete(void)
     d.phase_switch = FM_SWITCH_DISTANCE;
     d.switch_distance = 1.0;
     d.avoid_in_phase2 = 1;
-    fm_run_stats rs;
+    fm_morph_run_stats rs;
     if (run(&d, 2, NULL, &rs)) return;
     ENSURE(rs.all_arrived);
     ENSURE(rs.inverted_tet_frames == 0 && rs.target_tets_filled_once);
     ENSURE_MSG(rs.final_max_vertex_error <= 1e-5, "%g", rs.final_max_vertex_error);
-    fm_run_stats_free(&rs);
+    fm_morph_run_stats_free(&rs);
 }
 
 int main(void)
