@@ -69,7 +69,7 @@ int main(int argc, char **argv)
     printf("{\"scene\": \"%s\", \"agents\": %ld, \"threads\": %ld, \"steps\": %ld, \"in_flight\": %lld, "
            "\"d_min\": %.5g, \"rest_spacing\": %.5g, \"preprocess_seconds\": %.3f, \"agent_steps_per_second\": %.4g, \"steps_per_second\": %.4g, "
            "\"ns_per_agent_step\": %.3f, \"cpu_ns_per_agent_step\": %.3f, \"stage_ns_per_agent\": {",
-           scene, agents, threads, steps, (long long)(info.count[FM_PHASE_FLYING] + info.count[FM_PHASE_HOMING]), model->def.d_min, cbrt(mi.source_volume / (double)agents), prep,
+           scene, agents, threads, steps, (long long)(info.run.count[FM_PHASE_FLYING] + info.run.count[FM_PHASE_HOMING]), model->def.d_min, cbrt(mi.source_volume / (double)agents), prep,
            agent_steps / seconds, (double)steps / seconds, 1e9 * seconds / agent_steps, 1e9 * cpu_seconds / agent_steps);
     for (int k = 0; k < FM_STAGE_COUNT; k++)
         printf("\"%s\": %.2f, ", fm_stage_names[k], 1e9 * state->stage_seconds[k] / agent_steps);

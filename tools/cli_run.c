@@ -225,7 +225,7 @@ static int simulate(const cli_run_options *o, const fm_scene_def *def, fm_morph_
     fm_status st = fm_morph_run_controlled(model, state, cache, &control, &rs, &err);
     cli_catch_stop_signals(0);
     if (show) fprintf(stderr, "\n");
-    int64_t still_flying = mi.agents - fm_morph_get_info(state).count[FM_PHASE_ARRIVED];
+    int64_t still_flying = mi.agents - fm_morph_get_info(state).run.count[FM_PHASE_ARRIVED];
     fm_morph_state_destroy(state);
     if (st == FM_STOPPED) return fm_morph_run_stats_free(&rs), cli_report_interrupted(o, cache, rs.frames);
     if (st != FM_OK) return fm_morph_run_stats_free(&rs), cli_report_failed(o, &files, cache, &err);

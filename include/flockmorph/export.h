@@ -11,7 +11,7 @@
 #ifndef FLOCKMORPH_EXPORT_H
 #define FLOCKMORPH_EXPORT_H
 
-#include "flockmorph/flockmorph.h"
+#include "flockmorph/core.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -19,6 +19,10 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* Writes tets (n × 12 floats) in the format of path's extension: .ply (binary little-endian)
+ * or .obj (4 triangles per tet), .vtu or .vdb (include/flockmorph/export.h, docs/export.md). */
+fm_status fm_export_tets(const float *verts, size_t n, const char *path, fm_error *err);
 
 typedef enum fm_export_format {
     FM_EXPORT_UNKNOWN = 0,

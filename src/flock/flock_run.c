@@ -24,11 +24,8 @@ typedef struct flock_run {
     float *position, *velocity, *orientation;
     uint8_t *phase;
     fm_cache_writer *cache;
-    fm_flock_progress_fn progress;
-    void *user;
+    const fm_run_control *c;
     fm_flock_run_stats *stats;
-    const fm_flock_run_control *control;
-    double simulate0, output0; /* the seconds of the sessions before a resume */
 } flock_run;
 
 static void flock_step(void *sim)
@@ -62,48 +59,46 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
         r->s->lag_sum += mean;
         r->stats->tracking_frames++;
     }
-    if (r->progress && frame > 0) {
-        fm_flock_info info = fm_flock_get_info(r->s);
-        r->progress(&info, frame, r->user);
+    if (r->c->progress && frame > 0) {
+        fm_run_info info = fm_flock_get_info(r->s);
+        r->c->progress(&info, frame, r->c->progress_user);
     }
     return st;
 }
 
-/* The run's statistics after `times` (this session's), on top of the sessions before. */
-static void add_times(const flock_run *r, const fm_loop_times *times, fm_flock_run_stats *stats)
+static void set_times(fm_flock_run_stats *stats, const fm_loop_times *times)
 {
     stats->frames = times->frames;
-    stats->simulate_seconds = r->simulate0 + times->simulate_seconds;
-    stats->output_seconds = r->output0 + times->output_seconds;
+    stats->simulate_seconds = times->simulate_seconds;
+    stats->output_seconds = times->output_seconds;
 }
 
-/* The loop's checkpoint (the cache already flushed): the statistics so far, then the hook. */
-static fm_status flock_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
+/* The loop's checkpoint (the cache already flushed): the statistics so far, saved with the state. */
+static fm_status flock_save(void *sim, const fm_loop_times *times, const char *path, fm_error *err)
 {
     const flock_run *r = sim;
     fm_flock_run_stats now = *r->stats;
-    add_times(r, times, &now);
-    return r->control->checkpoint(r->m, r->s, &now, r->control->checkpoint_user, err);
+    set_times(&now, times);
+    return fm_flock_checkpoint_save(path, r->m, r->s, &now, err);
 }
 
 fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,
-                                  const fm_flock_run_control *c, fm_flock_run_stats *stats, fm_error *err)
+                                  const fm_run_control *c, fm_flock_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), s->lag_sum = 0;
     const size_t n = (size_t)s->n;
     flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
-                   fm_alloc(n), cache, c->progress, c->progress_user, stats, c, stats->simulate_seconds,
-                   stats->output_seconds};
+                   fm_alloc(n), cache, c, stats};
     fm_status st = r.position && r.velocity && r.orientation && r.phase
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
-        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, m->steps_per_frame, m->def.frame_limit,
-                                    c->stop, c->resume ? stats->frames : 0, c->checkpoint ? flock_checkpoint : NULL,
-                                    c->checkpoint_every, c->checkpoint_seconds, cache};
+        const fm_loop_times resumed = {c->resume ? stats->frames : 0, stats->simulate_seconds, stats->output_seconds};
+        const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
+                                    m->def.frame_limit, c, resumed, cache};
         fm_loop_times times;
         st = fm_frame_loop_run(&loop, &times, err);
-        add_times(&r, &times, stats);
+        set_times(stats, &times);
     }
     stats->steps = s->step;
     stats->all_bound = s->count[FM_PHASE_ARRIVED] == s->n;
@@ -115,9 +110,10 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
     return st;
 }
 
-fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_flock_progress_fn progress,
+fm_status fm_flock_run(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
                        void *user, fm_flock_run_stats *stats, fm_error *err)
 {
-    const fm_flock_run_control c = {.progress = progress, .progress_user = user};
+    fm_run_control c = fm_default_run_control();
+    c.progress = progress, c.progress_user = user;
     return fm_flock_run_controlled(m, s, cache, &c, stats, err);
 }

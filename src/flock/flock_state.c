@@ -106,9 +106,9 @@ void fm_flock_state_destroy(fm_flock_state *s)
     free(s);
 }
 
-fm_flock_info fm_flock_get_info(const fm_flock_state *s)
+fm_run_info fm_flock_get_info(const fm_flock_state *s)
 {
-    fm_flock_info info = {.step = s->step, .time = s->time};
+    fm_run_info info = {.step = s->step, .time = s->time};
     memcpy(info.count, s->count, sizeof info.count);
     return info;
 }

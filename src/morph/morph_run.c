@@ -1,5 +1,5 @@
-/* fm_morph_run: fm_morph_step in the shared frame loop (frame_loop.h), with the end-state checks reported in
- * stats.json. */
+/* fm_morph_run: fm_morph_step in the shared frame loop (frame_loop.h), with the end-state checks
+ * reported in stats.json. */
 #include "frame_loop.h"
 #include "morph.h"
 #include "cache_format.h"
@@ -120,13 +120,6 @@ static double mde_mean(const fm_morph_run_stats *stats)
     return frames ? sum / (double)frames : 0.0;
 }
 
-fm_run_control fm_default_run_control(void)
-{
-    fm_run_control c;
-    memset(&c, 0, sizeof c);
-    return c;
-}
-
 /* The end-state checks and totals of stats.json. */
 static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const float *verts, fm_morph_run_stats *stats)
 {
@@ -141,7 +134,7 @@ static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const
 }
 
 /* The tetra morph in the shared frame loop (frame_loop.h): its callbacks and what they carry. */
-typedef struct tetra_run {
+typedef struct morph_run {
     const fm_morph_model *m;
     fm_morph_state *s;
     fm_cache_writer *cache;
@@ -150,76 +143,74 @@ typedef struct tetra_run {
     float *verts;
     uint8_t *phases;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
-    double simulate0, output0;                   /* the seconds of the sessions before a resume */
-} tetra_run;
+} morph_run;
 
-static void tetra_step(void *sim)
+static void morph_step(void *sim)
 {
-    tetra_run *r = sim;
+    morph_run *r = sim;
     fm_morph_step(r->m, r->s);
 }
 
-static int tetra_finished(const void *sim)
+static int morph_finished(const void *sim)
 {
-    const tetra_run *r = sim;
+    const morph_run *r = sim;
     return r->s->count[FM_PHASE_ARRIVED] == r->s->n;
 }
 
 /* Frame k: written, its MDE fraction recorded, the progress reported. */
-static fm_status tetra_frame(void *sim, int64_t k, fm_error *err)
+static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
-    tetra_run *r = sim;
+    morph_run *r = sim;
     fm_status st = emit_frame(r->m, r->s, r->verts, r->phases, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
     if (st == FM_OK && r->c->progress) {
         fm_morph_info info = fm_morph_get_info(r->s);
-        r->c->progress(&info, k, r->c->progress_user);
+        r->c->progress(&info.run, k, r->c->progress_user);
     }
     return st;
 }
 
-/* The run's frame count and seconds after `times` (this session's), on top of the sessions before. */
-static void add_times(const tetra_run *r, const fm_loop_times *times, fm_morph_run_stats *stats)
+static void set_times(fm_morph_run_stats *stats, const fm_loop_times *times)
 {
     stats->frames = times->frames;
-    stats->simulate_seconds = r->simulate0 + times->simulate_seconds;
-    stats->output_seconds = r->output0 + times->output_seconds;
+    stats->simulate_seconds = times->simulate_seconds;
+    stats->output_seconds = times->output_seconds;
 }
 
-/* The loop's checkpoint (the cache already flushed): the statistics so far, then the hook. */
-static fm_status tetra_checkpoint(void *sim, const fm_loop_times *times, fm_error *err)
+/* The loop's checkpoint (the cache already flushed): the statistics so far, saved with the state. */
+static fm_status morph_save(void *sim, const fm_loop_times *times, const char *path, fm_error *err)
 {
-    const tetra_run *r = sim;
-    add_times(r, times, r->stats);
-    return r->c->checkpoint(r->m, r->s, r->stats, r->c->checkpoint_user, err);
+    const morph_run *r = sim;
+    set_times(r->stats, times);
+    return fm_morph_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
 fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, const fm_run_control *c,
-                            fm_morph_run_stats *stats, fm_error *err)
+                                  fm_morph_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
-    tetra_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
-                   s->flying_agent_steps, s->mde_agent_steps, 0, stats->simulate_seconds, stats->output_seconds};
+    morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
+                   s->flying_agent_steps, s->mde_agent_steps, 0};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->frames, 1), &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
     if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
-    const fm_frame_loop loop = {&r, tetra_step, tetra_finished, tetra_frame, m->steps_per_frame, m->def.frame_limit,
-                                c->stop, c->resume ? stats->frames : 0, c->checkpoint ? tetra_checkpoint : NULL,
-                                c->checkpoint_every, c->checkpoint_seconds, cache};
+    const fm_loop_times resumed = {c->resume ? stats->frames : 0, stats->simulate_seconds, stats->output_seconds};
+    const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
+                                m->def.frame_limit, c, resumed, cache};
     fm_loop_times times;
     fm_status st = fm_frame_loop_run(&loop, &times, err);
-    add_times(&r, &times, stats);
+    set_times(stats, &times);
     finish_stats(m, s, r.verts, stats);
     fm_free(r.verts), fm_free(r.phases);
     return st;
 }
 
 fm_status fm_morph_run(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, fm_run_progress_fn progress,
-                 void *user, fm_morph_run_stats *stats, fm_error *err)
+                       void *user, fm_morph_run_stats *stats, fm_error *err)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = progress, c.progress_user = user;

@@ -134,10 +134,10 @@ void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s)
 
 fm_morph_info fm_morph_get_info(const fm_morph_state *s)
 {
-    fm_morph_info info = {.step = s->step, .time = s->time, .morph_fallbacks = s->morph_fallbacks,
+    fm_morph_info info = {.run = {.step = s->step, .time = s->time}, .morph_fallbacks = s->morph_fallbacks,
                           .flying_agent_steps = s->flying_agent_steps, .mde_agent_steps = s->mde_agent_steps,
                           .min_obstacle_clearance = s->min_clearance};
-    memcpy(info.count, s->count, sizeof info.count);
+    memcpy(info.run.count, s->count, sizeof info.run.count);
     info.all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     return info;
 }

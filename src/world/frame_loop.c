@@ -1,44 +1,61 @@
 /* The frame loop of both modes (frame_loop.h). */
 #include "frame_loop.h"
 
+#include <string.h>
+
+fm_run_control fm_default_run_control(void)
+{
+    fm_run_control c;
+    memset(&c, 0, sizeof c);
+    return c;
+}
+
 /* When the last checkpoint was taken: every `every` frames and/or `seconds` of wall time. */
 typedef struct checkpoint_clock {
     int64_t last_frames;
     double last_time;
 } checkpoint_clock;
 
-static int checkpoint_due(int64_t every, double seconds, const checkpoint_clock *clock, int64_t frames)
+static int takes_checkpoints(const fm_run_control *c)
 {
-    if (every > 0 && frames - clock->last_frames >= every) return 1;
-    return seconds > 0 && fm_seconds() - clock->last_time >= seconds;
+    return c->checkpoint_path || c->checkpoint;
+}
+
+static int checkpoint_due(const fm_run_control *c, const checkpoint_clock *clock, int64_t frames)
+{
+    if (c->checkpoint_every > 0 && frames - clock->last_frames >= c->checkpoint_every) return 1;
+    return c->checkpoint_seconds > 0 && fm_seconds() - clock->last_time >= c->checkpoint_seconds;
 }
 
 static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, const fm_loop_times *times,
                             fm_error *err)
 {
+    const fm_run_control *c = loop->control;
     fm_status st = loop->cache ? fm_cache_writer_flush(loop->cache, err) : FM_OK;
-    if (st == FM_OK && loop->checkpoint) st = loop->checkpoint(loop->sim, times, err);
+    if (st == FM_OK && c->checkpoint_path) st = loop->save(loop->sim, times, c->checkpoint_path, err);
+    if (st == FM_OK && c->checkpoint) st = c->checkpoint(times->frames, c->checkpoint_user, err);
     clock->last_frames = times->frames, clock->last_time = fm_seconds();
     return st;
 }
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err)
 {
-    *times = (fm_loop_times){loop->resume_frames, 0, 0};
+    const fm_run_control *c = loop->control;
+    *times = loop->resumed;
     checkpoint_clock clock = {times->frames, fm_seconds()};
     fm_status st = FM_OK;
-    if (!loop->resume_frames) {
+    if (!loop->resumed.frames) {
         double t0 = fm_seconds();
         st = loop->frame(loop->sim, 0, err);
         times->output_seconds += fm_seconds() - t0;
         times->frames = 1;
     }
     while (st == FM_OK && !loop->finished(loop->sim) && times->frames < loop->frame_limit) {
-        if (loop->stop && *loop->stop) {
-            st = checkpoint(loop, &clock, times, err);
+        if (c->stop && *c->stop) {
+            st = checkpoint(loop, &clock, times, err); /* the cache flushed at least */
             return st == FM_OK ? FM_STOPPED : st;
         }
-        if (loop->checkpoint && checkpoint_due(loop->checkpoint_every, loop->checkpoint_seconds, &clock, times->frames) &&
+        if (takes_checkpoints(c) && checkpoint_due(c, &clock, times->frames) &&
             (st = checkpoint(loop, &clock, times, err)) != FM_OK)
             break;
         double t0 = fm_seconds();

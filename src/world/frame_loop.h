@@ -1,20 +1,20 @@
-/* The frame loop of both modes (fm_morph_run, morph_run.c; fm_flock_run, flock_run.c): frame 0 is the state
- * before any step; then each frame takes steps_per_frame steps (fewer for the last one if the simulation
- * finishes inside it) and is written, until the simulation finishes or frame_limit frames are
- * written. The loop measures the time spent stepping and writing. At every frame boundary it reads
- * a stop flag (a checkpoint, then FM_STOPPED) and takes the checkpoints that are due; a resumed run
- * continues after the frames it had written. */
+/* The frame loop of both modes (fm_morph_run, morph_run.c; fm_flock_run, flock_run.c): frame 0 is
+ * the state before any step; then each frame takes steps_per_frame steps (fewer for the last one if
+ * the simulation finishes inside it) and is written, until the simulation finishes or frame_limit
+ * frames are written. The loop measures the time spent stepping and writing. At every frame
+ * boundary it reads the control's stop flag (a checkpoint, then FM_STOPPED) and takes the
+ * checkpoints that are due: the cache flushed, the mode's checkpoint saved to the control's path,
+ * the control's hook called. A resumed run continues after the frames it had written. */
 #ifndef FM_FRAME_LOOP_H
 #define FM_FRAME_LOOP_H
 
 #include "fm_internal.h"
 
-#include <signal.h>
-
+/* The run's totals, earlier sessions of a resumed run included. */
 typedef struct fm_loop_times {
-    int64_t frames;          /* frames written (the resumed run's earlier ones included) */
-    double simulate_seconds; /* in step(), this session */
-    double output_seconds;   /* in frame(), this session */
+    int64_t frames;          /* frames written */
+    double simulate_seconds; /* in step() */
+    double output_seconds;   /* in frame() */
 } fm_loop_times;
 
 typedef struct fm_frame_loop {
@@ -22,17 +22,18 @@ typedef struct fm_frame_loop {
     void (*step)(void *sim);
     int (*finished)(const void *sim);                           /* checked before every step */
     fm_status (*frame)(void *sim, int64_t frame, fm_error *err); /* computes and writes frame `frame` */
+    /* Saves the mode's checkpoint to `path` with the run's totals so far. */
+    fm_status (*save)(void *sim, const fm_loop_times *times, const char *path, fm_error *err);
     int32_t steps_per_frame;
     int32_t frame_limit;
-    volatile sig_atomic_t *stop;  /* may be NULL; non-zero: checkpoint and FM_STOPPED after the frame being written */
-    int64_t resume_frames;        /* 0: a new run, frame 0 first; F > 0: frames 0 .. F-1 were written before */
-    fm_status (*checkpoint)(void *sim, const fm_loop_times *times, fm_error *err); /* NULL: none */
-    int64_t checkpoint_every;     /* frames between checkpoints; 0: not by count */
-    double checkpoint_seconds;    /* wall time between checkpoints; 0: not by time */
-    fm_cache_writer *cache;       /* may be NULL; flushed before every checkpoint (and on a stop), so
-                                     the cache on disk holds the frames the checkpoint counts */
+    const fm_run_control *control; /* stop flag, checkpoints and resume (run.h) */
+    fm_loop_times resumed;         /* a resumed run's totals (frames > 0); zero for a new run, which
+                                      writes frame 0 first */
+    fm_cache_writer *cache;        /* may be NULL; flushed before every checkpoint (and on a stop), so
+                                      the cache on disk holds the frames the checkpoint counts */
 } fm_frame_loop;
 
+/* Runs the loop; *times gets the run's totals. */
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err);
 
 #endif

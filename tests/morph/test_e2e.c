@@ -114,8 +114,8 @@ static void test_launch_and_hand_out_orders(void)
     int64_t n = fm_morph_model_get_info(model).agents, *targets = malloc(sizeof(int64_t) * (size_t)n);
     uint8_t *seen = malloc((size_t)n);
     int ok_launch = 1, ok_slots = 1;
-    while (!fm_morph_get_info(s).all_arrived && fm_morph_get_info(s).step < 5000) {
-        double t_before = fm_morph_get_info(s).time;
+    while (!fm_morph_get_info(s).all_arrived && fm_morph_get_info(s).run.step < 5000) {
+        double t_before = fm_morph_get_info(s).run.time;
         fm_morph_step(model, s);
         fm_morph_info info = fm_morph_get_info(s);
         fm_morph_targets(s, targets);
@@ -128,7 +128,7 @@ static void test_launch_and_hand_out_orders(void)
                 handed++;
             }
         for (int64_t k = 0; k < handed; k++) ok_slots &= seen[k];
-        ok_launch &= info.count[FM_PHASE_WAITING] == n - (int64_t)fmin((double)n, floor(3000.0 * t_before) + 1);
+        ok_launch &= info.run.count[FM_PHASE_WAITING] == n - (int64_t)fmin((double)n, floor(3000.0 * t_before) + 1);
     }
     ENSURE(fm_morph_get_info(s).all_arrived);
     ENSURE(ok_slots);

@@ -1,0 +1,108 @@
+/* flockmorph's shape-constrained flock (SCF; scene "mode": "shape_flock", docs/shape-flock.md):
+ * n point agents start on samples of the source surface, each is given a sample of the target
+ * surface as its destination,
+ * and they fly there as boids along the global path, homing through a Kalman filter and weighted by
+ * fuzzy curves, then bind to (or float around) their destinations, which follow the target when it
+ * deforms. The same model/state split as the tetra morph: the model is immutable, the state holds
+ * the agent store. Agents use fm_phase: FM_PHASE_FLYING under forces, FM_PHASE_HOMING in the stepped
+ * approach, FM_PHASE_ARRIVED bound or floating. */
+#ifndef FLOCKMORPH_FLOCK_H
+#define FLOCKMORPH_FLOCK_H
+
+#include "flockmorph/cache.h"
+#include "flockmorph/run.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct fm_flock_model fm_flock_model;
+typedef struct fm_flock_state fm_flock_state;
+
+/* Requires def->mode == FM_MODE_SHAPE_FLOCK and def->n > 0. */
+fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
+                                     fm_error *err);
+void fm_flock_model_destroy(fm_flock_model *model);
+
+typedef struct fm_flock_model_info {
+    int64_t agents;
+    double source_center[3];   /* O1: the mean of the source samples */
+    double target_center[3];   /* O2: the mean of the target samples (at time 0) */
+    double path_length;        /* of the B-spline from O1 to O2 */
+    double path_time;          /* seconds the leaders take along their paths */
+    double time_step;
+    int32_t steps_per_frame;
+    double max_radius;         /* the largest perception radius: the neighbour grid's cell */
+    int deforming;             /* the target moves (fm_deform_kind != NONE) */
+} fm_flock_model_info;
+
+fm_flock_model_info fm_flock_model_get_info(const fm_flock_model *model);
+
+/* Every agent's start C1 and its destination C2 at time 0, 3 floats per agent (either may be NULL). */
+void fm_flock_model_endpoints(const fm_flock_model *model, float *c1, float *c2);
+
+/* threads <= 0 uses OpenMP's default. Results do not depend on the thread count. */
+fm_flock_state *fm_flock_state_create(const fm_flock_model *model, int threads, fm_error *err);
+void fm_flock_state_destroy(fm_flock_state *state);
+
+void fm_flock_step(const fm_flock_model *model, fm_flock_state *state);
+
+/* The step, the time and the agents per fm_phase. */
+fm_run_info fm_flock_get_info(const fm_flock_state *state);
+
+/* The current frame, agents in id order; any output may be NULL. position and velocity: 3 floats
+ * per agent; orientation: 4 floats (w x y z), the frame with x along the velocity and z toward world
+ * +Z (kept while the agent is at rest); phase: one fm_phase byte. */
+void fm_flock_frame(const fm_flock_state *state, float *position, float *velocity, float *orientation,
+                    uint8_t *phase);
+
+/* The current destinations, 3 floats per agent. */
+void fm_flock_destinations(const fm_flock_state *state, float *out);
+
+/* Mean and largest distance of the agents to their current destinations. */
+void fm_flock_distance(const fm_flock_state *state, double *mean, double *max);
+
+/* A cache with the flock's attributes: position, velocity, orientation and phase. */
+fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *model,
+                                       const fm_cache_options *opts, fm_error *err);
+
+typedef struct fm_flock_run_stats {
+    int64_t frames;                 /* frames written, frame 0 included */
+    int64_t steps;
+    double simulate_seconds;        /* time spent in fm_flock_step */
+    double output_seconds;          /* time spent computing and writing frames */
+    int all_bound;                  /* every agent bound or floating at its destination */
+    int stopped_at_frame_limit;
+    double final_mean_distance;     /* to the destination, at the last frame */
+    double final_max_distance;
+    double bound_fraction;          /* agents in FM_PHASE_ARRIVED at the last frame */
+    double tracking_lag;            /* deforming target: mean distance to the moving destination over
+                                       the frames after path_time; NaN for a static target */
+    int64_t tracking_frames;        /* frames that mean is taken over */
+} fm_flock_run_stats;
+
+
+/* Steps until every agent is bound (static targets only) or def.frame_limit frames are written,
+ * writing each frame to `cache` (from fm_flock_cache_create; may be NULL). */
+fm_status fm_flock_run(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
+                       fm_run_progress_fn progress, void *user, fm_flock_run_stats *stats, fm_error *err);
+
+/* fm_flock_run with checkpoints, a stop flag and resume: the cache of a run stopped and resumed any
+ * number of times is bitwise that of an uninterrupted run, and so are its stats (timings aside). */
+fm_status fm_flock_run_controlled(const fm_flock_model *model, fm_flock_state *state, fm_cache_writer *cache,
+                                  const fm_run_control *control, fm_flock_run_stats *stats, fm_error *err);
+
+/* The shape flock's checkpoint: the same file as fm_morph_checkpoint_save's (docs/resume.md) with the
+ * flock's store and statistics. fm_checkpoint_check serves both modes. */
+fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *model, const fm_flock_state *state,
+                                   const fm_flock_run_stats *stats, fm_error *err);
+/* Restores it into `state` (fresh from fm_flock_state_create for `model`) and `stats`, after the
+ * checks of fm_checkpoint_check and a check that `model` is the one it was written from. */
+fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *model, fm_flock_state *state,
+                                   fm_flock_run_stats *stats, fm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FLOCKMORPH_FLOCK_H */

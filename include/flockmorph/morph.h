@@ -1,0 +1,129 @@
+/* flockmorph's tetra flock morph (FM; scene "mode": "tetra_morph", the default). The flow follows
+ * MuJoCo's model/data split:
+ *   fm_scene_def      parameters (scene.h)
+ *   fm_morph_model    everything immutable after preprocessing: tets, orders, path, bounding sphere
+ *   fm_morph_state    everything the step mutates: the agent store, the clock, counters
+ *   fm_morph_step(model, state) advances one time step; fm_morph_tet_vertices() gives a frame, and
+ *   fm_morph_run() steps and writes every frame to a cache (cache.h) under one fm_run_control (run.h). */
+#ifndef FLOCKMORPH_MORPH_H
+#define FLOCKMORPH_MORPH_H
+
+#include "flockmorph/cache.h"
+#include "flockmorph/run.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct fm_morph_model fm_morph_model;
+
+
+fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user,
+                         fm_error *err);
+void fm_morph_model_destroy(fm_morph_model *model);
+
+typedef struct fm_morph_model_info {
+    int64_t agents;             /* n */
+    int64_t source_tets;        /* n1: TetGen's count before subdivision */
+    int64_t target_tets;        /* n2 */
+    double source_volume;       /* total volume of the source tets after subdivision */
+    double target_volume;
+    double source_centroid[3];  /* C_S */
+    double target_centroid[3];  /* C_T */
+    double sphere_center[3];    /* exact minimal bounding sphere of the target (phase switch) */
+    double sphere_radius;
+    int32_t key_points;         /* m + 2 key points Q_0..Q_{m+1} */
+    double time_step;           /* seconds per step */
+    int32_t steps_per_frame;
+    double launch_rate;         /* agents per second, after the default is applied */
+} fm_morph_model_info;
+
+fm_morph_model_info fm_morph_model_get_info(const fm_morph_model *model);
+
+/* Input the engine accepts but the paper does not expect (source and target overlapping, FM §4),
+ * one message per warning, naming the scene file and key. The CLI prints them and lists them in
+ * stats.json "warnings". */
+int fm_morph_model_warning_count(const fm_morph_model *model);
+const char *fm_morph_model_warning(const fm_morph_model *model, int i);
+
+/* Target tet j's four vertices (12 floats, x y z per vertex) in world units. */
+const float *fm_morph_model_target_tet(const fm_morph_model *model, int64_t j);
+
+typedef struct fm_morph_state fm_morph_state;
+
+/* threads <= 0 uses OpenMP's default. Results do not depend on the thread count. */
+fm_morph_state *fm_morph_state_create(const fm_morph_model *model, int threads, fm_error *err);
+void fm_morph_state_destroy(fm_morph_state *state);
+
+void fm_morph_step(const fm_morph_model *model, fm_morph_state *state);
+
+typedef struct fm_morph_info {
+    fm_run_info run;           /* step, time, agents per fm_phase */
+    int all_arrived;
+    int64_t morph_fallbacks;   /* agents whose correspondence needed the safe A(t) form */
+    int64_t flying_agent_steps;/* phase-1 agent-steps so far ... */
+    int64_t mde_agent_steps;   /* ... and those among them that MDE pushed (FM §5.4) */
+    double min_obstacle_clearance; /* smallest d_t - R_X seen in phase 1; +inf without obstacles */
+} fm_morph_info;
+
+fm_morph_info fm_morph_get_info(const fm_morph_state *state);
+
+/* Writes every agent's tet, 12 floats per agent (4 vertices × xyz), agents in id order.
+ * Computes the morph (FM §6) for agents in phase 2. */
+void fm_morph_tet_vertices(const fm_morph_model *model, const fm_morph_state *state, float *out);
+
+/* Target tet index each agent holds (-1 while it has none), agents in id order. */
+void fm_morph_targets(const fm_morph_state *state, int64_t *out);
+
+/* Each agent's fm_phase (one byte per agent), agents in id order. */
+void fm_morph_phases(const fm_morph_state *state, uint8_t *out);
+
+typedef struct fm_morph_run_stats {
+    int64_t frames;                 /* frames written, frame 0 (the rest state) included */
+    int64_t steps;
+    double simulate_seconds;        /* time spent in fm_morph_step */
+    double output_seconds;          /* time spent computing and writing frames */
+    int all_arrived;
+    int stopped_at_frame_limit;
+    int64_t inverted_tet_frames;    /* tet-frames with signed volume <= 0 */
+    double final_max_vertex_error;  /* last frame vs the target tets (ground truth, double) */
+    int target_tets_filled_once;    /* every target tet taken by exactly one agent */
+    int64_t morph_fallbacks;
+    double *mde_fraction;           /* per frame after frame 0: MDE agent-steps / phase-1 agent-steps,
+                                       NaN for frames with nobody in phase 1; free with fm_morph_run_stats_free */
+    double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */
+    double min_obstacle_clearance;  /* smallest d_t - R_X in phase 1; +inf without obstacles */
+} fm_morph_run_stats;
+
+void fm_morph_run_stats_free(fm_morph_run_stats *stats);
+
+/* Steps until every agent has arrived or def.frame_limit frames are written, writing each frame
+ * to `cache` (may be NULL) and measuring the run. */
+fm_status fm_morph_run(const fm_morph_model *model, fm_morph_state *state, fm_cache_writer *cache,
+                 fm_run_progress_fn progress, void *user, fm_morph_run_stats *stats, fm_error *err);
+
+/* fm_morph_run with checkpoints, a stop flag and resume. The cache and stats of a run stopped and resumed
+ * any number of times are bitwise those of an uninterrupted run (timings aside). */
+fm_status fm_morph_run_controlled(const fm_morph_model *model, fm_morph_state *state, fm_cache_writer *cache,
+                            const fm_run_control *control, fm_morph_run_stats *stats, fm_error *err);
+
+/* Writes the run's state and statistics after stats->frames frames to `path` (as PATH.partial,
+ * fsync'ed, then renamed): docs/resume.md describes the file. */
+fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *model, const fm_morph_state *state,
+                             const fm_morph_run_stats *stats, fm_error *err);
+
+/* Restores a checkpoint into `state` (fresh from fm_morph_state_create for `model`) and `stats` (free
+ * them with fm_morph_run_stats_free), after the checks of fm_checkpoint_check and a check that `model`
+ * is the one it was written from (same tets after TetGen and subdivision, same obstacles). On
+ * failure state is unusable and stats hold nothing to free. */
+fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *model, fm_morph_state *state, fm_morph_run_stats *stats,
+                             fm_error *err);
+
+/* Number of tets (n × 12 floats) with signed volume <= 0. */
+int64_t fm_count_inverted_tets(const float *verts, size_t n);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FLOCKMORPH_MORPH_H */

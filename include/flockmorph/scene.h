@@ -1,0 +1,211 @@
+/* flockmorph scenes: every parameter of a run (fm_scene_def, docs/scene.md), read from a JSON
+ * scene file or built in code, and validated once. */
+#ifndef FLOCKMORPH_SCENE_H
+#define FLOCKMORPH_SCENE_H
+
+#include "flockmorph/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define FM_PATH_MAX 4096
+#define FM_MAX_PATH_POINTS 256
+
+typedef enum fm_curve { FM_CURVE_POLYLINE = 0, FM_CURVE_CATMULL_ROM = 1 } fm_curve;
+
+/* A mesh placed in the world: x_world = R(rotate_deg) * (scale * x_file) + translate.
+ * Rotations are applied about X, then Y, then Z, in degrees. */
+typedef struct fm_mesh_ref {
+    char path[FM_PATH_MAX];
+    double translate[3];
+    double scale;
+    double rotate_deg[3];
+} fm_mesh_ref;
+
+#define FM_MAX_FIELDS 8
+#define FM_MAX_OBSTACLES 16
+
+typedef enum fm_field_kind {
+    FM_FIELD_CURL_NOISE = 0, /* FM eq 5: curl of three Perlin potentials */
+    FM_FIELD_WIND = 1,       /* mean wind plus time-varying curl-noise turbulence */
+    FM_FIELD_GRAVITY = 2,    /* a constant velocity along `direction` */
+    FM_FIELD_VORTEX = 3      /* SCF eqs 7-8: strength * (axis x (x - center)) */
+} fm_field_kind;
+
+/* One style field (FM §5.2). V_l is the sum of the scene's fields; V_grn = omega1 V_g + omega2 V_l
+ * (FM eq 6). Each field is a function of position and time. */
+typedef struct fm_field_def {
+    fm_field_kind kind;
+    double gain;          /* curl noise: magnitude of the potentials P (FM eq 5), units^2/s */
+    double scale;         /* curl noise and wind turbulence: noise length scale, units */
+    double direction[3];  /* wind: mean direction; gravity: direction (any length; normalised) */
+    double speed;         /* wind: WindSpeed; gravity: its speed; units/s */
+    double turbulence;    /* wind: magnitude of the turbulent potentials, units^2/s */
+    double period;        /* wind: seconds for the turbulence to change (0: frozen) */
+    double center[3];     /* vortex: Pos_center (SCF eq 7) */
+    double axis[3];       /* vortex: rotation axis; SCF eq 8 is (0, 1, 0) */
+    double strength;      /* vortex: d of SCF eq 8, 1/s */
+} fm_field_def;
+
+/* A field of the given kind with the documented defaults (docs/scene.md). */
+fm_field_def fm_default_field_def(fm_field_kind kind);
+
+typedef enum fm_phase_switch {
+    FM_SWITCH_SPHERE = 0,   /* FM §5.5: inside the target's minimal bounding sphere */
+    FM_SWITCH_DISTANCE = 1  /* beyond the paper (§8): the target's own signed distance < switch_distance */
+} fm_phase_switch;
+
+/* Which system a scene runs: the tetra flock morph (FM) or the shape-constrained flock (SCF). */
+typedef enum fm_mode { FM_MODE_TETRA_MORPH = 0, FM_MODE_SHAPE_FLOCK = 1 } fm_mode;
+
+#define FM_FUZZY_MAX_POINTS 16
+
+/* A fuzzy weight curve (SCF Figure 6): the weight of one kind of force as a function of the agent's
+ * distance to its destination, piecewise linear through count points (d strictly increasing,
+ * w >= 0) and constant beyond the first and the last, so continuous everywhere. */
+typedef struct fm_fuzzy_def {
+    int32_t count;
+    double d[FM_FUZZY_MAX_POINTS]; /* units */
+    double w[FM_FUZZY_MAX_POINTS];
+} fm_fuzzy_def;
+
+/* The four weight curves, indexing fm_flock_def.fuzzy. */
+typedef enum fm_fuzzy_force {
+    FM_FUZZY_STEERING = 0, FM_FUZZY_HOMING = 1, FM_FUZZY_DAMPING = 2, FM_FUZZY_EXTERNAL = 3, FM_FUZZY_FORCES = 4
+} fm_fuzzy_force;
+
+/* One boids rule (SCF "Basic Steering Behaviors"); every agent draws its own values uniformly from
+ * these [lo, hi] ranges. */
+typedef struct fm_boid_rule_def {
+    double radius_j[2];  /* J of SCF eq 6: the perception radius is r = J / sqrt(N) */
+    double angle_deg[2]; /* perception angle: full opening of the cone around the heading, (0, 360] */
+    double weight[2];
+} fm_boid_rule_def;
+
+typedef enum fm_flock_sampling {
+    FM_FLOCK_SAMPLE_RANDOM = 0, FM_FLOCK_SAMPLE_MOSAIC = 1, FM_FLOCK_SAMPLE_STRATIFIED = 2
+} fm_flock_sampling;
+typedef enum fm_flock_match { FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1 } fm_flock_match;
+/* The mosaic's dis_ij (SCF eqs 1-2): it both selects the neighbours and enters E_ij. */
+typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN = 1 } fm_mosaic_distance;
+typedef enum fm_flock_arrival { FM_ARRIVAL_BIND = 0, FM_ARRIVAL_FLOAT = 1 } fm_flock_arrival;
+typedef enum fm_deform_kind {
+    FM_DEFORM_NONE = 0,     /* a static target */
+    FM_DEFORM_WAVE = 1,     /* procedural: vertices move along their normals, a travelling sine wave */
+    FM_DEFORM_PULSE = 2,    /* procedural: the target scales about its centre, breathing */
+    FM_DEFORM_SEQUENCE = 3  /* a sequence of meshes with the target's connectivity */
+} fm_deform_kind;
+
+/* The shape-constrained flock's parameters (SCF; docs/shape-flock.md, docs/scene.md "shape_flock"). */
+typedef struct fm_flock_def {
+    fm_flock_sampling sampling;  /* how the source and target surfaces are sampled */
+    fm_flock_match match;        /* agent-to-destination correspondence */
+    /* surface mosaic sampling (docs/sampling.md; M the surface area, N = n) */
+    int32_t mosaic_iterations;   /* eq 5 applications; 0 keeps the random start */
+    fm_mosaic_distance mosaic_distance;
+    double mosaic_k;             /* eq 1: neighbourhood A = k sqrt(M/N) */
+    double mosaic_w;             /* eq 3: sigma = w sqrt(M/N) */
+    double mosaic_step;          /* eq 5's delta t in units of sqrt(M/N) */
+    /* stratified sampling */
+    double stratified_lambda;    /* the density lambda e^(-lambda d), d in voxel edges */
+    double stratified_oversample;/* occupied voxels per sample before minimum-distance elimination, >= 1 */
+    double mass;                 /* m of eq 9; every force is divided by it */
+    double max_speed[2];         /* MaxSpeed range, units/s */
+    double max_force[2];         /* MaxForce range (bounds the boids steering force), units/s^2 * mass */
+    fm_boid_rule_def separation, cohesion, alignment;
+    double kalman_q;             /* spectral density of Q's acceleration noise, units^2/s^3 */
+    double kalman_r_position;    /* R's position variance, units^2 (> 0) */
+    double kalman_r_velocity;    /* R's velocity variance, units^2/s^2 (> 0) */
+    fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];
+    double damping;              /* c of the damping force -m c (v - v_destination), 1/s */
+    double external_gain;        /* acceleration per unit of style-field velocity, 1/s */
+    double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */
+    double arrival_radius;       /* stepped steering within this distance of the destination; 0 = off */
+    double arrival_time;         /* time constant of the stepped approach, s */
+    double turn_rate_deg;        /* largest turn of the stepped approach, degrees/s */
+    double bind_distance;        /* arrival: bind (or start floating) within this distance, units */
+    fm_flock_arrival arrival_mode;
+    double float_amplitude;      /* floating: largest offset from the destination, units */
+    double float_period;         /* floating: seconds per oscillation */
+    fm_deform_kind deform;
+    double deform_amplitude;     /* wave: units along the normal; pulse: relative scale */
+    double deform_period;        /* seconds per cycle */
+    double deform_wavelength;    /* wave: units along deform_direction */
+    double deform_direction[3];  /* wave: the direction it travels */
+    char deform_sequence[FM_PATH_MAX]; /* sequence: printf pattern with one integer, "wave_%03d.obj" */
+    int32_t deform_frames;       /* sequence: meshes 0 .. frames-1 */
+    double deform_frame_rate;    /* sequence: meshes per second; the sequence loops */
+} fm_flock_def;
+
+/* Every parameter of a run; docs/scene.md documents each with its default and unit. */
+typedef struct fm_scene_def {
+    char scene_path[FM_PATH_MAX]; /* where it was read from (for messages); "" if built in code */
+    fm_mode mode;               /* the tetra morph (default) or the shape-constrained flock */
+    fm_mesh_ref source;
+    fm_mesh_ref target;
+    int64_t n;                  /* agents = tets after subdivision; 0 = max(n1, n2) (FM §4) */
+    double tet_quality;         /* TetGen radius-edge bound (-q), default 2.0 */
+    double tet_max_volume;      /* TetGen volume bound (-a), 0 = none */
+    double speed0;              /* base speed, units per second (FM eq 3) */
+    double omega1;              /* weight of the global velocity in V_grn (FM eq 6) */
+    double frame_rate;          /* frames per second of animation time */
+    double time_step;           /* seconds per step; must divide 1/frame_rate; 0 = 1/frame_rate */
+    int32_t frame_limit;        /* stop after this many frames even if agents are still flying */
+    double path_points[FM_MAX_PATH_POINTS][3]; /* user control points between C_S and C_T */
+    int32_t path_point_count;
+    int32_t path_key_points;    /* m: key points sampled on the curve (FM eq 3) */
+    fm_curve path_curve;
+    double launch_rate;         /* agents launched per second in D1 order; 0 = n / 2 s */
+    double shrink;              /* linear scale a tet shrinks to when launched (FM §6: 1/2) */
+    double shrink_time;         /* seconds the launch shrink takes */
+    double morph_fraction;      /* fraction of phase 2 spent on A(t); the rest enlarges */
+    /* style fields (FM §5.2) */
+    double omega2;              /* weight of V_l (FM eq 6) */
+    fm_field_def fields[FM_MAX_FIELDS];
+    int32_t field_count;
+    int32_t field_grid[3];      /* bake fields on this grid over the scene bounds; 0 = evaluate directly */
+    /* obstacles (FM §5.3) */
+    fm_mesh_ref obstacles[FM_MAX_OBSTACLES];
+    int32_t obstacle_count;
+    double k_a;                 /* influence range of eq 7, units */
+    double obstacle_voxel;      /* signed-distance voxel size, units; 0 = automatic */
+    int32_t avoid_in_phase2;    /* beyond the paper (§8): obstacle avoidance also in phase 2 */
+    /* local avoidance, MDE (FM §5.4) */
+    double d_min;               /* minimum distance between tet centroids, units; 0 = off */
+    double mde_speed;           /* push speed of a pair at zero distance, units/s; 0 = speed0 */
+    /* path width (FM §5.1) */
+    double path_width;          /* agents farther than width/2 from the path are pulled back; 0 = off */
+    double path_attraction;     /* pull speed per unit of distance outside the width, 1/s */
+    /* phase switch */
+    fm_phase_switch phase_switch;
+    double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
+    uint64_t seed;              /* random seed */
+    int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
+    int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */
+    int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
+    double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
+    char cache_name[256];       /* file name of the cache inside the output directory */
+    fm_flock_def flock;         /* mode FM_MODE_SHAPE_FLOCK only */
+} fm_scene_def;
+
+fm_scene_def fm_default_scene_def(void);
+
+/* Reads and validates a JSON scene file. Relative mesh paths are resolved against the scene
+ * file's directory. Unknown keys, wrong types and out-of-range values fail with
+ * "FILE:LINE:COLUMN: ..." in err->message. */
+fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err);
+
+/* The same from a scene text in memory (len bytes, no NUL needed). `name` stands for the file in
+ * messages and relative mesh paths are resolved against its directory. */
+fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def,
+                         fm_error *err);
+
+/* Checks a definition built in code (fm_scene_load calls it too). */
+fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FLOCKMORPH_SCENE_H */
