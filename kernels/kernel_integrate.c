@@ -12,7 +12,7 @@ int64_t fm_kernel_integrate_flying_ref(float *const p[3], const float *const v[3
     int64_t count = 0;
     for (int64_t a = begin; a < end; a++) {
         entered[a] = 0;
-        if (phase[a] != 1) continue;
+        if (phase[a] != FM_KERNEL_FLYING) continue;
         float x = p[0][a] + v[0][a] * dt, y = p[1][a] + v[1][a] * dt, z = p[2][a] + v[2][a] * dt;
         p[0][a] = x, p[1][a] = y, p[2][a] = z;
         float dx = x - sphere.c[0], dy = y - sphere.c[1], dz = z - sphere.c[2], g[3];
@@ -29,12 +29,8 @@ int64_t fm_kernel_integrate_flying(float *const p[3], const float *const v[3], c
                                    uint8_t *entered)
 {
     if (!target_sdf) { /* the sphere test vectorises; the distance switch samples a grid per agent */
-        switch (fm_simd_level()) {
-        case FM_SIMD_AVX512: return fm_integrate_sphere_avx512(p, v, phase, begin, end, dt, sphere, entered);
-        case FM_SIMD_AVX2: return fm_integrate_sphere_avx2(p, v, phase, begin, end, dt, sphere, entered);
-        case FM_SIMD_SSE2: return fm_integrate_sphere_base(p, v, phase, begin, end, dt, sphere, entered);
-        default: break;
-        }
+        fm_integrate_sphere_fn *variant = FM_SIMD_PICK(fm_integrate_sphere);
+        if (variant) return variant(p, v, phase, begin, end, dt, sphere, entered);
     }
     return fm_kernel_integrate_flying_ref(p, v, phase, begin, end, dt, sphere, target_sdf, switch_distance, entered);
 }

@@ -22,7 +22,7 @@ int64_t FM_SIMD_VARIANT(fm_integrate_sphere)(float *const p[3], const float *con
     const fv vr2 = fv_set1(r2);
     int64_t count = 0, a = begin;
     for (; a + FM_W <= end; a += FM_W) {
-        const unsigned flying = byte_lanes_equal(phase + a, 1);
+        const unsigned flying = byte_lanes_equal(phase + a, FM_KERNEL_FLYING);
         memset(entered + a, 0, FM_W);
         if (!flying) continue;
         fv x = fv_add(fv_load(p[0] + a), fv_mul(fv_load(v[0] + a), vdt));
@@ -46,7 +46,7 @@ int64_t FM_SIMD_VARIANT(fm_integrate_sphere)(float *const p[3], const float *con
     }
     for (; a < end; a++) { /* the tail */
         entered[a] = 0;
-        if (phase[a] != 1) continue;
+        if (phase[a] != FM_KERNEL_FLYING) continue;
         if (integrate_one(p, v, a, dt, sphere, r2)) entered[a] = 1, count++;
     }
     return count;

@@ -7,7 +7,7 @@ void fm_kernel_global_velocity_ref(const fm_path_view *path, const float *const 
                                    int64_t begin, int64_t end, float speed, float *const v[3])
 {
     for (int64_t a = begin; a < end; a++) {
-        if (phase[a] != 1) continue;
+        if (phase[a] != FM_KERNEL_FLYING) continue;
         int32_t i = path_nearest_key(path, p[0][a], p[1][a], p[2][a]);
         path_velocity(path, i, speed, p, v, a);
     }
@@ -16,10 +16,6 @@ void fm_kernel_global_velocity_ref(const fm_path_view *path, const float *const 
 void fm_kernel_global_velocity(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
                                int64_t begin, int64_t end, float speed, float *const v[3])
 {
-    switch (fm_simd_level()) {
-    case FM_SIMD_AVX512: fm_kernel_global_velocity_avx512(path, p, phase, begin, end, speed, v); break;
-    case FM_SIMD_AVX2: fm_kernel_global_velocity_avx2(path, p, phase, begin, end, speed, v); break;
-    case FM_SIMD_SSE2: fm_kernel_global_velocity_base(path, p, phase, begin, end, speed, v); break;
-    default: fm_kernel_global_velocity_ref(path, p, phase, begin, end, speed, v);
-    }
+    fm_global_velocity_fn *variant = FM_SIMD_PICK(fm_kernel_global_velocity);
+    (variant ? variant : fm_kernel_global_velocity_ref)(path, p, phase, begin, end, speed, v);
 }

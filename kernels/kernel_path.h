@@ -3,6 +3,7 @@
 #define FM_KERNEL_PATH_H
 
 #include "kernels.h"
+#include "simd.h"
 
 #include <math.h>
 
@@ -53,11 +54,9 @@ static inline int32_t path_nearest_key(const fm_path_view *path, float x, float 
     return best;
 }
 
-void fm_kernel_global_velocity_base(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
-                                    int64_t begin, int64_t end, float speed, float *const v[3]);
-void fm_kernel_global_velocity_avx2(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
-                                    int64_t begin, int64_t end, float speed, float *const v[3]);
-void fm_kernel_global_velocity_avx512(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
-                                      int64_t begin, int64_t end, float speed, float *const v[3]);
+/* The SIMD variants (kernel_path_simd.c). */
+typedef void fm_global_velocity_fn(const fm_path_view *path, const float *const p[3], const uint8_t *phase,
+                                   int64_t begin, int64_t end, float speed, float *const v[3]);
+FM_SIMD_DECLARE(fm_global_velocity_fn, fm_kernel_global_velocity);
 
 #endif

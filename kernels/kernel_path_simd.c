@@ -48,7 +48,7 @@ void FM_SIMD_VARIANT(fm_kernel_global_velocity)(const fm_path_view *path, const 
 {
     int64_t a = begin;
     for (; a + FM_W <= end; a += FM_W) {
-        unsigned flying = byte_lanes_equal(phase + a, 1);
+        unsigned flying = byte_lanes_equal(phase + a, FM_KERNEL_FLYING);
         if (!flying) continue;
         const iv best_i = nearest_keys(path, p, a);
         if (path->half_width > 0) { /* the path-width pull: per agent, as the reference */
@@ -61,5 +61,5 @@ void FM_SIMD_VARIANT(fm_kernel_global_velocity)(const fm_path_view *path, const 
         }
     }
     for (; a < end; a++) /* the tail */
-        if (phase[a] == 1) path_velocity(path, path_nearest_key(path, p[0][a], p[1][a], p[2][a]), speed, p, v, a);
+        if (phase[a] == FM_KERNEL_FLYING) path_velocity(path, path_nearest_key(path, p[0][a], p[1][a], p[2][a]), speed, p, v, a);
 }

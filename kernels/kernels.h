@@ -8,6 +8,10 @@
 
 #include <stdint.h>
 
+/* The phases the kernels act on. The kernels include no engine header, so they name the phases
+ * here; the engine checks them against its own fm_phase (morph_step.c, _Static_assert). */
+enum fm_kernel_phase { FM_KERNEL_FLYING = 1, FM_KERNEL_HOMING = 2, FM_KERNEL_ARRIVED = 3 };
+
 /* Key points Q_i and unit directions f_i of the global path (FM eq 3), SoA. */
 typedef struct fm_path_view {
     const float *q[3];

@@ -1,10 +1,10 @@
 /* One small wide-vector layer for the kernels: FM_W float lanes of the widest instruction set this
  * translation unit is compiled for (AVX-512: 16, AVX2: 8, SSE2: 4, otherwise 1).
  *
- * A kernel with a SIMD body is compiled three times: kernels/<name>.c for the baseline (SSE2 on
- * x86-64), kernels/<name>_avx2.c and kernels/<name>_avx512.c, which only include it again under
- * -mavx2 and -mavx512f -mavx512dq (CMakeLists.txt). Its entry point picks the variant at run time
- * (fm_simd_level(), from cpuid, overridable with the environment variable
+ * A kernel with a SIMD body (kernels/<name>_simd.c) is compiled three times: as it is for the
+ * baseline (SSE2 on x86-64), and in the copies <name>_simd_avx2.c and <name>_simd_avx512.c that
+ * CMakeLists.txt generates, which only include it again under -mavx2 and -mavx512f -mavx512dq. Its
+ * entry point picks the variant at run time with FM_SIMD_PICK (fm_simd_level(), from cpuid, overridable with the environment variable
  * FM_SIMD=scalar|sse2|avx2|avx512 or fm_simd_set_level). Every kernel keeps a scalar
  * reference twin (the _ref functions) that the tests compare with: the vector bodies use the same
  * IEEE operations in the same order (no FMA contraction: -ffp-contract=off), so they match it bit
@@ -160,6 +160,16 @@ static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { retur
 /* Names a SIMD variant of a kernel: <name>_avx512 and <name>_avx2 in the -mavx512f and -mavx2
  * copies (whose wrappers define FM_SIMD_AVX512_COPY or FM_SIMD_AVX2_COPY), <name>_base in the
  * baseline one (SSE2 on x86-64, wider with FM_NATIVE). */
+/* Declares the three variants of a kernel whose function type is `type`. */
+#define FM_SIMD_DECLARE(type, name) type name##_base, name##_avx2, name##_avx512
+
+/* The variant of kernel `name` for the level the kernels use (fm_simd_level()); NULL at the scalar
+ * level, where the caller runs the kernel's reference twin. The one dispatch of every kernel. */
+#define FM_SIMD_PICK(name)                                                                     \
+    (fm_simd_level() == FM_SIMD_AVX512 ? name##_avx512                                          \
+     : fm_simd_level() == FM_SIMD_AVX2 ? name##_avx2                                            \
+     : fm_simd_level() == FM_SIMD_SSE2 ? name##_base : NULL)
+
 #if defined(FM_SIMD_AVX512_COPY)
 #define FM_SIMD_VARIANT(name) name##_avx512
 #elif defined(FM_SIMD_AVX2_COPY)

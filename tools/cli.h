@@ -24,17 +24,18 @@ int cli_report(const fm_error *err);
 int cli_wants_help(int argc, char **argv);
 /* Parses a whole number in [lo, hi]; -1 if it is not one. */
 int cli_parse_int(const char *s, long lo, long hi, long *out);
+/* Parses a finite number > 0; -1 if it is not one. */
+int cli_parse_positive(const char *s, double *out);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
 
-/* `run`: its options, and the shape flock's half of it (cli_run_flock.c). */
+/* `run`: its options (cli_run.c). */
 typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
     long checkpoint_every; /* -1: by wall time (the default) */
 } cli_run_options;
-int cli_run_flock(const cli_run_options *o, const fm_scene_def *def);
 /* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json, OUTDIR/checkpoint.fmck) and with
  * how many threads. */
 typedef struct cli_outputs {
@@ -64,6 +65,7 @@ typedef struct cli_progress {
     int show;
     int64_t agents;
     double start;
+    const char *const *phase_labels; /* the mode's (cli_mode) */
 } cli_progress;
 /* Preprocessing progress on stderr when *(int *)user (an fm_progress_fn). */
 void cli_prep_progress(const char *stage, double fraction, void *user);
@@ -80,6 +82,30 @@ typedef struct cli_run_record {
 } cli_run_record;
 json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
 double cli_agent_steps_per_second(const cli_run_record *r);
+
+/* One simulation mode as `run` drives it: cli_run.c holds the one run path, and each mode fills a
+ * table (cli_mode_morph.c, cli_mode_flock.c). `run` is the mode's context: `size` bytes, zeroed,
+ * owned by the run path; close() frees what the others made. Each int-returning call gives 0 or an
+ * exit status (after printing the error). */
+typedef struct cli_mode {
+    const char *name;             /* stats.json "mode" */
+    const char *phase_labels[4];  /* the progress line's label of each fm_phase count (NULL: not
+                                     shown); the last, ARRIVED, as a percentage */
+    size_t size;
+    int (*build)(void *run, const fm_scene_def *def, int *show_progress); /* the model, its warnings */
+    /* The state, and a new cache or (--resume) the checkpoint's state and the cache's frames so far. */
+    int (*open)(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *out,
+                fm_cache_writer **cache);
+    int64_t (*agents)(const void *run);
+    fm_status (*simulate)(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err);
+    int64_t (*frames)(const void *run);                /* frames written so far */
+    void (*totals)(const void *run, cli_run_record *r); /* frames, steps, time step, seconds */
+    int (*write_stats)(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record);
+    /* The rest of the summary line ("; ..." and the newline) and any warning that follows it. */
+    void (*summary)(const void *run, const fm_scene_def *def);
+    void (*close)(void *run);
+} cli_mode;
+extern const cli_mode cli_mode_morph, cli_mode_flock;
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

@@ -42,6 +42,15 @@ int cli_wants_help(int argc, char **argv)
     return 0;
 }
 
+int cli_parse_positive(const char *s, double *out)
+{
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v > 0.0) || !isfinite(v)) return -1;
+    *out = v;
+    return 0;
+}
+
 int cli_parse_int(const char *s, long lo, long hi, long *out)
 {
     char *end;

@@ -42,15 +42,6 @@ typedef struct export_options {
     double voxel;
 } export_options;
 
-static int parse_voxel(const char *s, double *out)
-{
-    char *end;
-    double v = strtod(s, &end);
-    if (end == s || *end || !(v > 0) || !isfinite(v)) return -1;
-    *out = v;
-    return 0;
-}
-
 static int parse_option(int argc, char **argv, int *i, export_options *o)
 {
     const char *a = argv[*i], *value = *i + 1 < argc ? argv[*i + 1] : NULL;
@@ -65,7 +56,7 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
             return cli_usage_error(USAGE_EXPORT, "--frame wants a whole number, not '%s'", value);
         o->has_frame = 1;
     } else if (!strcmp(a, "--voxel")) {
-        if (parse_voxel(value, &o->voxel))
+        if (cli_parse_positive(value, &o->voxel))
             return cli_usage_error(USAGE_EXPORT, "--voxel wants a positive size in world units, not '%s'", value);
     } else if (!strcmp(a, "--threads")) {
         if (cli_parse_int(value, 1, 1024, &v))

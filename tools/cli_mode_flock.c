@@ -1,20 +1,12 @@
-/* flockmorph run for a shape-flock scene ("mode": "shape_flock"): sample, simulate, write the cache
- * (position, velocity, orientation, id, phase) and stats.json. */
+/* `run` for a shape-flock scene ("mode": "shape_flock"): sample, simulate, write the cache
+ * (position, velocity, orientation, id, phase) and stats.json (cli_run.c drives it through
+ * cli_mode_flock). */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <unistd.h>
-
-static void frame_progress(const fm_flock_info *info, int64_t frame, void *user)
-{
-    const cli_progress *p = user;
-    if (!p->show) return;
-    fprintf(stderr, "\r\033[K  frame %lld  t = %.2f s  flying %lld  arriving %lld  bound %.1f%%  (%.0f s)", (long long)frame,
-            info->time, (long long)info->count[FM_PHASE_FLYING], (long long)info->count[FM_PHASE_HOMING],
-            100.0 * (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents, cli_seconds() - p->start);
-}
 
 static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : json_null(); }
 
@@ -32,9 +24,19 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
                      f->mass);
 }
 
-static int write_stats(const char *path, const fm_scene_def *def, const fm_flock_model_info *mi,
-                       const fm_flock_run_stats *rs, const cli_run_record *record)
+/* The shape flock's run: the model, the state and the statistics. */
+typedef struct flock_run {
+    fm_flock_model *model;
+    fm_flock_model_info mi;
+    fm_flock_state *state;
+    fm_flock_run_stats rs;
+} flock_run;
+
+static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
 {
+    const flock_run *r = run;
+    const fm_flock_model_info *mi = &r->mi;
+    const fm_flock_run_stats *rs = &r->rs;
     json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "all_bound", json_boolean(rs->all_bound));
     json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));
@@ -47,75 +49,74 @@ static int write_stats(const char *path, const fm_scene_def *def, const fm_flock
     return cli_write_json(path, j);
 }
 
-static fm_status save_checkpoint(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *rs,
-                                 void *path, fm_error *err)
+static int build(void *run, const fm_scene_def *def, int *show)
 {
-    return fm_flock_checkpoint_save(path, m, s, rs, err);
-}
-
-/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
-static int open_run(const cli_run_options *o, const fm_scene_def *def, const fm_flock_model *model,
-                    const cli_outputs *out, fm_flock_state *state, fm_flock_run_stats *rs, fm_cache_writer **cache)
-{
+    flock_run *r = run;
     fm_error err = {0};
-    if (!o->resume) {
-        cli_start_over(out);
-        fm_cache_options copts = cli_cache_options(def);
-        *cache = fm_flock_cache_create(out->cache, model, &copts, &err);
-        return *cache ? 0 : cli_report(&err);
-    }
-    if (fm_flock_checkpoint_load(out->checkpoint, model, state, rs, &err) != FM_OK) return cli_report(&err);
-    *cache = fm_cache_writer_resume(out->cache, (uint32_t)rs->frames, &err);
-    return *cache ? 0 : cli_report(&err);
-}
-
-static int simulate(const cli_run_options *o, const fm_scene_def *def, const fm_flock_model *model, double prep_seconds)
-{
-    fm_error err = {0};
-    fm_flock_model_info mi = fm_flock_model_get_info(model);
-    fm_flock_state *state = fm_flock_state_create(model, o->threads, &err);
-    if (!state) return cli_report(&err);
-    cli_outputs out;
-    cli_run_outputs(o, def, &out);
-    fm_cache_writer *cache = NULL;
-    fm_flock_run_stats rs;
-    int rc = open_run(o, def, model, &out, state, &rs, &cache);
-    if (rc) return fm_flock_state_destroy(state), rc;
-    cli_progress fp = {!o->quiet && isatty(STDERR_FILENO), mi.agents, cli_seconds()};
-    const fm_flock_run_control control = {frame_progress, &fp, &cli_stop_signal, o->resume, save_checkpoint,
-                                          out.checkpoint, cli_checkpoint_every(o), cli_checkpoint_seconds(o)};
-    cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
-    fm_status st = fm_flock_run_controlled(model, state, cache, &control, &rs, &err);
-    cli_catch_stop_signals(0);
-    if (fp.show) fprintf(stderr, "\n");
-    fm_flock_state_destroy(state);
-    if (st == FM_STOPPED) return cli_report_interrupted(o, cache, rs.frames);
-    if (st != FM_OK) return cli_report_failed(o, &out, cache, &err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) return cli_fail_keeping_partial_cache(&err, NULL, out.cache);
-    const cli_run_record record = {"shape_flock", mi.agents, rs.frames, rs.steps, mi.time_step, prep_seconds,
-                                   rs.simulate_seconds, rs.output_seconds, out.threads, out.cache};
-    if ((rc = write_stats(out.stats, def, &mi, &rs, &record))) return rc;
-    cli_remove_checkpoint(&out); /* the run is complete */
-    printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s; bound %.1f%%, distance to destination mean %.3g max %.3g\n",
-           (long long)mi.agents, (long long)rs.frames, (long long)rs.steps, cli_agent_steps_per_second(&record),
-           100 * rs.bound_fraction, rs.final_mean_distance, rs.final_max_distance);
-    if (!mi.deforming && def->flock.arrival_mode == FM_ARRIVAL_BIND && !rs.all_bound)
-        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %.1f%% of the agents not yet bound; "
-                "raise time.frame_limit in the scene\n", def->frame_limit, 100 * (1 - rs.bound_fraction));
-    printf("cache: %s\nstats: %s\n", out.cache, out.stats);
+    r->model = fm_flock_model_build(def, cli_prep_progress, show, &err);
+    if (!r->model) return cli_report(&err);
+    r->mi = fm_flock_model_get_info(r->model);
     return 0;
 }
 
-int cli_run_flock(const cli_run_options *o, const fm_scene_def *def)
+/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
+static int open_run(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *out,
+                    fm_cache_writer **cache)
 {
+    flock_run *r = run;
     fm_error err = {0};
-    int show = !o->quiet && isatty(STDERR_FILENO);
-    double t0 = cli_seconds();
-    fm_flock_model *model = fm_flock_model_build(def, cli_prep_progress, &show, &err);
-    double prep_seconds = cli_seconds() - t0;
-    if (show) fprintf(stderr, "\n");
-    if (!model) return cli_report(&err);
-    int rc = simulate(o, def, model, prep_seconds);
-    fm_flock_model_destroy(model);
-    return rc;
+    if (!(r->state = fm_flock_state_create(r->model, o->threads, &err))) return cli_report(&err);
+    if (!o->resume) {
+        cli_start_over(out);
+        fm_cache_options copts = cli_cache_options(def);
+        *cache = fm_flock_cache_create(out->cache, r->model, &copts, &err);
+        return *cache ? 0 : cli_report(&err);
+    }
+    if (fm_flock_checkpoint_load(out->checkpoint, r->model, r->state, &r->rs, &err) != FM_OK) return cli_report(&err);
+    *cache = fm_cache_writer_resume(out->cache, (uint32_t)r->rs.frames, &err);
+    return *cache ? 0 : cli_report(&err);
 }
+
+static int64_t agents(const void *run)
+{
+    return ((const flock_run *)run)->mi.agents;
+}
+
+static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
+{
+    flock_run *r = run;
+    return fm_flock_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+}
+
+static int64_t frames(const void *run)
+{
+    return ((const flock_run *)run)->rs.frames;
+}
+
+static void totals(const void *run, cli_run_record *record)
+{
+    const flock_run *r = run;
+    record->frames = r->rs.frames, record->steps = r->rs.steps, record->time_step = r->mi.time_step;
+    record->simulate_seconds = r->rs.simulate_seconds, record->output_seconds = r->rs.output_seconds;
+}
+
+static void summary(const void *run, const fm_scene_def *def)
+{
+    const flock_run *r = run;
+    const fm_flock_run_stats *rs = &r->rs;
+    printf("; bound %.1f%%, distance to destination mean %.3g max %.3g\n", 100 * rs->bound_fraction,
+           rs->final_mean_distance, rs->final_max_distance);
+    if (!r->mi.deforming && def->flock.arrival_mode == FM_ARRIVAL_BIND && !rs->all_bound)
+        fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %.1f%% of the agents not yet bound; "
+                "raise time.frame_limit in the scene\n", def->frame_limit, 100 * (1 - rs->bound_fraction));
+}
+
+static void close_run(void *run)
+{
+    flock_run *r = run;
+    fm_flock_state_destroy(r->state);
+    fm_flock_model_destroy(r->model);
+}
+
+const cli_mode cli_mode_flock = {"shape_flock", {NULL, "flying", "arriving", "bound"}, sizeof(flock_run), build,
+                                 open_run, agents, simulate, frames, totals, write_stats, summary, close_run};

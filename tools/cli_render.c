@@ -38,15 +38,6 @@ typedef struct render_args {
     int no_ground;
 } render_args;
 
-static int parse_positive(const char *s, double *out)
-{
-    char *end;
-    double v = strtod(s, &end);
-    if (end == s || *end || !(v > 0.0) || !isfinite(v)) return -1;
-    *out = v;
-    return 0;
-}
-
 static const char *const RENDER_ONLY[] = {"--view", "--frames", "--fps", "--samples", "--radius", "--threads"};
 
 static int is_render_only(const char *opt)
@@ -65,7 +56,7 @@ static int set_render_only(render_args *a, const char *opt, const char *val)
         return cli_usage_error(USAGE_RENDER, "--samples wants a whole number in 1..8, not '%s'", val);
     else if (!strcmp(opt, "--threads") && cli_parse_int(val, 1, 1024, &a->threads))
         return cli_usage_error(USAGE_RENDER, "--threads wants a whole number in 1..1024, not '%s'", val);
-    else if (!strcmp(opt, "--radius") && parse_positive(val, &a->radius))
+    else if (!strcmp(opt, "--radius") && cli_parse_positive(val, &a->radius))
         return cli_usage_error(USAGE_RENDER, "--radius wants a positive number, not '%s'", val);
     return 0;
 }
@@ -225,7 +216,7 @@ static int render_png(frame_source *s, fm_renderer *rr, const render_args *a, un
 static int frames_per_second(const render_args *a, const frame_source *s, double *fps)
 {
     *fps = fm_cache_frame_rate(s->r);
-    if (a->fps && parse_positive(a->fps, fps))
+    if (a->fps && cli_parse_positive(a->fps, fps))
         return cli_usage_error(USAGE_RENDER, "--fps wants a positive number, not '%s'", a->fps);
     if (!(*fps > 0.0 && *fps <= 1000.0)) {
         fprintf(stderr, "flockmorph: error: %g frames per second is outside (0, 1000]; give --fps\n", *fps);

@@ -1,6 +1,7 @@
-/* Preprocessing: meshes in, equal-sized tet sets and their orders out (FM §4, §5.1). */
-#ifndef FM_PREP_H
-#define FM_PREP_H
+/* Geometry: meshes in (assimp), closed-manifold checks, TetGen tetrahedralization and subdivision to
+ * equal-sized tet sets (FM §4). */
+#ifndef FM_GEOM_H
+#define FM_GEOM_H
 
 #include "fm_internal.h"
 
@@ -73,18 +74,5 @@ fm_status fm_subdivide_to(fm_tets *tets, int64_t n, fm_error *err);
 void fm_split_1to4(const double *tet, double *out);
 void fm_split_1to3(const double *tet, double *out);
 void fm_split_1to2(const double *tet, double *out);
-
-/* path.c: key points Q_0..Q_{m+1} from C_S through the control points to C_T (FM §5.1). */
-typedef struct fm_path {
-    double *q;      /* 3 per key point */
-    int32_t count;  /* m + 2 */
-} fm_path;
-fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
-                        fm_path *out, fm_error *err);
-void fm_path_free(fm_path *path);
-
-/* order.c: FM eq 4. order[k] = index of the tet with the k-th smallest key (ties by index). */
-fm_status fm_order_d1(const fm_tets *src, const fm_path *path, int64_t *order, fm_error *err);
-fm_status fm_order_d2(const fm_tets *dst, const fm_path *path, int64_t *order, fm_error *err);
 
 #endif

@@ -3,6 +3,7 @@
 #define FM_MORPH_H
 
 #include "checkpoint.h"
+#include "geom.h"
 #include "fields.h"
 #include "fm_internal.h"
 #include "grid.h"
@@ -140,6 +141,19 @@ static inline void fm_active_block(const fm_morph_state *s, int64_t b, int64_t *
 /* morph_state.c: the table of every member a checkpoint saves (checkpoint.h), in file order. */
 extern const fm_store_member fm_morph_state_members[];
 extern const int fm_morph_state_member_count;
+
+/* morph_path.c: key points Q_0..Q_{m+1} from C_S through the control points to C_T (FM §5.1). */
+typedef struct fm_path {
+    double *q;      /* 3 per key point */
+    int32_t count;  /* m + 2 */
+} fm_path;
+fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
+                        fm_path *out, fm_error *err);
+void fm_path_free(fm_path *path);
+
+/* morph_order.c: FM eq 4. order[k] = index of the tet with the k-th smallest key (ties by index). */
+fm_status fm_order_d1(const fm_tets *src, const fm_path *path, int64_t *order, fm_error *err);
+fm_status fm_order_d2(const fm_tets *dst, const fm_path *path, int64_t *order, fm_error *err);
 
 /* morph_memory.c: the tetra morph's bytes for n agents (docs/limits.md), and the refusal of a run
  * that does not fit (memory.h). */

@@ -1,7 +1,7 @@
 /* Launch and arrival orders (FM eq 4), computed once from the tets' rest centroids.
  *   D1(X)  =  (Q_0 - Q_1) . (x - Q_1)          ascending: the front of the source launches first
  *   D2(X') = -(Q_{m+1} - Q_m) . (x' - Q_m)     ascending: the target fills from its far side */
-#include "geom.h"
+#include "morph.h"
 
 #include <stdlib.h>
 

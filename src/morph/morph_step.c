@@ -24,6 +24,11 @@
 
 #include <math.h>
 
+/* The kernels name the phases themselves (kernels.h); they must be the engine's. */
+_Static_assert((int)FM_KERNEL_FLYING == (int)FM_PHASE_FLYING, "kernel phase FLYING");
+_Static_assert((int)FM_KERNEL_HOMING == (int)FM_PHASE_HOMING, "kernel phase HOMING");
+_Static_assert((int)FM_KERNEL_ARRIVED == (int)FM_PHASE_ARRIVED, "kernel phase ARRIVED");
+
 /* Waiting agents are the slots from active_end on, in id order: launching moves the boundary. */
 static void launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
 {

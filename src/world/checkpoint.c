@@ -3,18 +3,19 @@
  *
  *   header   64 bytes: "FMCHKPT\0", version, member count, scene hash, model hash, agents,
  *            frames written, layout hash, 0
- *   stats    inverted_tet_frames (i64), simulate_seconds, output_seconds (f64), then the MDE
- *            fraction of frames 1 .. frames-1 (f64 each)
- *   members  for each entry of fm_store_members, in order: name length (u32), name, byte count
- *            (u64), the bytes (a per-agent array: agents x element size)
+ *   stats    the scalars of the mode's statistics table, in order (the tetra morph:
+ *            inverted_tet_frames, simulate_seconds, output_seconds), then its per-frame values
+ *            if it has any (the tetra morph's MDE fraction of frames 1 .. frames-1, f64 each)
+ *   members  for each entry of the mode's member table, in order: name length (u32), name, byte
+ *            count (u64), the bytes (a per-agent array: agents x element size)
  *   trailer  XXH3-64 of every byte before it
  * Little-endian, like the cache. Hashes are XXH3-64 (libxxhash): the scene hash of the canonical
- * parameter bytes (fm_scene_def_feed), the model hash of every array the step reads from the model
- * (the tets after TetGen and subdivision, the path, the obstacle distance grids), so a resume with
+ * parameter bytes (fm_scene_def_feed), the mode's hash of every array the step reads from its model
+ * (the tets after TetGen and subdivision or the samples, the path, the obstacle distance grids), so a resume with
  * other meshes, another TetGen or other parameters is refused instead of producing a different
  * animation.
  *
- * The file does not know the modes: each hands over an fm_fm_ckpt_store (checkpoint.h) with its member
+ * The file does not know the modes: each hands over an fm_ckpt_store (checkpoint.h) with its member
  * table, statistics table, model hash and checks; the scene hash covers the mode, so one mode's
  * checkpoint is refused by the other. */
 #define _POSIX_C_SOURCE 200809L

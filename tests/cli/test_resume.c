@@ -142,18 +142,13 @@ static void write_scene(const char *dir, int seed)
 static fm_morph_model *g_model;
 static fm_scene_def g_def;
 
-static fm_status save_hook(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *rs, void *path, fm_error *err)
-{
-    return fm_morph_checkpoint_save(path, m, s, rs, err);
-}
-
 typedef struct stop_after {
     int64_t frame;             /* stop after this frame; < 0: once every phase has agents */
     int64_t stopped_after;
     volatile sig_atomic_t flag;
 } stop_after;
 
-static void stop_progress(const fm_morph_info *info, int64_t frame, void *user)
+static void stop_progress(const fm_run_info *info, int64_t frame, void *user)
 {
     stop_after *sa = user;
     int all_phases = info->count[0] > 0 && info->count[1] > 0 && info->count[2] > 0 && info->count[3] > 0;
@@ -201,7 +196,7 @@ static fm_morph_state *run_until_stopped(const char *cache, const char *ckpt, in
     stop_after sa = {stop_frame, -1, 0};
     fm_run_control c = fm_default_run_control();
     c.progress = stop_progress, c.progress_user = &sa;
-    c.checkpoint = save_hook, c.checkpoint_user = (void *)ckpt, c.checkpoint_every = 5;
+    c.checkpoint_path = ckpt, c.checkpoint_every = 5; /* the run saves its own checkpoint there */
     c.stop = &sa.flag;
     ENSURE_MSG(fm_morph_run_controlled(g_model, s, w, &c, rs, &err) == FM_STOPPED, "%s", err.message);
     ENSURE_MSG(sa.stopped_after >= 0 && rs->frames == sa.stopped_after + 1, "stopped with %lld frames, expected %lld",
@@ -252,14 +247,13 @@ typedef struct flush_probe {
 } flush_probe;
 
 /* A checkpoint hook that checks the cache's frames are on disk when it is called. */
-static fm_status probe_hook(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *rs, void *user, fm_error *err)
+static fm_status probe_hook(int64_t frames, void *user, fm_error *err)
 {
     flush_probe *p = user;
-    (void)m, (void)s, (void)err;
-    if (p->calls < 8) p->frames[p->calls] = rs->frames;
+    if (p->calls < 8) p->frames[p->calls] = frames;
     p->calls++;
     fm_cache_reader *r = fm_cache_open(p->partial, err);
-    p->on_disk_ok &= r && fm_cache_frames(r) == (uint32_t)rs->frames && fm_cache_writer_frames(p->w) == (uint32_t)rs->frames;
+    p->on_disk_ok &= r && fm_cache_frames(r) == (uint32_t)frames && fm_cache_writer_frames(p->w) == (uint32_t)frames;
     fm_cache_close(r);
     return FM_OK;
 }

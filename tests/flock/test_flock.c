@@ -80,7 +80,7 @@ static void test_static_target_every_agent_binds(void)
     if (!m) return;
     fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
     int64_t steps = run(m, s, 48 * 20);
-    fm_flock_info info = fm_flock_get_info(s);
+    fm_run_info info = fm_flock_get_info(s);
     ENSURE_MSG(info.count[FM_PHASE_ARRIVED] == 600, "after %lld steps %lld agents are bound", (long long)steps,
                (long long)info.count[FM_PHASE_ARRIVED]);
     double mean, max;

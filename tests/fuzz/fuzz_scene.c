@@ -2,7 +2,7 @@
  * points (fm_path_build, FM §5.1) on what it accepts. Meshes named by the scene are not loaded;
  * the path runs between two fixed centroids. */
 #include "fuzz_check.h"
-#include "geom.h"
+#include "morph.h"
 
 #include <math.h>
 

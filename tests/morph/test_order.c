@@ -1,5 +1,5 @@
 /* The path's key points and the launch/arrival orders D1 and D2 (FM eqs 3-4) on hand-made cases. */
-#include "geom.h"
+#include "morph.h"
 #include "test_macros.h"
 
 #include <stdlib.h>

@@ -1,0 +1,172 @@
+/* `run` for a tetra-morph scene (the default "mode"): tetrahedralize and subdivide, simulate, write
+ * the cache (tet vertices, id, phase) and stats.json with the end-state checks and the velocity
+ * model (cli_run.c drives it through cli_mode_morph). */
+#define _POSIX_C_SOURCE 200809L
+#include "cli.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+static json_t *vec3_json(const double v[3])
+{
+    return json_pack("[fff]", v[0], v[1], v[2]);
+}
+
+/* The velocity-model settings of the run (FM Table I's parameters, grid and style columns). */
+static json_t *velocity_json(const fm_scene_def *def)
+{
+    static const char *const kinds[] = {"curl_noise", "wind", "gravity", "vortex"};
+    json_t *fields = json_array();
+    for (int i = 0; i < def->field_count; i++) {
+        const fm_field_def *f = &def->fields[i];
+        json_t *o = json_pack("{ss}", "type", kinds[f->kind]);
+        if (f->kind == FM_FIELD_CURL_NOISE) json_object_set_new(o, "gain", json_real(f->gain)), json_object_set_new(o, "scale", json_real(f->scale));
+        if (f->kind == FM_FIELD_WIND || f->kind == FM_FIELD_GRAVITY)
+            json_object_set_new(o, "direction", vec3_json(f->direction)), json_object_set_new(o, "speed", json_real(f->speed));
+        if (f->kind == FM_FIELD_WIND)
+            json_object_set_new(o, "turbulence", json_real(f->turbulence)), json_object_set_new(o, "scale", json_real(f->scale)),
+            json_object_set_new(o, "period", json_real(f->period));
+        if (f->kind == FM_FIELD_VORTEX)
+            json_object_set_new(o, "center", vec3_json(f->center)), json_object_set_new(o, "axis", vec3_json(f->axis)),
+            json_object_set_new(o, "strength", json_real(f->strength));
+        json_array_append_new(fields, o);
+    }
+    json_t *grid = def->field_grid[0] > 0 ? json_pack("[iii]", def->field_grid[0], def->field_grid[1], def->field_grid[2]) : json_null();
+    return json_pack("{sfsfsosososisfsfsbsfsfsfsfss}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
+                     "field_grid", grid, "field_evaluation", json_string(def->field_grid[0] > 0 ? "baked" : "direct"),
+                     "obstacles", def->obstacle_count, "k_a", def->k_a, "obstacle_voxel", def->obstacle_voxel,
+                     "avoid_in_phase2", def->avoid_in_phase2 != 0, "d_min", def->d_min, "mde_speed", def->mde_speed,
+                     "path_width", def->path_width, "path_attraction", def->path_attraction,
+                     "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere");
+}
+
+static json_t *mde_frames_json(const fm_morph_run_stats *rs)
+{
+    json_t *a = json_array();
+    for (int64_t f = 0; f + 1 < rs->frames; f++)
+        json_array_append_new(a, isnan(rs->mde_fraction[f]) ? json_null() : json_real(rs->mde_fraction[f]));
+    return a;
+}
+
+/* The tetra morph's run: the model, the state and the statistics, and the warnings (the model's and
+ * the run's own: stopped at the frame limit), printed and kept for stats.json. */
+typedef struct morph_run {
+    fm_morph_model *model;
+    fm_morph_model_info mi;
+    fm_morph_state *state;
+    fm_morph_run_stats rs;
+    json_t *warnings;
+} morph_run;
+
+static void add_warning(morph_run *r, const char *text)
+{
+    fprintf(stderr, "flockmorph: warning: %s\n", text);
+    json_array_append_new(r->warnings, json_string(text));
+}
+
+static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
+{
+    morph_run *r = run;
+    const fm_morph_model_info *mi = &r->mi;
+    const fm_morph_run_stats *rs = &r->rs;
+    if (!rs->all_arrived) {
+        char text[256];
+        snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
+                 "raise time.frame_limit in the scene", def->frame_limit,
+                 (long long)(mi->agents - fm_morph_get_info(r->state).run.count[FM_PHASE_ARRIVED]));
+        add_warning(r, text);
+    }
+    json_t *j = cli_stats_json(def, record);
+    json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
+    json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
+    json_object_set_new(j, "launch_rate", json_real(mi->launch_rate));
+    json_object_set_new(j, "all_arrived", json_boolean(rs->all_arrived));
+    json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));
+    json_object_set_new(j, "final_max_vertex_error", rs->all_arrived ? json_real(rs->final_max_vertex_error) : json_null());
+    json_object_set_new(j, "target_tets_filled_once", json_boolean(rs->target_tets_filled_once));
+    json_object_set_new(j, "inverted_tet_frames", json_integer(rs->inverted_tet_frames));
+    json_object_set_new(j, "morph_fallbacks", json_integer(rs->morph_fallbacks));
+    json_object_set_new(j, "mde_fraction_mean", json_real(rs->mde_fraction_mean));
+    json_object_set_new(j, "mde_fraction_per_frame", mde_frames_json(rs));
+    json_object_set_new(j, "min_obstacle_clearance",
+                        isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
+    json_object_set_new(j, "velocity_model", velocity_json(def));
+    json_object_set_new(j, "source_volume", json_real(mi->source_volume));
+    json_object_set_new(j, "target_volume", json_real(mi->target_volume));
+    json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
+    json_object_set(j, "warnings", r->warnings);
+    return cli_write_json(path, j);
+}
+
+static int build(void *run, const fm_scene_def *def, int *show)
+{
+    morph_run *r = run;
+    fm_error err = {0};
+    r->warnings = json_array();
+    r->model = fm_morph_model_build(def, cli_prep_progress, show, &err);
+    if (!r->model) return cli_report(&err);
+    r->mi = fm_morph_model_get_info(r->model);
+    for (int i = 0; i < fm_morph_model_warning_count(r->model); i++) add_warning(r, fm_morph_model_warning(r->model, i));
+    return 0;
+}
+
+/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
+static int open_run(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *files,
+                    fm_cache_writer **cache)
+{
+    morph_run *r = run;
+    fm_error err = {0};
+    if (!(r->state = fm_morph_state_create(r->model, o->threads, &err))) return cli_report(&err);
+    if (!o->resume) {
+        cli_start_over(files);
+        fm_cache_options copts = cli_cache_options(def);
+        const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
+        *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)r->mi.agents, def->frame_rate, attrs, 3, &copts, &err);
+        return *cache ? 0 : cli_report(&err);
+    }
+    if (fm_morph_checkpoint_load(files->checkpoint, r->model, r->state, &r->rs, &err) != FM_OK) return cli_report(&err);
+    *cache = fm_cache_writer_resume(files->cache, (uint32_t)r->rs.frames, &err);
+    return *cache ? 0 : cli_report(&err);
+}
+
+static int64_t agents(const void *run)
+{
+    return ((const morph_run *)run)->mi.agents;
+}
+
+static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
+{
+    morph_run *r = run;
+    return fm_morph_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+}
+
+static int64_t frames(const void *run)
+{
+    return ((const morph_run *)run)->rs.frames;
+}
+
+static void totals(const void *run, cli_run_record *record)
+{
+    const morph_run *r = run;
+    record->frames = r->rs.frames, record->steps = r->rs.steps, record->time_step = r->mi.time_step;
+    record->simulate_seconds = r->rs.simulate_seconds, record->output_seconds = r->rs.output_seconds;
+}
+
+static void summary(const void *run, const fm_scene_def *def)
+{
+    (void)run, (void)def;
+    printf("\n");
+}
+
+static void close_run(void *run)
+{
+    morph_run *r = run;
+    fm_morph_run_stats_free(&r->rs);
+    fm_morph_state_destroy(r->state);
+    fm_morph_model_destroy(r->model);
+    json_decref(r->warnings);
+}
+
+const cli_mode cli_mode_morph = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(morph_run), build,
+                                 open_run, agents, simulate, frames, totals, write_stats, summary, close_run};
