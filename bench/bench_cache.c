@@ -181,12 +181,12 @@ int main(int argc, char **argv)
     fm_morph_run_stats base;
     double no_wait;
     timing plain = timed_run(model, (int)threads, def.frame_rate, NULL, NULL, &base, &no_wait);
-    double agent_steps = (double)agents * (double)base.steps, raw_frame = (double)agents * (48 + 4 + 1);
+    double agent_steps = (double)agents * (double)base.run.steps, raw_frame = (double)agents * (48 + 4 + 1);
     printf("{\"agents\": %ld, \"frames\": %lld, \"steps\": %lld, \"threads\": %ld, \"launch_seconds\": %g, "
            "\"preprocess_seconds\": %.2f,\n \"raw_mb_per_frame\": %.3f,\n"
            " \"no_cache\": {\"wall_seconds\": %.3f, \"cpu_seconds\": %.3f, \"agent_steps_per_second\": %.4g},\n"
            " \"variants\": [",
-           agents, (long long)base.frames, (long long)base.steps, threads, launch_seconds, prep, raw_frame / 1e6,
+           agents, (long long)base.run.frames, (long long)base.run.steps, threads, launch_seconds, prep, raw_frame / 1e6,
            plain.wall, plain.cpu, agent_steps / plain.wall);
     fm_morph_run_stats_free(&base);
 

@@ -262,7 +262,7 @@ static void bench_scenarios(int threads)
         } else {
             printf("%s\n    {\"scenario\": \"%s\", \"agents\": %lld, \"steps_per_second\": %.1f, \"mde_percent\": %.2f, "
                    "\"paper_fps\": %.1f, \"paper_mde_percent\": %.2f}",
-                   i ? "," : "", TABLE_I[i].name, (long long)m->n, (double)rs.steps / rs.simulate_seconds,
+                   i ? "," : "", TABLE_I[i].name, (long long)m->n, (double)rs.run.steps / rs.run.simulate_seconds,
                    100 * rs.mde_fraction_mean, TABLE_I[i].fps, TABLE_I[i].mde);
         }
         fm_morph_run_stats_free(&rs);

@@ -83,23 +83,29 @@ typedef struct cli_run_record {
 json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
 double cli_agent_steps_per_second(const cli_run_record *r);
 
+/* What the run path reads of a mode's run context: its first member, set by build(). */
+typedef struct cli_mode_run {
+    int64_t agents;
+    double time_step;
+    const fm_run_totals *totals; /* the run statistics' frames, steps and seconds */
+} cli_mode_run;
+
 /* One simulation mode as `run` drives it: cli_run.c holds the one run path, and each mode fills a
- * table (cli_mode_morph.c, cli_mode_flock.c). `run` is the mode's context: `size` bytes, zeroed,
- * owned by the run path; close() frees what the others made. Each int-returning call gives 0 or an
- * exit status (after printing the error). */
+ * table (cli_mode_morph.c, cli_mode_flock.c). `run` is the mode's context (a cli_mode_run first):
+ * `size` bytes, zeroed, owned by the run path; close() frees what the others made. Each
+ * int-returning call gives 0 or an exit status (after printing the error). */
 typedef struct cli_mode {
     const char *name;             /* stats.json "mode" */
     const char *phase_labels[4];  /* the progress line's label of each fm_phase count (NULL: not
                                      shown); the last, ARRIVED, as a percentage */
     size_t size;
     int (*build)(void *run, const fm_scene_def *def, int *show_progress); /* the model, its warnings */
-    /* The state, and a new cache or (--resume) the checkpoint's state and the cache's frames so far. */
-    int (*open)(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *out,
-                fm_cache_writer **cache);
-    int64_t (*agents)(const void *run);
+    fm_status (*create_state)(void *run, int threads, fm_error *err);
+    /* A new run's cache with the mode's attributes and the scene's options. */
+    fm_cache_writer *(*create_cache)(void *run, const fm_scene_def *def, const char *path, fm_error *err);
+    /* --resume: the checkpoint's state and statistics (after create_state). */
+    fm_status (*load_checkpoint)(void *run, const char *path, fm_error *err);
     fm_status (*simulate)(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err);
-    int64_t (*frames)(const void *run);                /* frames written so far */
-    void (*totals)(const void *run, cli_run_record *r); /* frames, steps, time step, seconds */
     int (*write_stats)(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record);
     /* The rest of the summary line ("; ..." and the newline) and any warning that follows it. */
     void (*summary)(const void *run, const fm_scene_def *def);

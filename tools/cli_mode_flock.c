@@ -26,6 +26,7 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
 
 /* The shape flock's run: the model, the state and the statistics. */
 typedef struct flock_run {
+    cli_mode_run common; /* first: what cli_run.c reads */
     fm_flock_model *model;
     fm_flock_model_info mi;
     fm_flock_state *state;
@@ -56,48 +57,35 @@ static int build(void *run, const fm_scene_def *def, int *show)
     r->model = fm_flock_model_build(def, cli_prep_progress, show, &err);
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};
     return 0;
 }
 
-/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
-static int open_run(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *out,
-                    fm_cache_writer **cache)
+static fm_status create_state(void *run, int threads, fm_error *err)
 {
     flock_run *r = run;
-    fm_error err = {0};
-    if (!(r->state = fm_flock_state_create(r->model, o->threads, &err))) return cli_report(&err);
-    if (!o->resume) {
-        cli_start_over(out);
-        fm_cache_options copts = cli_cache_options(def);
-        *cache = fm_flock_cache_create(out->cache, r->model, &copts, &err);
-        return *cache ? 0 : cli_report(&err);
-    }
-    if (fm_flock_checkpoint_load(out->checkpoint, r->model, r->state, &r->rs, &err) != FM_OK) return cli_report(&err);
-    *cache = fm_cache_writer_resume(out->cache, (uint32_t)r->rs.frames, &err);
-    return *cache ? 0 : cli_report(&err);
+    r->state = fm_flock_state_create(r->model, threads, err);
+    return r->state ? FM_OK : err->status;
 }
 
-static int64_t agents(const void *run)
+/* Position, velocity, orientation, id and phase (fm_flock_cache_create). */
+static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const char *path, fm_error *err)
 {
-    return ((const flock_run *)run)->mi.agents;
+    const flock_run *r = run;
+    const fm_cache_options options = cli_cache_options(def);
+    return fm_flock_cache_create(path, r->model, &options, err);
+}
+
+static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
+{
+    flock_run *r = run;
+    return fm_flock_checkpoint_load(path, r->model, r->state, &r->rs, err);
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     flock_run *r = run;
     return fm_flock_run_controlled(r->model, r->state, cache, control, &r->rs, err);
-}
-
-static int64_t frames(const void *run)
-{
-    return ((const flock_run *)run)->rs.frames;
-}
-
-static void totals(const void *run, cli_run_record *record)
-{
-    const flock_run *r = run;
-    record->frames = r->rs.frames, record->steps = r->rs.steps, record->time_step = r->mi.time_step;
-    record->simulate_seconds = r->rs.simulate_seconds, record->output_seconds = r->rs.output_seconds;
 }
 
 static void summary(const void *run, const fm_scene_def *def)
@@ -119,4 +107,5 @@ static void close_run(void *run)
 }
 
 const cli_mode cli_mode_flock = {"shape_flock", {NULL, "flying", "arriving", "bound"}, sizeof(flock_run), build,
-                                 open_run, agents, simulate, frames, totals, write_stats, summary, close_run};
+                                 create_state, create_cache, load_checkpoint, simulate, write_stats, summary,
+                                 close_run};

@@ -44,7 +44,7 @@ static json_t *velocity_json(const fm_scene_def *def)
 static json_t *mde_frames_json(const fm_morph_run_stats *rs)
 {
     json_t *a = json_array();
-    for (int64_t f = 0; f + 1 < rs->frames; f++)
+    for (int64_t f = 0; f + 1 < rs->run.frames; f++)
         json_array_append_new(a, isnan(rs->mde_fraction[f]) ? json_null() : json_real(rs->mde_fraction[f]));
     return a;
 }
@@ -52,6 +52,7 @@ static json_t *mde_frames_json(const fm_morph_run_stats *rs)
 /* The tetra morph's run: the model, the state and the statistics, and the warnings (the model's and
  * the run's own: stopped at the frame limit), printed and kept for stats.json. */
 typedef struct morph_run {
+    cli_mode_run common; /* first: what cli_run.c reads */
     fm_morph_model *model;
     fm_morph_model_info mi;
     fm_morph_state *state;
@@ -107,50 +108,37 @@ static int build(void *run, const fm_scene_def *def, int *show)
     r->model = fm_morph_model_build(def, cli_prep_progress, show, &err);
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};
     for (int i = 0; i < fm_morph_model_warning_count(r->model); i++) add_warning(r, fm_morph_model_warning(r->model, i));
     return 0;
 }
 
-/* A new run's cache, or the interrupted run's state and the frames its cache already holds. */
-static int open_run(void *run, const cli_run_options *o, const fm_scene_def *def, const cli_outputs *files,
-                    fm_cache_writer **cache)
+static fm_status create_state(void *run, int threads, fm_error *err)
 {
     morph_run *r = run;
-    fm_error err = {0};
-    if (!(r->state = fm_morph_state_create(r->model, o->threads, &err))) return cli_report(&err);
-    if (!o->resume) {
-        cli_start_over(files);
-        fm_cache_options copts = cli_cache_options(def);
-        const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
-        *cache = fm_cache_writer_create_attrs(files->cache, (uint64_t)r->mi.agents, def->frame_rate, attrs, 3, &copts, &err);
-        return *cache ? 0 : cli_report(&err);
-    }
-    if (fm_morph_checkpoint_load(files->checkpoint, r->model, r->state, &r->rs, &err) != FM_OK) return cli_report(&err);
-    *cache = fm_cache_writer_resume(files->cache, (uint32_t)r->rs.frames, &err);
-    return *cache ? 0 : cli_report(&err);
+    r->state = fm_morph_state_create(r->model, threads, err);
+    return r->state ? FM_OK : err->status;
 }
 
-static int64_t agents(const void *run)
+/* Tet vertices, ids and phases. */
+static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const char *path, fm_error *err)
 {
-    return ((const morph_run *)run)->mi.agents;
+    const morph_run *r = run;
+    const fm_cache_options options = cli_cache_options(def);
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE};
+    return fm_cache_writer_create_attrs(path, (uint64_t)r->mi.agents, def->frame_rate, attrs, 3, &options, err);
+}
+
+static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
+{
+    morph_run *r = run;
+    return fm_morph_checkpoint_load(path, r->model, r->state, &r->rs, err);
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     morph_run *r = run;
     return fm_morph_run_controlled(r->model, r->state, cache, control, &r->rs, err);
-}
-
-static int64_t frames(const void *run)
-{
-    return ((const morph_run *)run)->rs.frames;
-}
-
-static void totals(const void *run, cli_run_record *record)
-{
-    const morph_run *r = run;
-    record->frames = r->rs.frames, record->steps = r->rs.steps, record->time_step = r->mi.time_step;
-    record->simulate_seconds = r->rs.simulate_seconds, record->output_seconds = r->rs.output_seconds;
 }
 
 static void summary(const void *run, const fm_scene_def *def)
@@ -169,4 +157,5 @@ static void close_run(void *run)
 }
 
 const cli_mode cli_mode_morph = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(morph_run), build,
-                                 open_run, agents, simulate, frames, totals, write_stats, summary, close_run};
+                                 create_state, create_cache, load_checkpoint, simulate, write_stats, summary,
+                                 close_run};

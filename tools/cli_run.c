@@ -82,6 +82,24 @@ static fm_run_control run_control(const cli_run_options *o, const cli_outputs *f
     return c;
 }
 
+/* The state, and a new run's cache, or the interrupted run's state and the frames its cache
+ * already holds. */
+static int open_run(const cli_mode *mode, void *run, const cli_run_options *o, const fm_scene_def *def,
+                    const cli_outputs *files, fm_cache_writer **cache)
+{
+    fm_error err = {0};
+    const cli_mode_run *common = run;
+    if (mode->create_state(run, o->threads, &err) != FM_OK) return cli_report(&err);
+    if (!o->resume) {
+        cli_start_over(files);
+        *cache = mode->create_cache(run, def, files->cache, &err);
+        return *cache ? 0 : cli_report(&err);
+    }
+    if (mode->load_checkpoint(run, files->checkpoint, &err) != FM_OK) return cli_report(&err);
+    *cache = fm_cache_writer_resume(files->cache, (uint32_t)common->totals->frames, &err);
+    return *cache ? 0 : cli_report(&err);
+}
+
 /* The run after the model build: the cache (new, or the interrupted run's), the simulation with
  * checkpoints and the stop signals, then the finished cache, stats.json and the summary; the
  * checkpoint of a complete run is removed. */
@@ -92,21 +110,23 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     cli_outputs files;
     cli_run_outputs(o, def, &files);
     fm_cache_writer *cache = NULL;
-    int rc = mode->open(run, o, def, &files, &cache);
+    int rc = open_run(mode, run, o, def, &files, &cache);
     if (rc) return rc;
-    const int64_t agents = mode->agents(run);
+    const cli_mode_run *common = run;
+    const int64_t agents = common->agents;
     cli_progress progress = {!o->quiet && isatty(STDERR_FILENO), agents, cli_seconds(), mode->phase_labels};
     const fm_run_control control = run_control(o, &files, &progress);
     cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
     fm_status st = mode->simulate(run, cache, &control, &err);
     cli_catch_stop_signals(0);
     if (progress.show) fprintf(stderr, "\n");
-    if (st == FM_STOPPED) return cli_report_interrupted(o, cache, mode->frames(run));
+    const fm_run_totals *t = common->totals;
+    if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
     if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
         return cli_fail_keeping_partial_cache(&err, NULL, files.cache);
-    cli_run_record record = {mode->name, agents, 0, 0, 0, prep_seconds, 0, 0, files.threads, files.cache};
-    mode->totals(run, &record);
+    const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
+                                   t->simulate_seconds, t->output_seconds, files.threads, files.cache};
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
     cli_remove_checkpoint(&files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s", (long long)agents, (long long)record.frames,

@@ -67,10 +67,7 @@ fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *m
                                        const fm_cache_options *opts, fm_error *err);
 
 typedef struct fm_flock_run_stats {
-    int64_t frames;                 /* frames written, frame 0 included */
-    int64_t steps;
-    double simulate_seconds;        /* time spent in fm_flock_step */
-    double output_seconds;          /* time spent computing and writing frames */
+    fm_run_totals run;              /* frames, steps, seconds stepping (fm_flock_step) and writing */
     int all_bound;                  /* every agent bound or floating at its destination */
     int stopped_at_frame_limit;
     double final_mean_distance;     /* to the destination, at the last frame */

@@ -79,10 +79,7 @@ void fm_morph_targets(const fm_morph_state *state, int64_t *out);
 void fm_morph_phases(const fm_morph_state *state, uint8_t *out);
 
 typedef struct fm_morph_run_stats {
-    int64_t frames;                 /* frames written, frame 0 (the rest state) included */
-    int64_t steps;
-    double simulate_seconds;        /* time spent in fm_morph_step */
-    double output_seconds;          /* time spent computing and writing frames */
+    fm_run_totals run;              /* frames, steps, seconds stepping (fm_morph_step) and writing */
     int all_arrived;
     int stopped_at_frame_limit;
     int64_t inverted_tet_frames;    /* tet-frames with signed volume <= 0 */

@@ -17,6 +17,15 @@ typedef struct fm_run_info {
     int64_t count[4];          /* agents per fm_phase */
 } fm_run_info;
 
+/* What every run measures (the first member of each mode's run statistics): the totals of a
+ * resumed run include its earlier sessions. */
+typedef struct fm_run_totals {
+    int64_t frames;            /* frames written, frame 0 (the rest state) included */
+    int64_t steps;
+    double simulate_seconds;   /* time spent stepping */
+    double output_seconds;     /* time spent computing and writing frames */
+} fm_run_totals;
+
 /* Called after every frame (frame >= 1); may be NULL. */
 typedef void (*fm_run_progress_fn)(const fm_run_info *info, int64_t frame, void *user);
 

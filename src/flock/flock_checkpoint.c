@@ -7,7 +7,7 @@
 #include <string.h>
 
 static const fm_store_member FLOCK_RUN_STATS[] = {
-    FM_STORE_SCALAR(fm_flock_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_flock_run_stats, output_seconds),
+    FM_STORE_SCALAR(fm_flock_run_stats, run.simulate_seconds), FM_STORE_SCALAR(fm_flock_run_stats, run.output_seconds),
     FM_STORE_SCALAR(fm_flock_run_stats, tracking_frames),
 };
 
@@ -62,7 +62,7 @@ static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *
     return (fm_ckpt_store){fm_flock_state_members, fm_flock_state_member_count, (void *)s, s->n, FLOCK_RUN_STATS,
                            (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]), (void *)stats, NULL, &m->def,
                            flock_model_hash(m), "the samples, the path (or the obstacles)", check_state,
-                           stats->frames};
+                           stats->run.frames};
 }
 
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
@@ -77,6 +77,6 @@ fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm
 {
     memset(stats, 0, sizeof *stats);
     fm_ckpt_store c = flock_store(m, s, stats);
-    return fm_ckpt_load(path, &c, &stats->frames, err);
+    return fm_ckpt_load(path, &c, &stats->run.frames, err);
 }
 

@@ -66,20 +66,11 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
     return st;
 }
 
-static void set_times(fm_flock_run_stats *stats, const fm_loop_times *times)
-{
-    stats->frames = times->frames;
-    stats->simulate_seconds = times->simulate_seconds;
-    stats->output_seconds = times->output_seconds;
-}
-
-/* The loop's checkpoint (the cache already flushed): the statistics so far, saved with the state. */
-static fm_status flock_save(void *sim, const fm_loop_times *times, const char *path, fm_error *err)
+/* The loop's checkpoint (the cache already flushed): the state and the statistics so far. */
+static fm_status flock_save(void *sim, const char *path, fm_error *err)
 {
     const flock_run *r = sim;
-    fm_flock_run_stats now = *r->stats;
-    set_times(&now, times);
-    return fm_flock_checkpoint_save(path, r->m, r->s, &now, err);
+    return fm_flock_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
 fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,
@@ -93,14 +84,11 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
-        const fm_loop_times resumed = {c->resume ? stats->frames : 0, stats->simulate_seconds, stats->output_seconds};
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
-                                    m->def.frame_limit, c, resumed, cache};
-        fm_loop_times times;
-        st = fm_frame_loop_run(&loop, &times, err);
-        set_times(stats, &times);
+                                    m->def.frame_limit, c, &stats->run, cache};
+        st = fm_frame_loop_run(&loop, err);
     }
-    stats->steps = s->step;
+    stats->run.steps = s->step;
     stats->all_bound = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !flock_finished(&r);
     fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);

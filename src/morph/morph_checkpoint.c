@@ -8,7 +8,7 @@
 
 /* The tetra morph's statistics (the MDE fractions follow per frame). */
 static const fm_store_member RUN_STATS[] = {
-    FM_STORE_SCALAR(fm_morph_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_morph_run_stats, simulate_seconds), FM_STORE_SCALAR(fm_morph_run_stats, output_seconds),
+    FM_STORE_SCALAR(fm_morph_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_morph_run_stats, run.simulate_seconds), FM_STORE_SCALAR(fm_morph_run_stats, run.output_seconds),
 };
 
 /* Everything of the model the step reads: if TetGen, the subdivision or an obstacle mesh came out
@@ -58,7 +58,7 @@ static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *
     return (fm_ckpt_store){fm_morph_state_members, fm_morph_state_member_count, (void *)s, s->n, RUN_STATS,
                            (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), (void *)stats, (double **)&stats->mde_fraction,
                            &m->def, model_hash(m), "the tets after TetGen and subdivision (or the obstacles)",
-                           check_state, stats->frames};
+                           check_state, stats->run.frames};
 }
 
 fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
@@ -72,7 +72,7 @@ fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *m, fm
 {
     memset(stats, 0, sizeof *stats);
     fm_ckpt_store c = tetra_store(m, s, stats);
-    fm_status st = fm_ckpt_load(path, &c, &stats->frames, err);
+    fm_status st = fm_ckpt_load(path, &c, &stats->run.frames, err);
     if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
     if (st != FM_OK) fm_morph_run_stats_free(stats);
     return st;

@@ -115,7 +115,7 @@ static double mde_mean(const fm_morph_run_stats *stats)
 {
     double sum = 0;
     int64_t frames = 0;
-    for (int64_t f = 0; f + 1 < stats->frames; f++)
+    for (int64_t f = 0; f + 1 < stats->run.frames; f++)
         if (!isnan(stats->mde_fraction[f])) sum += stats->mde_fraction[f], frames++;
     return frames ? sum / (double)frames : 0.0;
 }
@@ -123,7 +123,7 @@ static double mde_mean(const fm_morph_run_stats *stats)
 /* The end-state checks and totals of stats.json. */
 static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const float *verts, fm_morph_run_stats *stats)
 {
-    stats->steps = s->step;
+    stats->run.steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !stats->all_arrived;
     stats->final_max_vertex_error = max_vertex_error(m, s, verts);
@@ -171,18 +171,10 @@ static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
     return st;
 }
 
-static void set_times(fm_morph_run_stats *stats, const fm_loop_times *times)
-{
-    stats->frames = times->frames;
-    stats->simulate_seconds = times->simulate_seconds;
-    stats->output_seconds = times->output_seconds;
-}
-
-/* The loop's checkpoint (the cache already flushed): the statistics so far, saved with the state. */
-static fm_status morph_save(void *sim, const fm_loop_times *times, const char *path, fm_error *err)
+/* The loop's checkpoint (the cache already flushed): the state and the statistics so far. */
+static fm_status morph_save(void *sim, const char *path, fm_error *err)
 {
     const morph_run *r = sim;
-    set_times(r->stats, times);
     return fm_morph_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
@@ -193,17 +185,14 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
     morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
                    s->flying_agent_steps, s->mde_agent_steps, 0};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
-    if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->frames, 1), &r.capacity, err) != FM_OK) {
+    if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->run.frames, 1), &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }
     if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
-    const fm_loop_times resumed = {c->resume ? stats->frames : 0, stats->simulate_seconds, stats->output_seconds};
     const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
-                                m->def.frame_limit, c, resumed, cache};
-    fm_loop_times times;
-    fm_status st = fm_frame_loop_run(&loop, &times, err);
-    set_times(stats, &times);
+                                m->def.frame_limit, c, &stats->run, cache};
+    fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(m, s, r.verts, stats);
     fm_free(r.verts), fm_free(r.phases);
     return st;

@@ -27,24 +27,24 @@ static int checkpoint_due(const fm_run_control *c, const checkpoint_clock *clock
     return c->checkpoint_seconds > 0 && fm_seconds() - clock->last_time >= c->checkpoint_seconds;
 }
 
-static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, const fm_loop_times *times,
+static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, const fm_run_totals *times,
                             fm_error *err)
 {
     const fm_run_control *c = loop->control;
     fm_status st = loop->cache ? fm_cache_writer_flush(loop->cache, err) : FM_OK;
-    if (st == FM_OK && c->checkpoint_path) st = loop->save(loop->sim, times, c->checkpoint_path, err);
+    if (st == FM_OK && c->checkpoint_path) st = loop->save(loop->sim, c->checkpoint_path, err);
     if (st == FM_OK && c->checkpoint) st = c->checkpoint(times->frames, c->checkpoint_user, err);
     clock->last_frames = times->frames, clock->last_time = fm_seconds();
     return st;
 }
 
-fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err)
+fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
 {
     const fm_run_control *c = loop->control;
-    *times = loop->resumed;
+    fm_run_totals *times = loop->totals;
     checkpoint_clock clock = {times->frames, fm_seconds()};
     fm_status st = FM_OK;
-    if (!loop->resumed.frames) {
+    if (!times->frames) {
         double t0 = fm_seconds();
         st = loop->frame(loop->sim, 0, err);
         times->output_seconds += fm_seconds() - t0;

@@ -10,30 +10,22 @@
 
 #include "fm_internal.h"
 
-/* The run's totals, earlier sessions of a resumed run included. */
-typedef struct fm_loop_times {
-    int64_t frames;          /* frames written */
-    double simulate_seconds; /* in step() */
-    double output_seconds;   /* in frame() */
-} fm_loop_times;
-
 typedef struct fm_frame_loop {
     void *sim;
     void (*step)(void *sim);
     int (*finished)(const void *sim);                           /* checked before every step */
     fm_status (*frame)(void *sim, int64_t frame, fm_error *err); /* computes and writes frame `frame` */
-    /* Saves the mode's checkpoint to `path` with the run's totals so far. */
-    fm_status (*save)(void *sim, const fm_loop_times *times, const char *path, fm_error *err);
+    fm_status (*save)(void *sim, const char *path, fm_error *err); /* the mode's checkpoint, to path */
     int32_t steps_per_frame;
     int32_t frame_limit;
     const fm_run_control *control; /* stop flag, checkpoints and resume (run.h) */
-    fm_loop_times resumed;         /* a resumed run's totals (frames > 0); zero for a new run, which
-                                      writes frame 0 first */
+    fm_run_totals *totals;         /* the run's statistics' totals, kept current: a resumed run's
+                                      (frames > 0) or zero for a new run, which writes frame 0 first;
+                                      the loop adds frames and seconds, the mode sets the steps */
     fm_cache_writer *cache;        /* may be NULL; flushed before every checkpoint (and on a stop), so
                                       the cache on disk holds the frames the checkpoint counts */
 } fm_frame_loop;
 
-/* Runs the loop; *times gets the run's totals. */
-fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_loop_times *times, fm_error *err);
+fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
 
 #endif

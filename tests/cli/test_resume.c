@@ -199,8 +199,8 @@ static fm_morph_state *run_until_stopped(const char *cache, const char *ckpt, in
     c.checkpoint_path = ckpt, c.checkpoint_every = 5; /* the run saves its own checkpoint there */
     c.stop = &sa.flag;
     ENSURE_MSG(fm_morph_run_controlled(g_model, s, w, &c, rs, &err) == FM_STOPPED, "%s", err.message);
-    ENSURE_MSG(sa.stopped_after >= 0 && rs->frames == sa.stopped_after + 1, "stopped with %lld frames, expected %lld",
-               (long long)rs->frames, (long long)sa.stopped_after + 1);
+    ENSURE_MSG(sa.stopped_after >= 0 && rs->run.frames == sa.stopped_after + 1, "stopped with %lld frames, expected %lld",
+               (long long)rs->run.frames, (long long)sa.stopped_after + 1);
     fm_cache_writer_close_partial(w);
     return s;
 }
@@ -210,15 +210,15 @@ static void test_stop_restore_continue_same_bytes(void)
     const char *whole = DIR_ "/whole.fmc", *cache = DIR_ "/stopped.fmc", *ckpt = DIR_ "/inproc.fmck";
     fm_morph_run_stats ref, first, rest;
     run_whole(whole, &ref);
-    ENSURE_MSG(ref.frames > 40 && ref.all_arrived, "the scene should take a while and finish: %lld frames", (long long)ref.frames);
+    ENSURE_MSG(ref.run.frames > 40 && ref.all_arrived, "the scene should take a while and finish: %lld frames", (long long)ref.run.frames);
     fm_morph_state *stopped = run_until_stopped(cache, ckpt, -1, &first); /* agents in every phase */
     fm_error err = {0};
     fm_morph_state *s = fm_morph_state_create(g_model, 1, &err);
     ENSURE_MSG(s && fm_morph_checkpoint_load(ckpt, g_model, s, &rest, &err) == FM_OK, "%s", err.message);
     if (stopped && s) ensure_same_state(stopped, s);
-    ENSURE(rest.frames == first.frames && rest.inverted_tet_frames == first.inverted_tet_frames);
-    ENSURE(memcmp(rest.mde_fraction, first.mde_fraction, sizeof(double) * (size_t)(first.frames - 1)) == 0);
-    fm_cache_writer *w = fm_cache_writer_resume(cache, (uint32_t)rest.frames, &err);
+    ENSURE(rest.run.frames == first.run.frames && rest.inverted_tet_frames == first.inverted_tet_frames);
+    ENSURE(memcmp(rest.mde_fraction, first.mde_fraction, sizeof(double) * (size_t)(first.run.frames - 1)) == 0);
+    fm_cache_writer *w = fm_cache_writer_resume(cache, (uint32_t)rest.run.frames, &err);
     ENSURE_MSG(w != NULL, "%s", err.message);
     fm_run_control c = fm_default_run_control();
     c.resume = 1;
@@ -227,9 +227,9 @@ static void test_stop_restore_continue_same_bytes(void)
         ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
     }
     ENSURE_MSG(same_bytes(whole, cache), "the resumed cache differs from the uninterrupted one");
-    ENSURE(rest.frames == ref.frames && rest.steps == ref.steps && rest.all_arrived == ref.all_arrived);
+    ENSURE(rest.run.frames == ref.run.frames && rest.run.steps == ref.run.steps && rest.all_arrived == ref.all_arrived);
     ENSURE(rest.inverted_tet_frames == ref.inverted_tet_frames && rest.morph_fallbacks == ref.morph_fallbacks);
-    ENSURE(memcmp(rest.mde_fraction, ref.mde_fraction, sizeof(double) * (size_t)(ref.frames - 1)) == 0);
+    ENSURE(memcmp(rest.mde_fraction, ref.mde_fraction, sizeof(double) * (size_t)(ref.run.frames - 1)) == 0);
     ENSURE(memcmp(&rest.mde_fraction_mean, &ref.mde_fraction_mean, sizeof(double)) == 0);
     ENSURE(rest.final_max_vertex_error == ref.final_max_vertex_error);
     ENSURE(memcmp(&rest.min_obstacle_clearance, &ref.min_obstacle_clearance, sizeof(double)) == 0);
@@ -275,7 +275,7 @@ static int64_t run_probed(flush_probe *p, int64_t every, double seconds)
     fm_cache_writer_abort(w);
     fm_morph_run_stats_free(&rs);
     fm_morph_state_destroy(s);
-    return rs.frames;
+    return rs.run.frames;
 }
 
 static void test_checkpoints_every_k_frames_after_flush(void)
@@ -669,10 +669,10 @@ static void test_flock_checkpoint_restores_or_refuses_model(void)
     for (int k = 0; k < 30; k++) fm_flock_step(m, s);
     s->lag_sum = 0.25;
     const char *path = in(FLOCK_DIR, "inprocess.fmck");
-    fm_flock_run_stats saved = {.frames = 3, .simulate_seconds = 1.5, .tracking_frames = 2}, got;
+    fm_flock_run_stats saved = {.run = {.frames = 3, .simulate_seconds = 1.5}, .tracking_frames = 2}, got;
     ENSURE_MSG(fm_flock_checkpoint_save(path, m, s, &saved, &err) == FM_OK, "%s", err.message);
     ENSURE_MSG(fm_flock_checkpoint_load(path, m, t, &got, &err) == FM_OK, "%s", err.message);
-    ENSURE(got.frames == 3 && got.simulate_seconds == 1.5 && got.tracking_frames == 2);
+    ENSURE(got.run.frames == 3 && got.run.simulate_seconds == 1.5 && got.tracking_frames == 2);
     ENSURE(t->step == 30 && t->time == s->time && t->lag_sum == 0.25 && !memcmp(&t->kalman, &s->kalman, sizeof s->kalman));
     for (int k = 0; k < 3; k++) ENSURE(!memcmp(t->p[k], s->p[k], sizeof(float) * (size_t)s->n));
     ENSURE(!memcmp(t->orient, s->orient, sizeof(float) * 4 * (size_t)s->n) && !memcmp(t->phase, s->phase, (size_t)s->n));

@@ -184,7 +184,7 @@ static void test_caches_are_identical_for_threads_and_runs(void)
     const char *p1 = FM_TEST_TMP "/flock_threads1.fmc", *p2 = FM_TEST_TMP "/flock_threads2.fmc", *p3 = FM_TEST_TMP "/flock_again.fmc";
     fm_flock_run_stats r1 = run_to_cache(m, 1, p1), r2 = run_to_cache(m, 2, p2), r3 = run_to_cache(m, 2, p3);
     ENSURE(r1.all_bound && !r1.stopped_at_frame_limit && r1.bound_fraction == 1 && r1.final_max_distance == 0);
-    ENSURE(r1.frames == r2.frames && r2.frames == r3.frames && r1.steps == r2.steps && isnan(r1.tracking_lag));
+    ENSURE(r1.run.frames == r2.run.frames && r2.run.frames == r3.run.frames && r1.run.steps == r2.run.steps && isnan(r1.tracking_lag));
     long n1 = 0, n2 = 0, n3 = 0;
     char *a = slurp(p1, &n1), *b = slurp(p2, &n2), *c = slurp(p3, &n3);
     ENSURE_MSG(a && b && n1 == n2 && !memcmp(a, b, (size_t)n1), "1 and 2 threads give different caches");
@@ -195,7 +195,7 @@ static void test_caches_are_identical_for_threads_and_runs(void)
     fm_cache_reader *r = fm_cache_open(p1, &err);
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (r) {
-        ENSURE(fm_cache_frames(r) == (uint32_t)r1.frames && fm_cache_agents(r) == 1500);
+        ENSURE(fm_cache_frames(r) == (uint32_t)r1.run.frames && fm_cache_agents(r) == 1500);
         float *pos = malloc(sizeof(float) * 3 * 1500), *c2 = malloc(sizeof(float) * 3 * 1500);
         ENSURE(fm_cache_read_attr(r, fm_cache_frames(r) - 1, FM_ATTR_POSITION, pos, &err) == FM_OK);
         fm_flock_model_endpoints(m, NULL, c2);
