@@ -1,4 +1,4 @@
-/* Minimum distance enforcement (FM §5.4) over the hash grid of src/grid.h. Same rules as
+/* Minimum distance enforcement (FM §5.4) over the hash grid of grid.h. Same rules as
  * kernels.h: a pure function over an agent range, no allocation, each agent writes only its own
  * entries, so any split of the range across threads gives the same bits. */
 #ifndef FM_KERNEL_MDE_H

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Checks flockmorph's VTK output with Python's xml module alone (run by tests/test_export_*.c).
+"""Checks flockmorph's VTK output with Python's xml module alone (run by the export tests, tests/cli/test_export_cli.c).
 
   check_vtk.py vtu FILE.vtu EXPECTED tets|points
       EXPECTED holds little-endian raw values: tets: 12n f32 vertices, n u32 ids;

@@ -7,7 +7,7 @@
  *   VDB   OpenVDB PointDataGrid: P, v (velocity) and id
  *
  * Every writer writes PATH.partial and renames it to PATH only when complete. Included by
- * flockmorph.h; C++ only inside the engine (src/export_vdb.cpp). */
+ * flockmorph.h; C++ only inside the engine (src/io/export_vdb.cpp). */
 #ifndef FLOCKMORPH_EXPORT_H
 #define FLOCKMORPH_EXPORT_H
 

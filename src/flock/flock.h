@@ -77,7 +77,7 @@ struct fm_flock_state {
     double *mesh_v;                /* deforming: the target's vertices at the current time */
     float *eval;                   /* deforming: destinations, 3 per agent (fm_samples_eval) */
     uint8_t *member;               /* every agent is listed in the grid */
-    fm_kalman kalman;              /* the covariance and gain, shared by all agents (kalman.h) */
+    fm_kalman kalman;              /* the covariance and gain, shared by all agents (flock_kalman.h) */
     fm_fields *fields;
     fm_grid grid;
     int grid_ready;

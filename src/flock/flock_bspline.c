@@ -1,4 +1,4 @@
-/* Interpolating uniform cubic B-spline with an arc-length table (SCF eqs 10-12; see bspline.h). */
+/* Interpolating uniform cubic B-spline with an arc-length table (SCF eqs 10-12; see flock_bspline.h). */
 #include "flock_bspline.h"
 
 #include <math.h>

@@ -1,4 +1,4 @@
-/* Per-agent Kalman homing (SCF eq 9); see kalman.h. */
+/* Per-agent Kalman homing (SCF eq 9); see flock_kalman.h. */
 #include "flock_kalman.h"
 
 void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_vel)

@@ -101,7 +101,7 @@ void cache_xor(unsigned char *dst, const unsigned char *src, size_t n);
 int64_t cache_quantise(const float *in, size_t count, double quantum, int32_t *out);
 void cache_dequantise(const int32_t *in, size_t count, double quantum, float *out);
 
-/* The writer's layout (run.c hands over the attributes it asks for). */
+/* The writer's layout (morph_run.c and flock_run.c hand over the attributes it asks for). */
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
 /* The agents' ids 0 … n−1 as the `id` attribute of a frame in id order (both runs hand over their
  * frames in id order); NULL if the cache has no id attribute. */

@@ -93,7 +93,7 @@ struct fm_morph_state {
     uint8_t *morph_safe;     /* 1: uses the always-invertible A(t) form (see morph.c) */
     uint8_t *entered;        /* scratch: entered the target sphere this step */
     void *sort_scratch;      /* scratch for the re-sort: 16 bytes per agent; the velocity stage
-                                borrows 8 of them for the obstacle kernels (step.c) */
+                                borrows 8 of them for the obstacle kernels (morph_step.c) */
     uint32_t *sort_keys;     /* scratch: 2 × n keys and 2 × n slots */
     int32_t *sort_slots;
     int64_t launched;        /* agents with id < launched have left the source */

@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 /* A frame of `frame` bytes per agent whose largest attribute takes `largest`: the run's own buffers
- * (run.c, flock_run.c). The cache writer's frame also holds the ids (4 B, which the writer hands over
+ * (morph_run.c, flock_run.c). The cache writer's frame also holds the ids (4 B, which the writer hands over
  * itself): its two hand-over slots, the previous frame when delta is on (cache_writer.c), its
  * quantise and filter buffers (the largest attribute) and the chunk (zstd's output bound: 1/256 more
  * than its input). */
@@ -49,7 +49,7 @@ static double field_grid_bytes(const fm_scene_def *def)
     return 4.0 * sizeof(float) * (double)g[0] * (double)g[1] * (double)g[2];
 }
 
-/* Dense signed-distance grids (model.c): the obstacles' with the automatic voxel spans about 160
+/* Dense signed-distance grids (scene_obstacles.c, morph_model.c): the obstacles' with the automatic voxel spans about 160
  * voxels plus the band per axis; a voxel the scene sets is bounded only by the refusal beyond
  * FM_OBSTACLE_MAX_VOXELS. The distance phase switch adds one more automatic grid. */
 static double distance_grid_bytes(const fm_scene_def *def)

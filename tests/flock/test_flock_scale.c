@@ -1,7 +1,7 @@
 /* The issue's 10^5-agent scenario, examples/flock_suzanne_torus, built from its scene file through
  * the public API: the model has 100,000 agents; every start lies on the placed source surface and
  * every destination on the placed target surface (Embree closest point, within 1e-5 of the
- * bounding-box diagonal, as tests/test_sample.c); and after a few frames 1 and 2 threads hold the
+ * bounding-box diagonal, as tests/sample/test_sample.c); and after a few frames 1 and 2 threads hold the
  * same bits (positions, velocities, orientations, phases). The whole run (164 frames, about 6 s of
  * preprocessing and 45 s of steps) is measured in docs/shape-flock.md; here only its first frames
  * are stepped, to stay under ~20 s on two cores. */

@@ -1,5 +1,5 @@
-/* The spatial re-sort of the store (src/resort.c) and the scheduler's determinism: the re-sort
- * keeps every agent's id and state and the frame; the active range is laid out as sim.h says; and a
+/* The spatial re-sort of the store (src/morph/morph_resort.c) and the scheduler's determinism: the re-sort
+ * keeps every agent's id and state and the frame; the active range is laid out as morph.h says; and a
  * scenario with MDE and an obstacle gives the same cache bytes for 1, 2 and 3 threads and for every
  * SIMD level. */
 #include "flockmorph/flockmorph.h"

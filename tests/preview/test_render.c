@@ -1,4 +1,4 @@
-/* The preview renderer (src/render.c) and its video writer (src/video.c): render small scenes
+/* The preview renderer (src/preview/render.c) and its video writer (src/preview/video.c): render small scenes
  * whose projection is known and check where the pixels land, that a tet shadows the ground, that
  * the bytes do not depend on the thread count, that points become spheres; then `flockmorph render`
  * to MP4 through ffmpeg, counted back with ffprobe, and its errors. */
