@@ -47,15 +47,27 @@ static int beyond_reach(const fm_obstacle_view *o, float dg, float rx, float rea
     return dg - rx > 2 * reach + 2 * o->sdf.voxel;
 }
 
-/* A unit vector perpendicular to the unit vector g, the same for the same g: horizontal (g x z)
- * where possible, so flocks pass upright obstacles at the side rather than into the floor or a
- * concave corner; `flip` reverses it, so odd and even agents go opposite ways round a head-on
- * obstacle instead of piling up. */
-static void any_perpendicular(const float g[3], int flip, float out[3])
+/* A unit vector normal to the unit vector up: the axis least aligned with up, less its part along
+ * up (for up = +Z, the x axis). */
+static void horizontal(const float up[3], float out[3])
 {
-    out[0] = g[1], out[1] = -g[0], out[2] = 0; /* g x (0, 0, 1) */
-    float len = sqrtf(out[0] * out[0] + out[1] * out[1]);
-    if (len < 1e-3f) out[0] = 1, out[1] = 0, len = 1; /* g is vertical: any horizontal direction */
+    int e = 0;
+    for (int k = 1; k < 3; k++)
+        if (fabsf(up[k]) < fabsf(up[e])) e = k;
+    for (int k = 0; k < 3; k++) out[k] = (k == e) - up[e] * up[k];
+    float len = sqrtf(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+    for (int k = 0; k < 3; k++) out[k] /= len;
+}
+
+/* A unit vector perpendicular to the unit vector g, the same for the same g: horizontal (g x up)
+ * where possible, so flocks pass upright obstacles at the side rather than into the floor or a
+ * concave corner, whichever axis the scene calls up; `flip` reverses it, so odd and even agents
+ * go opposite ways round a head-on obstacle instead of piling up. */
+static void any_perpendicular(const float g[3], const float up[3], int flip, float out[3])
+{
+    out[0] = g[1] * up[2] - g[2] * up[1], out[1] = g[2] * up[0] - g[0] * up[2], out[2] = g[0] * up[1] - g[1] * up[0];
+    float len = sqrtf(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+    if (len < 1e-3f) horizontal(up, out), len = 1; /* g is vertical: any horizontal direction */
     float sign = flip ? -1.0f : 1.0f;
     for (int k = 0; k < 3; k++) out[k] *= sign / len;
 }
@@ -67,7 +79,7 @@ static void slide_velocity(const fm_obstacle_view *o, float c, float dt, const f
     float w = c > 0 ? c / o->k_a : 0.0f, along = vg[0] * g[0] + vg[1] * g[1] + vg[2] * g[2];
     float speed = sqrtf(vg[0] * vg[0] + vg[1] * vg[1] + vg[2] * vg[2]), side[3];
     /* D: the projection of V_grn, nudged sideways so a nearly head-on agent does not stall */
-    any_perpendicular(g, flip, side);
+    any_perpendicular(g, o->up, flip, side);
     float t[3];
     for (int k = 0; k < 3; k++) t[k] = vg[k] - along * g[k] + SIDE_BIAS * speed * side[k];
     float len = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);

@@ -16,11 +16,13 @@ typedef struct fm_obstacle_view {
     double (*exact)(const void *ctx, const double p[3], double normal[3]);
     const void *exact_ctx;
     float exact_band;
+    float up[3];          /* the scene's unit up direction: head-on agents are turned round an
+                             obstacle in the plane normal to it */
 } fm_obstacle_view;
 
 /* The tets' bounding radius R_X at a given moment: rest radius times the launch shrink. */
 typedef struct fm_radius_view {
-    const float *rest;    /* per store slot: radius of the tet's minimal bounding sphere at rest */
+    const float *rest;    /* per store slot: the largest distance from the tet's centroid to a vertex, at rest */
     const int32_t *id;    /* agent id of each store slot (the store is re-sorted): its launch time */
     float shrink;         /* FM §6 shrink factor and its duration */
     float shrink_time;

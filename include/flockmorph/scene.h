@@ -171,6 +171,9 @@ typedef struct fm_scene_def {
     double k_a;                 /* influence range of eq 7, units */
     double obstacle_voxel;      /* signed-distance voxel size, units; 0 = automatic */
     int32_t avoid_in_phase2;    /* beyond the paper (§8): obstacle avoidance also in phase 2 */
+    double up[3];               /* the scene's up direction (any length, not zero; default +Z, glTF's
+                                   is +Y): obstacle avoidance turns agents round an obstacle in the
+                                   plane normal to it, so upright obstacles are passed at the side */
     /* local avoidance, MDE (FM §5.4) */
     double d_min;               /* minimum distance between tet centroids, units; 0 = off */
     double mde_speed;           /* push speed of a pair at zero distance, units/s; 0 = speed0 */

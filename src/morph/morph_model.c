@@ -179,18 +179,30 @@ static fm_status bounding_sphere(fm_morph_model *m, const fm_mesh *target, fm_er
     return FM_OK;
 }
 
-/* R_X of FM eq 8: the radius of each source tet's minimal bounding sphere, at rest. */
+/* R_X of FM eq 8, at rest: the radius of the sphere about the tet's centroid that holds its four
+ * vertices. The step tests d_t at the centroid (the point it moves) against R_X, so the sphere
+ * must be centred there: the minimal bounding sphere's centre is not the centroid, and its radius
+ * left vertices up to 1.44 R_X from the centroid (issue 14). A phase-1 tet is its rest shape
+ * scaled about the centroid (FM §6 shrink), so R_X times the scale bounds every vertex in flight;
+ * the relative 1e-6 covers the float rounding of the placed vertices. */
+static float centroid_radius(const float *rel)
+{
+    double r2 = 0;
+    for (int i = 0; i < 4; i++) {
+        const float *v = rel + 3 * i;
+        r2 = fmax(r2, (double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
+    }
+    return nextafterf((float)(sqrt(r2) * (1 + 1e-6)), INFINITY);
+}
+
 static fm_status tet_radii(fm_morph_model *m, float *max_radius, fm_error *err)
 {
     m->src_radius = fm_alloc(sizeof(float) * (size_t)m->n);
     if (!m->src_radius) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
     *max_radius = 0;
     for (int64_t a = 0; a < m->n; a++) {
-        double pts[12], c[3], r;
-        for (int i = 0; i < 12; i++) pts[i] = m->src_rel[12 * a + i];
-        if (fm_min_sphere(pts, 4, (uint64_t)a, c, &r) != 0) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
-        m->src_radius[a] = (float)r;
-        if ((float)r > *max_radius) *max_radius = (float)r;
+        m->src_radius[a] = centroid_radius(m->src_rel + 12 * a);
+        if (m->src_radius[a] > *max_radius) *max_radius = m->src_radius[a];
     }
     return FM_OK;
 }

@@ -54,8 +54,9 @@ static double exact_distance(const void *ctx, const double p[3], double normal[3
 static fm_obstacle_view obstacle_view(const fm_morph_model *m)
 {
     fm_sdf_view sdf = fm_obstacles_sdf(m->obstacles);
+    const double *u = m->def.up, len = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     return (fm_obstacle_view){sdf, (float)m->def.k_a, (float)m->def.speed0, exact_distance, m->obstacles,
-                              m->max_radius + 2.0f * sdf.voxel};
+                              m->max_radius + 2.0f * sdf.voxel, {(float)(u[0] / len), (float)(u[1] / len), (float)(u[2] / len)}};
 }
 
 /* The MDE grid's cell edge: at least d_min (the search reaches one cell), and no smaller than the

@@ -62,6 +62,7 @@ fm_scene_def fm_default_scene_def(void)
     fm_scene_def d;
     memset(&d, 0, sizeof d);
     d.source.scale = d.target.scale = 1.0;
+    d.up[2] = 1.0;
     d.tet_quality = 2.0;
     d.speed0 = 10.0;
     d.omega1 = 1.0;
@@ -127,7 +128,7 @@ static const char *const *enum_names(const param *p)
  * the other mode is an error rather than silently ignored. */
 static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
                                          "path.attraction", "launch_rate", "morph", "style.omega2",
-                                         "obstacles.in_phase2", "mde", "phase2"};
+                                         "obstacles.in_phase2", "mde", "phase2", "up"};
 
 static int has_prefix(const char *key, const char *group)
 {
@@ -192,6 +193,7 @@ static const param PARAMS[] = {
     {"obstacles.k_a", P_DOUBLE, OFF(k_a), 0, 1e9, OPEN_MIN},
     {"obstacles.voxel", P_DOUBLE, OFF(obstacle_voxel), 0, 1e9, 0},
     {"obstacles.in_phase2", P_BOOL, OFF(avoid_in_phase2), 0, 0, 0},
+    {"up", P_VEC3, OFF(up), -1e9, 1e9, 0},
     {"mde.d_min", P_DOUBLE, OFF(d_min), 0, 1e9, 0},
     {"mde.speed", P_DOUBLE, OFF(mde_speed), 0, 1e9, 0},
     {"path.width", P_DOUBLE, OFF(path_width), 0, 1e9, 0},
@@ -765,6 +767,10 @@ static fm_status check_field_vectors(where *w, const fm_scene_def *def)
 /* Checks that span several parameters. */
 static fm_status check_consistency(where *w, const fm_scene_def *def)
 {
+    if (!(fabs(def->up[0]) + fabs(def->up[1]) + fabs(def->up[2]) > 0)) {
+        where_set_key(w, "up");
+        return fail_at(w, "up", "the up direction must not be zero");
+    }
     if (def->compression_level == 0) { /* zstd reads 0 as its default, 3: say which one */
         where_set_key(w, "output.compression_level");
         return fail_at(w, "output.compression_level", "0 is not a level: use 1 ... 19, or -7 ... -1 for zstd's fast levels");

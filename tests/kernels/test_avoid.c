@@ -3,6 +3,8 @@
 #include "kernel_avoid.h"
 #include "test_macros.h"
 
+#include <string.h>
+
 enum { NX = 40, NY = 4, NZ = 4 };
 static float grid[NX * NY * NZ];
 
@@ -13,7 +15,7 @@ static fm_obstacle_view plane_view(float k_a)
         for (int j = 0; j < NY; j++)
             for (int i = 0; i < NX; i++) grid[i + NX * (j + NY * k)] = 5.0f - 0.25f * (float)i;
     fm_sdf_view sdf = {grid, {NX, NY, NZ}, {0, 0, 0}, 0.25f, 100.0f};
-    return (fm_obstacle_view){sdf, k_a, 2.0f, NULL, NULL, 0.0f};
+    return (fm_obstacle_view){sdf, k_a, 2.0f, NULL, NULL, 0.0f, {0, 0, 1}};
 }
 
 static const float zero_radius[4] = {0, 0, 0, 0};
@@ -123,7 +125,7 @@ static fm_obstacle_view sphere_view(void)
                 sphere_grid[i + SN * (j + SN * k)] = (float)(d > 0.75 ? 0.75 : d < -0.75 ? -0.75 : d);
             }
     fm_sdf_view sdf = {sphere_grid, {SN, SN, SN}, {origin, origin, origin}, voxel, 0.75f};
-    return (fm_obstacle_view){sdf, 0.5f, 2.0f, sphere_exact, NULL, 0.2f + 2 * voxel};
+    return (fm_obstacle_view){sdf, 0.5f, 2.0f, sphere_exact, NULL, 0.2f + 2 * voxel, {0, 0, 1}};
 }
 
 static uint32_t lcg(uint32_t *s) { return *s = *s * 1664525u + 1013904223u; }
@@ -172,6 +174,56 @@ static void test_avoid_matches_reference(void)
     ENSURE_MSG(steered > N / 20, "eq 7 steered only %d agents", steered); /* the test reaches the sliding case */
 }
 
+
+/* Avoidance does not depend on which axis is up (issue 14): agents flying head-on at the sphere's
+ * equator are turned round it in the plane normal to the scene's up, never over the top, for
+ * up = +Z and for the same scene turned so that up = +Y (x, y, z -> x, z, -y); and the turned
+ * scene's velocities are the turned velocities. */
+static void head_on_at_equator(const float up[3], const float rot[9], float out[][3], int n)
+{
+    fm_obstacle_view o = sphere_view();
+    memcpy(o.up, up, sizeof o.up);
+    enum { M = 64 };
+    float x[M], y[M], z[M], vx[M], vy[M], vz[M], radius[M], d_grid[M], rx[M];
+    uint8_t phase[M];
+    int32_t ids[M];
+    for (int a = 0; a < n; a++) {
+        float ph = 6.2831853f * (float)a / (float)n, r = 2.15f, q[3] = {r * cosf(ph), r * sinf(ph), 0};
+        float p[3], w[3] = {-q[0] / r * 2.0f, -q[1] / r * 2.0f, 0};
+        for (int k = 0; k < 3; k++) p[k] = rot[3 * k] * q[0] + rot[3 * k + 1] * q[1] + rot[3 * k + 2] * q[2];
+        float v[3];
+        for (int k = 0; k < 3; k++) v[k] = rot[3 * k] * w[0] + rot[3 * k + 1] * w[1] + rot[3 * k + 2] * w[2];
+        x[a] = p[0], y[a] = p[1], z[a] = p[2], vx[a] = v[0], vy[a] = v[1], vz[a] = v[2];
+        radius[a] = 0.1f, phase[a] = 1, ids[a] = a;
+    }
+    fm_radius_view r = {radius, ids, 1.0f, 0.0f, 1000.0};
+    const float *p[3] = {x, y, z};
+    float *v[3] = {vx, vy, vz};
+    fm_kernel_avoid(&o, &r, p, v, phase, 1, 0, n, 10.0, 0.05f, (fm_obstacle_scratch){d_grid, rx});
+    for (int a = 0; a < n; a++) out[a][0] = vx[a], out[a][1] = vy[a], out[a][2] = vz[a];
+}
+
+static void test_avoidance_does_not_depend_on_the_up_axis(void)
+{
+    enum { N = 48 };
+    static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, turn[9] = {1, 0, 0, 0, 0, 1, 0, -1, 0};
+    static const float z_up[3] = {0, 0, 1}, y_up[3] = {0, 1, 0};
+    float vz_up[N][3], vy_up[N][3];
+    head_on_at_equator(z_up, identity, vz_up, N);
+    head_on_at_equator(y_up, turn, vy_up, N);
+    int over_top = 0, differ = 0, turned = 0;
+    for (int a = 0; a < N; a++) {
+        float speed = sqrtf(vz_up[a][0] * vz_up[a][0] + vz_up[a][1] * vz_up[a][1] + vz_up[a][2] * vz_up[a][2]);
+        over_top += fabsf(vz_up[a][2]) > 1e-5f * speed || fabsf(vy_up[a][1]) > 1e-5f * speed;
+        const float want[3] = {vz_up[a][0], vz_up[a][2], -vz_up[a][1]}; /* the turned velocity */
+        for (int k = 0; k < 3; k++) differ += fabsf(vy_up[a][k] - want[k]) > 1e-4f * (speed + 1);
+        turned += fabsf(vz_up[a][0] * sinf(6.2831853f * a / N) - vz_up[a][1] * cosf(6.2831853f * a / N)) > 0.1f * speed;
+    }
+    ENSURE_MSG(turned == N, "only %d of %d head-on agents were turned sideways", turned, N);
+    ENSURE_MSG(over_top == 0, "%d agents were sent along the up axis", over_top);
+    ENSURE_MSG(differ == 0, "%d velocity components of the turned scene differ from the turned velocities", differ);
+}
+
 int main(void)
 {
     RUN_TEST(test_outside_influence_keeps_v_grn);
@@ -180,5 +232,6 @@ int main(void)
     RUN_TEST(test_no_look_ahead_collision_keeps_v_grn);
     RUN_TEST(test_contact_stops_at_the_surface);
     RUN_TEST(test_avoid_matches_reference);
+    RUN_TEST(test_avoidance_does_not_depend_on_the_up_axis);
     return test_result();
 }

@@ -280,6 +280,20 @@ static void test_out_of_range(void)
     expect_error_at("range_cache.json", "{" MESHES ", \"output\": {\"cache\": @\"../x.fmc\"}}", "output.cache");
 }
 
+/* `up` (issue 14): +Z by default, any non-zero direction, refused when zero or in a shape flock. */
+static void test_up_direction(void)
+{
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(load_text("up_default.json", "{" MESHES "}", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.up[0] == 0 && d.up[1] == 0 && d.up[2] == 1);
+    ENSURE_MSG(load_text("up_y.json", "{" MESHES ", \"up\": [0, 2, 0]}", &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.up[0] == 0 && d.up[1] == 2 && d.up[2] == 0);
+    expect_error_at("up_zero.json", "{" MESHES ",\n \"up\": @[0, 0, 0]}", "up: the up direction must not be zero");
+    expect_error_at("up_flock.json", "{\"mode\": \"shape_flock\", \"n\": 10, " MESHES ",\n @\"up\": [0, 1, 0]}",
+                    "does not apply to mode \"shape_flock\"");
+}
+
 static void test_time_step_must_divide_frame(void)
 {
     expect_error_at("step_bad.json", "{" MESHES ",\n \"time\": {\"frame_rate\": 24, \"time_step\": @0.03}}",
@@ -424,6 +438,7 @@ int main(void)
     RUN_TEST(test_wrong_types);
     RUN_TEST(test_out_of_range);
     RUN_TEST(test_time_step_must_divide_frame);
+    RUN_TEST(test_up_direction);
     RUN_TEST(test_syntax_error);
     RUN_TEST(test_duplicate_keys);
     RUN_TEST(test_missing_mesh);
