@@ -6,7 +6,7 @@ include(CMakePackageConfigHelpers)
 set(FM_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/flockmorph)
 set(FM_PKGCONFIG_DIR ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
 
-file(GLOB FM_PUBLIC_HEADERS ${PROJECT_SOURCE_DIR}/include/flockmorph/*.h)
+file(GLOB FM_PUBLIC_HEADERS CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/include/flockmorph/*.h)
 install(FILES ${FM_PUBLIC_HEADERS} ${FM_GENERATED_INCLUDE}/flockmorph/version.h
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/flockmorph)
 
@@ -24,9 +24,8 @@ install(TARGETS flockmorph_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(EXPORT flockmorphTargets NAMESPACE flockmorph:: DESTINATION ${FM_CMAKE_DIR})
 install(EXPORT flockmorphReaderTargets NAMESPACE flockmorph:: DESTINATION ${FM_CMAKE_DIR})
 
-# flockmorphConfig.cmake finds again what the static libraries' link interfaces name: OpenVDB's
-# find module is where this build found it (Debian keeps it outside CMake's module path).
-set(FM_OPENVDB_MODULE_DIR /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
+# flockmorphConfig.cmake finds again what the static libraries' link interfaces name, OpenVDB
+# through the find module this build used (FM_OPENVDB_MODULE_DIR).
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/flockmorphConfig.cmake.in
   ${CMAKE_BINARY_DIR}/package/flockmorphConfig.cmake INSTALL_DESTINATION ${FM_CMAKE_DIR})
 # Before 1.0 a minor version may break the API, so only the same major.minor is compatible.

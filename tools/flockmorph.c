@@ -7,6 +7,7 @@
  *   flockmorph info CACHE              (inspect --json)
  *   flockmorph help [COMMAND]          (COMMAND --help)
  *   flockmorph --version | -V
+ *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
 #include "cli.h"
 
