@@ -10,10 +10,10 @@
 #     (nm) and load none of them (ldd).
 # Any failing step fails the test. (No `grep -q` after a pipe: with pipefail, the writer's SIGPIPE
 # when grep stops early would fail the check at random.)
-#   tests/install/test_install.sh BUILD_DIR SCRATCH_DIR LIBDIR SHARED(ON|OFF) C_COMPILER
+#   tests/install/test_install.sh BUILD_DIR SCRATCH_DIR LIBDIR SHARED(ON|OFF) C_COMPILER [CMAKE]
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-build=$1 libdir=$3 shared=$4 cc=$5
+build=$1 libdir=$3 shared=$4 cc=$5 cmake=${6:-cmake} # the build's own cmake, from ctest
 work=$2/install
 rm -rf "$work"
 mkdir -p "$work"
@@ -23,7 +23,7 @@ log() { echo "test_install: $*"; }
 # runs a command with its output in $work/NAME.log, shown only when it fails
 quiet() { local name=$1; shift; "$@" > "$work/$name.log" 2>&1 || { cat "$work/$name.log"; fail "$name: $*"; }; }
 
-quiet install cmake --install "$build" --prefix "$prefix"
+quiet install "$cmake" --install "$build" --prefix "$prefix"
 for f in include/flockmorph/flockmorph.h include/flockmorph/cache.h include/flockmorph/version.h \
          "$libdir/libflockmorph.a" "$libdir/libflockmorph_reader.a" bin/flockmorph \
          "$libdir/cmake/flockmorph/flockmorphConfig.cmake" "$libdir/cmake/flockmorph/flockmorphConfigVersion.cmake" \
@@ -77,9 +77,9 @@ check_reader_only() {
 check_reader_only "$prefix/$libdir/libflockmorph_reader.a"
 
 # CMake: find_package(flockmorph)
-quiet cmake_configure cmake -S "$here/consumer" -B "$work/cmake" -DCMAKE_PREFIX_PATH="$prefix" \
+quiet cmake_configure "$cmake" -S "$here/consumer" -B "$work/cmake" -DCMAKE_PREFIX_PATH="$prefix" \
   -DCMAKE_C_COMPILER="$cc" -DCMAKE_BUILD_TYPE=Release
-quiet cmake_build cmake --build "$work/cmake"
+quiet cmake_build "$cmake" --build "$work/cmake"
 programs="read_cache_reader read_cache_static"
 [ "$shared" = ON ] && programs="$programs read_cache_shared"
 for p in $programs; do
@@ -92,10 +92,10 @@ check_reader_only "$work/cmake/read_cache_reader"
 [ "$shared" != ON ] || ldd "$work/cmake/read_cache_shared" | grep 'libflockmorph\.so' > /dev/null || fail "read_cache_shared does not load libflockmorph.so"
 
 # CMake: find_package(flockmorph COMPONENTS reader), which must not need the engine's packages
-quiet cmake_reader_configure cmake -S "$here/consumer" -B "$work/cmake_reader" -DCMAKE_PREFIX_PATH="$prefix" \
+quiet cmake_reader_configure "$cmake" -S "$here/consumer" -B "$work/cmake_reader" -DCMAKE_PREFIX_PATH="$prefix" \
   -DCMAKE_C_COMPILER="$cc" -DFM_READER_ONLY=ON
 grep -q -i "openvdb\|embree\|assimp" "$work/cmake_reader/CMakeCache.txt" && fail "COMPONENTS reader looked for the engine's packages"
-quiet cmake_reader_build cmake --build "$work/cmake_reader"
+quiet cmake_reader_build "$cmake" --build "$work/cmake_reader"
 "$work/cmake_reader/read_cache_reader" "$cache" "$agents" || fail "read_cache_reader (COMPONENTS reader)"
 
 # pkg-config
