@@ -5,6 +5,8 @@
  *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4 [--frames A:B] [--fps F] [options]
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
+ *   flockmorph help [COMMAND]          (COMMAND --help)
+ *   flockmorph --version | -V
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
 #include "cli.h"
@@ -24,19 +26,40 @@ static const char *USAGE_MAIN =
     "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
     "  info     the same as 'inspect --json'\n"
     "\n"
-    "'flockmorph <command> --help' describes each command. docs/ has the scene file reference.\n";
+    "'flockmorph help <command>' or 'flockmorph <command> --help' describes each command;\n"
+    "'flockmorph --version' prints the version. docs/ has the scene file reference.\n";
+
+static const struct {
+    const char *name;
+    int (*fn)(int argc, char **argv);
+} COMMANDS[] = {
+    {"run", cli_run}, {"export", cli_export}, {"render", cli_render}, {"inspect", cli_inspect}, {"info", cli_info},
+};
+
+static int (*find_command(const char *name))(int, char **)
+{
+    for (size_t i = 0; i < sizeof COMMANDS / sizeof COMMANDS[0]; i++)
+        if (!strcmp(name, COMMANDS[i].name)) return COMMANDS[i].fn;
+    return NULL;
+}
 
 int main(int argc, char **argv)
 {
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
-    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) return printf("%s", USAGE_MAIN), 0;
-    if (!strcmp(cmd, "--version")) return printf("flockmorph %s\n", FM_VERSION_STRING), 0;
-    if (!strcmp(cmd, "run")) return cli_run(argc - 2, argv + 2);
-    if (!strcmp(cmd, "export")) return cli_export(argc - 2, argv + 2);
-    if (!strcmp(cmd, "render")) return cli_render(argc - 2, argv + 2);
-    if (!strcmp(cmd, "inspect")) return cli_inspect(argc - 2, argv + 2);
-    if (!strcmp(cmd, "info")) return cli_info(argc - 2, argv + 2);
+    if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) return printf("flockmorph %s\n", FM_VERSION_STRING), 0;
+    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || (!strcmp(cmd, "help") && argc == 2))
+        return printf("%s", USAGE_MAIN), 0;
+    if (!strcmp(cmd, "help")) {
+        /* 'help CMD' is 'CMD --help': each command keeps its one usage text. */
+        int (*fn)(int, char **) = find_command(argv[2]);
+        char help[] = "--help", *args[] = {help, NULL};
+        if (fn) return fn(1, args);
+        fprintf(stderr, "flockmorph: unknown command '%s'\n\n%s", argv[2], USAGE_MAIN);
+        return FM_ERR_USAGE;
+    }
+    int (*fn)(int, char **) = find_command(cmd);
+    if (fn) return fn(argc - 2, argv + 2);
     fprintf(stderr, "flockmorph: unknown command '%s'\n\n%s", cmd, USAGE_MAIN);
     return FM_ERR_USAGE;
 }

@@ -52,6 +52,35 @@ static void test_help(void)
     ENSURE(strstr(g_out, "usage: flockmorph info") != NULL);
 }
 
+/* --version and -V print the CMake project's version (the generated flockmorph/version.h), and
+ * 'help CMD' prints exactly what 'CMD --help' prints. */
+static void test_version_and_help_command(void)
+{
+    char expected[64], text[sizeof g_out];
+    snprintf(expected, sizeof expected, "flockmorph %s\n", FM_VERSION_STRING);
+    ENSURE_EXIT("--version", 0);
+    ENSURE_MSG(!strcmp(g_out, expected), "'%s', expected '%s'", g_out, expected);
+    ENSURE_EXIT("-V", 0);
+    ENSURE_MSG(!strcmp(g_out, expected), "'%s', expected '%s'", g_out, expected);
+    snprintf(expected, sizeof expected, "%d.%d.%d", FM_VERSION_MAJOR, FM_VERSION_MINOR, FM_VERSION_PATCH);
+    ENSURE_MSG(!strcmp(FM_VERSION_STRING, expected), "FM_VERSION_STRING %s, parts %s", FM_VERSION_STRING, expected);
+    static const char *const commands[] = {"run", "export", "render", "inspect", "info"};
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
+        char args[64];
+        snprintf(args, sizeof args, "%s --help", commands[i]);
+        ENSURE_EXIT(args, 0);
+        snprintf(text, sizeof text, "%s", g_out);
+        snprintf(args, sizeof args, "help %s", commands[i]);
+        ENSURE_EXIT(args, 0);
+        ENSURE_MSG(text[0] && !strcmp(g_out, text), "'help %s' printed '%s', '%s --help' '%s'", commands[i], g_out,
+                   commands[i], text);
+    }
+    ENSURE_EXIT("help", 0);
+    ENSURE(strstr(g_out, "usage: flockmorph <command>") != NULL);
+    ENSURE_EXIT("help frobnicate", 1);
+    ENSURE_MSG(strstr(g_err, "unknown command 'frobnicate'") != NULL, "%s", g_err);
+}
+
 static void test_usage_errors(void)
 {
     char scene[FM_PATH_MAX], args[3 * FM_PATH_MAX];
@@ -123,6 +152,8 @@ static void test_successful_run(void)
     ENSURE_MSG(j != NULL, "%s: %s", stats, jerr.text);
     if (!j) return;
     ENSURE(json_integer_value(json_object_get(j, "agents")) == AGENTS);
+    const char *version = json_string_value(json_object_get(j, "version"));
+    ENSURE_MSG(version && !strcmp(version, FM_VERSION_STRING), "stats.json version %s", version ? version : "missing");
     ENSURE(json_is_true(json_object_get(j, "all_arrived")));
     ENSURE(json_is_integer(json_object_get(j, "inverted_tet_frames")) &&
            json_integer_value(json_object_get(j, "inverted_tet_frames")) == 0);
@@ -457,6 +488,7 @@ static void test_run_cache_options(void)
 int main(void)
 {
     RUN_TEST(test_help);
+    RUN_TEST(test_version_and_help_command);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_run_unknown_key);
     RUN_TEST(test_run_missing_mesh);
