@@ -47,6 +47,12 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "tracking_lag", number_or_null(rs->tracking_lag));
     json_object_set_new(j, "tracking_frames", json_integer(rs->tracking_frames));
     json_object_set_new(j, "shape_flock", settings_json(def, mi));
+    json_t *warnings = json_array();
+    for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
+        json_array_append_new(warnings, json_string(fm_flock_model_warning(r->model, i)));
+    json_object_set_new(j, "warnings", warnings);
+    json_object_set_new(j, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"));
+    json_object_set_new(j, "field_bake_error", number_or_null(mi->field_bake_error));
     return cli_write_json(path, j);
 }
 
@@ -58,6 +64,8 @@ static int build(void *run, const fm_scene_def *def, int *show)
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};
+    for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
+        fprintf(stderr, "flockmorph: warning: %s\n", fm_flock_model_warning(r->model, i));
     return 0;
 }
 

@@ -14,7 +14,7 @@ static json_t *vec3_json(const double v[3])
 }
 
 /* The velocity-model settings of the run (FM Table I's parameters, grid and style columns). */
-static json_t *velocity_json(const fm_scene_def *def)
+static json_t *velocity_json(const fm_scene_def *def, const fm_morph_model_info *mi)
 {
     static const char *const kinds[] = {"curl_noise", "wind", "gravity", "vortex"};
     json_t *fields = json_array();
@@ -34,7 +34,7 @@ static json_t *velocity_json(const fm_scene_def *def)
     }
     json_t *grid = def->field_grid[0] > 0 ? json_pack("[iii]", def->field_grid[0], def->field_grid[1], def->field_grid[2]) : json_null();
     return json_pack("{sfsfsosososisfsfsbsfsfsfsfss}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
-                     "field_grid", grid, "field_evaluation", json_string(def->field_grid[0] > 0 ? "baked" : "direct"),
+                     "field_grid", grid, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"),
                      "obstacles", def->obstacle_count, "k_a", def->k_a, "obstacle_voxel", def->obstacle_voxel,
                      "avoid_in_phase2", def->avoid_in_phase2 != 0, "d_min", def->d_min, "mde_speed", def->mde_speed,
                      "path_width", def->path_width, "path_attraction", def->path_attraction,
@@ -92,7 +92,9 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "mde_fraction_per_frame", mde_frames_json(rs));
     json_object_set_new(j, "min_obstacle_clearance",
                         isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
-    json_object_set_new(j, "velocity_model", velocity_json(def));
+    json_t *velocity = velocity_json(def, mi);
+    json_object_set_new(velocity, "field_bake_error", isnan(mi->field_bake_error) ? json_null() : json_real(mi->field_bake_error));
+    json_object_set_new(j, "velocity_model", velocity);
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));

@@ -34,9 +34,16 @@ typedef struct fm_flock_model_info {
     int32_t steps_per_frame;
     double max_radius;         /* the largest perception radius: the neighbour grid's cell */
     int deforming;             /* the target moves (fm_deform_kind != NONE) */
+    int fields_baked;          /* as fm_morph_model_info's */
+    double field_bake_error;
 } fm_flock_model_info;
 
 fm_flock_model_info fm_flock_model_get_info(const fm_flock_model *model);
+
+/* Accepted but unusual input, one message per warning naming the scene file and key (as
+ * fm_morph_model_warning): a style.grid too coarse for the noise, which is then evaluated directly. */
+int fm_flock_model_warning_count(const fm_flock_model *model);
+const char *fm_flock_model_warning(const fm_flock_model *model, int i);
 
 /* Every agent's start C1 and its destination C2 at time 0, 3 floats per agent (either may be NULL). */
 void fm_flock_model_endpoints(const fm_flock_model *model, float *c1, float *c2);

@@ -36,6 +36,9 @@ typedef struct fm_morph_model_info {
     double time_step;           /* seconds per step */
     int32_t steps_per_frame;
     double launch_rate;         /* agents per second, after the default is applied */
+    int fields_baked;           /* the style fields' noise is baked on style.grid (only where the grid
+                                   resolves it: cells of at most a quarter of the noise scale) */
+    double field_bake_error;    /* baked against direct, relative RMS at t = 0; NaN when not baked */
 } fm_morph_model_info;
 
 fm_morph_model_info fm_morph_model_get_info(const fm_morph_model *model);

@@ -51,6 +51,8 @@ struct fm_flock_model {
     float *max_speed, *max_force;
     float max_radius;              /* the neighbour grid's cell */
     fm_fuzzy fuzzy[FM_FUZZY_FORCES];
+    fm_field_plan fields;          /* whether the state bakes the style fields (fields.h) */
+    char warning[1024];            /* fm_flock_model_warning 0: the fields' plan, located */
     fm_obstacles *obstacles;       /* NULL without obstacles */
     double scene_lo[3], scene_hi[3]; /* source, target and path, padded: the style-field grid spans them */
 };

@@ -125,6 +125,21 @@ static void scene_bounds(fm_flock_model *m, const fm_mesh *source)
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
 }
 
+/* Bake the style fields only where the grid resolves them (fields.h); the warning says so when it
+ * does not, naming where the scene sets style.grid. */
+static fm_status plan_fields(fm_flock_model *m, fm_error *err)
+{
+    fm_status st = fm_fields_plan(&m->def, m->scene_lo, m->scene_hi, &m->fields, err);
+    if (st == FM_OK && m->fields.warning[0]) {
+        char where[FM_PATH_MAX + 64];
+        fm_scene_key_location(&m->def, "style.grid", where, sizeof where);
+        snprintf(m->warning, sizeof m->warning, "%.200s: %s", where, m->fields.warning);
+    }
+    m->info.fields_baked = m->fields.baked;
+    m->info.field_bake_error = m->fields.bake_error;
+    return st;
+}
+
 static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
 {
     static const char *const keys[FM_FUZZY_FORCES] = {"shape_flock.fuzzy.steering", "shape_flock.fuzzy.homing",
@@ -187,6 +202,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
         draw_parameters(m);
         scene_bounds(m, &source);
         set_info(m);
+        st = plan_fields(m, err);
     }
     /* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
     if (st == FM_OK && def->obstacle_count > 0 &&
@@ -234,6 +250,13 @@ void fm_flock_model_destroy(fm_flock_model *m)
 }
 
 fm_flock_model_info fm_flock_model_get_info(const fm_flock_model *m) { return m->info; }
+
+int fm_flock_model_warning_count(const fm_flock_model *m) { return m->fields.warning[0] ? 1 : 0; }
+
+const char *fm_flock_model_warning(const fm_flock_model *m, int i)
+{
+    return i == 0 && m->fields.warning[0] ? m->warning : "";
+}
 
 void fm_flock_model_endpoints(const fm_flock_model *m, float *c1, float *c2)
 {

@@ -77,8 +77,7 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
     if (st == FM_OK && def->field_count > 0) {
-        int baked = def->field_grid[0] > 0 && def->field_grid[1] > 0 && def->field_grid[2] > 0;
-        s->fields = fm_fields_create(def->fields, def->field_count, def->seed, baked ? def->field_grid : NULL,
+        s->fields = fm_fields_create(def->fields, def->field_count, def->seed, m->fields.baked ? def->field_grid : NULL,
                                      m->scene_lo, m->scene_hi, err);
         if (!s->fields) st = err ? err->status : FM_ERR_INPUT;
     }

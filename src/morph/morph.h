@@ -34,6 +34,7 @@ struct fm_morph_model {
     float sphere_r;
     float *src_radius;       /* R_X at rest: radius of each source tet's minimal bounding sphere */
     float max_radius;        /* the largest R_X */
+    fm_field_plan fields;    /* whether the state bakes the style fields (fields.h) */
     fm_obstacles *obstacles; /* FM §5.3 d_t (OpenVDB grid + Embree); NULL without obstacles */
     fm_obstacles *target_sdf;/* the target's own signed distance, for FM_SWITCH_DISTANCE */
     double scene_lo[3], scene_hi[3]; /* bounds of source, target and path: the field grid spans them */

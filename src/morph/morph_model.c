@@ -255,6 +255,16 @@ static fm_status build_target_sdf(fm_morph_model *m, const fm_mesh *target, fm_e
     return m->target_sdf ? FM_OK : fm_scene_name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
 }
 
+/* Bake the style fields only where the grid resolves them (fields.h); say so when it does not. */
+static fm_status plan_fields(fm_morph_model *m, fm_error *err)
+{
+    fm_status st = fm_fields_plan(&m->def, m->scene_lo, m->scene_hi, &m->fields, err);
+    if (st == FM_OK && m->fields.warning[0]) warn(m, "style.grid", "%s", m->fields.warning);
+    m->info.fields_baked = m->fields.baked;
+    m->info.field_bake_error = m->fields.bake_error;
+    return st;
+}
+
 static void set_timing(fm_morph_model *m)
 {
     double frame = 1.0 / m->def.frame_rate;
@@ -319,6 +329,7 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
     if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
     scene_bounds(m, s);
+    if ((st = plan_fields(m, err)) != FM_OK) return st;
     float max_radius = 0;
     if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
     m->max_radius = max_radius;

@@ -62,8 +62,7 @@ static fm_status create_velocity_model(const fm_morph_model *m, fm_morph_state *
 {
     const fm_scene_def *def = &m->def;
     if (def->field_count > 0) {
-        int baked = def->field_grid[0] > 0 && def->field_grid[1] > 0 && def->field_grid[2] > 0;
-        s->fields = fm_fields_create(def->fields, def->field_count, def->seed, baked ? def->field_grid : NULL,
+        s->fields = fm_fields_create(def->fields, def->field_count, def->seed, m->fields.baked ? def->field_grid : NULL,
                                      m->scene_lo, m->scene_hi, err);
         if (!s->fields) return err ? err->status : FM_ERR_INPUT;
     }

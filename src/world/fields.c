@@ -9,6 +9,7 @@
 #include "fields.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -487,4 +488,71 @@ void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint
             vz[a] += (float)(wd * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
         }
     }
+}
+
+/* ---------------------------------------------------------------- whether to bake */
+
+int fm_fields_grid_resolves(const fm_field_def *defs, int count, const int32_t res[3], const double lo[3],
+                            const double hi[3], double *cell, double *scale)
+{
+    *cell = 0, *scale = INFINITY;
+    for (int i = 0; i < count; i++) {
+        const fm_field_def *d = &defs[i];
+        int noisy = (d->kind == FM_FIELD_CURL_NOISE && d->gain != 0) || (d->kind == FM_FIELD_WIND && d->turbulence != 0);
+        if (noisy) *scale = fmin(*scale, d->scale);
+    }
+    for (int k = 0; k < 3; k++) *cell = fmax(*cell, (hi[k] - lo[k]) / res[k]);
+    return *cell * FM_FIELD_CELLS_PER_SCALE <= *scale;
+}
+
+double fm_fields_bake_error(const fm_fields *f, double t, int n)
+{
+    if (!f->baked || f->noise_count == 0 || n < 1) return 0;
+    const grid_view g = {f->grid, {f->inv_h[0], f->inv_h[1], f->inv_h[2]}, {f->uoff[0], f->uoff[1], f->uoff[2]},
+                         {f->umax[0], f->umax[1], f->umax[2]}, {f->imax[0], f->imax[1], f->imax[2]},
+                         {f->stride[0], f->stride[1], f->stride[2]}, {f->step[0], f->step[1], f->step[2]}};
+    double diff2 = 0, ref2 = 0;
+    for (int i = 0; i < n; i++) {
+        double x[3], baked[3], direct[3];
+        for (int k = 0; k < 3; k++) /* inside the cell centres, where the grid interpolates */
+            x[k] = f->lo[k] + f->h[k] * (0.5 + (f->res[k] - 1) * fm_random_unit(0x6261u, (uint64_t)k, (uint64_t)i));
+        grid_sample(&g, x, baked);
+        noise_sum(f, x, t, direct);
+        for (int k = 0; k < 3; k++) diff2 += (baked[k] - direct[k]) * (baked[k] - direct[k]), ref2 += direct[k] * direct[k];
+    }
+    return ref2 > 0 ? sqrt(diff2 / ref2) : 0;
+}
+
+fm_status fm_fields_plan(const fm_scene_def *def, const double lo[3], const double hi[3], fm_field_plan *plan,
+                         fm_error *err)
+{
+    const int32_t *res = def->field_grid;
+    *plan = (fm_field_plan){0, 0, INFINITY, NAN, ""};
+    if (def->field_count == 0 || !(res[0] > 0 && res[1] > 0 && res[2] > 0)) return FM_OK;
+    int resolves = fm_fields_grid_resolves(def->fields, def->field_count, res, lo, hi, &plan->cell, &plan->scale);
+    if (isinf(plan->scale)) return FM_OK; /* no noise parts: nothing to bake */
+    int need[3]; /* cells of an eighth of the scale: a few percent (fields.h) */
+    for (int k = 0; k < 3; k++) need[k] = (int)ceil((hi[k] - lo[k]) * 2 * FM_FIELD_CELLS_PER_SCALE / plan->scale);
+    if (!resolves) {
+        snprintf(plan->warning, sizeof plan->warning,
+                 "cells of up to %.3g units cannot resolve noise of scale %.3g (a cell must be at most a quarter of "
+                 "it, %.3g): the style fields are evaluated directly, which is exact but slower; a grid of about "
+                 "[%d, %d, %d] would bake them", plan->cell, plan->scale, plan->scale / FM_FIELD_CELLS_PER_SCALE,
+                 need[0], need[1], need[2]);
+        return FM_OK;
+    }
+    fm_fields *f = fm_fields_create(def->fields, def->field_count, def->seed, res, lo, hi, err);
+    if (!f) return err ? err->status : FM_ERR_INPUT;
+    fm_fields_prepare(f, 0, 0);
+    double error = fm_fields_bake_error(f, 0, 4096);
+    fm_fields_destroy(f);
+    if (error > FM_FIELD_MAX_BAKE_ERROR) {
+        snprintf(plan->warning, sizeof plan->warning,
+                 "the baked style fields differ from the exact ones by %.0f%% (RMS; at most %.0f%% is baked): they are "
+                 "evaluated directly, which is exact but slower; a grid of about [%d, %d, %d] would bake them",
+                 100 * error, 100 * FM_FIELD_MAX_BAKE_ERROR, need[0], need[1], need[2]);
+        return FM_OK;
+    }
+    plan->baked = 1, plan->bake_error = error;
+    return FM_OK;
 }

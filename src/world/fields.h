@@ -59,4 +59,41 @@ void fm_fields_prepare(fm_fields *f, double t, int threads);
 void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint8_t *phase,
                          int64_t begin, int64_t end, double t, float w, float *const v[3]);
 
+/* ---------------------------------------------------------------- whether to bake (issue 14)
+ *
+ * A baked grid can only carry noise it resolves. tests/world/test_fields.c measures the relative
+ * RMS error of the trilinear grid against direct evaluation (curl noise): 5% at 8 cells per noise
+ * scale, 18% at 4, 53% at 2 and 113% at castling's old 0.31, where the baked values are noise of
+ * the grid itself and no longer divergence-free. A grid with cells over a quarter of the scale is
+ * therefore never baked, and one that passes is baked only if its measured error is at most a
+ * tenth of the field (FM_FIELD_MAX_BAKE_ERROR): then the grid's error is a small part of the
+ * motion rather than motion of its own. */
+#define FM_FIELD_CELLS_PER_SCALE 4.0
+#define FM_FIELD_MAX_BAKE_ERROR 0.1
+
+/* The largest cell edge of a res grid over [lo, hi] and the smallest noise scale of the fields
+ * (INFINITY without noise parts); 1 if the grid resolves them (cell <= scale / 4). */
+int fm_fields_grid_resolves(const fm_field_def *defs, int count, const int32_t res[3], const double lo[3],
+                            const double hi[3], double *cell, double *scale);
+
+/* The baked noise parts against direct evaluation at n deterministic points spread over the grid,
+   at time t (call fm_fields_prepare(f, t, ...) first): RMS |baked - direct| / RMS |direct|. 0 when
+   not baked or without noise. */
+double fm_fields_bake_error(const fm_fields *f, double t, int n);
+
+/* How a mode's state should evaluate the scene's fields, decided once at the model build. */
+typedef struct fm_field_plan {
+    int baked;          /* 1: bake the noise parts on style.grid */
+    double cell, scale; /* the grid's largest cell edge and the smallest noise scale */
+    double bake_error;  /* fm_fields_bake_error at t = 0 when baked; NaN otherwise */
+    char warning[512];  /* non-empty when style.grid was given but cannot resolve the noise */
+} fm_field_plan;
+
+/* Bakes when style.grid is given, the fields have noise parts and the grid resolves them (cells of
+   at most a quarter of the smallest noise scale and a measured bake error of at most
+   FM_FIELD_MAX_BAKE_ERROR); when it does not, the fields are evaluated directly and `warning` says
+   so with the numbers (grid over [lo, hi], the scene bounds the state bakes over). */
+fm_status fm_fields_plan(const fm_scene_def *def, const double lo[3], const double hi[3], fm_field_plan *plan,
+                         fm_error *err);
+
 #endif

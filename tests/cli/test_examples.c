@@ -1,7 +1,8 @@
 /* The bundled examples, run as a user runs them: `flockmorph run examples/NAME/scene.json`.
  *   words:    the foundation issue's definition of done: every agent arrives, the last frame is
  *             the target within 1e-5, no tet ever inverts, every target tet is taken exactly once.
- *   castling: the rook's tets fly past the king standing in their path (FM Figure 8 bottom):
+ *   castling: the rook's tets fly past the king standing in their path (FM Figure 8 bottom), its
+ *             curl noise evaluated directly (stats.json says so):
  *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0).
  *   flock_cylinder_sphere: the shape flock's static scenario (SCF Figure 9): every agent ends
  *             bound on its destination, the cache holds the flock's attributes.
@@ -98,6 +99,11 @@ static void test_castling_example_passes_the_king(void)
                "a tet entered the king: clearance %g", clearance);
     ENSURE_MSG(clearance < 0.3, "the flock never came near the king (clearance %g)", clearance);
     ENSURE(json_number_value(json_object_get(stats, "mde_fraction_mean")) > 0);
+    /* its curl noise (scale 0.15) is evaluated directly, and says so: no grid could resolve it */
+    const json_t *velocity = json_object_get(stats, "velocity_model");
+    ENSURE(!strcmp(json_string_value(json_object_get(velocity, "field_evaluation")), "direct"));
+    ENSURE(json_is_null(json_object_get(velocity, "field_bake_error")));
+    ENSURE(json_array_size(json_object_get(stats, "warnings")) == 0);
     json_decref(stats);
 }
 
