@@ -264,8 +264,8 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
 void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out)
 {
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
-    snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
-    snprintf(out->checkpoint, sizeof out->checkpoint, "%s/checkpoint.fmck", o->outdir);
+    snprintf(out->stats, sizeof out->stats, "%s/" FM_OUTPUT_STATS, o->outdir);
+    snprintf(out->checkpoint, sizeof out->checkpoint, "%s/" FM_OUTPUT_CHECKPOINT, o->outdir);
     out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
 }
 

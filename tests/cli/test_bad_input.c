@@ -300,6 +300,32 @@ static void test_output_cache_name(void)
                        "not a plain file name");
 }
 
+/* A cache named like another file of the run (stats.json, the checkpoint, the lock) or like a file
+ * being written (*.partial) is refused before anything in the output directory is touched. */
+static void test_output_cache_name_taken(void)
+{
+    static const char *const cases[][2] = {{"stats.json", "another file the run writes"},
+                                           {"checkpoint.fmck", "another file the run writes"},
+                                           {".flockmorph.lock", "another file the run writes"},
+                                           {"frames.fmc.partial", "ends in .partial"},
+                                           {"stats.json.partial", "ends in .partial"}};
+    char outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX], kept[64];
+    mkdir(tmp_path(outdir, "taken_out"), 0755);
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    for (int i = 0; i < 5; i++) {
+        char extra[128], at[64], where[FM_PATH_MAX + 32];
+        snprintf(extra, sizeof extra, ",\n  \"output\": {\"cache\": \"%s\"}", cases[i][0]);
+        snprintf(at, sizeof at, "\"%s\"}", cases[i][0]);
+        const char *path = plain_scene("cache_taken.json", extra);
+        scene_position(at, where, sizeof where);
+        write_text(stats, "{\"an older run\": true}");
+        snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, outdir);
+        expect_output(cli(args), 2, cases[i][0], (const char *const[]){where, "output.cache", cases[i][1], NULL});
+        slurp(stats, kept, sizeof kept);
+        ENSURE_MSG(!strcmp(kept, "{\"an older run\": true}"), "%s: stats.json changed to '%s'", cases[i][0], kept);
+    }
+}
+
 /* ---------------------------------------------------------------- meshes */
 
 /* A scene whose source is `mesh_name` (in the scratch directory); `where` gets the position of the
@@ -870,6 +896,7 @@ int main(void)
     RUN_TEST(test_numeric_keys_out_of_range);
     RUN_TEST(test_scene_consistency);
     RUN_TEST(test_output_cache_name);
+    RUN_TEST(test_output_cache_name_taken);
     RUN_TEST(test_flock_values_out_of_range);
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
