@@ -7,8 +7,10 @@
  *   flockmorph info CACHE              (inspect --json)
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
+#define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
 #include "cli.h"
 
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -28,6 +30,9 @@ static const char *USAGE_MAIN =
 
 int main(int argc, char **argv)
 {
+    /* Past the file-size limit (ulimit -f) the kernel's SIGXFSZ would kill the process mid-write;
+     * ignored, write() fails with EFBIG, which every writer reports as an I/O error (exit 3). */
+    signal(SIGXFSZ, SIG_IGN);
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
     if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) return printf("%s", USAGE_MAIN), 0;

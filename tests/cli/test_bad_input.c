@@ -814,8 +814,23 @@ static void test_flock_file_size_limit(void)
     expect_file_size_limit(plain_scene("flock_limit.json", FLOCK ",\n  \"n\": 300"), "flock_limit", FM_ATTR_POSITION, 3);
 }
 
+/* export under the file-size limit: exit 3 with the reason (not death by SIGXFSZ), and nothing
+ * under the final name. */
+static void test_export_file_size_limit(void)
+{
+    char cache[FM_PATH_MAX + 16], ply[FM_PATH_MAX], args[4 * FM_PATH_MAX];
+    ENSURE(run_scene(NULL, plain_scene("export_limit.json", ",\n  \"n\": 300"), "export_limit") == 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    remove(tmp_path(ply, "export_limit.ply"));
+    snprintf(args, sizeof args, "export '%s' -o '%s'", cache, ply);
+    cli_env limited = {4096, 0};
+    expect_output(cli_with(&limited, args), 3, "export under a file-size limit",
+                  (const char *const[]){ply, "File too large", "ulimit -f", NULL});
+    ENSURE_MSG(!exists(ply), "%s is left", ply);
+}
+
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
- * test) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
+ * test; a program using the library ignores SIGXFSZ as the CLI does) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
  * its PATH.partial holds the frames that fitted, bit for bit. */
 static void test_cache_writer_keeps_partial(void)
 {
@@ -922,6 +937,7 @@ int main(void)
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
     RUN_TEST(test_flock_file_size_limit);
+    RUN_TEST(test_export_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_disk_full);
     return test_result();

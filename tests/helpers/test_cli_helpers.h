@@ -1,6 +1,7 @@
 /* Running the flockmorph CLI from a test: its exit status, stdout and stderr, optionally under a
- * file-size limit (RLIMIT_FSIZE with SIGXFSZ ignored, so write() fails with EFBIG) or as an
- * unprivileged user (so permissions apply even when the tests run as root). Shared by
+ * file-size limit (RLIMIT_FSIZE, SIGXFSZ left at its deadly default: the CLI must ignore it so that
+ * write() fails with EFBIG) or as an unprivileged user (so permissions apply even when the tests
+ * run as root). Shared by
  * test_cli.c and test_bad_input.c; include after test_macros.h with _POSIX_C_SOURCE defined. */
 #ifndef FM_TEST_CLI_HELPERS_H
 #define FM_TEST_CLI_HELPERS_H
@@ -78,7 +79,7 @@ static void cli_child(const cli_env *env, const char *out, const char *err, cons
     if (fo < 0 || fe < 0 || dup2(fo, 1) < 0 || dup2(fe, 2) < 0) _exit(CLI_NOT_RUN);
     if (env && env->file_size_limit > 0) {
         struct rlimit limit = {(rlim_t)env->file_size_limit, (rlim_t)env->file_size_limit};
-        signal(SIGXFSZ, SIG_IGN); /* stays ignored across exec */
+        signal(SIGXFSZ, SIG_DFL); /* the CLI must ignore it itself, or it dies of it */
         if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(CLI_NOT_RUN);
     }
     if (env && env->unprivileged && geteuid() == 0 && (setgid(CLI_NOBODY) != 0 || setuid(CLI_NOBODY) != 0))
