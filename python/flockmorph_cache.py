@@ -139,6 +139,7 @@ class Cache:
             self.file_bytes = self._f.tell()
             self._read_header()
             self._read_index()
+            self._check_plausible()
         except BaseException:
             self._f.close()
             raise
@@ -356,6 +357,15 @@ class Cache:
             self.warning += f" (the header announces {announced})"
         warnings.warn(self.warning, stacklevel=5)  # the caller of open()
         self._summarise()
+
+    def _check_plausible(self):
+        # A frame of agents x bytes per agent must come from this file's chunks, and zstd shrinks
+        # by at most about 2^15:1: a header claiming far more is damaged, and reading a frame would
+        # allocate for it (the C reader's check_plausible).
+        raw = sum(a.nbytes for a in self._attrs)
+        if self.frames > 0 and raw // 65536 > self.file_bytes:
+            self._fail(f"damaged header: frames of {self.agents} agents cannot come from a file of "
+                       f"{self.file_bytes} bytes")
 
     def _summarise(self):
         self.compressed_bytes = sum(self._sizes)

@@ -141,6 +141,7 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
     memset(out, 0, sizeof *out);
     fm_status st = fm_check_input_file(path, "mesh", err);
+    if (st == FM_OK) st = fm_mesh_check_file_counts(path, err);
     if (st != FM_OK) return st;
     return take_scene(aiImportFile(path, IMPORT_FLAGS), path, out, err);
 }
@@ -150,6 +151,8 @@ fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const 
 {
     memset(out, 0, sizeof *out);
     if (len == 0 || len > UINT32_MAX) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh data is empty or too large", name);
+    fm_status st = fm_mesh_check_counts(data, len < (1 << 16) ? len : (1 << 16), len, format, name, err);
+    if (st != FM_OK) return st;
     return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, out, err);
 }
 

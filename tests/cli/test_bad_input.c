@@ -5,6 +5,7 @@
  * complete frame. The bad meshes are written here (under the test's scratch directory). */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "cache_format.h"
 #include "modes.h"
 #include "morph.h"
 #include "test_macros.h"
@@ -97,7 +98,7 @@ static void expect_output(int rc, int code, const char *what, const char *const 
 /* Runs as an unprivileged user (nobody) when the test is root, so that permissions apply. */
 #define EXPECT_RUN_UNPRIVILEGED(scene_path, outdir, code, ...)                                               \
     do {                                                                                                     \
-        cli_env env_ = {0, 1};                                                                               \
+        cli_env env_ = {0, 1, 0};                                                                            \
         int rc_ = run_scene(&env_, (scene_path), (outdir));                                                  \
         if (rc_ == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");                  \
         else expect_output(rc_, (code), (scene_path), (const char *const[]){__VA_ARGS__, NULL});            \
@@ -369,6 +370,39 @@ static void test_mesh_file_unreadable(void)
     const char *path = mesh_scene("locked.obj", where, sizeof where);
     EXPECT_RUN_UNPRIVILEGED(path, "locked_out", 2, where, mesh, "cannot open the mesh: Permission denied");
     chmod(mesh, 0644);
+}
+
+static void write_binary(const char *name, const void *bytes, size_t len)
+{
+    char path[FM_PATH_MAX];
+    FILE *f = fopen(tmp_path(path, name), "wb");
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    if (f) fwrite(bytes, 1, len, f), fclose(f);
+}
+
+/* Tiny files whose headers claim two billion elements: refused as damaged from the file's size,
+ * before assimp allocates for the count (the run's address space is limited to 2 GiB, so a
+ * regression fails here rather than exhausting the machine). */
+static void test_mesh_counts_beyond_file(void)
+{
+    write_mesh("huge_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n");
+    write_mesh("huge_binary.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+               "property float y\nproperty float z\nelement face 2000000000\nproperty list uchar int vertex_indices\n"
+               "end_header\nVERTEX 1 x y zVERTEX 2 x y zVERTEX 3 x y z"); /* 36 bytes: 3 vertices */
+    write_mesh("huge.off", "OFF\n# a comment\n2000000000 1 0\n0 0 0\n");
+    unsigned char stl[84 + 50] = {0};
+    stl[80] = 0x00, stl[81] = 0x94, stl[82] = 0x35, stl[83] = 0x77; /* 2e9 triangles, one present */
+    write_binary("huge.stl", stl, sizeof stl);
+    static const char *const cases[][2] = {{"huge_ascii.ply", "2000000000 'vertex' elements"}, {"huge_binary.ply", "2000000000 'face' elements"},
+                                           {"huge.off", "2000000000 vertices"}, {"huge.stl", "2000000000 triangles"}};
+    for (int i = 0; i < 4; i++) {
+        char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+        const char *path = mesh_scene(cases[i][0], where, sizeof where);
+        cli_env limited = {0, 0, 2LL << 30};
+        expect_output(run_scene(&limited, path, "out"), 2, cases[i][0],
+                      (const char *const[]){where, tmp_path(mesh, cases[i][0]), cases[i][1], "damaged or cut short", NULL});
+    }
 }
 
 static void test_mesh_empty_or_not_a_mesh(void)
@@ -723,7 +757,7 @@ static void test_output_directory(void)
     /* permissions: a read-only directory, and a missing one under it */
     mkdir(tmp_path(parent, "read_only"), 0755);
     chmod(parent, 0555);
-    cli_env env = {0, 1};
+    cli_env env = {0, 1, 0};
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, parent);
     int rc = cli_with(&env, args);
     if (rc == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");
@@ -787,7 +821,7 @@ static void expect_file_size_limit(const char *scene_path, const char *outdir, f
     remove(partial);
     char args[3 * FM_PATH_MAX];
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
-    cli_env limited = {(long long)st.st_size / 2, 0};
+    cli_env limited = {(long long)st.st_size / 2, 0, 0};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
                   "complete frames written before the error are in", "no stats.json", NULL});
@@ -823,10 +857,40 @@ static void test_export_file_size_limit(void)
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     remove(tmp_path(ply, "export_limit.ply"));
     snprintf(args, sizeof args, "export '%s' -o '%s'", cache, ply);
-    cli_env limited = {4096, 0};
+    cli_env limited = {4096, 0, 0};
     expect_output(cli_with(&limited, args), 3, "export under a file-size limit",
                   (const char *const[]){ply, "File too large", "ulimit -f", NULL});
     ENSURE_MSG(!exists(ply), "%s is left", ply);
+}
+
+/* A small cache whose header claims 2^38 agents (its crc32 made to match) is refused as damaged by
+ * inspect and export from the file's size, before anything is allocated for that many agents. */
+static void test_cache_agents_beyond_file(void)
+{
+    enum { AGENTS = 50 };
+    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    static float frame[12 * AGENTS];
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(tmp_path(path, "huge_agents.fmc"), AGENTS, 24, 1, &err);
+    ENSURE_MSG(w && fm_cache_writer_add_frame(w, frame, &err) == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK,
+               "%s", err.message);
+    FILE *f = fopen(path, "r+b");
+    unsigned char h[CACHE_MAX_HEADER];
+    ENSURE(f && fread(h, 1, 64, f) == 64);
+    if (!f) return;
+    uint32_t header_bytes = get_u32(h + 12);
+    ENSURE(header_bytes <= sizeof h && fseek(f, 0, SEEK_SET) == 0 && fread(h, 1, header_bytes, f) == header_bytes);
+    put_u64(h + 16, (uint64_t)1 << 38);
+    put_u32(h + 52, 0); /* the crc32 is computed with its own field 0 */
+    put_u32(h + 52, cache_crc32(0, h, header_bytes));
+    ENSURE(fseek(f, 0, SEEK_SET) == 0 && fwrite(h, 1, header_bytes, f) == header_bytes);
+    fclose(f);
+    cli_env limited = {0, 0, 2LL << 30};
+    snprintf(args, sizeof args, "inspect '%s'", path);
+    expect_output(cli_with(&limited, args), 2, "inspect",
+                  (const char *const[]){path, "274877906944 agents cannot come from a file of", NULL});
+    snprintf(args, sizeof args, "export '%s' -o '%s.ply'", path, path);
+    expect_output(cli_with(&limited, args), 2, "export", (const char *const[]){path, "damaged header", NULL});
 }
 
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
@@ -915,6 +979,7 @@ int main(void)
     RUN_TEST(test_flock_values_out_of_range);
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
+    RUN_TEST(test_mesh_counts_beyond_file);
     RUN_TEST(test_mesh_garbage_bytes);
     RUN_TEST(test_mesh_open);
     RUN_TEST(test_mesh_non_manifold);
@@ -939,6 +1004,7 @@ int main(void)
     RUN_TEST(test_flock_file_size_limit);
     RUN_TEST(test_export_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
+    RUN_TEST(test_cache_agents_beyond_file);
     RUN_TEST(test_disk_full);
     return test_result();
 }

@@ -25,6 +25,7 @@ static char g_out[1 << 16], g_err[1 << 16]; /* the last command's stdout and std
 typedef struct cli_env {
     long long file_size_limit; /* bytes, > 0: RLIMIT_FSIZE of the run */
     int unprivileged;          /* run as nobody when the test runs as root */
+    long long memory_limit;    /* bytes, > 0: RLIMIT_AS of the run (not under AddressSanitizer) */
 } cli_env;
 
 static size_t slurp(const char *path, char *buf, size_t cap)
@@ -82,6 +83,12 @@ static void cli_child(const cli_env *env, const char *out, const char *err, cons
         signal(SIGXFSZ, SIG_DFL); /* the CLI must ignore it itself, or it dies of it */
         if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(CLI_NOT_RUN);
     }
+#if !defined(__SANITIZE_ADDRESS__) /* its shadow memory needs far more address space */
+    if (env && env->memory_limit > 0) {
+        struct rlimit limit = {(rlim_t)env->memory_limit, (rlim_t)env->memory_limit};
+        if (setrlimit(RLIMIT_AS, &limit) != 0) _exit(CLI_NOT_RUN);
+    }
+#endif
     if (env && env->unprivileged && geteuid() == 0 && (setgid(CLI_NOBODY) != 0 || setuid(CLI_NOBODY) != 0))
         _exit(CLI_NOT_RUN);
     static char cmd[4 * FM_PATH_MAX + 4096];
