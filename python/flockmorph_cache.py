@@ -18,7 +18,8 @@ naming the file; a frame that does not exist raises IndexError, an attribute the
 Needs numpy and a zstd decoder: the zstandard module (Debian python3-zstandard) or, without it,
 libzstd.so.1 through ctypes.
 """
-import builtins
+import os
+import stat
 import struct
 import warnings
 import zlib
@@ -120,6 +121,22 @@ class _Attr:
         self.nbytes = agents * self.components * self.dtype.itemsize
 
 
+def _open_regular(path):
+    """The file opened for reading if it is a regular file; ValueError for a directory, a FIFO or a
+    device (a FIFO would block the read until a writer comes, /dev/zero never ends). O_NONBLOCK
+    so that opening a FIFO does not wait; fstat then says what was opened."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        kind = ("a directory" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+                else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+        raise ValueError(f"{path}: cannot open the cache: it is {kind}" + ("" if kind.startswith("not") else
+                         ", not a regular file"))
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "rb")
+
+
 class Cache:
     """An open cache. Attributes: path, version, agents, frames, frame_rate, attributes (names),
     options (dict: compression_level, delta, key_interval, quantum), complete, warning (str or
@@ -129,7 +146,7 @@ class Cache:
     def __init__(self, path):
         self.path = str(path)
         try:
-            self._f = builtins.open(self.path, "rb")
+            self._f = _open_regular(self.path)
         except FileNotFoundError:
             raise ValueError(f"{self.path}: cannot open: no such file") from None
         except OSError as e:

@@ -52,9 +52,10 @@ fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, f
 /* Closes PATH.partial and leaves it on disk (a cache that stopped early stays readable). */
 void fm_output_keep_partial(fm_output_file *o);
 
-/* A user's input file (scene, mesh): FM_OK if it can be opened for reading; otherwise
- * FM_ERR_INPUT with "PATH: cannot open the <what>: <reason>" (missing, a directory, permission
- * denied), or FM_ERR_IO for a failure the user did not cause. */
+/* A user's input file (scene, mesh, cache, checkpoint): FM_OK if it is a regular file that can be
+ * opened for reading; otherwise FM_ERR_INPUT with "PATH: cannot open the <what>: <reason>"
+ * (missing, a directory, a FIFO or device, permission denied), or FM_ERR_IO for a failure the user
+ * did not cause. Never blocks (a FIFO is refused without being opened). */
 fm_status fm_check_input_file(const char *path, const char *what, fm_error *err);
 
 /* What the user can do about a failed write with this errno ("" if nothing specific): disk full,

@@ -926,6 +926,9 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     return check_consistency(&w, def);
 }
 
+/* Scenes are a few KiB (256 path points and every key fit in well under 1 MiB). */
+#define FM_SCENE_MAX_BYTES (64 << 20)
+
 static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_error *err)
 {
     if ((*st = fm_check_input_file(path, "scene file", err)) != FM_OK) return NULL;
@@ -939,6 +942,12 @@ static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_erro
     while (text) {
         len += fread(text + len, 1, cap - len - 1, f);
         if (len < cap - 1) break;
+        if (cap >= FM_SCENE_MAX_BYTES) { /* a file of that size is not a scene: do not read it all */
+            free(text), fclose(f);
+            *st = fm_fail(err, FM_ERR_INPUT, "%s: the scene file is larger than %d MiB: it is not a scene", path,
+                          FM_SCENE_MAX_BYTES >> 20);
+            return NULL;
+        }
         char *bigger = realloc(text, cap *= 2);
         if (!bigger) free(text);
         text = bigger;

@@ -98,7 +98,7 @@ static void expect_output(int rc, int code, const char *what, const char *const 
 /* Runs as an unprivileged user (nobody) when the test is root, so that permissions apply. */
 #define EXPECT_RUN_UNPRIVILEGED(scene_path, outdir, code, ...)                                               \
     do {                                                                                                     \
-        cli_env env_ = {0, 1, 0};                                                                            \
+        cli_env env_ = {.unprivileged = 1};                                                                  \
         int rc_ = run_scene(&env_, (scene_path), (outdir));                                                  \
         if (rc_ == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");                  \
         else expect_output(rc_, (code), (scene_path), (const char *const[]){__VA_ARGS__, NULL});            \
@@ -399,7 +399,7 @@ static void test_mesh_counts_beyond_file(void)
     for (int i = 0; i < 4; i++) {
         char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
         const char *path = mesh_scene(cases[i][0], where, sizeof where);
-        cli_env limited = {0, 0, 2LL << 30};
+        cli_env limited = {.memory_limit = 2LL << 30};
         expect_output(run_scene(&limited, path, "out"), 2, cases[i][0],
                       (const char *const[]){where, tmp_path(mesh, cases[i][0]), cases[i][1], "damaged or cut short", NULL});
     }
@@ -737,6 +737,52 @@ static void test_source_target_overlap_warns(void)
     json_decref(j);
 }
 
+/* ---------------------------------------------------------------- files that are not regular files */
+
+/* A FIFO (which would block a read until a writer comes, here never), /dev/zero (which never ends)
+ * and a directory, as the scene, a mesh, a cache and a checkpoint: refused at once (exit 2, the run
+ * given 30 s before SIGALRM would end it), naming the file and what it is. */
+static void test_not_regular_files(void)
+{
+    char fifo[FM_PATH_MAX], dir[FM_PATH_MAX], where[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    remove(tmp_path(fifo, "fifo.obj"));
+    ENSURE(mkfifo(fifo, 0644) == 0);
+    mkdir(tmp_path(dir, "dir.fmc"), 0755);
+    cli_env watched = {.seconds = 30};
+    expect_output(run_scene(&watched, fifo, "out"), 2, "FIFO scene",
+                  (const char *const[]){fifo, "cannot open the scene file: it is a FIFO (named pipe)", NULL});
+    expect_output(run_scene(&watched, "/dev/zero", "out"), 2, "/dev/zero scene",
+                  (const char *const[]){"/dev/zero: cannot open the scene file: it is a device", NULL});
+    const char *path = mesh_scene("fifo.obj", where, sizeof where);
+    expect_output(run_scene(&watched, path, "out"), 2, "FIFO mesh",
+                  (const char *const[]){where, fifo, "cannot open the mesh: it is a FIFO", NULL});
+    const char *const caches[][2] = {{fifo, "it is a FIFO"}, {"/dev/zero", "it is a device"}, {dir, "it is a directory"}};
+    for (int i = 0; i < 3; i++) {
+        snprintf(args, sizeof args, "inspect '%s'", caches[i][0]);
+        expect_output(cli_with(&watched, args), 2, caches[i][0],
+                      (const char *const[]){caches[i][0], "cannot open the cache", caches[i][1], NULL});
+    }
+    /* a FIFO where --resume reads the checkpoint */
+    char outdir[FM_PATH_MAX], ckpt[FM_PATH_MAX + 32];
+    path = plain_scene("fifo_resume.json", "");
+    mkdir(tmp_path(outdir, "fifo_out"), 0755);
+    snprintf(ckpt, sizeof ckpt, "%s/checkpoint.fmck", outdir);
+    remove(ckpt);
+    ENSURE(mkfifo(ckpt, 0644) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --resume --quiet", path, outdir);
+    expect_output(cli_with(&watched, args), 2, "FIFO checkpoint",
+                  (const char *const[]){ckpt, "cannot open the checkpoint: it is a FIFO", NULL});
+    remove(ckpt), remove(fifo);
+    /* a regular file far larger than any scene is not read to its end */
+    char big[FM_PATH_MAX];
+    FILE *f = fopen(tmp_path(big, "big.json"), "w");
+    ENSURE(f && ftruncate(fileno(f), 65 << 20) == 0); /* sparse: no disk used */
+    if (f) fclose(f);
+    expect_output(run_scene(&watched, big, "out"), 2, "big scene",
+                  (const char *const[]){big, "the scene file is larger than 64 MiB", NULL});
+    remove(big);
+}
+
 /* ---------------------------------------------------------------- the output directory */
 
 static void test_output_directory(void)
@@ -757,7 +803,7 @@ static void test_output_directory(void)
     /* permissions: a read-only directory, and a missing one under it */
     mkdir(tmp_path(parent, "read_only"), 0755);
     chmod(parent, 0555);
-    cli_env env = {0, 1, 0};
+    cli_env env = {.unprivileged = 1};
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, parent);
     int rc = cli_with(&env, args);
     if (rc == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");
@@ -821,7 +867,7 @@ static void expect_file_size_limit(const char *scene_path, const char *outdir, f
     remove(partial);
     char args[3 * FM_PATH_MAX];
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
-    cli_env limited = {(long long)st.st_size / 2, 0, 0};
+    cli_env limited = {.file_size_limit = (long long)st.st_size / 2};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
                   "complete frames written before the error are in", "no stats.json", NULL});
@@ -857,7 +903,7 @@ static void test_export_file_size_limit(void)
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     remove(tmp_path(ply, "export_limit.ply"));
     snprintf(args, sizeof args, "export '%s' -o '%s'", cache, ply);
-    cli_env limited = {4096, 0, 0};
+    cli_env limited = {.file_size_limit = 4096};
     expect_output(cli_with(&limited, args), 3, "export under a file-size limit",
                   (const char *const[]){ply, "File too large", "ulimit -f", NULL});
     ENSURE_MSG(!exists(ply), "%s is left", ply);
@@ -885,7 +931,7 @@ static void test_cache_agents_beyond_file(void)
     put_u32(h + 52, cache_crc32(0, h, header_bytes));
     ENSURE(fseek(f, 0, SEEK_SET) == 0 && fwrite(h, 1, header_bytes, f) == header_bytes);
     fclose(f);
-    cli_env limited = {0, 0, 2LL << 30};
+    cli_env limited = {.memory_limit = 2LL << 30};
     snprintf(args, sizeof args, "inspect '%s'", path);
     expect_output(cli_with(&limited, args), 2, "inspect",
                   (const char *const[]){path, "274877906944 agents cannot come from a file of", NULL});
@@ -999,6 +1045,7 @@ int main(void)
     RUN_TEST(test_flock_obstacle_overlaps_source_or_target);
     RUN_TEST(test_flock_obstacle_allowed);
     RUN_TEST(test_source_target_overlap_warns);
+    RUN_TEST(test_not_regular_files);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
     RUN_TEST(test_flock_file_size_limit);

@@ -26,6 +26,7 @@ typedef struct cli_env {
     long long file_size_limit; /* bytes, > 0: RLIMIT_FSIZE of the run */
     int unprivileged;          /* run as nobody when the test runs as root */
     long long memory_limit;    /* bytes, > 0: RLIMIT_AS of the run (not under AddressSanitizer) */
+    unsigned seconds;          /* > 0: SIGALRM ends a run that takes longer (one that hangs) */
 } cli_env;
 
 static size_t slurp(const char *path, char *buf, size_t cap)
@@ -83,6 +84,7 @@ static void cli_child(const cli_env *env, const char *out, const char *err, cons
         signal(SIGXFSZ, SIG_DFL); /* the CLI must ignore it itself, or it dies of it */
         if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(CLI_NOT_RUN);
     }
+    if (env && env->seconds) alarm(env->seconds); /* survives exec */
 #if !defined(__SANITIZE_ADDRESS__) /* its shadow memory needs far more address space */
     if (env && env->memory_limit > 0) {
         struct rlimit limit = {(rlim_t)env->memory_limit, (rlim_t)env->memory_limit};

@@ -275,6 +275,21 @@ class NotACache(unittest.TestCase):
         header[20] ^= 1
         self.expect_error(bytes(header), "header checksum mismatch")
 
+    def test_not_regular_files(self):
+        """A FIFO (a read would wait for a writer), /dev/zero (never ends) and a directory are refused
+        at once, without blocking."""
+        fifo, folder = tmp("fifo.fmc"), tmp("folder.fmc")
+        if os.path.lexists(fifo):
+            os.remove(fifo)
+        os.mkfifo(fifo)
+        os.makedirs(folder, exist_ok=True)
+        try:
+            for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a device"), (folder, "a directory")):
+                with self.assertRaisesRegex(ValueError, f"{path}: cannot open the cache: it is {kind}"):
+                    fmc.open(path)
+        finally:
+            os.remove(fifo)
+
     def test_agents_beyond_file(self):
         """A header claiming 2^38 agents (crc32 matching) in a small cache is refused at open, before
         a frame is allocated."""
