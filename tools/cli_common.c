@@ -289,7 +289,7 @@ void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outp
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
     snprintf(out->stats, sizeof out->stats, "%s/" FM_OUTPUT_STATS, o->outdir);
     snprintf(out->checkpoint, sizeof out->checkpoint, "%s/" FM_OUTPUT_CHECKPOINT, o->outdir);
-    out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    out->threads = fm_threads(o->threads);
 }
 
 enum { DEFAULT_CHECKPOINT_SECONDS = 60 };

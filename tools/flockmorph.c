@@ -10,6 +10,7 @@
 #define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
 #include "cli.h"
 
+#include <omp.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
@@ -33,6 +34,9 @@ int main(int argc, char **argv)
     /* Past the file-size limit (ulimit -f) the kernel's SIGXFSZ would kill the process mid-write;
      * ignored, write() fails with EFBIG, which every writer reports as an I/O error (exit 3). */
     signal(SIGXFSZ, SIG_IGN);
+    /* OpenMP's default team (OMP_NUM_THREADS, unbounded) capped as the engine caps it (fm_threads),
+     * for any parallel region that does not name its thread count */
+    omp_set_num_threads(fm_threads(0));
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
     if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) return printf("%s", USAGE_MAIN), 0;

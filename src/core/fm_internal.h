@@ -58,6 +58,15 @@ void fm_output_keep_partial(fm_output_file *o);
  * did not cause. Never blocks (a FIFO is refused without being opened). */
 fm_status fm_check_input_file(const char *path, const char *what, fm_error *err);
 
+/* The OpenMP threads the engine uses when asked for `requested`: that many (at most
+ * FM_MAX_THREADS, the --threads limit), or for 0 OpenMP's default capped at FM_MAX_THREADS and at
+ * FM_THREADS_PER_CORE x the cores. The default comes from OMP_NUM_THREADS, which nothing bounds:
+ * 100000 threads would exhaust the stacks and crash the first parallel region, and more threads
+ * than a few per core only make the run slower (results never depend on the count). */
+#define FM_MAX_THREADS 1024
+#define FM_THREADS_PER_CORE 4
+int fm_threads(int requested);
+
 /* What the user can do about a failed write with this errno ("" if nothing specific): disk full,
  * file-size limit, read-only file system. */
 const char *fm_write_hint(int errnum);
