@@ -46,6 +46,11 @@ typedef void (*fm_edge_pair_fn)(int64_t half_a, int64_t half_b, void *user);
 fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair_fn pair, void *user,
                              fm_error *err);
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
+/* A placed mesh must span at least FM_MESH_MIN_EXTENT, and FM_MESH_MIN_RELATIVE_EXTENT of its
+ * largest coordinate; else FM_ERR_INPUT (mesh_import.c says why). */
+#define FM_MESH_MIN_EXTENT 1e-9
+#define FM_MESH_MIN_RELATIVE_EXTENT 1e-6
+fm_status fm_mesh_check_extent(const fm_mesh *mesh, const char *path, fm_error *err);
 double fm_mesh_signed_volume(const fm_mesh *mesh);
 #ifdef __cplusplus
 }

@@ -514,6 +514,31 @@ static void test_mesh_lines_only(void)
     expect_bad_mesh("lines.obj", "the mesh has no triangles");
 }
 
+/* A scale allowed by its range (> 0) that leaves the placed mesh too small for float32 (and, at
+ * translate -10, rounds every vertex to one point, on which TetGen used to assert and abort): exit 2
+ * at the mesh's key, in both modes, for the source, the target and an obstacle. */
+static void test_mesh_too_small_when_placed(void)
+{
+    static const char *const cases[][3] = {
+        {"tiny_far.json", "\"translate\": [-10, 0, 0], \"scale\": 1e-30", RIGHT},
+        {"tiny_origin.json", "\"scale\": 1e-30", RIGHT},
+        {"tiny_relative.json", "\"translate\": [-10, 0, 0], \"scale\": 1e-6", RIGHT},
+        {"tiny_target.json", LEFT, "\"translate\": [10, 0, 0], \"scale\": 1e-30"}};
+    for (int i = 0; i < 4; i++)
+        for (int flock = 0; flock < 2; flock++) {
+            char where[FM_PATH_MAX + 64];
+            const char *path = scene(cases[i][0], OCTAHEDRON, cases[i][1], cases[i][2], flock ? FLOCK ",\n  \"n\": 50" : "");
+            scene_position(i == 3 ? "\"" OCTAHEDRON "\", \"translate\": [10" : "\"" OCTAHEDRON "\"", where, sizeof where);
+            strncat(where, i == 3 ? "target.mesh: " : "source.mesh: ", sizeof where - strlen(where) - 1);
+            cli_env watched = {.seconds = 60};
+            expect_output(run_scene(&watched, path, "out"), 2, cases[i][0],
+                          (const char *const[]){where, "placed in the world", "float32 precision", NULL});
+        }
+    const char *path = plain_scene("tiny_obstacle.json", ",\n  \"obstacles\": {\"meshes\": [{\"mesh\": \"" OCTAHEDRON
+                                   "\", \"translate\": [0, 5, 0], \"scale\": 1e-30}]}");
+    EXPECT_RUN(path, 2, "obstacles.meshes[0]", "placed in the world");
+}
+
 /* ---------------------------------------------------------------- n */
 
 static void test_n_too_small(void)
@@ -1034,6 +1059,7 @@ int main(void)
     RUN_TEST(test_mesh_flipped_triangle);
     RUN_TEST(test_mesh_repeated_corner);
     RUN_TEST(test_mesh_lines_only);
+    RUN_TEST(test_mesh_too_small_when_placed);
     RUN_TEST(test_n_too_small);
     RUN_TEST(test_memory_estimate_matches_allocations);
     RUN_TEST(test_flock_memory_estimate_matches_allocations);
