@@ -17,6 +17,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+/* A sanitizer's shadow memory needs far more address space than any RLIMIT_AS a test sets. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLI_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define CLI_SANITIZED 1
+#endif
+#endif
+
 static char g_out[1 << 16], g_err[1 << 16]; /* the last command's stdout and stderr */
 
 #define CLI_NOBODY 65534 /* uid and gid of "nobody" on Debian */
@@ -25,7 +34,7 @@ static char g_out[1 << 16], g_err[1 << 16]; /* the last command's stdout and std
 typedef struct cli_env {
     long long file_size_limit; /* bytes, > 0: RLIMIT_FSIZE of the run */
     int unprivileged;          /* run as nobody when the test runs as root */
-    long long memory_limit;    /* bytes, > 0: RLIMIT_AS of the run (not under AddressSanitizer) */
+    long long memory_limit;    /* bytes, > 0: RLIMIT_AS of the run (not under a sanitizer) */
     unsigned seconds;          /* > 0: SIGALRM ends a run that takes longer (one that hangs) */
 } cli_env;
 
@@ -85,7 +94,7 @@ static void cli_child(const cli_env *env, const char *out, const char *err, cons
         if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(CLI_NOT_RUN);
     }
     if (env && env->seconds) alarm(env->seconds); /* survives exec */
-#if !defined(__SANITIZE_ADDRESS__) /* its shadow memory needs far more address space */
+#if !defined(CLI_SANITIZED)
     if (env && env->memory_limit > 0) {
         struct rlimit limit = {(rlim_t)env->memory_limit, (rlim_t)env->memory_limit};
         if (setrlimit(RLIMIT_AS, &limit) != 0) _exit(CLI_NOT_RUN);
