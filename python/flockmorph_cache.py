@@ -18,7 +18,8 @@ naming the file; a frame that does not exist raises IndexError, an attribute the
 Needs numpy and a zstd decoder: the zstandard module (Debian python3-zstandard) or, without it,
 libzstd.so.1 through ctypes.
 """
-import builtins
+import os
+import stat
 import struct
 import warnings
 import zlib
@@ -120,6 +121,22 @@ class _Attr:
         self.nbytes = agents * self.components * self.dtype.itemsize
 
 
+def _open_regular(path):
+    """The file opened for reading if it is a regular file; ValueError for a directory, a FIFO or a
+    device (a FIFO would block the read until a writer comes, /dev/zero never ends). O_NONBLOCK
+    so that opening a FIFO does not wait; fstat then says what was opened."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        kind = ("a directory" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+                else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+        raise ValueError(f"{path}: cannot open the cache: it is {kind}" + ("" if kind.startswith("not") else
+                         ", not a regular file"))
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "rb")
+
+
 class Cache:
     """An open cache. Attributes: path, version, agents, frames, frame_rate, attributes (names),
     options (dict: compression_level, delta, key_interval, quantum), complete, warning (str or
@@ -129,7 +146,7 @@ class Cache:
     def __init__(self, path):
         self.path = str(path)
         try:
-            self._f = builtins.open(self.path, "rb")
+            self._f = _open_regular(self.path)
         except FileNotFoundError:
             raise ValueError(f"{self.path}: cannot open: no such file") from None
         except OSError as e:
@@ -139,6 +156,7 @@ class Cache:
             self.file_bytes = self._f.tell()
             self._read_header()
             self._read_index()
+            self._check_plausible()
         except BaseException:
             self._f.close()
             raise
@@ -356,6 +374,15 @@ class Cache:
             self.warning += f" (the header announces {announced})"
         warnings.warn(self.warning, stacklevel=5)  # the caller of open()
         self._summarise()
+
+    def _check_plausible(self):
+        # A frame of agents x bytes per agent must come from this file's chunks, and zstd shrinks
+        # by at most about 2^15:1: a header claiming far more is damaged, and reading a frame would
+        # allocate for it (the C reader's check_plausible).
+        raw = sum(a.nbytes for a in self._attrs)
+        if self.frames > 0 and raw // 65536 > self.file_bytes:
+            self._fail(f"damaged header: frames of {self.agents} agents cannot come from a file of "
+                       f"{self.file_bytes} bytes")
 
     def _summarise(self):
         self.compressed_bytes = sum(self._sizes)

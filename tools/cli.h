@@ -29,6 +29,9 @@ int cli_parse_positive(const char *s, double *out);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
+/* Takes the output directory for this run until the process exits (an exclusive flock on
+ * dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run holds it. */
+int cli_lock_outdir(const char *dir);
 
 /* `run`: its options (cli_run.c). */
 typedef struct cli_run_options {

@@ -5,11 +5,13 @@
 #include <omp.h>
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -112,6 +114,27 @@ int cli_make_outdir(const char *dir, const char *const *names, int count)
         if (rc) return rc;
     }
     return 0;
+}
+
+/* flock(2) rather than a file whose existence is the lock: the kernel releases it when the run
+ * ends in any way (kill -9 included), so a dead run never blocks the next. The file stays: removing
+ * it at exit would let a run that opened it just before lock the removed file while a third run
+ * locks a new one. The descriptor is kept open (and the lock held) until the process exits. */
+int cli_lock_outdir(const char *dir)
+{
+    char path[FM_PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/" FM_OUTPUT_LOCK, dir);
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd < 0)
+        return fprintf(stderr, "flockmorph: error: -o %s: cannot create the lock file %s: %s\n", dir, path,
+                       strerror(errno)), FM_ERR_USAGE;
+    if (flock(fd, LOCK_EX | LOCK_NB) == 0) return 0;
+    int e = errno;
+    close(fd);
+    if (e == EWOULDBLOCK)
+        return fprintf(stderr, "flockmorph: error: -o %s: another run uses this output directory (it holds %s); wait "
+                       "for it to finish or choose another -o\n", dir, path), FM_ERR_USAGE;
+    return fprintf(stderr, "flockmorph: error: -o %s: cannot lock %s: %s\n", dir, path, strerror(e)), FM_ERR_USAGE;
 }
 
 int cli_parse_frame_options(int argc, char **argv, const char *usage, int optional_out, cli_frame_options *o)
@@ -266,9 +289,9 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
 void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out)
 {
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
-    snprintf(out->stats, sizeof out->stats, "%s/stats.json", o->outdir);
-    snprintf(out->checkpoint, sizeof out->checkpoint, "%s/checkpoint.fmck", o->outdir);
-    out->threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    snprintf(out->stats, sizeof out->stats, "%s/" FM_OUTPUT_STATS, o->outdir);
+    snprintf(out->checkpoint, sizeof out->checkpoint, "%s/" FM_OUTPUT_CHECKPOINT, o->outdir);
+    out->threads = fm_threads(o->threads);
 }
 
 enum { DEFAULT_CHECKPOINT_SECONDS = 60 };

@@ -384,7 +384,7 @@ static int export_frames(const export_job *job, int threads, int quiet)
 {
     export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(),
                          .total = job->last - job->first + 1};
-    int team = threads > 0 ? threads : omp_get_max_threads();
+    int team = fm_threads(threads);
     if ((uint32_t)team > p.total) team = (int)p.total;
 #pragma omp parallel num_threads(team)
     export_block(job, &p);

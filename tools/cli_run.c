@@ -167,8 +167,9 @@ int cli_run(int argc, char **argv)
     fm_error err = {0};
     fm_scene_def def;
     if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
-    const char *outputs[] = {def.cache_name, "stats.json"};
+    const char *outputs[] = {def.cache_name, FM_OUTPUT_STATS};
     if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
+    if ((rc = cli_lock_outdir(o.outdir))) return rc; /* before anything there is removed or read */
     if (o.resume && (rc = cli_check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
     return run_scene(&o, &def);
 }

@@ -9,8 +9,11 @@
  *   flockmorph --version | -V
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
+#define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
 #include "cli.h"
 
+#include <omp.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -45,6 +48,12 @@ static int (*find_command(const char *name))(int, char **)
 
 int main(int argc, char **argv)
 {
+    /* Past the file-size limit (ulimit -f) the kernel's SIGXFSZ would kill the process mid-write;
+     * ignored, write() fails with EFBIG, which every writer reports as an I/O error (exit 3). */
+    signal(SIGXFSZ, SIG_IGN);
+    /* OpenMP's default team (OMP_NUM_THREADS, unbounded) capped as the engine caps it (fm_threads),
+     * for any parallel region that does not name its thread count */
+    omp_set_num_threads(fm_threads(0));
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
     if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) return printf("flockmorph %s\n", FM_VERSION_STRING), 0;

@@ -12,6 +12,12 @@ extern "C" {
 #define FM_PATH_MAX 4096
 #define FM_MAX_PATH_POINTS 256
 
+/* The files `flockmorph run` writes beside the cache in its output directory; output.cache may
+ * not take one of these names (nor end in .partial, the name of a file being written). */
+#define FM_OUTPUT_STATS "stats.json"
+#define FM_OUTPUT_CHECKPOINT "checkpoint.fmck"
+#define FM_OUTPUT_LOCK ".flockmorph.lock"
+
 typedef enum fm_curve { FM_CURVE_POLYLINE = 0, FM_CURVE_CATMULL_ROM = 1 } fm_curve;
 
 /* A mesh placed in the world: x_world = R(rotate_deg) * (scale * x_file) + translate.

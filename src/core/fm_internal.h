@@ -52,10 +52,20 @@ fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, f
 /* Closes PATH.partial and leaves it on disk (a cache that stopped early stays readable). */
 void fm_output_keep_partial(fm_output_file *o);
 
-/* A user's input file (scene, mesh): FM_OK if it can be opened for reading; otherwise
- * FM_ERR_INPUT with "PATH: cannot open the <what>: <reason>" (missing, a directory, permission
- * denied), or FM_ERR_IO for a failure the user did not cause. */
+/* A user's input file (scene, mesh, cache, checkpoint): FM_OK if it is a regular file that can be
+ * opened for reading; otherwise FM_ERR_INPUT with "PATH: cannot open the <what>: <reason>"
+ * (missing, a directory, a FIFO or device, permission denied), or FM_ERR_IO for a failure the user
+ * did not cause. Never blocks (a FIFO is refused without being opened). */
 fm_status fm_check_input_file(const char *path, const char *what, fm_error *err);
+
+/* The OpenMP threads the engine uses when asked for `requested`: that many (at most
+ * FM_MAX_THREADS, the --threads limit), or for 0 OpenMP's default capped at FM_MAX_THREADS and at
+ * FM_THREADS_PER_CORE x the cores. The default comes from OMP_NUM_THREADS, which nothing bounds:
+ * 100000 threads would exhaust the stacks and crash the first parallel region, and more threads
+ * than a few per core only make the run slower (results never depend on the count). */
+#define FM_MAX_THREADS 1024
+#define FM_THREADS_PER_CORE 4
+int fm_threads(int requested);
 
 /* What the user can do about a failed write with this errno ("" if nothing specific): disk full,
  * file-size limit, read-only file system. */

@@ -1,10 +1,13 @@
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
 
+#include <omp.h>
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <time.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -126,21 +129,46 @@ const char *fm_write_hint(int errnum)
 static int user_caused(int errnum)
 {
     return errnum == ENOENT || errnum == ENOTDIR || errnum == EACCES || errnum == EPERM || errnum == ELOOP ||
-           errnum == ENAMETOOLONG || errnum == EISDIR;
+           errnum == ENAMETOOLONG || errnum == EISDIR || errnum == ENXIO;
 }
 
+/* What a file that is not a regular file is, for the message; NULL for a regular file. */
+static const char *not_regular(mode_t mode)
+{
+    if (S_ISREG(mode)) return NULL;
+    if (S_ISDIR(mode)) return "it is a directory";
+    if (S_ISFIFO(mode)) return "it is a FIFO (named pipe), not a regular file";
+    if (S_ISCHR(mode) || S_ISBLK(mode)) return "it is a device, not a regular file";
+    return "it is not a regular file";
+}
+
+/* Only regular files are read: a FIFO would block the read until a writer comes (forever, if none
+ * does), and /dev/zero or /dev/urandom never end. stat() first, so that nothing but a regular file
+ * is ever opened; then the open that checks the permission, with O_NONBLOCK in case the path was
+ * replaced by a FIFO in between (fstat then catches it). */
 fm_status fm_check_input_file(const char *path, const char *what, fm_error *err)
 {
     struct stat st;
     int e = 0;
+    const char *kind = NULL;
     if (stat(path, &st) != 0) e = errno;
-    else if (S_ISDIR(st.st_mode)) e = EISDIR;
-    else {
-        FILE *f = fopen(path, "rb"); /* the permission check that counts (access() ignores ACLs' details) */
-        if (f) fclose(f);
-        else e = errno;
+    else if (!(kind = not_regular(st.st_mode))) {
+        int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+        if (fd < 0) e = errno;
+        else if (fstat(fd, &st) != 0) e = errno;
+        else kind = not_regular(st.st_mode);
+        if (fd >= 0) close(fd);
     }
+    if (kind) return fm_fail(err, FM_ERR_INPUT, "%s: cannot open the %s: %s", path, what, kind);
     if (!e) return FM_OK;
     return fm_fail(err, user_caused(e) ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open the %s: %s", path, what,
-                   e == EISDIR ? "it is a directory" : strerror(e));
+                   strerror(e));
+}
+
+int fm_threads(int requested)
+{
+    if (requested > 0) return requested < FM_MAX_THREADS ? requested : FM_MAX_THREADS;
+    int n = omp_get_max_threads(), cap = FM_THREADS_PER_CORE * omp_get_num_procs();
+    if (cap > FM_MAX_THREADS) cap = FM_MAX_THREADS;
+    return n < 1 ? 1 : n < cap ? n : cap;
 }

@@ -194,6 +194,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     fm_status st = fm_flock_target_build(&m->target, def, err);
     if (st == FM_OK) st = fm_name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
     if (st == FM_OK) fm_mesh_place(&source, &def->source);
+    if (st == FM_OK) st = fm_scene_name_key(def, fm_mesh_check_extent(&source, def->source.path, err), "source.mesh", err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
     if (st == FM_OK) st = build_path(m, err);

@@ -71,7 +71,7 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
     fm_flock_state *s = calloc(1, sizeof *s);
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     s->n = m->n;
-    s->threads = threads > 0 ? threads : omp_get_max_threads();
+    s->threads = fm_threads(threads);
     const fm_scene_def *def = &m->def;
     fm_status st = alloc_arrays(s, m->info.deforming, m->target.mesh.nv)
                        ? FM_OK

@@ -61,6 +61,8 @@ fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_
     fm_status st = fm_name_key(fm_mesh_load(def->target.path, &t->mesh, err), "target.mesh", err);
     if (st != FM_OK) return st;
     fm_mesh_place(&t->mesh, &def->target);
+    if ((st = fm_scene_name_key(def, fm_mesh_check_extent(&t->mesh, def->target.path, err), "target.mesh", err)))
+        return st;
     if (t->kind == FM_DEFORM_WAVE) return vertex_normals(t, err);
     if (t->kind == FM_DEFORM_PULSE) {
         for (int64_t i = 0; i < t->mesh.nv; i++)

@@ -31,6 +31,12 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
 fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,
                         fm_error *err);
 void fm_mesh_free(fm_mesh *mesh);
+/* mesh_counts.c: the element counts a PLY or OFF header or a binary STL declares must fit in the
+ * file's bytes (head: its first head_len bytes; format: the extension), else FM_ERR_INPUT before
+ * assimp allocates from them. fm_mesh_check_file_counts reads the head of a file. */
+fm_status fm_mesh_check_counts(const char *head, size_t head_len, uint64_t file_bytes, const char *format,
+                               const char *name, fm_error *err);
+fm_status fm_mesh_check_file_counts(const char *path, fm_error *err);
 /* Every edge shared by exactly two faces with opposite directions, no zero-area triangle, and a
  * volume inside; names the first bad edge or triangle (numbered from 1 in file order). */
 fm_status fm_mesh_check_closed(const fm_mesh *mesh, const char *path, fm_error *err);
@@ -40,6 +46,11 @@ typedef void (*fm_edge_pair_fn)(int64_t half_a, int64_t half_b, void *user);
 fm_status fm_mesh_pair_edges(const fm_mesh *mesh, const char *name, fm_edge_pair_fn pair, void *user,
                              fm_error *err);
 void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
+/* A placed mesh must span at least FM_MESH_MIN_EXTENT, and FM_MESH_MIN_RELATIVE_EXTENT of its
+ * largest coordinate; else FM_ERR_INPUT (mesh_import.c says why). */
+#define FM_MESH_MIN_EXTENT 1e-9
+#define FM_MESH_MIN_RELATIVE_EXTENT 1e-6
+fm_status fm_mesh_check_extent(const fm_mesh *mesh, const char *path, fm_error *err);
 double fm_mesh_signed_volume(const fm_mesh *mesh);
 #ifdef __cplusplus
 }

@@ -141,6 +141,7 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
     memset(out, 0, sizeof *out);
     fm_status st = fm_check_input_file(path, "mesh", err);
+    if (st == FM_OK) st = fm_mesh_check_file_counts(path, err);
     if (st != FM_OK) return st;
     return take_scene(aiImportFile(path, IMPORT_FLAGS), path, out, err);
 }
@@ -150,6 +151,8 @@ fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const 
 {
     memset(out, 0, sizeof *out);
     if (len == 0 || len > UINT32_MAX) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh data is empty or too large", name);
+    fm_status st = fm_mesh_check_counts(data, len < (1 << 16) ? len : (1 << 16), len, format, name, err);
+    if (st != FM_OK) return st;
     return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, out, err);
 }
 
@@ -282,6 +285,26 @@ void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref)
         p[1] = y + ref->translate[1];
         p[2] = z + ref->translate[2];
     }
+}
+
+/* The agents and the cache hold float32 positions (2^-23, about 1.2e-7, relative): a mesh that spans
+ * less than 1e-6 of its largest coordinate is under 8 float32 steps across and cannot keep its
+ * shape (and in double the placement itself may collapse it: scale 1e-30 at translate 10 rounds
+ * every vertex to the same point, on which TetGen asserts). Below 1e-9 units, even away from the
+ * origin, the volumes of a billion tets (extent^3 / n) fall under float32's smallest normal number,
+ * and TetGen's predicates (products of up to five coordinate differences) approach double's. */
+fm_status fm_mesh_check_extent(const fm_mesh *mesh, const char *path, fm_error *err)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0, far = 0;
+    for (int64_t i = 0; i < mesh->nv; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], mesh->v[3 * i + k]), hi[k] = fmax(hi[k], mesh->v[3 * i + k]);
+    for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]), far = fmax(far, fmax(fabs(lo[k]), fabs(hi[k])));
+    double least = fmax(FM_MESH_MIN_EXTENT, FM_MESH_MIN_RELATIVE_EXTENT * far);
+    if (mesh->nv == 0 || extent >= least) return FM_OK;
+    return fm_fail(err, FM_ERR_INPUT, "%s: placed in the world (scale, rotate_deg, translate) the mesh spans %g, "
+                   "less than the %g it needs (%g units, and %g of its largest coordinate %g) to keep its shape in "
+                   "the agents' float32 precision: raise scale or move it nearer the origin", path, extent, least,
+                   FM_MESH_MIN_EXTENT, FM_MESH_MIN_RELATIVE_EXTENT, far);
 }
 
 double fm_mesh_signed_volume(const fm_mesh *mesh)

@@ -342,6 +342,7 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     if (!r) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     snprintf(r->path, sizeof r->path, "%s", path);
     r->chunk_frame = -1;
+    if (fm_check_input_file(path, "cache", err) != FM_OK) return fm_cache_close(r), NULL;
     r->f = fopen(path, "rb");
     if (!r->f) {
         fm_fail(err, errno == ENOENT ? FM_ERR_INPUT : FM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));

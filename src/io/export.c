@@ -216,9 +216,9 @@ fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *dat
     if (st != FM_OK) return st;
     errno = 0;
     if (body(out.f, data)) {
-        int e = errno;
+        int e = errno ? errno : EIO;
         fm_output_discard(&out);
-        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
+        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
     }
     return fm_output_commit(&out, NULL, err);
 }

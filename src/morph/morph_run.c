@@ -19,7 +19,7 @@ static double signed_volume6(const float *t)
 int64_t fm_count_inverted_tets(const float *verts, size_t n)
 {
     int64_t count = 0;
-#pragma omp parallel for reduction(+ : count) schedule(static)
+#pragma omp parallel for num_threads(fm_threads(0)) reduction(+ : count) schedule(static)
     for (int64_t i = 0; i < (int64_t)n; i++) count += !(signed_volume6(verts + 12 * i) > 0);
     return count;
 }

@@ -87,7 +87,7 @@ fm_morph_state *fm_morph_state_create(const fm_morph_model *m, int threads, fm_e
         fm_fail(err, FM_ERR_INPUT, "n = %lld agents: the store holds at most %d", (long long)m->n, INT32_MAX);
         return NULL;
     }
-    s->threads = threads > 0 ? threads : omp_get_max_threads();
+    s->threads = fm_threads(threads);
     if (!alloc_arrays(s)) {
         fm_morph_state_destroy(s);
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);

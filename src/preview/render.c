@@ -656,7 +656,7 @@ static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_er
     view v;
     view_camera(o, lo, hi, &v);
     view_ground_and_light(o, lo, hi, &v);
-    int threads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    int threads = fm_threads(o->threads);
     const fm_renderer *cr = r;
 #pragma omp parallel for schedule(dynamic, 2) num_threads(threads)
     for (int y = 0; y < o->height; y++)

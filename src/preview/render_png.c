@@ -65,10 +65,10 @@ fm_status fm_write_png(const unsigned char *rgb, int width, int height, const ch
     png_failure pf = {""};
     errno = 0;
     if (write_png_stream(out.f, rgb, width, height, &pf) != 0) {
-        int e = errno;
+        int e = errno ? errno : EIO;
         fm_output_discard(&out);
         if (pf.message[0]) return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, pf.message);
-        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(e ? e : EIO));
+        return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", path, strerror(e), fm_write_hint(e));
     }
     return fm_output_commit(&out, NULL, err);
 }

@@ -90,7 +90,7 @@ void fm_sample_barycentric(const fm_mesh *mesh, int32_t t, const double q[3], do
 
 void fm_samples_eval(const fm_samples *s, const double *mesh_vertices, const int32_t *tri, float *p_out)
 {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for num_threads(fm_threads(0)) schedule(static)
     for (int64_t i = 0; i < s->n; i++) {
         const int32_t *f = tri + 3 * (int64_t)s->tri[i];
         const float *b = s->bary + 3 * i;
@@ -131,7 +131,7 @@ static fm_status resolve_opts(const fm_sample_opts *in, fm_sample_opts *o, fm_er
     if (o->lambda == 0) o->lambda = d.lambda;
     if (o->step == 0) o->step = d.step;
     if (o->oversample == 0) o->oversample = d.oversample;
-    if (o->threads == 0) o->threads = omp_get_max_threads();
+    o->threads = fm_threads(o->threads);
     return FM_OK;
 }
 
@@ -218,7 +218,7 @@ fm_status fm_points_nn_stats(const float *p, int64_t n, int threads, double *mea
     if (n < 2 || !p) return fm_fail(err, FM_ERR_INPUT, "nearest-neighbour statistics need at least 2 points (got %lld)", (long long)n);
     for (int64_t i = 0; i < 3 * n; i++)
         if (!isfinite(p[i])) return fm_fail(err, FM_ERR_INPUT, "point %lld is not finite", (long long)(i / 3));
-    if (threads < 1) threads = omp_get_max_threads();
+    threads = fm_threads(threads);
     double lo[3], hi[3], extent = 0;
     point_bounds(p, n, lo, hi);
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);

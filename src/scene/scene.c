@@ -428,12 +428,27 @@ static fm_status read_mesh_path(const where *w, const param *p, const json_t *v,
     return FM_OK;
 }
 
+/* Why `name` cannot be the cache's name in the output directory, or NULL if it can. The run
+ * writes its other files there too (FM_OUTPUT_*), and every file as NAME.partial first: a cache
+ * named like one of them would overwrite it or be overwritten. */
+static const char *cache_name_problem(const char *name)
+{
+    static const char *const taken[] = {FM_OUTPUT_STATS, FM_OUTPUT_CHECKPOINT, FM_OUTPUT_LOCK};
+    size_t len = strlen(name), suffix = strlen(".partial");
+    if (!name[0] || strchr(name, '/') || len >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
+        return "is not a plain file name (no '/', at most 255 bytes)";
+    for (size_t i = 0; i < sizeof taken / sizeof *taken; i++)
+        if (!strcmp(name, taken[i])) return "is the name of another file the run writes in the output directory";
+    if (len >= suffix && !strcmp(name + len - suffix, ".partial"))
+        return "ends in .partial, the name the run gives a file while writing it";
+    return NULL;
+}
+
 static fm_status read_name(const where *w, const param *p, const json_t *v, char *out)
 {
     if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", json_type_name(v));
-    const char *name = json_string_value(v);
-    if (!name[0] || strchr(name, '/') || strlen(name) >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
-        return fail_at(w, KEY(w, p), "'%s' is not a plain file name (no '/', at most 255 bytes)", name);
+    const char *name = json_string_value(v), *problem = cache_name_problem(name);
+    if (problem) return fail_at(w, KEY(w, p), "'%s' %s", name, problem);
     strcpy(out, name);
     return FM_OK;
 }
@@ -910,11 +925,15 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     if (st != FM_OK) return st;
     if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
         return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
-    if (!def->cache_name[0] || strchr(def->cache_name, '/') || !strcmp(def->cache_name, ".") || !strcmp(def->cache_name, ".."))
-        return fail_at(&w, "output.cache", "'%s' is not a plain file name", def->cache_name);
+    const char *problem = memchr(def->cache_name, 0, sizeof def->cache_name) ? cache_name_problem(def->cache_name)
+                                                                              : "is not a plain file name";
+    if (problem) return fail_at(&w, "output.cache", "'%.255s' %s", def->cache_name, problem);
     if (def->mode == FM_MODE_SHAPE_FLOCK && (st = check_flock(&w, def)) != FM_OK) return st;
     return check_consistency(&w, def);
 }
+
+/* Scenes are a few KiB (256 path points and every key fit in well under 1 MiB). */
+#define FM_SCENE_MAX_BYTES (64 << 20)
 
 static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_error *err)
 {
@@ -929,6 +948,12 @@ static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_erro
     while (text) {
         len += fread(text + len, 1, cap - len - 1, f);
         if (len < cap - 1) break;
+        if (cap >= FM_SCENE_MAX_BYTES) { /* a file of that size is not a scene: do not read it all */
+            free(text), fclose(f);
+            *st = fm_fail(err, FM_ERR_INPUT, "%s: the scene file is larger than %d MiB: it is not a scene", path,
+                          FM_SCENE_MAX_BYTES >> 20);
+            return NULL;
+        }
         char *bigger = realloc(text, cap *= 2);
         if (!bigger) free(text);
         text = bigger;

@@ -28,6 +28,7 @@
 #include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 enum { CHECKPOINT_VERSION = 1, HEADER_BYTES = 64, TRAILER_BYTES = 8, NAME_MAX_BYTES = 64 };
@@ -259,6 +260,9 @@ static fm_status check_scene(const source *src, const header *h, const fm_scene_
 static fm_status open_checked(source *src, header *h, const fm_scene_def *def, const fm_store_member *members,
                               int count)
 {
+    struct stat file;
+    fm_status checked = stat(src->path, &file) == 0 ? fm_check_input_file(src->path, "checkpoint", src->err) : FM_OK;
+    if (checked != FM_OK) return checked; /* a FIFO or device there would block or never end */
     errno = 0;
     src->f = fopen(src->path, "rb");
     if (!src->f)

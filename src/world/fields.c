@@ -389,7 +389,7 @@ void fm_fields_prepare(fm_fields *f, double t, int threads)
     const fm_fields *cf = f;
     float *grid = f->grid;
 #ifdef _OPENMP
-    const int nt = threads > 0 ? threads : omp_get_max_threads();
+    const int nt = fm_threads(threads);
 #pragma omp parallel for num_threads(nt) schedule(static)
 #else
     (void)threads;

@@ -53,7 +53,7 @@ static void refine_grid(fm_obstacles *o)
     const fm_sdf_view *s = &o->view;
     const double h = (double)s->voxel, far = (double)s->far;
     const int64_t n0 = s->n[0], n1 = s->n[1], rows = (int64_t)s->n[1] * s->n[2];
-#pragma omp parallel for schedule(dynamic, 4)
+#pragma omp parallel for num_threads(fm_threads(0)) schedule(dynamic, 4)
     for (int64_t r = 0; r < rows; r++) {
         int64_t j = r % n1, k = r / n1;
         float *row = d + n0 * r;

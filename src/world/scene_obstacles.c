@@ -15,6 +15,7 @@ fm_status fm_scene_mesh_load(const fm_scene_def *def, const fm_mesh_ref *ref, co
     fm_status st = fm_mesh_load(ref->path, mesh, err);
     if (st == FM_OK) st = fm_mesh_check_closed(mesh, ref->path, err);
     if (st == FM_OK) fm_mesh_place(mesh, ref);
+    if (st == FM_OK) st = fm_mesh_check_extent(mesh, ref->path, err);
     return fm_scene_name_key(def, st, key, err);
 }
 

@@ -5,6 +5,7 @@
  * complete frame. The bad meshes are written here (under the test's scratch directory). */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "cache_format.h"
 #include "modes.h"
 #include "morph.h"
 #include "test_macros.h"
@@ -97,7 +98,7 @@ static void expect_output(int rc, int code, const char *what, const char *const 
 /* Runs as an unprivileged user (nobody) when the test is root, so that permissions apply. */
 #define EXPECT_RUN_UNPRIVILEGED(scene_path, outdir, code, ...)                                               \
     do {                                                                                                     \
-        cli_env env_ = {0, 1};                                                                               \
+        cli_env env_ = {.unprivileged = 1};                                                                  \
         int rc_ = run_scene(&env_, (scene_path), (outdir));                                                  \
         if (rc_ == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");                  \
         else expect_output(rc_, (code), (scene_path), (const char *const[]){__VA_ARGS__, NULL});            \
@@ -300,6 +301,32 @@ static void test_output_cache_name(void)
                        "not a plain file name");
 }
 
+/* A cache named like another file of the run (stats.json, the checkpoint, the lock) or like a file
+ * being written (*.partial) is refused before anything in the output directory is touched. */
+static void test_output_cache_name_taken(void)
+{
+    static const char *const cases[][2] = {{"stats.json", "another file the run writes"},
+                                           {"checkpoint.fmck", "another file the run writes"},
+                                           {".flockmorph.lock", "another file the run writes"},
+                                           {"frames.fmc.partial", "ends in .partial"},
+                                           {"stats.json.partial", "ends in .partial"}};
+    char outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX], kept[64];
+    mkdir(tmp_path(outdir, "taken_out"), 0755);
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    for (int i = 0; i < 5; i++) {
+        char extra[128], at[64], where[FM_PATH_MAX + 32];
+        snprintf(extra, sizeof extra, ",\n  \"output\": {\"cache\": \"%s\"}", cases[i][0]);
+        snprintf(at, sizeof at, "\"%s\"}", cases[i][0]);
+        const char *path = plain_scene("cache_taken.json", extra);
+        scene_position(at, where, sizeof where);
+        write_text(stats, "{\"an older run\": true}");
+        snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, outdir);
+        expect_output(cli(args), 2, cases[i][0], (const char *const[]){where, "output.cache", cases[i][1], NULL});
+        slurp(stats, kept, sizeof kept);
+        ENSURE_MSG(!strcmp(kept, "{\"an older run\": true}"), "%s: stats.json changed to '%s'", cases[i][0], kept);
+    }
+}
+
 /* ---------------------------------------------------------------- meshes */
 
 /* A scene whose source is `mesh_name` (in the scratch directory); `where` gets the position of the
@@ -343,6 +370,39 @@ static void test_mesh_file_unreadable(void)
     const char *path = mesh_scene("locked.obj", where, sizeof where);
     EXPECT_RUN_UNPRIVILEGED(path, "locked_out", 2, where, mesh, "cannot open the mesh: Permission denied");
     chmod(mesh, 0644);
+}
+
+static void write_binary(const char *name, const void *bytes, size_t len)
+{
+    char path[FM_PATH_MAX];
+    FILE *f = fopen(tmp_path(path, name), "wb");
+    ENSURE_MSG(f != NULL, "cannot create %s", path);
+    if (f) fwrite(bytes, 1, len, f), fclose(f);
+}
+
+/* Tiny files whose headers claim two billion elements: refused as damaged from the file's size,
+ * before assimp allocates for the count (the run's address space is limited to 2 GiB, so a
+ * regression fails here rather than exhausting the machine). */
+static void test_mesh_counts_beyond_file(void)
+{
+    write_mesh("huge_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n");
+    write_mesh("huge_binary.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+               "property float y\nproperty float z\nelement face 2000000000\nproperty list uchar int vertex_indices\n"
+               "end_header\nVERTEX 1 x y zVERTEX 2 x y zVERTEX 3 x y z"); /* 36 bytes: 3 vertices */
+    write_mesh("huge.off", "OFF\n# a comment\n2000000000 1 0\n0 0 0\n");
+    unsigned char stl[84 + 50] = {0};
+    stl[80] = 0x00, stl[81] = 0x94, stl[82] = 0x35, stl[83] = 0x77; /* 2e9 triangles, one present */
+    write_binary("huge.stl", stl, sizeof stl);
+    static const char *const cases[][2] = {{"huge_ascii.ply", "2000000000 'vertex' elements"}, {"huge_binary.ply", "2000000000 'face' elements"},
+                                           {"huge.off", "2000000000 vertices"}, {"huge.stl", "2000000000 triangles"}};
+    for (int i = 0; i < 4; i++) {
+        char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+        const char *path = mesh_scene(cases[i][0], where, sizeof where);
+        cli_env limited = {.memory_limit = 2LL << 30};
+        expect_output(run_scene(&limited, path, "out"), 2, cases[i][0],
+                      (const char *const[]){where, tmp_path(mesh, cases[i][0]), cases[i][1], "damaged or cut short", NULL});
+    }
 }
 
 static void test_mesh_empty_or_not_a_mesh(void)
@@ -452,6 +512,31 @@ static void test_mesh_lines_only(void)
 {
     write_mesh("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nl 1 2\nl 2 3\nl 3 4\nl 4 1\n");
     expect_bad_mesh("lines.obj", "the mesh has no triangles");
+}
+
+/* A scale allowed by its range (> 0) that leaves the placed mesh too small for float32 (and, at
+ * translate -10, rounds every vertex to one point, on which TetGen used to assert and abort): exit 2
+ * at the mesh's key, in both modes, for the source, the target and an obstacle. */
+static void test_mesh_too_small_when_placed(void)
+{
+    static const char *const cases[][3] = {
+        {"tiny_far.json", "\"translate\": [-10, 0, 0], \"scale\": 1e-30", RIGHT},
+        {"tiny_origin.json", "\"scale\": 1e-30", RIGHT},
+        {"tiny_relative.json", "\"translate\": [-10, 0, 0], \"scale\": 1e-6", RIGHT},
+        {"tiny_target.json", LEFT, "\"translate\": [10, 0, 0], \"scale\": 1e-30"}};
+    for (int i = 0; i < 4; i++)
+        for (int flock = 0; flock < 2; flock++) {
+            char where[FM_PATH_MAX + 64];
+            const char *path = scene(cases[i][0], OCTAHEDRON, cases[i][1], cases[i][2], flock ? FLOCK ",\n  \"n\": 50" : "");
+            scene_position(i == 3 ? "\"" OCTAHEDRON "\", \"translate\": [10" : "\"" OCTAHEDRON "\"", where, sizeof where);
+            strncat(where, i == 3 ? "target.mesh: " : "source.mesh: ", sizeof where - strlen(where) - 1);
+            cli_env watched = {.seconds = 60};
+            expect_output(run_scene(&watched, path, "out"), 2, cases[i][0],
+                          (const char *const[]){where, "placed in the world", "float32 precision", NULL});
+        }
+    const char *path = plain_scene("tiny_obstacle.json", ",\n  \"obstacles\": {\"meshes\": [{\"mesh\": \"" OCTAHEDRON
+                                   "\", \"translate\": [0, 5, 0], \"scale\": 1e-30}]}");
+    EXPECT_RUN(path, 2, "obstacles.meshes[0]", "placed in the world");
 }
 
 /* ---------------------------------------------------------------- n */
@@ -677,6 +762,52 @@ static void test_source_target_overlap_warns(void)
     json_decref(j);
 }
 
+/* ---------------------------------------------------------------- files that are not regular files */
+
+/* A FIFO (which would block a read until a writer comes, here never), /dev/zero (which never ends)
+ * and a directory, as the scene, a mesh, a cache and a checkpoint: refused at once (exit 2, the run
+ * given 30 s before SIGALRM would end it), naming the file and what it is. */
+static void test_not_regular_files(void)
+{
+    char fifo[FM_PATH_MAX], dir[FM_PATH_MAX], where[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    remove(tmp_path(fifo, "fifo.obj"));
+    ENSURE(mkfifo(fifo, 0644) == 0);
+    mkdir(tmp_path(dir, "dir.fmc"), 0755);
+    cli_env watched = {.seconds = 30};
+    expect_output(run_scene(&watched, fifo, "out"), 2, "FIFO scene",
+                  (const char *const[]){fifo, "cannot open the scene file: it is a FIFO (named pipe)", NULL});
+    expect_output(run_scene(&watched, "/dev/zero", "out"), 2, "/dev/zero scene",
+                  (const char *const[]){"/dev/zero: cannot open the scene file: it is a device", NULL});
+    const char *path = mesh_scene("fifo.obj", where, sizeof where);
+    expect_output(run_scene(&watched, path, "out"), 2, "FIFO mesh",
+                  (const char *const[]){where, fifo, "cannot open the mesh: it is a FIFO", NULL});
+    const char *const caches[][2] = {{fifo, "it is a FIFO"}, {"/dev/zero", "it is a device"}, {dir, "it is a directory"}};
+    for (int i = 0; i < 3; i++) {
+        snprintf(args, sizeof args, "inspect '%s'", caches[i][0]);
+        expect_output(cli_with(&watched, args), 2, caches[i][0],
+                      (const char *const[]){caches[i][0], "cannot open the cache", caches[i][1], NULL});
+    }
+    /* a FIFO where --resume reads the checkpoint */
+    char outdir[FM_PATH_MAX], ckpt[FM_PATH_MAX + 32];
+    path = plain_scene("fifo_resume.json", "");
+    mkdir(tmp_path(outdir, "fifo_out"), 0755);
+    snprintf(ckpt, sizeof ckpt, "%s/checkpoint.fmck", outdir);
+    remove(ckpt);
+    ENSURE(mkfifo(ckpt, 0644) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --resume --quiet", path, outdir);
+    expect_output(cli_with(&watched, args), 2, "FIFO checkpoint",
+                  (const char *const[]){ckpt, "cannot open the checkpoint: it is a FIFO", NULL});
+    remove(ckpt), remove(fifo);
+    /* a regular file far larger than any scene is not read to its end */
+    char big[FM_PATH_MAX];
+    FILE *f = fopen(tmp_path(big, "big.json"), "w");
+    ENSURE(f && ftruncate(fileno(f), 65 << 20) == 0); /* sparse: no disk used */
+    if (f) fclose(f);
+    expect_output(run_scene(&watched, big, "out"), 2, "big scene",
+                  (const char *const[]){big, "the scene file is larger than 64 MiB", NULL});
+    remove(big);
+}
+
 /* ---------------------------------------------------------------- the output directory */
 
 static void test_output_directory(void)
@@ -697,7 +828,7 @@ static void test_output_directory(void)
     /* permissions: a read-only directory, and a missing one under it */
     mkdir(tmp_path(parent, "read_only"), 0755);
     chmod(parent, 0555);
-    cli_env env = {0, 1};
+    cli_env env = {.unprivileged = 1};
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, parent);
     int rc = cli_with(&env, args);
     if (rc == CLI_NOT_RUN) printf("  (skipped: cannot run as an unprivileged user)\n");
@@ -761,7 +892,7 @@ static void expect_file_size_limit(const char *scene_path, const char *outdir, f
     remove(partial);
     char args[3 * FM_PATH_MAX];
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
-    cli_env limited = {(long long)st.st_size / 2, 0};
+    cli_env limited = {.file_size_limit = (long long)st.st_size / 2};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
                   "complete frames written before the error are in", "no stats.json", NULL});
@@ -788,8 +919,53 @@ static void test_flock_file_size_limit(void)
     expect_file_size_limit(plain_scene("flock_limit.json", FLOCK ",\n  \"n\": 300"), "flock_limit", FM_ATTR_POSITION, 3);
 }
 
+/* export under the file-size limit: exit 3 with the reason (not death by SIGXFSZ), and nothing
+ * under the final name. */
+static void test_export_file_size_limit(void)
+{
+    char cache[FM_PATH_MAX + 16], ply[FM_PATH_MAX], args[4 * FM_PATH_MAX];
+    ENSURE(run_scene(NULL, plain_scene("export_limit.json", ",\n  \"n\": 300"), "export_limit") == 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    remove(tmp_path(ply, "export_limit.ply"));
+    snprintf(args, sizeof args, "export '%s' -o '%s'", cache, ply);
+    cli_env limited = {.file_size_limit = 4096};
+    expect_output(cli_with(&limited, args), 3, "export under a file-size limit",
+                  (const char *const[]){ply, "File too large", "ulimit -f", NULL});
+    ENSURE_MSG(!exists(ply), "%s is left", ply);
+}
+
+/* A small cache whose header claims 2^38 agents (its crc32 made to match) is refused as damaged by
+ * inspect and export from the file's size, before anything is allocated for that many agents. */
+static void test_cache_agents_beyond_file(void)
+{
+    enum { AGENTS = 50 };
+    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    static float frame[12 * AGENTS];
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(tmp_path(path, "huge_agents.fmc"), AGENTS, 24, 1, &err);
+    ENSURE_MSG(w && fm_cache_writer_add_frame(w, frame, &err) == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK,
+               "%s", err.message);
+    FILE *f = fopen(path, "r+b");
+    unsigned char h[CACHE_MAX_HEADER];
+    ENSURE(f && fread(h, 1, 64, f) == 64);
+    if (!f) return;
+    uint32_t header_bytes = get_u32(h + 12);
+    ENSURE(header_bytes <= sizeof h && fseek(f, 0, SEEK_SET) == 0 && fread(h, 1, header_bytes, f) == header_bytes);
+    put_u64(h + 16, (uint64_t)1 << 38);
+    put_u32(h + 52, 0); /* the crc32 is computed with its own field 0 */
+    put_u32(h + 52, cache_crc32(0, h, header_bytes));
+    ENSURE(fseek(f, 0, SEEK_SET) == 0 && fwrite(h, 1, header_bytes, f) == header_bytes);
+    fclose(f);
+    cli_env limited = {.memory_limit = 2LL << 30};
+    snprintf(args, sizeof args, "inspect '%s'", path);
+    expect_output(cli_with(&limited, args), 2, "inspect",
+                  (const char *const[]){path, "274877906944 agents cannot come from a file of", NULL});
+    snprintf(args, sizeof args, "export '%s' -o '%s.ply'", path, path);
+    expect_output(cli_with(&limited, args), 2, "export", (const char *const[]){path, "damaged header", NULL});
+}
+
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
- * test) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
+ * test; a program using the library ignores SIGXFSZ as the CLI does) fails in fm_cache_writer_finish with FM_ERR_IO, leaves nothing under the final name, and
  * its PATH.partial holds the frames that fitted, bit for bit. */
 static void test_cache_writer_keeps_partial(void)
 {
@@ -870,9 +1046,11 @@ int main(void)
     RUN_TEST(test_numeric_keys_out_of_range);
     RUN_TEST(test_scene_consistency);
     RUN_TEST(test_output_cache_name);
+    RUN_TEST(test_output_cache_name_taken);
     RUN_TEST(test_flock_values_out_of_range);
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
+    RUN_TEST(test_mesh_counts_beyond_file);
     RUN_TEST(test_mesh_garbage_bytes);
     RUN_TEST(test_mesh_open);
     RUN_TEST(test_mesh_non_manifold);
@@ -881,6 +1059,7 @@ int main(void)
     RUN_TEST(test_mesh_flipped_triangle);
     RUN_TEST(test_mesh_repeated_corner);
     RUN_TEST(test_mesh_lines_only);
+    RUN_TEST(test_mesh_too_small_when_placed);
     RUN_TEST(test_n_too_small);
     RUN_TEST(test_memory_estimate_matches_allocations);
     RUN_TEST(test_flock_memory_estimate_matches_allocations);
@@ -892,10 +1071,13 @@ int main(void)
     RUN_TEST(test_flock_obstacle_overlaps_source_or_target);
     RUN_TEST(test_flock_obstacle_allowed);
     RUN_TEST(test_source_target_overlap_warns);
+    RUN_TEST(test_not_regular_files);
     RUN_TEST(test_output_directory);
     RUN_TEST(test_file_size_limit);
     RUN_TEST(test_flock_file_size_limit);
+    RUN_TEST(test_export_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
+    RUN_TEST(test_cache_agents_beyond_file);
     RUN_TEST(test_disk_full);
     return test_result();
 }

@@ -167,6 +167,50 @@ static void test_successful_run(void)
     snprintf(g_cache, sizeof g_cache, "%s/frames.fmc", outdir);
 }
 
+/* 1 if both files hold the same bytes. */
+static int same_file(const char *a, const char *b)
+{
+    FILE *f = fopen(a, "rb"), *g = fopen(b, "rb");
+    int same = f && g, c;
+    while (same && (c = fgetc(f)) == fgetc(g))
+        if (c == EOF) break;
+    same = same && c == EOF;
+    if (f) fclose(f);
+    if (g) fclose(g);
+    return same;
+}
+
+/* OMP_NUM_THREADS=100000 (nothing bounds it) must neither crash nor crawl: the engine caps its
+ * default team at 4 threads a core (fm_threads). Both modes run to the end in the environment,
+ * the tetra morph's cache equal byte for byte to the --threads 2 run's; export runs too. */
+static void test_huge_omp_num_threads(void)
+{
+    char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], stats[FM_PATH_MAX + 16];
+    char args[3 * FM_PATH_MAX];
+    ENSURE(g_cache[0]);
+    tmp_path(scene, "ok.json");
+    snprintf(cache, sizeof cache, "%s/frames.fmc", tmp_path(outdir, "omp_out"));
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    setenv("OMP_NUM_THREADS", "100000", 1);
+    cli_env watched = {.seconds = 120};
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene, outdir);
+    int rc = cli_with(&watched, args);
+    ENSURE_MSG(rc == 0, "OMP_NUM_THREADS=100000: exit %d: %s", rc, g_err);
+    ENSURE_MSG(same_file(cache, g_cache), "%s differs from %s", cache, g_cache);
+    json_t *j = json_load_file(stats, 0, NULL);
+    long threads = j ? (long)json_integer_value(json_object_get(j, "threads")) : -1;
+    ENSURE_MSG(threads >= 1 && threads <= 4 * sysconf(_SC_NPROCESSORS_ONLN), "threads %ld", threads);
+    json_decref(j);
+    write_scene(tmp_path(scene, "omp_flock.json"), ",\n  \"mode\": \"shape_flock\"");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene, tmp_path(outdir, "omp_flock_out"));
+    rc = cli_with(&watched, args);
+    ENSURE_MSG(rc == 0, "shape flock, OMP_NUM_THREADS=100000: exit %d: %s", rc, g_err);
+    snprintf(args, sizeof args, "export '%s' --format ply -o '%s'", cache, tmp_path(outdir, "omp_ply"));
+    rc = cli_with(&watched, args);
+    ENSURE_MSG(rc == 0, "export, OMP_NUM_THREADS=100000: exit %d: %s", rc, g_err);
+    unsetenv("OMP_NUM_THREADS");
+}
+
 /* docs/scene.md: reaching time.frame_limit is not an error; stats.json and a warning say so. */
 static void test_run_stops_at_frame_limit(void)
 {
@@ -493,6 +537,7 @@ int main(void)
     RUN_TEST(test_run_unknown_key);
     RUN_TEST(test_run_missing_mesh);
     RUN_TEST(test_successful_run);
+    RUN_TEST(test_huge_omp_num_threads);
     RUN_TEST(test_run_stops_at_frame_limit);
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);

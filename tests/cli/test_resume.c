@@ -118,24 +118,27 @@ static FILE *create_scene(const char *dir)
     return f;
 }
 
-/* The test scene in dir (with its mesh), `seed` varying the parameters. */
-static void write_scene(const char *dir, int seed)
+/* The test scene with n agents in dir (with its mesh), `seed` varying the parameters. */
+static void write_scene_n(const char *dir, int seed, int n)
 {
     FILE *f = create_scene(dir);
     if (!f) return;
     fprintf(f, "{\n"
                "  \"source\": {\"mesh\": \"oct.obj\", \"translate\": [-10, 0, 0]},\n"
                "  \"target\": {\"mesh\": \"oct.obj\", \"translate\": [10, 0, 0]},\n"
-               "  \"n\": 1500, \"speed0\": 4, \"launch_rate\": 200, \"seed\": %d,\n"
+               "  \"n\": %d, \"speed0\": 4, \"launch_rate\": 200, \"seed\": %d,\n"
                "  \"time\": {\"frame_rate\": 24, \"time_step\": 0.0208333333333333333},\n"
                "  \"path\": {\"points\": [[0, 2.2, 0]]},\n"
                "  \"obstacles\": {\"meshes\": [{\"mesh\": \"oct.obj\", \"scale\": 1.5}], \"k_a\": 1.0, \"voxel\": 0.15},\n"
                "  \"mde\": {\"d_min\": 0.05},\n"
                "  \"style\": {\"grid\": [12, 12, 12], \"fields\": [{\"type\": \"wind\", \"direction\": [0, 1, 0],\n"
                "             \"speed\": 0.3, \"turbulence\": 0.3, \"scale\": 2, \"period\": 1}]}\n"
-               "}\n", seed);
+               "}\n", n, seed);
     fclose(f);
 }
+
+/* The test scene (1500 agents). */
+static void write_scene(const char *dir, int seed) { write_scene_n(dir, seed, 1500); }
 
 /* ---------------------------------------------------------------- in process */
 
@@ -411,6 +414,13 @@ static int wait_status(pid_t pid)
 
 static int run_to_end(const char *out, const char *extra) { return wait_status(start_run(out, extra)); }
 
+static long long now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (long long)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
 static void sleep_ms(long ms)
 {
     struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
@@ -621,6 +631,53 @@ static void test_cli_refuses_other_scene_and_damage(void)
     ensure_refused(DIR_, OUT, "nothing to resume");
 }
 
+/* `flockmorph run SCENE -o OUT ARGS` while another run uses OUT: exit 1 at once, naming OUT and
+ * saying another run uses it. */
+static void ensure_locked_out(const char *scene, const char *out, const char *args)
+{
+    char cmd[4 * FM_PATH_MAX], log_path[FM_PATH_MAX + 16], expect[FM_PATH_MAX + 64];
+    snprintf(log_path, sizeof log_path, "%s.second.log", out);
+    snprintf(cmd, sizeof cmd, "'%s' run '%s' -o '%s' --quiet %s > '%s' 2>&1", FM_CLI, scene, out, args, log_path);
+    long long t0 = now_ms();
+    int rc = system(cmd);
+    double seconds = (double)(now_ms() - t0) / 1000;
+    size_t len;
+    char *log = slurp(log_path, &len);
+    snprintf(expect, sizeof expect, "-o %s: another run uses this output directory", out);
+    ENSURE_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 1 && log && strstr(log, expect), "second run %s: exit %d: %s", args,
+               WEXITSTATUS(rc), log ? log : "");
+    ENSURE_MSG(seconds < 5, "the second run took %.1f s to be refused", seconds);
+    free(log);
+}
+
+/* Two runs into one output directory: while the first runs (20000 agents, a few seconds), a second
+ * (new or --resume) is refused and touches nothing, and the first finishes with the cache and
+ * stats.json of an undisturbed run of the same scene. */
+#define LOCK_DIR DIR_ "/lock"
+static void test_second_run_into_same_outdir_refused(void)
+{
+    run_case c = {LOCK_DIR "/scene.json", LOCK_DIR, LOCK_DIR "/out", 0};
+    write_scene_n(LOCK_DIR, 7, 20000);
+    mkdir(c.out, 0777);
+    reference_run(&c); /* undisturbed, into the same OUT, so stats.json's "cache" is the same */
+    clear_outputs(c.out);
+    pid_t first = start_scene(c.scene, c.out, "--checkpoint-every 5");
+    ENSURE_MSG(wait_for_size(first, in(c.out, "checkpoint.fmck"), 0), "the first run ended too soon");
+    ensure_locked_out(c.scene, c.out, "");
+    ensure_locked_out(c.scene, c.out, "--resume");
+    ENSURE_MSG(waitpid(first, NULL, WNOHANG) == 0, "the first run ended before the second was refused: the test "
+               "proves nothing");
+    ENSURE(wait_status(first) == 0);
+    ENSURE_MSG(same_bytes(in(c.out, "frames.fmc"), in(c.dir, "ref.fmc")), "the first run's cache differs from an "
+               "undisturbed run's");
+    char *a = stats_without_timings(in(c.out, "stats.json")), *b = stats_without_timings(in(c.dir, "ref.json"));
+    ENSURE_MSG(a && b && strcmp(a, b) == 0, "the first run's stats.json differs:\n%s\nvs\n%s", a ? a : "", b ? b : "");
+    free(a), free(b);
+    ENSURE(!exists(in(c.out, "checkpoint.fmck")) && !exists(in(c.out, "frames.fmc.partial")));
+    /* the lock went with the first run: the next run takes the directory */
+    ENSURE(wait_status(start_scene(c.scene, c.out, "--checkpoint-every 0")) == 0);
+}
+
 /* ---------------------------------------------------------------- the shape flock */
 
 /* A waving target (destinations and their velocities change every step, the tracking lag sums up),
@@ -720,6 +777,7 @@ int main(void)
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);
+    RUN_TEST(test_second_run_into_same_outdir_refused);
     write_flock_scene();
     reference_run(&g_flock);
     RUN_TEST(test_flock_kill9_then_resume);

@@ -2,6 +2,7 @@
  * STL, OFF and glTF, and the closed-manifold and self-intersection checks with their messages. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "geom.h"
 #include "test_macros.h"
 
 #include <stdio.h>
@@ -246,6 +247,55 @@ static void test_cube_stl_ascii(void)
     expect_cube_builds(path);
 }
 
+/* Binary PLY (little endian floats, uchar-counted int lists) and binary STL (80-byte header that
+ * starts with "solid", as some exporters write, the count, 50 bytes a facet): files that hold
+ * exactly what their counts declare pass the count check (mesh_counts.c). */
+static void test_cube_binary_ply_and_stl(void)
+{
+    char path[FM_PATH_MAX];
+    tmesh c = cube();
+    FILE *f = create(tmp_path(path, "cube_binary.ply"));
+    if (!f) return;
+    fprintf(f, "ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+               "property float z\nelement face %d\nproperty list uchar int vertex_indices\nend_header\n", c.nv, c.nf);
+    for (int i = 0; i < c.nv; i++)
+        for (int k = 0; k < 3; k++) fwrite(&(float){(float)c.v[i][k]}, 4, 1, f);
+    for (int t = 0; t < c.nf; t++) {
+        fputc(3, f);
+        for (int k = 0; k < 3; k++) fwrite(&(int32_t){c.f[t][k]}, 4, 1, f);
+    }
+    fclose(f);
+    expect_cube_builds(path);
+    f = create(tmp_path(path, "cube_binary.stl"));
+    if (!f) return;
+    char header[80] = "solid binary, not ASCII";
+    fwrite(header, 1, 80, f);
+    fwrite(&(uint32_t){(uint32_t)c.nf}, 4, 1, f);
+    for (int t = 0; t < c.nf; t++) {
+        float facet[12] = {0};
+        for (int k = 0; k < 3; k++)
+            for (int j = 0; j < 3; j++) facet[3 + 3 * k + j] = (float)c.v[c.f[t][k]][j];
+        fwrite(facet, 4, 12, f);
+        fwrite(&(uint16_t){0}, 2, 1, f);
+    }
+    fclose(f);
+    expect_cube_builds(path);
+}
+
+/* A header that declares more elements than the file holds is refused before assimp allocates. */
+static void test_counts_beyond_data(void)
+{
+    static const char ply[] = "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty float x\n"
+                              "property float y\nproperty float z\nend_header\n";
+    fm_mesh m;
+    fm_error err = {0};
+    ENSURE(fm_mesh_parse(ply, sizeof ply - 1, "ply", "huge.ply", &m, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "huge.ply: ") && strstr(err.message, "damaged or cut short"), "%s", err.message);
+    static const char off[] = "OFF 8 2000000000 0\n";
+    ENSURE(fm_mesh_parse(off, sizeof off - 1, "off", "huge.off", &m, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "2000000000 faces"), "%s", err.message);
+}
+
 static void test_cube_off(void)
 {
     char path[FM_PATH_MAX];
@@ -401,6 +451,8 @@ int main(void)
     RUN_TEST(test_cube_ply_ascii);
     RUN_TEST(test_cube_stl_ascii);
     RUN_TEST(test_cube_off);
+    RUN_TEST(test_cube_binary_ply_and_stl);
+    RUN_TEST(test_counts_beyond_data);
     RUN_TEST(test_cube_gltf);
     RUN_TEST(test_hole);
     RUN_TEST(test_non_manifold_edge);

@@ -1,6 +1,7 @@
 /* Running the flockmorph CLI from a test: its exit status, stdout and stderr, optionally under a
- * file-size limit (RLIMIT_FSIZE with SIGXFSZ ignored, so write() fails with EFBIG) or as an
- * unprivileged user (so permissions apply even when the tests run as root). Shared by
+ * file-size limit (RLIMIT_FSIZE, SIGXFSZ left at its deadly default: the CLI must ignore it so that
+ * write() fails with EFBIG) or as an unprivileged user (so permissions apply even when the tests
+ * run as root). Shared by
  * test_cli.c and test_bad_input.c; include after test_macros.h with _POSIX_C_SOURCE defined. */
 #ifndef FM_TEST_CLI_HELPERS_H
 #define FM_TEST_CLI_HELPERS_H
@@ -16,6 +17,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+/* A sanitizer's shadow memory needs far more address space than any RLIMIT_AS a test sets. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define CLI_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define CLI_SANITIZED 1
+#endif
+#endif
+
 static char g_out[1 << 16], g_err[1 << 16]; /* the last command's stdout and stderr */
 
 #define CLI_NOBODY 65534 /* uid and gid of "nobody" on Debian */
@@ -24,6 +34,8 @@ static char g_out[1 << 16], g_err[1 << 16]; /* the last command's stdout and std
 typedef struct cli_env {
     long long file_size_limit; /* bytes, > 0: RLIMIT_FSIZE of the run */
     int unprivileged;          /* run as nobody when the test runs as root */
+    long long memory_limit;    /* bytes, > 0: RLIMIT_AS of the run (not under a sanitizer) */
+    unsigned seconds;          /* > 0: SIGALRM ends a run that takes longer (one that hangs) */
 } cli_env;
 
 static size_t slurp(const char *path, char *buf, size_t cap)
@@ -78,9 +90,16 @@ static void cli_child(const cli_env *env, const char *out, const char *err, cons
     if (fo < 0 || fe < 0 || dup2(fo, 1) < 0 || dup2(fe, 2) < 0) _exit(CLI_NOT_RUN);
     if (env && env->file_size_limit > 0) {
         struct rlimit limit = {(rlim_t)env->file_size_limit, (rlim_t)env->file_size_limit};
-        signal(SIGXFSZ, SIG_IGN); /* stays ignored across exec */
+        signal(SIGXFSZ, SIG_DFL); /* the CLI must ignore it itself, or it dies of it */
         if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(CLI_NOT_RUN);
     }
+    if (env && env->seconds) alarm(env->seconds); /* survives exec */
+#if !defined(CLI_SANITIZED)
+    if (env && env->memory_limit > 0) {
+        struct rlimit limit = {(rlim_t)env->memory_limit, (rlim_t)env->memory_limit};
+        if (setrlimit(RLIMIT_AS, &limit) != 0) _exit(CLI_NOT_RUN);
+    }
+#endif
     if (env && env->unprivileged && geteuid() == 0 && (setgid(CLI_NOBODY) != 0 || setuid(CLI_NOBODY) != 0))
         _exit(CLI_NOT_RUN);
     static char cmd[4 * FM_PATH_MAX + 4096];

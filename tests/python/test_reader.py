@@ -274,6 +274,32 @@ class NotACache(unittest.TestCase):
             header = bytearray(f.read(72 + 3 * 16))
         header[20] ^= 1
         self.expect_error(bytes(header), "header checksum mismatch")
+
+    def test_not_regular_files(self):
+        """A FIFO (a read would wait for a writer), /dev/zero (never ends) and a directory are refused
+        at once, without blocking."""
+        fifo, folder = tmp("fifo.fmc"), tmp("folder.fmc")
+        if os.path.lexists(fifo):
+            os.remove(fifo)
+        os.mkfifo(fifo)
+        os.makedirs(folder, exist_ok=True)
+        try:
+            for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a device"), (folder, "a directory")):
+                with self.assertRaisesRegex(ValueError, f"{path}: cannot open the cache: it is {kind}"):
+                    fmc.open(path)
+        finally:
+            os.remove(fifo)
+
+    def test_agents_beyond_file(self):
+        """A header claiming 2^38 agents (crc32 matching) in a small cache is refused at open, before
+        a frame is allocated."""
+        with open(CacheCase.lossless or run_scene("lossless", {"delta": False}), "rb") as f:
+            data = bytearray(f.read())
+        size = struct.unpack_from("<I", data, 12)[0]
+        struct.pack_into("<Q", data, 16, 1 << 38)
+        struct.pack_into("<I", data, 52, 0)  # the crc field is 0 while the crc is computed
+        struct.pack_into("<I", data, 52, zlib.crc32(data[:size]))
+        self.expect_error(bytes(data), f"frames of {1 << 38} agents cannot come from a file of {len(data)} bytes")
         with self.assertRaisesRegex(ValueError, "no such file"):
             fmc.open(tmp("no_such.fmc"))
 

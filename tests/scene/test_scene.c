@@ -423,6 +423,10 @@ static void test_validate(void)
     /* a cache name built in code gets the scene file's check: a plain, non-empty file name */
     EXPECT_INVALID(strcpy(d_.cache_name, "../escape.fmc"), "output.cache");
     EXPECT_INVALID(d_.cache_name[0] = 0, "output.cache");
+    /* nor the name of another file of the run, or of a file being written */
+    EXPECT_INVALID(strcpy(d_.cache_name, FM_OUTPUT_STATS), "output.cache");
+    EXPECT_INVALID(strcpy(d_.cache_name, FM_OUTPUT_CHECKPOINT), "output.cache");
+    EXPECT_INVALID(strcpy(d_.cache_name, "frames.fmc.partial"), "output.cache");
 }
 
 int main(void)
