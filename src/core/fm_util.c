@@ -1,7 +1,6 @@
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
 
-#include <omp.h>
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -165,10 +164,3 @@ fm_status fm_check_input_file(const char *path, const char *what, fm_error *err)
                    strerror(e));
 }
 
-int fm_threads(int requested)
-{
-    if (requested > 0) return requested < FM_MAX_THREADS ? requested : FM_MAX_THREADS;
-    int n = omp_get_max_threads(), cap = FM_THREADS_PER_CORE * omp_get_num_procs();
-    if (cap > FM_MAX_THREADS) cap = FM_MAX_THREADS;
-    return n < 1 ? 1 : n < cap ? n : cap;
-}
