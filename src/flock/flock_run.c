@@ -43,11 +43,16 @@ static int flock_finished(const void *sim)
     return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n;
 }
 
+/* What sets the shape flock's speeds and forces, for a runaway's message. */
+static const char *const FLOCK_FORCES = "shape_flock.mass, max_speed and max_force, the boids weights, the fuzzy "
+                                        "weights, damping and external_gain, speed0, time.time_step";
+
 static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
 {
     flock_run *r = sim;
     fm_flock_frame(r->s, r->position, r->velocity, r->orientation, r->phase);
-    fm_status st = FM_OK;
+    fm_status st = fm_frame_check_runaway(r->position, 3, r->s->n, r->m->scene_lo, r->m->scene_hi, frame, FLOCK_FORCES, err);
+    if (st != FM_OK) return st;
     if (r->cache) {
         const void *data[FLOCK_ATTR_COUNT] = {r->position, r->velocity, r->orientation, fm_cache_writer_ids(r->cache),
                                               r->phase}; /* ids 0 … n−1: frames are in id order */

@@ -71,10 +71,17 @@ static fm_status cache_frame(const fm_morph_state *s, fm_cache_writer *cache, co
 }
 
 /* Frame k: the tet vertices (and phases), written to the cache, with the inverted-tet count. */
-static fm_status emit_frame(const fm_morph_model *m, const fm_morph_state *s, float *verts, uint8_t *phases, fm_cache_writer *cache,
-                            fm_morph_run_stats *stats, fm_error *err)
+/* What sets the tetra morph's speeds, for a runaway's message. */
+static const char *const MORPH_SPEEDS = "speed0 and omega1, time.time_step, style.omega2 and the fields' gain, speed "
+                                        "and strength, mde.speed, path.attraction";
+
+/* Frame k: the tet vertices (and phases), checked, written to the cache, with the inverted-tet count. */
+static fm_status emit_frame(const fm_morph_model *m, const fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
+                            fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
     fm_morph_tet_vertices(m, s, verts);
+    fm_status st = fm_frame_check_runaway(verts, 12, s->n, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
+    if (st != FM_OK) return st;
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
     return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
 }
@@ -161,7 +168,7 @@ static int morph_finished(const void *sim)
 static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
     morph_run *r = sim;
-    fm_status st = emit_frame(r->m, r->s, r->verts, r->phases, r->cache, r->stats, err);
+    fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
     if (st == FM_OK && r->c->progress) {

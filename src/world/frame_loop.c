@@ -1,6 +1,9 @@
 /* The frame loop of both modes (frame_loop.h). */
 #include "frame_loop.h"
 
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 
 fm_run_control fm_default_run_control(void)
@@ -67,4 +70,28 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
         times->frames++;
     }
     return st;
+}
+
+fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, const double lo[3], const double hi[3],
+                                 int64_t frame, const char *hint, fm_error *err)
+{
+    double size = 0, min[3], max[3];
+    for (int k = 0; k < 3; k++) size = fmax(size, hi[k] - lo[k]);
+    for (int k = 0; k < 3; k++) min[k] = lo[k] - FM_RUNAWAY_SCENES * size, max[k] = hi[k] + FM_RUNAWAY_SCENES * size;
+    const int64_t values = n * per_agent;
+    int64_t first = INT64_MAX; /* the first bad value: the same for any thread count */
+#pragma omp parallel for reduction(min : first) schedule(static)
+    for (int64_t i = 0; i < values; i++) {
+        const int k = (int)(i % 3);
+        if (!(pos[i] >= min[k] && pos[i] <= max[k]) && i < first) first = i;
+    }
+    if (first == INT64_MAX) return FM_OK;
+    const int64_t agent = first / per_agent;
+    const float *p = pos + first - first % 3;
+    char where[96];
+    if (isfinite(pos[first])) snprintf(where, sizeof where, "flew over %g scene sizes out of the scene", FM_RUNAWAY_SCENES);
+    else snprintf(where, sizeof where, "is not finite");
+    return fm_fail(err, FM_ERR_INPUT,
+                   "frame %lld: agent %lld %s (%g, %g, %g): the simulation ran away; check the parameters that set "
+                   "speeds and forces: %s", (long long)frame, (long long)agent, where, p[0], p[1], p[2], hint);
 }

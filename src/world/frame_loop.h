@@ -28,4 +28,15 @@ typedef struct fm_frame_loop {
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
 
+/* Agents farther than this many scene sizes from the scene's box have run away: no scene the
+ * engine is meant for flies there, and float positions lose their precision on the way. */
+#define FM_RUNAWAY_SCENES 1000.0
+
+/* A frame must show a sane state (issue 15): every position value (per_agent floats per agent,
+ * agents in id order) finite and within FM_RUNAWAY_SCENES scene sizes of the box [lo, hi] (the
+ * mode's scene bounds). Otherwise FM_ERR_INPUT naming the frame, the agent and its value, and
+ * `hint`: the parameters that set the mode's speeds and forces. Nothing is written then. */
+fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, const double lo[3], const double hi[3],
+                                 int64_t frame, const char *hint, fm_error *err);
+
 #endif

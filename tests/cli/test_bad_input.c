@@ -1004,6 +1004,24 @@ static void test_cache_writer_keeps_partial(void)
 
 /* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
  * first for the cache, then for stats.json after a complete cache. */
+/* A state that runs away stops the run with exit 2 and the parameters that set the speeds (issue
+ * 15): the documented maximum speed0 flies the tets out of any scene in one frame, and a flock of
+ * near-zero mass gets infinite accelerations. No stats.json, no cache under its final name; the
+ * frames before the runaway stay readable in the .partial. */
+static void test_runaway_state_is_an_error(void)
+{
+    char cache[FM_PATH_MAX + 32];
+    EXPECT_RUN(plain_scene("runaway.json", ",\n  \"n\": 40, \"speed0\": 1e9"), 2, "frame 1: agent",
+               "flew over 1000 scene sizes out of the scene", "the simulation ran away", "speed0");
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    ENSURE(!exists(cache) && exists(strcat(cache, ".partial")));
+    snprintf(cache, sizeof cache, "%s/stats.json", g_outdir);
+    ENSURE(!exists(cache));
+    EXPECT_RUN(plain_scene("runaway_flock.json", ",\n  \"mode\": \"shape_flock\", \"n\": 40,\n"
+                                                 "  \"shape_flock\": {\"mass\": 1e-300}"),
+               2, "is not finite", "the simulation ran away", "shape_flock.mass");
+}
+
 static void test_disk_full(void)
 {
     struct stat st;
@@ -1079,5 +1097,6 @@ int main(void)
     RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_cache_agents_beyond_file);
     RUN_TEST(test_disk_full);
+    RUN_TEST(test_runaway_state_is_an_error);
     return test_result();
 }
