@@ -67,15 +67,27 @@ static json_t *bounds_json(fm_cache_reader *r, fm_cache_attr attr, fm_error *err
     float *buf = malloc(sizeof(float) * (floats ? floats : 1));
     if (!buf) return *status = fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame"), NULL;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    json_int_t non_finite = 0, first_frame = -1; /* a run that ran away: counted, kept out of the bounds */
     *status = FM_OK;
     for (uint32_t k = 0; k < fm_cache_frames(r) && *status == FM_OK; k++) {
         if ((*status = fm_cache_read_attr(r, k, attr, buf, err)) != FM_OK) break;
-        for (size_t j = 0; j < floats; j++) lo[j % 3] = fmin(lo[j % 3], buf[j]), hi[j % 3] = fmax(hi[j % 3], buf[j]);
+        for (size_t j = 0; j < floats; j++) {
+            if (!isfinite(buf[j])) {
+                if (!non_finite++) first_frame = k;
+                continue;
+            }
+            lo[j % 3] = fmin(lo[j % 3], buf[j]), hi[j % 3] = fmax(hi[j % 3], buf[j]);
+        }
     }
     free(buf);
     if (*status != FM_OK) return NULL;
-    if (!(lo[0] <= hi[0])) return json_null(); /* no frames, no agents */
-    return json_pack("{s:[fff], s:[fff]}", "min", lo[0], lo[1], lo[2], "max", hi[0], hi[1], hi[2]);
+    json_t *first = first_frame >= 0 ? json_integer(first_frame) : json_null();
+    if (!(lo[0] <= hi[0])) /* no frames, no agents, or nothing finite */
+        return non_finite ? json_pack("{s:n, s:n, s:I, s:o}", "min", "max", "non_finite_values", non_finite,
+                                      "first_non_finite_frame", first)
+                          : (json_decref(first), json_null());
+    return json_pack("{s:[fff], s:[fff], s:I, s:o}", "min", lo[0], lo[1], lo[2], "max", hi[0], hi[1], hi[2],
+                     "non_finite_values", non_finite, "first_non_finite_frame", first);
 }
 
 /* Everything inspect reports, as one JSON object; NULL on a read error. */
@@ -113,10 +125,17 @@ static void print_bounds(const char *name, json_t *b)
 {
     if (!json_is_object(b)) return (void)printf("bounds        %s: none (no frames)\n", name);
     json_t *lo = json_object_get(b, "min"), *hi = json_object_get(b, "max");
-    printf("bounds        %s: [%.6g %.6g %.6g] .. [%.6g %.6g %.6g]\n", name, json_real_value(json_array_get(lo, 0)),
-           json_real_value(json_array_get(lo, 1)), json_real_value(json_array_get(lo, 2)),
-           json_real_value(json_array_get(hi, 0)), json_real_value(json_array_get(hi, 1)),
-           json_real_value(json_array_get(hi, 2)));
+    json_int_t bad = json_integer_value(json_object_get(b, "non_finite_values"));
+    if (json_is_array(lo))
+        printf("bounds        %s: [%.6g %.6g %.6g] .. [%.6g %.6g %.6g]", name, json_real_value(json_array_get(lo, 0)),
+               json_real_value(json_array_get(lo, 1)), json_real_value(json_array_get(lo, 2)),
+               json_real_value(json_array_get(hi, 0)), json_real_value(json_array_get(hi, 1)),
+               json_real_value(json_array_get(hi, 2)));
+    else printf("bounds        %s: none finite", name);
+    if (bad)
+        printf("; %lld values not finite, the first in frame %lld (the run ran away)", (long long)bad,
+               (long long)json_integer_value(json_object_get(b, "first_non_finite_frame")));
+    printf("\n");
 }
 
 static json_int_t num(json_t *j, const char *key) { return json_integer_value(json_object_get(j, key)); }

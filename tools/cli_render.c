@@ -120,6 +120,7 @@ typedef struct frame_source {
     int points;   /* 1: the cache's position attribute; 0: its tet vertices */
     size_t n;
     float *data;  /* one frame: n x 12 (tets) or n x 3 (points) floats */
+    uint32_t frame; /* the frame data holds */
 } frame_source;
 
 static int is_point_cache(fm_cache_reader *r)
@@ -151,11 +152,29 @@ static int source_read(frame_source *s, uint32_t frame)
     fm_error err = {0};
     fm_status st = s->points ? fm_cache_read_attr(s->r, frame, FM_ATTR_POSITION, s->data, &err)
                              : fm_cache_read_frame(s->r, frame, s->data, &err);
+    s->frame = frame;
     return st == FM_OK ? 0 : cli_report(&err);
+}
+
+/* A frame with a value that is not finite is refused (exit 2): it shows a simulation that ran away,
+ * and a picture of what is left would hide that (issue 15). */
+static int refuse_non_finite(const frame_source *s)
+{
+    const size_t floats = (s->points ? 3 : 12), values = floats * s->n;
+    size_t bad = 0, first = 0;
+    for (size_t i = 0; i < values; i++)
+        if (!isfinite(s->data[i]) && !bad++) first = i;
+    if (!bad) return 0;
+    fprintf(stderr, "flockmorph: error: %s: frame %u holds %zu values that are not finite, the first of agent %zu: the "
+            "simulation that wrote it ran away; render cannot show it (flockmorph inspect counts them)\n", s->path,
+            s->frame, bad, first / floats);
+    return FM_ERR_INPUT;
 }
 
 static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
 {
+    int rc = refuse_non_finite(s);
+    if (rc) return rc;
     fm_error err = {0};
     fm_status st = s->points ? fm_renderer_draw_points(rr, s->data, s->n, rgb, &err)
                              : fm_renderer_draw_tets(rr, s->data, s->n, rgb, &err);
