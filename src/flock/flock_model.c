@@ -3,6 +3,7 @@
  * path is built (eqs 10-12), and each agent draws its boids parameters from the scene's ranges
  * (eq 6). Everything here runs once; the result is immutable. */
 #include "flock.h"
+#include "fm_math.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -107,19 +108,13 @@ static void draw_parameters(fm_flock_model *m)
     }
 }
 
-static void grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count)
-{
-    for (int64_t i = 0; i < count; i++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
-}
-
 /* Source, target and path, padded by 15 % of the largest extent (as the tetra morph's grid). */
 static void scene_bounds(fm_flock_model *m, const fm_mesh *source)
 {
     for (int k = 0; k < 3; k++) m->scene_lo[k] = INFINITY, m->scene_hi[k] = -INFINITY;
-    grow_bounds(m->scene_lo, m->scene_hi, source->v, source->nv);
-    grow_bounds(m->scene_lo, m->scene_hi, m->target.mesh.v, m->target.mesh.nv);
-    grow_bounds(m->scene_lo, m->scene_hi, &m->def.path_points[0][0], m->def.path_point_count);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, source->v, source->nv);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, m->target.mesh.v, m->target.mesh.nv);
+    fm_grow_bounds(m->scene_lo, m->scene_hi, &m->def.path_points[0][0], m->def.path_point_count);
     double pad = 0;
     for (int k = 0; k < 3; k++) pad = fmax(pad, 0.15 * (m->scene_hi[k] - m->scene_lo[k]));
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;

@@ -421,6 +421,18 @@ typedef struct grid_view {
     int64_t stride[3], step[3];
 } grid_view;
 
+static grid_view view_of(const fm_fields *f)
+{
+    grid_view g = {.data = f->grid};
+    memcpy(g.inv_h, f->inv_h, sizeof g.inv_h);
+    memcpy(g.uoff, f->uoff, sizeof g.uoff);
+    memcpy(g.umax, f->umax, sizeof g.umax);
+    memcpy(g.imax, f->imax, sizeof g.imax);
+    memcpy(g.stride, f->stride, sizeof g.stride);
+    memcpy(g.step, f->step, sizeof g.step);
+    return g;
+}
+
 /* Trilinear interpolation of the baked noise parts, clamped to the grid of cell centres. */
 FM_HOT void grid_sample(const grid_view *g, const double x[3], double v[3])
 {
@@ -461,13 +473,7 @@ void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint
     memcpy(b, f->b, sizeof b);
     const double wd = w;
     if (f->baked) {
-        grid_view g = {.data = f->grid};
-        memcpy(g.inv_h, f->inv_h, sizeof g.inv_h);
-        memcpy(g.uoff, f->uoff, sizeof g.uoff);
-        memcpy(g.umax, f->umax, sizeof g.umax);
-        memcpy(g.imax, f->imax, sizeof g.imax);
-        memcpy(g.stride, f->stride, sizeof g.stride);
-        memcpy(g.step, f->step, sizeof g.step);
+        const grid_view g = view_of(f);
         for (int64_t a = begin; a < end; a++) {
             if (phase[a] != FM_PHASE_FLYING) continue;
             const double x[3] = {px[a], py[a], pz[a]};
@@ -508,9 +514,7 @@ int fm_fields_grid_resolves(const fm_field_def *defs, int count, const int32_t r
 double fm_fields_bake_error(const fm_fields *f, double t, int n)
 {
     if (!f->baked || f->noise_count == 0 || n < 1) return 0;
-    const grid_view g = {f->grid, {f->inv_h[0], f->inv_h[1], f->inv_h[2]}, {f->uoff[0], f->uoff[1], f->uoff[2]},
-                         {f->umax[0], f->umax[1], f->umax[2]}, {f->imax[0], f->imax[1], f->imax[2]},
-                         {f->stride[0], f->stride[1], f->stride[2]}, {f->step[0], f->step[1], f->step[2]}};
+    const grid_view g = view_of(f);
     double diff2 = 0, ref2 = 0;
     for (int i = 0; i < n; i++) {
         double x[3], baked[3], direct[3];
