@@ -1,9 +1,13 @@
-/* Perlin's improved gradient noise and the curl of three of them (FM eq 5), as scalar inline
- * functions: the reference the style fields (src/world/fields.c) evaluate and bake with. */
+/* Perlin's improved gradient noise and the curl of three of them (FM eq 5): the scalar inline
+ * functions the style fields (src/world/fields.c) evaluate and bake with, and the kernel that adds
+ * the direct (unbaked) style velocity to a range of agents, with its SIMD variants
+ * (kernel_noise_simd.c: FM_WD agents at once in double, the same operations in the same order, so
+ * the same bits). */
 #ifndef FM_KERNEL_NOISE_H
 #define FM_KERNEL_NOISE_H
 
 #include "kernels.h"
+#include "simd.h"
 
 #include <stdint.h>
 
@@ -21,7 +25,7 @@ typedef struct noise_field {
     double gain;                /* magnitude of the potentials (gain or turbulence) */
     double amp;                 /* gain / scale: curl_x of gain * N(x / scale) = amp * grad N */
     double drift[3];            /* lattice units per second: -unit(direction) / period, or 0 */
-    uint8_t perm[3][2 * PERM];  /* P1, P2, P3 */
+    uint8_t perm[3][2 * PERM + 4]; /* P1, P2, P3; 4 zero bytes after each, read by 32-bit gathers */
 } noise_field;
 
 /* Perlin's gradients (h & 15): the 12 cube edges, 4 of them repeated. */
@@ -114,5 +118,38 @@ FM_HOT void noise_curl_add(const noise_field *n, const double x[3], double t, do
     v[1] += n->amp * (g1[2] - g3[0]);
     v[2] += n->amp * (g2[0] - g1[1]);
 }
+
+/* The direct style velocity of fields.c for the kernel: omega2 * (m x + b + the curl noises). */
+typedef struct fm_curl_view {
+    const noise_field *noise;
+    int count;
+    double m[9], b[3];
+    double t;        /* time (the wind's drift) */
+    double w;        /* omega2 */
+} fm_curl_view;
+
+/* For agents a in [begin, end) with phase[a] == flying:
+ *     v[k][a] += (float)(w * ((m x)_k + b_k + sum of the curl noises_k)),  x = (double)p[.][a],
+ * in double, the fields' own order of operations. Other agents untouched. */
+void fm_kernel_curl_add(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
+                        int64_t begin, int64_t end, float *const v[3]);
+void fm_kernel_curl_add_ref(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
+                            int64_t begin, int64_t end, float *const v[3]);
+
+/* One agent, the reference's way: the variants use it for the agents after their last full vector. */
+FM_HOT void curl_add_agent(const fm_curl_view *f, const float *const p[3], int64_t a, float *const v[3])
+{
+    const double x[3] = {p[0][a], p[1][a], p[2][a]};
+    double s[3] = {0, 0, 0};
+    for (int i = 0; i < f->count; i++) noise_curl_add(&f->noise[i], x, f->t, s);
+    const double *m = f->m, *b = f->b, w = f->w;
+    v[0][a] += (float)(w * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + b[0] + s[0]));
+    v[1][a] += (float)(w * (m[3] * x[0] + m[4] * x[1] + m[5] * x[2] + b[1] + s[1]));
+    v[2][a] += (float)(w * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
+}
+
+typedef void fm_curl_add_fn(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
+                            int64_t begin, int64_t end, float *const v[3]);
+FM_SIMD_DECLARE(fm_curl_add_fn, fm_kernel_curl_add);
 
 #endif

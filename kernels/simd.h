@@ -157,6 +157,89 @@ static inline void iv_store(int32_t *p, iv x) { *p = x; }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { return *p == value; }
 #endif
 
+/* Doubles: FM_WD lanes (AVX-512: 8, AVX2: 4, SSE2: 2, otherwise 1), with int32 index lanes `di`
+ * beside them, for kernels whose reference works in double (the curl noise). Only what they use:
+ * arithmetic, floor, min/max, conversion from floats, gathers from small tables. */
+#if defined(__AVX512F__) && defined(__AVX512DQ__)
+#define FM_WD 8
+typedef __m512d dv;
+typedef __m256i di;
+static inline dv dv_set1(double x) { return _mm512_set1_pd(x); }
+static inline dv dv_add(dv a, dv b) { return _mm512_add_pd(a, b); }
+static inline dv dv_sub(dv a, dv b) { return _mm512_sub_pd(a, b); }
+static inline dv dv_mul(dv a, dv b) { return _mm512_mul_pd(a, b); }
+/* a > b ? a : b and a < b ? a : b (b when a is NaN), as the x86 instructions define them */
+static inline dv dv_max(dv a, dv b) { return _mm512_max_pd(a, b); }
+static inline dv dv_min(dv a, dv b) { return _mm512_min_pd(a, b); }
+static inline dv dv_floor(dv a) { return _mm512_roundscale_pd(a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC); }
+static inline dv dv_from_floats(const float *p) { return _mm512_cvtps_pd(_mm256_loadu_ps(p)); }
+static inline void dv_store(double *p, dv x) { _mm512_storeu_pd(p, x); }
+static inline di di_from_dv(dv a) { return _mm512_cvttpd_epi32(a); } /* truncates */
+static inline di di_add(di a, di b) { return _mm256_add_epi32(a, b); }
+static inline di di_and(di a, int32_t m) { return _mm256_and_si256(a, _mm256_set1_epi32(m)); }
+static inline di di_set1(int32_t x) { return _mm256_set1_epi32(x); }
+/* table[idx] of a byte table readable 3 bytes past its last index */
+static inline di di_gather_u8(const uint8_t *table, di idx)
+{
+    return di_and(_mm256_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
+}
+static inline dv dv_gather(const double *table, di idx) { return _mm512_i32gather_pd(idx, table, 8); }
+#elif defined(__AVX2__)
+#define FM_WD 4
+typedef __m256d dv;
+typedef __m128i di;
+static inline dv dv_set1(double x) { return _mm256_set1_pd(x); }
+static inline dv dv_add(dv a, dv b) { return _mm256_add_pd(a, b); }
+static inline dv dv_sub(dv a, dv b) { return _mm256_sub_pd(a, b); }
+static inline dv dv_mul(dv a, dv b) { return _mm256_mul_pd(a, b); }
+static inline dv dv_max(dv a, dv b) { return _mm256_max_pd(a, b); }
+static inline dv dv_min(dv a, dv b) { return _mm256_min_pd(a, b); }
+static inline dv dv_floor(dv a) { return _mm256_floor_pd(a); }
+static inline dv dv_from_floats(const float *p) { return _mm256_cvtps_pd(_mm_loadu_ps(p)); }
+static inline void dv_store(double *p, dv x) { _mm256_storeu_pd(p, x); }
+static inline di di_from_dv(dv a) { return _mm256_cvttpd_epi32(a); }
+static inline di di_add(di a, di b) { return _mm_add_epi32(a, b); }
+static inline di di_and(di a, int32_t m) { return _mm_and_si128(a, _mm_set1_epi32(m)); }
+static inline di di_set1(int32_t x) { return _mm_set1_epi32(x); }
+static inline di di_gather_u8(const uint8_t *table, di idx)
+{
+    return di_and(_mm_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
+}
+static inline dv dv_gather(const double *table, di idx) { return _mm256_i32gather_pd(table, idx, 8); }
+#else
+/* SSE2 has no floor and no gathers, and the scalar build no vectors: lanes in plain arrays, which
+ * the compiler keeps in registers where it can. */
+#define FM_WD 2
+typedef struct { double l[FM_WD]; } dv;
+typedef struct { int32_t l[FM_WD]; } di;
+#define FM_DV_MAP(expr)                                  \
+    dv r;                                                \
+    for (int k = 0; k < FM_WD; k++) r.l[k] = (expr);     \
+    return r
+#define FM_DI_MAP(expr)                                  \
+    di r;                                                \
+    for (int k = 0; k < FM_WD; k++) r.l[k] = (expr);     \
+    return r
+static inline dv dv_set1(double x) { FM_DV_MAP(x); }
+static inline dv dv_add(dv a, dv b) { FM_DV_MAP(a.l[k] + b.l[k]); }
+static inline dv dv_sub(dv a, dv b) { FM_DV_MAP(a.l[k] - b.l[k]); }
+static inline dv dv_mul(dv a, dv b) { FM_DV_MAP(a.l[k] * b.l[k]); }
+static inline dv dv_max(dv a, dv b) { FM_DV_MAP(a.l[k] > b.l[k] ? a.l[k] : b.l[k]); }
+static inline dv dv_min(dv a, dv b) { FM_DV_MAP(a.l[k] < b.l[k] ? a.l[k] : b.l[k]); }
+/* exact for |a| < 2^63 (the callers clamp) */
+static inline dv dv_floor(dv a) { FM_DV_MAP((double)(int64_t)a.l[k] - (a.l[k] < (double)(int64_t)a.l[k])); }
+static inline dv dv_from_floats(const float *p) { FM_DV_MAP((double)p[k]); }
+static inline void dv_store(double *p, dv x) { memcpy(p, x.l, sizeof x.l); }
+static inline di di_from_dv(dv a) { FM_DI_MAP((int32_t)a.l[k]); }
+static inline di di_add(di a, di b) { FM_DI_MAP(a.l[k] + b.l[k]); }
+static inline di di_and(di a, int32_t m) { FM_DI_MAP(a.l[k] & m); }
+static inline di di_set1(int32_t x) { FM_DI_MAP(x); }
+static inline di di_gather_u8(const uint8_t *table, di idx) { FM_DI_MAP(table[idx.l[k]]); }
+static inline dv dv_gather(const double *table, di idx) { FM_DV_MAP(table[idx.l[k]]); }
+#undef FM_DV_MAP
+#undef FM_DI_MAP
+#endif
+
 /* Names a SIMD variant of a kernel: <name>_avx512 and <name>_avx2 in the -mavx512f and -mavx2
  * copies (whose wrappers define FM_SIMD_AVX512_COPY or FM_SIMD_AVX2_COPY), <name>_base in the
  * baseline one (SSE2 on x86-64, wider with FM_NATIVE). */

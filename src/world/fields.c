@@ -190,6 +190,7 @@ fm_fields *fm_fields_create(const fm_field_def *defs, int count, uint64_t seed, 
                 for (int k = 0; k < 3; k++) n->drift[k] = -fl->unit[k] / d->period;
                 f->time_varying = 1;
             }
+            memset(n->perm, 0, sizeof n->perm); /* the gathers' padding too */
             for (int w = 0; w < 3; w++) make_perm(seed, i, w, n->perm[w]);
         }
     }
@@ -377,15 +378,10 @@ void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint
             vz[a] += (float)(wd * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
         }
     } else {
-        for (int64_t a = begin; a < end; a++) {
-            if (phase[a] != FM_PHASE_FLYING) continue;
-            const double x[3] = {px[a], py[a], pz[a]};
-            double s[3];
-            noise_sum(f, x, t, s);
-            vx[a] += (float)(wd * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + b[0] + s[0]));
-            vy[a] += (float)(wd * (m[3] * x[0] + m[4] * x[1] + m[5] * x[2] + b[1] + s[1]));
-            vz[a] += (float)(wd * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
-        }
+        fm_curl_view cv = {f->noise, f->noise_count, {0}, {0}, t, wd};
+        memcpy(cv.m, m, sizeof m);
+        memcpy(cv.b, b, sizeof b);
+        fm_kernel_curl_add(&cv, p, phase, FM_PHASE_FLYING, begin, end, v);
     }
 }
 

@@ -1,7 +1,9 @@
 /* SIMD kernels against their scalar reference twins, bit for bit, on random inputs with the edge
  * cases: agents exactly on key points, equidistant from two key points (ties), zero vectors,
- * duplicated key points, ranges that start and end off the vector width, every phase. */
+ * duplicated key points, ranges that start and end off the vector width, every phase; the curl
+ * noise on lattice points, at negative and clamped coordinates. */
 #include "kernels.h"
+#include "kernel_noise.h"
 #include "simd.h"
 #include "test_macros.h"
 
@@ -106,6 +108,59 @@ static void test_integrate_matches_reference(void)
     fm_simd_set_level(best);
 }
 
+/* The direct style velocity: two curl-noise fields (one drifting) and an affine part. */
+static void test_curl_matches_reference(void)
+{
+    enum { N = 1203 };
+    static noise_field noise[2];
+    static float p0[3][N], want[3][N], got[3][N];
+    static uint8_t phase[N];
+    uint64_t rng = 17;
+    memset(noise, 0, sizeof noise);
+    for (int i = 0; i < 2; i++) {
+        noise[i].inv_scale = i ? 1 / 0.15 : 1 / 0.7;
+        noise[i].amp = i ? 0.6 / 0.15 : 0.3 / 0.7;
+        noise[i].drift[0] = i ? -1.25 : 0, noise[i].drift[2] = i ? 0.5 : 0;
+        for (int w = 0; w < 3; w++) {
+            uint8_t *P = noise[i].perm[w];
+            for (int k = 0; k < PERM; k++) P[k] = (uint8_t)k;
+            for (int k = PERM - 1; k > 0; k--) {
+                int j = (int)(test_next_u64(&rng) % (uint64_t)(k + 1));
+                uint8_t t = P[k];
+                P[k] = P[j], P[j] = t;
+            }
+            memcpy(P + PERM, P, PERM);
+        }
+    }
+    for (int a = 0; a < N; a++) {
+        for (int k = 0; k < 3; k++) p0[k][a] = (float)(60 * test_uniform(&rng) - 30);
+        phase[a] = (uint8_t)(test_next_u64(&rng) % 4);
+    }
+    for (int a = 0; a < 40; a++) p0[a % 3][a] = (float)((a % 9) - 4) * 0.7f; /* on lattice planes */
+    for (int a = 40; a < 50; a++) p0[a % 3][a] = a % 2 ? 3e15f : -3e15f;       /* clamped */
+    fm_curl_view f = {noise, 2, {0.1, -0.3, 0, 0.3, 0.1, 0, 0, 0, 0.2}, {0.5, 0, -0.25}, 0.37, 0.2};
+    const float *p[3] = {p0[0], p0[1], p0[2]};
+    float *wv[3] = {want[0], want[1], want[2]}, *gv[3] = {got[0], got[1], got[2]};
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < N; a++) want[k][a] = (float)a * 0.01f;
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+    fm_kernel_curl_add_ref(&f, p, phase, FM_KERNEL_FLYING, 3, N - 2, wv);
+    int changed = 0;
+    for (int a = 3; a < N - 2; a++) changed += phase[a] == FM_KERNEL_FLYING && want[0][a] != (float)a * 0.01f;
+    ENSURE_MSG(changed > 100, "the reference changed only %d velocities", changed);
+    for (int level = FM_SIMD_SSE2; level <= (int)best; level++) {
+        fm_simd_set_level((fm_simd)level);
+        static float start[3][N];
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < N; a++) start[k][a] = (float)a * 0.01f;
+        memcpy(got, start, sizeof start);
+        fm_kernel_curl_add(&f, p, phase, FM_KERNEL_FLYING, 3, N - 2, gv);
+        ENSURE_MSG(memcmp(want, got, sizeof want) == 0, "%s: curl noise differs from the scalar reference",
+                   fm_simd_name((fm_simd)level));
+    }
+    fm_simd_set_level(best);
+}
+
 /* The level can be forced down and never above what the CPU has. */
 static void test_level_is_capped(void)
 {
@@ -120,5 +175,6 @@ int main(void)
     RUN_TEST(test_level_is_capped);
     RUN_TEST(test_path_kernel_matches_reference);
     RUN_TEST(test_integrate_matches_reference);
+    RUN_TEST(test_curl_matches_reference);
     return fm_test_failures != 0;
 }
