@@ -10,27 +10,28 @@
 
 /* MDE by gathering: for each agent a in [begin, end) with member[a],
  *
- *     v_la(a) = sum over members b != a with |x_a - x_b| < d_min of
+ *     v_la(a) = sum over members b != a with |x_a - x_b| < d_min, in increasing id(b), of
  *               push * (1 - |x_a - x_b| / d_min) * unit(x_a - x_b)
  *
- * where "|x_a - x_b| < d_min" is the float test dx*dx + dy*dy + dz*dz < d_min*d_min. A pair whose
+ * where "|x_a - x_b| < d_min" is the float test dx*dx + dy*dy + dz*dz < d_min*d_min, the sum is
+ * taken in float from 0 in that order, and id(b) = id[b] (id NULL: b itself). A pair whose
  * dx*dx + dy*dy + dz*dz is 0 (coincident) gets magnitude `push` along fm_mde_coincident_dir of the
- * two indices, + for the lower index and - for the higher. Every pair thus gets equal and opposite
- * contributions (bit for bit). Writes (does not add) v_la, zero for agents with no close neighbour
- * or not members, and needed[a] = 1 if the agent had at least one pair closer than d_min, else 0.
- * Returns how many agents of the range needed it. d_min <= 0 turns MDE off (all zero).
+ * two ids, + for the lower id and - for the higher. Every pair thus gets equal and opposite
+ * contributions (bit for bit), and the sums depend only on the agents' ids and positions: not on
+ * the store's order, the grid's cell or the split of the range. Writes (does not add) v_la, zero
+ * for agents with no close neighbour or not members, and needed[a] = 1 if the agent had at least
+ * one pair closer than d_min, else 0. Returns how many agents of the range needed it. d_min <= 0
+ * turns MDE off (all zero).
  *
  * Requires g built from these p and member with cell >= d_min, and end <= the build's n. Walks the
- * 27 cells around each agent (as 9 rows of 3 consecutive slots), skipping cells whose box is farther
- * than d_min when cells are larger, and visiting a slot once even when hashing maps two of the
- * cells to it. The sums are the same for any thread count and any split of the range. No
- * allocation, no calls into the grid. */
-int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *member,
+ * cells of the 27 around each agent that its d_min ball reaches (usually its own alone), visiting
+ * a slot once even when hashing maps two of the cells to it. No allocation. */
+int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *member, const int32_t *id,
                       int64_t begin, int64_t end, float d_min, float push,
                       float *const v_la[3], uint8_t *needed);
 
-/* The direction a coincident pair (lo < hi) is pushed along: + for lo, - for hi. One of the 26
- * directions of {-1,0,1}^3 \ {0}, chosen by a hash of the indices, normalized. */
+/* The direction a coincident pair (ids lo < hi) is pushed along: + for lo, - for hi. One of the 26
+ * directions of {-1,0,1}^3 \ {0}, chosen by a hash of the ids, normalized. */
 static inline void fm_mde_coincident_dir(int32_t lo, int32_t hi, float d[3])
 {
     uint64_t h = (uint64_t)(uint32_t)lo * 0x9E3779B97F4A7C15ull ^ (uint64_t)(uint32_t)hi * 0xC2B2AE3D27D4EB4Full;

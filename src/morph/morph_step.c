@@ -97,7 +97,7 @@ static int64_t add_mde(const fm_morph_model *m, fm_morph_state *s, int64_t begin
 {
     const fm_scene_def *def = &m->def;
     float push = (float)(def->mde_speed > 0 ? def->mde_speed : def->speed0);
-    int64_t needed = fm_kernel_mde(&s->grid, (const float *const *)s->p, s->member, begin, end, (float)def->d_min,
+    int64_t needed = fm_kernel_mde(&s->grid, (const float *const *)s->p, s->member, s->id, begin, end, (float)def->d_min,
                                    push, s->vla, s->mde_needed);
     for (int64_t a = begin; a < end; a++)
         if (s->member[a]) s->v[0][a] += s->vla[0][a], s->v[1][a] += s->vla[1][a], s->v[2][a] += s->vla[2][a];

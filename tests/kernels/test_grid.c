@@ -158,7 +158,7 @@ static int64_t run_kernel(const fm_grid *g, const pts *s, float d_min, float pus
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : count)
     for (int64_t b = 0; b < blocks; b++) {
         int64_t lo = b * 4096, hi = FM_MIN(s->n, lo + 4096);
-        count += fm_kernel_mde(g, p, s->member, lo, hi, d_min, push, o->v, o->needed);
+        count += fm_kernel_mde(g, p, s->member, NULL, lo, hi, d_min, push, o->v, o->needed);
     }
     return count;
 }
@@ -228,7 +228,7 @@ static void test_hand_made_pairs(void)
     fm_error err;
     ENSURE(fm_grid_init(&g, 10, &err) == FM_OK);
     fm_grid_build(&g, p, member, 10, 1.0f, 1);
-    int64_t count = fm_kernel_mde(&g, p, member, 0, 10, 1.0f, 2.0f, v, needed);
+    int64_t count = fm_kernel_mde(&g, p, member, NULL, 0, 10, 1.0f, 2.0f, v, needed);
     ENSURE(count == 4);
     /* magnitude push * (1 - 0.5 / 1) = 1 along (0.6, 0.8, 0), away from the other agent */
     ENSURE_NEAR(vx[0], -0.6, 1e-6);
@@ -248,7 +248,7 @@ static void test_hand_made_pairs(void)
 
     /* a sub-range writes only its own agents */
     for (int a = 0; a < 10; a++) vx[a] = 99;
-    ENSURE(fm_kernel_mde(&g, p, member, 1, 2, 1.0f, 2.0f, v, needed) == 1);
+    ENSURE(fm_kernel_mde(&g, p, member, NULL, 1, 2, 1.0f, 2.0f, v, needed) == 1);
     ENSURE(vx[0] == 99 && vx[2] == 99);
     ENSURE_NEAR(vx[1], 0.6, 1e-6);
 
@@ -256,7 +256,7 @@ static void test_hand_made_pairs(void)
     fm_grid_build(&g, p, member, 10, 3.5f, 1);
     float wx[10], wy[10], wz[10];
     float *w[3] = {wx, wy, wz};
-    ENSURE(fm_kernel_mde(&g, p, member, 0, 10, 1.0f, 2.0f, w, needed) == 4);
+    ENSURE(fm_kernel_mde(&g, p, member, NULL, 0, 10, 1.0f, 2.0f, w, needed) == 4);
     ENSURE_NEAR(wx[0], -0.6, 1e-6);
     ENSURE_NEAR(wy[0], -0.8, 1e-6);
     ENSURE(wx[1] == -wx[0] && wy[1] == -wy[0]);
@@ -275,7 +275,7 @@ static void test_three_in_a_row(void)
     fm_grid g;
     ENSURE(fm_grid_init(&g, 3, NULL) == FM_OK);
     fm_grid_build(&g, p, member, 3, 1.0f, 1);
-    ENSURE(fm_kernel_mde(&g, p, member, 0, 3, 1.0f, 1.0f, v, needed) == 3);
+    ENSURE(fm_kernel_mde(&g, p, member, NULL, 0, 3, 1.0f, 1.0f, v, needed) == 3);
     ENSURE_NEAR(vx[0], -(0.75 + 0.5), 1e-6);
     ENSURE_NEAR(vx[1], 0, 1e-6);
     ENSURE_NEAR(vx[2], 0.75 + 0.5, 1e-6);
