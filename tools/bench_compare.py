@@ -10,8 +10,8 @@ With --round K it prints round K, the last pair given, in short (the agent-steps
 it, a Markdown table over all the pairs: each figure's median and min-max for the base and the
 current tree, and the median and min-max of the rounds' ratios current/base (a round's two runs ran
 one after the other, so their ratio is the steadier figure on a machine whose load drifts). It also
-names any run whose "deterministic" is false and any text or true/false figure in which the two
-sides differ. Standard library only (Debian's /usr/bin/python3).
+names any run whose "deterministic" is false, any text or true/false figure in which the two
+sides differ, and the figures that only one side prints (a stage the base did not time). Standard library only (Debian's /usr/bin/python3).
 """
 import argparse
 import json
@@ -104,7 +104,14 @@ def print_summary(pairs, pattern):
         print("\nns and bytes figures: lower is better (a ratio below 1 is a gain); the others: higher is better.")
 
 
-def print_notes(pairs):
+def print_notes(pairs, pattern):
+    regex = re.compile(pattern)
+    sides = {"base": [b for b, _ in pairs], "current": [c for _, c in pairs]}
+    named = {side: {k for d in docs for k, v in d.items() if number(v) and regex.search(k)} for side, docs in sides.items()}
+    for side, other in (("base", "current"), ("current", "base")):
+        only = sorted(named[side] - named[other])
+        if only:
+            print(f"only in the {side}: {', '.join(only)}")
     for k, (base, current) in enumerate(pairs, 1):
         for side, doc in (("base", base), ("current", current)):
             for name, v in doc.items():
@@ -133,7 +140,7 @@ def main():
     if not figures(pairs, a.figures or DEFAULT_FIGURES):
         sys.exit("bench_compare.py: no figure matches in every document")
     print_summary(pairs, a.figures or DEFAULT_FIGURES)
-    print_notes(pairs)
+    print_notes(pairs, a.figures or DEFAULT_FIGURES)
 
 
 if __name__ == "__main__":

@@ -92,7 +92,7 @@ def test_summary(source, tmp):
             ({"agent_steps_per_second": 120.0, "ns_per_agent_step": 9.0, "stage_ns_per_agent": {"grid": 0}},
              {"agent_steps_per_second": 240.0, "ns_per_agent_step": 6.0, "stage_ns_per_agent": {"grid": 0}}),
             ({"agent_steps_per_second": 110.0, "ns_per_agent_step": 10.0, "stage_ns_per_agent": {"grid": 0}},
-             {"agent_steps_per_second": 110.0, "ns_per_agent_step": 10.0, "stage_ns_per_agent": {"grid": 0}})]
+             {"agent_steps_per_second": 110.0, "ns_per_agent_step": 10.0, "stage_ns_per_agent": {"grid": 0, "new": 3}})]
     files = []
     for k, (b, c) in enumerate(docs):
         for side, d in (("base", b), ("current", c)):
@@ -107,6 +107,8 @@ def test_summary(source, tmp):
     check(lines.get("agent_steps_per_second") == "| agent_steps_per_second | 110 (100–120) | 150 (110–240) | 1.500 (1.000–2.000) |",
           "medians, spreads and ratios", r.stdout + r.stderr)
     check("stage_ns_per_agent.grid" not in lines, "a figure 0 everywhere is left out")
+    check("stage_ns_per_agent.new" not in lines and "only in the current: stage_ns_per_agent.new" in r.stdout,
+          "a figure only the current prints is named, not tabled", r.stdout)
 
 
 def test_compare_script(build, source):
