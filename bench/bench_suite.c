@@ -10,7 +10,7 @@
  * their scalar twins, the thread speedup and whether 1 and T threads gave the same bits. With
  * --scenarios 1 it also runs the four examples (FM Table I).
  *
- * --mode flock: the shape flock's step the same way (suite_flock.c).
+ * --mode flock: the shape flock's step the same way (suite_flock.h).
  *
  * Prints one JSON document on stdout; progress on stderr. */
 #define _POSIX_C_SOURCE 200809L
@@ -21,6 +21,7 @@
 #include "morph.h"
 #include "simd.h"
 #include "suite.h"
+#include "suite_flock.h"
 
 #include <math.h>
 #include <omp.h>

@@ -1,5 +1,5 @@
 /* What bench_suite's two modes share: the options, the repetitions, the state hash and the peak
- * memory. bench_suite.c holds main and the tetra morph's mode (--mode morph), suite_flock.c the
+ * memory. bench_suite.c holds main and the tetra morph's mode (--mode morph), suite_flock.h the
  * shape flock's (--mode flock). */
 #ifndef FM_BENCH_SUITE_H
 #define FM_BENCH_SUITE_H
@@ -80,8 +80,5 @@ static inline double suite_bytes_per_agent(int64_t n)
     if (f) fclose(f);
     return 1024.0 * kb / (double)n;
 }
-
-/* suite_flock.c: every size of --mode flock, printed as the "runs" array's entries. */
-int suite_flock(const suite_options *o);
 
 #endif

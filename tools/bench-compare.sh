@@ -18,8 +18,9 @@ set -euo pipefail
 
 usage() {
     cat <<'EOF'
-usage: tools/bench-compare.sh [--base COMMIT] [--rounds R] [--bench NAME] [--build DIR] [--no-rebuild]
-                              [--base-build DIR] [--keep DIR] [--figures REGEX] [-- BENCH_ARGS...]
+usage: tools/bench-compare.sh [--base COMMIT] [--rounds R] [--bench NAME] [--bench-source base|current]
+                              [--build DIR] [--no-rebuild] [--base-build DIR] [--keep DIR]
+                              [--figures REGEX] [-- BENCH_ARGS...]
 
 Runs the benchmark of a base commit (A) and of the working tree (B) alternately, A B A B ...,
 with the same arguments, and prints the figures of each round and their medians, spreads and
@@ -29,6 +30,9 @@ ratios current/base.
   --rounds R         rounds of A then B (default 3)
   --bench NAME       the benchmark program: bench_suite (default), bench_step, or another bench/NAME.c
                      that prints one JSON document
+  --bench-source S   whose bench/ the base is built with: its own (base, the default), or the
+                     working tree's (current: the same benchmark program on both engines, for a
+                     base whose benchmark lacks an option or mode, e.g. --mode flock)
   --build DIR        the working tree's build folder, rebuilt for NAME first (default: a Release
                      build in the temporary folder)
   --no-rebuild       use --build DIR's program as it is
@@ -53,15 +57,16 @@ die() { echo "bench-compare: $1" >&2; exit "${2:-1}"; }
 # runs does not change what runs.
 main() {
     ORIG_ARGS=("$@")
-    base="" rounds=3 bench=bench_suite build="" rebuild=1 base_build="" keep="" figures=""
+    base="" rounds=3 bench=bench_suite bench_source=base build="" rebuild=1 base_build="" keep="" figures=""
     while [ $# -gt 0 ]; do
         case "$1" in
             -h|--help) usage; exit 0 ;;
-            --base|--rounds|--bench|--build|--base-build|--keep|--figures)
+            --base|--rounds|--bench|--bench-source|--build|--base-build|--keep|--figures)
                 [ $# -ge 2 ] || { echo "bench-compare: $1 needs a value" >&2; usage >&2; exit 1; }
                 case "$1" in
                     --base) base=$2 ;; --rounds) rounds=$2 ;; --bench) bench=$2 ;; --build) build=$2 ;;
                     --base-build) base_build=$2 ;; --keep) keep=$2 ;; --figures) figures=$2 ;;
+                    --bench-source) bench_source=$2 ;;
                 esac
                 shift 2 ;;
             --no-rebuild) rebuild=0; shift ;;
@@ -74,6 +79,8 @@ main() {
     [[ "$bench" =~ ^[A-Za-z0-9_]+$ ]] || die "--bench wants a program name such as bench_suite, not '$bench'"
     [ -z "$base" ] || [ -z "$base_build" ] || die "give --base or --base-build, not both"
     [ "$rebuild" = 1 ] || [ -n "$build" ] || die "--no-rebuild needs --build DIR"
+    [[ "$bench_source" =~ ^(base|current)$ ]] || die "--bench-source wants base or current, not '$bench_source'"
+    [ "$bench_source" = base ] || [ -z "$base_build" ] || die "--bench-source current builds the base: not with --base-build"
     PY=/usr/bin/python3
     [ -x "$PY" ] || die "needs Debian's /usr/bin/python3 (apt-get install python3)"
 
@@ -112,6 +119,11 @@ main() {
         mkdir -p "$base_src"
         git -C "$root" archive --format=tar "$commit" | tar -x -C "$base_src"
         base_desc="$(short "$commit"), $how: \"$(subject "$commit")\""
+        if [ "$bench_source" = current ]; then
+            # The working tree's bench/ over the base's (its files replace theirs, the base's others stay).
+            cp -R "$root/bench/." "$base_src/bench/"
+            base_desc+=", with the working tree's bench/"
+        fi
     fi
 
     # A cheap check before anything is built: every option in BENCH_ARGS must be named in the base's
@@ -121,16 +133,16 @@ main() {
     for arg in "${bench_args[@]}"; do
         [[ "$arg" =~ ^--?[A-Za-z] ]] || continue
         grep -rqF -- "\"$arg\"" "$base_src/bench/" ||
-            die "the base ($base_desc): its $bench has no option $arg (bench/ never names \"$arg\"), so it cannot run these arguments; choose a later --base or drop $arg" 2
+            die "the base ($base_desc): its $bench has no option $arg (bench/ never names \"$arg\"), so it cannot run these arguments; choose a later --base, --bench-source current, or drop $arg" 2
     done
 
-    # Configures and builds one benchmark target, Release; the log goes to $3.log.
+    # Configures and builds one benchmark target, Release; the log goes to $3.log, $4 is a hint.
     build_bench() {
-        local src=$1 dir=$2 log=$3
+        local src=$1 dir=$2 log=$3 hint=${4:-}
         if ! { cmake -S "$src" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF &&
                cmake --build "$dir" --target "$bench" -j"$jobs"; } >"$log.log" 2>&1; then
             tail -n 30 "$log.log" >&2
-            die "building $bench from $src failed (the log's end is above)" 3
+            die "building $bench from $src failed (the log's end is above)$hint" 3
         fi
     }
     build_cmd() { echo "cmake -S $1 -B $2 -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF && cmake --build $2 --target $bench -j$jobs"; }
@@ -138,8 +150,12 @@ main() {
     if [ -z "$base_build" ]; then
         echo "bench-compare: building the base $(short "$commit") in $tmp (log $tmp/base-build.log)" >&2
         base_build=$tmp/base-build
-        build_bench "$base_src" "$base_build" "$tmp/base-build"
-        base_how="git archive $(short "$commit") | tar -x -C $base_src; $(build_cmd "$base_src" "$base_build")"
+        hint=""
+        [ "$bench_source" = base ] || hint="; the working tree's bench/ may use what this base's engine lacks"
+        build_bench "$base_src" "$base_build" "$tmp/base-build" "$hint"
+        base_how="git archive $(short "$commit") | tar -x -C $base_src; "
+        [ "$bench_source" = base ] || base_how+="cp -R $root/bench/. $base_src/bench/; "
+        base_how+=$(build_cmd "$base_src" "$base_build")
     else
         base_how="as it was built"
     fi
@@ -209,7 +225,7 @@ main() {
             if [ "$rc" = 1 ] && grep -qi 'usage' "$err"; then
                 echo "bench-compare: $what refused the arguments: $(grep -v '^$' "$err" | head -n 1)" >&2
                 [ "$side" = current ] ||
-                    echo "bench-compare: if the current tree takes these arguments, the base lacks an option or value it has: choose a later --base" >&2
+                    echo "bench-compare: if the current tree takes these arguments, the base lacks an option or value it has: choose a later --base or --bench-source current" >&2
             else
                 echo "bench-compare: $what failed with exit status $rc; its stderr ends:" >&2
                 tail -n 10 "$err" >&2

@@ -131,6 +131,8 @@ def test_compare_script(build, source):
           "an option the base lacks: exit 2 before running", f"exit {r.returncode}: {r.stderr[-300:]}")
     r = run([script, "--rounds", "0"])
     check(r.returncode == 1 and "--rounds wants a whole number" in r.stderr, "bench-compare.sh --rounds 0: usage")
+    r = run(both + ["--bench-source", "current", "--", "--agents", "2000"])
+    check(r.returncode == 1 and "not with --base-build" in r.stderr, "--bench-source current needs a base to build", r.stderr)
 
 
 def main():

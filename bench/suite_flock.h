@@ -8,8 +8,14 @@
  * step. Every agent flies from the first step, so all are counted. A small N repeats its S steps
  * from a fresh state (suite_repetitions) and keeps the fastest; every repetition and both thread
  * counts must end in the same bits (`deterministic`). The flock's step does not time its stages
- * itself, so stage_ns_per_agent has the step and the frame. */
-#define _POSIX_C_SOURCE 200809L
+ * itself, so stage_ns_per_agent has the step and the frame.
+ *
+ * Header-only, included by bench_suite.c alone (as roofline.h), and through the public flock API
+ * only: so tools/bench-compare.sh --bench-source current can build this benchmark against an
+ * engine from before it, with no change to that engine's CMakeLists.txt. */
+#ifndef FM_BENCH_SUITE_FLOCK_H
+#define FM_BENCH_SUITE_FLOCK_H
+
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
 #include "suite.h"
@@ -48,7 +54,7 @@ static uint64_t frame_hash(const flock_run *run)
 
 /* One repetition (a suite_once_fn): a fresh state, a warm-up step, then S timed steps each with
  * its frame. */
-static int run_once(void *ctx, void *result, double *seconds, uint64_t *hash)
+static int flock_run_once(void *ctx, void *result, double *seconds, uint64_t *hash)
 {
     const flock_run *run = ctx;
     flock_result *r = result;
@@ -77,18 +83,18 @@ static int run_once(void *ctx, void *result, double *seconds, uint64_t *hash)
     return 0;
 }
 
-static int run_steps(flock_run *run, int threads, flock_result *r)
+static int flock_run_steps(flock_run *run, int threads, flock_result *r)
 {
     run->threads = threads;
     flock_result scratch = {0};
     const long reps = suite_repetitions(run->n, run->steps);
     uint64_t hash = 0;
-    int rc = suite_fastest(reps, run_once, run, r, &scratch, sizeof *r, &hash);
+    int rc = suite_fastest(reps, flock_run_once, run, r, &scratch, sizeof *r, &hash);
     r->hash = hash, r->repetitions = reps;
     return rc;
 }
 
-static fm_flock_model *build(const suite_options *o, long agents, fm_scene_def *def, double *prep)
+static fm_flock_model *flock_build(const suite_options *o, long agents, fm_scene_def *def, double *prep)
 {
     fm_error err = {0};
     if (fm_scene_load(o->scene, def, &err) != FM_OK) return fprintf(stderr, "bench_suite: %s\n", err.message), NULL;
@@ -117,17 +123,17 @@ static void print_json_string(const char *s)
     putchar('"');
 }
 
-static void print_stages(const flock_result *r)
+static void flock_print_stages(const flock_result *r)
 {
     printf("\"stage_ns_per_agent\": {\"step\": %.2f, \"frame\": %.2f}", r->step_ns, r->frame_ns);
 }
 
-static int bench_size(const suite_options *o, long agents, int first)
+static int flock_bench_size(const suite_options *o, long agents, int first)
 {
     fm_scene_def def;
     double prep;
     fprintf(stderr, "bench_suite: flock n = %ld: building\n", agents);
-    fm_flock_model *m = build(o, agents, &def, &prep);
+    fm_flock_model *m = flock_build(o, agents, &def, &prep);
     if (!m) return -1;
     const fm_flock_model_info mi = fm_flock_model_get_info(m);
     const size_t n = (size_t)agents;
@@ -137,12 +143,12 @@ static int bench_size(const suite_options *o, long agents, int first)
     flock_result one = {0}, many = {0};
     if (rc == 0) {
         fprintf(stderr, "bench_suite: flock n = %ld: %ld steps, 1 thread\n", agents, o->steps);
-        rc = run_steps(&run, 1, &one);
+        rc = flock_run_steps(&run, 1, &one);
         many = one;
     }
     if (rc == 0 && o->threads > 1) {
         fprintf(stderr, "bench_suite: flock n = %ld: %ld steps, %ld threads\n", agents, o->steps, o->threads);
-        rc = run_steps(&run, (int)o->threads, &many);
+        rc = flock_run_steps(&run, (int)o->threads, &many);
     }
     if (rc == 0) {
         printf("%s\n    {\"mode\": \"flock\", \"scene\": ", first ? "" : ",");
@@ -153,9 +159,9 @@ static int bench_size(const suite_options *o, long agents, int first)
                SAMPLING_NAMES[def.flock.sampling], agents, o->threads, o->steps, (long long)many.in_flight,
                (long long)many.bound, mi.max_radius, prep, suite_bytes_per_agent(agents), many.agent_steps_per_second,
                many.agent_steps_per_second / (double)agents, many.ns_per_agent_step);
-        print_stages(&many);
+        flock_print_stages(&many);
         printf(",\n     \"one_thread\": {\"agent_steps_per_second\": %.4g, ", one.agent_steps_per_second);
-        print_stages(&one);
+        flock_print_stages(&one);
         printf("},\n     \"thread_speedup\": %.2f, \"deterministic\": %s, \"repetitions\": %ld}",
                many.agent_steps_per_second / one.agent_steps_per_second,
                one.hash != 0 && one.hash == many.hash ? "true" : "false", many.repetitions);
@@ -166,9 +172,11 @@ static int bench_size(const suite_options *o, long agents, int first)
     return rc;
 }
 
-int suite_flock(const suite_options *o)
+static int suite_flock(const suite_options *o)
 {
     for (int i = 0; i < o->agent_count; i++)
-        if (bench_size(o, o->agents[i], i == 0)) return -1;
+        if (flock_bench_size(o, o->agents[i], i == 0)) return -1;
     return 0;
 }
+
+#endif
