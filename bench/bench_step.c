@@ -1,6 +1,5 @@
-/* Step throughput at a chosen agent count, with a per-stage breakdown.
- *
- *   bench_step [--scene FILE] [--agents N] [--steps S] [--threads T] [--synthesis 0|1]
+/* Step throughput at a chosen agent count, with a per-stage breakdown; `bench_step --help` for the
+ * options.
  *
  * Loads the scene (default: examples/castling/scene.json: path, baked curl noise, an obstacle and
  * MDE, the whole velocity model), sets n = N and launches every agent at t = 0 so all of them are in
@@ -8,6 +7,7 @@
  * (FM §6, what a renderer needs each step). Prints one JSON object. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "bench_args.h"
 #include "morph.h"
 
 #include <math.h>
@@ -17,18 +17,33 @@
 #include <string.h>
 #include <time.h>
 
+static const char USAGE[] =
+    "usage: bench_step [--scene FILE] [--agents N] [--steps S] [--threads T] [--synthesis 0|1]\n"
+    "\n"
+    "One run of the tetra morph's step at N agents, all in flight, on T threads: one JSON object\n"
+    "on stdout with the per-stage times and the CPU time (docs/performance.md).\n"
+    "\n"
+    "  --scene FILE     a tetra morph scene, n set to N (default examples/castling)\n"
+    "  --agents N       agents (default 100000)\n"
+    "  --steps S        timed steps after one warm-up step (default 20)\n"
+    "  --threads T      threads (default: OpenMP's)\n"
+    "  --synthesis 0|1  also compute every tet's vertices after each step (default 1)\n"
+    "  -h, --help       this text\n";
+
 int main(int argc, char **argv)
 {
     long agents = 100000, steps = 20, threads = omp_get_max_threads(), synthesis = 1;
     char scene[4096];
     snprintf(scene, sizeof scene, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
-    for (int i = 1; i + 1 < argc; i += 2) {
-        if (!strcmp(argv[i], "--agents")) agents = atol(argv[i + 1]);
-        else if (!strcmp(argv[i], "--steps")) steps = atol(argv[i + 1]);
-        else if (!strcmp(argv[i], "--threads")) threads = atol(argv[i + 1]);
-        else if (!strcmp(argv[i], "--synthesis")) synthesis = atol(argv[i + 1]);
-        else if (!strcmp(argv[i], "--scene")) snprintf(scene, sizeof scene, "%s", argv[i + 1]);
-        else return fprintf(stderr, "usage: bench_step [--scene FILE] [--agents N] [--steps S] [--threads T] [--synthesis 0|1]\n"), 1;
+    static const char *const flags[] = {"0", "1"};
+    bench_args a = bench_args_begin("bench_step", USAGE, argc, argv);
+    while (bench_next(&a)) {
+        if (bench_is(&a, "--agents")) agents = bench_long(&a, 1, 1000000000L);
+        else if (bench_is(&a, "--steps")) steps = bench_long(&a, 1, 1000000000L);
+        else if (bench_is(&a, "--threads")) threads = bench_long(&a, 1, 1024);
+        else if (bench_is(&a, "--synthesis")) synthesis = bench_choice(&a, flags, 2);
+        else if (bench_is(&a, "--scene")) snprintf(scene, sizeof scene, "%s", bench_value(&a));
+        else bench_unknown(&a);
     }
     fm_scene_def def;
     fm_error err = {0};

@@ -1,23 +1,27 @@
-/* The throughput benchmark suite (docs/performance.md).
+/* The throughput benchmark suite (docs/performance.md); `bench_suite --help` for the options.
  *
- *   bench_suite [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE] [--scenarios 0|1]
- *               [--machine 0|1]
+ * --mode morph (the default): for every N, builds the scene (default examples/castling: global
+ * path, curl noise baked on a grid, an obstacle's distance field, MDE) with n = N, launches every
+ * agent at t = 0 so all are in flight, and times S full steps, each followed by the synthesis of
+ * every tet's four vertices (FM §6), with 1 and with T threads; a small N repeats the S steps from
+ * the start (up to 25 times, about 5·10^6 agent-steps in all) and reports the fastest repetition.
+ * Also measures, in the same run, the machine's STREAM triad bandwidth and peak fused multiply-add
+ * rate, and prints the achieved fraction of each (the roofline), the SIMD kernels' speedup over
+ * their scalar twins, the thread speedup and whether 1 and T threads gave the same bits. With
+ * --scenarios 1 it also runs the four examples (FM Table I).
  *
- * For every N: builds the scene (default examples/castling: global path, curl noise baked on a
- * grid, an obstacle's distance field, MDE) with n = N, launches every agent at t = 0 so all are in
- * flight, and times S full steps, each followed by the synthesis of every tet's four vertices
- * (FM §6), with 1 and with T threads; a small N repeats the S steps from the start (up to 25
- * times, about 5·10^6 agent-steps in all) and reports the fastest repetition. Also measures, in the same run, the machine's STREAM triad
- * bandwidth and peak fused multiply-add rate, and prints the achieved fraction of each (the
- * roofline), the SIMD kernels' speedup over their scalar twins, the thread speedup and whether
- * 1 and T threads gave the same bits. With --scenarios 1 it also runs the four examples (FM
- * Table I). Prints one JSON document on stdout; progress on stderr. */
+ * --mode flock: the shape flock's step the same way (suite_flock.h).
+ *
+ * Prints one JSON document on stdout; progress on stderr. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "bench_args.h"
 #include "kernels.h"
 #include "roofline.h"
 #include "morph.h"
 #include "simd.h"
+#include "suite.h"
+#include "suite_flock.h"
 
 #include <math.h>
 #include <omp.h>
@@ -25,49 +29,70 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct options {
-    long agents[8];
-    int agent_count;
-    long steps, threads;
-    int scenarios, machine;
-    char scene[4096];
-} options;
+static const char USAGE[] =
+    "usage: bench_suite [--mode morph|flock] [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE]\n"
+    "                   [--sampling random|mosaic|stratified] [--scenarios 0|1] [--machine 0|1]\n"
+    "\n"
+    "Times S steps at each agent count N with 1 and T threads and prints one JSON document on\n"
+    "stdout (docs/performance.md); progress goes to stderr.\n"
+    "\n"
+    "  --mode morph     the tetra flock morph: the full step and the synthesis of every tet's\n"
+    "                   vertices, all agents in flight (the default; scene examples/castling)\n"
+    "  --mode flock     the shape flock: its step and its frame (position, velocity, orientation,\n"
+    "                   phase) from the first step on (scene examples/flock_suzanne_torus)\n"
+    "  --agents N,...   agent counts, up to 8, comma-separated (default 100000)\n"
+    "  --steps S        timed steps per repetition (default 10)\n"
+    "  --threads T      the thread count beside 1 (default: OpenMP's)\n"
+    "  --scene FILE     the scene, with n set to each N (a morph scene for morph, shape_flock for flock)\n"
+    "  --sampling M     flock only: sample the surfaces this way instead of the scene's\n"
+    "                   shape_flock.sampling (random prepares 10^6 agents fastest)\n"
+    "  --scenarios 1    morph only: also run the four FM examples (Table I)\n"
+    "  --machine 0      skip measuring the STREAM triad and the FMA peak\n"
+    "  -h, --help       this text\n";
 
-static int parse(int argc, char **argv, options *o)
+static void parse(int argc, char **argv, suite_options *o)
 {
-    o->agent_count = 0, o->steps = 10, o->threads = omp_get_max_threads(), o->scenarios = 0, o->machine = 1;
-    snprintf(o->scene, sizeof o->scene, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
-    for (int i = 1; i + 1 < argc; i += 2) {
-        const char *k = argv[i], *v = argv[i + 1];
-        if (!strcmp(k, "--agents")) {
-            for (char *s = (char *)v; *s && o->agent_count < 8; s += *s == ',') o->agents[o->agent_count++] = strtol(s, &s, 10);
-        } else if (!strcmp(k, "--steps")) o->steps = atol(v);
-        else if (!strcmp(k, "--threads")) o->threads = atol(v);
-        else if (!strcmp(k, "--scenarios")) o->scenarios = atoi(v);
-        else if (!strcmp(k, "--machine")) o->machine = atoi(v);
-        else if (!strcmp(k, "--scene")) snprintf(o->scene, sizeof o->scene, "%s", v);
-        else return -1;
+    o->mode = SUITE_MORPH, o->agent_count = 0, o->steps = 10, o->threads = omp_get_max_threads();
+    o->scenarios = 0, o->machine = 1, o->sampling = -1, o->scene[0] = 0;
+    static const char *const modes[] = {"morph", "flock"}, *const samplings[] = {"random", "mosaic", "stratified"};
+    static const char *const flags[] = {"0", "1"};
+    bench_args a = bench_args_begin("bench_suite", USAGE, argc, argv);
+    while (bench_next(&a)) {
+        if (bench_is(&a, "--agents")) {
+            const char *list = bench_value(&a);
+            o->agent_count = 0;
+            for (const char *s = list; *s;) {
+                char one[32];
+                size_t len = strcspn(s, ",");
+                if (o->agent_count == SUITE_MAX_SIZES) bench_usage_error(&a, "--agents takes at most %d counts", SUITE_MAX_SIZES);
+                snprintf(one, sizeof one, "%.*s", (int)(len < sizeof one - 1 ? len : sizeof one - 1), s);
+                o->agents[o->agent_count++] = bench_parse_long(&a, "--agents", one, 1, 1000000000L);
+                s += len + (s[len] == ',');
+            }
+            if (o->agent_count == 0) bench_usage_error(&a, "--agents needs at least one count");
+        } else if (bench_is(&a, "--steps")) o->steps = bench_long(&a, 1, 1000000000L);
+        else if (bench_is(&a, "--threads")) o->threads = bench_long(&a, 1, 1024);
+        else if (bench_is(&a, "--scenarios")) o->scenarios = bench_choice(&a, flags, 2);
+        else if (bench_is(&a, "--machine")) o->machine = bench_choice(&a, flags, 2);
+        else if (bench_is(&a, "--mode")) o->mode = (suite_mode)bench_choice(&a, modes, 2);
+        else if (bench_is(&a, "--sampling")) o->sampling = bench_choice(&a, samplings, 3);
+        else if (bench_is(&a, "--scene")) snprintf(o->scene, sizeof o->scene, "%s", bench_value(&a));
+        else bench_unknown(&a);
     }
+    if (o->mode == SUITE_FLOCK && o->scenarios) bench_usage_error(&a, "--scenarios is for --mode morph");
+    if (o->mode == SUITE_MORPH && o->sampling >= 0) bench_usage_error(&a, "--sampling is for --mode flock");
     if (o->agent_count == 0) o->agents[o->agent_count++] = 100000;
-    for (int i = 0; i < o->agent_count; i++)
-        if (o->agents[i] < 1) return -1;
-    return o->steps > 0 && o->threads > 0 ? 0 : -1;
-}
-
-/* FNV-1a over the store, so runs can be compared bit for bit. */
-static uint64_t fnv(uint64_t h, const void *data, size_t n)
-{
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 0x100000001b3ull;
-    return h;
+    if (!o->scene[0])
+        snprintf(o->scene, sizeof o->scene, "%s/examples/%s/scene.json", FM_SOURCE_DIR,
+                 o->mode == SUITE_FLOCK ? "flock_suzanne_torus" : "castling");
 }
 
 static uint64_t state_hash(const fm_morph_state *s, const float *frame)
 {
-    uint64_t h = 0xcbf29ce484222325ull;
-    h = fnv(h, frame, sizeof(float) * 12 * (size_t)s->n);
-    h = fnv(h, s->phase, (size_t)s->n);
-    for (int k = 0; k < 3; k++) h = fnv(h, s->v[k], sizeof(float) * (size_t)s->n);
+    uint64_t h = SUITE_FNV_BASIS;
+    h = suite_fnv(h, frame, sizeof(float) * 12 * (size_t)s->n);
+    h = suite_fnv(h, s->phase, (size_t)s->n);
+    for (int k = 0; k < 3; k++) h = suite_fnv(h, s->v[k], sizeof(float) * (size_t)s->n);
     return h;
 }
 
@@ -97,36 +122,39 @@ static double time_path_kernel(const fm_morph_model *m, fm_morph_state *s, fm_si
     return 1e9 * best / (double)(s->active_end - s->active_begin);
 }
 
-/* Repetitions of the S timed steps for n agents: enough for about 5 * 10^6 agent-steps in all, so a
- * small n is not timed over a few milliseconds; the fastest repetition counts. */
-static long repetitions(int64_t n, long steps)
-{
-    long reps = (long)ceil(5e6 / ((double)n * (double)steps));
-    return reps < 1 ? 1 : reps > 25 ? 25 : reps;
-}
+/* One repetition (a suite_once_fn): a fresh state, a warm-up step, then S timed steps each with
+ * the synthesis. */
+typedef struct morph_run {
+    const fm_morph_model *m;
+    int threads;
+    long steps;
+    float *frame;
+} morph_run;
 
-/* One repetition: a fresh state, a warm-up step, then S timed steps each with the synthesis. */
-static int run_once(const fm_morph_model *m, int threads, long steps, float *frame, step_result *r, double *seconds)
+static int run_once(void *ctx, void *result, double *seconds, uint64_t *hash)
 {
+    const morph_run *run = ctx;
+    const fm_morph_model *m = run->m;
+    step_result *r = result;
     fm_error err = {0};
-    fm_morph_state *s = fm_morph_state_create(m, threads, &err);
+    fm_morph_state *s = fm_morph_state_create(m, run->threads, &err);
     if (!s) return fprintf(stderr, "bench_suite: %s\n", err.message), -1;
     fm_morph_step(m, s); /* launches everyone, touches every page */
     memset(s->stage_seconds, 0, sizeof s->stage_seconds);
     double synth = 0, t0 = fm_seconds();
-    for (long k = 0; k < steps; k++) {
+    for (long k = 0; k < run->steps; k++) {
         fm_morph_step(m, s);
         double t1 = fm_seconds();
-        fm_morph_tet_vertices(m, s, frame);
+        fm_morph_tet_vertices(m, s, run->frame);
         synth += fm_seconds() - t1;
     }
     *seconds = fm_seconds() - t0;
-    double agent_steps = (double)m->n * (double)steps;
+    double agent_steps = (double)m->n * (double)run->steps;
     r->agent_steps_per_second = agent_steps / *seconds;
     r->ns_per_agent_step = 1e9 * *seconds / agent_steps;
     for (int k = 0; k < FM_STAGE_COUNT; k++) r->stage_ns[k] = 1e9 * s->stage_seconds[k] / agent_steps;
     r->stage_ns[FM_STAGE_COUNT] = 1e9 * synth / agent_steps;
-    r->hash = state_hash(s, frame);
+    *hash = state_hash(s, run->frame);
     r->in_flight = s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING];
     r->path_ns_simd = time_path_kernel(m, s, fm_simd_level()); /* the level in use (FM_SIMD may lower it) */
     r->path_ns_scalar = time_path_kernel(m, s, FM_SIMD_SCALAR);
@@ -134,27 +162,18 @@ static int run_once(const fm_morph_model *m, int threads, long steps, float *fra
     return 0;
 }
 
-/* The fastest of repetitions(n, S) runs; every run must end in the same bits. */
+/* The fastest of suite_repetitions(n, S) runs; every run must end in the same bits. */
 static int run_steps(const fm_morph_model *m, int threads, long steps, step_result *r)
 {
-    float *frame = fm_alloc(sizeof(float) * 12 * (size_t)m->n);
-    if (!frame) return fprintf(stderr, "bench_suite: out of memory\n"), -1;
-    double best = INFINITY;
-    uint64_t first_hash = 0;
-    int same = 1;
-    const long reps = repetitions(m->n, steps);
-    for (long rep = 0; rep < reps; rep++) {
-        step_result one;
-        double seconds;
-        if (run_once(m, threads, steps, frame, &one, &seconds)) return fm_free(frame), -1;
-        if (rep == 0) first_hash = one.hash;
-        same &= one.hash == first_hash;
-        if (seconds < best) best = seconds, *r = one;
-    }
-    r->hash = same ? first_hash : 0; /* 0: the runs disagreed, reported as not deterministic */
-    r->repetitions = reps;
-    fm_free(frame);
-    return 0;
+    morph_run run = {m, threads, steps, fm_alloc(sizeof(float) * 12 * (size_t)m->n)};
+    if (!run.frame) return fprintf(stderr, "bench_suite: out of memory\n"), -1;
+    step_result scratch = {0};
+    const long reps = suite_repetitions(m->n, steps);
+    uint64_t hash = 0;
+    int rc = suite_fastest(reps, run_once, &run, r, &scratch, sizeof *r, &hash);
+    r->hash = hash, r->repetitions = reps;
+    fm_free(run.frame);
+    return rc;
 }
 
 /* ns per agent of a step in which every agent waits at the source: what idle agents cost. */
@@ -176,7 +195,7 @@ static double idle_ns_per_agent(fm_morph_model *m, long steps)
     return ns;
 }
 
-static fm_morph_model *build(const options *o, long agents, double *prep)
+static fm_morph_model *build(const suite_options *o, long agents, double *prep)
 {
     fm_scene_def def;
     fm_error err = {0};
@@ -202,7 +221,7 @@ static void print_stages(const char *key, const double *ns)
         printf("\"%s\": %.2f%s", k < FM_STAGE_COUNT ? fm_stage_names[k] : "synthesis", ns[k], k < FM_STAGE_COUNT ? ", " : "}");
 }
 
-static int bench_size(const options *o, long agents, const fm_machine *mc, int first)
+static int bench_size(const suite_options *o, long agents, const fm_machine *mc, int first)
 {
     double prep;
     fprintf(stderr, "bench_suite: n = %ld: building\n", agents);
@@ -223,7 +242,7 @@ static int bench_size(const options *o, long agents, const fm_machine *mc, int f
            "\"preprocess_seconds\": %.2f, \"bytes_per_agent\": %.0f,\n     \"agent_steps_per_second\": %.4g, "
            "\"steps_per_second\": %.4g, \"ns_per_agent_step\": %.2f, ",
            first ? "" : ",", agents, o->threads, o->steps, (long long)many.in_flight, m->def.d_min, prep,
-           fm_bytes_per_agent(m), many.agent_steps_per_second, many.agent_steps_per_second / (double)agents,
+           suite_bytes_per_agent(m->n), many.agent_steps_per_second, many.agent_steps_per_second / (double)agents,
            many.ns_per_agent_step);
     print_stages("stage_ns_per_agent", many.stage_ns);
     printf(",\n     \"one_thread\": {\"agent_steps_per_second\": %.4g, ", one.agent_steps_per_second);
@@ -274,10 +293,8 @@ static void bench_scenarios(int threads)
 
 int main(int argc, char **argv)
 {
-    options o;
-    if (parse(argc, argv, &o))
-        return fprintf(stderr, "usage: bench_suite [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE] "
-                               "[--scenarios 0|1] [--machine 0|1]\n"), 1;
+    suite_options o;
+    parse(argc, argv, &o);
     fm_machine mc = {0};
     if (o.machine) {
         fprintf(stderr, "bench_suite: measuring the machine (STREAM triad, FMA peak)\n");
@@ -286,8 +303,12 @@ int main(int argc, char **argv)
     printf("{\n  \"machine\": {\"cpu\": \"%s\", \"threads\": %ld, \"simd\": \"%s\", \"stream_triad_gbps\": %.2f, "
            "\"peak_gflops\": %.1f},\n  \"runs\": [",
            mc.cpu, o.threads, fm_simd_name(fm_simd_level()), mc.triad_gbps, mc.peak_gflops);
-    for (int i = 0; i < o.agent_count; i++)
-        if (bench_size(&o, o.agents[i], &mc, i == 0)) return 2;
+    if (o.mode == SUITE_FLOCK) {
+        if (suite_flock(&o)) return 2;
+    } else {
+        for (int i = 0; i < o.agent_count; i++)
+            if (bench_size(&o, o.agents[i], &mc, i == 0)) return 2;
+    }
     printf("\n  ]");
     if (o.scenarios) bench_scenarios((int)o.threads);
     printf("\n}\n");

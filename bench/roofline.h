@@ -153,16 +153,4 @@ static fm_roofline fm_roofline_of(const fm_cost *c, double agent_steps_per_secon
     return r;
 }
 
-/* Peak resident memory of the process per agent (VmHWM from /proc/self/status). */
-static double fm_bytes_per_agent(const fm_morph_model *m)
-{
-    FILE *f = fopen("/proc/self/status", "r");
-    char line[256];
-    double kb = NAN;
-    while (f && fgets(line, sizeof line, f))
-        if (sscanf(line, "VmHWM: %lf kB", &kb) == 1) break;
-    if (f) fclose(f);
-    return 1024.0 * kb / (double)m->n;
-}
-
 #endif
