@@ -83,8 +83,9 @@ typedef struct cli_overrides {
     fm_scene_override set[FM_MAX_OVERRIDES];
     char *owned[2 * FM_MAX_OVERRIDES]; /* the keys and values this struct allocated */
     int count, owned_count;
-    cli_wedges wedges;                 /* with --wedge-file */
+    cli_wedges wedges;                 /* with --wedge-file (cli_overrides_prepare) */
     json_t *wedge;                     /* the wedge's {KEY: VALUE}, or NULL */
+    long wedge_count;                  /* of its file */
     char origin[FM_PATH_MAX + 32];     /* "W.json: wedge 3", how errors name the wedge's values */
     uint64_t base_seed;
     int seed_derived;                  /* the wedge and --set gave no seed: cli_wedge_seed */
@@ -92,6 +93,8 @@ typedef struct cli_overrides {
 } cli_overrides;
 /* Reads the wedge file, picks the wedge and builds the override list; 0 or an exit status. */
 int cli_overrides_prepare(cli_run_options *o, cli_overrides *ov);
+/* Adds wedge `index` of w (which ov does not own) to ov's overrides. */
+int cli_overrides_add_wedge(const cli_wedges *w, long index, cli_overrides *ov);
 /* Loads the scene with the overrides and gives a wedge that sets no seed its derived one. */
 int cli_overrides_load(const cli_run_options *o, cli_overrides *ov, fm_scene_def *def);
 /* OUTDIR/wedge.json (with --set or a wedge): at the start (exit_status < 0: "running") and at the

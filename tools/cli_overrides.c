@@ -35,20 +35,26 @@ static int add_override(cli_overrides *ov, const char *key, const char *value, c
     return 0;
 }
 
-/* The wedge's overrides in the file's order; its values' messages start "W.json: wedge I". */
+int cli_overrides_add_wedge(const cli_wedges *w, long index, cli_overrides *ov)
+{
+    ov->wedge = cli_wedge_overrides(w, index);
+    ov->wedge_count = w->count;
+    snprintf(ov->origin, sizeof ov->origin, "%s: wedge %ld", w->path, index);
+    const char *key;
+    json_t *value;
+    json_object_foreach(ov->wedge, key, value) {
+        int rc = add_override(ov, key, keep(ov, cli_json_text(value)), ov->origin);
+        if (rc) return rc;
+    }
+    return 0;
+}
+
+/* The wedge file, the index, the wedge's overrides. */
 static int add_wedge(cli_run_options *o, cli_overrides *ov)
 {
     int rc = cli_wedges_load(o->wedge_file, &ov->wedges);
     if (!rc) rc = cli_wedge_index(o, ov->wedges.count);
-    if (rc) return rc;
-    ov->wedge = cli_wedge_overrides(&ov->wedges, o->wedge);
-    snprintf(ov->origin, sizeof ov->origin, "%s: wedge %ld", o->wedge_file, o->wedge);
-    const char *key;
-    json_t *value;
-    json_object_foreach(ov->wedge, key, value) {
-        if ((rc = add_override(ov, key, keep(ov, cli_json_text(value)), ov->origin))) return rc;
-    }
-    return 0;
+    return rc ? rc : cli_overrides_add_wedge(&ov->wedges, o->wedge, ov);
 }
 
 int cli_overrides_prepare(cli_run_options *o, cli_overrides *ov)
@@ -100,7 +106,7 @@ static json_t *wedge_json(const cli_run_options *o, const cli_overrides *ov)
 {
     if (!o->wedge_file) return json_null();
     return json_pack("{sssIsIsssO}", "file", o->wedge_file, "index", (json_int_t)o->wedge, "count",
-                     (json_int_t)ov->wedges.count, "index_from", o->wedge_from, "overrides", ov->wedge);
+                     (json_int_t)ov->wedge_count, "index_from", o->wedge_from, "overrides", ov->wedge);
 }
 
 static json_t *strings_json(const char *const *s, int n)

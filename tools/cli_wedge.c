@@ -3,7 +3,6 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -137,8 +136,8 @@ static int no_wedge_index(const cli_run_options *o, long count)
     fprintf(stderr, "flockmorph: error: no wedge index: give --wedge I, or run as a Slurm array task "
             "(SLURM_ARRAY_TASK_ID), a Houdini PDG work item (PDG_INDEX) or an OpenCue frame (CUE_IFRAME); "
             "%s has %ld wedges (0 ... %ld)%s\n", o->wedge_file, count, count - 1,
-            getenv("PDG_ITEM_ID") ? "; PDG_ITEM_ID is set, but it is a work item's id, not its index: pass "
-            "--wedge @pdg_index" : "");
+            getenv("PDG_ITEM_ID") ? "; PDG_ITEM_ID is set, but it is a work item's id, not its index: give "
+            "the TOP's command --wedge `@pdg_index`" : "");
     return FM_ERR_USAGE;
 }
 
@@ -240,7 +239,7 @@ int cli_expand_outdir(cli_run_options *o)
 /* ---------------------------------------------------------------- flockmorph wedge */
 
 static const char *const USAGE_WEDGE =
-    "usage: flockmorph wedge list WEDGES.json [--json]\n"
+    "usage: flockmorph wedge list WEDGES.json [--scene SCENE.json] [--json]\n"
     "       flockmorph wedge count WEDGES.json\n"
     "\n"
     "A wedge file lists variants of a scene: {\"wedges\": [{KEY: VALUE, ...}, ...]}, or the product\n"
@@ -249,49 +248,110 @@ static const char *const USAGE_WEDGE =
     "job runs indices 0 ... count-1). 'flockmorph run SCENE --wedge-file WEDGES.json --wedge I -o\n"
     "out/{wedge}' runs one; docs/wedges.md has the details and farm examples.\n"
     "\n"
-    "  --json   list as JSON: {\"file\", \"count\", \"wedges\": [{\"index\", \"overrides\"}, ...]}\n";
+    "  --scene SCENE  also read every wedge with the scene, as run would (keys, types, ranges; not\n"
+    "                 the meshes), and give the seed it runs with; exit 2 if any is wrong\n"
+    "  --json         list as JSON: {\"file\", \"count\", \"wedges\": [{\"index\", \"overrides\"\n"
+    "                 (, \"seed\" with --scene)}, ...]}\n";
 
-static void print_wedge_line(const cli_wedges *w, long i)
+typedef struct wedge_args {
+    const char *command, *file, *scene;
+    int json;
+} wedge_args;
+
+static int parse_wedge(int argc, char **argv, wedge_args *a)
+{
+    memset(a, 0, sizeof *a);
+    for (int i = 0; i < argc; i++) {
+        if (!strcmp(argv[i], "--json")) a->json = 1;
+        else if (!strcmp(argv[i], "--scene") && i + 1 < argc) a->scene = argv[++i];
+        else if (argv[i][0] == '-') return cli_usage_error(USAGE_WEDGE, "unknown or incomplete option '%s'", argv[i]);
+        else if (!a->command) a->command = argv[i];
+        else if (!a->file) a->file = argv[i];
+        else return cli_usage_error(USAGE_WEDGE, "unexpected argument '%s'", argv[i]);
+    }
+    int list = a->command && !strcmp(a->command, "list"), count = a->command && !strcmp(a->command, "count");
+    if (!a->file || !(list || count) || (count && (a->json || a->scene)))
+        return cli_usage_error(USAGE_WEDGE, "%s", "wedge wants 'list WEDGES.json [--scene SCENE.json] [--json]' or "
+                               "'count WEDGES.json'");
+    return 0;
+}
+
+/* Wedge i read with the scene as run reads it (its errors printed); its seed. */
+static int wedge_seed(const cli_wedges *w, long i, const char *scene, uint64_t *seed)
+{
+    cli_run_options o = {.scene = scene, .wedge_file = w->path, .wedge = i, .wedge_from = "--wedge"};
+    cli_overrides ov = {0};
+    fm_scene_def *def = malloc(sizeof *def);
+    int rc = def ? cli_overrides_add_wedge(w, i, &ov) : FM_ERR_MEMORY;
+    if (!rc) rc = cli_overrides_load(&o, &ov, def);
+    if (!rc) *seed = def->seed;
+    cli_overrides_free(&ov);
+    free(def);
+    return rc;
+}
+
+/* One line of 'list': the index, KEY=VALUE ..., and with --scene the seed. */
+static int print_wedge_line(const cli_wedges *w, long i, const char *scene)
 {
     json_t *set = cli_wedge_overrides(w, i);
     const char *key;
     json_t *value;
+    uint64_t seed = 0;
+    int rc = scene ? wedge_seed(w, i, scene, &seed) : 0;
     printf("%6ld ", i);
     json_object_foreach(set, key, value) {
         char *text = cli_json_text(value);
         printf(" %s=%s", key, text ? text : "?");
         free(text);
     }
-    printf("%s\n", json_object_size(set) ? "" : " (the scene as it is)");
+    printf("%s", json_object_size(set) ? "" : " (the scene as it is)");
+    if (scene) rc ? printf("  (wrong: see above)") : printf("  (seed %llu)", (unsigned long long)seed);
+    printf("\n");
+    fflush(stdout); /* each line after its error, if any */
     json_decref(set);
+    return rc;
 }
 
-static int print_wedges_json(const cli_wedges *w)
+static int print_wedges_json(const cli_wedges *w, const char *scene)
 {
     json_t *list = json_array();
-    for (long i = 0; i < w->count; i++) json_array_append_new(list, json_pack("{sIso}", "index", (json_int_t)i, "overrides", cli_wedge_overrides(w, i)));
+    int wrong = 0;
+    for (long i = 0; i < w->count; i++) {
+        json_t *e = json_pack("{sIso}", "index", (json_int_t)i, "overrides", cli_wedge_overrides(w, i));
+        uint64_t seed = 0;
+        int rc = scene ? wedge_seed(w, i, scene, &seed) : 0;
+        if (scene) json_object_set_new(e, "seed", rc ? json_null() : json_integer((json_int_t)seed));
+        wrong += rc != 0;
+        json_array_append_new(list, e);
+    }
     json_t *j = json_pack("{sssIso}", "file", w->path, "count", (json_int_t)w->count, "wedges", list);
     json_dumpf(j, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(17));
     printf("\n");
     json_decref(j);
-    return 0;
+    return wrong;
+}
+
+static int print_wedges(const cli_wedges *w, const char *scene)
+{
+    int wrong = 0;
+    printf("%s: %ld wedge%s%s\n", w->path, w->count, w->count == 1 ? "" : "s",
+           w->product ? " (a product: the last key varies fastest)" : "");
+    for (long i = 0; i < w->count; i++) wrong += print_wedge_line(w, i, scene) != 0;
+    return wrong;
 }
 
 int cli_wedge(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_WEDGE), 0;
-    int json = argc == 3 && !strcmp(argv[2], "--json");
-    if (argc < 2 || (argc > 2 && !json) || (strcmp(argv[0], "list") && strcmp(argv[0], "count")) || (json && strcmp(argv[0], "list")))
-        return cli_usage_error(USAGE_WEDGE, "%s", "wedge wants 'list WEDGES.json [--json]' or 'count WEDGES.json'");
+    wedge_args a;
     cli_wedges w;
-    int rc = cli_wedges_load(argv[1], &w);
+    int rc = parse_wedge(argc, argv, &a);
+    if (!rc) rc = cli_wedges_load(a.file, &w);
     if (rc) return rc;
-    if (!strcmp(argv[0], "count")) printf("%ld\n", w.count);
-    else if (json) print_wedges_json(&w);
-    else {
-        printf("%s: %ld wedge%s%s\n", w.path, w.count, w.count == 1 ? "" : "s", w.product ? " (a product: the last key varies fastest)" : "");
-        for (long i = 0; i < w.count; i++) print_wedge_line(&w, i);
-    }
+    int wrong = 0;
+    if (!strcmp(a.command, "count")) printf("%ld\n", w.count);
+    else wrong = a.json ? print_wedges_json(&w, a.scene) : print_wedges(&w, a.scene);
+    if (wrong) fprintf(stderr, "flockmorph: error: %d of the %ld wedges of %s are wrong for %s\n", wrong, w.count, w.path, a.scene);
     cli_wedges_free(&w);
-    return 0;
+    return wrong ? FM_ERR_INPUT : 0;
 }

@@ -277,6 +277,15 @@ static void test_manifest(void)
     ENSURE(!strcmp(str(at(m, "status")), "finished") && json_integer_value(at(m, "exit_status")) == 0);
     ENSURE(json_is_string(at(m, "start_time")) && json_is_string(at(m, "end_time")));
     json_decref(m), json_decref(stats);
+    /* wedge list --scene reads every wedge with the scene and gives the seed run uses */
+    char line[128];
+    ENSURE_RUN("wedge list @list.json --scene @base.json", 0);
+    snprintf(line, sizeof line, "     1  mde.d_min=0.3 speed0=12  (seed %llu)\n", (unsigned long long)expected);
+    ENSURE_MSG(strstr(g_out, line) && strstr(g_out, "     2  seed=5  (seed 5)\n"), "%s", g_out);
+    write_file("wrong.json", "{\"wedges\": [{}, {\"speeed0\": 1}]}");
+    ENSURE_RUN("wedge list @wrong.json --scene @base.json", 2);
+    ENSURE_ERR("wedge_wrong.json: wedge 1: speeed0=1: speeed0: unknown key");
+    ENSURE_ERR("1 of the 2 wedges of");
     /* a wedge that sets the seed keeps it; wedge 0 derives another seed than wedge 1 */
     ENSURE_RUN("run @base.json --wedge-file @list.json --wedge 2 -o '@m/{wedge}' --quiet", 0);
     m = load_output_json("m/0002", FM_OUTPUT_MANIFEST);
