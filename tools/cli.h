@@ -15,6 +15,7 @@ int cli_export(int argc, char **argv);
 int cli_render(int argc, char **argv);
 int cli_inspect(int argc, char **argv);
 int cli_info(int argc, char **argv); /* inspect --json */
+int cli_wedge(int argc, char **argv); /* wedge list | count (cli_wedge.c) */
 
 double cli_seconds(void);
 /* Prints "flockmorph: <fmt with arg>" and the usage; returns FM_ERR_USAGE. */
@@ -38,7 +39,68 @@ typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
     long checkpoint_every; /* -1: by wall time (the default) */
+    const char *sets[FM_MAX_OVERRIDES]; /* --set KEY=VALUE, in order */
+    int set_count;
+    const char *wedge_file;             /* --wedge-file W, or NULL */
+    long wedge;                         /* --wedge I; -1 until chosen (cli_wedge_index) */
+    const char *wedge_from;             /* where the index came from: "--wedge", "SLURM_ARRAY_TASK_ID" ... */
+    char outdir_buf[FM_PATH_MAX];       /* -o with its {wedge} and {scene} filled in (outdir points here) */
+    int argc;
+    char **argv;                        /* as typed, for the manifest */
 } cli_run_options;
+
+/* A wedge file (docs/wedges.md): a list of override sets ({"wedges": [{KEY: VALUE, ...}, ...]}) or
+ * the product of value lists and ranges ({"product": {KEY: [v, ...] or {"from", "to", "count"}}},
+ * the last key varying fastest). */
+typedef struct cli_wedges {
+    const char *path;
+    json_t *list;  /* "wedges": the array of objects; "product": an object of KEY: [values] */
+    int product;
+    long count;
+} cli_wedges;
+/* Reads and checks a wedge file; 0 or an exit status (the error printed). */
+int cli_wedges_load(const char *path, cli_wedges *w);
+void cli_wedges_free(cli_wedges *w);
+/* Wedge `index`'s overrides, {KEY: VALUE, ...} in the file's order (a new reference). */
+json_t *cli_wedge_overrides(const cli_wedges *w, long index);
+/* o->wedge from --wedge, else SLURM_ARRAY_TASK_ID, PDG_INDEX or CUE_IFRAME (o->wedge_from says
+ * which), checked against the count; 0 or FM_ERR_USAGE with a message. */
+int cli_wedge_index(cli_run_options *o, long count);
+/* The seed of a wedge that sets none (docs/wedges.md): 63 bits of fm_random_bits(base, stream
+ * "WEDGE", index). */
+uint64_t cli_wedge_seed(uint64_t base, long index);
+/* VALUE as --set takes it: JSON text, reals in the fewest digits that read back exactly (a new
+ * malloc'ed string, or NULL). */
+char *cli_json_text(const json_t *v);
+/* o->outdir from the -o template: {wedge} is the index as 4 digits or more (0003), {scene} the
+ * scene file's name without its folder and .json (its folder's name for a scene.json); 0 or
+ * FM_ERR_USAGE with a message. */
+int cli_expand_outdir(cli_run_options *o);
+
+/* The run's overrides: the wedge's, then --set's (a later one wins), as the scene loader takes
+ * them, and what the manifest records (cli_overrides.c). */
+typedef struct cli_overrides {
+    fm_scene_override set[FM_MAX_OVERRIDES];
+    char *owned[2 * FM_MAX_OVERRIDES]; /* the keys and values this struct allocated */
+    int count, owned_count;
+    cli_wedges wedges;                 /* with --wedge-file (cli_overrides_prepare) */
+    json_t *wedge;                     /* the wedge's {KEY: VALUE}, or NULL */
+    long wedge_count;                  /* of its file */
+    char origin[FM_PATH_MAX + 32];     /* "W.json: wedge 3", how errors name the wedge's values */
+    uint64_t base_seed;
+    int seed_derived;                  /* the wedge and --set gave no seed: cli_wedge_seed */
+    char start_time[32];
+} cli_overrides;
+/* Reads the wedge file, picks the wedge and builds the override list; 0 or an exit status. */
+int cli_overrides_prepare(cli_run_options *o, cli_overrides *ov);
+/* Adds wedge `index` of w (which ov does not own) to ov's overrides. */
+int cli_overrides_add_wedge(const cli_wedges *w, long index, cli_overrides *ov);
+/* Loads the scene with the overrides and gives a wedge that sets no seed its derived one. */
+int cli_overrides_load(const cli_run_options *o, cli_overrides *ov, fm_scene_def *def);
+/* OUTDIR/wedge.json (with --set or a wedge): at the start (exit_status < 0: "running") and at the
+ * end; a plain run removes an earlier run's at its start. */
+int cli_write_manifest(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def, int exit_status);
+void cli_overrides_free(cli_overrides *ov);
 /* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json, OUTDIR/checkpoint.fmck) and with
  * how many threads. */
 typedef struct cli_outputs {

@@ -340,6 +340,12 @@ static void print_resume_command(const cli_run_options *o)
 {
     fputs("flockmorph run ", stderr);
     print_shell_word(stderr, o->scene);
+    for (int i = 0; i < o->set_count; i++) fputs(" --set ", stderr), print_shell_word(stderr, o->sets[i]);
+    if (o->wedge_file) {
+        fputs(" --wedge-file ", stderr);
+        print_shell_word(stderr, o->wedge_file);
+        fprintf(stderr, " --wedge %ld", o->wedge);
+    }
     fputs(" -o ", stderr);
     print_shell_word(stderr, o->outdir);
     fputs(" --resume\n", stderr);

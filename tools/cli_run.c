@@ -15,6 +15,7 @@
 
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
+    "                      [--set KEY=VALUE ...] [--wedge-file WEDGES.json [--wedge I]]\n"
     "\n"
     "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
     "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
@@ -29,14 +30,32 @@ static const char *const USAGE_RUN =
     "                        interrupted (default: every 60 s of wall time)\n"
     "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene;\n"
     "                        either mode)\n"
+    "  --set KEY=VALUE       change the scene: KEY dotted (mde.d_min, obstacles.meshes.0.scale),\n"
+    "                        VALUE JSON (0.05, true, [1, 2, 3]) or else a string; checked as the\n"
+    "                        file is. Repeatable; applied after the wedge's\n"
+    "  --wedge-file W        run one wedge of W (docs/wedges.md; 'flockmorph wedge list W')\n"
+    "  --wedge I             which one (0 ...); default: $SLURM_ARRAY_TASK_ID, $PDG_INDEX or\n"
+    "                        $CUE_IFRAME. -o may hold {wedge} (0003) and {scene}; OUTDIR/wedge.json\n"
+    "                        records what ran\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
+
+/* --set KEY=VALUE: a key before the first '=' (what it names is the scene loader's to check). */
+static int parse_set(const char *arg, cli_run_options *o)
+{
+    const char *eq = strchr(arg, '=');
+    if (!eq || eq == arg || o->set_count == FM_MAX_OVERRIDES) return -1;
+    o->sets[o->set_count++] = arg;
+    return 0;
+}
 
 static int parse_run(int argc, char **argv, cli_run_options *o)
 {
     memset(o, 0, sizeof *o);
     o->checkpoint_every = -1;
+    o->wedge = -1;
+    o->argc = argc, o->argv = argv;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
         long v;
@@ -47,6 +66,12 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
         } else if (!strcmp(a, "--checkpoint-every") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 0, 2000000000L, &o->checkpoint_every))
                 return cli_usage_error(USAGE_RUN, "--checkpoint-every wants a whole number of frames >= 0, not '%s'", argv[i]);
+        } else if (!strcmp(a, "--set") && i + 1 < argc) {
+            if (parse_set(argv[++i], o)) return cli_usage_error(USAGE_RUN, "--set wants KEY=VALUE (mde.d_min=0.05) and at most 64 of them, not '%s'", argv[i]);
+        } else if (!strcmp(a, "--wedge-file") && i + 1 < argc) o->wedge_file = argv[++i];
+        else if (!strcmp(a, "--wedge") && i + 1 < argc) {
+            if (cli_parse_int(argv[++i], 0, 2000000000L, &o->wedge)) return cli_usage_error(USAGE_RUN, "--wedge wants a wedge index (0, 1, ...), not '%s'", argv[i]);
+            o->wedge_from = "--wedge";
         } else if (!strcmp(a, "--resume")) o->resume = 1;
         else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
         else if (a[0] == '-') return cli_usage_error(USAGE_RUN, "unknown or incomplete option '%s'", a);
@@ -55,6 +80,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     }
     if (!o->scene) return cli_usage_error(USAGE_RUN, "%s", "no scene file given");
     if (!o->outdir) return cli_usage_error(USAGE_RUN, "%s", "no output directory given (-o OUTDIR)");
+    if (o->wedge >= 0 && !o->wedge_file) return cli_usage_error(USAGE_RUN, "%s", "--wedge needs --wedge-file");
     return 0;
 }
 
@@ -158,18 +184,32 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
     return rc;
 }
 
+/* The output directory, taken, and the manifest's first version; then the run and its last. */
+static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
+{
+    const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST};
+    int rc = cli_make_outdir(o->outdir, outputs, 3);
+    if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
+    if (!rc && o->resume) rc = cli_check_checkpoint(o, def); /* before the long preprocessing */
+    if (!rc) rc = cli_write_manifest(o, ov, def, -1);
+    if (rc) return rc;
+    rc = run_scene(o, def);
+    int manifest = cli_write_manifest(o, ov, def, rc);
+    return rc ? rc : manifest;
+}
+
 int cli_run(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_RUN), 0;
     cli_run_options o;
     int rc = parse_run(argc, argv, &o);
     if (rc) return rc;
-    fm_error err = {0};
+    cli_overrides ov;
     fm_scene_def def;
-    if (fm_scene_load(o.scene, &def, &err) != FM_OK) return cli_report(&err);
-    const char *outputs[] = {def.cache_name, FM_OUTPUT_STATS};
-    if ((rc = cli_make_outdir(o.outdir, outputs, 2))) return rc;
-    if ((rc = cli_lock_outdir(o.outdir))) return rc; /* before anything there is removed or read */
-    if (o.resume && (rc = cli_check_checkpoint(&o, &def))) return rc; /* before the long preprocessing */
-    return run_scene(&o, &def);
+    rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
+    if (!rc) rc = cli_expand_outdir(&o);
+    if (!rc) rc = cli_overrides_load(&o, &ov, &def);
+    if (!rc) rc = run_in_outdir(&o, &ov, &def);
+    cli_overrides_free(&ov);
+    return rc;
 }

@@ -5,6 +5,8 @@
  *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4 [--frames A:B] [--fps F] [options]
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
+ *   flockmorph wedge list|count WEDGES.json
+ *   flockmorph run SCENE.json --set KEY=VALUE --wedge-file WEDGES.json [--wedge I] -o 'out/{wedge}' 
  *   flockmorph help [COMMAND]          (COMMAND --help)
  *   flockmorph --version | -V
  *
@@ -28,6 +30,7 @@ static const char *USAGE_MAIN =
     "  render   ray-cast a frame of a cache to a PNG, or frames to an MP4 (ffmpeg)\n"
     "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
     "  info     the same as 'inspect --json'\n"
+    "  wedge    list or count the variants of a wedge file (run --wedge-file runs one)\n"
     "\n"
     "'flockmorph help <command>' or 'flockmorph <command> --help' describes each command;\n"
     "'flockmorph --version' prints the version. docs/ has the scene file reference.\n";
@@ -37,6 +40,7 @@ static const struct {
     int (*fn)(int argc, char **argv);
 } COMMANDS[] = {
     {"run", cli_run}, {"export", cli_export}, {"render", cli_render}, {"inspect", cli_inspect}, {"info", cli_info},
+    {"wedge", cli_wedge},
 };
 
 static int (*find_command(const char *name))(int, char **)

@@ -17,6 +17,7 @@ extern "C" {
 #define FM_OUTPUT_STATS "stats.json"
 #define FM_OUTPUT_CHECKPOINT "checkpoint.fmck"
 #define FM_OUTPUT_LOCK ".flockmorph.lock"
+#define FM_OUTPUT_MANIFEST "wedge.json" /* what ran, with which overrides (docs/wedges.md) */
 
 typedef enum fm_curve { FM_CURVE_POLYLINE = 0, FM_CURVE_CATMULL_ROM = 1 } fm_curve;
 
@@ -144,6 +145,25 @@ typedef struct fm_flock_def {
     double deform_frame_rate;    /* sequence: meshes per second; the sequence loops */
 } fm_flock_def;
 
+/* One change to a scene file's JSON before it is read (`flockmorph run --set KEY=VALUE`, a
+ * wedge; docs/wedges.md). key is dotted, with list elements by their index ("mde.d_min",
+ * "obstacles.meshes.0.scale"); missing groups are created. value is JSON text ("0.05", "true",
+ * "[1, 2, 3]", "{\"type\": \"gravity\"}"; null removes the key, which then takes its default),
+ * or any other text as a plain string. Messages about it start "--set KEY=VALUE", or
+ * "ORIGIN: KEY=VALUE" when origin is not NULL. */
+typedef struct fm_scene_override {
+    const char *key, *value, *origin;
+} fm_scene_override;
+
+#define FM_MAX_OVERRIDES 64
+
+/* An override as the loaded scene remembers it, so that errors found later (a mesh that does
+ * not open, n too small) name it rather than the file's line. */
+typedef struct fm_scene_override_note {
+    char path[160];  /* the key as messages write it: "obstacles.meshes[0].scale" */
+    char label[320]; /* what messages start with: "--set obstacles.meshes.0.scale=2" */
+} fm_scene_override_note;
+
 /* Every parameter of a run; docs/scene.md documents each with its default and unit. */
 typedef struct fm_scene_def {
     char scene_path[FM_PATH_MAX]; /* where it was read from (for messages); "" if built in code */
@@ -196,6 +216,9 @@ typedef struct fm_scene_def {
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
     fm_flock_def flock;         /* mode FM_MODE_SHAPE_FLOCK only */
+    /* the overrides it was read with (fm_scene_load_overridden), in order; for messages only */
+    fm_scene_override_note overrides[FM_MAX_OVERRIDES];
+    int32_t override_count;
 } fm_scene_def;
 
 fm_scene_def fm_default_scene_def(void);
@@ -209,6 +232,13 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err);
  * messages and relative mesh paths are resolved against its directory. */
 fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def,
                          fm_error *err);
+
+/* fm_scene_load of the file's JSON changed by `count` overrides, applied in order (a later one
+ * wins), then validated exactly as a file is. An error in an overridden value, or in a key an
+ * override created, names the override instead of FILE:LINE:COLUMN:
+ * "--set mde.d_min=-1: mde.d_min: -1 is out of range: must be >= 0". */
+fm_status fm_scene_load_overridden(const char *path, const fm_scene_override *overrides, int count,
+                                   fm_scene_def *def, fm_error *err);
 
 /* Checks a definition built in code (fm_scene_load calls it too). */
 fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err);

@@ -8,6 +8,7 @@
 #include "fm_internal.h"
 #include "json_locate.h"
 #include "scene_internal.h"
+#include "scene_override.h"
 
 #include <jansson.h>
 
@@ -301,6 +302,7 @@ typedef struct where {
     int depth;
     int at_key;             /* point at the key rather than the value */
     char label[160];        /* the key named in messages inside list elements ("style.fields[1].gain") */
+    const fm_scene_def *overridden; /* the overrides an error may be about (fm_override_blame), or NULL */
 } where;
 
 #define KEY(w, p) ((w)->label[0] ? (w)->label : (p)->key)
@@ -325,7 +327,29 @@ static void where_set_key(where *w, const char *dotted)
     }
 }
 
-/* The error message: "FILE:LINE:COL: key: what" (FILE: key: what without a text). */
+/* w's path as messages write keys: "obstacles.meshes[1].scale". */
+static void where_path(const where *w, char *out, size_t size)
+{
+    size_t len = 0;
+    out[0] = 0;
+    for (int d = 0; d < w->depth && len < size; d++, len = strlen(out)) {
+        if (w->steps[d].key) snprintf(out + len, size - len, "%s%s", d ? "." : "", w->steps[d].key);
+        else snprintf(out + len, size - len, "[%d]", w->steps[d].index);
+    }
+}
+
+/* The override an error at w about `key` is about, or NULL. */
+static const fm_scene_override_note *blame(const where *w, const char *key)
+{
+    if (!w->overridden) return NULL;
+    char path[256];
+    where_path(w, path, sizeof path);
+    const fm_scene_override_note *note = fm_override_blame(w->overridden, path);
+    return note ? note : fm_override_blame(w->overridden, key);
+}
+
+/* The error message: "FILE:LINE:COL: key: what" (FILE: key: what without a text), or
+ * "--set KEY=VALUE: key: what" when an override set the value. */
 static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
@@ -336,24 +360,13 @@ static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
     va_start(ap, fmt);
     vsnprintf(what, sizeof what, fmt, ap);
     va_end(ap);
+    const fm_scene_override_note *note = blame(w, key);
+    if (note) return fm_fail(w->err, FM_ERR_INPUT, "%s: %s: %s", note->label, key, what);
     int line = 0, col = 0;
     if (w->text) fm_json_locate(w->text, w->steps, w->depth, w->at_key, &line, &col);
     const char *file = w->file && w->file[0] ? w->file : "scene";
     if (line > 0) return fm_fail(w->err, FM_ERR_INPUT, "%s:%d:%d: %s: %s", file, line, col, key, what);
     return fm_fail(w->err, FM_ERR_INPUT, "%s: %s: %s", file, key, what);
-}
-
-static const char *json_type_name(const json_t *v)
-{
-    switch (json_typeof(v)) {
-    case JSON_OBJECT: return "an object";
-    case JSON_ARRAY: return "an array";
-    case JSON_STRING: return "a string";
-    case JSON_INTEGER: return "an integer";
-    case JSON_REAL: return "a number";
-    case JSON_TRUE: case JSON_FALSE: return "a boolean";
-    default: return "null";
-    }
 }
 
 static fm_status check_range(const where *w, const param *p, double x)
@@ -369,14 +382,14 @@ static fm_status check_range(const where *w, const param *p, double x)
 
 static fm_status read_number(const where *w, const param *p, const json_t *v, double *out)
 {
-    if (!json_is_number(v)) return fail_at(w, KEY(w, p), "expected a number, got %s", json_type_name(v));
+    if (!json_is_number(v)) return fail_at(w, KEY(w, p), "expected a number, got %s", fm_json_type_name(v));
     *out = json_number_value(v);
     return check_range(w, p, *out);
 }
 
 static fm_status read_integer(const where *w, const param *p, const json_t *v, int64_t *out)
 {
-    if (!json_is_integer(v)) return fail_at(w, KEY(w, p), "expected an integer, got %s", json_type_name(v));
+    if (!json_is_integer(v)) return fail_at(w, KEY(w, p), "expected an integer, got %s", fm_json_type_name(v));
     *out = json_integer_value(v);
     if (p->type == P_UINT64) {
         if (*out < 0) return fail_at(w, KEY(w, p), "must be >= 0");
@@ -389,7 +402,7 @@ static fm_status read_integer(const where *w, const param *p, const json_t *v, i
 static fm_status read_vec3(where *w, const param *p, const json_t *v, double *out)
 {
     if (!json_is_array(v) || json_array_size(v) != 3)
-        return fail_at(w, KEY(w, p), "expected an array of 3 numbers, got %s%s", json_type_name(v),
+        return fail_at(w, KEY(w, p), "expected an array of 3 numbers, got %s%s", fm_json_type_name(v),
                        json_is_array(v) ? " of another length" : "");
     for (int k = 0; k < 3; k++) {
         w->steps[w->depth++] = (fm_json_step){NULL, k};
@@ -402,7 +415,7 @@ static fm_status read_vec3(where *w, const param *p, const json_t *v, double *ou
 
 static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene_def *def)
 {
-    if (!json_is_array(v)) return fail_at(w, KEY(w, p), "expected an array of [x, y, z] points, got %s", json_type_name(v));
+    if (!json_is_array(v)) return fail_at(w, KEY(w, p), "expected an array of [x, y, z] points, got %s", fm_json_type_name(v));
     if (json_array_size(v) > FM_MAX_PATH_POINTS)
         return fail_at(w, KEY(w, p), "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
     def->path_point_count = (int32_t)json_array_size(v);
@@ -418,7 +431,7 @@ static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene
 /* A mesh path, resolved against the scene file's directory when relative. */
 static fm_status read_mesh_path(const where *w, const param *p, const json_t *v, char *out)
 {
-    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", json_type_name(v));
+    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", fm_json_type_name(v));
     const char *name = json_string_value(v);
     if (!name[0]) return fail_at(w, KEY(w, p), "the mesh file name is empty");
     const char *slash = strrchr(w->file, '/');
@@ -433,7 +446,7 @@ static fm_status read_mesh_path(const where *w, const param *p, const json_t *v,
  * named like one of them would overwrite it or be overwritten. */
 static const char *cache_name_problem(const char *name)
 {
-    static const char *const taken[] = {FM_OUTPUT_STATS, FM_OUTPUT_CHECKPOINT, FM_OUTPUT_LOCK};
+    static const char *const taken[] = {FM_OUTPUT_STATS, FM_OUTPUT_CHECKPOINT, FM_OUTPUT_LOCK, FM_OUTPUT_MANIFEST};
     size_t len = strlen(name), suffix = strlen(".partial");
     if (!name[0] || strchr(name, '/') || len >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
         return "is not a plain file name (no '/', at most 255 bytes)";
@@ -446,7 +459,7 @@ static const char *cache_name_problem(const char *name)
 
 static fm_status read_name(const where *w, const param *p, const json_t *v, char *out)
 {
-    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", json_type_name(v));
+    if (!json_is_string(v)) return fail_at(w, KEY(w, p), "expected a file name, got %s", fm_json_type_name(v));
     const char *name = json_string_value(v), *problem = cache_name_problem(name);
     if (problem) return fail_at(w, KEY(w, p), "'%s' %s", name, problem);
     strcpy(out, name);
@@ -467,7 +480,7 @@ static fm_status read_enum(const where *w, const param *p, const json_t *v, cons
 
 static fm_status read_bool(const where *w, const param *p, const json_t *v, int32_t *out)
 {
-    if (!json_is_boolean(v)) return fail_at(w, KEY(w, p), "expected true or false, got %s", json_type_name(v));
+    if (!json_is_boolean(v)) return fail_at(w, KEY(w, p), "expected true or false, got %s", fm_json_type_name(v));
     *out = json_is_true(v);
     return FM_OK;
 }
@@ -476,7 +489,7 @@ static fm_status read_bool(const where *w, const param *p, const json_t *v, int3
 static fm_status read_int3(where *w, const param *p, const json_t *v, int32_t *out)
 {
     if (!json_is_array(v) || json_array_size(v) != 3)
-        return fail_at(w, KEY(w, p), "expected an array of 3 integers, got %s", json_type_name(v));
+        return fail_at(w, KEY(w, p), "expected an array of 3 integers, got %s", fm_json_type_name(v));
     for (int k = 0; k < 3; k++) {
         int64_t x = 0;
         w->steps[w->depth++] = (fm_json_step){NULL, k};
@@ -499,7 +512,7 @@ static fm_status read_range(where *w, const param *p, const json_t *v, double *o
         return st;
     }
     if (!json_is_array(v) || json_array_size(v) != 2)
-        return fail_at(w, KEY(w, p), "expected a number or a range [lo, hi], got %s", json_type_name(v));
+        return fail_at(w, KEY(w, p), "expected a number or a range [lo, hi], got %s", fm_json_type_name(v));
     for (int k = 0; k < 2; k++) {
         w->steps[w->depth++] = (fm_json_step){NULL, k};
         fm_status st = read_number(w, p, json_array_get(v, (size_t)k), &out[k]);
@@ -516,7 +529,7 @@ static fm_status read_fuzzy_point(where *w, const param *p, const json_t *v, fm_
     param weight = *p; /* named like the curve; weights are 0 .. 10^6 */
     weight.min = 0, weight.max = 1e6, weight.open = 0;
     if (!json_is_array(v) || json_array_size(v) != 2)
-        return fail_at(w, KEY(w, p), "expected a point [distance, weight], got %s", json_type_name(v));
+        return fail_at(w, KEY(w, p), "expected a point [distance, weight], got %s", fm_json_type_name(v));
     w->steps[w->depth++] = (fm_json_step){NULL, 0};
     fm_status st = read_number(w, p, json_array_get(v, 0), &c->d[i]);
     w->steps[w->depth - 1] = (fm_json_step){NULL, 1};
@@ -566,7 +579,7 @@ static fm_status read_member(where *w, const char *label, const param *p, const 
 static fm_status read_element(where *w, const json_t *obj, const param *table, int count, void *base,
                               const char *label, const char *allowed, fm_scene_def *def)
 {
-    if (!json_is_object(obj)) return fail_at(w, label, "expected an object, got %s", json_type_name(obj));
+    if (!json_is_object(obj)) return fail_at(w, label, "expected an object, got %s", fm_json_type_name(obj));
     const char *key;
     json_t *value;
     json_object_foreach((json_t *)obj, key, value) {
@@ -598,7 +611,7 @@ typedef fm_status (*element_reader)(where *w, const json_t *e, int32_t i, const 
 static fm_status read_list(where *w, const param *p, const json_t *v, int max, int32_t *count,
                            element_reader read_one, fm_scene_def *def)
 {
-    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of objects, got %s", json_type_name(v));
+    if (!json_is_array(v)) return fail_at(w, p->key, "expected an array of objects, got %s", fm_json_type_name(v));
     if (json_array_size(v) > (size_t)max) return fail_at(w, p->key, "at most %d entries", max);
     *count = (int32_t)json_array_size(v);
     for (int32_t i = 0; i < *count; i++) {
@@ -679,7 +692,7 @@ static fm_status lookup(where *w, const json_t *root, const char *dotted, const 
         if (!json_is_object(v)) {
             int depth = w->depth;
             w->depth = d;
-            fm_status st = fail_at(w, w->names[d - 1], "expected an object, got %s", json_type_name(v));
+            fm_status st = fail_at(w, w->names[d - 1], "expected an object, got %s", fm_json_type_name(v));
             w->depth = depth;
             return st;
         }
@@ -911,7 +924,7 @@ static fm_status check_lists(where *w, const fm_scene_def *def)
 
 fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
 {
-    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, ""};
+    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, "", def};
     if (!def->source.path[0] || !def->target.path[0])
         return fail_at(&w, def->source.path[0] ? "target.mesh" : "source.mesh", "no mesh given");
     fm_status st = check_table(&w, PARAMS, PARAM_COUNT, def, NULL);
@@ -973,8 +986,9 @@ static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_erro
 void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size)
 {
     const char *file = def->scene_path;
-    if (!file[0]) {
-        snprintf(out, size, "%s", key);
+    const fm_scene_override_note *note = fm_override_blame(def, key);
+    if (note || !file[0]) {
+        snprintf(out, size, "%s%s%s", note ? note->label : "", note ? ": " : "", key);
         return;
     }
     fm_status st;
@@ -983,7 +997,7 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     json_t *root = text ? json_loads(text, JSON_REJECT_DUPLICATES, NULL) : NULL; /* locate needs valid JSON */
     int line = 0, col = 0;
     if (root) {
-        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, ""};
+        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, "", NULL};
         where_set_key(&w, key);
         fm_json_locate(text, w.steps, w.depth, 0, &line, &col);
         json_decref(root);
@@ -993,7 +1007,18 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     else snprintf(out, size, "%s: %s", file, key);
 }
 
-fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def, fm_error *err)
+/* Reads the document (changed by the overrides, if any) into def. */
+static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
+{
+    fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
+    if (st == FM_OK) st = read_scene(w, root, def);
+    if (st == FM_OK) st = check_consistency(w, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
+    return st;
+}
+
+static fm_status parse_scene(const char *text, size_t len, const char *name, const fm_scene_override *set, int count,
+                             fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", name ? name : "");
@@ -1009,17 +1034,21 @@ fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scen
     if (!root) {
         st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", file, jerr.line, jerr.column, jerr.text);
     } else {
-        where w = {def->scene_path, copy, err, {{0}}, {{0}}, 0, 0, ""};
-        st = read_scene(&w, root, def);
-        if (st == FM_OK) st = check_consistency(&w, def);
-        if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(&w, def);
+        where w = {def->scene_path, copy, err, {{0}}, {{0}}, 0, 0, "", def};
+        st = read_document(&w, root, set, count, def);
         json_decref(root);
     }
     free(copy);
     return st;
 }
 
-fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
+fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def, fm_error *err)
+{
+    return parse_scene(text, len, name, NULL, 0, def, err);
+}
+
+fm_status fm_scene_load_overridden(const char *path, const fm_scene_override *overrides, int count,
+                                   fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
@@ -1027,9 +1056,14 @@ fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
     fm_status st = FM_OK;
     char *text = read_text(path, &len, &st, err);
     if (!text) return st;
-    st = fm_scene_parse(text, len, path, def, err);
+    st = parse_scene(text, len, path, overrides, count, def, err);
     free(text);
     return st;
+}
+
+fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
+{
+    return fm_scene_load_overridden(path, NULL, 0, def, err);
 }
 
 /* ---------------------------------------------------------------- canonical bytes (checkpoints) */
