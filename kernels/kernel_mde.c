@@ -29,7 +29,7 @@ enum {
     MDE_RUNS = 9,    /* rows of the 3 x 3 x 3 box */
     MDE_RANGES = 27, /* at most one per slot */
     MDE_BATCH = 64,  /* hits sorted and summed at a time */
-    MDE_AHEAD = 16   /* agents ahead whose slot table entry is prefetched */
+    MDE_AHEAD = 32   /* agents ahead whose slot table entry is prefetched */
 };
 
 typedef struct mde_ctx {

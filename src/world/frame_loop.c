@@ -78,12 +78,14 @@ fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, con
     double size = 0, min[3], max[3];
     for (int k = 0; k < 3; k++) size = fmax(size, hi[k] - lo[k]);
     for (int k = 0; k < 3; k++) min[k] = lo[k] - FM_RUNAWAY_SCENES * size, max[k] = hi[k] + FM_RUNAWAY_SCENES * size;
-    const int64_t values = n * per_agent;
+    const int64_t points = n * per_agent / 3;
     int64_t first = INT64_MAX; /* the first bad value: the same for any thread count */
-#pragma omp parallel for reduction(min : first) schedule(static)
-    for (int64_t i = 0; i < values; i++) {
-        const int k = (int)(i % 3);
-        if (!(pos[i] >= min[k] && pos[i] <= max[k]) && i < first) first = i;
+#pragma omp parallel for num_threads(fm_threads(0)) reduction(min : first) schedule(static)
+    for (int64_t i = 0; i < points; i++) { /* x, y, z of one point; a bad one is rare */
+        const float *q = pos + 3 * i;
+        if (!(q[0] >= min[0] && q[0] <= max[0] && q[1] >= min[1] && q[1] <= max[1] && q[2] >= min[2] && q[2] <= max[2]))
+            for (int k = 0; k < 3; k++)
+                if (!(q[k] >= min[k] && q[k] <= max[k]) && 3 * i + k < first) first = 3 * i + k;
     }
     if (first == INT64_MAX) return FM_OK;
     const int64_t agent = first / per_agent;
