@@ -33,6 +33,7 @@ static void size_table(fm_grid *g, int64_t agents)
     if (log2_fine > log2_table) log2_fine = log2_table;
     g->mask = (uint32_t)(table - 1);
     g->log2_table = log2_table;
+    g->shift_y = (log2_table + 1) / 3, g->shift_z = 2 * g->shift_y;
     g->log2_fine = log2_fine;
     g->coarse = (int32_t)(table >> log2_fine);
 }

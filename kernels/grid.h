@@ -49,6 +49,8 @@ typedef struct fm_grid {
     int64_t count;         /* agents listed by the last build */
     uint32_t mask;         /* table size - 1 */
     int log2_table;        /* table size = 1 << log2_table, 6 .. 31 */
+    int linear_rows;       /* rows by position, not hashed (set after fm_grid_init; see fm_grid_row) */
+    int shift_y, shift_z;  /* linear rows: row(cy, cz) = cy << shift_y + cz << shift_z (mod the table) */
     float cell;            /* cell edge of the last build (as requested) */
     double inv_cell;       /* 1 / (cell * (1 + 2^-20)): see fm_grid_scaled */
     int32_t *start;        /* table size + 1: slot s lists entries start[s] .. start[s+1]-1 */
@@ -101,8 +103,13 @@ static inline uint32_t fm_grid_row_mix(const fm_grid *g, uint32_t hy, uint32_t h
     return h >> (32 - g->log2_table);
 }
 
+/* The first slot of row (cy, cz), before adding cx. Hashed, or with linear_rows a row-major index
+ * wrapped by the table: cells near each other in space then have slots near each other, so a store
+ * sorted along a space-filling curve walks the table (and the entries) almost in order instead of
+ * at random. Distant cells share slots either way; callers filter by distance. */
 static inline uint32_t fm_grid_row(const fm_grid *g, int32_t cy, int32_t cz)
 {
+    if (g->linear_rows) return ((uint32_t)cy << g->shift_y) + ((uint32_t)cz << g->shift_z);
     return fm_grid_row_mix(g, (uint32_t)cy * FM_GRID_HY, (uint32_t)cz * FM_GRID_HZ);
 }
 

@@ -69,6 +69,9 @@ static fm_status create_velocity_model(const fm_morph_model *m, fm_morph_state *
     if (def->d_min > 0) {
         fm_status st = fm_grid_init(&s->grid, s->n, err);
         s->grid_ready = st == FM_OK;
+        /* The store is Morton-sorted and MDE sums by id, not in the grid's order: rows by position
+         * keep the walk's lookups near each other in memory and change no result. */
+        s->grid.linear_rows = 1;
         return st;
     }
     return FM_OK;

@@ -163,6 +163,10 @@ static int64_t run_kernel(const fm_grid *g, const pts *s, float d_min, float pus
     return count;
 }
 
+/* Rows by position instead of hashed (fm_grid.linear_rows) in the brute-force checks: main runs
+ * them both ways. */
+static int linear_rows;
+
 /* Builds the grid and runs the kernel on s, checks both against brute force; returns the number
  * of agents that needed a push. */
 static int64_t check_against_brute_force(const char *what, const pts *s, float d_min, float cell, float push,
@@ -173,6 +177,7 @@ static int64_t check_against_brute_force(const char *what, const pts *s, float d
     fm_grid g;
     fm_error err;
     ENSURE(fm_grid_init(&g, s->n, &err) == FM_OK);
+    g.linear_rows = linear_rows;
     const float *p[3] = {s->p[0], s->p[1], s->p[2]};
     fm_grid_build(&g, p, s->member, s->n, cell, threads);
     check_grid(&g, s);
@@ -643,6 +648,40 @@ static void bench(void)
     pts_free(&s);
 }
 
+/* MDE sums by id, not in the grid's order: hashed rows and rows by position (which list the
+ * agents in other orders, with other slot collisions) give the same bits, and so do cells of
+ * other sizes. */
+static void test_layout_does_not_change_v_la(void)
+{
+    uint64_t rng = 23;
+    pts s = pts_new(6000);
+    fill_uniform(&s, &rng, -3.0, side_for(s.n, 6, 1.0));
+    drop_members(&s, &rng, 0.1);
+    for (int64_t a = 0; a < 300; a += 3) /* triples on top of each other: coincident pairs, 3+ hits */
+        for (int k = 0; k < 3; k++) s.p[k][a + 1] = s.p[k][a + 2] = s.p[k][a];
+    const float *p[3] = {s.p[0], s.p[1], s.p[2]};
+    mde_out o[3] = {out_new(s.n), out_new(s.n), out_new(s.n)};
+    const float cell[3] = {1.0f, 1.0f, 2.5f};
+    for (int v = 0; v < 3; v++) {
+        fm_grid g;
+        ENSURE(fm_grid_init(&g, s.n, NULL) == FM_OK);
+        g.linear_rows = v == 1;
+        fm_grid_build(&g, p, s.member, s.n, cell[v], 2);
+        run_kernel(&g, &s, 1.0f, 1.5f, &o[v], 2);
+        fm_grid_free(&g);
+    }
+    int64_t pushed = 0;
+    for (int64_t a = 0; a < s.n; a++) pushed += o[0].needed[a];
+    ENSURE(pushed > s.n / 2);
+    for (int v = 1; v < 3; v++) {
+        for (int k = 0; k < 3; k++)
+            ENSURE_MSG(memcmp(o[0].v[k], o[v].v[k], sizeof(float) * (size_t)s.n) == 0, "layout %d changed v_la", v);
+        ENSURE(memcmp(o[0].needed, o[v].needed, (size_t)s.n) == 0);
+    }
+    for (int v = 0; v < 3; v++) out_free(&o[v]);
+    pts_free(&s);
+}
+
 int main(void)
 {
     RUN_TEST(test_hand_made_pairs);
@@ -653,6 +692,11 @@ int main(void)
     RUN_TEST(test_hash_collisions);
     RUN_TEST(test_threads_bitwise);
     RUN_TEST(test_capacity_reuse);
+    RUN_TEST(test_layout_does_not_change_v_la);
+    linear_rows = 1; /* the brute-force checks again, rows by position */
+    RUN_TEST(test_uniform_sets);
+    RUN_TEST(test_clustered_and_duplicates);
+    RUN_TEST(test_cell_borders);
 #if defined(__SANITIZE_ADDRESS__)
     printf("    (timings skipped under AddressSanitizer)\n");
     (void)bench;
