@@ -184,6 +184,14 @@ static inline di di_gather_u8(const uint8_t *table, di idx)
     return di_and(_mm256_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
 }
 static inline dv dv_gather(const double *table, di idx) { return _mm512_i32gather_pd(idx, table, 8); }
+static inline dv dv_div(dv a, dv b) { return _mm512_div_pd(a, b); }
+static inline dv dv_from_ints(const int32_t *p) { return _mm512_cvtepi32_pd(_mm256_loadu_si256((const __m256i *)p)); }
+/* rounds to float as a C cast does (to nearest) */
+static inline void dv_store_floats(float *p, dv x) { _mm256_storeu_ps(p, _mm512_cvtpd_ps(x)); }
+typedef __mmask8 dm;
+static inline dm dv_le(dv a, dv b) { return _mm512_cmp_pd_mask(a, b, _CMP_LE_OQ); }
+static inline dm dv_gt(dv a, dv b) { return _mm512_cmp_pd_mask(a, b, _CMP_GT_OQ); }
+static inline dv dv_blend(dm m, dv a, dv b) { return _mm512_mask_blend_pd(m, b, a); } /* m ? a : b */
 #elif defined(__AVX2__)
 #define FM_WD 4
 typedef __m256d dv;
@@ -206,6 +214,13 @@ static inline di di_gather_u8(const uint8_t *table, di idx)
     return di_and(_mm_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
 }
 static inline dv dv_gather(const double *table, di idx) { return _mm256_i32gather_pd(table, idx, 8); }
+static inline dv dv_div(dv a, dv b) { return _mm256_div_pd(a, b); }
+static inline dv dv_from_ints(const int32_t *p) { return _mm256_cvtepi32_pd(_mm_loadu_si128((const __m128i *)p)); }
+static inline void dv_store_floats(float *p, dv x) { _mm_storeu_ps(p, _mm256_cvtpd_ps(x)); }
+typedef __m256d dm;
+static inline dm dv_le(dv a, dv b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
+static inline dm dv_gt(dv a, dv b) { return _mm256_cmp_pd(a, b, _CMP_GT_OQ); }
+static inline dv dv_blend(dm m, dv a, dv b) { return _mm256_blendv_pd(b, a, m); }
 #else
 /* SSE2 has no floor and no gathers, and the scalar build no vectors: lanes in plain arrays, which
  * the compiler keeps in registers where it can. */
@@ -236,6 +251,16 @@ static inline di di_and(di a, int32_t m) { FM_DI_MAP(a.l[k] & m); }
 static inline di di_set1(int32_t x) { FM_DI_MAP(x); }
 static inline di di_gather_u8(const uint8_t *table, di idx) { FM_DI_MAP(table[idx.l[k]]); }
 static inline dv dv_gather(const double *table, di idx) { FM_DV_MAP(table[idx.l[k]]); }
+static inline dv dv_div(dv a, dv b) { FM_DV_MAP(a.l[k] / b.l[k]); }
+static inline dv dv_from_ints(const int32_t *p) { FM_DV_MAP((double)p[k]); }
+static inline void dv_store_floats(float *p, dv x)
+{
+    for (int k = 0; k < FM_WD; k++) p[k] = (float)x.l[k];
+}
+typedef di dm; /* lanes all ones or zero */
+static inline dm dv_le(dv a, dv b) { FM_DI_MAP(a.l[k] <= b.l[k] ? -1 : 0); }
+static inline dm dv_gt(dv a, dv b) { FM_DI_MAP(a.l[k] > b.l[k] ? -1 : 0); }
+static inline dv dv_blend(dm m, dv a, dv b) { FM_DV_MAP(m.l[k] ? a.l[k] : b.l[k]); }
 #undef FM_DV_MAP
 #undef FM_DI_MAP
 #endif

@@ -1,5 +1,6 @@
 /* The agent store (structure of arrays) and the frame: every tet's four vertices (FM §6). */
 #include "morph.h"
+#include "kernel_synth.h"
 
 #include <math.h>
 #include <omp.h>
@@ -200,19 +201,15 @@ static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
 }
 
+/* An agent's tet in any phase but phase 1 (the synthesis kernel, kernel_synth.h, has those). */
 static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, float *out)
 {
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
-    const int32_t i = s->id[a];
     float rest[12];
     switch (s->phase[a]) {
     case FM_PHASE_WAITING:
         fm_morph_state_rest_tet(s, a, rest);
         place_tet(c, 1.0, NULL, rest, out);
-        break;
-    case FM_PHASE_FLYING:
-        fm_morph_state_rest_tet(s, a, rest);
-        place_tet(c, fm_shrink_scale(&m->def, s->time - (double)i / m->launch_rate), NULL, rest, out);
         break;
     case FM_PHASE_HOMING:
         homing_tet(m, s, a, s->time, out);
@@ -227,10 +224,15 @@ static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t 
 /* Slot order in, id order out: each tet is written where its agent id says. */
 void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out)
 {
+    fm_synth_view flying = {{s->p[0], s->p[1], s->p[2]}, {0}, s->id, s->time, m->launch_rate, m->def.shrink,
+                            m->def.shrink_time};
+    for (int j = 0; j < 12; j++) flying.rest[j] = s->rest_rel[j];
     int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
-        int64_t end = FM_MIN((b + 1) * FM_BLOCK, s->n);
-        for (int64_t a = b * FM_BLOCK; a < end; a++) agent_tet(m, s, a, out + 12 * (size_t)s->id[a]);
+        int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);
+        fm_kernel_flying_tets(&flying, s->phase, FM_PHASE_FLYING, begin, end, out);
+        for (int64_t a = begin; a < end; a++)
+            if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + 12 * (size_t)s->id[a]);
     }
 }

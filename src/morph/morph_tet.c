@@ -16,6 +16,7 @@
  * time it is needed and S = R(n, theta)^T A, so A(1) = A to double precision however
  * ill-conditioned S is (a float copy of S would not be: its error scales with |S|). */
 #include "morph.h"
+#include "kernel_synth.h"
 #include "fm_math.h"
 
 #include <math.h>
@@ -30,13 +31,7 @@ const uint8_t fm_even_permutations[12][4] = {
 enum { DET_CHECK_SAMPLES = 256 };
 static const double HALF_PI = 1.57079632679489661923;
 
-double fm_shrink_scale(const fm_scene_def *def, double tau)
-{
-    if (tau <= 0) return 1.0;
-    double s = def->shrink_time > 0 ? tau / def->shrink_time : 1.0;
-    if (s > 1) s = 1;
-    return 1.0 - (1.0 - def->shrink) * s;
-}
+double fm_shrink_scale(const fm_scene_def *def, double tau) { return fm_shrink_at(tau, def->shrink, def->shrink_time); }
 
 /* Columns = edges from vertex order[0] to the other three. */
 static fm_mat3 edge_matrix(const float *rel, const uint8_t *order)

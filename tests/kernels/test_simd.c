@@ -4,6 +4,7 @@
  * noise on lattice points, at negative and clamped coordinates. */
 #include "kernels.h"
 #include "kernel_noise.h"
+#include "kernel_synth.h"
 #include "simd.h"
 #include "test_macros.h"
 
@@ -161,6 +162,43 @@ static void test_curl_matches_reference(void)
     fm_simd_set_level(best);
 }
 
+/* Phase 1's tets: ids in shuffled order, launches before, during and after the shrink, and no
+ * shrink time at all. */
+static void test_flying_tets_match_reference(void)
+{
+    enum { N = 1107 };
+    static float p0[3][N], rest[12][N], want[12 * N], got[12 * N];
+    static int32_t id[N];
+    static uint8_t phase[N];
+    uint64_t rng = 31;
+    for (int a = 0; a < N; a++) {
+        id[a] = a;
+        phase[a] = (uint8_t)(test_next_u64(&rng) % 4);
+        for (int k = 0; k < 3; k++) p0[k][a] = (float)(20 * test_uniform(&rng) - 10);
+        for (int j = 0; j < 12; j++) rest[j][a] = (float)(0.2 * test_uniform(&rng) - 0.1);
+    }
+    for (int a = N - 1; a > 0; a--) { /* the store's order is not the id order */
+        int b = (int)(test_next_u64(&rng) % (uint64_t)(a + 1));
+        int32_t t = id[a];
+        id[a] = id[b], id[b] = t;
+    }
+    for (int shrink_time = 0; shrink_time < 2; shrink_time++) {
+        fm_synth_view v = {{p0[0], p0[1], p0[2]}, {0}, id, 0.37, 1500.0, 0.4, shrink_time ? 0.25 : 0};
+        for (int j = 0; j < 12; j++) v.rest[j] = rest[j];
+        for (int i = 0; i < 12 * N; i++) want[i] = (float)i; /* untouched tets must stay so */
+        const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+        fm_kernel_flying_tets_ref(&v, phase, FM_KERNEL_FLYING, 2, N - 3, want);
+        for (int level = FM_SIMD_SSE2; level <= (int)best; level++) {
+            fm_simd_set_level((fm_simd)level);
+            for (int i = 0; i < 12 * N; i++) got[i] = (float)i;
+            fm_kernel_flying_tets(&v, phase, FM_KERNEL_FLYING, 2, N - 3, got);
+            ENSURE_MSG(memcmp(want, got, sizeof want) == 0, "%s: phase-1 tets differ from the scalar reference (shrink time %d)",
+                       fm_simd_name((fm_simd)level), shrink_time);
+        }
+        fm_simd_set_level(best);
+    }
+}
+
 /* The level can be forced down and never above what the CPU has. */
 static void test_level_is_capped(void)
 {
@@ -176,5 +214,6 @@ int main(void)
     RUN_TEST(test_path_kernel_matches_reference);
     RUN_TEST(test_integrate_matches_reference);
     RUN_TEST(test_curl_matches_reference);
+    RUN_TEST(test_flying_tets_match_reference);
     return fm_test_failures != 0;
 }
