@@ -156,14 +156,9 @@ static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t beg
  * Returns the new phase. */
 static uint8_t move_flying(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
 {
-    float v1[3], v2 = 0;
-    for (int k = 0; k < 3; k++) {
-        v1[k] = s->v[k][a] + s->acc[k][a] * dt;
-        v2 += v1[k] * v1[k];
-    }
-    const float max_speed = m->max_speed[a];
-    if (v2 > max_speed * max_speed)
-        for (int k = 0; k < 3; k++) v1[k] *= max_speed / sqrtf(v2);
+    float v1[3];
+    for (int k = 0; k < 3; k++) v1[k] = s->v[k][a] + s->acc[k][a] * dt;
+    truncate3(v1, m->max_speed[a]);
     for (int k = 0; k < 3; k++) {
         s->p[k][a] += 0.5f * (s->v[k][a] + v1[k]) * dt;
         s->v[k][a] = v1[k];
