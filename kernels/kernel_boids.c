@@ -13,11 +13,11 @@ void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, c
     const double max_speed = b->max_speed[a], max_force = b->max_force[a];
     double force[3] = {0, 0, 0};
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const double *dir = s->rule[r];
-        double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-        if (s->count[r] == 0 || !(len > 0)) continue;
-        const double w = b->weight[r][a];
-        for (int k = 0; k < 3; k++) force[k] += w * (max_speed * dir[k] / len - v[k]); /* desired - velocity */
+        if (s->count[r] == 0) continue;
+        const double n = s->count[r], w = b->weight[r][a], *sum = s->rule[r], radius = b->radius[r][a];
+        const double gain = r == FM_BOIDS_SEPARATION ? max_speed * radius / n : max_speed / (n * radius);
+        for (int k = 0; k < 3; k++)
+            force[k] += w * (r == FM_BOIDS_ALIGNMENT ? sum[k] / n - v[k] : gain * sum[k]); /* see kernel_boids.h */
     }
     double len = sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
     double scale = len > max_force ? max_force / len : 1.0;

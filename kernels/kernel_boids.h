@@ -6,13 +6,17 @@
  *
  * Agent a perceives b for a rule when |x_b - x_a| < r (the rule's radius) and b lies inside the
  * rule's cone: the angle between a's velocity and x_b - x_a is at most half the rule's angle (an
- * agent at rest, or an angle of 360 degrees, sees all round). Over the perceived neighbours:
- *   separation  s = sum (x_a - x_b) / |x_a - x_b|^2      (nearer neighbours push harder)
- *   cohesion    c = mean (x_b - x_a)                     (toward their centre)
- *   alignment   l = mean v_b                             (their heading)
- * and each rule steers as Reynolds's steering behaviours do, desired velocity minus velocity:
- *   steer = MaxSpeed * unit(direction) - v_a
- * for a rule with at least one neighbour and a non-zero direction (else 0). The steering force is
+ * agent at rest, or an angle of 360 degrees, sees all round). Over the perceived neighbours, each
+ * rule asks for a change of velocity (per second, as Reynolds's steering "desired - velocity"):
+ *   separation  S r_s * mean (x_a - x_b) / |x_a - x_b|^2   (away, nearer neighbours harder: S
+ *                                                         from one at the radius)
+ *   cohesion    S * mean (x_b - x_a) / r_c                (toward their centre, S at the radius)
+ *   alignment   mean v_b - v_a                            (their velocity)
+ * for a rule with at least one neighbour (else 0). The rules are relative to the neighbours, so a
+ * flock that moves as one, evenly spaced, feels none of them: they shape the flock without
+ * dragging it (Reynolds's MaxSpeed * unit(direction) - v per rule would brake a flock that flies
+ * slower than MaxSpeed, and, always of size ~MaxSpeed, hit MaxForce so that the weights stop
+ * mattering). The steering force is
  *   F = sum over rules of weight * steer, truncated to |F| <= MaxForce. */
 #ifndef FM_KERNEL_BOIDS_H
 #define FM_KERNEL_BOIDS_H

@@ -124,7 +124,8 @@ typedef struct fm_flock_def {
     double kalman_q;             /* spectral density of Q's acceleration noise, units^2/s^3 */
     double kalman_r_position;    /* R's position variance, units^2 (> 0) */
     double kalman_r_velocity;    /* R's velocity variance, units^2/s^2 (> 0) */
-    fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];
+    fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];          /* SCF's static strategy (a static target) */
+    fm_fuzzy_def fuzzy_tracking[FM_FUZZY_FORCES]; /* its tracking strategy (a deforming target) */
     double damping;              /* c of the damping force -m c (v - v_destination), 1/s */
     double external_gain;        /* acceleration per unit of style-field velocity, 1/s */
     double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */

@@ -49,6 +49,7 @@ struct fm_flock_model {
     /* per-agent parameters, drawn from the scene's ranges */
     float *radius[FM_BOIDS_RULES], *cos_half[FM_BOIDS_RULES], *weight[FM_BOIDS_RULES];
     float *max_speed, *max_force;
+    float *max_accel;              /* MaxForce / mass: bounds each force's acceleration */
     float max_radius;              /* the neighbour grid's cell */
     fm_fuzzy fuzzy[FM_FUZZY_FORCES];
     fm_field_plan fields;          /* whether the state bakes the style fields (fields.h) */
@@ -74,7 +75,8 @@ struct fm_flock_state {
     float *dest[3], *dest_v[3];    /* the destination at the end of the step and its velocity */
     float *leader[3], *leader_v[3];/* the virtual leader (Kalman measurement) and its velocity */
     float *acc[3];                 /* scratch: the step's acceleration */
-    float *ext[3];                 /* scratch: the style fields at the agent */
+    float *steer[3];               /* scratch: the weighted boids steering (before it shares MaxForce with homing) */
+    float *ext[3];                 /* scratch: the style fields at the agent, then the homing acceleration */
     float *w_homing;               /* scratch: the homing weight */
     double *mesh_v;                /* deforming: the target's vertices at the current time */
     float *eval;                   /* deforming: destinations, 3 per agent (fm_samples_eval) */

@@ -1,5 +1,6 @@
 /* Fuzzy control (SCF "Fuzzy Control Logic", Figure 6): each kind of force (steering, homing,
- * damping, external) is weighted by a curve over the agent's distance to its destination. The
+ * damping, external) is weighted by a curve over the agent's distance to its destination, from the
+ * set of the paper's static strategy or of its tracking one, chosen by the target. The
  * paper's curves are "piecewise continuous functions" drawn in Figure 6; ours are piecewise linear
  * through the scene's points and constant beyond the first and the last point, so every curve is
  * continuous and its slope is bounded by the steepest of its pieces. */

@@ -1,6 +1,8 @@
 /* Per-agent Kalman homing (SCF eq 9); see flock_kalman.h. */
 #include "flock_kalman.h"
 
+#include <math.h>
+
 void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_vel)
 {
     *kf = (fm_kalman){.dt = dt, .q = q, .r_pos = r_pos, .r_vel = r_vel};
@@ -29,17 +31,22 @@ void fm_kalman_advance(fm_kalman *kf)
 void fm_kalman_homing(const fm_kalman *kf, int64_t begin, int64_t end, const uint8_t *phase,
                       uint8_t phase_sel, const float *const p[3], const float *const v[3],
                       const float *const z_p[3], const float *const z_v[3], const float *weight,
-                      float *const acc[3])
+                      const float *max_accel, const float *const u[3], float *const h[3])
 {
     const double dt = kf->dt, k_pp = kf->k[0], k_pv = kf->k[1], gain = 2.0 / (dt * dt);
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
+        double f[3], f2 = 0;
         for (int k = 0; k < 3; k++) {
-            const double u = acc[k][a];
             const double e_p = (double)z_p[k][a] - ((double)p[k][a] + (double)v[k][a] * dt); /* z - x- */
-            const double e_v = (double)z_v[k][a] - ((double)v[k][a] + u * dt);
+            const double e_v = (double)z_v[k][a] - ((double)v[k][a] + (double)u[k][a] * dt);
             /* Pos+ - (Pos + Vel dt) = k_pp e_p + k_pv e_v, so eq 9 gives F_h / m = 2 (...) / dt^2 */
-            acc[k][a] = (float)(u + weight[a] * gain * (k_pp * e_p + k_pv * e_v));
+            f[k] = weight[a] * gain * (k_pp * e_p + k_pv * e_v);
+            f2 += f[k] * f[k];
         }
+        /* |w F_h| <= MaxForce, truncated as Reynolds truncates the steering force: the weight softens
+         * the pull toward a near leader, and an agent far from its leader still gets the whole of it */
+        const double scale = max_accel && f2 > (double)max_accel[a] * max_accel[a] ? max_accel[a] / sqrt(f2) : 1.0;
+        for (int k = 0; k < 3; k++) h[k][a] = (float)(scale * f[k]);
     }
 }

@@ -9,7 +9,10 @@
  * surface, moving with it when the target deforms. (The paper writes the update from x_{k-1|k-1};
  * we use the predicted state, as Kalman does.) The homing force of eq 9,
  *     F_h = 2 m (Pos+ - Pos - Vel dt) / dt^2,
- * is the constant force that carries the agent to the posterior position Pos+ in one step.
+ * is the constant force that carries the agent to the posterior position Pos+ in one step. The
+ * fuzzy weight scales it and MaxForce then bounds it (SCF: MaxForce keeps "flock behavior within a
+ * reasonable range"): unbounded, eq 9 with the default R pulls at about 94 units/s^2 per unit of
+ * position error and 79 per unit/s of velocity error, which pins an agent to its leader.
  *
  * Because A, B and H act on each axis alike and Q and R are diagonal per axis, the filter is three
  * independent 2x2 filters with the same covariance; and since the covariance recursion does not
@@ -39,13 +42,14 @@ void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_v
 /* One step of the covariance recursion: P- from P, the gain K, then P+. */
 void fm_kalman_advance(fm_kalman *kf);
 
-/* For agents a in [begin, end) with phase[a] == phase_sel: acc holds the acceleration u of the
- * agent's other forces on entry and gets weight[a] * F_h / m added (eq 9, with the gain of the last
- * advance), z_p and z_v being the leader's position and velocity at the end of the step. Others are
- * untouched. Computed in double per agent; no allocation. */
+/* For agents a in [begin, end) with phase[a] == phase_sel: h(a) = weight[a] * F_h / m (eq 9, with the
+ * gain of the last advance), u being the acceleration of the agent's other forces (the prediction's
+ * B u) and z_p, z_v the leader's position and velocity at the end of the step, truncated to
+ * |h| <= max_accel[a] (MaxForce / m; NULL: unbounded). Others are untouched; h may be u (each agent
+ * reads its u before it writes h). Computed in double per agent; no allocation. */
 void fm_kalman_homing(const fm_kalman *kf, int64_t begin, int64_t end, const uint8_t *phase,
                       uint8_t phase_sel, const float *const p[3], const float *const v[3],
                       const float *const z_p[3], const float *const z_v[3], const float *weight,
-                      float *const acc[3]);
+                      const float *max_accel, const float *const u[3], float *const h[3]);
 
 #endif

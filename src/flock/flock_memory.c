@@ -4,12 +4,12 @@
 #include "memory.h"
 
 /* The shape flock (flock_model.c, flock_state.c, flock_run.c). The model: start and destination at
- * time 0 (6 floats), the boids parameters (3 rules x radius, angle, weight; max speed and force)
- * and the destination's sample (a point, barycentrics, a triangle). */
-static const double FLOCK_MODEL_PER_AGENT = sizeof(float) * (6 + 3 * FM_BOIDS_RULES + 2) + sizeof(float) * 6 + sizeof(int32_t);
-/* The store: p, v, dest, dest_v, leader, leader_v, acc, ext (3 floats each), the orientation, the
+ * time 0 (6 floats), the boids parameters (3 rules x radius, angle, weight; max speed, force and
+ * acceleration) and the destination's sample (a point, barycentrics, a triangle). */
+static const double FLOCK_MODEL_PER_AGENT = sizeof(float) * (6 + 3 * FM_BOIDS_RULES + 3) + sizeof(float) * 6 + sizeof(int32_t);
+/* The store: p, v, dest, dest_v, leader, leader_v, acc, steer, ext (3 floats each), the orientation, the
  * bind time and homing weight, phase and grid membership, the per-block counts. */
-static const double FLOCK_STATE_PER_AGENT = sizeof(float) * (8 * 3 + 4 + 2) + 2 + (double)sizeof(flock_block) / FM_BLOCK;
+static const double FLOCK_STATE_PER_AGENT = sizeof(float) * (9 * 3 + 4 + 2) + 2 + (double)sizeof(flock_block) / FM_BLOCK;
 /* A deforming target's destinations, evaluated each step (3 floats). */
 static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
 /* The frame: position, velocity (3 floats), orientation (4) and phase (1 byte). */

@@ -29,6 +29,7 @@ static fm_status alloc_agent_arrays(fm_flock_model *m, fm_error *err)
 {
     size_t n = (size_t)m->n;
     int ok = (m->max_speed = fm_alloc(sizeof(float) * n)) && (m->max_force = fm_alloc(sizeof(float) * n));
+    ok = ok && (m->max_accel = fm_alloc(sizeof(float) * n));
     for (int k = 0; k < 3; k++) {
         ok = ok && (m->start[k] = fm_alloc(sizeof(float) * n)) && (m->dest0[k] = fm_alloc(sizeof(float) * n));
         ok = ok && (m->radius[k] = fm_alloc(sizeof(float) * n)) && (m->cos_half[k] = fm_alloc(sizeof(float) * n));
@@ -104,6 +105,7 @@ static void draw_parameters(fm_flock_model *m)
         }
         m->max_speed[a] = (float)DRAW(f->max_speed);
         m->max_force[a] = (float)DRAW(f->max_force);
+        m->max_accel[a] = (float)(m->max_force[a] / f->mass);
 #undef DRAW
     }
 }
@@ -135,12 +137,19 @@ static fm_status plan_fields(fm_flock_model *m, fm_error *err)
     return st;
 }
 
+/* SCF "Fuzzy Control Logic": the static strategy's curves for a static target, the tracking
+ * strategy's for a deforming one. */
 static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
 {
-    static const char *const keys[FM_FUZZY_FORCES] = {"shape_flock.fuzzy.steering", "shape_flock.fuzzy.homing",
-                                                      "shape_flock.fuzzy.damping", "shape_flock.fuzzy.external"};
+    static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
+    const int tracking = m->def.flock.deform != FM_DEFORM_NONE;
+    const fm_fuzzy_def *curves = tracking ? m->def.flock.fuzzy_tracking : m->def.flock.fuzzy;
     fm_status st = FM_OK;
-    for (int f = 0; f < FM_FUZZY_FORCES && st == FM_OK; f++) st = fm_fuzzy_init(&m->fuzzy[f], &m->def.flock.fuzzy[f], keys[f], err);
+    for (int f = 0; f < FM_FUZZY_FORCES && st == FM_OK; f++) {
+        char key[64];
+        snprintf(key, sizeof key, "shape_flock.fuzzy.%s%s", tracking ? "tracking." : "", names[f]);
+        st = fm_fuzzy_init(&m->fuzzy[f], &curves[f], key, err);
+    }
     return st;
 }
 
@@ -237,7 +246,7 @@ void fm_flock_model_destroy(fm_flock_model *m)
     fm_flock_target_free(&m->target);
     fm_bspline_free(&m->path);
     fm_obstacles_destroy(m->obstacles);
-    fm_free(m->max_speed), fm_free(m->max_force);
+    fm_free(m->max_speed), fm_free(m->max_force), fm_free(m->max_accel);
     for (int k = 0; k < 3; k++) {
         fm_free(m->start[k]), fm_free(m->dest0[k]);
         fm_free(m->radius[k]), fm_free(m->cos_half[k]), fm_free(m->weight[k]);

@@ -14,7 +14,7 @@
  * step differences them for their velocities), the shared Kalman covariance, the counters and the
  * tracking lag's running sum. Not listed: what each step rebuilds before reading it (dest_v and
  * leader_v, by those differences; a static target's dest_v stays 0; acc, ext, w_homing, mesh_v,
- * eval, the grid, blocks), member (always 1) and the style fields, whose baked grid is a pure
+ * eval, the grid, blocks), member (set from phase before each grid build) and the style fields, whose baked grid is a pure
  * function of time and seed. */
 #define AGENT_ARRAY(member, bytes) {#member, offsetof(fm_flock_state, member), bytes, 1}
 #define AGENT_XYZ(member) AGENT_ARRAY(member[0], sizeof(float)), AGENT_ARRAY(member[1], sizeof(float)), \
@@ -36,7 +36,7 @@ static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv)
     int ok = (s->orient = fm_alloc(sizeof(float) * 4 * n)) && (s->phase = fm_alloc(n)) &&
              (s->t_bind = fm_alloc(sizeof(float) * n)) && (s->w_homing = fm_alloc(sizeof(float) * n)) &&
              (s->member = fm_alloc(n)) && (s->blocks = fm_alloc(sizeof(flock_block) * (n / FM_BLOCK + 1)));
-    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->ext};
+    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->steer, s->ext};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
         for (int k = 0; k < 3; k++) ok = ok && (arrays[i][k] = fm_alloc(sizeof(float) * n));
     if (deforming) ok = ok && (s->mesh_v = fm_alloc(sizeof(double) * 3 * (size_t)nv)) && (s->eval = fm_alloc(sizeof(float) * 3 * n));
@@ -95,7 +95,7 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
 void fm_flock_state_destroy(fm_flock_state *s)
 {
     if (!s) return;
-    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->ext};
+    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->steer, s->ext};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
         for (int k = 0; k < 3; k++) fm_free(arrays[i][k]);
     fm_free(s->orient), fm_free(s->phase), fm_free(s->t_bind), fm_free(s->w_homing), fm_free(s->member);

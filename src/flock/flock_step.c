@@ -7,15 +7,18 @@
  *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at s = (t + dt) / path
  *                 time, which ends on the destination; R is evaluated once for all agents
  *   3. prepare    the Kalman covariance and gain (shared); the style-field grid; the neighbour grid
- *                 over every agent (counting sort, cell = the largest perception radius)
+ *                 over the agents not bound (counting sort, cell = the largest perception radius)
  *   4. forces     for agents under forces (FM_PHASE_FLYING), the fuzzy weights of their distance
- *                 to the destination weigh the boids steering, damping and external forces (their
- *                 acceleration u), and the homing force of eq 9 from the Kalman posterior
- *   5. move       forces: x += v dt + a dt^2 / 2, v += a dt (exact for a constant a, as eq 9
- *                 assumes), |v| <= MaxSpeed, then stepped steering once within arrival.radius;
- *                 stepped: turn toward the destination at a bounded rate and close in at a pace
- *                 that slows with the distance, binding within bind_distance; bound: on the
- *                 destination, or floating around it; then the orientation
+ *                 to the destination (the static or the tracking strategy's curves) weigh the boids
+ *                 steering, damping and external forces, each bounded by MaxForce (their
+ *                 acceleration u), and the homing force of eq 9 from the Kalman posterior, bounded
+ *                 by MaxForce after its weight; the boids get what homing leaves of MaxForce
+ *   5. move       forces: v' = v + a dt, |v'| <= MaxSpeed, x += (v + v') dt / 2 (x + v dt + a dt^2 / 2
+ *                 as eq 9 assumes, unless MaxSpeed cuts), then stepped steering once within
+ *                 arrival.radius; stepped: turn toward the destination at a bounded rate and close
+ *                 in at a pace that slows with the distance, at most MaxSpeed, binding within
+ *                 bind_distance; bound: on the destination, or floating around it; then the
+ *                 orientation
  * Stages 4 and 5 run over fixed blocks of agents on OpenMP threads with a barrier between them:
  * stage 4 only reads positions and velocities, stage 5 only moves an agent itself, so every agent
  * sees the same neighbours whatever the thread count; per-block counts are combined in block order. */
@@ -80,53 +83,86 @@ static void add_obstacle_push(const fm_flock_model *m, fm_flock_state *s, int64_
     for (int k = 0; k < 3; k++) acc[k] += push * g[k];
 }
 
+/* |x| <= limit for a 3-vector, by truncation (Reynolds's truncate). */
+static void truncate3(float x[3], float limit)
+{
+    const float len2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+    if (len2 > limit * limit)
+        for (int k = 0; k < 3; k++) x[k] *= limit / sqrtf(len2);
+}
+
+/* The fuzzy-weighted forces besides homing (SCF "Fuzzy Control Logic"), each bounded by MaxForce:
+ * the boids steering (already, kernel_boids.h) into s->steer, and u, the acceleration of them all
+ * (boids, damping relative to the destination, the fields of eqs 7-8 and obstacles), into s->acc. */
+static void other_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
+{
+    const fm_flock_def *f = &m->def.flock;
+    const float d = distance_to_destination(s, a), max_accel = m->max_accel[a], inv_mass = (float)(1.0 / f->mass);
+    const float w_steer = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_STEERING], d);
+    const float w_damp = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_DAMPING], d);
+    const float w_ext = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_EXTERNAL], d);
+    s->w_homing[a] = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_HOMING], d);
+    float damp[3], ext[3] = {0, 0, 0}, acc[3];
+    for (int k = 0; k < 3; k++) {
+        damp[k] = -(float)f->damping * (s->v[k][a] - s->dest_v[k][a]);
+        if (s->fields) ext[k] = (float)f->external_gain * s->ext[k][a];
+    }
+    truncate3(damp, max_accel), truncate3(ext, max_accel);
+    for (int k = 0; k < 3; k++) {
+        s->steer[k][a] *= w_steer * inv_mass;
+        acc[k] = s->steer[k][a] + w_damp * damp[k] + w_ext * ext[k];
+    }
+    if (m->obstacles) add_obstacle_push(m, s, a, acc);
+    for (int k = 0; k < 3; k++) s->acc[k][a] = acc[k];
+}
+
+/* Homing h first, the boids with what is left of MaxForce (Reynolds's prioritised allocation): an
+ * agent far from its leader, whose h reaches MaxForce, is not held there by its neighbours. */
+static void combine_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
+{
+    const float h[3] = {s->ext[0][a], s->ext[1][a], s->ext[2][a]};
+    float b[3] = {s->steer[0][a], s->steer[1][a], s->steer[2][a]};
+    const float budget = fmaxf(0.0f, m->max_accel[a] - sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]));
+    truncate3(b, budget);
+    for (int k = 0; k < 3; k++) s->acc[k][a] += h[k] + b[k] - s->steer[k][a];
+}
+
 /* Stage 4 for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
 static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end)
 {
-    const fm_flock_def *f = &m->def.flock;
     const fm_boids_view boids = {{m->radius[0], m->radius[1], m->radius[2]},
                                  {m->cos_half[0], m->cos_half[1], m->cos_half[2]},
                                  {m->weight[0], m->weight[1], m->weight[2]}, m->max_speed, m->max_force};
     const float *const *p = (const float *const *)s->p, *const *v = (const float *const *)s->v;
-    fm_kernel_boids(&s->grid, &boids, p, v, s->phase, FM_PHASE_FLYING, begin, end, s->acc); /* F_steer */
+    fm_kernel_boids(&s->grid, &boids, p, v, s->phase, FM_PHASE_FLYING, begin, end, s->steer); /* F_steer */
     if (s->fields) {
         for (int k = 0; k < 3; k++) memset(s->ext[k] + begin, 0, sizeof(float) * (size_t)(end - begin));
         fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, 1.0f, s->ext);
     }
-    const float inv_mass = (float)(1.0 / f->mass), damping = (float)f->damping, gain = (float)f->external_gain;
-    for (int64_t a = begin; a < end; a++) {
-        if (s->phase[a] != FM_PHASE_FLYING) continue;
-        const float d = distance_to_destination(s, a);
-        const float w_steer = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_STEERING], d);
-        const float w_damp = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_DAMPING], d);
-        const float w_ext = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_EXTERNAL], d);
-        s->w_homing[a] = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_HOMING], d);
-        float acc[3];
-        for (int k = 0; k < 3; k++) {
-            acc[k] = w_steer * s->acc[k][a] * inv_mass;                     /* boids */
-            acc[k] += w_damp * -damping * (s->v[k][a] - s->dest_v[k][a]);   /* damping, relative to the destination */
-            if (s->fields) acc[k] += w_ext * gain * s->ext[k][a];           /* eqs 7-8, wind */
-        }
-        if (m->obstacles) add_obstacle_push(m, s, a, acc);
-        for (int k = 0; k < 3; k++) s->acc[k][a] = acc[k];
-    }
-    /* + w_homing F_h / m (eq 9): the Kalman filter predicts with u = acc and updates with the leader */
+    for (int64_t a = begin; a < end; a++)
+        if (s->phase[a] == FM_PHASE_FLYING) other_forces(m, s, a);
+    /* w_homing F_h / m (eq 9) into ext (read above): the Kalman filter predicts with u = acc and
+     * updates with the leader */
     fm_kalman_homing(&s->kalman, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
-                     (const float *const *)s->leader_v, s->w_homing, s->acc);
+                     (const float *const *)s->leader_v, s->w_homing, m->max_accel, (const float *const *)s->acc, s->ext);
+    for (int64_t a = begin; a < end; a++)
+        if (s->phase[a] == FM_PHASE_FLYING) combine_forces(m, s, a);
 }
 
-/* Under forces: x += v dt + a dt^2 / 2, v += a dt, |v| <= MaxSpeed. Returns the new phase. */
+/* Under forces, the paper's kinematics (eq 9 assumes them): for a constant a over the step,
+ * v' = v + a dt and x' = x + (v + v') dt / 2 = x + v dt + a dt^2 / 2. MaxSpeed bounds v' before the
+ * move, so the agent moves as under the constant acceleration (v' - v) / dt that reaches the bounded
+ * v': |x' - x| / dt <= MaxSpeed (|v| and |v'| are), and v' is the velocity it ends the step with.
+ * Returns the new phase. */
 static uint8_t move_flying(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
 {
-    float v2 = 0;
+    float v1[3];
+    for (int k = 0; k < 3; k++) v1[k] = s->v[k][a] + s->acc[k][a] * dt;
+    truncate3(v1, m->max_speed[a]);
     for (int k = 0; k < 3; k++) {
-        s->p[k][a] += s->v[k][a] * dt + 0.5f * s->acc[k][a] * dt * dt;
-        s->v[k][a] += s->acc[k][a] * dt;
-        v2 += s->v[k][a] * s->v[k][a];
+        s->p[k][a] += 0.5f * (s->v[k][a] + v1[k]) * dt;
+        s->v[k][a] = v1[k];
     }
-    const float max_speed = m->max_speed[a];
-    if (v2 > max_speed * max_speed)
-        for (int k = 0; k < 3; k++) s->v[k][a] *= max_speed / sqrtf(v2);
     const float radius = (float)m->def.flock.arrival_radius;
     return radius > 0 && distance_to_destination(s, a) < radius ? FM_PHASE_HOMING : FM_PHASE_FLYING;
 }
@@ -162,7 +198,7 @@ static void bind(fm_flock_state *s, int64_t a, float dt)
  * frame the agent's heading turns toward it by at most turn_rate dt, and it closes in at speed
  * min(MaxSpeed, distance / arrival.time) times the cosine left between heading and direction (so a
  * wrong heading turns first and never orbits), binding once within bind_distance or within reach
- * of this step. Returns the new phase. */
+ * of this step; |v| <= MaxSpeed. Returns the new phase. */
 static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
 {
     const fm_flock_def *f = &m->def.flock;
@@ -177,9 +213,11 @@ static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t 
     float pace = fminf(m->max_speed[a], dist / (float)f->arrival_time);
     pace *= fmaxf(0.0f, h[0] * dir[0] + h[1] * dir[1] + h[2] * dir[2]);
     if (pace * dt >= dist) return bind(s, a, dt), FM_PHASE_ARRIVED;
+    float v[3] = {s->dest_v[0][a] + pace * h[0], s->dest_v[1][a] + pace * h[1], s->dest_v[2][a] + pace * h[2]};
+    truncate3(v, m->max_speed[a]); /* a destination faster than MaxSpeed is not caught up with */
     for (int k = 0; k < 3; k++) {
-        s->v[k][a] = s->dest_v[k][a] + pace * h[k];
-        s->p[k][a] += s->v[k][a] * dt;
+        s->v[k][a] = v[k];
+        s->p[k][a] += v[k] * dt;
     }
     return FM_PHASE_HOMING;
 }
@@ -222,6 +260,15 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
     }
 }
 
+/* The neighbour grid lists the agents still on their way: a bound agent is part of the shape, not
+ * of the flock, and one that arrives late must not be held off its destination by the separation
+ * from those already there. */
+static void mark_flock(fm_flock_state *s)
+{
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
+}
+
 void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
@@ -231,6 +278,7 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
     fm_kalman_advance(&s->kalman);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
+    mark_flock(s);
     fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->n, m->max_radius > 0 ? m->max_radius : 1.0f,
                   s->threads);
 #pragma omp parallel for num_threads(s->threads) schedule(static)

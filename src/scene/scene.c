@@ -31,19 +31,33 @@ static fm_fuzzy_def fuzzy_curve(int count, const double (*pts)[2])
  * a surface of area A a radius J / sqrt(N) sees about pi J^2 / A agents whatever N: ~150 with the
  * paper's J on our 10-unit meshes, ~20 with these); angles and weights as SCF implies them
  * (separation widest, alignment narrowest). */
+/* SCF Figure 6's two strategies (docs/shape-flock.md, "Fuzzy curves"): far from the destination
+ * (6 units and more) the boids govern, homing holds the agent only loosely to its leader. Closing in,
+ * the static strategy lets damping grow ("slowing down the agent nearby its destination"), the
+ * tracking one lowers the steering and external weights further and raises homing sooner. */
+static void default_fuzzy(fm_fuzzy_def *fixed, fm_fuzzy_def *tracking)
+{
+    static const double steering[3][2] = {{0, 0.05}, {1, 0.2}, {6, 1}}, homing[4][2] = {{0, 1}, {1, 0.8}, {3, 0.2}, {6, 0.03}};
+    static const double damping[3][2] = {{0, 1}, {1, 1}, {3, 0}}, external[2][2] = {{0, 0.1}, {3, 1}};
+    static const double t_steering[3][2] = {{0, 0.02}, {2, 0.2}, {6, 1}}, t_homing[3][2] = {{0, 1}, {2, 0.8}, {6, 0.03}};
+    static const double t_damping[3][2] = {{0, 0.5}, {1, 0.5}, {3, 0}}, t_external[3][2] = {{0, 0.02}, {2, 0.1}, {6, 1}};
+    fixed[FM_FUZZY_STEERING] = fuzzy_curve(3, steering), fixed[FM_FUZZY_HOMING] = fuzzy_curve(4, homing);
+    fixed[FM_FUZZY_DAMPING] = fuzzy_curve(3, damping), fixed[FM_FUZZY_EXTERNAL] = fuzzy_curve(2, external);
+    tracking[FM_FUZZY_STEERING] = fuzzy_curve(3, t_steering), tracking[FM_FUZZY_HOMING] = fuzzy_curve(3, t_homing);
+    tracking[FM_FUZZY_DAMPING] = fuzzy_curve(3, t_damping), tracking[FM_FUZZY_EXTERNAL] = fuzzy_curve(3, t_external);
+}
+
 static fm_flock_def fm_default_flock_def(void)
 {
-    static const double steering[3][2] = {{0, 0.05}, {1, 0.2}, {6, 1}}, homing[2][2] = {{0, 1}, {6, 0.5}};
-    static const double damping[3][2] = {{0, 1}, {1, 1}, {3, 0}}, external[2][2] = {{0, 0.1}, {3, 1}};
     fm_flock_def f = {
         .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_RANDOM, .mass = 1,
         .mosaic_iterations = FM_SAMPLE_MOSAIC_ITERATIONS, .mosaic_distance = FM_MOSAIC_EUCLIDEAN,
         .mosaic_k = FM_SAMPLE_MOSAIC_K, .mosaic_w = FM_SAMPLE_MOSAIC_W, .mosaic_step = FM_SAMPLE_MOSAIC_STEP,
         .stratified_lambda = FM_SAMPLE_LAMBDA, .stratified_oversample = FM_SAMPLE_OVERSAMPLE,
-        .max_speed = {8, 12}, .max_force = {15, 30},
-        .separation = {{20, 40}, {240, 300}, {1.5, 2}},  /* J: a third of SCF's, see docs/shape-flock.md */
-        .cohesion = {{10, 40}, {240, 300}, {0.8, 1.2}},
-        .alignment = {{10, 20}, {120, 180}, {0.8, 1.2}},
+        .max_speed = {12, 18}, .max_force = {40, 80},
+        .separation = {{20, 40}, {240, 300}, {0.4, 0.6}},  /* J: a third of SCF's, see docs/shape-flock.md */
+        .cohesion = {{10, 40}, {240, 300}, {0.1, 0.2}},
+        .alignment = {{20, 40}, {120, 180}, {2, 3}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .damping = 3, .external_gain = 1,
         .arrival_radius = 0.3, .arrival_time = 0.2, .turn_rate_deg = 720, .bind_distance = 0.002,
@@ -51,10 +65,7 @@ static fm_flock_def fm_default_flock_def(void)
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
         .deform_direction = {1, 0, 0}, .deform_frame_rate = 24,
     };
-    f.fuzzy[FM_FUZZY_STEERING] = fuzzy_curve(3, steering);
-    f.fuzzy[FM_FUZZY_HOMING] = fuzzy_curve(2, homing);
-    f.fuzzy[FM_FUZZY_DAMPING] = fuzzy_curve(3, damping);
-    f.fuzzy[FM_FUZZY_EXTERNAL] = fuzzy_curve(2, external);
+    default_fuzzy(f.fuzzy, f.fuzzy_tracking);
     return f;
 }
 
@@ -229,6 +240,10 @@ static const param PARAMS[] = {
     {"shape_flock.fuzzy.homing", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_HOMING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.damping", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_DAMPING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.external", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_EXTERNAL]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.tracking.steering", P_FUZZY, OFF(flock.fuzzy_tracking[FM_FUZZY_STEERING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.tracking.homing", P_FUZZY, OFF(flock.fuzzy_tracking[FM_FUZZY_HOMING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.tracking.damping", P_FUZZY, OFF(flock.fuzzy_tracking[FM_FUZZY_DAMPING]), 0, 1e9, 0},
+    {"shape_flock.fuzzy.tracking.external", P_FUZZY, OFF(flock.fuzzy_tracking[FM_FUZZY_EXTERNAL]), 0, 1e9, 0},
     {"shape_flock.damping", P_DOUBLE, OFF(flock.damping), 0, 1e6, 0},
     {"shape_flock.external_gain", P_DOUBLE, OFF(flock.external_gain), 0, 1e6, 0},
     {"shape_flock.path_time", P_DOUBLE, OFF(flock.path_time), 0, 1e9, 0},
@@ -1007,6 +1022,30 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     else snprintf(out, size, "%s: %s", file, key);
 }
 
+/* A curve of the strategy the target does not use would be ignored: a static target runs the static
+ * curves (shape_flock.fuzzy.*), a deforming one the tracking curves (shape_flock.fuzzy.tracking.*).
+ * Scene files written before the two strategies, with shape_flock.fuzzy.* on a deforming target,
+ * are refused here naming the key, instead of running with curves they did not choose. */
+static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_scene_def *def)
+{
+    static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
+    const int deforming = def->flock.deform != FM_DEFORM_NONE;
+    for (int f = 0; f < FM_FUZZY_FORCES; f++) {
+        char key[64], other[64];
+        snprintf(key, sizeof key, deforming ? "shape_flock.fuzzy.%s" : "shape_flock.fuzzy.tracking.%s", names[f]);
+        snprintf(other, sizeof other, deforming ? "shape_flock.fuzzy.tracking.%s" : "shape_flock.fuzzy.%s", names[f]);
+        const json_t *v;
+        fm_status st = lookup(w, root, key, &v);
+        if (st != FM_OK) return st;
+        w->at_key = 1;
+        if (v)
+            return fail_at(w, key, "the target %s, so the %s strategy's curve %s applies (docs/scene.md)",
+                           deforming ? "deforms" : "is static", deforming ? "tracking" : "static", other);
+        w->at_key = 0;
+    }
+    return FM_OK;
+}
+
 /* Reads the document (changed by the overrides, if any) into def. */
 static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
 {
@@ -1014,6 +1053,7 @@ static fm_status read_document(where *w, json_t *root, const fm_scene_override *
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_fuzzy_strategy(w, root, def);
     return st;
 }
 

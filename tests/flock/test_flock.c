@@ -403,6 +403,38 @@ static void test_scene_keys_belong_to_their_mode(void)
     ENSURE_MSG(strstr(err.message, "mode: expected \"tetra_morph\" or \"shape_flock\""), "%s", err.message);
 }
 
+/* SCF's two fuzzy strategies: shape_flock.fuzzy.* for a static target, shape_flock.fuzzy.tracking.*
+ * for a deforming one, each read into its own set; a curve of the strategy the target does not use
+ * is refused naming its key and the one that applies (a scene written before the two strategies
+ * with fuzzy.* on a deforming target does not run silently with other curves). */
+static void test_fuzzy_strategy_keys(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"deform\": {\"type\": \"pulse\"}, \"fuzzy\": {\"tracking\": {\"homing\": [[0, 1], [4, 0.1]]}}}}",
+                     &def, &err) == FM_OK);
+    ENSURE_MSG(err.status == FM_OK, "%s", err.message);
+    ENSURE(def.flock.fuzzy_tracking[FM_FUZZY_HOMING].count == 2 && def.flock.fuzzy_tracking[FM_FUZZY_HOMING].w[1] == 0.1);
+    ENSURE(def.flock.fuzzy[FM_FUZZY_HOMING].count == fm_default_scene_def().flock.fuzzy[FM_FUZZY_HOMING].count);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"deform\": {\"type\": \"wave\"}, \"fuzzy\": {\"homing\": [[0, 1], [3, 0.5]]}}}",
+                     &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, ":2:56: shape_flock.fuzzy.homing: the target deforms, so the tracking strategy's curve "
+                                   "shape_flock.fuzzy.tracking.homing applies"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"fuzzy\": {\"tracking\": {\"damping\": [[0, 1]]}}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.fuzzy.tracking.damping: the target is static, so the static strategy's curve "
+                                   "shape_flock.fuzzy.damping applies"), "%s", err.message);
+    /* defaults: Figure 6, far from the destination the steering, near it homing; the tracking
+     * strategy lowers steering below the static one's near the destination */
+    const fm_flock_def f = fm_default_scene_def().flock;
+    ENSURE(f.fuzzy[FM_FUZZY_STEERING].w[0] < f.fuzzy[FM_FUZZY_STEERING].w[f.fuzzy[FM_FUZZY_STEERING].count - 1]);
+    ENSURE(f.fuzzy[FM_FUZZY_HOMING].w[0] > f.fuzzy[FM_FUZZY_HOMING].w[f.fuzzy[FM_FUZZY_HOMING].count - 1]);
+    ENSURE(f.fuzzy_tracking[FM_FUZZY_STEERING].w[0] < f.fuzzy[FM_FUZZY_STEERING].w[0]);
+    ENSURE(f.fuzzy_tracking[FM_FUZZY_EXTERNAL].w[0] < f.fuzzy[FM_FUZZY_EXTERNAL].w[0]);
+}
+
 /* The sampling groups: values reach fm_flock_def, the defaults are the sampler's own, bad values
  * and keys of the other method are refused at their line and column. */
 static void test_sampling_keys_are_read_and_checked(void)
@@ -490,6 +522,7 @@ int main(void)
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
     RUN_TEST(test_scene_keys_belong_to_their_mode);
+    RUN_TEST(test_fuzzy_strategy_keys);
     RUN_TEST(test_sampling_keys_are_read_and_checked);
     RUN_TEST(test_sampling_keys_reach_the_sampler);
     return test_result();

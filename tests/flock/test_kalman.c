@@ -34,7 +34,7 @@ static track_result track(double q, double r_pos, double r_vel, int steps)
             for (int k = 0; k < 3; k++) zp[k][a] = (float)(start[k] + u[k] * t_end), zv[k][a] = (float)u[k], acc[k][a] = 0;
         fm_kalman_advance(&kf);
         fm_kalman_homing(&kf, 0, AGENTS, phase, 1, (const float *const *)p, (const float *const *)v,
-                         (const float *const *)zp, (const float *const *)zv, weight, acc);
+                         (const float *const *)zp, (const float *const *)zv, weight, NULL, (const float *const *)acc, acc);
         double lag = 0;
         for (int a = 0; a < AGENTS; a++) {
             double d2 = 0;
@@ -115,7 +115,7 @@ static void test_phase_and_weight(void)
     const float *p[3] = {zero, zero, zero}, *v[3] = {zero, zero, zero}, *zp[3] = {one, one, one}, *zv[3] = {zero, zero, zero};
     float *acc[3] = {ax, ay, az};
     uint8_t phase[3] = {1, 1, 2};
-    fm_kalman_homing(&kf, 0, 3, phase, 1, p, v, zp, zv, w, acc);
+    fm_kalman_homing(&kf, 0, 3, phase, 1, p, v, zp, zv, w, NULL, (const float *const *)acc, acc);
     ENSURE(ax[0] > 0 && fabsf(ax[1] - 0.5f * ax[0]) <= 1e-6f * ax[0]);
     ENSURE(ax[2] == 7 && ay[2] == 7 && az[2] == 7);
     ENSURE_NEAR(ax[0], 2 * kf.k[0] / (0.1 * 0.1), 1e-3);

@@ -166,22 +166,40 @@ static void test_neighbours_outside_the_radius_are_ignored(void)
     }
 }
 
-/* Separation steers away, cohesion toward, alignment to the neighbour's heading, each as
- * MaxSpeed * unit(direction) - v with v = (1, 0, 0) and MaxSpeed 10. */
+/* Separation steers away, cohesion toward, alignment to the neighbour's velocity (kernel_boids.h):
+ * v = (1, 0, 0), MaxSpeed S = 10, the neighbour at distance 1 inside radius 2 with velocity (0, 3, 0). */
 static void test_each_rule_steers_its_way(void)
 {
     const float other[3] = {0.6f, 0.8f, 0};
     float out[3];
-    force_on_0(other, FM_BOIDS_SEPARATION, 2, 360, out);
-    ENSURE_NEAR(out[0], -6 - 1, 1e-5);
-    ENSURE_NEAR(out[1], -8, 1e-5);
+    force_on_0(other, FM_BOIDS_SEPARATION, 2, 360, out); /* S r (x_a - x_b) / |d|^2 */
+    ENSURE_NEAR(out[0], -12, 1e-5);
+    ENSURE_NEAR(out[1], -16, 1e-5);
     ENSURE_NEAR(out[2], 0, 1e-6);
-    force_on_0(other, FM_BOIDS_COHESION, 2, 360, out);
-    ENSURE_NEAR(out[0], 6 - 1, 1e-5);
-    ENSURE_NEAR(out[1], 8, 1e-5);
-    force_on_0(other, FM_BOIDS_ALIGNMENT, 2, 360, out);
+    force_on_0(other, FM_BOIDS_COHESION, 2, 360, out); /* S (x_b - x_a) / r */
+    ENSURE_NEAR(out[0], 3, 1e-5);
+    ENSURE_NEAR(out[1], 4, 1e-5);
+    force_on_0(other, FM_BOIDS_ALIGNMENT, 2, 360, out); /* v_b - v_a */
     ENSURE_NEAR(out[0], -1, 1e-5);
-    ENSURE_NEAR(out[1], 10, 1e-5);
+    ENSURE_NEAR(out[1], 3, 1e-5);
+}
+
+/* A flock that moves as one, evenly spaced, feels no rule: an agent in the middle of a cubic
+ * lattice of neighbours, all with its velocity, gets no force (Reynolds's MaxSpeed * unit - v
+ * would brake it). */
+static void test_uniform_flock_feels_nothing(void)
+{
+    flock f = make_flock(27);
+    for (int a = 0; a < 27; a++) {
+        f.p[0][a] = (float)(a % 3), f.p[1][a] = (float)(a / 3 % 3), f.p[2][a] = (float)(a / 9);
+        f.v[0][a] = 4, f.v[1][a] = 1;
+        for (int r = 0; r < 3; r++) f.radius[r][a] = 1.9f, f.cos_half[r][a] = -1, f.weight[r][a] = 1;
+        f.max_speed[a] = 10, f.max_force[a] = 1e9f, f.phase[a] = 1;
+    }
+    run_both(&f);
+    for (int k = 0; k < 3; k++) ENSURE_NEAR(f.f[k][13], 0, 1e-4); /* agent 13 is the centre */
+    ENSURE(fabsf(f.f[0][0]) > 1); /* a corner is pushed */
+    free_flock(&f);
 }
 
 static void test_max_force_bounds_the_steering(void)
@@ -205,6 +223,7 @@ int main(void)
     RUN_TEST(test_neighbours_outside_the_angle_are_ignored);
     RUN_TEST(test_neighbours_outside_the_radius_are_ignored);
     RUN_TEST(test_each_rule_steers_its_way);
+    RUN_TEST(test_uniform_flock_feels_nothing);
     RUN_TEST(test_max_force_bounds_the_steering);
     return test_result();
 }
