@@ -62,8 +62,20 @@ fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err)
     return FM_OK;
 }
 
+fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err)
+{
+    const size_t cap = (size_t)(g->capacity > 0 ? g->capacity : 1);
+    g->vel = fm_alloc(sizeof(fm_grid_quad) * ((cap + FM_GRID_PAD + 3) / 4));
+    g->tmp_vel = fm_alloc(sizeof(float) * 3 * cap);
+    if (!g->vel || !g->tmp_vel)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a grid of %lld agents", (long long)g->capacity);
+    return FM_OK;
+}
+
 void fm_grid_free(fm_grid *g)
 {
+    fm_free(g->vel);
+    fm_free(g->tmp_vel);
     fm_free(g->start);
     fm_free(g->quad);
     fm_free(g->slot);
@@ -96,6 +108,13 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
                    int threads)
 {
+    fm_grid_build_moving(g, p, NULL, member, n, cell, threads);
+}
+
+void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *const v[3], const uint8_t *member,
+                          int64_t n, float cell, int threads)
+{
+    assert(!v || g->vel);
     assert(n >= 0 && n <= g->capacity);
     assert(cell > 0);
     g->cell = cell;
@@ -141,6 +160,7 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
     /* pass 2: scatter to buckets, each block in index order */
     fm_grid_rec *tmp = g->tmp;
     uint32_t *tmp_slot = g->tmp_slot;
+    float *tmp_vel = g->tmp_vel;
 #pragma omp parallel for num_threads(nthreads) schedule(static, 1)
     for (int64_t t = 0; t < nblocks; t++) {
         int64_t lo = n * t / nblocks, hi = n * (t + 1) / nblocks;
@@ -151,6 +171,7 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
             int32_t k = h[s >> log2_fine]++;
             tmp[k] = (fm_grid_rec){px[a], py[a], pz[a], (int32_t)a};
             tmp_slot[k] = s;
+            if (v) tmp_vel[3 * k] = v[0][a], tmp_vel[3 * k + 1] = v[1][a], tmp_vel[3 * k + 2] = v[2][a];
         }
     }
     /* after pass 2 the last block's offsets are the bucket ends */
@@ -181,6 +202,10 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
             int32_t d = cnt[tmp_slot[k] - s0]++;
             fm_grid_quad *q = &quad[d >> 2];
             q->x[d & 3] = tmp[k].x, q->y[d & 3] = tmp[k].y, q->z[d & 3] = tmp[k].z, q->i[d & 3] = tmp[k].i;
+            if (v) {
+                fm_grid_quad *w = &g->vel[d >> 2];
+                w->x[d & 3] = tmp_vel[3 * k], w->y[d & 3] = tmp_vel[3 * k + 1], w->z[d & 3] = tmp_vel[3 * k + 2];
+            }
         }
         /* now cnt[j] = end of slot s0 + j = start of slot s0 + j + 1 */
     }

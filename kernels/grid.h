@@ -56,6 +56,10 @@ typedef struct fm_grid {
     int32_t *start;        /* table size + 1: slot s lists entries start[s] .. start[s+1]-1 */
     fm_grid_quad *quad;    /* (capacity + FM_GRID_PAD) / 4: entries by slot, then by agent index */
     uint32_t *slot;        /* capacity: each agent's slot, FM_GRID_NONE if it was not listed */
+    fm_grid_quad *vel;     /* NULL, or (fm_grid_init_velocities) the listed agents' velocities in entry
+                              order, as quad holds their positions (x, y, z; i unused): a walk reads a
+                              neighbour's velocity next to its position instead of gathering it by index */
+    float *tmp_vel;        /* build scratch for vel: 3 per agent */
 
     /* build scratch: a two-level counting sort (coarse buckets of 1 << log2_fine slots, then slots) */
     int log2_fine;
@@ -67,12 +71,17 @@ typedef struct fm_grid {
 
 fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err); /* all allocation is here */
 void fm_grid_free(fm_grid *g);                                       /* g may be zeroed or freed */
+/* Makes the builds keep velocities (vel) too: 28 more bytes per agent of capacity. */
+fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err);
 
 /* Lists the agents a < n (n <= capacity) with member[a] != 0 (all of them if member is NULL); the
  * others get slot FM_GRID_NONE.
  * cell > 0. threads: OpenMP threads for the parallel passes; the result does not depend on it. */
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
                    int threads);
+/* The same, copying v into vel (g initialised with fm_grid_init_velocities). */
+void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *const v[3], const uint8_t *member,
+                          int64_t n, float cell, int threads);
 
 /* The pieces a neighbourhood walk needs, shared with the build so both place a point alike. */
 

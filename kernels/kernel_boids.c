@@ -45,7 +45,8 @@ static inline void add_entry(fm_boids_sums *sums, const fm_grid *g, int32_t k, i
     const int32_t nb = q->i[lane];
     if (nb == a) return;
     const float d[3] = {q->x[lane] - x[0], q->y[lane] - x[1], q->z[lane] - x[2]};
-    const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
+    const fm_grid_quad *w = g->vel ? &g->vel[k >> 2] : NULL; /* the grid's copy, beside the position */
+    const float vb[3] = {w ? w->x[lane] : v[0][nb], w ? w->y[lane] : v[1][nb], w ? w->z[lane] : v[2][nb]};
     fm_boids_add(sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, h, hlen, r2, cos_half);
 }
 

@@ -43,7 +43,8 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     e.model = FLOCK_MODEL_PER_AGENT;
     e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0);
     e.frames = fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
-    e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents : 0; /* the boids' neighbour grid, always */
+    /* the boids' neighbour grid, always, with its copy of the velocities (grid.h) */
+    e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float) : 0;
     e.fixed = fm_memory_fixed_bytes(def);
     e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
     fm_memory_total(&e, n);

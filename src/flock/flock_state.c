@@ -82,6 +82,7 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
         if (!s->fields) st = err ? err->status : FM_ERR_INPUT;
     }
     if (st == FM_OK) st = fm_grid_init(&s->grid, s->n, err);
+    if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err); /* the boids read neighbours' velocities */
     s->grid_ready = st == FM_OK;
     if (st != FM_OK) {
         fm_flock_state_destroy(s);
