@@ -39,20 +39,21 @@ int cli_report(const fm_error *err)
     return err->status ? (int)err->status : FM_ERR_INTERNAL;
 }
 
-/* The length of a bare dotted key at the start of msg followed by ": " ("source.mesh",
- * "obstacles.meshes[0]"), or 0. */
-static size_t leading_key(const char *msg)
+/* The length of a scene key at the start of msg followed by ": " ("source.mesh",
+ * "obstacles.meshes[0]"; not a file name such as "wave_000.obj"), or 0; the key in key. */
+static size_t leading_key(const char *msg, char *key, size_t size)
 {
     size_t n = strspn(msg, "abcdefghijklmnopqrstuvwxyz0123456789_.[]");
-    return n > 0 && memchr(msg, '.', n) && !strncmp(msg + n, ": ", 2) ? n : 0;
+    if (!n || n >= size || strncmp(msg + n, ": ", 2)) return 0;
+    snprintf(key, size, "%.*s", (int)n, msg);
+    return fm_scene_is_key(key) ? n : 0;
 }
 
 void cli_locate_key(const fm_scene_def *def, fm_error *err)
 {
-    size_t n = leading_key(err->message);
-    if (!n || !def->scene_path[0]) return;
     char key[128], msg[sizeof err->message], where[FM_PATH_MAX + 64];
-    snprintf(key, sizeof key, "%.*s", (int)(n < sizeof key ? n : sizeof key - 1), err->message);
+    size_t n = leading_key(err->message, key, sizeof key);
+    if (!n || !def->scene_path[0]) return;
     snprintf(msg, sizeof msg, "%s", err->message + n + 2);
     fm_scene_key_location(def, key, where, sizeof where);
     fm_fail(err, err->status, "%s: %s", where, msg);

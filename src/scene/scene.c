@@ -257,6 +257,11 @@ static const param *find_param(const char *key)
     return NULL;
 }
 
+int fm_scene_is_key(const char *key)
+{
+    return find_param(key) || !strncmp(key, "obstacles.meshes[", 17) || !strncmp(key, "style.fields[", 13);
+}
+
 /* The keys of one element of obstacles.meshes (source and target share the ranges above). */
 #define MOFF(field) offsetof(fm_mesh_ref, field)
 static const param MESH_PARAMS[] = {
