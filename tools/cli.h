@@ -22,6 +22,16 @@ double cli_seconds(void);
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
+/* A message that starts with a bare scene key ("shape_flock.deform.sequence: ..."; the shape flock's
+ * meshes are named that way) gets the key's FILE:LINE:COL in front, as the scene's own errors have. */
+void cli_locate_key(const fm_scene_def *def, fm_error *err);
+/* The cache writer's quantisation failure names output.quantum, where the scene sets it, and the fix. */
+void cli_locate_quantum(const fm_scene_def *def, fm_error *err);
+/* stats.json and the manifest record the output paths as JSON text, which is UTF-8: a path that is
+ * not (bytes from another locale) is refused up front with exit 1 ("-o DIR: ... not UTF-8").
+ * cli_json_string never loses a value: text that is not UTF-8 is kept with each bad byte as \xNN. */
+int cli_check_json_path(const char *option, const char *path);
+json_t *cli_json_string(const char *text);
 int cli_wants_help(int argc, char **argv);
 /* Parses a whole number in [lo, hi]; -1 if it is not one. */
 int cli_parse_int(const char *s, long lo, long hi, long *out);

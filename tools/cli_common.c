@@ -1,6 +1,8 @@
 /* Helpers shared by the commands: errors, option parsing, output directories, cache frames. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "cache_format.h"
+#include "scene_internal.h"
 
 #include <omp.h>
 
@@ -35,6 +37,57 @@ int cli_report(const fm_error *err)
 {
     fprintf(stderr, "flockmorph: error: %s\n", err->message);
     return err->status ? (int)err->status : FM_ERR_INTERNAL;
+}
+
+/* The length of a scene key at the start of msg followed by ": " ("source.mesh",
+ * "obstacles.meshes[0]"; not a file name such as "wave_000.obj"), or 0; the key in key. */
+static size_t leading_key(const char *msg, char *key, size_t size)
+{
+    size_t n = strspn(msg, "abcdefghijklmnopqrstuvwxyz0123456789_.[]");
+    if (!n || n >= size || strncmp(msg + n, ": ", 2)) return 0;
+    snprintf(key, size, "%.*s", (int)n, msg);
+    return fm_scene_is_key(key) ? n : 0;
+}
+
+void cli_locate_key(const fm_scene_def *def, fm_error *err)
+{
+    char key[128], msg[sizeof err->message], where[FM_PATH_MAX + 64];
+    size_t n = leading_key(err->message, key, sizeof key);
+    if (!n || !def->scene_path[0]) return;
+    snprintf(msg, sizeof msg, "%s", err->message + n + 2);
+    fm_scene_key_location(def, key, where, sizeof where);
+    fm_fail(err, err->status, "%s: %s", where, msg);
+}
+
+void cli_locate_quantum(const fm_scene_def *def, fm_error *err)
+{
+    if (!(def->cache_quantum > 0) || !strstr(err->message, CACHE_QUANTUM_FAILURE)) return;
+    char msg[sizeof err->message], where[FM_PATH_MAX + 64];
+    snprintf(msg, sizeof msg, "%s", err->message);
+    fm_scene_key_location(def, "output.quantum", where, sizeof where);
+    fm_fail(err, err->status, "%s: %s; a value v needs a quantum of at least |v| / 2^31: raise output.quantum, or set "
+            "it to 0 (lossless)", where, msg);
+}
+
+int cli_check_json_path(const char *option, const char *path)
+{
+    json_t *t = json_string(path); /* jansson's UTF-8 check, the one stats.json meets */
+    json_decref(t);
+    if (t) return 0;
+    fprintf(stderr, "flockmorph: error: %s %s: the path is not UTF-8 text; stats.json records it as JSON, which must "
+            "be UTF-8: rename the directory or choose another -o\n", option, path);
+    return FM_ERR_USAGE;
+}
+
+json_t *cli_json_string(const char *text)
+{
+    json_t *t = json_string(text);
+    if (t) return t;
+    char kept[4 * FM_PATH_MAX + 1];
+    size_t n = 0;
+    for (const unsigned char *c = (const unsigned char *)text; *c && n + 5 < sizeof kept; c++)
+        n += (size_t)snprintf(kept + n, sizeof kept - n, *c < 0x80 ? "%c" : "\\x%02X", *c);
+    return json_string(kept);
 }
 
 int cli_wants_help(int argc, char **argv)
@@ -83,6 +136,11 @@ static int check_output_name(const char *dir, const char *name)
 {
     char path[2 * FM_PATH_MAX];
     struct stat st;
+    size_t longest = strlen(dir) + 1 + strlen(name) + strlen(".partial");
+    if (longest >= FM_PATH_MAX) /* the file would fail to open only after the preprocessing, exit 3 */
+        return fprintf(stderr, "flockmorph: error: -o %s: the path is too long: %s/%s.partial, which the run writes "
+                       "there, would be %zu bytes, more than the %d a path may have; choose a shorter -o\n", dir, dir, name,
+                       longest, FM_PATH_MAX - 1), FM_ERR_USAGE;
     for (int partial = 0; partial < 2; partial++) {
         snprintf(path, sizeof path, "%s/%s%s", dir, name, partial ? ".partial" : "");
         if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
@@ -282,7 +340,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_object_set_new(j, "steps_per_second", json_real(r->simulate_seconds > 0 ? (double)r->steps / r->simulate_seconds : 0));
     json_object_set_new(j, "threads", json_integer(r->threads));
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", json_string(r->cache));
+    json_object_set_new(j, "cache", cli_json_string(r->cache));
     return j;
 }
 

@@ -49,7 +49,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "shape_flock", settings_json(def, mi));
     json_t *warnings = json_array();
     for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
-        json_array_append_new(warnings, json_string(fm_flock_model_warning(r->model, i)));
+        json_array_append_new(warnings, cli_json_string(fm_flock_model_warning(r->model, i)));
     json_object_set_new(j, "warnings", warnings);
     json_object_set_new(j, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"));
     json_object_set_new(j, "field_bake_error", number_or_null(mi->field_bake_error));
@@ -61,6 +61,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     flock_run *r = run;
     fm_error err = {0};
     r->model = fm_flock_model_build(def, cli_prep_progress, show, &err);
+    if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};

@@ -63,7 +63,7 @@ typedef struct morph_run {
 static void add_warning(morph_run *r, const char *text)
 {
     fprintf(stderr, "flockmorph: warning: %s\n", text);
-    json_array_append_new(r->warnings, json_string(text));
+    json_array_append_new(r->warnings, cli_json_string(text));
 }
 
 static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)

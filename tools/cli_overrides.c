@@ -133,8 +133,8 @@ int cli_write_manifest(const cli_run_options *o, const cli_overrides *ov, const 
     gethostname(host, sizeof host - 1);
     json_t *j = json_object();
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));
-    json_object_set_new(j, "scene", json_string(o->scene));
-    json_object_set_new(j, "output", json_string(o->outdir));
+    json_object_set_new(j, "scene", cli_json_string(o->scene));
+    json_object_set_new(j, "output", cli_json_string(o->outdir));
     json_object_set_new(j, "wedge", wedge_json(o, ov));
     json_object_set_new(j, "set", strings_json(o->sets, o->set_count));
     json_object_set_new(j, "overrides", final_overrides(ov));

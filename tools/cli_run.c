@@ -148,9 +148,12 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (progress.show) fprintf(stderr, "\n");
     const fm_run_totals *t = common->totals;
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
+    if (st != FM_OK) cli_locate_quantum(def, &err);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
-    if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
+    if (fm_cache_writer_finish(cache, &err) != FM_OK) { /* finish keeps PATH.partial on failure */
+        cli_locate_quantum(def, &err);
         return cli_fail_keeping_partial_cache(&err, NULL, files.cache);
+    }
     const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
                                    t->simulate_seconds, t->output_seconds, files.threads, files.cache};
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
@@ -188,7 +191,8 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST};
-    int rc = cli_make_outdir(o->outdir, outputs, 3);
+    int rc = cli_check_json_path("-o", o->outdir);
+    if (!rc) rc = cli_make_outdir(o->outdir, outputs, 3);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
     if (!rc && o->resume) rc = cli_check_checkpoint(o, def); /* before the long preprocessing */
     if (!rc) rc = cli_write_manifest(o, ov, def, -1);

@@ -220,7 +220,9 @@ int cli_expand_outdir(cli_run_options *o)
     for (const char *s = o->outdir; *s;) {
         const char *close = *s == '{' ? strchr(s, '}') : NULL;
         size_t used = strlen(out);
-        if (used + 32 >= size) return fprintf(stderr, "flockmorph: error: -o %s: the path is too long\n", o->outdir), FM_ERR_USAGE;
+        if (used + 32 >= size)
+            return fprintf(stderr, "flockmorph: error: -o %s: the path is too long: the directory and the files the run "
+                           "writes in it must fit in %d bytes\n", o->outdir, FM_PATH_MAX - 1), FM_ERR_USAGE;
         if (!close) {
             out[used] = *s++, out[used + 1] = 0;
             continue;

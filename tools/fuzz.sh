@@ -2,14 +2,14 @@
 # Builds the libFuzzer targets of tests/fuzz with clang, ASan and UBSan in build-fuzz/ and runs each
 # for SECONDS (default 60) on its corpus (docs/testing.md). Exits non-zero when a target crashes,
 # leaks, hangs or runs out of memory, and prints the input that did it.
-#   tools/fuzz.sh [SECONDS [TARGET...]]     TARGET: scene, cache, mesh (default: all three)
+#   tools/fuzz.sh [SECONDS [TARGET...]]     TARGET: scene, cache, mesh, ply_binary, stl_binary (default: all)
 # New inputs libFuzzer finds go to build-fuzz/work/TARGET/corpus, not into the repository.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene cache mesh)
+[ ${#targets[@]} -gt 0 ] || targets=(scene cache mesh ply_binary stl_binary)
 
 FM_EXTRA_PACKAGES="clang-14 libclang-rt-14-dev libomp-14-dev" CC=clang-14 CXX=clang++-14 \
   FM_BUILD_TYPE=RelWithDebInfo tools/setup.sh build-fuzz -DFM_FUZZ=ON -DBUILD_TESTING=OFF

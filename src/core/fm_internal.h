@@ -71,6 +71,12 @@ int fm_threads(int requested);
  * file-size limit, read-only file system. */
 const char *fm_write_hint(int errnum);
 
+/* x in the fewest significant digits (up to 17) that read back as exactly x, so that two values a
+ * message compares never print alike ("10000001 is out of range: must be <= 10000000", where %g
+ * says 1e+07 twice). Writes into buf (FM_DOUBLE_CHARS bytes) and returns it. */
+#define FM_DOUBLE_CHARS 32
+const char *fm_shortest(char *buf, double x);
+
 /* Seconds from a monotonic clock. */
 double fm_seconds(void);
 

@@ -2,6 +2,7 @@
 #include "fm_internal.h"
 
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -111,6 +112,16 @@ void fm_output_keep_partial(fm_output_file *o)
 {
     if (o->f) fclose(o->f);
     o->f = NULL;
+}
+
+const char *fm_shortest(char *buf, double x)
+{
+    if (x == floor(x) && fabs(x) < 1e15) return snprintf(buf, FM_DOUBLE_CHARS, "%.0f", x), buf; /* 10000000, not 1e+07 */
+    for (int digits = 6; digits <= 17; digits++) {
+        snprintf(buf, FM_DOUBLE_CHARS, "%.*g", digits, x);
+        if (strtod(buf, NULL) == x || x != x) break;
+    }
+    return buf;
 }
 
 const char *fm_write_hint(int errnum)

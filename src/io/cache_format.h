@@ -38,6 +38,10 @@ enum {
 
 /* Per-attribute filter bits (header attribute record, offset 12). */
 enum { FILTER_SHUFFLE4 = 1, FILTER_DELTA = 2, FILTER_QUANTISE = 4 };
+/* The words of the writer's message for a value the quantum cannot hold (the CLI names the scene's
+ * output.quantum when it sees them). */
+#define CACHE_QUANTUM_FAILURE "is not a finite multiple of quantum"
+
 /* Chunk flags. */
 enum { CHUNK_KEY_FRAME = 1 };
 /* Header flags. */

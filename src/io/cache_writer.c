@@ -162,7 +162,7 @@ static fm_status filter_attr(fm_cache_writer *w, const unsigned char *frame, int
     if (filters & FILTER_QUANTISE) {
         int64_t bad = cache_quantise((const float *)src, bytes / 4, w->l.opts.quantum, (int32_t *)w->quantised);
         if (bad >= 0)
-            return fm_fail(err, FM_ERR_INPUT, "%s: frame %u, %s, agent %lld: %g is not a finite multiple of quantum %g below 2^31",
+            return fm_fail(err, FM_ERR_INPUT, "%s: frame %u, %s, agent %lld: %g " CACHE_QUANTUM_FAILURE " %g below 2^31",
                            w->out.path, k, w->l.attrs[i]->name, (long long)(bad / w->l.attrs[i]->components),
                            (double)((const float *)src)[bad], w->l.opts.quantum);
         src = w->quantised;

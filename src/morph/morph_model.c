@@ -37,11 +37,39 @@ static void warn(fm_morph_model *m, const char *key, const char *fmt, ...)
     snprintf(m->warnings[m->warning_count++], sizeof m->warnings[0], "%.200s: %s", where, what);
 }
 
+/* TetGen's -a bounds every tet's volume, so a mesh of volume V gives more than V / max_volume tets;
+ * measured, 1.9 to 2.5 times that (a sphere and a cylinder of 320 triangles and a cube, 10^4 to 3.2e6
+ * tets; more below 10^4, where the surface's own tets dominate). TETS_PER_BOUND stays under every
+ * measured ratio, so the count it implies is one TetGen reaches: a count whose run cannot fit the
+ * machine (fm_morph_memory_check refuses it after TetGen) is refused before TetGen spends minutes
+ * and gigabytes on it (issue 15: max_volume 1e-7 on a small cube ran for over 500 s). */
+#define TETS_PER_BOUND 1.5
+
+static fm_status check_tet_bound(const fm_scene_def *def, const fm_mesh_ref *ref, const fm_mesh *mesh, const char *key,
+                                 fm_error *err)
+{
+    if (!(def->tet_max_volume > 0)) return FM_OK;
+    const double volume = fabs(fm_mesh_signed_volume(mesh)), tets = TETS_PER_BOUND * volume / def->tet_max_volume;
+    const fm_memory_estimate e = fm_morph_memory_estimate(def, (int64_t)fmin(tets, 1e15));
+    if (fm_memory_fits(&e)) return FM_OK;
+    const double fits = fm_memory_agents_that_fit(&e), gib = 1024.0 * 1024.0 * 1024.0;
+    double least = fits > 0 ? TETS_PER_BOUND * volume / fits : INFINITY, mag = pow(10.0, floor(log10(least)) - 1);
+    char where[FM_PATH_MAX + 64], bound[FM_DOUBLE_CHARS];
+    fm_scene_key_location(def, "tetgen.max_volume", where, sizeof where);
+    return fm_fail(err, FM_ERR_INPUT, "%s: %s over the volume %.6g of %s (%s) implies at least %.3g tets (volume / "
+                   "max_volume x %.1f; TetGen makes 1.9 to 2.5 times volume / max_volume), and a run of that many agents "
+                   "needs about %.1f GiB, more than this machine's %.1f GiB of physical memory: at most about %.3g agents "
+                   "fit; use a tetgen.max_volume of at least %.2g (docs/limits.md)", where,
+                   fm_shortest(bound, def->tet_max_volume), volume, key, ref->path, tets, TETS_PER_BOUND,
+                   e.total / gib, fm_physical_memory() / gib, fits, ceil(least / mag) * mag);
+}
+
 /* Loads, checks, places and tetrahedralizes one mesh. */
 static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
                               fm_tets *tets, fm_error *err)
 {
     fm_status st = fm_scene_mesh_load(def, ref, key, mesh, err);
+    if (st == FM_OK) st = check_tet_bound(def, ref, mesh, key, err);
     if (st != FM_OK) return st;
     return fm_scene_name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
 }
@@ -245,14 +273,47 @@ static fm_status build_obstacles(fm_morph_model *m, const prep_scratch *s, float
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
+/* About the voxels of the target's distance grid (obstacles_vdb.cpp's count, to a voxel) with this band. */
+static double target_grid_voxels(const double lo[3], const double hi[3], double voxel, double band)
+{
+    double total = 1;
+    for (int k = 0; k < 3; k++) total *= (hi[k] - lo[k]) / voxel + 2 * (band / voxel + 2) + 3;
+    return total;
+}
+
+/* The switch distance is the grid's band, and the voxel 1/160 of the target: a distance of more than
+ * about the target's size needs more voxels than any grid holds. Say so in the key's terms. */
+static fm_status check_switch_distance(const fm_scene_def *def, const double lo[3], const double hi[3], double voxel,
+                                       fm_error *err)
+{
+    double band = fabs(def->switch_distance) + 3 * voxel, most = 0, top = band;
+    double voxels = target_grid_voxels(lo, hi, voxel, band);
+    if (voxels <= (double)FM_OBSTACLE_MAX_VOXELS) return FM_OK;
+    for (int i = 0; i < 60; i++) { /* the largest distance that fits, by bisection */
+        double mid = 0.5 * (most + top);
+        if (target_grid_voxels(lo, hi, voxel, mid + 3 * voxel) <= (double)FM_OBSTACLE_MAX_VOXELS) most = mid;
+        else top = mid;
+    }
+    char where[FM_PATH_MAX + 64], d[FM_DOUBLE_CHARS];
+    fm_scene_key_location(def, "phase2.switch_distance", where, sizeof where);
+    return fm_fail(err, FM_ERR_INPUT, "%s: %s is too far for the target's distance grid (the distance switch reads "
+                   "it): at voxels of %g (1/160 of the target's size %g) it needs about %.3g voxels, more than the "
+                   "%lld supported; use a switch distance of at most %.3g", where, fm_shortest(d, def->switch_distance),
+                   voxel, 160 * voxel, voxels, (long long)FM_OBSTACLE_MAX_VOXELS, most);
+}
+
 static fm_status build_target_sdf(fm_morph_model *m, const fm_mesh *target, fm_error *err)
 {
+    static const fm_sdf_names names = {"target", "the target"};
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, extent = 0;
     fm_grow_bounds(lo, hi, target->v, target->nv);
     for (int k = 0; k < 3; k++) extent = fmax(extent, hi[k] - lo[k]);
     double voxel = extent / 160, band = fabs(m->def.switch_distance) + 3 * voxel;
-    m->target_sdf = fm_obstacles_build(target, 1, voxel, band, err);
-    return m->target_sdf ? FM_OK : fm_scene_name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch", err);
+    fm_status st = check_switch_distance(&m->def, lo, hi, voxel, err);
+    if (st != FM_OK) return st;
+    m->target_sdf = fm_obstacles_build_named(target, 1, voxel, band, &names, err);
+    return m->target_sdf ? FM_OK
+                         : fm_scene_name_key(&m->def, err ? err->status : FM_ERR_INPUT, "phase2.switch_distance", err);
 }
 
 /* Bake the style fields only where the grid resolves them (fields.h); say so when it does not. */

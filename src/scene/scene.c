@@ -272,6 +272,11 @@ static const param *find_param(const char *key)
     return NULL;
 }
 
+int fm_scene_is_key(const char *key)
+{
+    return find_param(key) || !strncmp(key, "obstacles.meshes[", 17) || !strncmp(key, "style.fields[", 13);
+}
+
 /* The keys of one element of obstacles.meshes (source and target share the ranges above). */
 #define MOFF(field) offsetof(fm_mesh_ref, field)
 static const param MESH_PARAMS[] = {
@@ -388,11 +393,12 @@ static fm_status check_range(const where *w, const param *p, double x)
 {
     if (!isfinite(x)) return fail_at(w, KEY(w, p), "must be a finite number");
     int open_min = p->open & OPEN_MIN, open_max = p->open & OPEN_MAX;
-    if (open_min ? !(x > p->min) : !(x >= p->min))
-        return fail_at(w, KEY(w, p), "%g is out of range: must be %s %g", x, open_min ? ">" : ">=", p->min);
-    if (open_max ? !(x < p->max) : !(x <= p->max))
-        return fail_at(w, KEY(w, p), "%g is out of range: must be %s %g", x, open_max ? "<" : "<=", p->max);
-    return FM_OK;
+    int low = open_min ? !(x > p->min) : !(x >= p->min);
+    if (!low && (open_max ? x < p->max : x <= p->max)) return FM_OK;
+    char value[FM_DOUBLE_CHARS], bound[FM_DOUBLE_CHARS]; /* every digit that decides */
+    const char *op = low ? (open_min ? ">" : ">=") : (open_max ? "<" : "<=");
+    return fail_at(w, KEY(w, p), "%s is out of range: must be %s %s", fm_shortest(value, x), op,
+                   fm_shortest(bound, low ? p->min : p->max));
 }
 
 static fm_status read_number(const where *w, const param *p, const json_t *v, double *out)
@@ -865,6 +871,39 @@ static int one_integer_conversion(const char *pattern)
     return conversions == 1;
 }
 
+/* The stratified sampler's work (sample_stratified.c) per surface: about oversample x n occupied
+ * voxels, each weighing its triangles' pieces of edge h / max(2, 2 lambda), about 8 max(1, lambda)^2
+ * pieces a voxel. Measured at about 1.2e-7 CPU s a piece (a 320-triangle sphere, n 300, oversample 16,
+ * lambda 4 to 32; more past lambda 32, where pieces are split one by one). lambda 100 with oversample
+ * 16 and 300 agents would weigh 3.8e8 pieces a surface, minutes of CPU; the limit refuses that at
+ * once. The larger of the two limits holds so that lambda <= 4 passes at any n (the memory check
+ * bounds n, and the time then grows only as n). */
+#define STRATIFIED_MAX_PIECES 268435456.0 /* 2^28: about 30 CPU s a surface */
+#define STRATIFIED_FREE_LAMBDA 4.0
+
+static double stratified_pieces(double voxels, double lambda)
+{
+    const double l = lambda > 1 ? lambda : 1;
+    return voxels * 8 * l * l;
+}
+
+static fm_status check_stratified_work(where *w, const fm_scene_def *def)
+{
+    const fm_flock_def *f = &def->flock;
+    const double voxels = ceil(f->stratified_oversample * (double)def->n), pieces = stratified_pieces(voxels, f->stratified_lambda);
+    const double limit = fmax(STRATIFIED_MAX_PIECES, stratified_pieces(voxels, STRATIFIED_FREE_LAMBDA));
+    if (pieces <= limit) return FM_OK;
+    const double most = sqrt(limit / (8 * voxels));
+    char lambda[FM_DOUBLE_CHARS], oversample[FM_DOUBLE_CHARS];
+    where_set_key(w, "shape_flock.stratified.lambda");
+    return fail_at(w, "shape_flock.stratified.lambda", "%s with shape_flock.stratified.oversample %s and n %lld asks the "
+                   "stratified sampler to weigh about %.3g triangle pieces per surface (%.0f voxels, oversample x n, of "
+                   "8 lambda^2 = %.3g pieces each), more than the limit of %.3g (about %.0f CPU s a surface); use a "
+                   "lambda of at most %.3g, or a smaller oversample or n", fm_shortest(lambda, f->stratified_lambda),
+                   fm_shortest(oversample, f->stratified_oversample), (long long)def->n, pieces, voxels, pieces / voxels,
+                   limit, limit * 1.2e-7, most);
+}
+
 /* The shape flock's checks that span several keys. */
 static fm_status check_flock(where *w, const fm_scene_def *def)
 {
@@ -872,6 +911,10 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
     if (def->n < 1) {
         where_set_key(w, "mode");
         return fail_at(w, "n", "the shape flock needs its number of agents (n >= 1)");
+    }
+    if (f->sampling == FM_FLOCK_SAMPLE_STRATIFIED) {
+        fm_status st = check_stratified_work(w, def);
+        if (st != FM_OK) return st;
     }
     const double *dir = f->deform_direction;
     if (f->deform == FM_DEFORM_WAVE && dir[0] == 0 && dir[1] == 0 && dir[2] == 0) {
@@ -994,6 +1037,8 @@ static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_erro
         return NULL;
     }
     text[len] = 0;
+    if (len >= 3 && !memcmp(text, "\xEF\xBB\xBF", 3)) /* a UTF-8 byte-order mark (editors on Windows write one): */
+        memmove(text, text + 3, (len -= 3) + 1);        /* RFC 8259 lets a parser ignore it, and jansson does not */
     *out_len = len;
     return text;
 }

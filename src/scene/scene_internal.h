@@ -27,6 +27,8 @@ void fm_scene_def_feed(const fm_scene_def *def, fm_bytes_fn add, void *user);
  * "obstacles.meshes[1]"), found by reading the scene file again; "FILE: key" when it cannot be
  * located, "key" for a definition built in code. For errors found after loading (model build). */
 void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size);
+/* Whether key names a scene parameter ("source.mesh", "obstacles.meshes[2].scale"). */
+int fm_scene_is_key(const char *key);
 
 /* On failure (st != FM_OK) prefixes err's message with where the scene sets `key`
  * ("scene.json:3:14: source.mesh: ..."); returns st. */

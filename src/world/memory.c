@@ -81,6 +81,18 @@ double fm_physical_memory(void)
     return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
 }
 
+int fm_memory_fits(const fm_memory_estimate *e)
+{
+    double physical = fm_physical_memory();
+    return physical <= 0 || e->total <= physical;
+}
+
+double fm_memory_agents_that_fit(const fm_memory_estimate *e)
+{
+    double fits = (fm_physical_memory() - e->fixed) / (e->total == e->run ? e->per_agent : e->preprocess_per_agent);
+    return fits > 0 ? fits : 0;
+}
+
 /* The neighbour grid (the shape flock's boids, the tetra morph's MDE) lists at most
  * FM_GRID_MAX_CAPACITY agents. */
 static fm_status grid_capacity_check(const fm_memory_need *need, int64_t n, const char *where, fm_error *err)
@@ -98,12 +110,12 @@ fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_ne
     if (st != FM_OK) return st;
     const fm_memory_estimate e = need->estimate;
     double physical = fm_physical_memory(), gib = 1024.0 * 1024.0 * 1024.0;
-    if (physical <= 0 || e.total <= physical) return FM_OK;
-    double fits = (physical - e.fixed) / (e.total == e.run ? e.per_agent : e.preprocess_per_agent);
+    if (fm_memory_fits(&e)) return FM_OK;
+    double fits = fm_memory_agents_that_fit(&e);
     return fm_fail(err, FM_ERR_INPUT,
                    "%s: %lld agents need about %.1f GiB (%.0f bytes per agent: model %.0f, agent store %.0f, frame "
                    "buffers %.0f, neighbour grid %.0f; plus %.0f MiB that do not grow with n), more than this "
                    "machine's %.1f GiB of physical memory; at most about %.3g agents fit (docs/limits.md)",
                    where, (long long)n, e.total / gib, e.per_agent, e.model, e.state, e.frames, e.grid,
-                   e.fixed / (1024.0 * 1024.0), physical / gib, fits > 0 ? fits : 0.0);
+                   e.fixed / (1024.0 * 1024.0), physical / gib, fits);
 }

@@ -37,6 +37,9 @@ double fm_memory_fixed_bytes(const fm_scene_def *def);
 /* Fills per_agent, run, preprocess and total from the parts. */
 void fm_memory_total(fm_memory_estimate *e, int64_t n);
 double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
+/* Whether the estimate fits the physical memory (or that is unknown), and how many agents would. */
+int fm_memory_fits(const fm_memory_estimate *e);
+double fm_memory_agents_that_fit(const fm_memory_estimate *e);
 
 /* FM_ERR_INPUT naming the scene's n, the estimate and the machine's memory if it does not fit, or
  * the neighbour grid's capacity if n exceeds it. */

@@ -32,6 +32,14 @@ typedef struct fm_obstacles fm_obstacles;
    (b) an Embree BVH over all triangles for exact closest-point queries.
    NULL on failure, with err set. */
 fm_obstacles *fm_obstacles_build(const fm_mesh *meshes, int count, double voxel, double band, fm_error *err);
+/* What the grid's messages call it and its surfaces: {"obstacle", "the obstacles"} for
+   fm_obstacles_build, {"target", "the target"} for the distance phase switch's grid of the target
+   (a scene without obstacles must not read of obstacles). */
+typedef struct fm_sdf_names {
+    const char *grid, *surfaces;
+} fm_sdf_names;
+fm_obstacles *fm_obstacles_build_named(const fm_mesh *meshes, int count, double voxel, double band,
+                                       const fm_sdf_names *name, fm_error *err);
 void fm_obstacles_destroy(fm_obstacles *o); /* NULL is fine */
 /* The grid; valid until fm_obstacles_destroy. */
 fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
@@ -72,8 +80,8 @@ fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, con
 extern "C" {
 #endif
 fm_status fm_obstacles_vdb_grid(const double *v, int64_t nv, const int32_t *tri, int64_t nt,
-                                double voxel, double band, int64_t max_voxels, float **d,
-                                int32_t n[3], float origin[3], fm_error *err);
+                                double voxel, double band, int64_t max_voxels, const fm_sdf_names *name,
+                                float **d, int32_t n[3], float origin[3], fm_error *err);
 #ifdef __cplusplus
 }
 #endif

@@ -69,12 +69,19 @@ static void refine_grid(fm_obstacles *o)
 
 fm_obstacles *fm_obstacles_build(const fm_mesh *meshes, int count, double voxel, double band, fm_error *err)
 {
+    static const fm_sdf_names obstacles = {"obstacle", "the obstacles"};
+    return fm_obstacles_build_named(meshes, count, voxel, band, &obstacles, err);
+}
+
+fm_obstacles *fm_obstacles_build_named(const fm_mesh *meshes, int count, double voxel, double band,
+                                       const fm_sdf_names *name, fm_error *err)
+{
     if (!(voxel > 0) || !isfinite(voxel)) {
-        fm_fail(err, FM_ERR_INPUT, "obstacle voxel size must be positive and finite (got %g)", voxel);
+        fm_fail(err, FM_ERR_INPUT, "%s voxel size must be positive and finite (got %g)", name->grid, voxel);
         return NULL;
     }
     if (!(band > 0) || !isfinite(band)) {
-        fm_fail(err, FM_ERR_INPUT, "obstacle distance band must be positive and finite (got %g)", band);
+        fm_fail(err, FM_ERR_INPUT, "%s distance band must be positive and finite (got %g)", name->grid, band);
         return NULL;
     }
     fm_obstacles *o = fm_alloc(sizeof *o);
@@ -89,7 +96,7 @@ fm_obstacles *fm_obstacles_build(const fm_mesh *meshes, int count, double voxel,
         float *d = NULL;
         int32_t n[3];
         float origin[3];
-        st = fm_obstacles_vdb_grid(s.v, s.nv, s.tri, s.nt, voxel, band, FM_OBSTACLE_MAX_VOXELS, &d, n, origin, err);
+        st = fm_obstacles_vdb_grid(s.v, s.nv, s.tri, s.nt, voxel, band, FM_OBSTACLE_MAX_VOXELS, name, &d, n, origin, err);
         if (st == FM_OK) {
             o->sdf = d;
             o->view = (fm_sdf_view){d, {n[0], n[1], n[2]}, {origin[0], origin[1], origin[2]}, (float)voxel, (float)band};

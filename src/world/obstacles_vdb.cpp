@@ -40,8 +40,8 @@ struct dense_guard {
 };
 
 fm_status build(const double *v, int64_t nv, const int32_t *tri, int64_t nt, double voxel,
-                double band, int64_t max_voxels, float **out, int32_t n[3], float origin[3],
-                fm_error *err)
+                double band, int64_t max_voxels, const fm_sdf_names *name, float **out, int32_t n[3],
+                float origin[3], fm_error *err)
 {
     static std::once_flag once;
     std::call_once(once, [] { openvdb::initialize(); });
@@ -54,9 +54,9 @@ fm_status build(const double *v, int64_t nv, const int32_t *tri, int64_t nt, dou
     double reach = 0;
     for (int k = 0; k < 3; k++) reach = std::fmax(reach, std::fmax(std::fabs(lo[k]), std::fabs(hi[k])) + band);
     if (reach / voxel > 262144.0)
-        return fm_fail(err, FM_ERR_INPUT, "obstacles reach %g from the origin, %.3g voxels of size %g: too "
+        return fm_fail(err, FM_ERR_INPUT, "%s reach %g from the origin, %.3g voxels of size %g: too "
                        "far for the grid's float coordinates (at most 262144 voxels); use a voxel size of "
-                       "at least %g or move the scene nearer the origin", reach, reach / voxel, voxel,
+                       "at least %g or move the scene nearer the origin", name->surfaces, reach, reach / voxel, voxel,
                        reach / 262144.0);
     double dims[3];
     double count = estimate_voxels(lo, hi, voxel, band, dims);
@@ -65,16 +65,16 @@ fm_status build(const double *v, int64_t nv, const int32_t *tri, int64_t nt, dou
         double h = voxel * std::cbrt(count / (double)max_voxels), unused[3];
         while (std::isfinite(h) && estimate_voxels(lo, hi, h, band, unused) > (double)max_voxels) h *= 1.02;
         if (!std::isfinite(h) || h <= 0)
-            return fm_fail(err, FM_ERR_INPUT, "obstacle distance grid too large at voxel size %g "
-                           "(the obstacles span %g x %g x %g); use a larger voxel size", voxel,
+            return fm_fail(err, FM_ERR_INPUT, "%s distance grid too large at voxel size %g "
+                           "(%s span %g x %g x %g); use a larger voxel size", name->grid, voxel, name->surfaces,
                            hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
         double mag = std::pow(10.0, std::floor(std::log10(h)) - 1.0);
         h = std::ceil(h / mag) * mag;
         return fm_fail(err, FM_ERR_INPUT,
-                       "obstacle distance grid too large: voxel size %g over the obstacles' "
-                       "%g x %g x %g bounding box with a band of %g needs about %.0f x %.0f x %.0f "
+                       "%s distance grid too large: voxel size %g over the %g x %g x %g bounding box "
+                       "of %s with a band of %g needs about %.0f x %.0f x %.0f "
                        "= %.3g voxels, more than the limit of %lld; use a voxel size of at least %g",
-                       voxel, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], band, dims[0], dims[1],
+                       name->grid, voxel, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], name->surfaces, band, dims[0], dims[1],
                        dims[2], count, (long long)max_voxels, h);
     }
 
@@ -101,20 +101,20 @@ fm_status build(const double *v, int64_t nv, const int32_t *tri, int64_t nt, dou
 
     openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
     if (grid->activeVoxelCount() == 0 || box.empty())
-        return fm_fail(err, FM_ERR_INPUT, "the obstacles give an empty distance field at voxel size %g "
-                       "(are they flat, or much thinner than a voxel?)", voxel);
+        return fm_fail(err, FM_ERR_INPUT, "%s give an empty distance field at voxel size %g "
+                       "(are they flat, or much thinner than a voxel?)", name->surfaces, voxel);
     box.expand(1); // the border of far values
     openvdb::Coord dim = box.dim();
     int64_t total = (int64_t)dim[0] * dim[1] * dim[2];
     if (total > max_voxels) // cannot happen if the estimate is an upper bound; kept as a guard
-        return fm_fail(err, FM_ERR_INPUT, "obstacle distance grid too large: %d x %d x %d voxels at "
-                       "voxel size %g; use a larger voxel size", dim[0], dim[1], dim[2], voxel);
+        return fm_fail(err, FM_ERR_INPUT, "%s distance grid too large: %d x %d x %d voxels at "
+                       "voxel size %g; use a larger voxel size", name->grid, dim[0], dim[1], dim[2], voxel);
 
     dense_guard dense;
     dense.p = (float *)fm_alloc(sizeof(float) * (size_t)total);
     if (!dense.p)
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the %d x %d x %d obstacle distance grid",
-                       dim[0], dim[1], dim[2]);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the %d x %d x %d %s distance grid",
+                       dim[0], dim[1], dim[2], name->grid);
     openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> view(box, dense.p);
     openvdb::tools::copyToDense(*grid, view);
     grid.reset();
@@ -136,23 +136,24 @@ fm_status build(const double *v, int64_t nv, const int32_t *tri, int64_t nt, dou
 } // namespace
 
 extern "C" fm_status fm_obstacles_vdb_grid(const double *v, int64_t nv, const int32_t *tri, int64_t nt,
-                                           double voxel, double band, int64_t max_voxels, float **d,
-                                           int32_t n[3], float origin[3], fm_error *err)
+                                           double voxel, double band, int64_t max_voxels,
+                                           const fm_sdf_names *name, float **d, int32_t n[3],
+                                           float origin[3], fm_error *err)
 {
     *d = nullptr;
     if (!(voxel > 0) || !std::isfinite(voxel) || !(band > 0) || !std::isfinite(band))
-        return fm_fail(err, FM_ERR_INPUT, "obstacle grid: voxel size (%g) and band (%g) must be positive",
-                       voxel, band);
+        return fm_fail(err, FM_ERR_INPUT, "%s distance grid: voxel size (%g) and band (%g) must be positive",
+                       name->grid, voxel, band);
     if (nv <= 0 || nt <= 0)
-        return fm_fail(err, FM_ERR_INPUT, "obstacle grid: no triangles");
+        return fm_fail(err, FM_ERR_INPUT, "%s distance grid: no triangles", name->grid);
     try {
-        return build(v, nv, tri, nt, voxel, band, max_voxels, d, n, origin, err);
+        return build(v, nv, tri, nt, voxel, band, max_voxels, name, d, n, origin, err);
     } catch (const std::bad_alloc &) {
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory building the obstacle distance grid "
-                       "at voxel size %g; try a larger voxel size", voxel);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory building the %s distance grid "
+                       "at voxel size %g; try a larger voxel size", name->grid, voxel);
     } catch (const std::exception &e) {
-        return fm_fail(err, FM_ERR_INTERNAL, "OpenVDB failed building the obstacle distance grid: %s", e.what());
+        return fm_fail(err, FM_ERR_INTERNAL, "OpenVDB failed building the %s distance grid: %s", name->grid, e.what());
     } catch (...) {
-        return fm_fail(err, FM_ERR_INTERNAL, "OpenVDB failed building the obstacle distance grid");
+        return fm_fail(err, FM_ERR_INTERNAL, "OpenVDB failed building the %s distance grid", name->grid);
     }
 }

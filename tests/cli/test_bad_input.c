@@ -6,6 +6,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
 #include "cache_format.h"
+#include "fm_internal.h"
 #include "modes.h"
 #include "morph.h"
 #include "test_macros.h"
@@ -1057,6 +1058,160 @@ static void test_disk_full(void)
     remove(partial);
 }
 
+/* ---------------------------------------------------------------- work without bound (issue 15, item 9) */
+
+/* Runs the scene under a 30 s alarm and expects exit 2 with `parts` within `seconds`. */
+static void expect_quick_refusal(const char *path, double seconds, const char *const *parts)
+{
+    cli_env env = {.seconds = 30};
+    double t0 = fm_seconds();
+    int rc = run_scene(&env, path, "out");
+    double took = fm_seconds() - t0;
+    expect_output(rc, 2, path, parts);
+    ENSURE_MSG(took < seconds, "%s: refused after %.1f s, not at once", path, took);
+}
+
+/* A volume bound whose tets could not fit in any machine's memory is refused before TetGen runs
+ * (it ran for over 500 s): 1.5 x (4/3) / 1e-12 = 2e12 tets at about 700 B each. */
+static void test_tetgen_volume_bound_too_fine(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("tet_bound.json", ",\n  \"tetgen\": {\"max_volume\": 1e-12}");
+    scene_position("1e-12", where, sizeof where);
+    expect_quick_refusal(path, 10, (const char *const[]){where, "tetgen.max_volume: 1e-12 over the volume 1.33333 of "
+                         "source.mesh", "implies at least 2e+12 tets", "physical memory", "use a tetgen.max_volume of at "
+                         "least", NULL});
+    /* a bound that fits still runs */
+    EXPECT_RUN(plain_scene("tet_bound_ok.json", ",\n  \"tetgen\": {\"max_volume\": 0.05},\n  \"time\": {\"frame_limit\": 2}"),
+               0, "");
+}
+
+/* lambda 100, oversample 16 for 300 agents ran for over 400 s; now refused at load, naming the keys. */
+static void test_stratified_work_too_large(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("strat.json", FLOCK ",\n  \"n\": 300,\n  \"shape_flock\": {\"sampling\": \"stratified\", "
+                                   "\"stratified\": {\"lambda\": 100, \"oversample\": 16}}");
+    scene_position("100", where, sizeof where);
+    expect_quick_refusal(path, 5, (const char *const[]){where, "shape_flock.stratified.lambda: 100 with "
+                         "shape_flock.stratified.oversample 16 and n 300", "3.84e+08 triangle pieces per surface",
+                         "4800 voxels", "more than the limit of 2.68e+08", "lambda of at most 83.6", NULL});
+    /* lambda 4 passes at any n: the same keys with a large n fail only later, on memory */
+    path = plain_scene("strat_ok.json", FLOCK ",\n  \"n\": 300,\n  \"time\": {\"frame_limit\": 1},\n  \"shape_flock\": "
+                       "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 4, \"oversample\": 16}}");
+    EXPECT_RUN(path, 0, "");
+}
+
+/* ---------------------------------------------------------------- messages that help (issue 15, item 13) */
+
+static void test_messages_name_what_decides(void)
+{
+    /* every digit that decides, not 1e+07 twice */
+    expect_scene_error("frame_limit.json", ",\n  \"time\": {\"frame_limit\": 10000001}", "10000001", "time.frame_limit",
+                       "10000001 is out of range: must be <= 10000000");
+    expect_scene_error("speed0.json", ",\n  \"speed0\": 1.0000000000000002e9", "1.0000000000000002e9", "speed0",
+                       "1000000000.0000002 is out of range: must be <= 1000000000");
+    /* the distance switch's grid is the target's: no obstacles in the wording */
+    const char *path = plain_scene("switch.json", ",\n  \"phase2\": {\"switch\": \"distance\", \"switch_distance\": 1e9}");
+    char where[FM_PATH_MAX + 32];
+    EXPECT_RUN(path, 2, scene_position("1e9", where, sizeof where), "phase2.switch_distance: 1000000000 is too far for "
+               "the target's distance grid", "use a switch distance of at most");
+    ENSURE_MSG(!strstr(g_err, "obstacle"), "a scene without obstacles reads of obstacles: %s", g_err);
+    /* the quantum's failure names output.quantum where the scene sets it */
+    path = plain_scene("quantum.json", ",\n  \"output\": {\"quantum\": 1e-9}");
+    EXPECT_RUN(path, 2, scene_position("1e-9", where, sizeof where), "output.quantum: ", "not a finite multiple of "
+               "quantum 1e-09", "raise output.quantum");
+}
+
+/* A UTF-8 byte-order mark at the start of a scene is skipped (RFC 8259 allows it); positions
+ * after it are the same as without it. */
+static void test_scene_byte_order_mark(void)
+{
+    char bom_path[FM_PATH_MAX], text[sizeof g_scene_text + 4], where[FM_PATH_MAX + 32], expect[FM_PATH_MAX + 64];
+    plain_scene("bom.json", ",\n  \"time\": {\"frame_limit\": 2}");
+    snprintf(text, sizeof text, "\xEF\xBB\xBF%s", g_scene_text);
+    write_text(tmp_path(bom_path, "bom_marked.json"), text);
+    EXPECT_RUN(bom_path, 0, "");
+    plain_scene("bom_bad.json", ",\n  \"sped0\": 1");
+    snprintf(text, sizeof text, "\xEF\xBB\xBF%s", g_scene_text);
+    write_text(tmp_path(bom_path, "bom_bad_marked.json"), text);
+    scene_position("\"sped0\"", where, sizeof where);
+    snprintf(expect, sizeof expect, "%s:%s", bom_path, strchr(where + strlen(g_scene), ':') + 1);
+    EXPECT_RUN(bom_path, 2, expect, "sped0: unknown key");
+}
+
+/* The shape flock's mesh errors carry the scene's FILE:LINE:COL like every other. */
+static void test_flock_mesh_errors_located(void)
+{
+    char where[FM_PATH_MAX + 32];
+    const char *path = plain_scene("seq.json", FLOCK ",\n  \"n\": 50,\n  \"shape_flock\": {\"deform\": {\"type\": "
+                                   "\"sequence\", \"sequence\": \"bad_no_such_%d.obj\", \"frames\": 2}}");
+    EXPECT_RUN(path, 2, scene_position("\"bad_no_such", where, sizeof where), "shape_flock.deform.sequence: mesh 0: ",
+               "cannot open the mesh");
+    path = scene("flock_missing.json", "bad_missing.obj", LEFT, RIGHT, FLOCK ",\n  \"n\": 50");
+    EXPECT_RUN(path, 2, scene_position("\"bad_missing.obj\"", where, sizeof where), "source.mesh: ", "cannot open the mesh");
+}
+
+/* ---------------------------------------------------------------- output paths (issue 15, items 12, 14) */
+
+static void expect_outdir_refused(const char *scene_path, const char *outdir, const char *what)
+{
+    char args[8 * FM_PATH_MAX];
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, what) != NULL, "-o %.80s: '%s' not in stderr: %s", outdir, what, g_err);
+}
+
+static void test_output_paths_refused_up_front(void)
+{
+    const char *path = plain_scene("outpaths.json", "");
+    struct stat st;
+    if (stat("/proc/self", &st) == 0) expect_outdir_refused(path, "/proc", "-o /proc: cannot create the lock file");
+    if (stat("/sys/kernel", &st) == 0) expect_outdir_refused(path, "/sys/kernel", "-o /sys/kernel: cannot create the lock file");
+    char longest[FM_PATH_MAX + 64], base[FM_PATH_MAX];
+    int n = snprintf(longest, sizeof longest, "%s", tmp_path(base, "long"));
+    while (n < 4080) n += snprintf(longest + n, sizeof longest - (size_t)n, "/%.*s", 4080 - n - 1 > 200 ? 200 : 4080 - n - 1,
+                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
+                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
+                                   "dddddddddddddd");
+    ENSURE(strlen(longest) == 4080);
+    expect_outdir_refused(path, longest, "the path is too long");
+    /* a long cache name in a long directory: the .partial would not fit in a path */
+    char name[256];
+    memset(name, 'c', 250), name[250] = 0;
+    char extra[400];
+    snprintf(extra, sizeof extra, ",\n  \"output\": {\"cache\": \"%s\"}", name);
+    path = plain_scene("long_cache.json", extra);
+    longest[3900] = 0;
+    expect_outdir_refused(path, longest, ".partial, which the run writes there, would be 4159 bytes, more than the 4095");
+    /* stats.json records -o as JSON text, which is UTF-8 */
+    char bad[FM_PATH_MAX];
+    snprintf(bad, sizeof bad, "%s/bad_out_\xFE", FM_TEST_TMP);
+    expect_outdir_refused(plain_scene("outpaths.json", ""), bad, "the path is not UTF-8 text");
+}
+
+/* A scene path that is not UTF-8 stays in stats.json's warnings, each bad byte as \xNN. */
+static void test_stats_keep_text_that_is_not_utf8(void)
+{
+    char odd[FM_PATH_MAX], args[3 * FM_PATH_MAX], stats[FM_PATH_MAX + 16];
+    scene("utf8.json", OCTAHEDRON, "\"translate\": [0, 0, 0]", "\"translate\": [0.5, 0, 0]",
+          ",\n  \"time\": {\"frame_limit\": 2}"); /* the overlap's warning names the scene */
+    snprintf(odd, sizeof odd, "%s/bad_scene_\xFE.json", FM_TEST_TMP);
+    write_text(odd, g_scene_text);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", odd, tmp_path(g_outdir, "utf8_out"));
+    ENSURE_EXIT(args, 0);
+    snprintf(stats, sizeof stats, "%s/stats.json", g_outdir);
+    json_t *j = json_load_file(stats, 0, NULL);
+    ENSURE_MSG(j != NULL, "%s does not parse", stats);
+    ENSURE(j && json_is_string(json_object_get(j, "cache")));
+    json_t *warnings = j ? json_object_get(j, "warnings") : NULL;
+    int kept = 0;
+    for (size_t i = 0; i < json_array_size(warnings); i++)
+        kept |= strstr(json_string_value(json_array_get(warnings, i)), "bad_scene_\\xFE.json:") != NULL;
+    ENSURE_MSG(kept, "no warning names bad_scene_\\xFE.json: %zu warnings", json_array_size(warnings));
+    json_decref(j);
+}
+
 int main(void)
 {
     RUN_TEST(test_scene_file_unreadable);
@@ -1098,5 +1253,12 @@ int main(void)
     RUN_TEST(test_cache_agents_beyond_file);
     RUN_TEST(test_disk_full);
     RUN_TEST(test_runaway_state_is_an_error);
+    RUN_TEST(test_tetgen_volume_bound_too_fine);
+    RUN_TEST(test_stratified_work_too_large);
+    RUN_TEST(test_messages_name_what_decides);
+    RUN_TEST(test_scene_byte_order_mark);
+    RUN_TEST(test_flock_mesh_errors_located);
+    RUN_TEST(test_output_paths_refused_up_front);
+    RUN_TEST(test_stats_keep_text_that_is_not_utf8);
     return test_result();
 }

@@ -639,7 +639,8 @@ static void test_timing(void)
         int32_t n[3];
         float origin[3];
         double t0 = fm_seconds();
-        fm_status st = fm_obstacles_vdb_grid(t.v, t.nv, t.tri, t.nt, voxel, band, FM_OBSTACLE_MAX_VOXELS, &d, n, origin, &err);
+        fm_status st = fm_obstacles_vdb_grid(t.v, t.nv, t.tri, t.nt, voxel, band, FM_OBSTACLE_MAX_VOXELS,
+                                             &(fm_sdf_names){"obstacle", "the obstacles"}, &d, n, origin, &err);
         t_grid = fmin(t_grid, fm_seconds() - t0);
         ENSURE_MSG(st == FM_OK, "%s", err.message);
         fm_free(d);
