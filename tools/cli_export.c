@@ -1,6 +1,8 @@
 /* flockmorph export: frames of a cache as PLY, OBJ, VTK (.vtu + .pvd) or OpenVDB points, one file
- * per frame (docs/export.md). Frames are written in parallel, each thread a contiguous block of
- * frames with its own cache reader; every file depends only on its frame, not on the threads. */
+ * per frame, or as one point cache (PC2, MDD) holding them all (docs/export.md). Frames are
+ * written in parallel, each thread a contiguous block of frames with its own cache reader; every
+ * file depends only on its frame, not on the threads. A point cache is written in frame order by
+ * one thread. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
@@ -13,20 +15,24 @@
 #include <unistd.h>
 
 static const char *const USAGE_EXPORT =
-    "usage: flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR [options]\n"
+    "usage: flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B[:S]] -o DIR [options]\n"
     "       flockmorph export CACHE -o FILE.ply|FILE.obj|FILE.vtu|FILE.vdb [--frame K] [options]\n"
+    "       flockmorph export CACHE [--format pc2|mdd] -o FILE.pc2|FILE.mdd [--frames A:B[:S]]\n"
     "\n"
     "The first form writes one file per frame, DIR/<cache name>_<frame, 5 digits>.<ext>\n"
     "(frames_00012.ply; ext is vtu for vtk), and for vtk also DIR/<cache name>.pvd, which lists\n"
     "the frames with their times for ParaView. The second writes frame K (default: the last;\n"
-    "negative counts from the end) to FILE in the format of its extension.\n"
+    "negative counts from the end) to FILE in the format of its extension. The third writes\n"
+    "every frame of the range into one point cache for Blender's Mesh Cache modifier, Maya,\n"
+    "3ds Max or Cinema 4D: a tet's 4 vertices, or a flock's agent positions, per frame.\n"
     "\n"
     "Tets become 4 triangles each (PLY, OBJ), VTK_TETRA cells with cell data agent_id (VTK), or\n"
     "points at their centroids with velocity v and id (VDB).\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
-    "                 negative numbers count from the end (-1 is the last); default: every frame\n"
+    "                 negative numbers count from the end (-1 is the last); default: every frame;\n"
+    "                 A:B:S every S-th frame from A (::2 every other frame)\n"
     "  --voxel SIZE   VDB voxel size in world units (default: from the point density)\n"
     "  --threads N    frames written at once (default: one per core); the files do not change\n"
     "  --quiet        no progress display (it is shown only on a terminal anyway)\n"
@@ -66,6 +72,8 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     return 0;
 }
 
+static int is_point_cache(fm_export_format f) { return f == FM_EXPORT_PC2 || f == FM_EXPORT_MDD; }
+
 static int parse_options(int argc, char **argv, export_options *o)
 {
     memset(o, 0, sizeof *o);
@@ -82,7 +90,7 @@ static int parse_options(int argc, char **argv, export_options *o)
     if (o->has_frame && (o->frames || o->format_name))
         return cli_usage_error(USAGE_EXPORT, "%s", "--frame K names one frame for -o FILE; with --format "
                                "use --frames K (or A:B)");
-    if (o->frames && !o->format_name)
+    if (o->frames && !o->format_name && !is_point_cache(fm_export_format_of_path(o->out)))
         return cli_usage_error(USAGE_EXPORT, "--frames %s writes a sequence into a directory: give "
                                "--format ply|obj|vtk|vdb", o->frames);
     return 0;
@@ -90,10 +98,10 @@ static int parse_options(int argc, char **argv, export_options *o)
 
 /* ---------------------------------------------------------------- frame ranges */
 
-/* A:B, A:, :B, : or K; each end a whole number, negative from the end. option and text are
- * what the user wrote, for messages. */
+/* A:B, A:, :B, : or K, each optionally followed by :S; each end a whole number, negative from
+ * the end, S a positive stride. option and text are what the user wrote, for messages. */
 typedef struct frame_range {
-    long first, last;
+    long first, last, step;
     int has_first, has_last;
     const char *option;
     char text[64];
@@ -112,27 +120,30 @@ static int parse_end(const char *s, size_t len, long *v, int *has)
 
 static int parse_range(const char *spec, frame_range *r)
 {
-    const char *colon = strchr(spec, ':');
+    const char *colon = strchr(spec, ':'), *second = colon ? strchr(colon + 1, ':') : NULL;
+    r->step = 1;
     if (!colon) {
         r->has_first = r->has_last = 1;
         return cli_parse_int(spec, -2000000000L, 2000000000L, &r->first) ? -1 : (r->last = r->first, 0);
     }
-    if (strchr(colon + 1, ':')) return -1;
+    if (second && (strchr(second + 1, ':') || cli_parse_int(second + 1, 1, 2000000000L, &r->step))) return -1;
+    size_t last_len = second ? (size_t)(second - colon - 1) : strlen(colon + 1);
     return parse_end(spec, (size_t)(colon - spec), &r->first, &r->has_first) ||
-                   parse_end(colon + 1, strlen(colon + 1), &r->last, &r->has_last)
+                   parse_end(colon + 1, last_len, &r->last, &r->has_last)
                ? -1 : 0;
 }
 
 /* Resolves the range against the cache's frame count; prints an error naming the option. */
 static int resolve_range(const frame_range *r, const char *cache, uint32_t frames, uint32_t *first,
-                         uint32_t *last)
+                         uint32_t *last, uint32_t *step)
 {
     const char *option = r->option, *spec = r->text;
     long n = (long)frames, a = r->has_first ? r->first : 0, b = r->has_last ? r->last : -1;
     if (a < 0) a += n;
     if (b < 0) b += n;
     if (n > 0 && a >= 0 && b < n && a <= b) {
-        *first = (uint32_t)a, *last = (uint32_t)b;
+        *step = (uint32_t)r->step;
+        *first = (uint32_t)a, *last = (uint32_t)(a + (b - a) / r->step * r->step); /* on the stride */
         return 0;
     }
     if (n == 0) fprintf(stderr, "flockmorph: error: %s %s: %s has no frames\n", option, spec, cache);
@@ -151,7 +162,7 @@ typedef struct export_job {
     char dir[FM_PATH_MAX], stem[256]; /* stem: the cache's name, cut to 255 bytes */
     fm_export_format format;
     fm_export_options opts;
-    uint32_t first, last, frames;
+    uint32_t first, last, step, frames; /* frames first, first + step, ... last of the cache's */
     double frame_rate;
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
@@ -180,6 +191,10 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     job->cache_phases = job->format == FM_EXPORT_VTK && fm_cache_has_attr(r, FM_ATTR_PHASE);
     return 0;
 }
+
+/* How many frames the range exports, and the i-th of them. */
+static uint32_t frame_count(const export_job *job) { return (job->last - job->first) / job->step + 1; }
+static uint32_t frame_at(const export_job *job, uint32_t i) { return job->first + i * job->step; }
 
 /* ---------------------------------------------------------------- one thread's frames */
 
@@ -370,12 +385,13 @@ static void export_block(const export_job *job, export_progress *p)
     fm_status st = source_open(&s, job, &err);
     /* schedule(static) without a chunk size: each thread one contiguous block of frames */
 #pragma omp for schedule(static)
-    for (long k = (long)job->first; k <= (long)job->last; k++) {
+    for (long i = 0; i < (long)frame_count(job); i++) {
+        uint32_t k = frame_at(job, (uint32_t)i);
         if (failed_so_far(p)) continue;
         if (st == FM_OK) {
             fm_error frame_err = {0};
-            note_result(p, (uint32_t)k, export_one(&s, job, (uint32_t)k, &frame_err), &frame_err);
-        } else note_result(p, (uint32_t)k, st, &err);
+            note_result(p, k, export_one(&s, job, k, &frame_err), &frame_err);
+        } else note_result(p, k, st, &err);
     }
     if (st == FM_OK) source_close(&s);
 }
@@ -383,7 +399,7 @@ static void export_block(const export_job *job, export_progress *p)
 static int export_frames(const export_job *job, int threads, int quiet)
 {
     export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(),
-                         .total = job->last - job->first + 1};
+                         .total = frame_count(job)};
     int team = fm_threads(threads);
     if ((uint32_t)team > p.total) team = (int)p.total;
 #pragma omp parallel num_threads(team)
@@ -395,14 +411,14 @@ static int export_frames(const export_job *job, int threads, int quiet)
 /* The .pvd: every frame at timestep frame / frame rate (seconds of animation time). */
 static int write_pvd(const export_job *job, char pvd[CLI_PATH_BUF])
 {
-    size_t count = job->last - job->first + 1;
+    size_t count = frame_count(job);
     char (*names)[CLI_NAME_BUF] = malloc(sizeof *names * count);
     const char **files = malloc(sizeof *files * count);
     double *times = malloc(sizeof *times * count);
     fm_error err = {0};
     fm_status st = names && files && times ? FM_OK : fm_fail(&err, FM_ERR_MEMORY, "out of memory for the .pvd");
     for (size_t i = 0; st == FM_OK && i < count; i++) {
-        uint32_t k = job->first + (uint32_t)i;
+        uint32_t k = frame_at(job, (uint32_t)i);
         frame_name(job, k, names[i]);
         files[i] = names[i];
         times[i] = job->frame_rate > 0 ? k / job->frame_rate : (double)k;
@@ -411,6 +427,41 @@ static int write_pvd(const export_job *job, char pvd[CLI_PATH_BUF])
         st = fm_fail(&err, FM_ERR_USAGE, "the .pvd path is longer than %d bytes", FM_PATH_MAX - 1);
     if (st == FM_OK) st = fm_export_pvd(pvd, files, times, count, &err);
     free(names), free(files), free(times);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
+/* ---------------------------------------------------------------- point caches */
+
+/* Frame k's points as a point cache holds them: a tet's 4 vertices, or a flock's positions. */
+static fm_status point_cache_frame(fm_cache_reader *r, const export_job *job, uint32_t k, float *xyz,
+                                   fm_error *err)
+{
+    return job->points ? fm_cache_read_attr(r, k, FM_ATTR_POSITION, xyz, err) : fm_cache_read_frame(r, k, xyz, err);
+}
+
+/* Every frame of the range into one PC2 or MDD file, in order. PC2's start frame and MDD's
+ * times are the cache's frame numbers (MDD: over the frame rate); the step is the stride. */
+static int export_point_cache(const export_job *job, int quiet)
+{
+    fm_pointcache_options pc = {.format = job->format, .points = job->points ? job->agents : 4 * job->agents,
+                                .frames = frame_count(job), .start_frame = job->first,
+                                .frame_step = job->step, .frame_rate = job->frame_rate};
+    export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(), .total = frame_count(job)};
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(job->cache, &err);
+    float *xyz = r ? malloc(sizeof(float) * 3 * (pc.points ? pc.points : 1)) : NULL;
+    fm_pointcache_writer *w = xyz ? fm_pointcache_create(job->out_file, &pc, &err) : NULL;
+    fm_status st = w ? FM_OK : r && !xyz ? fm_fail(&err, FM_ERR_MEMORY, "out of memory for a frame") : err.status;
+    for (uint32_t i = 0; st == FM_OK && i < pc.frames; i++) {
+        st = point_cache_frame(r, job, frame_at(job, i), xyz, &err);
+        if (st == FM_OK) st = fm_pointcache_add(w, xyz, &err);
+        note_result(&p, frame_at(job, i), st, &err);
+    }
+    if (st == FM_OK) st = fm_pointcache_finish(w, &err);
+    else fm_pointcache_abort(w);
+    if (p.show) fprintf(stderr, "\r\033[K");
+    free(xyz);
+    if (r) fm_cache_close(r);
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
@@ -435,29 +486,42 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
     if (o->format_name) {
         job->format = fm_export_format_named(o->format_name);
         if (job->format == FM_EXPORT_UNKNOWN)
-            return cli_usage_error(USAGE_EXPORT, "--format wants ply, obj, vtk or vdb, not '%s'", o->format_name);
+            return cli_usage_error(USAGE_EXPORT, "--format wants ply, obj, vtk, vdb, pc2 or mdd, not '%s'",
+                                   o->format_name);
+    }
+    if (o->format_name && !is_point_cache(job->format)) {
         if (snprintf(job->dir, sizeof job->dir, "%s", o->out) >= (int)sizeof job->dir)
             return cli_usage_error(USAGE_EXPORT, "-o %s: the path is too long", o->out);
         cache_stem(o->cache, job->stem, sizeof job->stem);
     } else {
-        job->format = fm_export_format_of_path(o->out);
+        if (!o->format_name) job->format = fm_export_format_of_path(o->out);
         if (job->format == FM_EXPORT_UNKNOWN)
-            return cli_usage_error(USAGE_EXPORT, "-o %s: unknown extension; give FILE.ply, .obj, .vtu or "
-                                   ".vdb, or --format ply|obj|vtk|vdb with -o DIR for a sequence", o->out);
+            return cli_usage_error(USAGE_EXPORT, "-o %s: unknown extension; give FILE.ply, .obj, .vtu, .vdb, "
+                                   ".pc2 or .mdd, or --format ply|obj|vtk|vdb with -o DIR for a sequence", o->out);
         job->out_file = o->out;
     }
     memset(range, 0, sizeof *range);
     range->option = o->frames ? "--frames" : "--frame";
     if (o->has_frame) snprintf(range->text, sizeof range->text, "%ld", o->frame);
-    else snprintf(range->text, sizeof range->text, "%s", o->frames ? o->frames : job->out_file ? "-1" : ":");
+    else snprintf(range->text, sizeof range->text, "%s",
+                  o->frames ? o->frames : job->out_file && !is_point_cache(job->format) ? "-1" : ":");
+    if (o->has_frame && is_point_cache(job->format))
+        return cli_usage_error(USAGE_EXPORT, "%s", "a point cache holds a range of frames: give --frames A:B "
+                               "(or K), not --frame");
     if (parse_range(range->text, range) || (o->frames && strlen(o->frames) >= sizeof range->text))
-        return cli_usage_error(USAGE_EXPORT, "--frames wants A:B, A:, :B or K (whole numbers, negative "
-                               "from the end), not '%s'", o->frames);
+        return cli_usage_error(USAGE_EXPORT, "--frames wants A:B, A:, :B or K, optionally with :S (whole "
+                               "numbers, negative from the end; S a positive stride), not '%s'", o->frames);
     return 0;
 }
 
 static void print_summary(const export_job *job, const char *pvd)
 {
+    if (job->out_file && is_point_cache(job->format)) {
+        printf("frames %u..%u step %u of %s -> %s (%u frames of %zu points)\n", (unsigned)job->first,
+               (unsigned)job->last, (unsigned)job->step, job->cache, job->out_file, (unsigned)frame_count(job),
+               job->points ? job->agents : 4 * job->agents);
+        return;
+    }
     if (job->out_file) {
         printf("frame %u of %s -> %s\n", (unsigned)job->first, job->cache, job->out_file);
         return;
@@ -467,7 +531,7 @@ static void print_summary(const export_job *job, const char *pvd)
     frame_path(job, job->last, last);
     printf("frames %u..%u of %s -> %s%s%s (%u files)\n", (unsigned)job->first, (unsigned)job->last,
            job->cache, first, job->last > job->first ? " .. " : "", job->last > job->first ? last : "",
-           (unsigned)(job->last - job->first + 1));
+           (unsigned)frame_count(job));
     if (pvd[0]) printf("collection -> %s\n", pvd);
 }
 
@@ -486,9 +550,9 @@ int cli_export(int argc, char **argv)
     if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
     rc = describe_cache(r, &job);
     fm_cache_close(r);
-    if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last);
+    if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last, &job.step);
     if (!rc && !job.out_file) rc = cli_make_outdir(job.dir, NULL, 0);
-    if (!rc) rc = export_frames(&job, o.threads, o.quiet);
+    if (!rc) rc = is_point_cache(job.format) ? export_point_cache(&job, o.quiet) : export_frames(&job, o.threads, o.quiet);
     char pvd[CLI_PATH_BUF] = "";
     if (!rc && !job.out_file && job.format == FM_EXPORT_VTK) rc = write_pvd(&job, pvd);
     if (!rc) print_summary(&job, pvd);

@@ -26,7 +26,9 @@ static const struct {
 } fm_formats[] = {{FM_EXPORT_PLY, "ply", "ply"},
                   {FM_EXPORT_OBJ, "obj", "obj"},
                   {FM_EXPORT_VTK, "vtk", "vtu"},
-                  {FM_EXPORT_VDB, "vdb", "vdb"}};
+                  {FM_EXPORT_VDB, "vdb", "vdb"},
+                  {FM_EXPORT_PC2, "pc2", "pc2"},
+                  {FM_EXPORT_MDD, "mdd", "mdd"}};
 #define FM_FORMAT_COUNT (sizeof fm_formats / sizeof fm_formats[0])
 
 fm_export_format fm_export_format_named(const char *name)
@@ -291,6 +293,10 @@ fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format f
         return fm_export_with_body(path, fm_vtu_body, frame, err);
     case FM_EXPORT_VDB:
         return write_vdb(frame, opts ? opts : &defaults, path, err);
+    case FM_EXPORT_PC2:
+    case FM_EXPORT_MDD:
+        return fm_fail(err, FM_ERR_USAGE, "cannot export one frame to '%s': %s holds a sequence "
+                       "(fm_pointcache_create)", path, fm_export_extension(format));
     default:
         return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': unknown format", path);
     }

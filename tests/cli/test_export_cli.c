@@ -156,12 +156,18 @@ static void list_dir(const char *dir, char *out, size_t size)
     }
 }
 
-/* seq_<first>.ext .. seq_<last>.ext (and seq.pvd, listed first as the sort puts it), joined. */
-static void expected_names(int first, int last, const char *ext, int pvd, char *out, size_t size)
+/* seq_<first>.ext, seq_<first + step>.ext .. up to last (and seq.pvd, listed first as the sort
+ * puts it), joined. */
+static void expected_names_step(int first, int last, int step, const char *ext, int pvd, char *out, size_t size)
 {
     snprintf(out, size, "%s", pvd ? "seq.pvd" : "");
-    for (int k = first; k <= last; k++)
+    for (int k = first; k <= last; k += step)
         snprintf(out + strlen(out), size - strlen(out), "%sseq_%05d.%s", out[0] ? " " : "", k, ext);
+}
+
+static void expected_names(int first, int last, const char *ext, int pvd, char *out, size_t size)
+{
+    expected_names_step(first, last, 1, ext, pvd, out, size);
 }
 
 /* ---------------------------------------------------------------- sequences */
@@ -196,9 +202,11 @@ static void test_obj_sequence(void)
 /* Every form of --frames names the files it should, and only those. */
 static void test_frame_ranges(void)
 {
-    static const struct { const char *spec; int first, last; } cases[] = {
-        {"3:", 3, FRAMES - 1}, {":2", 0, 2}, {"4", 4, 4}, {"-3:", FRAMES - 3, FRAMES - 1}, {"-3:-2", FRAMES - 3, FRAMES - 2},
-        {":", 0, FRAMES - 1}, {"-1", FRAMES - 1, FRAMES - 1}, {"0:0", 0, 0}, {NULL, 0, FRAMES - 1}};
+    static const struct { const char *spec; int first, last, step; } cases[] = {
+        {"3:", 3, FRAMES - 1, 1}, {":2", 0, 2, 1}, {"4", 4, 4, 1}, {"-3:", FRAMES - 3, FRAMES - 1, 1},
+        {"-3:-2", FRAMES - 3, FRAMES - 2, 1}, {":", 0, FRAMES - 1, 1}, {"-1", FRAMES - 1, FRAMES - 1, 1},
+        {"0:0", 0, 0, 1}, {NULL, 0, FRAMES - 1, 1}, {"::2", 0, FRAMES - 1, 2}, {"1:7:3", 1, 7, 3},
+        {"1:8:3", 1, 7, 3}, {"-4::5", FRAMES - 4, FRAMES - 4, 5}, {"2:2:9", 2, 2, 9}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], frames[64] = "";
         fresh_dir(dir, "seq_range");
@@ -206,7 +214,7 @@ static void test_frame_ranges(void)
         snprintf(args, sizeof args, "--format obj %s -o '%s' --quiet", frames, dir);
         ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
         list_dir(dir, have, sizeof have);
-        expected_names(cases[i].first, cases[i].last, "obj", 0, want, sizeof want);
+        expected_names_step(cases[i].first, cases[i].last, cases[i].step, "obj", 0, want, sizeof want);
         ENSURE_MSG(!strcmp(have, want), "--frames %s: files '%s', expected '%s'", cases[i].spec ? cases[i].spec : "(none)",
                    have, want);
     }
@@ -232,6 +240,19 @@ static void test_vtk_sequence(void)
     }
     snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g", dir, RATE);
     for (int k = 1; k <= FRAMES - 2; k++) snprintf(args + strlen(args), sizeof args - strlen(args), " %d", k);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+}
+
+/* A stride: the .pvd lists only the frames written, at their own times. */
+static void test_strided_pvd(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096];
+    snprintf(args, sizeof args, "--format vtk --frames 0::4 -o '%s'", fresh_dir(dir, "seq_vtk_stride"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    expected_names_step(0, 8, 4, "vtu", 1, want, sizeof want);
+    ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
+    snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g 0 4 8", dir, RATE);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
 }
 
@@ -444,6 +465,120 @@ static void test_phases_in_vtk(void)
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
 }
 
+/* ---------------------------------------------------------------- point caches (PC2, MDD) */
+
+static uint32_t read_u32(const unsigned char *p, int big)
+{
+    uint32_t v = 0;
+    for (int k = 0; k < 4; k++) v |= (uint32_t)p[big ? 3 - k : k] << (8 * k);
+    return v;
+}
+
+static float read_f32(const unsigned char *p, int big)
+{
+    uint32_t bits = read_u32(p, big);
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+
+/* The whole file, malloc'ed; *size its length. */
+static unsigned char *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    unsigned char *buf = malloc(1 << 20);
+    *size = f && buf ? fread(buf, 1, 1 << 20, f) : 0;
+    if (f) fclose(f);
+    return buf;
+}
+
+/* What a point cache of cache c over frames first, first + step, ... should hold. */
+typedef struct pc_expect {
+    const test_cache *c;
+    int first, step, count;
+} pc_expect;
+
+/* Frame k's points as the cache holds them, and how many. */
+static const float *pc_points(const test_cache *c, int k, size_t *points)
+{
+    *points = c->tets ? 4 * AGENTS : AGENTS;
+    return c->tets ? g_frames[k] : g_pos[k];
+}
+
+/* Every sample equals the cache's frame bit for bit. */
+static void check_samples(const char *path, const unsigned char *data, size_t avail, const pc_expect *e, int big)
+{
+    size_t points;
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(avail == (size_t)e->count * 12 * points, "%s: %zu bytes of samples, expected %zu", path, avail,
+               (size_t)e->count * 12 * points);
+    for (int j = 0; j < e->count && avail == (size_t)e->count * 12 * points; j++) {
+        const float *want = pc_points(e->c, e->first + j * e->step, &points);
+        for (size_t i = 0; i < 3 * points; i++) {
+            float have = read_f32(data + 4 * (j * 3 * points + i), big);
+            ENSURE_MSG(!memcmp(&have, &want[i], 4), "%s: sample %d value %zu is %.9g, the cache's %.9g", path, j,
+                       i, (double)have, (double)want[i]);
+            if (memcmp(&have, &want[i], 4)) return;
+        }
+    }
+}
+
+/* PC2: the header Blender's Mesh Cache modifier reads, then the samples. */
+static void check_pc2(const char *path, const pc_expect *e)
+{
+    size_t size, points;
+    unsigned char *b = slurp(path, &size);
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(size >= 32 && !memcmp(b, "POINTCACHE2\0", 12), "%s: no PC2 signature", path);
+    if (size >= 32) {
+        ENSURE(read_u32(b + 12, 0) == 1);
+        ENSURE_MSG(read_u32(b + 16, 0) == points, "%s: %u points", path, read_u32(b + 16, 0));
+        ENSURE_MSG(read_f32(b + 20, 0) == (float)e->first, "%s: start %g", path, (double)read_f32(b + 20, 0));
+        ENSURE_MSG(read_f32(b + 24, 0) == (float)e->step, "%s: sample rate %g", path, (double)read_f32(b + 24, 0));
+        ENSURE_MSG(read_u32(b + 28, 0) == (uint32_t)e->count, "%s: %u samples", path, read_u32(b + 28, 0));
+        check_samples(path, b + 32, size - 32, e, 0);
+    }
+    free(b);
+}
+
+/* MDD: big-endian frame count, point count, each frame's time in seconds, then the frames. */
+static void check_mdd(const char *path, const pc_expect *e)
+{
+    size_t size, points, head = 8 + 4 * (size_t)e->count;
+    unsigned char *b = slurp(path, &size);
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(size >= head && read_u32(b, 1) == (uint32_t)e->count && read_u32(b + 4, 1) == points,
+               "%s: header says %u frames of %u points", path, size >= 8 ? read_u32(b, 1) : 0,
+               size >= 8 ? read_u32(b + 4, 1) : 0);
+    for (int j = 0; size >= head && j < e->count; j++)
+        ENSURE_MSG(read_f32(b + 8 + 4 * j, 1) == (float)((e->first + j * e->step) / RATE), "%s: time %d is %g",
+                   path, j, (double)read_f32(b + 8 + 4 * j, 1));
+    if (size >= head) check_samples(path, b + head, size - head, e, 1);
+    free(b);
+}
+
+static void test_point_caches(void)
+{
+    static const struct { test_cache *c; const char *options, *name; int first, step, count; } cases[] = {
+        {&g_tets, "", "tets.pc2", 0, 1, FRAMES},           /* by extension: every frame */
+        {&g_tets, "--frames 1:7:3", "tets.mdd", 1, 3, 3},  /* 1, 4, 7 */
+        {&g_points, "--format pc2 --frames ::2", "pts.cache", 0, 2, 5},
+        {&g_points, "--format mdd --frames -3:", "pts.mdd", FRAMES - 3, 1, 3},
+        {&g_phased_tets, "--frames 2:6:3", "phased.pc2", 2, 3, 2}, /* 6 is off the stride: 2, 5 */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+        export_tmp(path, cases[i].name);
+        remove(path);
+        snprintf(args, sizeof args, "%s -o '%s'", cases[i].options, path);
+        ENSURE_MSG(export_cmd_on(cases[i].c->path, args) == 0, "%s: %s", args, g_err);
+        pc_expect e = {cases[i].c, cases[i].first, cases[i].step, cases[i].count};
+        int mdd = strstr(cases[i].name, ".mdd") || strstr(cases[i].options, "mdd");
+        if (mdd) check_mdd(path, &e);
+        else check_pc2(path, &e);
+    }
+}
+
 /* ---------------------------------------------------------------- threads */
 
 static int same_bytes(const char *a, const char *b)
@@ -503,7 +638,11 @@ static void test_usage_errors(void)
         {"--format ply --frames :-10 -o '%s'", "--frames", FRAMES_TEXT},
         {"-o '%s/x.ply' --frame 9", "--frame 9", FRAMES_TEXT},
         {"--format ply --frames abc -o '%s'", "--frames", "'abc'"},
-        {"--format ply --frames 1:2:3 -o '%s'", "--frames", "'1:2:3'"},
+        {"--format ply --frames 1:2:0 -o '%s'", "--frames", "'1:2:0'"},
+        {"--format ply --frames 1:2:3:4 -o '%s'", "--frames", "'1:2:3:4'"},
+        {"--format ply --frames 1:: -o '%s'", "--frames", "'1::'"},
+        {"-o '%s/x.pc2' --frame 2", "--frame", "--frames A:B"},
+        {"--format mdd --frames 3:1 -o '%s/x.mdd'", "--frames", FRAMES_TEXT},
         {"--format ply --frames 1-3 -o '%s'", "--frames", "'1-3'"},
         {"--format ply --frames '' -o '%s'", "--frames", "A:B"},
         {"--format ply --frames 1.5: -o '%s'", "--frames", "'1.5:'"},
@@ -551,11 +690,13 @@ int main(void)
     RUN_TEST(test_obj_sequence);
     RUN_TEST(test_frame_ranges);
     RUN_TEST(test_vtk_sequence);
+    RUN_TEST(test_strided_pvd);
     RUN_TEST(test_vdb_sequence);
     RUN_TEST(test_single_file);
     RUN_TEST(test_point_cache);
     RUN_TEST(test_point_cache_without_velocity);
     RUN_TEST(test_phases_in_vtk);
+    RUN_TEST(test_point_caches);
     RUN_TEST(test_threads_do_not_change_files);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_io_errors);
