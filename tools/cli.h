@@ -27,6 +27,11 @@ int cli_wants_help(int argc, char **argv);
 int cli_parse_int(const char *s, long lo, long hi, long *out);
 /* Parses a finite number > 0; -1 if it is not one. */
 int cli_parse_positive(const char *s, double *out);
+/* A frame-number pattern (frames.%04d.ply): exactly one integer conversion %d, %i or %u with an
+ * optional 0 flag and a width of at most 2 digits, and %% for a literal %; 0 if it is one, -1
+ * otherwise. cli_frame_name prints it with the frame number (the pattern was checked). */
+int cli_check_frame_pattern(const char *pattern);
+int cli_frame_name(char *out, size_t size, const char *pattern, long frame);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);

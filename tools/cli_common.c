@@ -63,6 +63,41 @@ int cli_parse_int(const char *s, long lo, long hi, long *out)
     return 0;
 }
 
+int cli_check_frame_pattern(const char *pattern)
+{
+    int conversions = 0;
+    for (const char *p = pattern; *p; p++) {
+        if (*p != '%') continue;
+        if (*++p == '%') continue;
+        if (*p == '0') p++;
+        for (int digits = 0; *p >= '0' && *p <= '9'; p++)
+            if (++digits > 2) return -1;
+        if (*p != 'd' && *p != 'i' && *p != 'u') return -1;
+        conversions++;
+    }
+    return conversions == 1 ? 0 : -1;
+}
+
+int cli_frame_name(char *out, size_t size, const char *pattern, long frame)
+{
+    /* the one conversion becomes %ld, so an int-sized argument cannot be misread */
+    char fmt[FM_PATH_MAX + 8];
+    size_t j = 0;
+    for (const char *p = pattern; *p && j + 4 < sizeof fmt; p++) {
+        fmt[j++] = *p;
+        if (*p != '%') continue;
+        if (p[1] == '%') { fmt[j++] = *++p; continue; }
+        while (*++p >= '0' && *p <= '9' && j + 4 < sizeof fmt) fmt[j++] = *p;
+        fmt[j++] = 'l', fmt[j++] = 'd';
+    }
+    fmt[j] = 0;
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wformat-nonliteral"
+    int len = snprintf(out, size, fmt, frame);
+#pragma GCC diagnostic pop
+    return len < 0 || (size_t)len >= size ? -1 : 0;
+}
+
 /* mkdir -p: creates dir and any missing parents; on failure `failed` names the one that failed. */
 static int make_dirs(const char *dir, char *failed, size_t size)
 {

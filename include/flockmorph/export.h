@@ -1,10 +1,11 @@
 /* flockmorph exporters: one frame of agents, given as plain arrays, to the formats animation
  * and analysis tools read (docs/export.md).
  *
- *   PLY   binary little-endian; tets as 4 triangles each, points as vertices with vx vy vz id
+ *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase), points as
+ *         vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase
  *   OBJ   tets as 4 triangles each, points as `v` lines
  *   VTK   XML UnstructuredGrid (.vtu, appended raw data): VTK_TETRA or VTK_VERTEX cells
- *   VDB   OpenVDB PointDataGrid: P, v (velocity) and id
+ *   VDB   OpenVDB PointDataGrid: P, v, orient, pscale, age, id, phase (Houdini's names)
  *   PC2   point cache (Blender's Mesh Cache modifier, Maya, 3ds Max): every frame in one file
  *   MDD   the same, big-endian, with frame times (fm_pointcache_create)
  *
@@ -52,8 +53,13 @@ typedef struct fm_export_frame {
     const float *tet_vertices; /* n × 12: 4 vertices × xyz per tet; NULL for a point flock */
     const float *positions;    /* n × 3: points; for tets the centroids (VDB only; computed if NULL) */
     const float *velocities;   /* n × 3: written for points (PLY, VTK) and by VDB; NULL: none / zero */
-    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 */
-    const uint8_t *phases;     /* n fm_phase values (VTK cell data for tets); NULL: not written */
+    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: not written) */
+    const uint8_t *phases;     /* n fm_phase values; NULL: not written */
+    /* Houdini's point attributes (PLY and VDB points; NULL: not written): */
+    const float *orientations; /* n × 4: unit quaternions w, x, y, z as the cache stores them;
+                                  written as Houdini's orient, x, y, z, w */
+    const float *pscales;      /* n: the agent's radius in world units */
+    const float *ages;         /* n: seconds the agent has existed */
 } fm_export_frame;
 
 typedef struct fm_export_options {
@@ -93,6 +99,12 @@ fm_status fm_pointcache_add(fm_pointcache_writer *w, const float *xyz, fm_error 
 fm_status fm_pointcache_finish(fm_pointcache_writer *w, fm_error *err);
 /* Removes the partial file and frees w (NULL is allowed). */
 void fm_pointcache_abort(fm_pointcache_writer *w);
+
+/* Z-up to Y-up (`export --up y`): the rotation by -90 degrees about x, (x, y, z) -> (x, z, -y),
+ * in place on n vectors (positions, velocities; tet vertices are 4n of them), and the same
+ * rotation applied to n quaternions w, x, y, z (r * q in double, r = (cos 45, -sin 45, 0, 0)). */
+void fm_export_up_y(float *xyz, size_t n);
+void fm_export_up_y_quaternions(float *wxyz, size_t n);
 
 /* Each tet's centroid (the mean of its 4 vertices, in double): n × 12 floats in, n × 3 out. */
 void fm_tet_centroids(const float *verts, size_t n, float *out);
