@@ -98,6 +98,20 @@ static void test_usage_errors(void)
     snprintf(args, sizeof args, "run '%s' -o '%s/cli_usage_out' --threads", scene, FM_TEST_TMP);
     ENSURE_EXIT(args, 1);
     ENSURE_EXIT("run", 1);
+    /* one line and where to read more, not the whole usage text */
+    static const struct { const char *args, *see; } one_line[] = {
+        {"run --threads 0 s.json -o o", "see 'flockmorph help run'\n"},
+        {"export c.fmc --format stl -o d", "see 'flockmorph help export'\n"},
+        {"render c.fmc -o x.gif", "see 'flockmorph help render'\n"},
+        {"inspect", "see 'flockmorph help inspect'\n"},
+        {"frobnicate", "see 'flockmorph help'\n"},
+    };
+    for (size_t i = 0; i < sizeof one_line / sizeof one_line[0]; i++) {
+        ENSURE_EXIT(one_line[i].args, 1);
+        const char *nl = strchr(g_err, '\n');
+        ENSURE_MSG(nl && !strcmp(nl + 1, one_line[i].see) && !strstr(g_err, "usage:"),
+                   "flockmorph %s: stderr '%s'", one_line[i].args, g_err);
+    }
 }
 
 /* ---------------------------------------------------------------- bad scenes */
@@ -325,6 +339,75 @@ static void test_render(void)
     ENSURE_EXIT(args, 1);
 }
 
+/* -o NAME.%04d.png: one PNG per frame of --frames (a stride here), named by the cache's frame
+ * number, each the image `render -o FILE.png --frame K` draws; bad patterns are usage errors. */
+static void test_render_png_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], one[FM_PATH_MAX];
+    ENSURE(g_cache[0] && g_frames > 4);
+    if (!g_cache[0] || g_frames <= 4) return;
+    snprintf(args, sizeof args, "rm -rf '%s' && mkdir '%s'", tmp_path(dir, "png_seq"), dir);
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "render '%s' -o '%s/f.%%04d.png' --frames 1::3 --size 32x24", g_cache, dir);
+    ENSURE_EXIT(args, 0);
+    int count = 0;
+    for (int k = 0; k < (int)g_frames + 2; k++) {
+        snprintf(path, sizeof path, "%s/f.%04d.png", dir, k);
+        struct stat st;
+        int want = k >= 1 && (k - 1) % 3 == 0 && k < (int)g_frames, have = stat(path, &st) == 0;
+        ENSURE_MSG(want == have, "%s: %s", path, have ? "written" : "missing");
+        if (!have || count++ >= 2) continue; /* compare the first two with the one-file form */
+        snprintf(args, sizeof args, "render '%s' -o '%s' --frame %d --size 32x24", g_cache, tmp_path(one, "png_one.png"), k);
+        ENSURE_EXIT(args, 0);
+        ENSURE_MSG(same_file(path, one), "%s differs from the one-file render of frame %d", path, k);
+    }
+    static const char *const bad[] = {"f%%%%.png", "f.%%.png", "f.%%d.%%d.png", "f.%%s.png", "f.%%.2f.png", "f.%%123d.png"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char name[64];
+        snprintf(name, sizeof name, bad[i]);
+        snprintf(args, sizeof args, "render '%s' -o '%s/%s' --size 32x24", g_cache, dir, name);
+        ENSURE_EXIT(args, 1);
+        ENSURE_MSG(strstr(g_err, "integer conversion"), "%s: %s", name, g_err);
+    }
+    snprintf(args, sizeof args, "render '%s' -o '%s/f.%%d.png' --frame 2", g_cache, dir);
+    ENSURE_EXIT(args, 1);
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.mp4' --frames 0:4:0", g_cache, dir);
+    ENSURE_EXIT(args, 1);
+}
+
+/* Progress when stderr is not a terminal (a farm's log): plain lines, every --log-every seconds
+ * (0: every frame), with the frame, the limit, the percentage done and an ETA; one line at the
+ * default interval for a run this short; none with --quiet. */
+static void test_run_progress_in_a_log(void)
+{
+    char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    write_scene(tmp_path(scene, "progress.json"), "");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --log-every 0", scene, tmp_path(outdir, "progress_out"));
+    ENSURE_EXIT(args, 0);
+    int lines = 0;
+    double last_done = -1;
+    for (const char *l = strstr(g_err, "flockmorph: progress: frame "); l; l = strstr(l + 1, "flockmorph: progress: frame ")) {
+        long long frame, limit;
+        double done;
+        const char *d = strstr(l, "done ");
+        ENSURE_MSG(sscanf(l, "flockmorph: progress: frame %lld of at most %lld", &frame, &limit) == 2 && d &&
+                   sscanf(d, "done %lf%%", &done) == 1 && strstr(l, "eta "), "line '%.200s'", l);
+        ENSURE_MSG(frame == lines + 1 && limit > 0 && done >= last_done && done <= 100.0, "line '%.200s'", l);
+        last_done = done, lines++;
+    }
+    ENSURE_MSG(lines == (int)g_frames - 1 && last_done == 100.0, "%d progress lines for %lld frames, last %.1f%%: %s",
+               lines, (long long)g_frames, last_done, g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1", scene, outdir);
+    ENSURE_EXIT(args, 0);
+    const char *first = strstr(g_err, "flockmorph: progress: frame 1 ");
+    ENSURE_MSG(first && !strstr(first + 1, "flockmorph: progress:"), "default interval: %s", g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet", scene, outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(!strstr(g_err, "progress"), "--quiet: %s", g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);
+    ENSURE_EXIT(args, 1);
+}
+
 static void test_info(void)
 {
     char args[3 * FM_PATH_MAX], want[64];
@@ -544,6 +627,8 @@ int main(void)
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);
     RUN_TEST(test_render);
+    RUN_TEST(test_render_png_sequence);
+    RUN_TEST(test_run_progress_in_a_log);
     RUN_TEST(test_info);
     RUN_TEST(test_inspect_json);
     RUN_TEST(test_inspect_text_and_recovered);
