@@ -46,6 +46,7 @@ typedef struct cli_run_options {
     int threads, quiet, resume;
     long checkpoint_every; /* -1: by wall time (the default) */
     double log_every;      /* seconds between the plain progress lines when stderr is not a terminal */
+    char start_time[32];   /* UTC, ISO 8601, when the command started (cli_utc_now) */
     const char *sets[FM_MAX_OVERRIDES]; /* --set KEY=VALUE, in order */
     int set_count;
     const char *wedge_file;             /* --wedge-file W, or NULL */
@@ -154,8 +155,15 @@ typedef struct cli_run_record {
     double time_step, preprocess_seconds, simulate_seconds, output_seconds;
     int threads;
     const char *cache;
+    const cli_run_options *options; /* the scene, the command line, the start time */
 } cli_run_record;
 json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
+/* stats.json's schema number (docs/stats.md): raised when a key changes meaning or goes away. */
+#define CLI_STATS_SCHEMA 1
+/* schema, scene, scene_absolute, scene_xxh64, command_line, start_time, machine (cli_stats.c). */
+void cli_stats_provenance(json_t *j, const cli_run_options *o);
+/* Now, UTC, ISO 8601: 2026-12-02T08:05:46Z. */
+void cli_utc_now(char *out, size_t size);
 double cli_agent_steps_per_second(const cli_run_record *r);
 
 /* What the run path reads of a mode's run context: its first member, set by build(). */

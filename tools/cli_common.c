@@ -322,6 +322,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_t *j = json_object();
     /* which flockmorph wrote it, so a pipeline can tell results of different builds apart */
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));
+    if (r->options) cli_stats_provenance(j, r->options);
     json_object_set_new(j, "mode", json_string(r->mode));
     json_object_set_new(j, "agents", json_integer(r->agents));
     json_object_set_new(j, "frames", json_integer(r->frames));

@@ -57,6 +57,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     memset(o, 0, sizeof *o);
     o->checkpoint_every = -1;
     o->log_every = 10;
+    cli_utc_now(o->start_time, sizeof o->start_time);
     o->wedge = -1;
     o->argc = argc, o->argv = argv;
     for (int i = 0; i < argc; i++) {
@@ -195,7 +196,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (fm_cache_writer_finish(cache, &err) != FM_OK) /* finish keeps PATH.partial on failure */
         return cli_fail_keeping_partial_cache(&err, NULL, files.cache);
     const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
-                                   t->simulate_seconds, t->output_seconds, files.threads, files.cache};
+                                   t->simulate_seconds, t->output_seconds, files.threads, files.cache, o};
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
     cli_remove_checkpoint(&files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s", (long long)agents, (long long)record.frames,

@@ -1,6 +1,7 @@
 /* The flockmorph command line (FM_CLI): exit statuses, messages, and one small end-to-end run of
  * an octahedron onto itself 20 units away, followed by export, render and info on its cache. */
 #define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* timegm */
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
 #include "test_cli_helpers.h"
@@ -12,6 +13,10 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
+
+#define XXH_INLINE_ALL /* the scene file's hash, as stats.json records it */
+#include <xxhash.h>
 
 #define AGENTS 200
 
@@ -226,6 +231,98 @@ static void test_huge_omp_num_threads(void)
 }
 
 /* docs/scene.md: reaching time.frame_limit is not an error; stats.json and a warning say so. */
+/* Every key of a stats.json, nested objects' as PARENT.KEY, has a row "| `KEY`" (or a row listing
+ * it among others) in docs/stats.md, and every key listed there for this mode is in the file. */
+static void check_stats_keys_documented(const char *stats, const char *mode_section)
+{
+    char path[FM_PATH_MAX];
+    static char doc[1 << 16];
+    snprintf(path, sizeof path, "%s/docs/stats.md", FM_SOURCE_DIR);
+    slurp(path, doc, sizeof doc);
+    json_t *j = json_load_file(stats, 0, NULL);
+    ENSURE_MSG(j && doc[0], "%s or %s missing", stats, path);
+    if (!j) return;
+    const char *key;
+    json_t *v;
+    json_object_foreach(j, key, v) {
+        char want[160];
+        int nested = json_is_object(v);
+        const char *sub;
+        json_t *w;
+        if (!nested) {
+            snprintf(want, sizeof want, "`%s`", key);
+            ENSURE_MSG(strstr(doc, want), "%s: key %s is not in docs/stats.md", stats, key);
+        }
+        json_object_foreach(nested ? v : NULL, sub, w) {
+            snprintf(want, sizeof want, "`%s.%s`", key, sub);
+            ENSURE_MSG(strstr(doc, want), "%s: key %s.%s is not in docs/stats.md", stats, key, sub);
+        }
+    }
+    /* the other way: each `key` in the first column of the common section and of this mode's */
+    static const char *const sections[] = {"## Both modes", NULL};
+    for (int s = 0; s < 2; s++) {
+        const char *at = strstr(doc, s ? mode_section : sections[0]), *end = at ? strstr(at + 3, "\n## ") : NULL;
+        for (const char *row = at ? strstr(at, "\n| `") : NULL; row && (!end || row < end); row = strstr(row + 1, "\n| `")) {
+            const char *cell_end = strchr(row + 3, '|');
+            for (const char *k = strchr(row, '`'); k && k < cell_end; k = strchr(strchr(k + 1, '`') + 1, '`')) {
+                char name[96] = "", top[96];
+                sscanf(k + 1, "%95[^`]", name);
+                snprintf(top, sizeof top, "%s", name);
+                char *dot = strchr(top, '.');
+                if (dot) *dot = 0;
+                json_t *value = json_object_get(j, top);
+                ENSURE_MSG(value && (!dot || json_object_get(value, dot + 1)), "%s: docs/stats.md lists %s, which it lacks",
+                           stats, name);
+            }
+        }
+    }
+    json_decref(j);
+}
+
+/* schema, scene and its hash, command line, start time, machine; mde_fraction_per_frame one
+ * entry per frame, frame 0 null; every key documented both ways. */
+static void test_stats_provenance(void)
+{
+    char stats[FM_PATH_MAX + 16], scene[FM_PATH_MAX];
+    char outdir[FM_PATH_MAX];
+    snprintf(stats, sizeof stats, "%s/stats.json", tmp_path(outdir, "ok_out"));
+    tmp_path(scene, "ok.json");
+    json_t *j = json_load_file(stats, 0, NULL);
+    ENSURE(j != NULL);
+    if (!j) return;
+    ENSURE(json_integer_value(json_object_get(j, "schema")) == 1);
+    ENSURE(!strcmp(json_string_value(json_object_get(j, "scene")), scene));
+    static char bytes[1 << 16];
+    size_t n = slurp(scene, bytes, sizeof bytes);
+    char hex[17];
+    snprintf(hex, sizeof hex, "%016llx", (unsigned long long)XXH64(bytes, n, 0));
+    const char *have = json_string_value(json_object_get(j, "scene_xxh64"));
+    ENSURE_MSG(have && !strcmp(have, hex), "scene_xxh64 %s, expected %s", have ? have : "missing", hex);
+    json_t *cmd = json_object_get(j, "command_line");
+    ENSURE(json_array_size(cmd) == 8 && !strcmp(json_string_value(json_array_get(cmd, 1)), "run") &&
+           !strcmp(json_string_value(json_array_get(cmd, 2)), scene) && !strcmp(json_string_value(json_array_get(cmd, 7)), "2"));
+    const char *start = json_string_value(json_object_get(j, "start_time"));
+    struct tm tm = {0};
+    char z = 0;
+    int fields = start ? sscanf(start, "%4d-%2d-%2dT%2d:%2d:%2d%c", &tm.tm_year, &tm.tm_mon, &tm.tm_mday, &tm.tm_hour,
+                                &tm.tm_min, &tm.tm_sec, &z) : 0;
+    tm.tm_year -= 1900, tm.tm_mon -= 1;
+    double age = fields == 7 && z == 'Z' && strlen(start) == 20 ? difftime(time(NULL), timegm(&tm)) : -1;
+    ENSURE_MSG(age >= 0 && age < 3600, "start_time %s is %g s ago", start ? start : "missing", age);
+    json_t *machine = json_object_get(j, "machine");
+    ENSURE(json_integer_value(json_object_get(machine, "cores")) == sysconf(_SC_NPROCESSORS_ONLN));
+    ENSURE(json_is_string(json_object_get(machine, "hostname")));
+    json_t *mde = json_object_get(j, "mde_fraction_per_frame");
+    ENSURE_MSG((long long)json_array_size(mde) == json_integer_value(json_object_get(j, "frames")) &&
+               json_is_null(json_array_get(mde, 0)) && json_is_number(json_array_get(mde, 1)),
+               "mde_fraction_per_frame: %zu entries for %lld frames", json_array_size(mde),
+               (long long)json_integer_value(json_object_get(j, "frames")));
+    json_decref(j);
+    check_stats_keys_documented(stats, "## Tetra morph");
+    snprintf(stats, sizeof stats, "%s/stats.json", tmp_path(outdir, "omp_flock_out"));
+    check_stats_keys_documented(stats, "## Shape flock");
+}
+
 static void test_run_stops_at_frame_limit(void)
 {
     char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
@@ -624,6 +721,7 @@ int main(void)
     RUN_TEST(test_successful_run);
     RUN_TEST(test_huge_omp_num_threads);
     RUN_TEST(test_run_stops_at_frame_limit);
+    RUN_TEST(test_stats_provenance);
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);
     RUN_TEST(test_render);
