@@ -18,7 +18,8 @@ int cli_info(int argc, char **argv); /* inspect --json */
 int cli_wedge(int argc, char **argv); /* wedge list | count (cli_wedge.c) */
 
 double cli_seconds(void);
-/* Prints "flockmorph: <fmt with arg>" and the usage; returns FM_ERR_USAGE. */
+/* Prints "flockmorph: <fmt with arg>" and "see 'flockmorph help CMD'" (CMD from the usage text's
+ * first line) instead of the whole usage; returns FM_ERR_USAGE. */
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
@@ -37,6 +38,11 @@ int cli_wants_help(int argc, char **argv);
 int cli_parse_int(const char *s, long lo, long hi, long *out);
 /* Parses a finite number > 0; -1 if it is not one. */
 int cli_parse_positive(const char *s, double *out);
+/* A frame-number pattern (frames.%04d.ply): exactly one integer conversion %d, %i or %u with an
+ * optional 0 flag and a width of at most 2 digits, and %% for a literal %; 0 if it is one, -1
+ * otherwise. cli_frame_name prints it with the frame number (the pattern was checked). */
+int cli_check_frame_pattern(const char *pattern);
+int cli_frame_name(char *out, size_t size, const char *pattern, long frame);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
@@ -49,6 +55,8 @@ typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
     long checkpoint_every; /* -1: by wall time (the default) */
+    double log_every;      /* seconds between the plain progress lines when stderr is not a terminal */
+    char start_time[32];   /* UTC, ISO 8601, when the command started (cli_utc_now) */
     const char *sets[FM_MAX_OVERRIDES]; /* --set KEY=VALUE, in order */
     int set_count;
     const char *wedge_file;             /* --wedge-file W, or NULL */
@@ -135,12 +143,15 @@ int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int
 /* After a failed run: with a checkpoint, keeps it and the partial cache and prints how to resume
  * once the cause is fixed; without, as cli_fail_keeping_partial_cache. Returns the exit status. */
 int cli_report_failed(const cli_run_options *o, const cli_outputs *out, fm_cache_writer *cache, const fm_error *err);
-/* The frame progress line's state (shown on a terminal unless --quiet). */
+/* The frame progress's state: a line redrawn on a terminal (show 1), or a plain line every
+ * log_every seconds when stderr is not one (show 2, a farm's log); none with --quiet (show 0). */
 typedef struct cli_progress {
     int show;
-    int64_t agents;
-    double start;
+    int64_t agents, frame_limit;
+    double start, log_every, last_log;
     const char *const *phase_labels; /* the mode's (cli_mode) */
+    double first_fraction, first_time; /* at the first frame of this session (ETA of a resumed run) */
+    int64_t first_frame;               /* -1 until then */
 } cli_progress;
 /* Preprocessing progress on stderr when *(int *)user (an fm_progress_fn). */
 void cli_prep_progress(const char *stage, double fraction, void *user);
@@ -154,8 +165,15 @@ typedef struct cli_run_record {
     double time_step, preprocess_seconds, simulate_seconds, output_seconds;
     int threads;
     const char *cache;
+    const cli_run_options *options; /* the scene, the command line, the start time */
 } cli_run_record;
 json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
+/* stats.json's schema number (docs/stats.md): raised when a key changes meaning or goes away. */
+#define CLI_STATS_SCHEMA 1
+/* schema, scene, scene_absolute, scene_xxh64, command_line, start_time, machine (cli_stats.c). */
+void cli_stats_provenance(json_t *j, const cli_run_options *o);
+/* Now, UTC, ISO 8601: 2026-12-02T08:05:46Z. */
+void cli_utc_now(char *out, size_t size);
 double cli_agent_steps_per_second(const cli_run_record *r);
 
 /* What the run path reads of a mode's run context: its first member, set by build(). */
@@ -216,16 +234,17 @@ int cli_open_cache(const char *path, fm_cache_reader **reader);
  * message naming the frame count. */
 int cli_pick_frame(const char *cache, uint32_t frames, long k, uint32_t *frame);
 
-/* A frame range as typed: "A:B" (inclusive), "A:", ":B", ":" or a single "K"; negative numbers count
- * from the end. */
+/* A frame range as typed: "A:B" (inclusive), "A:", ":B", ":" or a single "K", each optionally
+ * with ":S", every S-th frame (S >= 1); negative numbers count from the end. */
 typedef struct cli_frame_range {
-    long first, last;
+    long first, last, step;
     int has_first, has_last;
 } cli_frame_range;
 
 /* -1 if spec is not a range. */
 int cli_parse_frame_range(const char *spec, cli_frame_range *range);
-/* The range's frames of a cache (open ends: its first and last); 0 or FM_ERR_USAGE with a message. */
+/* The range's frames of a cache (open ends: its first and last; last moved down onto the stride);
+ * 0 or FM_ERR_USAGE with a message. */
 int cli_resolve_frame_range(const char *cache, uint32_t frames, const cli_frame_range *range, uint32_t *first, uint32_t *last);
 /* Opens the cache and reads the chosen frame (default last) into a malloc'ed array. */
 int cli_load_frame(const cli_frame_options *o, fm_cache_reader **reader, float **verts, uint32_t *frame);

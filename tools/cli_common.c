@@ -25,11 +25,25 @@ double cli_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* The command a usage text describes: the word after "usage: flockmorph " ("" for <command>). */
+static void usage_command(const char *usage, char *cmd, size_t size)
+{
+    static const char prefix[] = "usage: flockmorph ";
+    size_t len = 0;
+    if (!strncmp(usage, prefix, sizeof prefix - 1)) {
+        usage += sizeof prefix - 1;
+        while (usage[len] >= 'a' && usage[len] <= 'z') len++;
+    }
+    snprintf(cmd, size, "%.*s", (int)FM_MIN(len, size - 1), usage);
+}
+
 int cli_usage_error(const char *usage, const char *fmt, const char *arg)
 {
+    char cmd[32];
+    usage_command(usage, cmd, sizeof cmd);
     fprintf(stderr, "flockmorph: ");
     fprintf(stderr, fmt, arg);
-    fprintf(stderr, "\n\n%s", usage);
+    fprintf(stderr, "\nsee 'flockmorph help%s%s'\n", cmd[0] ? " " : "", cmd);
     return FM_ERR_USAGE;
 }
 
@@ -114,6 +128,41 @@ int cli_parse_int(const char *s, long lo, long hi, long *out)
     if (errno || end == s || *end || v < lo || v > hi) return -1;
     *out = v;
     return 0;
+}
+
+int cli_check_frame_pattern(const char *pattern)
+{
+    int conversions = 0;
+    for (const char *p = pattern; *p; p++) {
+        if (*p != '%') continue;
+        if (*++p == '%') continue;
+        if (*p == '0') p++;
+        for (int digits = 0; *p >= '0' && *p <= '9'; p++)
+            if (++digits > 2) return -1;
+        if (*p != 'd' && *p != 'i' && *p != 'u') return -1;
+        conversions++;
+    }
+    return conversions == 1 ? 0 : -1;
+}
+
+int cli_frame_name(char *out, size_t size, const char *pattern, long frame)
+{
+    /* the one conversion becomes %ld, so an int-sized argument cannot be misread */
+    char fmt[FM_PATH_MAX + 8];
+    size_t j = 0;
+    for (const char *p = pattern; *p && j + 4 < sizeof fmt; p++) {
+        fmt[j++] = *p;
+        if (*p != '%') continue;
+        if (p[1] == '%') { fmt[j++] = *++p; continue; }
+        while (*++p >= '0' && *p <= '9' && j + 4 < sizeof fmt) fmt[j++] = *p;
+        fmt[j++] = 'l', fmt[j++] = 'd';
+    }
+    fmt[j] = 0;
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wformat-nonliteral"
+    int len = snprintf(out, size, fmt, frame);
+#pragma GCC diagnostic pop
+    return len < 0 || (size_t)len >= size ? -1 : 0;
 }
 
 /* mkdir -p: creates dir and any missing parents; on failure `failed` names the one that failed. */
@@ -241,12 +290,15 @@ int cli_pick_frame(const char *cache, uint32_t frames, long k, uint32_t *frame)
 int cli_parse_frame_range(const char *spec, cli_frame_range *range)
 {
     memset(range, 0, sizeof *range);
-    const char *colon = strchr(spec, ':');
+    range->step = 1;
+    const char *colon = strchr(spec, ':'), *second = colon ? strchr(colon + 1, ':') : NULL;
     char first[32] = "", last[32] = "";
     size_t len = colon ? (size_t)(colon - spec) : strlen(spec);
-    if (len >= sizeof first || (colon && strlen(colon + 1) >= sizeof last)) return -1;
+    size_t last_len = second ? (size_t)(second - colon - 1) : colon ? strlen(colon + 1) : 0;
+    if (len >= sizeof first || last_len >= sizeof last) return -1;
+    if (second && cli_parse_int(second + 1, 1, 2000000000L, &range->step)) return -1;
     memcpy(first, spec, len);
-    if (colon) strcpy(last, colon + 1);
+    if (colon) memcpy(last, colon + 1, last_len);
     else if (!len) return -1; /* "" is not a frame */
     if (first[0] && cli_parse_int(first, -2000000000L, 2000000000L, &range->first)) return -1;
     if (last[0] && cli_parse_int(last, -2000000000L, 2000000000L, &range->last)) return -1;
@@ -264,6 +316,7 @@ int cli_resolve_frame_range(const char *cache, uint32_t frames, const cli_frame_
         fprintf(stderr, "flockmorph: error: frame range %u:%u of %s is empty (first after last)\n", *first, *last, cache);
         rc = FM_ERR_USAGE;
     }
+    if (!rc) *last = *first + (*last - *first) / (uint32_t)range->step * (uint32_t)range->step;
     return rc;
 }
 
@@ -327,6 +380,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_t *j = json_object();
     /* which flockmorph wrote it, so a pipeline can tell results of different builds apart */
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));
+    if (r->options) cli_stats_provenance(j, r->options);
     json_object_set_new(j, "mode", json_string(r->mode));
     json_object_set_new(j, "agents", json_integer(r->agents));
     json_object_set_new(j, "frames", json_integer(r->frames));

@@ -1,6 +1,8 @@
 /* flockmorph export: frames of a cache as PLY, OBJ, VTK (.vtu + .pvd) or OpenVDB points, one file
- * per frame (docs/export.md). Frames are written in parallel, each thread a contiguous block of
- * frames with its own cache reader; every file depends only on its frame, not on the threads. */
+ * per frame, or as one point cache (PC2, MDD) holding them all (docs/export.md). Frames are
+ * written in parallel, each thread a contiguous block of frames with its own cache reader; every
+ * file depends only on its frame, not on the threads. A point cache is written in frame order by
+ * one thread. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 
@@ -13,21 +15,33 @@
 #include <unistd.h>
 
 static const char *const USAGE_EXPORT =
-    "usage: flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR [options]\n"
+    "usage: flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B[:S]] -o DIR [options]\n"
     "       flockmorph export CACHE -o FILE.ply|FILE.obj|FILE.vtu|FILE.vdb [--frame K] [options]\n"
+    "       flockmorph export CACHE [--format pc2|mdd] -o FILE.pc2|FILE.mdd [--frames A:B[:S]]\n"
     "\n"
     "The first form writes one file per frame, DIR/<cache name>_<frame, 5 digits>.<ext>\n"
     "(frames_00012.ply; ext is vtu for vtk), and for vtk also DIR/<cache name>.pvd, which lists\n"
     "the frames with their times for ParaView. The second writes frame K (default: the last;\n"
-    "negative counts from the end) to FILE in the format of its extension.\n"
+    "negative counts from the end) to FILE in the format of its extension. The third writes\n"
+    "every frame of the range into one point cache for Blender's Mesh Cache modifier, Maya,\n"
+    "3ds Max or Cinema 4D: a tet's 4 vertices, or a flock's agent positions, per frame.\n"
     "\n"
-    "Tets become 4 triangles each (PLY, OBJ), VTK_TETRA cells with cell data agent_id (VTK), or\n"
-    "points at their centroids with velocity v and id (VDB).\n"
+    "Tets become 4 triangles each with id and phase (PLY, OBJ), VTK_TETRA cells with cell data\n"
+    "agent_id (VTK), or points at their centroids (VDB). Points carry Houdini's attributes v,\n"
+    "orient (x, y, z, w), pscale, age, id and phase in PLY and VDB.\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
-    "                 negative numbers count from the end (-1 is the last); default: every frame\n"
+    "                 negative numbers count from the end (-1 is the last); default: every frame;\n"
+    "                 A:B:S every S-th frame from A (::2 every other frame)\n"
     "  --voxel SIZE   VDB voxel size in world units (default: from the point density)\n"
+    "  --up z|y       y: turn Z-up into Y-up (Houdini, Maya): (x, y, z) -> (x, z, -y), also the\n"
+    "                 velocities and orientations; default z (flockmorph's and Blender's axes)\n"
+    "  --name PAT     sequence file names from a pattern with one %d (frames.%04d.ply)\n"
+    "  --start N      number the first exported frame N in file names (and PC2's start frame),\n"
+    "                 the others N + (frame - first); default: the cache's frame numbers\n"
+    "  --pscale R     points' pscale in world units (default: 0.45 x their median spacing in the\n"
+    "                 cache's last frame, the radius render draws); tets: each tet's radius\n"
     "  --threads N    frames written at once (default: one per core); the files do not change\n"
     "  --quiet        no progress display (it is shown only on a terminal anyway)\n"
     "\n"
@@ -36,10 +50,10 @@ static const char *const USAGE_EXPORT =
 /* ---------------------------------------------------------------- options */
 
 typedef struct export_options {
-    const char *cache, *out, *format_name, *frames;
-    long frame;
-    int has_frame, threads, quiet;
-    double voxel;
+    const char *cache, *out, *format_name, *frames, *name;
+    long frame, start;
+    int has_frame, has_start, threads, quiet, up_y;
+    double voxel, pscale;
 } export_options;
 
 static int parse_option(int argc, char **argv, int *i, export_options *o)
@@ -58,6 +72,22 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     } else if (!strcmp(a, "--voxel")) {
         if (cli_parse_positive(value, &o->voxel))
             return cli_usage_error(USAGE_EXPORT, "--voxel wants a positive size in world units, not '%s'", value);
+    } else if (!strcmp(a, "--up")) {
+        if (strcmp(value, "y") && strcmp(value, "z"))
+            return cli_usage_error(USAGE_EXPORT, "--up wants z (as the cache) or y (Y-up), not '%s'", value);
+        o->up_y = !strcmp(value, "y");
+    } else if (!strcmp(a, "--name")) {
+        if (cli_check_frame_pattern(value) || strchr(value, '/'))
+            return cli_usage_error(USAGE_EXPORT, "--name wants a file name with exactly one integer conversion "
+                                   "(%%d, %%04d; %%%% for a literal %%) and no '/', not '%s'", value);
+        o->name = value;
+    } else if (!strcmp(a, "--start")) {
+        if (cli_parse_int(value, 0, 1000000000L, &o->start))
+            return cli_usage_error(USAGE_EXPORT, "--start wants a whole number from 0 to 1000000000, not '%s'", value);
+        o->has_start = 1;
+    } else if (!strcmp(a, "--pscale")) {
+        if (cli_parse_positive(value, &o->pscale))
+            return cli_usage_error(USAGE_EXPORT, "--pscale wants a positive radius in world units, not '%s'", value);
     } else if (!strcmp(a, "--threads")) {
         if (cli_parse_int(value, 1, 1024, &v))
             return cli_usage_error(USAGE_EXPORT, "--threads wants a whole number from 1 to 1024, not '%s'", value);
@@ -65,6 +95,8 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     } else return cli_usage_error(USAGE_EXPORT, "unknown or incomplete option '%s'", a);
     return 0;
 }
+
+static int is_point_cache(fm_export_format f) { return f == FM_EXPORT_PC2 || f == FM_EXPORT_MDD; }
 
 static int parse_options(int argc, char **argv, export_options *o)
 {
@@ -82,7 +114,7 @@ static int parse_options(int argc, char **argv, export_options *o)
     if (o->has_frame && (o->frames || o->format_name))
         return cli_usage_error(USAGE_EXPORT, "%s", "--frame K names one frame for -o FILE; with --format "
                                "use --frames K (or A:B)");
-    if (o->frames && !o->format_name)
+    if (o->frames && !o->format_name && !is_point_cache(fm_export_format_of_path(o->out)))
         return cli_usage_error(USAGE_EXPORT, "--frames %s writes a sequence into a directory: give "
                                "--format ply|obj|vtk|vdb", o->frames);
     return 0;
@@ -90,10 +122,10 @@ static int parse_options(int argc, char **argv, export_options *o)
 
 /* ---------------------------------------------------------------- frame ranges */
 
-/* A:B, A:, :B, : or K; each end a whole number, negative from the end. option and text are
- * what the user wrote, for messages. */
+/* A:B, A:, :B, : or K, each optionally followed by :S; each end a whole number, negative from
+ * the end, S a positive stride. option and text are what the user wrote, for messages. */
 typedef struct frame_range {
-    long first, last;
+    long first, last, step;
     int has_first, has_last;
     const char *option;
     char text[64];
@@ -112,27 +144,30 @@ static int parse_end(const char *s, size_t len, long *v, int *has)
 
 static int parse_range(const char *spec, frame_range *r)
 {
-    const char *colon = strchr(spec, ':');
+    const char *colon = strchr(spec, ':'), *second = colon ? strchr(colon + 1, ':') : NULL;
+    r->step = 1;
     if (!colon) {
         r->has_first = r->has_last = 1;
         return cli_parse_int(spec, -2000000000L, 2000000000L, &r->first) ? -1 : (r->last = r->first, 0);
     }
-    if (strchr(colon + 1, ':')) return -1;
+    if (second && (strchr(second + 1, ':') || cli_parse_int(second + 1, 1, 2000000000L, &r->step))) return -1;
+    size_t last_len = second ? (size_t)(second - colon - 1) : strlen(colon + 1);
     return parse_end(spec, (size_t)(colon - spec), &r->first, &r->has_first) ||
-                   parse_end(colon + 1, strlen(colon + 1), &r->last, &r->has_last)
+                   parse_end(colon + 1, last_len, &r->last, &r->has_last)
                ? -1 : 0;
 }
 
 /* Resolves the range against the cache's frame count; prints an error naming the option. */
 static int resolve_range(const frame_range *r, const char *cache, uint32_t frames, uint32_t *first,
-                         uint32_t *last)
+                         uint32_t *last, uint32_t *step)
 {
     const char *option = r->option, *spec = r->text;
     long n = (long)frames, a = r->has_first ? r->first : 0, b = r->has_last ? r->last : -1;
     if (a < 0) a += n;
     if (b < 0) b += n;
     if (n > 0 && a >= 0 && b < n && a <= b) {
-        *first = (uint32_t)a, *last = (uint32_t)b;
+        *step = (uint32_t)r->step;
+        *first = (uint32_t)a, *last = (uint32_t)(a + (b - a) / r->step * r->step); /* on the stride */
         return 0;
     }
     if (n == 0) fprintf(stderr, "flockmorph: error: %s %s: %s has no frames\n", option, spec, cache);
@@ -151,13 +186,31 @@ typedef struct export_job {
     char dir[FM_PATH_MAX], stem[256]; /* stem: the cache's name, cut to 255 bytes */
     fm_export_format format;
     fm_export_options opts;
-    uint32_t first, last, frames;
+    uint32_t first, last, step, frames; /* frames first, first + step, ... last of the cache's */
     double frame_rate;
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
     int need_velocity;            /* VDB always; point flocks in every format */
-    int cache_velocity, cache_ids, cache_phases;
+    int cache_velocity, cache_ids, cache_phases, cache_orientation;
+    int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
+    int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
+    const char *name_pattern;     /* --name; NULL: <stem>_%05d.<ext> */
+    long number_offset;           /* a frame's number in names: k + number_offset (--start) */
+    float pscale;                 /* points: the pscale of every agent */
 } export_job;
+
+/* Points' pscale: the radius render draws them with, from the cache's last frame (where a flock
+ * has taken its shape), so every frame and range gets the same value. */
+static int default_pscale(fm_cache_reader *r, export_job *job)
+{
+    fm_error err = {0};
+    float *p = malloc(sizeof(float) * 3 * (job->agents ? job->agents : 1));
+    fm_status st = !p ? fm_fail(&err, FM_ERR_MEMORY, "out of memory for %zu positions", job->agents)
+                   : job->frames ? fm_cache_read_attr(r, job->frames - 1, FM_ATTR_POSITION, p, &err) : FM_OK;
+    if (st == FM_OK) job->pscale = (float)fm_render_point_radius(p, job->frames ? job->agents : 0);
+    free(p);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
 
 static int describe_cache(fm_cache_reader *r, export_job *job)
 {
@@ -177,9 +230,15 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     }
     job->cache_velocity = job->points && fm_cache_has_attr(r, FM_ATTR_VELOCITY);
     job->cache_ids = fm_cache_has_attr(r, FM_ATTR_ID);
-    job->cache_phases = job->format == FM_EXPORT_VTK && fm_cache_has_attr(r, FM_ATTR_PHASE);
-    return 0;
+    job->houdini = job->format == FM_EXPORT_PLY || job->format == FM_EXPORT_VDB;
+    job->cache_phases = (job->format == FM_EXPORT_VTK || job->houdini) && fm_cache_has_attr(r, FM_ATTR_PHASE);
+    job->cache_orientation = job->houdini && job->points && fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
+    return job->houdini && job->points && !(job->pscale > 0) ? default_pscale(r, job) : 0;
 }
+
+/* How many frames the range exports, and the i-th of them. */
+static uint32_t frame_count(const export_job *job) { return (job->last - job->first) / job->step + 1; }
+static uint32_t frame_at(const export_job *job, uint32_t i) { return job->first + i * job->step; }
 
 /* ---------------------------------------------------------------- one thread's frames */
 
@@ -193,12 +252,14 @@ typedef struct frame_source {
     long slot_frame[POSITION_SLOTS];
     uint32_t *ids;
     uint8_t *phases;
+    float *orientation, *pscales, *ages; /* Houdini's attributes (PLY and VDB) */
 } frame_source;
 
 static void source_close(frame_source *s)
 {
     if (s->r) fm_cache_close(s->r);
     free(s->tets), free(s->velocity), free(s->ids), free(s->phases);
+    free(s->orientation), free(s->pscales), free(s->ages);
     for (int i = 0; i < POSITION_SLOTS; i++) free(s->slot[i]);
     memset(s, 0, sizeof *s);
 }
@@ -218,8 +279,11 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     int failed = 0;
     if (!job->points) s->tets = alloc_or_flag(sizeof(float) * 12 * n, &failed);
     if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
-    if (job->cache_ids) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
+    if (job->cache_ids || job->houdini) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
     if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
+    if (job->cache_orientation) s->orientation = alloc_or_flag(sizeof(float) * 4 * n, &failed);
+    if (job->houdini) s->pscales = alloc_or_flag(sizeof(float) * n, &failed);
+    if (job->houdini) s->ages = alloc_or_flag(sizeof(float) * n, &failed);
     for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for VDB */
         if (job->points || job->format == FM_EXPORT_VDB) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
         s->slot_frame[i] = -1;
@@ -227,6 +291,23 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     if (!failed) return FM_OK;
     source_close(s);
     return fm_fail(err, FM_ERR_MEMORY, "out of memory for the buffers of %zu agents", n);
+}
+
+/* An attribute of 3-vectors (position, velocity) of frame k, turned Y-up with --up y. */
+static fm_status read_vectors(frame_source *s, const export_job *job, uint32_t k, fm_cache_attr attr, float *out,
+                              fm_error *err)
+{
+    fm_status st = fm_cache_read_attr(s->r, k, attr, out, err);
+    if (st == FM_OK && job->up_y) fm_export_up_y(out, job->agents);
+    return st;
+}
+
+/* Frame k's tet vertices into s->tets. */
+static fm_status read_tets(frame_source *s, const export_job *job, uint32_t k, fm_error *err)
+{
+    fm_status st = fm_cache_read_frame(s->r, k, s->tets, err);
+    if (st == FM_OK && job->up_y) fm_export_up_y(s->tets, 4 * job->agents);
+    return st;
 }
 
 /* Frame k's positions (a point flock's own, or its tets' centroids) while frame `center` is
@@ -242,8 +323,7 @@ static fm_status positions(frame_source *s, const export_job *job, uint32_t k, u
     }
     float *p = s->slot[free_slot];
     s->slot_frame[free_slot] = -1;
-    fm_status st = job->points ? fm_cache_read_attr(s->r, k, FM_ATTR_POSITION, p, err)
-                               : fm_cache_read_frame(s->r, k, s->tets, err);
+    fm_status st = job->points ? read_vectors(s, job, k, FM_ATTR_POSITION, p, err) : read_tets(s, job, k, err);
     if (st != FM_OK) return st;
     if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
     s->slot_frame[free_slot] = (long)k;
@@ -268,24 +348,60 @@ static fm_status difference_velocity(frame_source *s, const export_job *job, uin
     return st;
 }
 
+/* Each tet's radius: the largest distance from its centroid to a vertex (the engine's R_X). */
+static void tet_radii(const float *tets, size_t n, float *out)
+{
+    for (size_t t = 0; t < n; t++) {
+        float c[3];
+        double r2 = 0;
+        fm_tet_centroids(tets + 12 * t, 1, c);
+        for (int j = 0; j < 4; j++) {
+            const float *v = tets + 12 * t + 3 * j;
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) d2 += ((double)v[k] - c[k]) * ((double)v[k] - c[k]);
+            r2 = fmax(r2, d2);
+        }
+        out[t] = (float)sqrt(r2);
+    }
+}
+
+/* Houdini's attributes of frame k (PLY and VDB): orientation (turned with --up y), pscale, age
+ * (every agent exists from frame 0, so its age is the frame's time), and ids 0 .. n-1 when the
+ * cache has none, so tet PLY carry them too. s->tets holds frame k for tets. */
+static fm_status houdini_attrs(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f,
+                               fm_error *err)
+{
+    size_t n = job->agents;
+    fm_status st = FM_OK;
+    if (job->cache_orientation && (st = fm_cache_read_attr(s->r, k, FM_ATTR_ORIENTATION, s->orientation, err)) == FM_OK) {
+        if (job->up_y) fm_export_up_y_quaternions(s->orientation, n);
+        f->orientations = s->orientation;
+    }
+    for (size_t i = 0; i < n; i++) s->ages[i] = (float)(k / job->frame_rate);
+    if (job->points)
+        for (size_t i = 0; i < n; i++) s->pscales[i] = job->pscale;
+    else tet_radii(s->tets, n, s->pscales);
+    for (size_t i = 0; !job->cache_ids && i < n; i++) s->ids[i] = (uint32_t)i;
+    f->ages = s->ages, f->pscales = s->pscales, f->ids = s->ids;
+    return st;
+}
+
 /* Frame k as the exporters take it. */
 static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f,
                             fm_error *err)
 {
     memset(f, 0, sizeof *f);
     f->n = job->agents;
-    fm_status st;
-    if (job->points || job->format == FM_EXPORT_VDB) { /* VDB writes tets as their centroids */
-        st = positions(s, job, k, k, &f->positions, err);
-    } else {
-        st = fm_cache_read_frame(s->r, k, s->tets, err);
-        f->tet_vertices = s->tets;
-    }
-    if (st == FM_OK && job->need_velocity) {
-        st = job->cache_velocity ? fm_cache_read_attr(s->r, k, FM_ATTR_VELOCITY, s->velocity, err)
+    fm_status st = FM_OK;
+    if (job->need_velocity) { /* first: the difference may read the neighbours' tets */
+        st = job->cache_velocity ? read_vectors(s, job, k, FM_ATTR_VELOCITY, s->velocity, err)
                                  : difference_velocity(s, job, k, err);
         f->velocities = s->velocity;
     }
+    if (st == FM_OK && !job->points) st = read_tets(s, job, k, err);
+    if (st == FM_OK && (job->points || job->format == FM_EXPORT_VDB)) /* VDB writes tets as their centroids */
+        st = positions(s, job, k, k, &f->positions, err);
+    if (!job->points && job->format != FM_EXPORT_VDB) f->tet_vertices = s->tets;
     if (st == FM_OK && job->cache_ids) {
         st = fm_cache_read_attr(s->r, k, FM_ATTR_ID, s->ids, err);
         f->ids = s->ids;
@@ -294,7 +410,7 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
         st = fm_cache_read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
         f->phases = s->phases;
     }
-    return st;
+    return st == FM_OK && job->houdini ? houdini_attrs(s, job, k, f, err) : st;
 }
 
 /* Room for any <stem>_<frame>.<ext>, and for DIR/ before it; paths of FM_PATH_MAX bytes or more
@@ -302,17 +418,21 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
 #define CLI_NAME_BUF 288
 #define CLI_PATH_BUF (FM_PATH_MAX + CLI_NAME_BUF)
 
-/* <stem>_<frame, 5 digits>.<ext>: the name the .pvd lists (relative to DIR). */
-static void frame_name(const export_job *job, uint32_t k, char name[CLI_NAME_BUF])
+/* <stem>_<frame, 5 digits>.<ext>, or the --name pattern with the frame's number: the name the
+ * .pvd lists (relative to DIR); -1 if it is too long. */
+static int frame_name(const export_job *job, uint32_t k, char name[CLI_NAME_BUF])
 {
-    snprintf(name, CLI_NAME_BUF, "%s_%05u.%s", job->stem, (unsigned)k, fm_export_extension(job->format));
+    long number = (long)k + job->number_offset;
+    if (job->name_pattern) return cli_frame_name(name, CLI_NAME_BUF, job->name_pattern, number);
+    snprintf(name, CLI_NAME_BUF, "%s_%05ld.%s", job->stem, number, fm_export_extension(job->format));
+    return 0;
 }
 
-/* DIR/<stem>_<frame, 5 digits>.<ext>; -1 if it is too long. */
+/* DIR/<name>; -1 if it is too long. */
 static int frame_path(const export_job *job, uint32_t k, char path[CLI_PATH_BUF])
 {
     char name[CLI_NAME_BUF];
-    frame_name(job, k, name);
+    if (frame_name(job, k, name)) return -1;
     int len = snprintf(path, CLI_PATH_BUF, "%s/%s", job->dir, name);
     return len < 0 || len >= FM_PATH_MAX ? -1 : 0;
 }
@@ -370,12 +490,13 @@ static void export_block(const export_job *job, export_progress *p)
     fm_status st = source_open(&s, job, &err);
     /* schedule(static) without a chunk size: each thread one contiguous block of frames */
 #pragma omp for schedule(static)
-    for (long k = (long)job->first; k <= (long)job->last; k++) {
+    for (long i = 0; i < (long)frame_count(job); i++) {
+        uint32_t k = frame_at(job, (uint32_t)i);
         if (failed_so_far(p)) continue;
         if (st == FM_OK) {
             fm_error frame_err = {0};
-            note_result(p, (uint32_t)k, export_one(&s, job, (uint32_t)k, &frame_err), &frame_err);
-        } else note_result(p, (uint32_t)k, st, &err);
+            note_result(p, k, export_one(&s, job, k, &frame_err), &frame_err);
+        } else note_result(p, k, st, &err);
     }
     if (st == FM_OK) source_close(&s);
 }
@@ -383,7 +504,7 @@ static void export_block(const export_job *job, export_progress *p)
 static int export_frames(const export_job *job, int threads, int quiet)
 {
     export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(),
-                         .total = job->last - job->first + 1};
+                         .total = frame_count(job)};
     int team = fm_threads(threads);
     if ((uint32_t)team > p.total) team = (int)p.total;
 #pragma omp parallel num_threads(team)
@@ -395,15 +516,15 @@ static int export_frames(const export_job *job, int threads, int quiet)
 /* The .pvd: every frame at timestep frame / frame rate (seconds of animation time). */
 static int write_pvd(const export_job *job, char pvd[CLI_PATH_BUF])
 {
-    size_t count = job->last - job->first + 1;
+    size_t count = frame_count(job);
     char (*names)[CLI_NAME_BUF] = malloc(sizeof *names * count);
     const char **files = malloc(sizeof *files * count);
     double *times = malloc(sizeof *times * count);
     fm_error err = {0};
     fm_status st = names && files && times ? FM_OK : fm_fail(&err, FM_ERR_MEMORY, "out of memory for the .pvd");
     for (size_t i = 0; st == FM_OK && i < count; i++) {
-        uint32_t k = job->first + (uint32_t)i;
-        frame_name(job, k, names[i]);
+        uint32_t k = frame_at(job, (uint32_t)i);
+        if (frame_name(job, k, names[i])) st = fm_fail(&err, FM_ERR_USAGE, "frame %u's file name is too long", (unsigned)k);
         files[i] = names[i];
         times[i] = job->frame_rate > 0 ? k / job->frame_rate : (double)k;
     }
@@ -411,6 +532,44 @@ static int write_pvd(const export_job *job, char pvd[CLI_PATH_BUF])
         st = fm_fail(&err, FM_ERR_USAGE, "the .pvd path is longer than %d bytes", FM_PATH_MAX - 1);
     if (st == FM_OK) st = fm_export_pvd(pvd, files, times, count, &err);
     free(names), free(files), free(times);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
+/* ---------------------------------------------------------------- point caches */
+
+/* Frame k's points as a point cache holds them: a tet's 4 vertices, or a flock's positions. */
+static fm_status point_cache_frame(fm_cache_reader *r, const export_job *job, uint32_t k, float *xyz,
+                                   fm_error *err)
+{
+    fm_status st = job->points ? fm_cache_read_attr(r, k, FM_ATTR_POSITION, xyz, err) : fm_cache_read_frame(r, k, xyz, err);
+    if (st == FM_OK && job->up_y) fm_export_up_y(xyz, job->points ? job->agents : 4 * job->agents);
+    return st;
+}
+
+/* Every frame of the range into one PC2 or MDD file, in order. PC2's start frame and MDD's
+ * times are the frames' numbers (the cache's, or from --start; MDD: over the frame rate); the
+ * step is the stride. */
+static int export_point_cache(const export_job *job, int quiet)
+{
+    fm_pointcache_options pc = {.format = job->format, .points = job->points ? job->agents : 4 * job->agents,
+                                .frames = frame_count(job), .start_frame = (double)job->first + job->number_offset,
+                                .frame_step = job->step, .frame_rate = job->frame_rate};
+    export_progress p = {.show = !quiet && isatty(STDERR_FILENO), .start = cli_seconds(), .total = frame_count(job)};
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(job->cache, &err);
+    float *xyz = r ? malloc(sizeof(float) * 3 * (pc.points ? pc.points : 1)) : NULL;
+    fm_pointcache_writer *w = xyz ? fm_pointcache_create(job->out_file, &pc, &err) : NULL;
+    fm_status st = w ? FM_OK : r && !xyz ? fm_fail(&err, FM_ERR_MEMORY, "out of memory for a frame") : err.status;
+    for (uint32_t i = 0; st == FM_OK && i < pc.frames; i++) {
+        st = point_cache_frame(r, job, frame_at(job, i), xyz, &err);
+        if (st == FM_OK) st = fm_pointcache_add(w, xyz, &err);
+        note_result(&p, frame_at(job, i), st, &err);
+    }
+    if (st == FM_OK) st = fm_pointcache_finish(w, &err);
+    else fm_pointcache_abort(w);
+    if (p.show) fprintf(stderr, "\r\033[K");
+    free(xyz);
+    if (r) fm_cache_close(r);
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
@@ -432,32 +591,51 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
     job->cache = o->cache;
     job->opts = fm_default_export_options();
     job->opts.voxel_size = o->voxel;
+    job->up_y = o->up_y, job->name_pattern = o->name, job->pscale = (float)o->pscale;
     if (o->format_name) {
         job->format = fm_export_format_named(o->format_name);
         if (job->format == FM_EXPORT_UNKNOWN)
-            return cli_usage_error(USAGE_EXPORT, "--format wants ply, obj, vtk or vdb, not '%s'", o->format_name);
+            return cli_usage_error(USAGE_EXPORT, "--format wants ply, obj, vtk, vdb, pc2 or mdd, not '%s'",
+                                   o->format_name);
+    }
+    if (o->format_name && !is_point_cache(job->format)) {
         if (snprintf(job->dir, sizeof job->dir, "%s", o->out) >= (int)sizeof job->dir)
             return cli_usage_error(USAGE_EXPORT, "-o %s: the path is too long", o->out);
         cache_stem(o->cache, job->stem, sizeof job->stem);
     } else {
-        job->format = fm_export_format_of_path(o->out);
+        if (!o->format_name) job->format = fm_export_format_of_path(o->out);
         if (job->format == FM_EXPORT_UNKNOWN)
-            return cli_usage_error(USAGE_EXPORT, "-o %s: unknown extension; give FILE.ply, .obj, .vtu or "
-                                   ".vdb, or --format ply|obj|vtk|vdb with -o DIR for a sequence", o->out);
+            return cli_usage_error(USAGE_EXPORT, "-o %s: unknown extension; give FILE.ply, .obj, .vtu, .vdb, "
+                                   ".pc2 or .mdd, or --format ply|obj|vtk|vdb with -o DIR for a sequence", o->out);
         job->out_file = o->out;
     }
+    if (o->name && job->out_file)
+        return cli_usage_error(USAGE_EXPORT, "--name %s names the files of a sequence: give --format "
+                               "ply|obj|vtk|vdb and -o DIR", o->name);
+    if (o->has_start && job->out_file && !is_point_cache(job->format))
+        return cli_usage_error(USAGE_EXPORT, "%s", "--start numbers a sequence or a point cache, not one file");
     memset(range, 0, sizeof *range);
     range->option = o->frames ? "--frames" : "--frame";
     if (o->has_frame) snprintf(range->text, sizeof range->text, "%ld", o->frame);
-    else snprintf(range->text, sizeof range->text, "%s", o->frames ? o->frames : job->out_file ? "-1" : ":");
+    else snprintf(range->text, sizeof range->text, "%s",
+                  o->frames ? o->frames : job->out_file && !is_point_cache(job->format) ? "-1" : ":");
+    if (o->has_frame && is_point_cache(job->format))
+        return cli_usage_error(USAGE_EXPORT, "%s", "a point cache holds a range of frames: give --frames A:B "
+                               "(or K), not --frame");
     if (parse_range(range->text, range) || (o->frames && strlen(o->frames) >= sizeof range->text))
-        return cli_usage_error(USAGE_EXPORT, "--frames wants A:B, A:, :B or K (whole numbers, negative "
-                               "from the end), not '%s'", o->frames);
+        return cli_usage_error(USAGE_EXPORT, "--frames wants A:B, A:, :B or K, optionally with :S (whole "
+                               "numbers, negative from the end; S a positive stride), not '%s'", o->frames);
     return 0;
 }
 
 static void print_summary(const export_job *job, const char *pvd)
 {
+    if (job->out_file && is_point_cache(job->format)) {
+        printf("frames %u..%u step %u of %s -> %s (%u frames of %zu points)\n", (unsigned)job->first,
+               (unsigned)job->last, (unsigned)job->step, job->cache, job->out_file, (unsigned)frame_count(job),
+               job->points ? job->agents : 4 * job->agents);
+        return;
+    }
     if (job->out_file) {
         printf("frame %u of %s -> %s\n", (unsigned)job->first, job->cache, job->out_file);
         return;
@@ -467,7 +645,7 @@ static void print_summary(const export_job *job, const char *pvd)
     frame_path(job, job->last, last);
     printf("frames %u..%u of %s -> %s%s%s (%u files)\n", (unsigned)job->first, (unsigned)job->last,
            job->cache, first, job->last > job->first ? " .. " : "", job->last > job->first ? last : "",
-           (unsigned)(job->last - job->first + 1));
+           (unsigned)frame_count(job));
     if (pvd[0]) printf("collection -> %s\n", pvd);
 }
 
@@ -486,9 +664,10 @@ int cli_export(int argc, char **argv)
     if (fm_cache_warning(r)[0]) fprintf(stderr, "flockmorph: warning: %s\n", fm_cache_warning(r));
     rc = describe_cache(r, &job);
     fm_cache_close(r);
-    if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last);
+    if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last, &job.step);
+    if (!rc && o.has_start) job.number_offset = o.start - (long)job.first;
     if (!rc && !job.out_file) rc = cli_make_outdir(job.dir, NULL, 0);
-    if (!rc) rc = export_frames(&job, o.threads, o.quiet);
+    if (!rc) rc = is_point_cache(job.format) ? export_point_cache(&job, o.quiet) : export_frames(&job, o.threads, o.quiet);
     char pvd[CLI_PATH_BUF] = "";
     if (!rc && !job.out_file && job.format == FM_EXPORT_VTK) rc = write_pvd(&job, pvd);
     if (!rc) print_summary(&job, pvd);

@@ -41,9 +41,12 @@ static json_t *velocity_json(const fm_scene_def *def, const fm_morph_model_info 
                      "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere");
 }
 
+/* One entry per frame, index k for frame k: frame 0 is the rest state, which no step made (null);
+ * mde_fraction[k - 1] is frame k's, null for a frame without flying tets. */
 static json_t *mde_frames_json(const fm_morph_run_stats *rs)
 {
     json_t *a = json_array();
+    json_array_append_new(a, json_null());
     for (int64_t f = 0; f + 1 < rs->run.frames; f++)
         json_array_append_new(a, isnan(rs->mde_fraction[f]) ? json_null() : json_real(rs->mde_fraction[f]));
     return a;

@@ -10,13 +10,6 @@
 #include <time.h>
 #include <unistd.h>
 
-static void utc_now(char *out, size_t size)
-{
-    time_t t = time(NULL);
-    struct tm tm;
-    gmtime_r(&t, &tm);
-    strftime(out, size, "%Y-%m-%dT%H:%M:%SZ", &tm);
-}
 
 /* Keeps s to be freed with ov; NULL stays NULL. */
 static char *keep(cli_overrides *ov, char *s)
@@ -60,7 +53,7 @@ static int add_wedge(cli_run_options *o, cli_overrides *ov)
 int cli_overrides_prepare(cli_run_options *o, cli_overrides *ov)
 {
     memset(ov, 0, sizeof *ov);
-    utc_now(ov->start_time, sizeof ov->start_time);
+    snprintf(ov->start_time, sizeof ov->start_time, "%s", o->start_time);
     int rc = o->wedge_file ? add_wedge(o, ov) : 0;
     for (int i = 0; i < o->set_count && !rc; i++) { /* KEY=VALUE, checked by parse_run */
         const char *arg = o->sets[i], *eq = strchr(arg, '=');
@@ -129,7 +122,7 @@ int cli_write_manifest(const cli_run_options *o, const cli_overrides *ov, const 
         if (exit_status < 0) remove(path);
         return 0;
     }
-    utc_now(now, sizeof now);
+    cli_utc_now(now, sizeof now);
     gethostname(host, sizeof host - 1);
     json_t *j = json_object();
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));

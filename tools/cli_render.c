@@ -11,14 +11,17 @@
 
 static const char *const USAGE_RENDER =
     "usage: flockmorph render CACHE -o FILE.png [--frame K] [options]\n"
-    "       flockmorph render CACHE -o FILE.mp4 [--frames A:B] [--fps F] [options]\n"
+    "       flockmorph render CACHE -o FILE.mp4 [--frames A:B[:S]] [--fps F] [options]\n"
+    "       flockmorph render CACHE -o NAME.%04d.png [--frames A:B[:S]] [options]\n"
     "\n"
     "Ray casts the tets (or, for a point cache, spheres) with Embree: a key light with hard shadows,\n"
     "a ground plane, and a colour per agent from a gradient over its index. The camera is fitted to\n"
     "the whole animation's bounds, so all frames of a video share it. The output's extension picks\n"
     "the format: .png renders frame K (default: the last; negative counts from the end); .mp4 renders\n"
-    "frames A to B inclusive (default: all; A:, :B and a single K work too) into H.264 with the\n"
-    "ffmpeg program, at F frames per second (default: the cache's frame rate).\n"
+    "frames A to B inclusive (default: all; A:, :B and a single K work too; A:B:S every S-th)\n"
+    "into H.264 with the ffmpeg program, at F frames per second (default: the cache's frame rate).\n"
+    "A .png name with one integer conversion (%d, %04d) renders the frames into a numbered PNG\n"
+    "sequence, each file named with its cache frame number (out/f.0012.png).\n"
     "\n"
     "options:\n"
     "  --size WxH      image size (default 960x540; even numbers for .mp4)\n"
@@ -80,15 +83,21 @@ static int parse_args(int argc, char **argv, render_args *a)
     return rc;
 }
 
-typedef enum out_format { OUT_PNG, OUT_MP4 } out_format;
+typedef enum out_format { OUT_PNG, OUT_MP4, OUT_PNG_SEQUENCE } out_format;
 
 /* The format from the output's extension, checked against the options that only one of them takes. */
 static int check_format(const render_args *a, out_format *fmt)
 {
     const char *dot = strrchr(a->o.out, '.'), *slash = strrchr(a->o.out, '/');
-    if (dot && (!slash || dot > slash) && !strcasecmp(dot, ".png")) *fmt = OUT_PNG;
+    const char *name = slash ? slash + 1 : a->o.out;
+    if (dot && (!slash || dot > slash) && !strcasecmp(dot, ".png")) *fmt = strchr(name, '%') ? OUT_PNG_SEQUENCE : OUT_PNG;
     else if (dot && (!slash || dot > slash) && !strcasecmp(dot, ".mp4")) *fmt = OUT_MP4;
     else return cli_usage_error(USAGE_RENDER, "the output's extension picks the format, .png or .mp4: '%s' has neither", a->o.out);
+    if (*fmt == OUT_PNG_SEQUENCE && cli_check_frame_pattern(name))
+        return cli_usage_error(USAGE_RENDER, "a numbered PNG sequence wants a file name with exactly one integer "
+                               "conversion (%%d, %%04d; %%%% for a literal %%), not '%s'", name);
+    if (*fmt == OUT_PNG_SEQUENCE && (a->o.has_frame || a->fps))
+        return cli_usage_error(USAGE_RENDER, "%s is a numbered sequence: it takes --frames A:B[:S], not --frame or --fps", a->o.out);
     if (*fmt == OUT_PNG && (a->frames || a->fps))
         return cli_usage_error(USAGE_RENDER, "%s renders one frame (--frame K); --frames and --fps are for .mp4", a->o.out);
     if (*fmt == OUT_MP4 && a->o.has_frame)
@@ -244,33 +253,85 @@ static int frames_per_second(const render_args *a, const frame_source *s, double
     return 0;
 }
 
-static int render_mp4(frame_source *s, fm_renderer *rr, const render_args *a, unsigned char *rgb)
+/* Where render_frames puts each image: the video, or a PNG named by the pattern. */
+typedef struct frame_sink {
+    fm_video_writer *video;
+    const char *pattern; /* PNG sequence: -o with its frame conversion */
+    int width, height;
+} frame_sink;
+
+static int sink_add(const frame_sink *k, uint32_t frame, const unsigned char *rgb)
 {
-    cli_frame_range range;
-    uint32_t first, last;
-    double fps;
-    if (cli_parse_frame_range(a->frames ? a->frames : ":", &range))
-        return cli_usage_error(USAGE_RENDER, "--frames wants A:B, A:, :B or K (whole numbers), not '%s'", a->frames);
-    int rc = cli_resolve_frame_range(s->path, fm_cache_frames(s->r), &range, &first, &last);
-    if (!rc) rc = frames_per_second(a, s, &fps);
-    if (rc) return rc;
     fm_error err = {0};
-    fm_video_writer *v = fm_video_open(a->o.out, a->o.width, a->o.height, fps, &err);
-    if (!v) return cli_report(&err);
-    int progress = isatty(STDERR_FILENO);
-    double t0 = cli_seconds(), drawing = 0.0;
-    for (uint32_t f = first; f <= last && !rc; f++) {
-        if (progress) fprintf(stderr, "\rrender: frame %u (%u of %u)", f, f - first + 1, last - first + 1);
+    char path[FM_PATH_MAX];
+    if (k->video) return fm_video_add_frame(k->video, rgb, &err) == FM_OK ? 0 : cli_report(&err);
+    if (cli_frame_name(path, sizeof path, k->pattern, (long)frame))
+        return fprintf(stderr, "flockmorph: error: -o %s: the name of frame %u is too long\n", k->pattern, frame), FM_ERR_USAGE;
+    return fm_write_png(rgb, k->width, k->height, path, &err) == FM_OK ? 0 : cli_report(&err);
+}
+
+/* Frames first, first + step, ... last into the sink, with progress on a terminal; *drawing the
+ * seconds spent ray casting. */
+static int render_frames(frame_source *s, fm_renderer *rr, const frame_sink *k, uint32_t first, uint32_t last,
+                         uint32_t step, unsigned char *rgb, double *drawing)
+{
+    int rc = 0, progress = isatty(STDERR_FILENO);
+    uint32_t count = (last - first) / step + 1;
+    *drawing = 0.0;
+    for (uint32_t i = 0; i < count && !rc; i++) {
+        uint32_t f = first + i * step;
+        if (progress) fprintf(stderr, "\rrender: frame %u (%u of %u)", f, i + 1, count);
         double t = cli_seconds();
         if (!(rc = source_read(s, f)) && !(rc = source_draw(s, rr, rgb))) {
-            drawing += cli_seconds() - t;
-            if (fm_video_add_frame(v, rgb, &err) != FM_OK) rc = cli_report(&err);
+            *drawing += cli_seconds() - t;
+            rc = sink_add(k, f, rgb);
         }
     }
     if (progress) fprintf(stderr, "\n");
-    if (rc) return fm_video_abort(v), rc;
-    if (fm_video_finish(v, &err) != FM_OK) return cli_report(&err);
-    uint32_t count = last - first + 1;
+    return rc;
+}
+
+/* --frames (default every frame) against the cache. */
+static int frame_range(const render_args *a, const frame_source *s, uint32_t *first, uint32_t *last, uint32_t *step)
+{
+    cli_frame_range range;
+    if (cli_parse_frame_range(a->frames ? a->frames : ":", &range))
+        return cli_usage_error(USAGE_RENDER, "--frames wants A:B, A:, :B or K (whole numbers), optionally with "
+                               ":S (a stride of at least 1), not '%s'", a->frames);
+    *step = (uint32_t)range.step;
+    return cli_resolve_frame_range(s->path, fm_cache_frames(s->r), &range, first, last);
+}
+
+static int render_png_sequence(frame_source *s, fm_renderer *rr, const render_args *a, unsigned char *rgb)
+{
+    uint32_t first = 0, last = 0, step = 1;
+    double drawing, t0 = cli_seconds();
+    frame_sink k = {NULL, a->o.out, a->o.width, a->o.height};
+    int rc = frame_range(a, s, &first, &last, &step);
+    if (!rc) rc = render_frames(s, rr, &k, first, last, step, rgb, &drawing);
+    if (rc) return rc;
+    uint32_t count = (last - first) / step + 1;
+    char name[FM_PATH_MAX];
+    cli_frame_name(name, sizeof name, a->o.out, (long)first);
+    printf("frames %u..%u step %u of %s -> %s ... (%u PNGs; %.0f ms per frame rendering, %.1f s in all)\n", first, last,
+           step, s->path, name, count, 1e3 * drawing / count, cli_seconds() - t0);
+    return 0;
+}
+
+static int render_mp4(frame_source *s, fm_renderer *rr, const render_args *a, unsigned char *rgb)
+{
+    uint32_t first = 0, last = 0, step = 1;
+    double fps, drawing, t0 = cli_seconds();
+    int rc = frame_range(a, s, &first, &last, &step);
+    if (!rc) rc = frames_per_second(a, s, &fps);
+    if (rc) return rc;
+    fm_error err = {0};
+    frame_sink k = {fm_video_open(a->o.out, a->o.width, a->o.height, fps, &err), NULL, 0, 0};
+    if (!k.video) return cli_report(&err);
+    rc = render_frames(s, rr, &k, first, last, step, rgb, &drawing);
+    if (rc) return fm_video_abort(k.video), rc;
+    if (fm_video_finish(k.video, &err) != FM_OK) return cli_report(&err);
+    uint32_t count = (last - first) / step + 1;
     printf("frames %u..%u of %s -> %s (%u frames at %g fps; %.0f ms per frame rendering, %.1f s in all)\n",
            first, last, s->path, a->o.out, count, fps, 1e3 * drawing / count, cli_seconds() - t0);
     return 0;
@@ -296,7 +357,8 @@ int cli_render(int argc, char **argv)
     if (!rc) rc = source_open(a.o.cache, &s);
     if (!rc) rc = fix_camera(&s, &ro, bounds);
     if (!rc && !(rr = fm_renderer_create(&ro, &err))) rc = cli_report(&err);
-    if (!rc) rc = fmt == OUT_PNG ? render_png(&s, rr, &a, rgb) : render_mp4(&s, rr, &a, rgb);
+    if (!rc) rc = fmt == OUT_PNG ? render_png(&s, rr, &a, rgb)
+                  : fmt == OUT_MP4 ? render_mp4(&s, rr, &a, rgb) : render_png_sequence(&s, rr, &a, rgb);
     fm_renderer_destroy(rr);
     source_close(&s);
     free(rgb);

@@ -25,7 +25,9 @@ static const char *const USAGE_RUN =
     "\n"
     "  -o, --output DIR      output directory (required)\n"
     "  --threads N           worker threads (default: all cores); results do not depend on N\n"
-    "  --quiet               no progress display (it is shown only on a terminal anyway)\n"
+    "  --quiet               no progress (on a terminal a line redrawn every frame; otherwise,\n"
+    "                        as in a farm's log, a plain line every --log-every seconds)\n"
+    "  --log-every S         seconds between those plain lines (default 10; 0: every frame)\n"
     "  --checkpoint-every K  save the run to OUTDIR/checkpoint.fmck every K frames; 0: only when\n"
     "                        interrupted (default: every 60 s of wall time)\n"
     "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene;\n"
@@ -54,6 +56,8 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
 {
     memset(o, 0, sizeof *o);
     o->checkpoint_every = -1;
+    o->log_every = 10;
+    cli_utc_now(o->start_time, sizeof o->start_time);
     o->wedge = -1;
     o->argc = argc, o->argv = argv;
     for (int i = 0; i < argc; i++) {
@@ -74,6 +78,10 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
             o->wedge_from = "--wedge";
         } else if (!strcmp(a, "--resume")) o->resume = 1;
         else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
+        else if (!strcmp(a, "--log-every") && i + 1 < argc) {
+            if (cli_parse_int(argv[++i], 0, 86400, &v)) return cli_usage_error(USAGE_RUN, "--log-every wants whole seconds from 0 to 86400, not '%s'", argv[i]);
+            o->log_every = (double)v;
+        }
         else if (a[0] == '-') return cli_usage_error(USAGE_RUN, "unknown or incomplete option '%s'", a);
         else if (!o->scene) o->scene = a;
         else return cli_usage_error(USAGE_RUN, "unexpected argument '%s'", a);
@@ -84,16 +92,50 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     return 0;
 }
 
-/* The progress line: the count of each phase the mode labels, the last one as a percentage. */
+/* How far the run is, 0 ... 1: it ends when every agent has arrived or at the frame limit, so the
+ * larger of the two fractions (frames written of the limit, agents arrived) is how much of the
+ * longest it can still take is done. */
+static double run_fraction(const cli_progress *p, const fm_run_info *info, int64_t frame)
+{
+    double by_frames = (double)(frame + 1) / (double)p->frame_limit;
+    double by_agents = p->agents > 0 ? (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents : 0.0;
+    return fmin(1.0, fmax(by_frames, by_agents));
+}
+
+/* Seconds left at this session's pace so far; negative when not yet known. */
+static double eta_seconds(const cli_progress *p, double fraction, double now)
+{
+    double done = fraction - p->first_fraction, spent = now - p->first_time;
+    return done > 0 && spent > 0 ? spent * (1.0 - fraction) / done : -1.0;
+}
+
+/* frame F of at most L, the time, each phase the mode labels, the percentage and the ETA. */
+static void format_progress(const cli_progress *p, const fm_run_info *info, int64_t frame, double fraction,
+                            double now, char *out, size_t size)
+{
+    size_t n = (size_t)snprintf(out, size, "frame %lld of at most %lld  t = %.2f s", (long long)frame,
+                                (long long)p->frame_limit - 1, info->time);
+    for (int k = 0; k < FM_PHASE_ARRIVED && n < size; k++)
+        if (p->phase_labels[k]) n += (size_t)snprintf(out + n, size - n, "  %s %lld", p->phase_labels[k], (long long)info->count[k]);
+    double eta = eta_seconds(p, fraction, now);
+    if (n < size)
+        n += (size_t)snprintf(out + n, size - n, "  %s %.1f%%  done %.1f%%  %.0f s", p->phase_labels[FM_PHASE_ARRIVED],
+                              100.0 * (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents, 100.0 * fraction,
+                              now - p->start);
+    if (n < size) snprintf(out + n, size - n, eta >= 0 ? "  eta %.0f s" : "  eta ?", eta);
+}
+
 static void frame_progress(const fm_run_info *info, int64_t frame, void *user)
 {
-    const cli_progress *p = user;
+    cli_progress *p = user;
     if (!p->show) return;
-    fprintf(stderr, "\r\033[K  frame %lld  t = %.2f s", (long long)frame, info->time);
-    for (int k = 0; k < FM_PHASE_ARRIVED; k++)
-        if (p->phase_labels[k]) fprintf(stderr, "  %s %lld", p->phase_labels[k], (long long)info->count[k]);
-    fprintf(stderr, "  %s %.1f%%  (%.0f s)", p->phase_labels[FM_PHASE_ARRIVED],
-            100.0 * (double)info->count[FM_PHASE_ARRIVED] / (double)p->agents, cli_seconds() - p->start);
+    double now = cli_seconds(), fraction = run_fraction(p, info, frame);
+    if (p->first_frame < 0) p->first_frame = frame, p->first_fraction = fraction, p->first_time = now;
+    char line[512];
+    if (p->show == 2 && now - p->last_log < p->log_every) return;
+    format_progress(p, info, frame, fraction, now, line, sizeof line);
+    if (p->show == 1) fprintf(stderr, "\r\033[K  %s", line);
+    else fprintf(stderr, "flockmorph: progress: %s\n", line), p->last_log = now;
 }
 
 static fm_run_control run_control(const cli_run_options *o, const cli_outputs *files, cli_progress *progress)
@@ -140,12 +182,14 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (rc) return rc;
     const cli_mode_run *common = run;
     const int64_t agents = common->agents;
-    cli_progress progress = {!o->quiet && isatty(STDERR_FILENO), agents, cli_seconds(), mode->phase_labels};
+    cli_progress progress = {.show = o->quiet ? 0 : isatty(STDERR_FILENO) ? 1 : 2, .agents = agents,
+                             .frame_limit = def->frame_limit, .start = cli_seconds(), .log_every = o->log_every,
+                             .last_log = -INFINITY, .phase_labels = mode->phase_labels, .first_frame = -1};
     const fm_run_control control = run_control(o, &files, &progress);
     cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
     fm_status st = mode->simulate(run, cache, &control, &err);
     cli_catch_stop_signals(0);
-    if (progress.show) fprintf(stderr, "\n");
+    if (progress.show == 1) fprintf(stderr, "\n");
     const fm_run_totals *t = common->totals;
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
@@ -155,7 +199,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
         return cli_fail_keeping_partial_cache(&err, NULL, files.cache);
     }
     const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
-                                   t->simulate_seconds, t->output_seconds, files.threads, files.cache};
+                                   t->simulate_seconds, t->output_seconds, files.threads, files.cache, o};
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
     cli_remove_checkpoint(&files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s", (long long)agents, (long long)record.frames,

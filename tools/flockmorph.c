@@ -1,8 +1,9 @@
 /* flockmorph: the command line.
  *
  *   flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]
- *   flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B] -o DIR   (or -o FILE [--frame K])
- *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4 [--frames A:B] [--fps F] [options]
+ *   flockmorph export CACHE --format ply|obj|vtk|vdb [--frames A:B[:S]] -o DIR   (or -o FILE [--frame K])
+ *   flockmorph export CACHE -o FILE.pc2|FILE.mdd [--frames A:B[:S]]            (a point cache)
+ *   flockmorph render CACHE -o FILE.png [--frame K] | -o FILE.mp4|NAME.%04d.png [--frames A:B[:S]] [options]
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
  *   flockmorph wedge list|count WEDGES.json
@@ -26,7 +27,7 @@ static const char *USAGE_MAIN =
     "\n"
     "commands:\n"
     "  run      simulate a scene file and write the frame cache and stats.json\n"
-    "  export   write frames of a cache as PLY, OBJ, VTK or OpenVDB points\n"
+    "  export   write frames of a cache as PLY, OBJ, VTK, OpenVDB points, PC2 or MDD\n"
     "  render   ray-cast a frame of a cache to a PNG, or frames to an MP4 (ffmpeg)\n"
     "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
     "  info     the same as 'inspect --json'\n"
@@ -68,11 +69,11 @@ int main(int argc, char **argv)
         int (*fn)(int, char **) = find_command(argv[2]);
         char help[] = "--help", *args[] = {help, NULL};
         if (fn) return fn(1, args);
-        fprintf(stderr, "flockmorph: unknown command '%s'\n\n%s", argv[2], USAGE_MAIN);
+        fprintf(stderr, "flockmorph: unknown command '%s'\nsee 'flockmorph help'\n", argv[2]);
         return FM_ERR_USAGE;
     }
     int (*fn)(int, char **) = find_command(cmd);
     if (fn) return fn(argc - 2, argv + 2);
-    fprintf(stderr, "flockmorph: unknown command '%s'\n\n%s", cmd, USAGE_MAIN);
+    fprintf(stderr, "flockmorph: unknown command '%s'\nsee 'flockmorph help'\n", cmd);
     return FM_ERR_USAGE;
 }

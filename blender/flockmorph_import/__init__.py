@@ -70,18 +70,53 @@ class IMPORT_SCENE_OT_flockmorph(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
+class OBJECT_OT_flockmorph_bake_pc2(bpy.types.Operator):
+    """Bake the active flockmorph object to a PC2 point cache read by a Mesh Cache modifier, so the
+    saved .blend animates without this add-on (a render farm node)"""
+    bl_idname = "object.flockmorph_bake_pc2"
+    bl_label = "Bake flockmorph to PC2"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH",
+                             description="The PC2 file; // is the .blend's folder (default: //<object>.pc2)",
+                             default="")
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "MESH" and importer.SETTINGS in obj.data
+
+    def execute(self, context):
+        obj = context.active_object
+        try:
+            path = importer.bake_pc2(obj, self.filepath or f"//{bpy.path.clean_name(obj.name)}.pc2")
+        except (ValueError, OSError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"baked {obj.name} to {path}")
+        return {"FINISHED"}
+
+
+def menu_func_bake(self, context):
+    self.layout.operator(OBJECT_OT_flockmorph_bake_pc2.bl_idname)
+
+
 def menu_func_import(self, context):
     self.layout.operator(IMPORT_SCENE_OT_flockmorph.bl_idname, text="flockmorph cache (.fmc)")
 
 
 def register():
     bpy.utils.register_class(IMPORT_SCENE_OT_flockmorph)
+    bpy.utils.register_class(OBJECT_OT_flockmorph_bake_pc2)
     bpy.types.TOPBAR_MT_file_import.append(menu_func_import)
+    bpy.types.VIEW3D_MT_object_animation.append(menu_func_bake)
     bpy.app.handlers.frame_change_pre.append(importer.on_frame_change)
 
 
 def unregister():
     bpy.app.handlers.frame_change_pre.remove(importer.on_frame_change)
+    bpy.types.VIEW3D_MT_object_animation.remove(menu_func_bake)
     bpy.types.TOPBAR_MT_file_import.remove(menu_func_import)
+    bpy.utils.unregister_class(OBJECT_OT_flockmorph_bake_pc2)
     bpy.utils.unregister_class(IMPORT_SCENE_OT_flockmorph)
     importer.close_caches()

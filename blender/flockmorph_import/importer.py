@@ -248,6 +248,51 @@ def import_cache(context, path, mode="AUTO", first=0, last=-1, step=1, start=1, 
     return obj, cache.warning
 
 
+# ---------------------------------------------------------------- baking to a point cache
+
+PC2_MODIFIER = "flockmorph PC2"  # the Mesh Cache modifier bake_pc2 adds
+
+
+def write_pc2(path, frames, start, points):
+    """A PC2 file (Blender's Mesh Cache modifier, docs/export.md): "POINTCACHE2\\0", version 1, the
+    point count, the start frame, the sample rate (1: one sample a scene frame) and the sample
+    count, then float32 x, y, z little-endian; `frames` yields one (points, 3) array per sample."""
+    import struct
+    with open(path + ".partial", "wb") as f:
+        f.write(struct.pack("<12siiffi", b"POINTCACHE2\0", 1, points, float(start), 1.0, len(frames)))
+        for xyz in frames:
+            f.write(np.ascontiguousarray(xyz, dtype="<f4").tobytes())
+    os.replace(path + ".partial", path)
+
+
+def bake_pc2(obj, filepath):
+    """Writes the vertex positions of every scene frame the import shows, start ... end, into the
+    PC2 file `filepath` (a Blender path: `//` is the .blend's folder) and adds a Mesh Cache
+    modifier that reads it by a `//`-relative path, so the saved .blend animates without the
+    add-on. Returns the file's absolute path. The attributes (velocity, orientation, phase) stay
+    those of the frame last shown: the modifier moves vertices only."""
+    mesh = obj.data
+    if obj.type != "MESH" or SETTINGS not in mesh:
+        raise ImportFailed(f"{obj.name} was not imported from a flockmorph cache")
+    if not bpy.data.filepath:
+        raise ImportFailed("save the .blend first: the modifier finds the point cache by a path relative to it")
+    settings = mesh[SETTINGS]
+    cache = open_cache(settings["cache"])
+    samples = range(settings["first"], settings["last"] + 1, settings["step"])
+    per_agent = 4 if settings["mode"] == "MESH" else 1
+    target = os.path.abspath(bpy.path.abspath(filepath))
+    os.makedirs(os.path.dirname(target), exist_ok=True)
+    write_pc2(target, [vertex_positions(cache, k, settings["mode"]) * settings["scale"] for k in samples],
+              settings["start"], cache.agents * per_agent)
+    mod = obj.modifiers.get(PC2_MODIFIER) or obj.modifiers.new(PC2_MODIFIER, "MESH_CACHE")
+    mod.cache_format = "PC2"
+    mod.filepath = bpy.path.relpath(target)
+    mod.time_mode, mod.play_mode = "FRAME", "SCENE"
+    mod.frame_start, mod.frame_scale = float(settings["start"]), 1.0
+    mod.forward_axis, mod.up_axis = "POS_Y", "POS_Z"  # flockmorph's axes are Blender's
+    return target
+
+
 # ---------------------------------------------------------------- the handler
 
 _reported = set()  # (mesh, message) pairs already printed, so a missing file is reported once

@@ -1,10 +1,13 @@
 /* flockmorph exporters: one frame of agents, given as plain arrays, to the formats animation
  * and analysis tools read (docs/export.md).
  *
- *   PLY   binary little-endian; tets as 4 triangles each, points as vertices with vx vy vz id
+ *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase), points as
+ *         vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase
  *   OBJ   tets as 4 triangles each, points as `v` lines
  *   VTK   XML UnstructuredGrid (.vtu, appended raw data): VTK_TETRA or VTK_VERTEX cells
- *   VDB   OpenVDB PointDataGrid: P, v (velocity) and id
+ *   VDB   OpenVDB PointDataGrid: P, v, orient, pscale, age, id, phase (Houdini's names)
+ *   PC2   point cache (Blender's Mesh Cache modifier, Maya, 3ds Max): every frame in one file
+ *   MDD   the same, big-endian, with frame times (fm_pointcache_create)
  *
  * Every writer writes PATH.partial and renames it to PATH only when complete. Included by
  * flockmorph.h; C++ only inside the engine (src/io/export_vdb.cpp). */
@@ -29,14 +32,17 @@ typedef enum fm_export_format {
     FM_EXPORT_PLY = 1,
     FM_EXPORT_OBJ = 2,
     FM_EXPORT_VTK = 3, /* one .vtu per frame; fm_export_pvd lists a sequence */
-    FM_EXPORT_VDB = 4
+    FM_EXPORT_VDB = 4,
+    FM_EXPORT_PC2 = 5, /* point caches: one file for a whole sequence (fm_pointcache_create) */
+    FM_EXPORT_MDD = 6
 } fm_export_format;
 
-/* "ply", "obj", "vtk", "vdb" (any case); FM_EXPORT_UNKNOWN otherwise. */
+/* "ply", "obj", "vtk", "vdb", "pc2", "mdd" (any case); FM_EXPORT_UNKNOWN otherwise. */
 fm_export_format fm_export_format_named(const char *name);
-/* From the extension of path's last component (.ply .obj .vtu .vdb, any case). */
+/* From the extension of path's last component (.ply .obj .vtu .vdb .pc2 .mdd, any case). */
 fm_export_format fm_export_format_of_path(const char *path);
-/* The file extension without the dot: "ply", "obj", "vtu", "vdb"; "" for FM_EXPORT_UNKNOWN. */
+/* The file extension without the dot: "ply", "obj", "vtu", "vdb", "pc2", "mdd"; "" for
+ * FM_EXPORT_UNKNOWN. */
 const char *fm_export_extension(fm_export_format format);
 
 /* One frame, agents in id order. Either tet_vertices (a tet morph) or positions (a point flock)
@@ -47,8 +53,13 @@ typedef struct fm_export_frame {
     const float *tet_vertices; /* n × 12: 4 vertices × xyz per tet; NULL for a point flock */
     const float *positions;    /* n × 3: points; for tets the centroids (VDB only; computed if NULL) */
     const float *velocities;   /* n × 3: written for points (PLY, VTK) and by VDB; NULL: none / zero */
-    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 */
-    const uint8_t *phases;     /* n fm_phase values (VTK cell data for tets); NULL: not written */
+    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: not written) */
+    const uint8_t *phases;     /* n fm_phase values; NULL: not written */
+    /* Houdini's point attributes (PLY and VDB points; NULL: not written): */
+    const float *orientations; /* n × 4: unit quaternions w, x, y, z as the cache stores them;
+                                  written as Houdini's orient, x, y, z, w */
+    const float *pscales;      /* n: the agent's radius in world units */
+    const float *ages;         /* n: seconds the agent has existed */
 } fm_export_frame;
 
 typedef struct fm_export_options {
@@ -66,6 +77,34 @@ fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format f
  * timestep times[i] seconds. */
 fm_status fm_export_pvd(const char *path, const char *const *files, const double *times,
                         size_t count, fm_error *err);
+
+/* A point cache (PC2 or MDD): `points` points in every one of `frames` frames, frame j being
+ * frame number start_frame + j * frame_step, at (start_frame + j * frame_step) / frame_rate
+ * seconds (MDD's frame times; PC2 stores the start frame and the step, its "sample rate"). */
+typedef struct fm_pointcache_options {
+    fm_export_format format; /* FM_EXPORT_PC2 or FM_EXPORT_MDD */
+    size_t points, frames;   /* each at most INT32_MAX, the headers' int32 */
+    double start_frame, frame_step, frame_rate;
+} fm_pointcache_options;
+
+typedef struct fm_pointcache_writer fm_pointcache_writer;
+
+/* Opens path.partial and writes the header; NULL with err set on failure. */
+fm_pointcache_writer *fm_pointcache_create(const char *path, const fm_pointcache_options *opts,
+                                           fm_error *err);
+/* Appends the next frame: points x 3 floats, written bit for bit (non-finite values refused). */
+fm_status fm_pointcache_add(fm_pointcache_writer *w, const float *xyz, fm_error *err);
+/* Checks that every announced frame was added, renames the file into place and frees w; on
+ * failure removes the partial file. */
+fm_status fm_pointcache_finish(fm_pointcache_writer *w, fm_error *err);
+/* Removes the partial file and frees w (NULL is allowed). */
+void fm_pointcache_abort(fm_pointcache_writer *w);
+
+/* Z-up to Y-up (`export --up y`): the rotation by -90 degrees about x, (x, y, z) -> (x, z, -y),
+ * in place on n vectors (positions, velocities; tet vertices are 4n of them), and the same
+ * rotation applied to n quaternions w, x, y, z (r * q in double, r = (cos 45, -sin 45, 0, 0)). */
+void fm_export_up_y(float *xyz, size_t n);
+void fm_export_up_y_quaternions(float *wxyz, size_t n);
 
 /* Each tet's centroid (the mean of its 4 vertices, in double): n × 12 floats in, n × 3 out. */
 void fm_tet_centroids(const float *verts, size_t n, float *out);

@@ -26,7 +26,9 @@ static const struct {
 } fm_formats[] = {{FM_EXPORT_PLY, "ply", "ply"},
                   {FM_EXPORT_OBJ, "obj", "obj"},
                   {FM_EXPORT_VTK, "vtk", "vtu"},
-                  {FM_EXPORT_VDB, "vdb", "vdb"}};
+                  {FM_EXPORT_VDB, "vdb", "vdb"},
+                  {FM_EXPORT_PC2, "pc2", "pc2"},
+                  {FM_EXPORT_MDD, "mdd", "mdd"}};
 #define FM_FORMAT_COUNT (sizeof fm_formats / sizeof fm_formats[0])
 
 fm_export_format fm_export_format_named(const char *name)
@@ -119,10 +121,61 @@ static uint32_t agent_id(const fm_export_frame *frame, size_t i)
     return frame->ids ? frame->ids[i] : (uint32_t)i;
 }
 
+/* The vertex properties after x y z, in file order, with Houdini's attribute names: a vector's
+ * components are NAMEx NAMEy NAMEz (NAMEw), since PLY has scalars only. */
+enum { P_V, P_ORIENT, P_PSCALE, P_AGE, P_ID, P_PHASE, P_COUNT };
+static const struct {
+    const char *name, *type;
+    int components;
+} ply_props[P_COUNT] = {{"v", "float", 3},     {"orient", "float", 4}, {"pscale", "float", 1},
+                        {"age", "float", 1},   {"id", "int", 1},       {"phase", "uchar", 1}};
+
+/* Points carry every attribute given and always their id; tets (4 vertices each, a tet's values
+ * on all four) carry id and phase when given. */
+static int has_prop(const fm_export_frame *f, int p)
+{
+    const int points = f->tet_vertices == NULL;
+    switch (p) {
+    case P_V: return points && f->velocities;
+    case P_ORIENT: return points && f->orientations;
+    case P_PSCALE: return points && f->pscales;
+    case P_AGE: return points && f->ages;
+    case P_ID: return points || f->ids;
+    default: return f->phases != NULL;
+    }
+}
+
+static int ply_prop_header(FILE *file, const fm_export_frame *f)
+{
+    for (int p = 0; p < P_COUNT; p++) {
+        for (int c = 0; has_prop(f, p) && c < ply_props[p].components; c++) {
+            char suffix[2] = {ply_props[p].components > 1 ? "xyzw"[c] : 0, 0};
+            if (fprintf(file, "property %s %s%s\n", ply_props[p].type, ply_props[p].name, suffix) < 0) return -1;
+        }
+    }
+    return 0;
+}
+
+/* Agent i's properties (orient reordered from w, x, y, z to x, y, z, w). */
+static void ply_emit_props(fm_le_writer *w, const fm_export_frame *f, size_t i)
+{
+    for (int c = 0; has_prop(f, P_V) && c < 3; c++) fm_le_f32(w, f->velocities[3 * i + c]);
+    for (int c = 0; has_prop(f, P_ORIENT) && c < 4; c++) fm_le_f32(w, f->orientations[4 * i + (c + 1) % 4]);
+    if (has_prop(f, P_PSCALE)) fm_le_f32(w, f->pscales[i]);
+    if (has_prop(f, P_AGE)) fm_le_f32(w, f->ages[i]);
+    if (has_prop(f, P_ID)) fm_le_u32(w, agent_id(f, i));
+    if (has_prop(f, P_PHASE)) fm_le_u8(w, f->phases[i]);
+}
+
 static void ply_tets_data(fm_le_writer *w, const void *data)
 {
     const fm_export_frame *frame = data;
-    for (size_t i = 0; i < 12 * frame->n; i++) fm_le_f32(w, frame->tet_vertices[i]);
+    for (size_t t = 0; t < frame->n; t++) {
+        for (int j = 0; j < 4; j++) {
+            for (int k = 0; k < 3; k++) fm_le_f32(w, frame->tet_vertices[12 * t + 3 * j + k]);
+            ply_emit_props(w, frame, t);
+        }
+    }
     for (size_t t = 0; t < frame->n; t++) {
         for (int j = 0; j < 4; j++) {
             fm_le_u8(w, 3);
@@ -135,12 +188,8 @@ static int ply_tets_body(FILE *f, const void *data)
 {
     const fm_export_frame *frame = data;
     size_t n = frame->n;
-    if (fprintf(f,
-                PLY_VERTICES("tets")
-                "element face %zu\n"
-                "property list uchar int vertex_indices\n"
-                "end_header\n",
-                4 * n, 4 * n) < 0)
+    if (fprintf(f, PLY_VERTICES("tets"), 4 * n) < 0 || ply_prop_header(f, frame) ||
+        fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\nend_header\n", 4 * n) < 0)
         return -1;
     return fm_le_write(f, ply_tets_data, frame);
 }
@@ -150,22 +199,16 @@ static void ply_points_data(fm_le_writer *w, const void *data)
     const fm_export_frame *frame = data;
     for (size_t i = 0; i < frame->n; i++) {
         for (int k = 0; k < 3; k++) fm_le_f32(w, frame->positions[3 * i + k]);
-        for (int k = 0; frame->velocities && k < 3; k++) fm_le_f32(w, frame->velocities[3 * i + k]);
-        fm_le_u32(w, agent_id(frame, i));
+        ply_emit_props(w, frame, i);
     }
 }
 
-/* Points: vertices only, with the velocity (when given) and the id as vertex properties. */
+/* Points: vertices only, with the attributes given as vertex properties. */
 static int ply_points_body(FILE *f, const void *data)
 {
     const fm_export_frame *frame = data;
-    const int has_v = frame->velocities != NULL;
-    if (fprintf(f,
-                PLY_VERTICES("points")
-                "%s"
-                "property int id\n"
-                "end_header\n",
-                frame->n, has_v ? "property float vx\nproperty float vy\nproperty float vz\n" : "") < 0)
+    if (fprintf(f, PLY_VERTICES("points"), frame->n) < 0 || ply_prop_header(f, frame) ||
+        fputs("end_header\n", f) < 0)
         return -1;
     return fm_le_write(f, ply_points_data, frame);
 }
@@ -223,6 +266,24 @@ fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *dat
     return fm_output_commit(&out, NULL, err);
 }
 
+void fm_export_up_y(float *xyz, size_t n)
+{
+    for (size_t i = 0; i < n; i++, xyz += 3) {
+        float y = xyz[1];
+        xyz[1] = xyz[2], xyz[2] = -y; /* exact: a permutation and a sign */
+    }
+}
+
+void fm_export_up_y_quaternions(float *q, size_t n)
+{
+    const double c = 0.70710678118654752440; /* r = (c, -c, 0, 0): -90 degrees about x */
+    for (size_t i = 0; i < n; i++, q += 4) {
+        double w = q[0], x = q[1], y = q[2], z = q[3];
+        q[0] = (float)(c * (w + x)), q[1] = (float)(c * (x - w));
+        q[2] = (float)(c * (y + z)), q[3] = (float)(c * (z - y));
+    }
+}
+
 void fm_tet_centroids(const float *verts, size_t n, float *out)
 {
     for (size_t t = 0; t < n; t++) {
@@ -262,14 +323,12 @@ static fm_status write_vdb(const fm_export_frame *frame, const fm_export_options
                            const char *path, fm_error *err)
 {
     if (!frame->tet_vertices || frame->positions)
-        return fm_vdb_points_write(frame->positions, frame->velocities, frame->ids, frame->n, opts,
-                                   path, err);
+        return fm_vdb_points_write(frame, frame->positions, opts, path, err);
     float *centroids = malloc(sizeof(float) * 3 * (frame->n ? frame->n : 1));
     if (!centroids)
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for %zu centroids ('%s')", frame->n, path);
     fm_tet_centroids(frame->tet_vertices, frame->n, centroids);
-    fm_status st = fm_vdb_points_write(centroids, frame->velocities, frame->ids, frame->n, opts,
-                                       path, err);
+    fm_status st = fm_vdb_points_write(frame, centroids, opts, path, err);
     free(centroids);
     return st;
 }
@@ -291,6 +350,10 @@ fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format f
         return fm_export_with_body(path, fm_vtu_body, frame, err);
     case FM_EXPORT_VDB:
         return write_vdb(frame, opts ? opts : &defaults, path, err);
+    case FM_EXPORT_PC2:
+    case FM_EXPORT_MDD:
+        return fm_fail(err, FM_ERR_USAGE, "cannot export one frame to '%s': %s holds a sequence "
+                       "(fm_pointcache_create)", path, fm_export_extension(format));
     default:
         return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': unknown format", path);
     }

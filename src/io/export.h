@@ -44,17 +44,26 @@ fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *dat
 /* export_vtk.c: the .vtu body for an fm_export_frame (tets as VTK_TETRA, points as VTK_VERTEX). */
 int fm_vtu_body(FILE *f, const void *frame);
 
-/* export_vdb.cpp: positions, velocities (NULL: zero) and ids (NULL: 0..n-1; each at most
- * INT32_MAX, as fm_export_frame_write checks) as an OpenVDB PointDataGrid named "points" with
- * attributes P, v (vec3s) and id (int32). */
-fm_status fm_vdb_points_write(const float *positions, const float *velocities, const uint32_t *ids,
-                              size_t n, const fm_export_options *opts, const char *path,
-                              fm_error *err);
+/* export_vdb.cpp: the frame's points at `positions` (its own, or its tets' centroids) as an
+ * OpenVDB PointDataGrid named "points" with the attributes P, v (vec3s; zero without
+ * velocities) and id (int32; ids at most INT32_MAX, as fm_export_frame_write checks), and
+ * orient (quats x, y, z, w), pscale and age (float) and phase (int32) when the frame has them. */
+fm_status fm_vdb_points_write(const fm_export_frame *frame, const float *positions,
+                              const fm_export_options *opts, const char *path, fm_error *err);
 
 /* Reads the points back (for tests): malloc'ed arrays in the file's (leaf) order, which the ids
  * identify; voxel_size (may be NULL) receives the grid's voxel size. */
 fm_status fm_vdb_points_read(const char *path, size_t *n, float **positions, float **velocities,
                              int32_t **ids, double *voxel_size, fm_error *err);
+
+/* One attribute back (for tests), as floats in the order fm_vdb_points_read gives the points:
+ * *components is 1 (float, int32), 3 (vec3s) or 4 (quats, x y z w). */
+fm_status fm_vdb_points_read_attr(const char *path, const char *name, size_t *n, int *components,
+                                  float **values, fm_error *err);
+
+/* "NAME:TYPE" of every point attribute in the file's order, space-separated, into out (for
+ * tests: vdb_print does not list point attributes): "P:vec3s v:vec3s id:int32 ...". */
+fm_status fm_vdb_points_list_attrs(const char *path, char *out, size_t size, fm_error *err);
 
 #ifdef __cplusplus
 }

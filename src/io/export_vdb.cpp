@@ -1,6 +1,7 @@
 // OpenVDB points adapter for the VDB exporter: plain arrays in, a PointDataGrid named "points"
-// with the attributes P (position), v (velocity, vec3s) and id (int32) out, the names Houdini
-// gives them; and a reader for the tests. Behind extern "C": every exception is caught here and
+// with the attributes P (position), v (velocity, vec3s) and id (int32) out, and, when the frame
+// has them, orient (quats: x, y, z, w), pscale and age (float) and phase (int32): the names and
+// types Houdini gives them; and readers for the tests. Behind extern "C": every exception is caught here and
 // turned into an fm_status with a message.
 #include <openvdb/openvdb.h>
 #include <openvdb/points/PointConversion.h>
@@ -119,26 +120,53 @@ fm_status choose_voxel(const std::vector<Vec3f> &p, const fm_export_options *o, 
     return FM_OK;
 }
 
+template <typename T>
+void add_attribute(vp::PointDataGrid &grid, const openvdb::tools::PointIndexGrid &index, const char *name,
+                   const std::vector<T> &values)
+{
+    vp::appendAttribute<T>(grid.tree(), name);
+    vp::populateAttribute(grid.tree(), index.tree(), name, vp::PointAttributeVector<T>(values));
+}
+
+// The frame's optional attributes, each only when the frame has it.
+void add_optional(vp::PointDataGrid &grid, const openvdb::tools::PointIndexGrid &index, const fm_export_frame *f)
+{
+    size_t n = f->n;
+    if (f->orientations) {
+        std::vector<openvdb::math::Quats> q(n);
+        for (size_t i = 0; i < n; i++) { // the cache's w, x, y, z; Quats(x, y, z, w)
+            const float *o = f->orientations + 4 * i;
+            q[i] = openvdb::math::Quats(o[1], o[2], o[3], o[0]);
+        }
+        add_attribute(grid, index, "orient", q);
+    }
+    if (f->pscales) add_attribute(grid, index, "pscale", std::vector<float>(f->pscales, f->pscales + n));
+    if (f->ages) add_attribute(grid, index, "age", std::vector<float>(f->ages, f->ages + n));
+    if (f->phases) add_attribute(grid, index, "phase", std::vector<int32_t>(f->phases, f->phases + n));
+}
+
 openvdb::GridBase::Ptr build_grid(const std::vector<Vec3f> &p, const std::vector<Vec3f> &v,
-                                  const std::vector<int32_t> &id, double voxel)
+                                  const std::vector<int32_t> &id, const fm_export_frame *f, double voxel)
 {
     openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxel);
     vp::PointAttributeVector<Vec3f> positions(p);
     auto index = openvdb::tools::createPointIndexGrid<openvdb::tools::PointIndexGrid>(positions, *xform);
     // NullCodec: positions as full floats (relative to their voxel), not 8 or 16 bit fixed point.
     auto grid = vp::createPointDataGrid<vp::NullCodec, vp::PointDataGrid>(*index, positions, *xform);
-    vp::appendAttribute<Vec3f>(grid->tree(), "v");
-    vp::populateAttribute(grid->tree(), index->tree(), "v", vp::PointAttributeVector<Vec3f>(v));
-    vp::appendAttribute<int32_t>(grid->tree(), "id");
-    vp::populateAttribute(grid->tree(), index->tree(), "id", vp::PointAttributeVector<int32_t>(id));
+    add_attribute(*grid, *index, "v", v);
+    add_attribute(*grid, *index, "id", id);
+    add_optional(*grid, *index, f);
     grid->setName("points");
     return grid;
 }
 
-fm_status write_points(const float *pos, const float *vel, const uint32_t *ids, size_t n,
-                       const fm_export_options *opts, const char *path, fm_error *err)
+fm_status write_points(const fm_export_frame *f, const float *pos, const fm_export_options *opts,
+                       const char *path, fm_error *err)
 {
     init_openvdb();
+    const float *vel = f->velocities;
+    const uint32_t *ids = f->ids;
+    size_t n = f->n;
     std::vector<Vec3f> p(n), v(n, Vec3f(0.0f));
     std::vector<int32_t> id(n);
     for (size_t i = 0; i < n; i++) {
@@ -149,7 +177,7 @@ fm_status write_points(const float *pos, const float *vel, const uint32_t *ids, 
     double voxel = 0;
     fm_status st = choose_voxel(p, opts, path, &voxel, err);
     if (st != FM_OK) return st;
-    openvdb::GridCPtrVec grids{build_grid(p, v, id, voxel)};
+    openvdb::GridCPtrVec grids{build_grid(p, v, id, f, voxel)};
 
     fm_output_file out;
     if ((st = fm_output_open(&out, path, err)) != FM_OK) return st;
@@ -212,17 +240,102 @@ fm_status read_points(const char *path, size_t *n, float **pos, float **vel, int
     return FM_OK;
 }
 
+template <typename T> double component(const T &v, int) { return (double)v; }
+double component(const Vec3f &v, int c) { return v[c]; }
+double component(const openvdb::math::Quats &q, int c) { return q[c]; } // x, y, z, w
+
+// One attribute of every point, in leaf order (that of read_points), as floats.
+template <typename T, int C>
+void read_values(const vp::PointDataTree &tree, const char *name, float *out)
+{
+    size_t i = 0;
+    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
+        vp::AttributeHandle<T> h(leaf->constAttributeArray(name));
+        for (auto idx = leaf->beginIndexOn(); idx; ++idx, ++i) {
+            T v = h.get(*idx);
+            for (int c = 0; c < C; c++) out[C * i + c] = (float)component(v, c);
+        }
+    }
+}
+
+
+fm_status read_attr(const char *path, const char *name, size_t *n, int *components, float **values,
+                    fm_error *err)
+{
+    init_openvdb();
+    openvdb::io::File file(path);
+    file.open(false);
+    auto grid = openvdb::GridBase::grid<vp::PointDataGrid>(file.readGrid("points"));
+    file.close();
+    if (!grid) return fm_fail(err, FM_ERR_INPUT, "'%s': the grid 'points' is not a PointDataGrid", path);
+    const auto &tree = grid->tree();
+    auto leaf = tree.cbeginLeaf();
+    size_t pos = leaf ? leaf->attributeSet().find(name) : vp::AttributeSet::INVALID_POS;
+    if (pos == vp::AttributeSet::INVALID_POS) return fm_fail(err, FM_ERR_INPUT, "'%s': no attribute %s", path, name);
+    const std::string type = leaf->attributeArray(pos).type().first;
+    *n = (size_t)vp::pointCount(tree);
+    *components = type == "vec3s" ? 3 : type == "quats" ? 4 : 1;
+    *values = malloc_array<float>((size_t)*components * *n);
+    if (type == "float") read_values<float, 1>(tree, name, *values);
+    else if (type == "int32") read_values<int32_t, 1>(tree, name, *values);
+    else if (type == "vec3s") read_values<Vec3f, 3>(tree, name, *values);
+    else if (type == "quats") read_values<openvdb::math::Quats, 4>(tree, name, *values);
+    else return std::free(*values), *values = nullptr, fm_fail(err, FM_ERR_INPUT, "'%s': %s has type %s", path, name, type.c_str());
+    return FM_OK;
+}
+
+// "NAME:TYPE" of every attribute, in the descriptor's order, space-separated.
+fm_status list_attrs(const char *path, char *out, size_t size, fm_error *err)
+{
+    init_openvdb();
+    openvdb::io::File file(path);
+    file.open(false);
+    auto grid = openvdb::GridBase::grid<vp::PointDataGrid>(file.readGrid("points"));
+    file.close();
+    auto leaf = grid ? grid->tree().cbeginLeaf() : vp::PointDataTree::LeafCIter();
+    if (!leaf) return fm_fail(err, FM_ERR_INPUT, "'%s': no points", path);
+    const vp::AttributeSet::Descriptor &d = leaf->attributeSet().descriptor();
+    std::string list;
+    for (size_t i = 0; i < d.size(); i++)
+        for (const auto &named : d.map())
+            if (named.second == i) list += (list.empty() ? "" : " ") + named.first + ":" + d.type(i).first;
+    std::snprintf(out, size, "%s", list.c_str());
+    return FM_OK;
+}
+
 } // namespace
 
-extern "C" fm_status fm_vdb_points_write(const float *positions, const float *velocities,
-                                         const uint32_t *ids, size_t n, const fm_export_options *opts,
-                                         const char *path, fm_error *err)
+extern "C" fm_status fm_vdb_points_list_attrs(const char *path, char *out, size_t size, fm_error *err)
 {
+    out[0] = 0;
+    try {
+        return list_attrs(path, out, size, err);
+    } catch (const std::exception &e) {
+        return fm_fail(err, FM_ERR_INPUT, "cannot read '%s': %s", path, e.what());
+    }
+}
+
+extern "C" fm_status fm_vdb_points_read_attr(const char *path, const char *name, size_t *n, int *components,
+                                             float **values, fm_error *err)
+{
+    *n = 0, *components = 0, *values = nullptr;
+    try {
+        return read_attr(path, name, n, components, values, err);
+    } catch (const std::exception &e) {
+        std::free(*values), *values = nullptr;
+        return fm_fail(err, FM_ERR_INPUT, "cannot read '%s': %s", path, e.what());
+    }
+}
+
+extern "C" fm_status fm_vdb_points_write(const fm_export_frame *frame, const float *positions,
+                                         const fm_export_options *opts, const char *path, fm_error *err)
+{
+    size_t n = frame->n;
     if (n > 0 && !positions) return fm_fail(err, FM_ERR_USAGE, "export to '%s': no positions", path);
     fm_status st = check_points(positions, n, opts->voxel_size, path, err);
     if (st != FM_OK) return st;
     try {
-        return write_points(positions, velocities, ids, n, opts, path, err);
+        return write_points(frame, positions, opts, path, err);
     } catch (const std::bad_alloc &) {
         return fm_fail(err, FM_ERR_MEMORY, "out of memory writing %zu points to '%s'", n, path);
     } catch (const std::exception &e) {

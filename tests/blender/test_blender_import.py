@@ -12,7 +12,10 @@ imports the caches with several options, sets scene frames, and compares the obj
 vertex positions and attributes with the frames python/flockmorph_cache.py reads (max abs
 difference <= 1e-6 x the scene's size). It also checks the scene's frame range and frame rate,
 Geometry Nodes instancing on the point flock's rotation attribute, a .blend saved and opened
-again, a cache cut short, and the errors. Without blender on PATH it prints SKIPPED and exits 77.
+again, a cache cut short, and the errors. It bakes an import to PC2 (the Mesh Cache modifier),
+checks the samples against `flockmorph export -o FILE.pc2` byte for byte, moves the saved .blend
+and its point cache to another folder, and evaluates two frames of it in a second Blender without
+the add-on. Without blender on PATH it prints SKIPPED and exits 77.
 
     test_blender_import.py --cli build/flockmorph --points build/tests/cache_points \\
         --addon-zip build/flockmorph_import.zip --tmp DIR --source REPO
@@ -109,7 +112,7 @@ def outer(args):
     env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(work, "scripts"))
     cmd = [blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", os.path.abspath(__file__),
            "--", "--source", args.source, "--tmp", work, "--addon-zip", args.addon_zip,
-           "--tets-cache", tets, "--points-cache", points]
+           "--tets-cache", tets, "--points-cache", points, "--cli", args.cli]
     t0 = time.monotonic()
     done = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     print(done.stdout)
@@ -163,7 +166,7 @@ def scene_size(cache):
     return float(np.max(hi - lo))
 
 
-class BlenderCase(unittest.TestCase):
+class BlenderBase(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         with fmc.open(ARGS.tets_cache) as tets:
@@ -196,6 +199,9 @@ class BlenderCase(unittest.TestCase):
         r = bpy.context.scene.render
         self.assertAlmostEqual(r.fps / r.fps_base, rate, places=5)
 
+
+
+class BlenderCase(BlenderBase):
     def test_addon_installed_from_the_zip(self):
         import flockmorph_import
         installed = os.path.join(os.environ["BLENDER_USER_SCRIPTS"], "addons", ADDON)
@@ -355,6 +361,101 @@ class BlenderCase(unittest.TestCase):
             self.assertEqual(len(bpy.data.objects), 0)
 
 
+# Run by a second Blender on the moved .blend, without the add-on: the evaluated vertex positions
+# of the scene frames given, saved as .npy, and what add-ons and frame handlers that Blender has.
+NO_ADDON_SCRIPT = """
+import json, sys
+import bpy, numpy as np
+out, name, frames = sys.argv[-3], sys.argv[-2], [int(f) for f in sys.argv[-1].split(",")]
+obj = bpy.data.objects[name]
+for f in frames:
+    bpy.context.scene.frame_set(f)
+    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    co = np.empty(3 * len(mesh.vertices), dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    np.save(f"{out}/frame_{f}.npy", co.reshape(-1, 3))
+with open(f"{out}/blender.json", "w") as fp:
+    json.dump({"addons": list(bpy.context.preferences.addons.keys()),
+               "handlers": [h.__name__ for h in bpy.app.handlers.frame_change_pre],
+               "modifiers": [(m.type, m.filepath) for m in obj.modifiers]}, fp)
+"""
+
+
+class BakeCase(BlenderBase):
+    def test_bake_matches_the_cli_pc2(self):
+        """A default import baked by the add-on holds the bytes `flockmorph export -o FILE.pc2`
+        writes; only the start frame differs (scene frame 1 against cache frame 0)."""
+        obj = import_cache(ARGS.tets_cache)
+        blend = os.path.join(ARGS.tmp, "bake_cli", "scene.blend")
+        os.makedirs(os.path.dirname(blend), exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+        baked = importer().bake_pc2(obj, "//baked.pc2")
+        cli_pc2 = os.path.join(ARGS.tmp, "bake_cli", "cli.pc2")
+        subprocess.run([ARGS.cli, "export", ARGS.tets_cache, "-o", cli_pc2, "--quiet"], check=True,
+                       stdout=subprocess.DEVNULL)
+        with open(baked, "rb") as f:
+            ours = f.read()
+        with open(cli_pc2, "rb") as f:
+            theirs = f.read()
+        self.assertEqual(ours[:20], theirs[:20])  # signature, version, points
+        self.assertEqual(np.frombuffer(ours[20:24], "<f4")[0], 1.0)
+        self.assertEqual(np.frombuffer(theirs[20:24], "<f4")[0], 0.0)
+        self.assertEqual(ours[24:], theirs[24:])
+
+    def test_baked_blend_animates_without_the_addon(self):
+        c = self.tets
+        first, step, start = 2, 3, 5
+        obj = import_cache(ARGS.tets_cache, frame_first=first, frame_step=step, start_frame=start)
+        last = first + (c.frames - 1 - first) // step * step
+        work, moved = os.path.join(ARGS.tmp, "bake"), os.path.join(ARGS.tmp, "bake_moved")
+        for d in (work, moved):
+            shutil.rmtree(d, ignore_errors=True)
+        os.makedirs(work)
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(work, "scene.blend"))
+        self.assertEqual(bpy.ops.object.flockmorph_bake_pc2(), {"FINISHED"})
+        mod = obj.modifiers["flockmorph PC2"]
+        self.assertEqual((mod.type, mod.cache_format), ("MESH_CACHE", "PC2"))
+        self.assertTrue(mod.filepath.startswith("//"), mod.filepath)
+        bpy.ops.wm.save_mainfile()
+        shutil.copytree(work, moved)
+        shutil.rmtree(work)  # only the // path can find the copy
+        frames = {start: first, start + 1: first + step, start + 4: first + 4 * step,
+                  start + (last - first) // step + 3: last}
+        scripts = os.path.join(ARGS.tmp, "no_addon_scripts")
+        os.makedirs(scripts, exist_ok=True)
+        env = dict(os.environ, BLENDER_USER_SCRIPTS=scripts)
+        done = subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", os.path.join(moved, "scene.blend"),
+                               "--python-exit-code", "1", "--python-expr", NO_ADDON_SCRIPT, "--", moved, obj.name,
+                               ",".join(map(str, frames))], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+        self.assertEqual(done.returncode, 0, done.stdout)
+        with open(os.path.join(moved, "blender.json")) as f:
+            seen = json.load(f)
+        self.assertNotIn(ADDON, seen["addons"])
+        self.assertNotIn("on_frame_change", seen["handlers"])
+        self.assertEqual(seen["modifiers"], [["MESH_CACHE", mod.filepath]])
+        got = {f: np.load(os.path.join(moved, f"frame_{f}.npy")) for f in frames}
+        a, b = got[start], got[start + 1]
+        self.assertGreater(np.abs(a - b).max(), 1000 * self.tol, "two frames of the saved file do not differ")
+        for f, k in frames.items():
+            np.testing.assert_allclose(got[f], c.read(k, "tet_vertices").reshape(-1, 3), rtol=0, atol=self.tol,
+                                       err_msg=f"scene frame {f} (cache frame {k}) without the add-on")
+
+    def test_bake_needs_a_saved_blend(self):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        self.assertEqual(bpy.data.filepath, "")
+        obj = import_cache(ARGS.points_cache)
+        with self.assertRaises(RuntimeError) as caught:
+            bpy.ops.object.flockmorph_bake_pc2()
+        self.assertIn("save the .blend first", str(caught.exception))
+        self.assertEqual(len(obj.modifiers), 0)
+
+
+def importer():
+    import flockmorph_import.importer
+    return flockmorph_import.importer
+
+
 def inner(args):
     global ARGS, fmc
     ARGS = args
@@ -367,7 +468,8 @@ def inner(args):
         print(f"cannot enable the add-on {ADDON} installed from {args.addon_zip}")
         return 1
     result = unittest.TextTestRunner(stream=sys.stdout, verbosity=2).run(
-        unittest.defaultTestLoader.loadTestsFromTestCase(BlenderCase))
+        unittest.TestSuite([unittest.defaultTestLoader.loadTestsFromTestCase(BlenderCase),
+                            unittest.defaultTestLoader.loadTestsFromTestCase(BakeCase)]))
     return 0 if result.wasSuccessful() else 1
 
 

@@ -1,6 +1,7 @@
 /* The flockmorph command line (FM_CLI): exit statuses, messages, and one small end-to-end run of
  * an octahedron onto itself 20 units away, followed by export, render and info on its cache. */
 #define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* timegm */
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
 #include "test_cli_helpers.h"
@@ -12,6 +13,10 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
+
+#define XXH_INLINE_ALL /* the scene file's hash, as stats.json records it */
+#include <xxhash.h>
 
 #define AGENTS 200
 
@@ -98,6 +103,20 @@ static void test_usage_errors(void)
     snprintf(args, sizeof args, "run '%s' -o '%s/cli_usage_out' --threads", scene, FM_TEST_TMP);
     ENSURE_EXIT(args, 1);
     ENSURE_EXIT("run", 1);
+    /* one line and where to read more, not the whole usage text */
+    static const struct { const char *args, *see; } one_line[] = {
+        {"run --threads 0 s.json -o o", "see 'flockmorph help run'\n"},
+        {"export c.fmc --format stl -o d", "see 'flockmorph help export'\n"},
+        {"render c.fmc -o x.gif", "see 'flockmorph help render'\n"},
+        {"inspect", "see 'flockmorph help inspect'\n"},
+        {"frobnicate", "see 'flockmorph help'\n"},
+    };
+    for (size_t i = 0; i < sizeof one_line / sizeof one_line[0]; i++) {
+        ENSURE_EXIT(one_line[i].args, 1);
+        const char *nl = strchr(g_err, '\n');
+        ENSURE_MSG(nl && !strcmp(nl + 1, one_line[i].see) && !strstr(g_err, "usage:"),
+                   "flockmorph %s: stderr '%s'", one_line[i].args, g_err);
+    }
 }
 
 /* ---------------------------------------------------------------- bad scenes */
@@ -212,6 +231,98 @@ static void test_huge_omp_num_threads(void)
 }
 
 /* docs/scene.md: reaching time.frame_limit is not an error; stats.json and a warning say so. */
+/* Every key of a stats.json, nested objects' as PARENT.KEY, has a row "| `KEY`" (or a row listing
+ * it among others) in docs/stats.md, and every key listed there for this mode is in the file. */
+static void check_stats_keys_documented(const char *stats, const char *mode_section)
+{
+    char path[FM_PATH_MAX];
+    static char doc[1 << 16];
+    snprintf(path, sizeof path, "%s/docs/stats.md", FM_SOURCE_DIR);
+    slurp(path, doc, sizeof doc);
+    json_t *j = json_load_file(stats, 0, NULL);
+    ENSURE_MSG(j && doc[0], "%s or %s missing", stats, path);
+    if (!j) return;
+    const char *key;
+    json_t *v;
+    json_object_foreach(j, key, v) {
+        char want[160];
+        int nested = json_is_object(v);
+        const char *sub;
+        json_t *w;
+        if (!nested) {
+            snprintf(want, sizeof want, "`%s`", key);
+            ENSURE_MSG(strstr(doc, want), "%s: key %s is not in docs/stats.md", stats, key);
+        }
+        json_object_foreach(nested ? v : NULL, sub, w) {
+            snprintf(want, sizeof want, "`%s.%s`", key, sub);
+            ENSURE_MSG(strstr(doc, want), "%s: key %s.%s is not in docs/stats.md", stats, key, sub);
+        }
+    }
+    /* the other way: each `key` in the first column of the common section and of this mode's */
+    static const char *const sections[] = {"## Both modes", NULL};
+    for (int s = 0; s < 2; s++) {
+        const char *at = strstr(doc, s ? mode_section : sections[0]), *end = at ? strstr(at + 3, "\n## ") : NULL;
+        for (const char *row = at ? strstr(at, "\n| `") : NULL; row && (!end || row < end); row = strstr(row + 1, "\n| `")) {
+            const char *cell_end = strchr(row + 3, '|');
+            for (const char *k = strchr(row, '`'); k && k < cell_end; k = strchr(strchr(k + 1, '`') + 1, '`')) {
+                char name[96] = "", top[96];
+                sscanf(k + 1, "%95[^`]", name);
+                snprintf(top, sizeof top, "%s", name);
+                char *dot = strchr(top, '.');
+                if (dot) *dot = 0;
+                json_t *value = json_object_get(j, top);
+                ENSURE_MSG(value && (!dot || json_object_get(value, dot + 1)), "%s: docs/stats.md lists %s, which it lacks",
+                           stats, name);
+            }
+        }
+    }
+    json_decref(j);
+}
+
+/* schema, scene and its hash, command line, start time, machine; mde_fraction_per_frame one
+ * entry per frame, frame 0 null; every key documented both ways. */
+static void test_stats_provenance(void)
+{
+    char stats[FM_PATH_MAX + 16], scene[FM_PATH_MAX];
+    char outdir[FM_PATH_MAX];
+    snprintf(stats, sizeof stats, "%s/stats.json", tmp_path(outdir, "ok_out"));
+    tmp_path(scene, "ok.json");
+    json_t *j = json_load_file(stats, 0, NULL);
+    ENSURE(j != NULL);
+    if (!j) return;
+    ENSURE(json_integer_value(json_object_get(j, "schema")) == 1);
+    ENSURE(!strcmp(json_string_value(json_object_get(j, "scene")), scene));
+    static char bytes[1 << 16];
+    size_t n = slurp(scene, bytes, sizeof bytes);
+    char hex[17];
+    snprintf(hex, sizeof hex, "%016llx", (unsigned long long)XXH64(bytes, n, 0));
+    const char *have = json_string_value(json_object_get(j, "scene_xxh64"));
+    ENSURE_MSG(have && !strcmp(have, hex), "scene_xxh64 %s, expected %s", have ? have : "missing", hex);
+    json_t *cmd = json_object_get(j, "command_line");
+    ENSURE(json_array_size(cmd) == 8 && !strcmp(json_string_value(json_array_get(cmd, 1)), "run") &&
+           !strcmp(json_string_value(json_array_get(cmd, 2)), scene) && !strcmp(json_string_value(json_array_get(cmd, 7)), "2"));
+    const char *start = json_string_value(json_object_get(j, "start_time"));
+    struct tm tm = {0};
+    char z = 0;
+    int fields = start ? sscanf(start, "%4d-%2d-%2dT%2d:%2d:%2d%c", &tm.tm_year, &tm.tm_mon, &tm.tm_mday, &tm.tm_hour,
+                                &tm.tm_min, &tm.tm_sec, &z) : 0;
+    tm.tm_year -= 1900, tm.tm_mon -= 1;
+    double age = fields == 7 && z == 'Z' && strlen(start) == 20 ? difftime(time(NULL), timegm(&tm)) : -1;
+    ENSURE_MSG(age >= 0 && age < 3600, "start_time %s is %g s ago", start ? start : "missing", age);
+    json_t *machine = json_object_get(j, "machine");
+    ENSURE(json_integer_value(json_object_get(machine, "cores")) == sysconf(_SC_NPROCESSORS_ONLN));
+    ENSURE(json_is_string(json_object_get(machine, "hostname")));
+    json_t *mde = json_object_get(j, "mde_fraction_per_frame");
+    ENSURE_MSG((long long)json_array_size(mde) == json_integer_value(json_object_get(j, "frames")) &&
+               json_is_null(json_array_get(mde, 0)) && json_is_number(json_array_get(mde, 1)),
+               "mde_fraction_per_frame: %zu entries for %lld frames", json_array_size(mde),
+               (long long)json_integer_value(json_object_get(j, "frames")));
+    json_decref(j);
+    check_stats_keys_documented(stats, "## Tetra morph");
+    snprintf(stats, sizeof stats, "%s/stats.json", tmp_path(outdir, "omp_flock_out"));
+    check_stats_keys_documented(stats, "## Shape flock");
+}
+
 static void test_run_stops_at_frame_limit(void)
 {
     char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
@@ -284,7 +395,9 @@ static void test_export(void)
     ENSURE_MSG(strncmp(ply, "ply\n", 4) == 0 && strstr(ply, face), "PLY header: %.200s", ply);
     const char *end = strstr(ply, "end_header\n");
     ENSURE(end != NULL);
-    if (end) ENSURE(len == (size_t)(end + 11 - ply) + 4 * AGENTS * 12 + 4 * AGENTS * 13);
+    /* a run's cache has ids and phases: each vertex x y z, its tet's int id and uchar phase */
+    ENSURE_MSG(strstr(ply, "property float z\nproperty int id\nproperty uchar phase\nelement face"), "PLY header: %.400s", ply);
+    if (end) ENSURE(len == (size_t)(end + 11 - ply) + 4 * AGENTS * 17 + 4 * AGENTS * 13);
 }
 
 static void test_export_errors(void)
@@ -320,6 +433,75 @@ static void test_render(void)
     ENSURE(png[16] == 0 && png[17] == 0 && png[18] == 0 && png[19] == 64);  /* width */
     ENSURE(png[20] == 0 && png[21] == 0 && png[22] == 0 && png[23] == 48);  /* height */
     snprintf(args, sizeof args, "render '%s' -o '%s' --view diagonal", g_cache, out);
+    ENSURE_EXIT(args, 1);
+}
+
+/* -o NAME.%04d.png: one PNG per frame of --frames (a stride here), named by the cache's frame
+ * number, each the image `render -o FILE.png --frame K` draws; bad patterns are usage errors. */
+static void test_render_png_sequence(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], one[FM_PATH_MAX];
+    ENSURE(g_cache[0] && g_frames > 4);
+    if (!g_cache[0] || g_frames <= 4) return;
+    snprintf(args, sizeof args, "rm -rf '%s' && mkdir '%s'", tmp_path(dir, "png_seq"), dir);
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "render '%s' -o '%s/f.%%04d.png' --frames 1::3 --size 32x24", g_cache, dir);
+    ENSURE_EXIT(args, 0);
+    int count = 0;
+    for (int k = 0; k < (int)g_frames + 2; k++) {
+        snprintf(path, sizeof path, "%s/f.%04d.png", dir, k);
+        struct stat st;
+        int want = k >= 1 && (k - 1) % 3 == 0 && k < (int)g_frames, have = stat(path, &st) == 0;
+        ENSURE_MSG(want == have, "%s: %s", path, have ? "written" : "missing");
+        if (!have || count++ >= 2) continue; /* compare the first two with the one-file form */
+        snprintf(args, sizeof args, "render '%s' -o '%s' --frame %d --size 32x24", g_cache, tmp_path(one, "png_one.png"), k);
+        ENSURE_EXIT(args, 0);
+        ENSURE_MSG(same_file(path, one), "%s differs from the one-file render of frame %d", path, k);
+    }
+    static const char *const bad[] = {"f%%%%.png", "f.%%.png", "f.%%d.%%d.png", "f.%%s.png", "f.%%.2f.png", "f.%%123d.png"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char name[64];
+        snprintf(name, sizeof name, bad[i]);
+        snprintf(args, sizeof args, "render '%s' -o '%s/%s' --size 32x24", g_cache, dir, name);
+        ENSURE_EXIT(args, 1);
+        ENSURE_MSG(strstr(g_err, "integer conversion"), "%s: %s", name, g_err);
+    }
+    snprintf(args, sizeof args, "render '%s' -o '%s/f.%%d.png' --frame 2", g_cache, dir);
+    ENSURE_EXIT(args, 1);
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.mp4' --frames 0:4:0", g_cache, dir);
+    ENSURE_EXIT(args, 1);
+}
+
+/* Progress when stderr is not a terminal (a farm's log): plain lines, every --log-every seconds
+ * (0: every frame), with the frame, the limit, the percentage done and an ETA; one line at the
+ * default interval for a run this short; none with --quiet. */
+static void test_run_progress_in_a_log(void)
+{
+    char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    write_scene(tmp_path(scene, "progress.json"), "");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --log-every 0", scene, tmp_path(outdir, "progress_out"));
+    ENSURE_EXIT(args, 0);
+    int lines = 0;
+    double last_done = -1;
+    for (const char *l = strstr(g_err, "flockmorph: progress: frame "); l; l = strstr(l + 1, "flockmorph: progress: frame ")) {
+        long long frame, limit;
+        double done;
+        const char *d = strstr(l, "done ");
+        ENSURE_MSG(sscanf(l, "flockmorph: progress: frame %lld of at most %lld", &frame, &limit) == 2 && d &&
+                   sscanf(d, "done %lf%%", &done) == 1 && strstr(l, "eta "), "line '%.200s'", l);
+        ENSURE_MSG(frame == lines + 1 && limit > 0 && done >= last_done && done <= 100.0, "line '%.200s'", l);
+        last_done = done, lines++;
+    }
+    ENSURE_MSG(lines == (int)g_frames - 1 && last_done == 100.0, "%d progress lines for %lld frames, last %.1f%%: %s",
+               lines, (long long)g_frames, last_done, g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1", scene, outdir);
+    ENSURE_EXIT(args, 0);
+    const char *first = strstr(g_err, "flockmorph: progress: frame 1 ");
+    ENSURE_MSG(first && !strstr(first + 1, "flockmorph: progress:"), "default interval: %s", g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet", scene, outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(!strstr(g_err, "progress"), "--quiet: %s", g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);
     ENSURE_EXIT(args, 1);
 }
 
@@ -539,9 +721,12 @@ int main(void)
     RUN_TEST(test_successful_run);
     RUN_TEST(test_huge_omp_num_threads);
     RUN_TEST(test_run_stops_at_frame_limit);
+    RUN_TEST(test_stats_provenance);
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);
     RUN_TEST(test_render);
+    RUN_TEST(test_render_png_sequence);
+    RUN_TEST(test_run_progress_in_a_log);
     RUN_TEST(test_info);
     RUN_TEST(test_inspect_json);
     RUN_TEST(test_inspect_text_and_recovered);

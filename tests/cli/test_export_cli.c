@@ -20,19 +20,21 @@ enum { AGENTS = 30, FRAMES = 9 };
 typedef struct test_cache {
     const char *name;
     int tets;          /* tet vertices, else positions */
-    int velocity, ids, phases;
+    int velocity, ids, phases, orientation;
     char path[FM_PATH_MAX];
 } test_cache;
 
-static test_cache g_tets = {"seq.fmc", 1, 0, 0, 0, ""};             /* format 1, as fm_cache_writer_create */
-static test_cache g_points = {"points.fmc", 0, 1, 1, 0, ""};        /* position, velocity, id */
-static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, ""};     /* position only */
-static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, ""};   /* tet vertices and phase */
+static test_cache g_tets = {"seq.fmc", 1, 0, 0, 0, 0, ""};            /* format 1, as fm_cache_writer_create */
+static test_cache g_points = {"points.fmc", 0, 1, 1, 0, 0, ""};       /* position, velocity, id */
+static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, 0, ""};    /* position only */
+static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, 0, ""}; /* tet vertices and phase */
+static test_cache g_flock = {"flock.fmc", 0, 1, 1, 1, 1, ""};       /* a shape flock's five attributes */
 static const char *g_cache = g_tets.path;
 
 static float g_frames[FRAMES][12 * AGENTS], g_pos[FRAMES][3 * AGENTS], g_vel[FRAMES][3 * AGENTS];
 static uint32_t g_ids[AGENTS];
 static uint8_t g_phase[FRAMES][AGENTS];
+static float g_orient[FRAMES][4 * AGENTS]; /* unit quaternions w, x, y, z */
 static char g_err[1 << 14]; /* the last command's stderr */
 
 /* ---------------------------------------------------------------- the caches */
@@ -63,6 +65,9 @@ static void make_frames(void)
                 g_vel[f][3 * i + k] = (float)(v[k] + a[k] * t);
             }
             g_phase[f][i] = (uint8_t)((i + f) % 4);
+            double q[4] = {1.0 + 0.1 * f, 0.3 * (i % 3) - 0.3, 0.2 * (i % 5) - 0.4, 0.1 * (f % 4) + 0.05}, len = 0;
+            for (int c = 0; c < 4; c++) len += q[c] * q[c];
+            for (int c = 0; c < 4; c++) g_orient[f][4 * i + c] = (float)(q[c] / sqrt(len));
         }
     }
     for (int i = 0; i < AGENTS; i++) g_ids[i] = (uint32_t)(100 + 3 * (AGENTS - i)); /* not the agent order */
@@ -75,16 +80,18 @@ static const void *attr_data(fm_cache_attr attr, int frame)
     case FM_ATTR_POSITION: return g_pos[frame];
     case FM_ATTR_VELOCITY: return g_vel[frame];
     case FM_ATTR_ID: return g_ids;
+    case FM_ATTR_ORIENTATION: return g_orient[frame];
     default: return g_phase[frame];
     }
 }
 
 static void write_cache(test_cache *c)
 {
-    fm_cache_attr attrs[4];
+    fm_cache_attr attrs[5];
     int count = 0;
     attrs[count++] = c->tets ? FM_ATTR_TET_VERTICES : FM_ATTR_POSITION;
     if (c->velocity) attrs[count++] = FM_ATTR_VELOCITY;
+    if (c->orientation) attrs[count++] = FM_ATTR_ORIENTATION;
     if (c->ids) attrs[count++] = FM_ATTR_ID;
     if (c->phases) attrs[count++] = FM_ATTR_PHASE;
     fm_error err = {0};
@@ -94,7 +101,7 @@ static void write_cache(test_cache *c)
                                       : fm_cache_writer_create_attrs(c->path, AGENTS, RATE, attrs, count, &o, &err);
     ENSURE_MSG(w != NULL, "%s: %s", c->name, err.message);
     for (int f = 0; w && f < FRAMES; f++) {
-        const void *data[4];
+        const void *data[5];
         for (int a = 0; a < count; a++) data[a] = attr_data(attrs[a], f);
         ENSURE(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK);
     }
@@ -108,6 +115,7 @@ static void make_caches(void)
     write_cache(&g_points);
     write_cache(&g_bare_points);
     write_cache(&g_phased_tets);
+    write_cache(&g_flock);
 }
 
 /* ---------------------------------------------------------------- running the CLI */
@@ -156,12 +164,18 @@ static void list_dir(const char *dir, char *out, size_t size)
     }
 }
 
-/* seq_<first>.ext .. seq_<last>.ext (and seq.pvd, listed first as the sort puts it), joined. */
-static void expected_names(int first, int last, const char *ext, int pvd, char *out, size_t size)
+/* seq_<first>.ext, seq_<first + step>.ext .. up to last (and seq.pvd, listed first as the sort
+ * puts it), joined. */
+static void expected_names_step(int first, int last, int step, const char *ext, int pvd, char *out, size_t size)
 {
     snprintf(out, size, "%s", pvd ? "seq.pvd" : "");
-    for (int k = first; k <= last; k++)
+    for (int k = first; k <= last; k += step)
         snprintf(out + strlen(out), size - strlen(out), "%sseq_%05d.%s", out[0] ? " " : "", k, ext);
+}
+
+static void expected_names(int first, int last, const char *ext, int pvd, char *out, size_t size)
+{
+    expected_names_step(first, last, 1, ext, pvd, out, size);
 }
 
 /* ---------------------------------------------------------------- sequences */
@@ -196,9 +210,11 @@ static void test_obj_sequence(void)
 /* Every form of --frames names the files it should, and only those. */
 static void test_frame_ranges(void)
 {
-    static const struct { const char *spec; int first, last; } cases[] = {
-        {"3:", 3, FRAMES - 1}, {":2", 0, 2}, {"4", 4, 4}, {"-3:", FRAMES - 3, FRAMES - 1}, {"-3:-2", FRAMES - 3, FRAMES - 2},
-        {":", 0, FRAMES - 1}, {"-1", FRAMES - 1, FRAMES - 1}, {"0:0", 0, 0}, {NULL, 0, FRAMES - 1}};
+    static const struct { const char *spec; int first, last, step; } cases[] = {
+        {"3:", 3, FRAMES - 1, 1}, {":2", 0, 2, 1}, {"4", 4, 4, 1}, {"-3:", FRAMES - 3, FRAMES - 1, 1},
+        {"-3:-2", FRAMES - 3, FRAMES - 2, 1}, {":", 0, FRAMES - 1, 1}, {"-1", FRAMES - 1, FRAMES - 1, 1},
+        {"0:0", 0, 0, 1}, {NULL, 0, FRAMES - 1, 1}, {"::2", 0, FRAMES - 1, 2}, {"1:7:3", 1, 7, 3},
+        {"1:8:3", 1, 7, 3}, {"-4::5", FRAMES - 4, FRAMES - 4, 5}, {"2:2:9", 2, 2, 9}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], frames[64] = "";
         fresh_dir(dir, "seq_range");
@@ -206,7 +222,7 @@ static void test_frame_ranges(void)
         snprintf(args, sizeof args, "--format obj %s -o '%s' --quiet", frames, dir);
         ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
         list_dir(dir, have, sizeof have);
-        expected_names(cases[i].first, cases[i].last, "obj", 0, want, sizeof want);
+        expected_names_step(cases[i].first, cases[i].last, cases[i].step, "obj", 0, want, sizeof want);
         ENSURE_MSG(!strcmp(have, want), "--frames %s: files '%s', expected '%s'", cases[i].spec ? cases[i].spec : "(none)",
                    have, want);
     }
@@ -232,6 +248,19 @@ static void test_vtk_sequence(void)
     }
     snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g", dir, RATE);
     for (int k = 1; k <= FRAMES - 2; k++) snprintf(args + strlen(args), sizeof args - strlen(args), " %d", k);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+}
+
+/* A stride: the .pvd lists only the frames written, at their own times. */
+static void test_strided_pvd(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096];
+    snprintf(args, sizeof args, "--format vtk --frames 0::4 -o '%s'", fresh_dir(dir, "seq_vtk_stride"));
+    ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    expected_names_step(0, 8, 4, "vtu", 1, want, sizeof want);
+    ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
+    snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g 0 4 8", dir, RATE);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
 }
 
@@ -365,14 +394,23 @@ static void difference_velocity(int k, float out[3 * AGENTS])
         out[i] = (float)(((double)g_pos[after][i] - g_pos[before][i]) / ((after - before) / RATE));
 }
 
+/* The pscale the exporter gives points without --pscale: render's radius for the last frame. */
+static float default_pscale(const test_cache *c)
+{
+    (void)c; /* every point cache here has the same positions */
+    return (float)fm_render_point_radius(g_pos[FRAMES - 1], AGENTS);
+}
+
 static void test_point_cache(void)
 {
     char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], path[FM_PATH_MAX + 32], expected[FM_PATH_MAX];
     snprintf(args, sizeof args, "--format ply --frames 1:2 -o '%s'", fresh_dir(dir, "pts_ply"));
     ENSURE_MSG(export_cmd_on(g_points.path, args) == 0, "%s: %s", args, g_err);
+    float pscale = default_pscale(&g_points);
     for (int k = 1; k <= 2; k++) {
         snprintf(path, sizeof path, "%s/points_%05d.ply", dir, k);
-        export_check_ply_points(path, g_pos[k], g_vel[k], g_ids, AGENTS);
+        export_ply_points e = {g_pos[k], g_vel[k], NULL, 1, 1, pscale, (float)(k / RATE), g_ids, NULL};
+        export_check_ply(path, &e, AGENTS);
         export_check_assimp_points(path, g_pos[k], AGENTS, 0);
     }
     snprintf(args, sizeof args, "--format obj --frames -1 -o '%s'", fresh_dir(dir, "pts_obj"));
@@ -418,7 +456,8 @@ static void test_point_cache_without_velocity(void)
     for (int k = 0; k <= 4; k += 4) { /* one-sided, then central */
         difference_velocity(k, v);
         snprintf(path, sizeof path, "%s/bare_%05d.ply", dir, k);
-        export_check_ply_points(path, g_pos[k], v, NULL, AGENTS);
+        export_ply_points e = {g_pos[k], v, NULL, 1, 1, default_pscale(&g_bare_points), (float)(k / RATE), NULL, NULL};
+        export_check_ply(path, &e, AGENTS);
     }
 }
 
@@ -442,6 +481,285 @@ static void test_phases_in_vtk(void)
     ENSURE_MSG(strstr(head, "Name=\"phase\""), "%s has no phase array", path);
     snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+}
+
+/* ---------------------------------------------------------------- Houdini's conventions */
+
+static float read_f32(const unsigned char *p, int big);
+static unsigned char *slurp(const char *path, size_t *size);
+
+/* One file's bytes after its header (the header must be `header` exactly), or NULL. */
+static unsigned char *ply_body(const char *path, const char *header, size_t body_bytes)
+{
+    FILE *f = fopen(path, "rb");
+    size_t hl = strlen(header);
+    unsigned char *buf = malloc(hl + body_bytes + 1);
+    size_t got = f && buf ? fread(buf, 1, hl + body_bytes + 1, f) : 0;
+    if (f) fclose(f);
+    ENSURE_MSG(got == hl + body_bytes, "%s: %zu bytes, expected %zu", path, got, hl + body_bytes);
+    ENSURE_MSG(got >= hl && !memcmp(buf, header, hl), "%s: header %.*s", path, (int)hl, buf ? (char *)buf : "");
+    if (got == hl + body_bytes && !memcmp(buf, header, hl)) return memmove(buf, buf + hl, body_bytes);
+    free(buf);
+    return NULL;
+}
+
+/* A flock's point PLY with --name, --start and --pscale: orient as x, y, z, w, pscale, age (the
+ * frame's time), id, phase, byte for byte. */
+static void test_houdini_ply_points(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format ply --frames 3:5:2 --name 'fl.%%04d.ply' --start 1001 --pscale 0.25 -o '%s'",
+             fresh_dir(dir, "houdini_ply"));
+    ENSURE_MSG(export_cmd_on(g_flock.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "fl.1001.ply fl.1003.ply"), "files '%s'", have); /* frames 3 and 5 */
+    for (int k = 3; k <= 5; k += 2) {
+        snprintf(path, sizeof path, "%s/fl.%04d.ply", dir, 998 + k);
+        export_ply_points e = {g_pos[k], g_vel[k], g_orient[k], 1, 1, 0.25f, (float)(k / RATE), g_ids, g_phase[k]};
+        export_check_ply(path, &e, AGENTS);
+    }
+}
+
+/* v' = R(q) v for a unit quaternion w, x, y, z. */
+static void rotate(const float q[4], const double v[3], double out[3])
+{
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    double r[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
+                      {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
+                      {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+    for (int i = 0; i < 3; i++) out[i] = r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2];
+}
+
+/* --up y: positions and velocities (x, z, -y) exactly; each orientation turns the agent's axes
+ * as the rotation turns the world: R(q') e = U R(q) e for e = x and z. */
+static void test_up_y(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format ply --frames 4 --up y --pscale 1 -o '%s'", fresh_dir(dir, "up_ply"));
+    ENSURE_MSG(export_cmd_on(g_flock.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/flock_00004.ply", dir);
+    enum { RECORD = 12 + 12 + 16 + 4 + 4 + 4 + 1 };
+    char header[2048];
+    snprintf(header, sizeof header, "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING
+             " points\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\nproperty float vx\n"
+             "property float vy\nproperty float vz\nproperty float orientx\nproperty float orienty\n"
+             "property float orientz\nproperty float orientw\nproperty float pscale\nproperty float age\n"
+             "property int id\nproperty uchar phase\nend_header\n", AGENTS);
+    unsigned char *b = ply_body(path, header, (size_t)RECORD * AGENTS);
+    double worst = 0;
+    for (int i = 0; b && i < AGENTS; i++) {
+        float f[10], q[4];
+        memcpy(f, b + RECORD * i, sizeof f);
+        const float *p = g_pos[4] + 3 * i, *v = g_vel[4] + 3 * i;
+        ENSURE(f[0] == p[0] && f[1] == p[2] && f[2] == -p[1] && f[3] == v[0] && f[4] == v[2] && f[5] == -v[1]);
+        q[0] = f[9], q[1] = f[6], q[2] = f[7], q[3] = f[8]; /* the file's x, y, z, w */
+        for (int axis = 0; axis < 3; axis += 2) {
+            double e[3] = {axis == 0, 0, axis == 2}, was[3], now[3];
+            rotate(g_orient[4] + 4 * i, e, was);
+            rotate(q, e, now);
+            double turned[3] = {was[0], was[2], -was[1]};
+            for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(now[c] - turned[c]));
+        }
+    }
+    ENSURE_MSG(worst < 1e-6, "--up y: an orientation is off by %g", worst);
+    free(b);
+    /* a point cache turned the same way, numbered from --start */
+    snprintf(path, sizeof path, "%s/up.pc2", dir);
+    snprintf(args, sizeof args, "--frames 4 --up y --start 1001 -o '%s'", path);
+    ENSURE_MSG(export_cmd_on(g_flock.path, args) == 0, "%s: %s", args, g_err);
+    size_t size;
+    unsigned char *pc = slurp(path, &size);
+    ENSURE_MSG(size == 32 + 12 * AGENTS && read_f32(pc + 20, 0) == 1001.0f, "%s: %zu bytes, start %g", path, size,
+               size >= 32 ? (double)read_f32(pc + 20, 0) : 0.0);
+    for (int i = 0; size == 32 + 12 * AGENTS && i < AGENTS; i++)
+        ENSURE(read_f32(pc + 32 + 12 * i + 4, 0) == g_pos[4][3 * i + 2] && read_f32(pc + 32 + 12 * i + 8, 0) == -g_pos[4][3 * i + 1]);
+    free(pc);
+}
+
+/* Tet PLY: each vertex carries its tet's id and, when the cache has phases, its phase. */
+static void test_tet_ply_ids_and_phases(void)
+{
+    for (int phased = 0; phased < 2; phased++) {
+        char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], header[1024];
+        const test_cache *c = phased ? &g_phased_tets : &g_tets;
+        snprintf(args, sizeof args, "--format ply --frames 6 -o '%s'", fresh_dir(dir, "tet_ids"));
+        ENSURE_MSG(export_cmd_on(c->path, args) == 0, "%s: %s", args, g_err);
+        snprintf(path, sizeof path, "%s/%s_00006.ply", dir, phased ? "phased" : "seq");
+        snprintf(header, sizeof header, "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING
+                 " tets\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\nproperty int id\n"
+                 "%selement face %d\nproperty list uchar int vertex_indices\nend_header\n", 4 * AGENTS,
+                 phased ? "property uchar phase\n" : "", 4 * AGENTS);
+        size_t record = 16 + (size_t)phased;
+        unsigned char *b = ply_body(path, header, 4 * AGENTS * (record + 13));
+        for (int v = 0; b && v < 4 * AGENTS; v++) {
+            const unsigned char *r = b + record * v;
+            uint32_t id;
+            memcpy(&id, r + 12, 4);
+            ENSURE_MSG(!memcmp(r, g_frames[6] + 3 * v, 12) && id == (uint32_t)(v / 4), "%s: vertex %d", path, v);
+            if (phased) ENSURE_MSG(r[16] == g_phase[6][v / 4], "%s: vertex %d's phase", path, v);
+        }
+        free(b);
+    }
+}
+
+/* The VDB's attributes by name and type, as Houdini names them, and their values. */
+static void test_houdini_vdb(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], list[512];
+    snprintf(args, sizeof args, "--format vdb --frames 2 --pscale 0.5 -o '%s'", fresh_dir(dir, "houdini_vdb"));
+    ENSURE_MSG(export_cmd_on(g_flock.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/flock_00002.vdb", dir);
+    fm_error err = {0};
+    ENSURE_MSG(fm_vdb_points_list_attrs(path, list, sizeof list, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(!strcmp(list, "P:vec3s v:vec3s id:int32 orient:quats pscale:float age:float phase:int32"), "%s", list);
+    size_t n, m;
+    float *p, *v, *orient, *pscale, *age, *phase;
+    int32_t *id;
+    int comps[4];
+    fm_status st = fm_vdb_points_read(path, &n, &p, &v, &id, NULL, &err);
+    ENSURE_MSG(st == FM_OK && n == AGENTS, "%s", err.message);
+    if (st != FM_OK) return;
+    ENSURE(fm_vdb_points_read_attr(path, "orient", &m, &comps[0], &orient, &err) == FM_OK && m == n && comps[0] == 4);
+    ENSURE(fm_vdb_points_read_attr(path, "pscale", &m, &comps[1], &pscale, &err) == FM_OK && m == n && comps[1] == 1);
+    ENSURE(fm_vdb_points_read_attr(path, "age", &m, &comps[2], &age, &err) == FM_OK && m == n && comps[2] == 1);
+    ENSURE(fm_vdb_points_read_attr(path, "phase", &m, &comps[3], &phase, &err) == FM_OK && m == n && comps[3] == 1);
+    for (size_t j = 0; j < n && orient && pscale && age && phase; j++) {
+        int i = agent_of(&g_flock, id[j]);
+        ENSURE_MSG(i >= 0, "id %d", id[j]);
+        if (i < 0) continue;
+        const float *q = g_orient[2] + 4 * i;
+        ENSURE_MSG(orient[4 * j] == q[1] && orient[4 * j + 1] == q[2] && orient[4 * j + 2] == q[3] && orient[4 * j + 3] == q[0],
+                   "agent %d: orient (%g %g %g %g)", i, (double)orient[4 * j], (double)orient[4 * j + 1],
+                   (double)orient[4 * j + 2], (double)orient[4 * j + 3]);
+        ENSURE(pscale[j] == 0.5f && age[j] == (float)(2 / RATE) && phase[j] == g_phase[2][i]);
+    }
+    free(p), free(v), free(id), free(orient), free(pscale), free(age), free(phase);
+    /* tets: centroids with each tet's radius as pscale, and phase */
+    snprintf(args, sizeof args, "--format vdb --frames 1 -o '%s'", fresh_dir(dir, "houdini_vdb_tets"));
+    ENSURE_MSG(export_cmd_on(g_phased_tets.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/phased_00001.vdb", dir);
+    ENSURE(fm_vdb_points_list_attrs(path, list, sizeof list, &err) == FM_OK);
+    ENSURE_MSG(!strcmp(list, "P:vec3s v:vec3s id:int32 pscale:float age:float phase:int32"), "%s", list);
+    ENSURE(fm_vdb_points_read_attr(path, "pscale", &m, &comps[0], &pscale, &err) == FM_OK && m == AGENTS);
+    /* every test tet is the same shape: vertices at 0.4 e_k about a corner, the centroid 0.1 (1,1,1)
+     * from it, so the farthest vertex is sqrt(0.3^2 + 0.1^2 + 0.1^2) away */
+    for (size_t j = 0; pscale && j < m; j++)
+        ENSURE_MSG(fabs(pscale[j] - sqrt(0.11)) < 1e-5, "tet pscale %g", (double)pscale[j]);
+    free(pscale);
+}
+
+/* ---------------------------------------------------------------- point caches (PC2, MDD) */
+
+static uint32_t read_u32(const unsigned char *p, int big)
+{
+    uint32_t v = 0;
+    for (int k = 0; k < 4; k++) v |= (uint32_t)p[big ? 3 - k : k] << (8 * k);
+    return v;
+}
+
+static float read_f32(const unsigned char *p, int big)
+{
+    uint32_t bits = read_u32(p, big);
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+
+/* The whole file, malloc'ed; *size its length. */
+static unsigned char *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    unsigned char *buf = malloc(1 << 20);
+    *size = f && buf ? fread(buf, 1, 1 << 20, f) : 0;
+    if (f) fclose(f);
+    return buf;
+}
+
+/* What a point cache of cache c over frames first, first + step, ... should hold. */
+typedef struct pc_expect {
+    const test_cache *c;
+    int first, step, count;
+} pc_expect;
+
+/* Frame k's points as the cache holds them, and how many. */
+static const float *pc_points(const test_cache *c, int k, size_t *points)
+{
+    *points = c->tets ? 4 * AGENTS : AGENTS;
+    return c->tets ? g_frames[k] : g_pos[k];
+}
+
+/* Every sample equals the cache's frame bit for bit. */
+static void check_samples(const char *path, const unsigned char *data, size_t avail, const pc_expect *e, int big)
+{
+    size_t points;
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(avail == (size_t)e->count * 12 * points, "%s: %zu bytes of samples, expected %zu", path, avail,
+               (size_t)e->count * 12 * points);
+    for (int j = 0; j < e->count && avail == (size_t)e->count * 12 * points; j++) {
+        const float *want = pc_points(e->c, e->first + j * e->step, &points);
+        for (size_t i = 0; i < 3 * points; i++) {
+            float have = read_f32(data + 4 * (j * 3 * points + i), big);
+            ENSURE_MSG(!memcmp(&have, &want[i], 4), "%s: sample %d value %zu is %.9g, the cache's %.9g", path, j,
+                       i, (double)have, (double)want[i]);
+            if (memcmp(&have, &want[i], 4)) return;
+        }
+    }
+}
+
+/* PC2: the header Blender's Mesh Cache modifier reads, then the samples. */
+static void check_pc2(const char *path, const pc_expect *e)
+{
+    size_t size, points;
+    unsigned char *b = slurp(path, &size);
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(size >= 32 && !memcmp(b, "POINTCACHE2\0", 12), "%s: no PC2 signature", path);
+    if (size >= 32) {
+        ENSURE(read_u32(b + 12, 0) == 1);
+        ENSURE_MSG(read_u32(b + 16, 0) == points, "%s: %u points", path, read_u32(b + 16, 0));
+        ENSURE_MSG(read_f32(b + 20, 0) == (float)e->first, "%s: start %g", path, (double)read_f32(b + 20, 0));
+        ENSURE_MSG(read_f32(b + 24, 0) == (float)e->step, "%s: sample rate %g", path, (double)read_f32(b + 24, 0));
+        ENSURE_MSG(read_u32(b + 28, 0) == (uint32_t)e->count, "%s: %u samples", path, read_u32(b + 28, 0));
+        check_samples(path, b + 32, size - 32, e, 0);
+    }
+    free(b);
+}
+
+/* MDD: big-endian frame count, point count, each frame's time in seconds, then the frames. */
+static void check_mdd(const char *path, const pc_expect *e)
+{
+    size_t size, points, head = 8 + 4 * (size_t)e->count;
+    unsigned char *b = slurp(path, &size);
+    pc_points(e->c, 0, &points);
+    ENSURE_MSG(size >= head && read_u32(b, 1) == (uint32_t)e->count && read_u32(b + 4, 1) == points,
+               "%s: header says %u frames of %u points", path, size >= 8 ? read_u32(b, 1) : 0,
+               size >= 8 ? read_u32(b + 4, 1) : 0);
+    for (int j = 0; size >= head && j < e->count; j++)
+        ENSURE_MSG(read_f32(b + 8 + 4 * j, 1) == (float)((e->first + j * e->step) / RATE), "%s: time %d is %g",
+                   path, j, (double)read_f32(b + 8 + 4 * j, 1));
+    if (size >= head) check_samples(path, b + head, size - head, e, 1);
+    free(b);
+}
+
+static void test_point_caches(void)
+{
+    static const struct { test_cache *c; const char *options, *name; int first, step, count; } cases[] = {
+        {&g_tets, "", "tets.pc2", 0, 1, FRAMES},           /* by extension: every frame */
+        {&g_tets, "--frames 1:7:3", "tets.mdd", 1, 3, 3},  /* 1, 4, 7 */
+        {&g_points, "--format pc2 --frames ::2", "pts.cache", 0, 2, 5},
+        {&g_points, "--format mdd --frames -3:", "pts.mdd", FRAMES - 3, 1, 3},
+        {&g_phased_tets, "--frames 2:6:3", "phased.pc2", 2, 3, 2}, /* 6 is off the stride: 2, 5 */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+        export_tmp(path, cases[i].name);
+        remove(path);
+        snprintf(args, sizeof args, "%s -o '%s'", cases[i].options, path);
+        ENSURE_MSG(export_cmd_on(cases[i].c->path, args) == 0, "%s: %s", args, g_err);
+        pc_expect e = {cases[i].c, cases[i].first, cases[i].step, cases[i].count};
+        int mdd = strstr(cases[i].name, ".mdd") || strstr(cases[i].options, "mdd");
+        if (mdd) check_mdd(path, &e);
+        else check_pc2(path, &e);
+    }
 }
 
 /* ---------------------------------------------------------------- threads */
@@ -503,7 +821,21 @@ static void test_usage_errors(void)
         {"--format ply --frames :-10 -o '%s'", "--frames", FRAMES_TEXT},
         {"-o '%s/x.ply' --frame 9", "--frame 9", FRAMES_TEXT},
         {"--format ply --frames abc -o '%s'", "--frames", "'abc'"},
-        {"--format ply --frames 1:2:3 -o '%s'", "--frames", "'1:2:3'"},
+        {"--format ply --frames 1:2:0 -o '%s'", "--frames", "'1:2:0'"},
+        {"--format ply --frames 1:2:3:4 -o '%s'", "--frames", "'1:2:3:4'"},
+        {"--format ply --frames 1:: -o '%s'", "--frames", "'1::'"},
+        {"-o '%s/x.pc2' --frame 2", "--frame", "--frames A:B"},
+        {"--format ply --name frames.ply -o '%s'", "--name", "'frames.ply'"},
+        {"--format ply --name 'f%%d_%%d.ply' -o '%s'", "--name", "exactly one"},
+        {"--format ply --name 'f%%s.ply' -o '%s'", "--name", "'f%s.ply'"},
+        {"--format ply --name 'f%%5.2f.ply' -o '%s'", "--name", "integer"},
+        {"--format ply --name 'a/f%%d.ply' -o '%s'", "--name", "'/'"},
+        {"--name 'f%%d.ply' -o '%s/x.ply'", "--name", "sequence"},
+        {"--format ply --start -1 -o '%s'", "--start", "'-1'"},
+        {"-o '%s/x.ply' --start 5", "--start", "one file"},
+        {"--format ply --up x -o '%s'", "--up", "'x'"},
+        {"--format ply --pscale 0 -o '%s'", "--pscale", "'0'"},
+        {"--format mdd --frames 3:1 -o '%s/x.mdd'", "--frames", FRAMES_TEXT},
         {"--format ply --frames 1-3 -o '%s'", "--frames", "'1-3'"},
         {"--format ply --frames '' -o '%s'", "--frames", "A:B"},
         {"--format ply --frames 1.5: -o '%s'", "--frames", "'1.5:'"},
@@ -551,11 +883,17 @@ int main(void)
     RUN_TEST(test_obj_sequence);
     RUN_TEST(test_frame_ranges);
     RUN_TEST(test_vtk_sequence);
+    RUN_TEST(test_strided_pvd);
     RUN_TEST(test_vdb_sequence);
     RUN_TEST(test_single_file);
     RUN_TEST(test_point_cache);
     RUN_TEST(test_point_cache_without_velocity);
     RUN_TEST(test_phases_in_vtk);
+    RUN_TEST(test_point_caches);
+    RUN_TEST(test_houdini_ply_points);
+    RUN_TEST(test_up_y);
+    RUN_TEST(test_tet_ply_ids_and_phases);
+    RUN_TEST(test_houdini_vdb);
     RUN_TEST(test_threads_do_not_change_files);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_io_errors);

@@ -11,6 +11,7 @@
 #include "test_macros.h"
 
 #include <errno.h>
+#include <jansson.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -70,23 +71,17 @@ static int same_bytes(const char *a, const char *b)
     return same;
 }
 
-/* stats.json without the lines of its timing keys, which differ between any two runs. */
+/* stats.json without its timing keys, which differ between any two runs, and the command line and
+ * start time, which differ between a run and its resumption: sorted, as text (malloc'ed). */
 static char *stats_without_timings(const char *path)
 {
-    static const char *const timing[] = {"\"preprocess_seconds\"", "\"simulate_seconds\"", "\"output_seconds\"",
-                                         "\"agent_steps_per_second\"", "\"steps_per_second\""};
-    size_t len;
-    char *text = slurp(path, &len), *out = text, *line = text;
-    if (!text) return NULL;
-    while (*line) {
-        char *end = strchr(line, '\n');
-        size_t n = end ? (size_t)(end - line + 1) : strlen(line);
-        int drop = 0;
-        for (size_t i = 0; i < sizeof timing / sizeof timing[0]; i++) drop |= strstr(line, timing[i]) != NULL && strstr(line, timing[i]) < line + n;
-        if (!drop) memmove(out, line, n), out += n;
-        line += n;
-    }
-    *out = 0;
+    static const char *const varying[] = {"preprocess_seconds", "simulate_seconds", "output_seconds",
+                                          "agent_steps_per_second", "steps_per_second", "command_line", "start_time"};
+    json_t *j = json_load_file(path, 0, NULL);
+    if (!j) return NULL;
+    for (size_t i = 0; i < sizeof varying / sizeof varying[0]; i++) json_object_del(j, varying[i]);
+    char *text = json_dumps(j, JSON_SORT_KEYS | JSON_INDENT(2) | JSON_REAL_PRECISION(17));
+    json_decref(j);
     return text;
 }
 

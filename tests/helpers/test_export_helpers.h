@@ -87,17 +87,52 @@ static inline void export_check_assimp_points(const char *path, const float *pos
     aiReleaseImport(scene);
 }
 
-/* A point PLY: the exact header, then per point x y z, vx vy vz (when vel is not NULL) and the
- * int32 id, byte for byte. */
-static inline void export_check_ply_points(const char *path, const float *pos, const float *vel,
-                                           const uint32_t *ids, size_t n)
+/* What a point PLY should hold: positions, and each optional property when not NULL (orient
+ * given as the cache's w, x, y, z; pscale and age one value for every point when has_*). */
+typedef struct export_ply_points {
+    const float *pos, *vel, *orient;
+    int has_pscale, has_age;
+    float pscale, age;
+    const uint32_t *ids; /* NULL: 0 .. n-1 */
+    const uint8_t *phases;
+} export_ply_points;
+
+/* Appends a value's 4 bytes (or 1 for the phase) to a record. */
+static inline size_t export_put(unsigned char *r, size_t at, const void *v, size_t bytes)
 {
-    char header[1024];
+    memcpy(r + at, v, bytes);
+    return at + bytes;
+}
+
+/* Point i's record as the PLY should have it: x y z, vx vy vz, orientx..w (x, y, z, w), pscale,
+ * age, id, phase. */
+static inline size_t export_ply_record(const export_ply_points *e, size_t i, unsigned char *r)
+{
+    size_t at = export_put(r, 0, e->pos + 3 * i, 12);
+    if (e->vel) at = export_put(r, at, e->vel + 3 * i, 12);
+    for (int c = 0; e->orient && c < 4; c++) at = export_put(r, at, e->orient + 4 * i + (c + 1) % 4, 4);
+    if (e->has_pscale) at = export_put(r, at, &e->pscale, 4);
+    if (e->has_age) at = export_put(r, at, &e->age, 4);
+    uint32_t id = e->ids ? e->ids[i] : (uint32_t)i;
+    at = export_put(r, at, &id, 4);
+    return e->phases ? export_put(r, at, e->phases + i, 1) : at;
+}
+
+/* A point PLY: the exact header, then every record byte for byte. */
+static inline void export_check_ply(const char *path, const export_ply_points *e, size_t n)
+{
+    char header[2048];
     snprintf(header, sizeof header,
              "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " points\n"
-             "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n%sproperty int id\n"
-             "end_header\n", n, vel ? "property float vx\nproperty float vy\nproperty float vz\n" : "");
-    size_t hl = strlen(header), record = vel ? 28 : 16, size = hl + record * n;
+             "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n%s%s%s%s"
+             "property int id\n%send_header\n", n,
+             e->vel ? "property float vx\nproperty float vy\nproperty float vz\n" : "",
+             e->orient ? "property float orientx\nproperty float orienty\nproperty float orientz\n"
+                         "property float orientw\n" : "",
+             e->has_pscale ? "property float pscale\n" : "", e->has_age ? "property float age\n" : "",
+             e->phases ? "property uchar phase\n" : "");
+    unsigned char want[64];
+    size_t hl = strlen(header), record = export_ply_record(e, 0, want), size = hl + record * n;
     unsigned char *buf = malloc(size + 1);
     FILE *fp = fopen(path, "rb");
     size_t got = fp && buf ? fread(buf, 1, size + 1, fp) : 0;
@@ -106,16 +141,18 @@ static inline void export_check_ply_points(const char *path, const float *pos, c
     if (got == size) {
         ENSURE_MSG(memcmp(buf, header, hl) == 0, "%s: header %.*s", path, (int)hl, (const char *)buf);
         size_t bad = 0;
-        for (size_t i = 0; i < n; i++) {
-            const unsigned char *r = buf + hl + record * i;
-            int32_t id;
-            memcpy(&id, r + record - 4, 4);
-            bad += memcmp(r, pos + 3 * i, 12) != 0 || (uint32_t)id != (ids ? ids[i] : (uint32_t)i);
-            bad += vel && memcmp(r + 12, vel + 3 * i, 12) != 0;
-        }
+        for (size_t i = 0; i < n; i++) bad += memcmp(buf + hl + record * i, want, export_ply_record(e, i, want)) != 0;
         ENSURE_MSG(bad == 0, "%s: %zu records differ", path, bad);
     }
     free(buf);
+}
+
+/* x y z, vx vy vz (when vel is not NULL) and the int32 id. */
+static inline void export_check_ply_points(const char *path, const float *pos, const float *vel,
+                                           const uint32_t *ids, size_t n)
+{
+    export_ply_points e = {.pos = pos, .vel = vel, .ids = ids};
+    export_check_ply(path, &e, n);
 }
 
 /* Runs tests/check_vtk.py with args; returns its exit status (-1 if it did not exit). quiet

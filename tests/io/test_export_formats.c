@@ -341,8 +341,66 @@ static void test_write_failure(void)
     }
 }
 
+/* ---------------------------------------------------------------- point caches */
+
+static fm_pointcache_writer *pc_create(fm_export_format format, size_t points, size_t frames, const char *name,
+                                       char *path, fm_error *err)
+{
+    fm_pointcache_options o = {format, points, frames, 3, 2, 24};
+    export_tmp(path, name);
+    remove(path);
+    return fm_pointcache_create(path, &o, err);
+}
+
+/* A short or overlong sequence, a value that is not finite, a full disk: an error naming the
+ * file, and nothing under its name; and what the headers refuse up front. */
+static void test_pointcache_errors(void)
+{
+    static const float xyz[6] = {1, 2, 3, 4, 5, 6};
+    const float bad[6] = {1, 2, 3, 4, NAN, 6};
+    char path[FM_PATH_MAX];
+    fm_error err = {0};
+    fm_pointcache_writer *w = pc_create(FM_EXPORT_PC2, 2, 2, "pc_short.pc2", path, &err);
+    ENSURE(w && fm_pointcache_add(w, xyz, &err) == FM_OK);
+    ENSURE_MSG(w && fm_pointcache_finish(w, &err) == FM_ERR_USAGE && strstr(err.message, "1 of the 2"), "%s", err.message);
+    ENSURE(!export_file_exists(path));
+    w = pc_create(FM_EXPORT_MDD, 2, 1, "pc_long.mdd", path, &err);
+    ENSURE(w && fm_pointcache_add(w, xyz, &err) == FM_OK);
+    ENSURE(w && fm_pointcache_add(w, xyz, &err) == FM_ERR_USAGE && strstr(err.message, "one too many"));
+    ENSURE(w && fm_pointcache_finish(w, &err) == FM_OK && export_file_exists(path));
+    w = pc_create(FM_EXPORT_PC2, 2, 1, "pc_nan.pc2", path, &err);
+    ENSURE_MSG(w && fm_pointcache_add(w, bad, &err) == FM_ERR_INPUT && strstr(err.message, "point 1 of sample 0"),
+               "%s", err.message);
+    fm_pointcache_abort(w);
+    ENSURE(!export_file_exists(path));
+    fm_pointcache_options o = {FM_EXPORT_MDD, 2, 1, 0, 1, 0}; /* MDD needs a frame rate */
+    ENSURE(!fm_pointcache_create(export_tmp(path, "pc_rate.mdd"), &o, &err) && err.status == FM_ERR_INPUT);
+    o = (fm_pointcache_options){FM_EXPORT_PC2, (size_t)INT32_MAX + 1, 1, 0, 1, 24};
+    ENSURE(!fm_pointcache_create(path, &o, &err) && strstr(err.message, "int32"));
+    o = (fm_pointcache_options){FM_EXPORT_PLY, 2, 1, 0, 1, 24};
+    ENSURE(!fm_pointcache_create(path, &o, &err) && err.status == FM_ERR_USAGE);
+    fm_export_frame f = {.n = 2, .positions = xyz};
+    ENSURE(fm_export_frame_write(&f, FM_EXPORT_PC2, NULL, path, &err) == FM_ERR_USAGE && strstr(err.message, "sequence"));
+    if (!export_file_exists("/dev/full")) return;
+    char partial[FM_PATH_MAX + 16];
+    export_tmp(path, "pc_full.pc2");
+    snprintf(partial, sizeof partial, "%s.partial", path);
+    remove(path), remove(partial);
+    ENSURE(symlink("/dev/full", partial) == 0);
+    static float big[3 * 100000];
+    fm_pointcache_options full = {FM_EXPORT_PC2, 100000, 1, 0, 1, 24};
+    w = fm_pointcache_create(path, &full, &err);
+    fm_status st = w ? fm_pointcache_add(w, big, &err) : err.status;
+    if (st == FM_OK) st = fm_pointcache_finish(w, &err);
+    else fm_pointcache_abort(w);
+    ENSURE_MSG(st == FM_ERR_IO && strstr(err.message, "No space left"), "status %d: %s", (int)st, err.message);
+    ENSURE(!export_file_exists(path));
+    remove(partial);
+}
+
 static void test_format_names(void)
 {
+    ENSURE(fm_export_format_named("PC2") == FM_EXPORT_PC2 && fm_export_format_of_path("a.mdd") == FM_EXPORT_MDD);
     ENSURE(fm_export_format_named("ply") == FM_EXPORT_PLY && fm_export_format_named("OBJ") == FM_EXPORT_OBJ);
     ENSURE(fm_export_format_named("vtk") == FM_EXPORT_VTK && fm_export_format_named("Vdb") == FM_EXPORT_VDB);
     ENSURE(fm_export_format_named("vtu") == FM_EXPORT_UNKNOWN && fm_export_format_named("") == FM_EXPORT_UNKNOWN);
@@ -376,6 +434,7 @@ int main(void)
     RUN_TEST(test_id_limits);
     RUN_TEST(test_empty_frames);
     RUN_TEST(test_write_failure);
+    RUN_TEST(test_pointcache_errors);
     RUN_TEST(test_format_names);
     RUN_TEST(test_centroids_and_differences);
     return test_result();
