@@ -147,6 +147,7 @@ static void test_corpus_under_one_gib(void)
 int main(void)
 {
 #if defined(CLI_SANITIZED)
+    (void)test_corpus_under_one_gib;
     printf("skipped: a sanitizer's shadow memory needs more address space than RLIMIT_AS allows\n");
     return 0;
 #else
