@@ -62,6 +62,18 @@ static void run_both(flock *f)
     fm_boids_view b = view(f);
     fm_kernel_boids(&g, &b, (const float *const *)f->p, (const float *const *)f->v, f->phase, 1, 0, f->n, f->f);
     fm_kernel_boids_reference(&b, (const float *const *)f->p, (const float *const *)f->v, f->n, f->phase, 1, 0, f->n, f->ref);
+    /* with the grid's copy of the velocities (the flock's build): the same forces, bit for bit */
+    ENSURE(fm_grid_init_velocities(&g, NULL) == FM_OK);
+    fm_grid_build_moving(&g, (const float *const *)f->p, (const float *const *)f->v, member, f->n, cell, 2);
+    float *copy[3];
+    for (int k = 0; k < 3; k++) copy[k] = calloc((size_t)f->n, sizeof(float));
+    fm_kernel_boids(&g, &b, (const float *const *)f->p, (const float *const *)f->v, f->phase, 1, 0, f->n, copy);
+    for (int k = 0; k < 3; k++) {
+        for (int64_t a = 0; a < f->n; a++)
+            if (f->phase[a] != 1) copy[k][a] = f->f[k][a]; /* untouched by the kernel */
+        ENSURE_MSG(memcmp(copy[k], f->f[k], sizeof(float) * (size_t)f->n) == 0, "velocity copy changed force axis %d", k);
+        free(copy[k]);
+    }
     fm_grid_free(&g);
     free(member);
 }
