@@ -136,16 +136,22 @@ void fm_kernel_curl_add(const fm_curl_view *f, const float *const p[3], const ui
 void fm_kernel_curl_add_ref(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
                             int64_t begin, int64_t end, float *const v[3]);
 
+/* v[.][a] += (float)(w * (m x + b + s)): the style velocity from its affine part and its noise s. */
+FM_HOT void fm_style_add(const double m[9], const double b[3], double w, const double x[3], const double s[3],
+                         float *const v[3], int64_t a)
+{
+    v[0][a] += (float)(w * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + b[0] + s[0]));
+    v[1][a] += (float)(w * (m[3] * x[0] + m[4] * x[1] + m[5] * x[2] + b[1] + s[1]));
+    v[2][a] += (float)(w * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
+}
+
 /* One agent, the reference's way: the variants use it for the agents after their last full vector. */
 FM_HOT void curl_add_agent(const fm_curl_view *f, const float *const p[3], int64_t a, float *const v[3])
 {
     const double x[3] = {p[0][a], p[1][a], p[2][a]};
     double s[3] = {0, 0, 0};
     for (int i = 0; i < f->count; i++) noise_curl_add(&f->noise[i], x, f->t, s);
-    const double *m = f->m, *b = f->b, w = f->w;
-    v[0][a] += (float)(w * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + b[0] + s[0]));
-    v[1][a] += (float)(w * (m[3] * x[0] + m[4] * x[1] + m[5] * x[2] + b[1] + s[1]));
-    v[2][a] += (float)(w * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
+    fm_style_add(f->m, f->b, f->w, x, s, v, a);
 }
 
 typedef void fm_curl_add_fn(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,

@@ -361,7 +361,6 @@ void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint
                          int64_t begin, int64_t end, double t, float w, float *const v[3])
 {
     const float *px = p[0], *py = p[1], *pz = p[2];
-    float *vx = v[0], *vy = v[1], *vz = v[2];
     double m[9], b[3];
     memcpy(m, f->m, sizeof m);
     memcpy(b, f->b, sizeof b);
@@ -373,9 +372,7 @@ void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint
             const double x[3] = {px[a], py[a], pz[a]};
             double s[3];
             grid_sample(&g, x, s);
-            vx[a] += (float)(wd * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + b[0] + s[0]));
-            vy[a] += (float)(wd * (m[3] * x[0] + m[4] * x[1] + m[5] * x[2] + b[1] + s[1]));
-            vz[a] += (float)(wd * (m[6] * x[0] + m[7] * x[1] + m[8] * x[2] + b[2] + s[2]));
+            fm_style_add(m, b, wd, x, s, v, a);
         }
     } else {
         fm_curl_view cv = {f->noise, f->noise_count, {0}, {0}, t, wd};
