@@ -44,6 +44,9 @@ string(REGEX REPLACE "/$" "" FM_PC_TO_PREFIX "${FM_PC_TO_PREFIX}")
 # that pulls in every wing with exactly these. With the shared library installed they are private
 # (pkg-config --static); without it -lflockmorph is the static library, so they are public.
 set(FM_PC_REQUIRES "jansson libzstd zlib libpng libxxhash assimp tbb Imath")
+if(FM_MPI)
+  string(APPEND FM_PC_REQUIRES " ompi-c") # Open MPI's pkg-config module (Debian's libopenmpi-dev)
+endif()
 set(FM_PC_LIBS "-ltet -lembree3 -lopenvdb -lstdc++")
 foreach(lib IN LISTS OpenMP_C_LIB_NAMES)
   string(APPEND FM_PC_LIBS " -l${lib}")

@@ -8,6 +8,7 @@
  * the obstacle; a tet that is already in (c < 0, e.g. pushed by MDE) is also moved back out along
  * grad d_t at up to speed0. */
 #include "kernel_avoid.h"
+#include "fm_internal.h" /* fm_splitmix64 */
 
 #include <math.h>
 
@@ -102,8 +103,19 @@ static float speed_of(const float v[3]) { return sqrtf(v[0] * v[0] + v[1] * v[1]
 
 /* Eq 8 for one agent whose grid distance dg and unit gradient g at its centroid are known; with
  * `skip_far`, the look-ahead is not sampled where it cannot reach the obstacle. Returns d_t - R_X. */
-static float avoid_agent(const fm_obstacle_view *o, const float *const p[3], float *const v[3], int64_t a,
-                         float rx, float dg, float g[3], float dt, int skip_far)
+/* Which way round a head-on obstacle: half the agents one way, half the other, drawn again every
+ * FLIP_STEPS steps, so an agent held in a concave corner tries the other side now and then. A hash
+ * of (agent id, time), never of the store slot: the same wherever, and on whichever rank, the agent
+ * is stored. */
+enum { FLIP_STEPS = 16 };
+static int side_flip(int32_t id, double time, float dt)
+{
+    uint64_t epoch = (uint64_t)llround(time / dt) / FLIP_STEPS, state = (uint64_t)(uint32_t)id << 32 ^ epoch;
+    return (int)(fm_splitmix64(&state) >> 63);
+}
+
+static float avoid_agent(const fm_obstacle_view *o, const float *const p[3], float *const v[3], int64_t a, int32_t id,
+                         double time, float rx, float dg, float g[3], float dt, int skip_far)
 {
     float x = p[0][a], y = p[1][a], z = p[2][a], vg[3] = {v[0][a], v[1][a], v[2][a]};
     float d = refine_distance(o, x, y, z, dg, g);
@@ -111,7 +123,7 @@ static float avoid_agent(const fm_obstacle_view *o, const float *const p[3], flo
     float g_ahead[3];
     float d_ahead = fm_obstacle_distance(o, x + vg[0] * dt, y + vg[1] * dt, z + vg[2] * dt, g_ahead);
     if (!(d_ahead < rx)) return d - rx; /* eq 8, second case: V_syn */
-    slide_velocity(o, d - rx, dt, g, (int)(a & 1), vg); /* eq 8, first case: V_oa (eq 7) */
+    slide_velocity(o, d - rx, dt, g, side_flip(id, time, dt), vg); /* eq 8, first case: V_oa (eq 7) */
     v[0][a] = vg[0], v[1][a] = vg[1], v[2][a] = vg[2];
     return d - rx;
 }
@@ -125,7 +137,7 @@ float fm_kernel_avoid(const fm_obstacle_view *o, const fm_radius_view *r, const 
         if (phase[a] != phase_sel) continue;
         float rx = radius_now(r, a, time), dg = fm_sdf_sample(&o->sdf, p[0][a], p[1][a], p[2][a], g);
         sc.d_grid[a] = dg, sc.radius[a] = rx; /* for fm_kernel_contact */
-        clearance = fminf(clearance, avoid_agent(o, p, v, a, rx, dg, g, dt, 1));
+        clearance = fminf(clearance, avoid_agent(o, p, v, a, r->id[a], time, rx, dg, g, dt, 1));
     }
     return clearance;
 }
@@ -138,7 +150,7 @@ float fm_kernel_avoid_ref(const fm_obstacle_view *o, const fm_radius_view *r, co
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         float dg = fm_sdf_sample(&o->sdf, p[0][a], p[1][a], p[2][a], g);
-        clearance = fminf(clearance, avoid_agent(o, p, v, a, radius_now(r, a, time), dg, g, dt, 0));
+        clearance = fminf(clearance, avoid_agent(o, p, v, a, r->id[a], time, radius_now(r, a, time), dg, g, dt, 0));
     }
     return clearance;
 }

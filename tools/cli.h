@@ -4,6 +4,7 @@
 
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
+#include "dist.h"
 
 #include <jansson.h>
 #include <signal.h>
@@ -218,6 +219,14 @@ int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, 
  * the signal's number, which both modes' runs read at every frame boundary (the exit status is then
  * 128 + it); a second one ends the process at once. cli_catch_stop_signals(0) restores the default. */
 extern volatile sig_atomic_t cli_stop_signal;
+
+/* The ranks of a run under mpirun (flockmorph.c; NULL without one: dist.h's P = 1). Rank 0 alone
+ * touches the output directory and prints; every rank simulates its share. */
+extern fm_dist *cli_dist;
+static inline int cli_is_root(void) { return fm_dist_rank(cli_dist) == 0; }
+/* The ranks agree on an exit code (the worst); rank 0 has printed its own reason, and prints
+ * err's when another rank's was worse (err may be NULL: nothing to tell). */
+int cli_agree(int rc, fm_error *err);
 void cli_catch_stop_signals(int catch);
 
 typedef struct cli_frame_options {

@@ -393,6 +393,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_object_set_new(j, "agent_steps_per_second", json_real(cli_agent_steps_per_second(r)));
     json_object_set_new(j, "steps_per_second", json_real(r->simulate_seconds > 0 ? (double)r->steps / r->simulate_seconds : 0));
     json_object_set_new(j, "threads", json_integer(r->threads));
+    json_object_set_new(j, "ranks", json_integer(fm_dist_size(cli_dist))); /* MPI processes: threads each */
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     json_object_set_new(j, "cache", cli_json_string(r->cache));
     return j;
@@ -509,6 +510,19 @@ int cli_fail_keeping_partial_cache(const fm_error *err, fm_cache_writer *cache, 
     fm_cache_writer_close_partial(cache);
     report_partial_cache(cache_path);
     return rc;
+}
+
+int cli_agree(int rc, fm_error *err)
+{
+    fm_error shared = {0};
+    if (err) shared = *err;
+    if (!err || err->status != (fm_status)rc) shared.message[0] = 0; /* rc's reason was printed where it arose */
+    int agreed = (int)fm_dist_agree(cli_dist, (fm_status)rc, &shared);
+    if (agreed != rc && cli_is_root()) {
+        if (shared.message[0]) cli_report(&shared);
+        else fprintf(stderr, "flockmorph: another rank failed (exit status %d); FM_RANK_OUTPUT=1 shows its messages\n", agreed);
+    }
+    return agreed;
 }
 
 volatile sig_atomic_t cli_stop_signal;

@@ -3,6 +3,7 @@
  * model (cli_run.c drives it through cli_mode_morph). */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "morph.h" /* the engine's internal header: the decomposition */
 
 #include <math.h>
 #include <stdio.h>
@@ -60,8 +61,21 @@ typedef struct morph_run {
     fm_morph_model_info mi;
     fm_morph_state *state;
     fm_morph_run_stats rs;
+    fm_morph_dist_totals scale_out; /* on P ranks: summed over the ranks */
     json_t *warnings;
 } morph_run;
+
+/* On P ranks (docs/scale-out.md): what the decomposition cost. These depend on P, as the timings
+ * do; everything else in stats.json does not. */
+static json_t *scale_out_json(const fm_morph_dist_totals *t)
+{
+    double agent_steps = (double)FM_MAX(t->agent_steps, 1);
+    return json_pack("{sIsfsfsfsI}", "ranks", (json_int_t)fm_dist_size(cli_dist), "bytes_sent_per_agent_step",
+                     (double)t->bytes_sent / agent_steps, "halo_agents_per_agent_step",
+                     (double)t->ghost_agent_steps / agent_steps, "load_imbalance",
+                     t->agent_steps > 0 ? (double)t->max_rank_agent_steps * fm_dist_size(cli_dist) / (double)t->agent_steps : 1.0,
+                     "migrations", (json_int_t)t->migrated);
+}
 
 static void add_warning(morph_run *r, const char *text)
 {
@@ -101,6 +115,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
+    if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", scale_out_json(&r->scale_out));
     json_object_set(j, "warnings", r->warnings);
     return cli_write_json(path, j);
 }
@@ -122,7 +137,8 @@ static fm_status create_state(void *run, int threads, fm_error *err)
 {
     morph_run *r = run;
     r->state = fm_morph_state_create(r->model, threads, err);
-    return r->state ? FM_OK : err->status;
+    if (!r->state) return err->status;
+    return fm_dist_size(cli_dist) > 1 ? fm_morph_state_distribute(r->model, r->state, cli_dist, err) : FM_OK;
 }
 
 /* Tet vertices, ids and phases. */
@@ -143,7 +159,12 @@ static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     morph_run *r = run;
-    return fm_morph_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+    fm_status st = fm_morph_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+    r->scale_out = fm_morph_dist_get_totals(r->state); /* every rank's sends together */
+    fm_dist_sum_i64(cli_dist, &r->scale_out.migrated, 1);
+    fm_dist_sum_i64(cli_dist, &r->scale_out.ghost_agent_steps, 1);
+    fm_dist_sum_i64(cli_dist, &r->scale_out.bytes_sent, 1);
+    return st;
 }
 
 static void summary(const void *run, const fm_scene_def *def)

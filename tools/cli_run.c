@@ -157,15 +157,34 @@ static int open_run(const cli_mode *mode, void *run, const cli_run_options *o, c
 {
     fm_error err = {0};
     const cli_mode_run *common = run;
-    if (mode->create_state(run, o->threads, &err) != FM_OK) return cli_report(&err);
-    if (!o->resume) {
-        cli_start_over(files);
-        *cache = mode->create_cache(run, def, files->cache, &err);
-        return *cache ? 0 : cli_report(&err);
+    fm_status st = mode->create_state(run, o->threads, &err);
+    if ((st = fm_dist_agree(cli_dist, st, &err)) != FM_OK) return cli_is_root() ? cli_report(&err) : (int)st;
+    if (!o->resume) { /* on P ranks rank 0 writes the cache */
+        if (cli_is_root()) cli_start_over(files);
+        if (cli_is_root()) *cache = mode->create_cache(run, def, files->cache, &err);
+        int rc = cli_is_root() && !*cache ? cli_report(&err) : 0;
+        return cli_agree(rc, NULL);
     }
     if (mode->load_checkpoint(run, files->checkpoint, &err) != FM_OK) return cli_report(&err);
     *cache = fm_cache_writer_resume(files->cache, (uint32_t)common->totals->frames, &err);
     return *cache ? 0 : cli_report(&err);
+}
+
+/* A rank but 0 after the run: the exit status rank 0 gives for the same outcome (the ranks agreed
+ * on it), without the messages. */
+static int rank_exit_status(fm_status st)
+{
+    if (st == FM_STOPPED) return 128 + (cli_stop_signal ? cli_stop_signal : SIGTERM);
+    return (int)st;
+}
+
+/* Runs on P ranks take no checkpoint yet (docs/scale-out.md): the frames so far stay readable. */
+static int report_interrupted_ranks(fm_cache_writer *cache, int64_t frames)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: interrupted at frame %lld; a run on several ranks writes no checkpoint, so it "
+            "cannot be resumed: the frames so far are kept in the partial cache\n", (long long)frames - 1);
+    return 128 + (cli_stop_signal ? cli_stop_signal : SIGTERM);
 }
 
 /* The run after the model build: the cache (new, or the interrupted run's), the simulation with
@@ -182,7 +201,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (rc) return rc;
     const cli_mode_run *common = run;
     const int64_t agents = common->agents;
-    cli_progress progress = {.show = o->quiet ? 0 : isatty(STDERR_FILENO) ? 1 : 2, .agents = agents,
+    cli_progress progress = {.show = o->quiet || !cli_is_root() ? 0 : isatty(STDERR_FILENO) ? 1 : 2, .agents = agents,
                              .frame_limit = def->frame_limit, .start = cli_seconds(), .log_every = o->log_every,
                              .last_log = -INFINITY, .phase_labels = mode->phase_labels, .first_frame = -1};
     const fm_run_control control = run_control(o, &files, &progress);
@@ -190,7 +209,9 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     fm_status st = mode->simulate(run, cache, &control, &err);
     cli_catch_stop_signals(0);
     if (progress.show == 1) fprintf(stderr, "\n");
+    if (!cli_is_root()) return rank_exit_status(st);
     const fm_run_totals *t = common->totals;
+    if (st == FM_STOPPED && fm_dist_size(cli_dist) > 1) return report_interrupted_ranks(cache, t->frames);
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
@@ -222,7 +243,7 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
     if (!run) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     int show = !o->quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
-    int rc = mode->build(run, def, &show);
+    int rc = cli_agree(mode->build(run, def, &show), NULL); /* the same model on every rank */
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n"); /* after the preparation's progress line */
     if (!rc) rc = simulate(mode, run, o, def, prep_seconds);
@@ -232,7 +253,22 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 }
 
 /* The output directory, taken, and the manifest's first version; then the run and its last. */
-static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
+/* What a run on several ranks does not do yet (docs/scale-out.md): the same answer on every rank. */
+static int check_ranks(const cli_run_options *o, const fm_scene_def *def)
+{
+    if (fm_dist_size(cli_dist) == 1) return 0;
+    const char *what = def->mode == FM_MODE_SHAPE_FLOCK ? "the shape flock (mode \"shape_flock\")"
+                       : o->resume                     ? "--resume"
+                       : o->checkpoint_every > 0       ? "--checkpoint-every"
+                                                       : NULL;
+    if (!what) return 0;
+    fprintf(stderr, "flockmorph: %s runs on one MPI rank only in this version: run without mpirun, or with -np 1\n",
+            what);
+    return FM_ERR_USAGE;
+}
+
+/* The output directory, taken (by rank 0 on P ranks), and the manifest's first version. */
+static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST};
     int rc = cli_check_json_path("-o", o->outdir);
@@ -240,9 +276,17 @@ static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, cons
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
     if (!rc && o->resume) rc = cli_check_checkpoint(o, def); /* before the long preprocessing */
     if (!rc) rc = cli_write_manifest(o, ov, def, -1);
+    return rc;
+}
+
+static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
+{
+    int rc = check_ranks(o, def);
+    if (rc) return rc;
+    rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
     if (rc) return rc;
     rc = run_scene(o, def);
-    int manifest = cli_write_manifest(o, ov, def, rc);
+    int manifest = cli_is_root() ? cli_write_manifest(o, ov, def, rc) : 0;
     return rc ? rc : manifest;
 }
 

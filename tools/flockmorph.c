@@ -18,6 +18,7 @@
 #include <omp.h>
 #include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static const char *USAGE_MAIN =
@@ -51,7 +52,33 @@ static int (*find_command(const char *name))(int, char **)
     return NULL;
 }
 
+fm_dist *cli_dist; /* the run's ranks under mpirun; NULL otherwise */
+
+/* Under an MPI launcher: MPI initialised, and the ranks but 0 silent (every rank reads the same
+ * scene and meets the same errors; what only one rank meets reaches rank 0 with the status). */
+static int start_ranks(int *argc, char ***argv)
+{
+    if (!fm_dist_launched()) return 0;
+    fm_error err = {0};
+    if (!(cli_dist = fm_dist_init(argc, argv, &err))) return cli_report(&err);
+    if (fm_dist_rank(cli_dist) != 0 && !getenv("FM_RANK_OUTPUT")) {
+        if (!freopen("/dev/null", "w", stdout) || !freopen("/dev/null", "w", stderr)) return FM_ERR_IO;
+    }
+    return 0;
+}
+
+static int dispatch(int argc, char **argv);
+
 int main(int argc, char **argv)
+{
+    int rc = start_ranks(&argc, &argv);
+    if (rc) return rc;
+    rc = dispatch(argc, argv);
+    fm_dist_finalize(cli_dist);
+    return rc;
+}
+
+static int dispatch(int argc, char **argv)
 {
     /* Past the file-size limit (ulimit -f) the kernel's SIGXFSZ would kill the process mid-write;
      * ignored, write() fails with EFBIG, which every writer reports as an I/O error (exit 3). */
@@ -73,6 +100,10 @@ int main(int argc, char **argv)
         return FM_ERR_USAGE;
     }
     int (*fn)(int, char **) = find_command(cmd);
+    if (fn && fn != cli_run && fm_dist_size(cli_dist) > 1) {
+        fprintf(stderr, "flockmorph: '%s' runs on one process: only 'run' runs on several MPI ranks\n", cmd);
+        return FM_ERR_USAGE;
+    }
     if (fn) return fn(argc - 2, argv + 2);
     fprintf(stderr, "flockmorph: unknown command '%s'\nsee 'flockmorph help'\n", cmd);
     return FM_ERR_USAGE;

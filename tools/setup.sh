@@ -27,6 +27,8 @@ packages=(
   python3-zstandard
   libxxhash-dev
   ffmpeg
+  libopenmpi-dev
+  openmpi-bin
 )
 # Debian's Blender 3.4 runs the add-on's test (tests/blender/test_blender_import.py). With
 # --no-install-recommends it is 31 packages, a 70 MiB download and 270 MiB installed (Debian 12),

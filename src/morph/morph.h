@@ -3,6 +3,7 @@
 #define FM_MORPH_H
 
 #include "checkpoint.h"
+#include "dist.h"
 #include "geom.h"
 #include "fields.h"
 #include "fm_internal.h"
@@ -44,6 +45,8 @@ struct fm_morph_model {
     char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_morph_model_warning) */
     int warning_count;
 };
+
+typedef struct fm_morph_slabs fm_morph_slabs;
 
 /* Per-agent morph parameters (FM §6), set when the agent enters phase 2. */
 enum { FM_MORPH_FLOATS = 4 }; /* rotation axis n (3) and angle theta of A = RS */
@@ -112,7 +115,42 @@ struct fm_morph_state {
     int64_t flying_agent_steps; /* ... out of all phase-1 agent-steps */
     float min_clearance;     /* smallest d_t - R_X seen in phase 1 (INFINITY without obstacles) */
     double stage_seconds[FM_STAGE_COUNT]; /* wall time per stage, summed over steps */
+    /* On P ranks (morph_dist.c; NULL on one process): the store holds this rank's agents only,
+     * [0, active_end); waiting agents are in no store; the step's halo follows the active range. */
+    const fm_dist *dist;
+    fm_morph_slabs *slabs;
+    fm_status dist_status;   /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
+    fm_error dist_error;
 };
+
+/* The slots that hold agents: all n on one process, this rank's [0, active_end) on P ranks. */
+static inline int64_t fm_morph_slots(const fm_morph_state *s)
+{
+    return s->dist ? s->active_end : s->n;
+}
+
+/* Agent id's tet at rest in the source (a waiting agent's frame), from the model. */
+void fm_morph_waiting_tet(const fm_morph_model *m, int64_t id, float out[12]);
+
+/* morph_dist.c: the tetra morph on P ranks (docs/scale-out.md). */
+typedef struct fm_morph_dist_totals {
+    int64_t migrated;             /* agents that changed rank (this rank's sends) */
+    int64_t ghost_agent_steps;    /* halo agents received, summed over steps */
+    int64_t bytes_sent;           /* by this rank: migration, halos, frames */
+    int64_t agent_steps;          /* agents in flight, all ranks, summed over steps */
+    int64_t max_rank_agent_steps; /* the busiest rank's agents in flight, summed over steps */
+} fm_morph_dist_totals;
+/* Makes s (fresh from fm_morph_state_create) one rank's share of the run: slabs cut at the source's
+ * quantiles, an empty store. */
+fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err);
+void fm_morph_slabs_free(fm_morph_slabs *d);
+fm_morph_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s);
+void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due);
+fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_error *err);
+fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err);
+void fm_morph_dist_rebalance(fm_morph_state *s);
+void fm_morph_dist_record_load(fm_morph_state *s);
+fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
 
 /* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
 void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s);

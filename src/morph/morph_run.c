@@ -5,6 +5,7 @@
 #include "cache_format.h"
 
 #include <math.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -27,63 +28,100 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 /* Largest distance between an agent's vertex and its target tet's matching vertex. */
 static double max_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts)
 {
-    double worst = 0;
-    for (int64_t a = 0; a < s->n; a++) { /* slot a holds agent id[a]; verts are in id order */
-        if (s->target[a] < 0) return INFINITY;
+    double worst = s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
+    for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
+        if (s->target[a] < 0) {
+            worst = INFINITY;
+            break;
+        }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         const double *t = m->tgt + 12 * s->target[a];
         const float *v = verts + 12 * (size_t)s->id[a];
         for (int i = 0; i < 4; i++)
             for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - t[3 * perm[i] + k]));
     }
+    fm_dist_max_f64(s->dist, &worst, 1);
     return worst;
 }
 
-static int each_target_taken_once(const fm_morph_state *s)
+static int each_target_taken_once_here(int64_t n, const int64_t *target, int64_t count)
 {
-    if (s->n < 1) return 1;
-    uint8_t *taken = calloc((size_t)s->n, 1);
+    if (n < 1) return 1;
+    uint8_t *taken = calloc((size_t)n, 1);
     if (!taken) return 0;
-    int ok = 1;
-    for (int64_t a = 0; a < s->n && ok; a++) {
-        int64_t t = s->target[a];
-        ok = t >= 0 && t < s->n && !taken[t];
+    int ok = count == n;
+    for (int64_t a = 0; a < count && ok; a++) {
+        int64_t t = target[a];
+        ok = t >= 0 && t < n && !taken[t];
         if (ok) taken[t] = 1;
     }
     free(taken);
     return ok;
 }
 
+/* Every target slot taken by exactly one agent (on P ranks: checked on rank 0, told to all). */
+static int each_target_taken_once(const fm_morph_state *s)
+{
+    if (!s->dist) return each_target_taken_once_here(s->n, s->target, s->n);
+    void *all = NULL;
+    int64_t total = 0, ok = 0;
+    if (fm_dist_gather(s->dist, s->target, s->active_end, sizeof(int64_t), &all, &total, NULL) == FM_OK)
+        ok = fm_dist_rank(s->dist) == 0 && each_target_taken_once_here(s->n, all, total);
+    fm_free(all);
+    fm_dist_bcast(s->dist, &ok, sizeof ok, 0);
+    return (int)ok;
+}
+
 /* Hands the frame to the cache in the attributes it was created with: the tetra morph has tet
  * vertices, ids and phases. */
-static fm_status cache_frame(const fm_morph_state *s, fm_cache_writer *cache, const float *verts, uint8_t *phases,
-                             fm_error *err)
+static fm_status cache_frame(fm_cache_writer *cache, const float *verts, const uint8_t *phases, fm_error *err)
 {
     const cache_layout *l = fm_cache_writer_layout(cache);
     const void *data[CACHE_MAX_ATTRS];
     for (int i = 0; i < l->attr_count; i++) {
         if (l->attrs[i]->attr == FM_ATTR_TET_VERTICES) data[i] = verts;
-        else if (l->attrs[i]->attr == FM_ATTR_PHASE) fm_morph_phases(s, phases), data[i] = phases;
+        else if (l->attrs[i]->attr == FM_ATTR_PHASE) data[i] = phases;
         else if (l->attrs[i]->attr == FM_ATTR_ID) data[i] = fm_cache_writer_ids(cache); /* frames are in id order */
         else return fm_fail(err, FM_ERR_USAGE, "the tetra morph cannot write the cache attribute '%s'", l->attrs[i]->name);
     }
     return fm_cache_writer_add_frame_attrs(cache, data, err);
 }
 
-/* Frame k: the tet vertices (and phases), written to the cache, with the inverted-tet count. */
 /* What sets the tetra morph's speeds, for a runaway's message. */
 static const char *const MORPH_SPEEDS = "speed0 and omega1, time.time_step, style.omega2 and the fields' gain, speed "
                                         "and strength, mde.speed, path.attraction";
 
 /* Frame k: the tet vertices (and phases), checked, written to the cache, with the inverted-tet count. */
-static fm_status emit_frame(const fm_morph_model *m, const fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
-                            fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
+static fm_status check_and_write(const fm_morph_model *m, const fm_morph_state *s, int64_t k, const float *verts,
+                                 const uint8_t *phases, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
-    fm_morph_tet_vertices(m, s, verts);
     fm_status st = fm_frame_check_runaway(verts, 12, s->n, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
     if (st != FM_OK) return st;
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    return cache ? cache_frame(s, cache, verts, phases, err) : FM_OK;
+    return cache ? cache_frame(cache, verts, phases, err) : FM_OK;
+}
+
+/* On P ranks: the frame gathered on rank 0, which checks and writes it; every rank returns the
+ * outcome (a failed step's, else rank 0's). */
+static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
+                                 fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
+{
+    if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
+    fm_status st = fm_morph_dist_frame(m, s, verts, phases, err);
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) st = check_and_write(m, s, k, verts, phases, cache, stats, err);
+    st = fm_dist_agree(s->dist, st, err);
+    fm_dist_bcast(s->dist, &stats->inverted_tet_frames, sizeof stats->inverted_tet_frames, 0);
+    return st;
+}
+
+/* Frame k: the tet vertices and phases, checked, written to the cache, with the inverted-tet count. */
+static fm_status emit_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
+                            fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
+{
+    if (s->dist) return emit_dist_frame(m, s, k, verts, phases, cache, stats, err);
+    fm_morph_tet_vertices(m, s, verts);
+    fm_morph_phases(s, phases);
+    return check_and_write(m, s, k, verts, phases, cache, stats, err);
 }
 
 void fm_morph_run_stats_free(fm_morph_run_stats *stats)
@@ -150,6 +188,8 @@ typedef struct morph_run {
     float *verts;
     uint8_t *phases;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
+    volatile sig_atomic_t *user_stop; /* on P ranks: the caller's stop flag, and ... */
+    volatile sig_atomic_t agreed_stop; /* ... the loop's, set at each frame from every rank's */
 } morph_run;
 
 static void morph_step(void *sim)
@@ -168,6 +208,11 @@ static int morph_finished(const void *sim)
 static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
     morph_run *r = sim;
+    if (r->s->dist) { /* a signal reaches the ranks at different frames: all stop at the same one */
+        int64_t stop = r->user_stop ? *r->user_stop : 0;
+        fm_dist_max_i64(r->s->dist, &stop, 1);
+        r->agreed_stop = (sig_atomic_t)stop;
+    }
     fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
@@ -190,7 +235,10 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
     morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
-                   s->flying_agent_steps, s->mde_agent_steps, 0};
+                   s->flying_agent_steps, s->mde_agent_steps, 0, c->stop, 0};
+    fm_run_control dist_control = *c; /* on P ranks: the agreed stop flag, no checkpoints (not yet) */
+    if (s->dist) dist_control.stop = &r.agreed_stop, dist_control.checkpoint_path = NULL, dist_control.checkpoint = NULL;
+    if (s->dist) c = &dist_control, r.c = c;
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->run.frames, 1), &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);

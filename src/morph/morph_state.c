@@ -122,6 +122,7 @@ void fm_morph_state_destroy(fm_morph_state *s)
     fm_morph_state_free_sort(s);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
+    fm_morph_slabs_free(s->slabs);
     free(s);
 }
 
@@ -147,12 +148,12 @@ fm_morph_info fm_morph_get_info(const fm_morph_state *s)
 
 void fm_morph_targets(const fm_morph_state *s, int64_t *out)
 {
-    for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->target[a];
+    for (int64_t a = 0; a < fm_morph_slots(s); a++) out[s->id[a]] = s->target[a];
 }
 
 void fm_morph_phases(const fm_morph_state *s, uint8_t *out)
 {
-    for (int64_t a = 0; a < s->n; a++) out[s->id[a]] = s->phase[a]; /* slot order in, id order out */
+    for (int64_t a = 0; a < fm_morph_slots(s); a++) out[s->id[a]] = s->phase[a]; /* slot order in, id order out */
 }
 
 /* out[i] = c + scale * M * rel[i] for the four vertices (M row-major, NULL = identity). */
@@ -207,7 +208,7 @@ static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t 
     const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
     float rest[12];
     switch (s->phase[a]) {
-    case FM_PHASE_WAITING:
+    case FM_PHASE_WAITING: /* p and rest_rel are the model's src_c and src_rel: fm_morph_waiting_tet */
         fm_morph_state_rest_tet(s, a, rest);
         place_tet(c, 1.0, NULL, rest, out);
         break;
@@ -221,16 +222,22 @@ static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t 
     }
 }
 
+void fm_morph_waiting_tet(const fm_morph_model *m, int64_t id, float out[12])
+{
+    const float c[3] = {m->src_c[0][id], m->src_c[1][id], m->src_c[2][id]};
+    place_tet(c, 1.0, NULL, m->src_rel + 12 * id, out);
+}
+
 /* Slot order in, id order out: each tet is written where its agent id says. */
 void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out)
 {
     fm_synth_view flying = {{s->p[0], s->p[1], s->p[2]}, {0}, s->id, s->time, m->launch_rate, m->def.shrink,
                             m->def.shrink_time};
     for (int j = 0; j < 12; j++) flying.rest[j] = s->rest_rel[j];
-    int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
+    const int64_t slots = fm_morph_slots(s), blocks = (slots + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
-        int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);
+        int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, slots);
         fm_kernel_flying_tets(&flying, s->phase, FM_PHASE_FLYING, begin, end, out);
         for (int64_t a = begin; a < end; a++)
             if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + 12 * (size_t)s->id[a]);

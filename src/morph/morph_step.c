@@ -23,6 +23,7 @@
 #include "kernel_mde.h"
 
 #include <math.h>
+#include <stdlib.h>
 
 /* The kernels name the phases themselves (kernels.h); they must be the engine's. */
 _Static_assert((int)FM_KERNEL_FLYING == (int)FM_PHASE_FLYING, "kernel phase FLYING");
@@ -36,8 +37,12 @@ static void launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
     if (due > s->n) due = s->n;
     if (due <= s->launched) return;
     int64_t count = due - s->launched;
-    for (int64_t a = s->active_end; a < s->active_end + count; a++) s->phase[a] = FM_PHASE_FLYING;
-    s->active_end += count;
+    if (s->dist) {
+        fm_morph_dist_launch(m, s, due); /* this rank's share of them */
+    } else {
+        for (int64_t a = s->active_end; a < s->active_end + count; a++) s->phase[a] = FM_PHASE_FLYING;
+        s->active_end += count;
+    }
     s->count[FM_PHASE_WAITING] -= count;
     s->count[FM_PHASE_FLYING] += count;
     s->launched = due;
@@ -70,12 +75,13 @@ static float mde_cell(const fm_morph_model *m)
     return (float)fmax(m->def.d_min, spacing);
 }
 
-/* Stage 2: the neighbour grid over this step's flying agents. */
-static void build_neighbour_grid(const fm_morph_model *m, fm_morph_state *s)
+/* Stage 2: the neighbour grid over this step's flying agents, and the halo's `ghosts` after them
+ * (their member flags already set). */
+static void build_neighbour_grid(const fm_morph_model *m, fm_morph_state *s, int64_t ghosts)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->active_end; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
-    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end, mde_cell(m), s->threads);
+    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end + ghosts, mde_cell(m), s->threads);
 }
 
 /* Avoidance leaves d_t and R_X per agent for the contact step. The store borrows the re-sort's
@@ -152,29 +158,74 @@ static void move_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin
                                        s->t2, s->tf, begin, end, t_end);
 }
 
-/* Stage 5 (FM §5.5): the k-th agent to enter phase 2 takes target slot k (D2 order). */
-static void hand_out_targets(const fm_morph_model *m, fm_morph_state *s, const block_counts *bc, int64_t blocks,
-                             double t_end)
+/* Slot a takes target slot `slot` and enters phase 2 at t_end. */
+static void take_target(const fm_morph_model *m, fm_morph_state *s, int64_t a, int64_t slot, double t_end)
 {
+    s->target[a] = slot;
+    s->phase[a] = FM_PHASE_HOMING;
+    s->t2[a] = (float)t_end;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        s->p2[k][a] = s->p[k][a];
+        double d = (double)m->tgt_c[k][slot] - s->p[k][a];
+        d2 += d * d;
+    }
+    s->tf[a] = (float)(sqrt(d2) / m->def.speed0); /* eq 9 */
+}
+
+static int by_value(const void *x, const void *y)
+{
+    const uint64_t a = *(const uint64_t *)x, b = *(const uint64_t *)y;
+    return (a > b) - (a < b);
+}
+
+/* This step's entries as (id << 32 | slot), in id order, in the re-sort's idle key scratch. */
+static int64_t entries_by_id(fm_morph_state *s, const block_counts *bc, int64_t blocks, uint64_t *key)
+{
+    int64_t count = 0;
     for (int64_t b = 0; b < blocks; b++) {
         if (bc[b].entered == 0) continue;
         int64_t begin, end;
         fm_active_block(s, b, &begin, &end);
-        for (int64_t a = begin; a < end; a++) {
-            if (!s->entered[a]) continue;
-            int64_t slot = s->next_slot++;
-            s->target[a] = slot;
-            s->phase[a] = FM_PHASE_HOMING;
-            s->t2[a] = (float)t_end;
-            double d2 = 0;
-            for (int k = 0; k < 3; k++) {
-                s->p2[k][a] = s->p[k][a];
-                double d = (double)m->tgt_c[k][slot] - s->p[k][a];
-                d2 += d * d;
-            }
-            s->tf[a] = (float)(sqrt(d2) / m->def.speed0); /* eq 9 */
-        }
+        for (int64_t a = begin; a < end; a++)
+            if (s->entered[a]) key[count++] = (uint64_t)(uint32_t)s->id[a] << 32 | (uint64_t)a;
     }
+    qsort(key, (size_t)count, sizeof *key, by_value);
+    return count;
+}
+
+static int by_id(const void *x, const void *y)
+{
+    const int32_t a = *(const int32_t *)x, b = *(const int32_t *)y;
+    return (a > b) - (a < b);
+}
+
+/* Stage 5 (FM §5.5): the k-th agent to enter phase 2 takes target slot k (D2 order); the agents
+ * that enter in one step, of all ranks, take theirs in agent-id order, so the hand-out does not
+ * depend on where an agent is stored. */
+static fm_status hand_out_targets(const fm_morph_model *m, fm_morph_state *s, const block_counts *bc, int64_t blocks,
+                                  double t_end)
+{
+    uint64_t *key = (uint64_t *)s->sort_keys; /* 2n uint32: room for n keys */
+    const int64_t count = entries_by_id(s, bc, blocks, key);
+    if (!s->dist) {
+        for (int64_t k = 0; k < count; k++) take_target(m, s, (int64_t)(key[k] & 0xffffffffu), s->next_slot + k, t_end);
+        s->next_slot += count;
+        return FM_OK;
+    }
+    int32_t *mine = s->sort_slots, *all = NULL; /* idle after the re-sort too */
+    for (int64_t k = 0; k < count; k++) mine[k] = (int32_t)(key[k] >> 32);
+    int64_t total = 0;
+    fm_status st = fm_dist_allgather_i32(s->dist, mine, count, &all, &total, &s->dist_error);
+    if (st != FM_OK) return st;
+    qsort(all, (size_t)total, sizeof *all, by_id);
+    for (int64_t k = 0; k < count; k++) { /* its place among every rank's entries */
+        const int32_t *at = bsearch(&mine[k], all, (size_t)total, sizeof *all, by_id);
+        take_target(m, s, (int64_t)(key[k] & 0xffffffffu), s->next_slot + (at - all), t_end);
+    }
+    s->next_slot += total;
+    fm_free(all);
+    return FM_OK;
 }
 
 static int64_t setup_morphs(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
@@ -204,19 +255,53 @@ static void lap(fm_morph_state *s, fm_stage k, double *t)
     *t = now;
 }
 
+/* The step's counts, block by block in block order, then (on P ranks) summed over the ranks. */
+static void combine_counts(fm_morph_state *s, const block_counts *bc, int64_t blocks)
+{
+    int64_t sum[5] = {0}; /* entered, arrived, fallbacks, flying, mde */
+    float clearance = INFINITY;
+    for (int64_t b = 0; b < blocks; b++) {
+        sum[0] += bc[b].entered, sum[1] += bc[b].arrived, sum[2] += bc[b].fallbacks;
+        sum[3] += bc[b].flying, sum[4] += bc[b].mde;
+        clearance = fminf(clearance, bc[b].clearance);
+    }
+    fm_dist_sum_i64(s->dist, sum, 5);
+    fm_dist_min_f32(s->dist, &clearance, 1);
+    s->count[FM_PHASE_FLYING] -= sum[0];
+    s->count[FM_PHASE_HOMING] += sum[0] - sum[1];
+    s->count[FM_PHASE_ARRIVED] += sum[1];
+    s->morph_fallbacks += sum[2];
+    s->flying_agent_steps += sum[3];
+    s->mde_agent_steps += sum[4];
+    s->min_clearance = fminf(s->min_clearance, clearance);
+}
+
+/* On P ranks, before the step proper: the cuts every FM_RESORT_INTERVAL steps, then the agents
+ * that left the slab to their new owners. */
+static fm_status distribute(const fm_morph_model *m, fm_morph_state *s)
+{
+    if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_dist_rebalance(s);
+    return fm_morph_dist_migrate(m, s, &s->dist_error);
+}
+
 void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     block_counts *bc = s->blocks;
+    if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
     double t = fm_seconds();
+    if (s->dist && (s->dist_status = distribute(m, s)) != FM_OK) return;
     if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_state_resort(m, s);
     lap(s, FM_STAGE_RESORT, &t);
     launch_due_agents(m, s);
     const int64_t blocks = fm_active_blocks(s);
+    int64_t ghosts = 0;
+    if (s->dist && m->def.d_min > 0 && (s->dist_status = fm_morph_dist_ghosts(s, &ghosts, &s->dist_error)) != FM_OK)
+        return;
     lap(s, FM_STAGE_LAUNCH, &t);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
     lap(s, FM_STAGE_FIELDS, &t);
-    if (m->def.d_min > 0) build_neighbour_grid(m, s);
+    if (m->def.d_min > 0) build_neighbour_grid(m, s, ghosts);
     lap(s, FM_STAGE_GRID, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
@@ -233,7 +318,7 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
         move_block(m, s, begin, end, t_end, &bc[b]);
     }
     lap(s, FM_STAGE_MOVE, &t);
-    hand_out_targets(m, s, bc, blocks, t_end);
+    if ((s->dist_status = hand_out_targets(m, s, bc, blocks, t_end)) != FM_OK) return;
     lap(s, FM_STAGE_HANDOUT, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
     for (int64_t b = 0; b < blocks; b++) {
@@ -242,15 +327,8 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
         if (bc[b].entered) bc[b].fallbacks = setup_morphs(m, s, begin, end);
     }
     lap(s, FM_STAGE_MORPH, &t);
-    for (int64_t b = 0; b < blocks; b++) { /* combine in block order */
-        s->count[FM_PHASE_FLYING] -= bc[b].entered;
-        s->count[FM_PHASE_HOMING] += bc[b].entered - bc[b].arrived;
-        s->count[FM_PHASE_ARRIVED] += bc[b].arrived;
-        s->morph_fallbacks += bc[b].fallbacks;
-        s->flying_agent_steps += bc[b].flying;
-        s->mde_agent_steps += bc[b].mde;
-        s->min_clearance = fminf(s->min_clearance, bc[b].clearance);
-    }
+    combine_counts(s, bc, blocks);
+    if (s->dist) fm_morph_dist_record_load(s);
     s->time = t_end;
     s->step++;
 }

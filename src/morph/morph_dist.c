@@ -1,0 +1,339 @@
+/* The tetra morph on P ranks (docs/scale-out.md): slabs, migration, halos, the frame gather.
+ *
+ * Space is cut into P slabs along the scene's longest axis: contiguous ranges of the cell key
+ * along that axis, rank r owning cut[r] <= x < cut[r + 1]. Each rank's store holds the agents it
+ * owns (launched there, or moved in), laid out as on one process; waiting agents are held by no
+ * rank (they are the model's rest tets, launched by the rank whose slab holds their centroid).
+ * Every step:
+ *   - migration: an agent in flight whose centroid left the slab moves, with all of its state,
+ *     to the owner of its new place (rest data are rebuilt from the model by id);
+ *   - halo: each rank appends, after its active range, the flying agents of other ranks within
+ *     d_min of its slab (position and id): the MDE walk (kernel_mde.c) then sees every neighbour it
+ *     would see on one process, and sums their pushes in id order, so V_la is the same bits;
+ *   - the rest of the step is per agent (fields, obstacles, moves), or global in id order (the
+ *     hand-out, morph_step.c), or an integer or min reduction: the same for any P.
+ * Every FM_RESORT_INTERVAL steps the cuts move to the quantiles of the agents in flight, so each
+ * rank gets the same share of the flock as it sweeps the scene. */
+#include "morph.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { BALANCE_BINS = 4096 }; /* the cut positions' resolution along the axis */
+
+/* An agent that changes rank: everything its store slot carries but the rest data. */
+typedef struct agent_record {
+    float p[3], v[3], p2[3], t2, tf, morph[FM_MORPH_FLOATS];
+    int64_t target;
+    int32_t id;
+    uint8_t phase, perm, morph_safe, pad;
+} agent_record;
+
+/* A neighbour of another rank, for this step's MDE walk. */
+typedef struct ghost_record {
+    float p[3];
+    int32_t id;
+} ghost_record;
+
+struct fm_morph_slabs {
+    int axis, ranks, rank;
+    double lo, hi;   /* the scene along the axis (the balancing histogram's range) */
+    double *cut;     /* ranks + 1 */
+    float halo;      /* d_min, and a margin for the rounding of a distance */
+    int64_t *count;  /* per rank: records to send */
+    fm_morph_dist_totals totals;
+};
+
+static int longest_axis(const fm_morph_model *m)
+{
+    int axis = 0;
+    for (int k = 1; k < 3; k++)
+        if (m->scene_hi[k] - m->scene_lo[k] > m->scene_hi[axis] - m->scene_lo[axis]) axis = k;
+    return axis;
+}
+
+static int owner(const fm_morph_slabs *d, float x, int current)
+{
+    if (!(x == x)) return current; /* NaN: kept where it is; the frame's runaway check reports it */
+    int lo = 0, hi = d->ranks - 1;
+    while (lo < hi) { /* the last r with cut[r] <= x */
+        int mid = (lo + hi + 1) / 2;
+        if (d->cut[mid] <= x) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
+}
+
+/* The cuts at the weighted quantiles of a histogram over [lo, hi] along the axis. */
+static void cuts_from_histogram(fm_morph_slabs *d, const int64_t *bins)
+{
+    int64_t total = 0;
+    for (int b = 0; b < BALANCE_BINS; b++) total += bins[b];
+    if (total == 0) return;
+    const double width = (d->hi - d->lo) / BALANCE_BINS;
+    int64_t seen = 0;
+    int b = 0;
+    for (int r = 1; r < d->ranks; r++) {
+        const double share = (double)total * r / d->ranks;
+        while (b < BALANCE_BINS && (double)(seen + bins[b]) < share) seen += bins[b++];
+        d->cut[r] = d->lo + width * (b + 1);
+    }
+}
+
+static int bin_of(const fm_morph_slabs *d, float x)
+{
+    double q = ((double)x - d->lo) / (d->hi - d->lo) * BALANCE_BINS;
+    return !(q > 0) ? 0 : q >= BALANCE_BINS ? BALANCE_BINS - 1 : (int)q;
+}
+
+/* The first cuts: quantiles of every source tet's centroid (the flock starts as the source). */
+static void initial_cuts(const fm_morph_model *m, fm_morph_slabs *d, int64_t *bins)
+{
+    memset(bins, 0, sizeof(int64_t) * BALANCE_BINS);
+    for (int64_t i = 0; i < m->n; i++) bins[bin_of(d, m->src_c[d->axis][i])]++;
+    cuts_from_histogram(d, bins);
+}
+
+fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err)
+{
+    fm_morph_slabs *d = calloc(1, sizeof *d);
+    int64_t *bins = malloc(sizeof(int64_t) * BALANCE_BINS);
+    const int ranks = fm_dist_size(dist);
+    if (d) d->cut = malloc(sizeof(double) * (size_t)(ranks + 1)), d->count = calloc((size_t)ranks, sizeof(int64_t));
+    if (!d || !bins || !d->cut || !d->count) {
+        free(bins), fm_morph_slabs_free(d);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    }
+    d->axis = longest_axis(m), d->ranks = ranks, d->rank = fm_dist_rank(dist);
+    d->lo = m->scene_lo[d->axis], d->hi = m->scene_hi[d->axis];
+    if (!(d->hi > d->lo)) d->hi = d->lo + 1;
+    for (int r = 0; r <= ranks; r++) d->cut[r] = r == 0 ? -INFINITY : r == ranks ? INFINITY : d->lo;
+    d->halo = (float)(m->def.d_min * (1 + 1e-4)) + 1e-6f * (float)fmax(fabs(d->lo), fabs(d->hi));
+    initial_cuts(m, d, bins);
+    free(bins);
+    s->dist = dist, s->slabs = d;
+    s->active_begin = s->active_end = 0; /* nothing launched: no slot holds an agent yet */
+    return FM_OK;
+}
+
+void fm_morph_slabs_free(fm_morph_slabs *d)
+{
+    if (!d) return;
+    free(d->cut), free(d->count), free(d);
+}
+
+fm_morph_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s)
+{
+    fm_morph_dist_totals t = {0};
+    return s->slabs ? s->slabs->totals : t;
+}
+
+/* Stage 1 on P ranks: agents id in [launched, due) leave the source; each rank takes those whose
+ * rest centroid lies in its slab, in id order, after its active range. */
+void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due)
+{
+    const fm_morph_slabs *d = s->slabs;
+    for (int64_t i = s->launched; i < due; i++) {
+        if (owner(d, m->src_c[d->axis][i], 0) != d->rank) continue;
+        const int64_t a = s->active_end++;
+        for (int k = 0; k < 3; k++) s->p[k][a] = m->src_c[k][i], s->v[k][a] = 0, s->p2[k][a] = 0;
+        for (int j = 0; j < 12; j++) s->rest_rel[j][a] = m->src_rel[12 * i + j];
+        s->rest_radius[a] = m->src_radius[i];
+        s->id[a] = (int32_t)i, s->phase[a] = FM_PHASE_FLYING, s->target[a] = -1;
+        s->t2[a] = 0, s->tf[a] = 0, s->perm[a] = 0, s->morph_safe[a] = 0;
+        memset(s->morph + FM_MORPH_FLOATS * a, 0, sizeof(float) * FM_MORPH_FLOATS);
+    }
+}
+
+static void pack_agent(const fm_morph_state *s, int64_t a, agent_record *r)
+{
+    memset(r, 0, sizeof *r);
+    for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->p2[k] = s->p2[k][a];
+    r->t2 = s->t2[a], r->tf = s->tf[a], r->target = s->target[a], r->id = s->id[a];
+    memcpy(r->morph, s->morph + FM_MORPH_FLOATS * a, sizeof r->morph);
+    r->phase = s->phase[a], r->perm = s->perm[a], r->morph_safe = s->morph_safe[a];
+}
+
+static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent_record *r, int64_t a)
+{
+    for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->p2[k][a] = r->p2[k];
+    s->t2[a] = r->t2, s->tf[a] = r->tf, s->target[a] = r->target, s->id[a] = r->id;
+    memcpy(s->morph + FM_MORPH_FLOATS * a, r->morph, sizeof r->morph);
+    s->phase[a] = r->phase, s->perm[a] = r->perm, s->morph_safe[a] = r->morph_safe;
+    const size_t i = (size_t)r->id;
+    for (int j = 0; j < 12; j++) s->rest_rel[j][a] = m->src_rel[12 * i + (size_t)j];
+    s->rest_radius[a] = m->src_radius[i];
+}
+
+/* Slot `from`'s agent to slot `to` (to < from), every per-slot array. */
+static void move_slot(fm_morph_state *s, int64_t from, int64_t to)
+{
+    for (int k = 0; k < 3; k++) s->p[k][to] = s->p[k][from], s->v[k][to] = s->v[k][from], s->p2[k][to] = s->p2[k][from];
+    for (int j = 0; j < 12; j++) s->rest_rel[j][to] = s->rest_rel[j][from];
+    s->rest_radius[to] = s->rest_radius[from], s->id[to] = s->id[from], s->phase[to] = s->phase[from];
+    s->target[to] = s->target[from], s->t2[to] = s->t2[from], s->tf[to] = s->tf[from];
+    memcpy(s->morph + FM_MORPH_FLOATS * to, s->morph + FM_MORPH_FLOATS * from, sizeof(float) * FM_MORPH_FLOATS);
+    s->perm[to] = s->perm[from], s->morph_safe[to] = s->morph_safe[from];
+}
+
+static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase == FM_PHASE_HOMING; }
+
+/* Packs the leaving agents rank by rank (two passes: count, then fill) and closes the gaps. */
+static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error *err)
+{
+    fm_morph_slabs *d = s->slabs;
+    const float *x = s->p[d->axis];
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    *leaving = 0;
+    for (int64_t a = s->active_begin; a < s->active_end; a++) {
+        if (!in_flight(s->phase[a])) continue;
+        int r = owner(d, x[a], d->rank);
+        if (r != d->rank) d->count[r]++, (*leaving)++;
+    }
+    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(*leaving, 1));
+    if (!out) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating agents", (long long)*leaving), NULL;
+    int64_t *at = calloc((size_t)d->ranks, sizeof(int64_t)), kept = s->active_begin;
+    if (!at) return fm_free(out), fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
+    for (int64_t a = s->active_begin; a < s->active_end; a++) {
+        int r = in_flight(s->phase[a]) ? owner(d, x[a], d->rank) : d->rank;
+        if (r != d->rank) pack_agent(s, a, out + at[r]++);
+        else if (kept++ != a) move_slot(s, a, kept - 1);
+    }
+    s->active_end = kept;
+    free(at);
+    return out;
+}
+
+/* Agents in flight that left this rank's slab go to their new owners; arrivals in place stay. */
+fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_error *err)
+{
+    fm_morph_slabs *d = s->slabs;
+    int64_t leaving = 0, received = 0;
+    agent_record *out = pack_leaving(s, &leaving, err);
+    fm_status st = fm_dist_agree(s->dist, out ? FM_OK : err->status, err);
+    void *in = NULL;
+    if (st == FM_OK) st = fm_dist_exchange(s->dist, out, d->count, sizeof(agent_record), &in, &received, err);
+    if (st == FM_OK) {
+        for (int64_t k = 0; k < received; k++) unpack_agent(m, s, (const agent_record *)in + k, s->active_end++);
+        d->totals.migrated += leaving, d->totals.bytes_sent += leaving * (int64_t)sizeof(agent_record);
+    }
+    fm_free(out), fm_free(in);
+    return st;
+}
+
+/* Whether x is within the halo of rank r's slab. */
+static int near_slab(const fm_morph_slabs *d, int r, float x)
+{
+    return x >= d->cut[r] - d->halo && x < d->cut[r + 1] + d->halo;
+}
+
+/* This step's ghosts: the other ranks' flying agents within the halo of this slab, appended at
+ * [active_end, active_end + ghosts) (position and id: what the MDE walk reads). */
+fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err)
+{
+    fm_morph_slabs *d = s->slabs;
+    const float *x = s->p[d->axis];
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    int64_t sending = 0, received = 0;
+    for (int64_t a = s->active_begin; a < s->active_end; a++) /* count, then fill */
+        if (s->phase[a] == FM_PHASE_FLYING)
+            for (int r = 0; r < d->ranks; r++) d->count[r] += r != d->rank && near_slab(d, r, x[a]);
+    for (int r = 0; r < d->ranks; r++) sending += d->count[r];
+    ghost_record *out = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(sending, 1));
+    int64_t *at = calloc((size_t)d->ranks, sizeof(int64_t));
+    fm_status st = out && at ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld halo agents", (long long)sending);
+    if (st == FM_OK) {
+        for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
+        for (int64_t a = s->active_begin; a < s->active_end; a++) {
+            if (s->phase[a] != FM_PHASE_FLYING) continue;
+            for (int r = 0; r < d->ranks; r++)
+                if (r != d->rank && near_slab(d, r, x[a]))
+                    out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, s->id[a]};
+        }
+    }
+    st = fm_dist_agree(s->dist, st, err);
+    void *in = NULL;
+    if (st == FM_OK) st = fm_dist_exchange(s->dist, out, d->count, sizeof(ghost_record), &in, &received, err);
+    *ghosts = 0;
+    if (st == FM_OK) {
+        const ghost_record *g = in;
+        for (int64_t k = 0; k < received; k++) {
+            const int64_t a = s->active_end + k;
+            for (int c = 0; c < 3; c++) s->p[c][a] = g[k].p[c];
+            s->id[a] = g[k].id, s->member[a] = 1;
+        }
+        *ghosts = received;
+        d->totals.ghost_agent_steps += received, d->totals.bytes_sent += sending * (int64_t)sizeof(ghost_record);
+    }
+    fm_free(out), fm_free(in), free(at);
+    return st;
+}
+
+/* Every FM_RESORT_INTERVAL steps: the cuts to the quantiles of the agents in flight (all ranks
+ * together), and the load spread of the step before recorded. */
+void fm_morph_dist_rebalance(fm_morph_state *s)
+{
+    fm_morph_slabs *d = s->slabs;
+    int64_t *bins = calloc(BALANCE_BINS, sizeof(int64_t));
+    if (!bins) return; /* the cuts stay: still correct, only less balanced */
+    const float *x = s->p[d->axis];
+    for (int64_t a = s->active_begin; a < s->active_end; a++)
+        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])]++;
+    fm_dist_sum_i64(s->dist, bins, BALANCE_BINS); /* every rank gets the same histogram: the same cuts */
+    cuts_from_histogram(d, bins);
+    free(bins);
+}
+
+/* The load of this step: agents in flight on the busiest rank, and on all ranks together. */
+void fm_morph_dist_record_load(fm_morph_state *s)
+{
+    fm_morph_slabs *d = s->slabs;
+    int64_t mine = 0;
+    for (int64_t a = s->active_begin; a < s->active_end; a++) mine += in_flight(s->phase[a]);
+    int64_t most = mine, all = mine;
+    fm_dist_max_i64(s->dist, &most, 1);
+    fm_dist_sum_i64(s->dist, &all, 1);
+    d->totals.max_rank_agent_steps += most, d->totals.agent_steps += all;
+}
+
+/* One agent's tet in a frame, for the gather to rank 0. */
+typedef struct frame_record {
+    int32_t id;
+    float v[12];
+    uint8_t phase, pad[3];
+} frame_record;
+
+/* The frame on rank 0 in id order: each rank's agents gathered, the waiting ones (in no store)
+ * added from the model. The other ranks' `verts` hold their own agents only. */
+fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases,
+                              fm_error *err)
+{
+    fm_morph_tet_vertices(m, s, verts);
+    const int64_t count = s->active_end;
+    frame_record *mine = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(count, 1));
+    fm_status st = mine ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)count);
+    st = fm_dist_agree(s->dist, st, err);
+    if (st != FM_OK) return fm_free(mine), st;
+    for (int64_t a = 0; a < count; a++) {
+        frame_record *r = mine + a;
+        r->id = s->id[a], r->phase = s->phase[a];
+        memcpy(r->v, verts + 12 * (size_t)s->id[a], sizeof r->v);
+    }
+    void *all = NULL;
+    int64_t total = 0;
+    st = fm_dist_gather(s->dist, mine, count, sizeof(frame_record), &all, &total, err);
+    fm_free(mine);
+    if (fm_dist_rank(s->dist) != 0) s->slabs->totals.bytes_sent += count * (int64_t)sizeof(frame_record);
+    if (st != FM_OK || fm_dist_rank(s->dist) != 0) return fm_free(all), st;
+    for (int64_t k = 0; k < total; k++) {
+        const frame_record *r = (const frame_record *)all + k;
+        memcpy(verts + 12 * (size_t)r->id, r->v, sizeof r->v);
+        phases[r->id] = r->phase;
+    }
+    for (int64_t i = s->launched; i < m->n; i++)
+        fm_morph_waiting_tet(m, i, verts + 12 * (size_t)i), phases[i] = FM_PHASE_WAITING;
+    fm_free(all);
+    return FM_OK;
+}

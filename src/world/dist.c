@@ -1,0 +1,250 @@
+/* The ranks of a run (dist.h): MPI when the build has it (FM_HAVE_MPI), P = 1 otherwise. */
+#include "dist.h"
+
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The P = 1 gather: a copy of this rank's records. */
+static fm_status copy_records(const void *mine, int64_t count, size_t size, void **all, int64_t *total, fm_error *err)
+{
+    *all = NULL, *total = 0;
+    if (count == 0) return FM_OK;
+    if (!(*all = fm_alloc(size * (size_t)count))) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    memcpy(*all, mine, size * (size_t)count);
+    *total = count;
+    return FM_OK;
+}
+
+#ifdef FM_HAVE_MPI
+#include <mpi.h>
+
+struct fm_dist {
+    MPI_Comm comm;
+    int rank, size;
+};
+
+int fm_dist_launched(void)
+{
+    /* Open MPI's mpirun, PMIx launchers (srun --mpi=pmix), Hydra/PMI (MPICH, srun --mpi=pmi2) */
+    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"};
+    for (size_t i = 0; i < sizeof vars / sizeof vars[0]; i++)
+        if (getenv(vars[i])) return 1;
+    return 0;
+}
+
+fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
+{
+    int provided = 0;
+    if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+        fm_fail(err, FM_ERR_INTERNAL, "MPI_Init_thread failed");
+        return NULL;
+    }
+    fm_dist *d = calloc(1, sizeof *d);
+    if (!d) {
+        fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        MPI_Abort(MPI_COMM_WORLD, FM_ERR_MEMORY);
+        return NULL;
+    }
+    d->comm = MPI_COMM_WORLD;
+    MPI_Comm_rank(d->comm, &d->rank);
+    MPI_Comm_size(d->comm, &d->size);
+    return d;
+}
+
+void fm_dist_finalize(fm_dist *d)
+{
+    if (!d) return;
+    free(d);
+    MPI_Finalize();
+}
+
+void fm_dist_abort(const fm_dist *d, int code)
+{
+    if (d) MPI_Abort(d->comm, code);
+    exit(code);
+}
+
+int fm_dist_rank(const fm_dist *d) { return d ? d->rank : 0; }
+int fm_dist_size(const fm_dist *d) { return d ? d->size : 1; }
+
+void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count)
+{
+    if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_INT64_T, MPI_SUM, d->comm);
+}
+
+void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count)
+{
+    if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_INT64_T, MPI_MAX, d->comm);
+}
+
+void fm_dist_max_f64(const fm_dist *d, double *v, int count)
+{
+    if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_DOUBLE, MPI_MAX, d->comm);
+}
+
+void fm_dist_min_f32(const fm_dist *d, float *v, int count)
+{
+    if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_FLOAT, MPI_MIN, d->comm);
+}
+
+void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root)
+{
+    if (d && d->size > 1) MPI_Bcast(data, (int)bytes, MPI_BYTE, root, d->comm);
+}
+
+fm_status fm_dist_agree(const fm_dist *d, fm_status st, fm_error *err)
+{
+    if (!d || d->size == 1) return st;
+    /* MAXLOC on (status, -rank): the worst status, and of the ranks that had it the lowest */
+    struct { int value, rank; } mine = {(int)st, -d->rank}, worst;
+    MPI_Allreduce(&mine, &worst, 1, MPI_2INT, MPI_MAXLOC, d->comm);
+    if (worst.value == FM_OK) return FM_OK;
+    fm_error shared = {0};
+    if (d->rank == -worst.rank && err) shared = *err;
+    MPI_Bcast(&shared, (int)sizeof shared, MPI_BYTE, -worst.rank, d->comm);
+    shared.status = (fm_status)worst.value;
+    if (err) *err = shared;
+    return shared.status;
+}
+
+/* The all-gather and the exchanges count records in ints (MPI's counts): a datatype of `size`
+ * bytes keeps the limit at 2^31 records rather than bytes. */
+static int record_type(size_t size, MPI_Datatype *type)
+{
+    if (MPI_Type_contiguous((int)size, MPI_BYTE, type) != MPI_SUCCESS) return 0;
+    return MPI_Type_commit(type) == MPI_SUCCESS;
+}
+
+/* displ[r] = the records before rank r's; the total, or -1 past MPI's int counts. */
+static int64_t displacements(const int *count, int size, int *displ)
+{
+    int64_t total = 0;
+    for (int r = 0; r < size; r++) {
+        if (total > INT_MAX) return -1;
+        displ[r] = (int)total, total += count[r];
+    }
+    return total > INT_MAX ? -1 : total;
+}
+
+static fm_status too_many(fm_error *err, int64_t count)
+{
+    return fm_fail(err, FM_ERR_INPUT, "an exchange between ranks of %lld records exceeds MPI's 2^31: run on more ranks",
+                   (long long)count);
+}
+
+fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
+                                fm_error *err)
+{
+    if (!d || d->size == 1) return fm_dist_gather(NULL, mine, count, sizeof(int32_t), (void **)all, total, err);
+    int *counts = calloc((size_t)d->size, 2 * sizeof(int)), *displ = counts + d->size, c = (int)count;
+    if (!counts) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    MPI_Allgather(&c, 1, MPI_INT, counts, 1, MPI_INT, d->comm);
+    *total = displacements(counts, d->size, displ);
+    fm_status st = *total < 0 || count > INT_MAX ? too_many(err, FM_MAX(*total, count)) : FM_OK;
+    *all = st == FM_OK && *total > 0 ? fm_alloc(sizeof(int32_t) * (size_t)*total) : NULL;
+    if (st == FM_OK && *total > 0 && !*all) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld ids", (long long)*total);
+    st = fm_dist_agree(d, st, err);
+    if (st == FM_OK && *total > 0) MPI_Allgatherv(mine, c, MPI_INT32_T, *all, counts, displ, MPI_INT32_T, d->comm);
+    free(counts);
+    return st;
+}
+
+fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *send_count, size_t size, void **recv,
+                           int64_t *recv_count, fm_error *err)
+{
+    if (!d || d->size == 1) return fm_dist_gather(NULL, send, send_count[0], size, recv, recv_count, err);
+    const int p = d->size;
+    int *sc = calloc((size_t)p, 4 * sizeof(int)), *sd = sc + p, *rc = sd + p, *rd = rc + p;
+    if (!sc) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    fm_status st = FM_OK;
+    for (int r = 0; r < p; r++) {
+        if (send_count[r] > INT_MAX) st = too_many(err, send_count[r]);
+        sc[r] = (int)FM_MIN(send_count[r], INT_MAX);
+    }
+    MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, d->comm);
+    int64_t sent = displacements(sc, p, sd);
+    *recv_count = displacements(rc, p, rd);
+    if (st == FM_OK && (sent < 0 || *recv_count < 0)) st = too_many(err, FM_MAX(sent, *recv_count));
+    *recv = st == FM_OK && *recv_count > 0 ? fm_alloc(size * (size_t)*recv_count) : NULL;
+    if (st == FM_OK && *recv_count > 0 && !*recv) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for a halo exchange");
+    MPI_Datatype type;
+    if (st == FM_OK && !record_type(size, &type)) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
+    st = fm_dist_agree(d, st, err);
+    if (st == FM_OK) {
+        MPI_Alltoallv(send, sc, sd, type, *recv, rc, rd, type, d->comm);
+        MPI_Type_free(&type);
+    }
+    free(sc);
+    return st;
+}
+
+fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                         fm_error *err)
+{
+    if (!d || d->size == 1) return copy_records(mine, count, size, all, total, err);
+    *all = NULL, *total = 0;
+    const int p = d->size, root = d->rank == 0;
+    int *counts = calloc((size_t)p, 2 * sizeof(int)), *displ = counts + p, c = (int)FM_MIN(count, INT_MAX);
+    if (!counts) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    MPI_Gather(&c, 1, MPI_INT, counts, 1, MPI_INT, 0, d->comm);
+    fm_status st = count > INT_MAX ? too_many(err, count) : FM_OK;
+    if (root) {
+        int64_t n = displacements(counts, p, displ);
+        if (st == FM_OK && n < 0) st = too_many(err, n);
+        if (st == FM_OK && n > 0 && !(*all = fm_alloc(size * (size_t)n))) st = fm_fail(err, FM_ERR_MEMORY, "out of memory");
+        *total = st == FM_OK ? n : 0;
+    }
+    MPI_Datatype type;
+    if (st == FM_OK && !record_type(size, &type)) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
+    st = fm_dist_agree(d, st, err);
+    if (st == FM_OK) {
+        MPI_Gatherv(mine, c, type, *all, counts, displ, type, 0, d->comm);
+        MPI_Type_free(&type);
+    } else if (root) {
+        fm_free(*all), *all = NULL, *total = 0;
+    }
+    free(counts);
+    return st;
+}
+
+#else /* one process: every collective acts for P = 1 */
+
+int fm_dist_launched(void) { return 0; }
+fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
+{
+    (void)argc, (void)argv;
+    fm_fail(err, FM_ERR_USAGE, "this flockmorph was built without MPI (FM_MPI=OFF)");
+    return NULL;
+}
+void fm_dist_finalize(fm_dist *d) { (void)d; }
+void fm_dist_abort(const fm_dist *d, int code) { (void)d, exit(code); }
+int fm_dist_rank(const fm_dist *d) { return (void)d, 0; }
+int fm_dist_size(const fm_dist *d) { return (void)d, 1; }
+void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
+void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
+void fm_dist_max_f64(const fm_dist *d, double *v, int count) { (void)d, (void)v, (void)count; }
+void fm_dist_min_f32(const fm_dist *d, float *v, int count) { (void)d, (void)v, (void)count; }
+void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root) { (void)d, (void)data, (void)bytes, (void)root; }
+fm_status fm_dist_agree(const fm_dist *d, fm_status st, fm_error *err) { return (void)d, (void)err, st; }
+
+fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                         fm_error *err)
+{
+    (void)d;
+    return copy_records(mine, count, size, all, total, err);
+}
+
+fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
+                                fm_error *err)
+{
+    return fm_dist_gather(d, mine, count, sizeof(int32_t), (void **)all, total, err);
+}
+
+fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *send_count, size_t size, void **recv,
+                           int64_t *recv_count, fm_error *err)
+{
+    return fm_dist_gather(d, send, send_count[0], size, recv, recv_count, err);
+}
+
+#endif

@@ -1,0 +1,61 @@
+/* The ranks of a run (docs/scale-out.md): the engine's one door to MPI.
+ *
+ * A run launched by mpirun (or srun) has one fm_dist per process, naming its rank among P; every
+ * other run has none (NULL), and every call below then acts as for P = 1: a reduction returns its
+ * input, a gather copies. So the engine has no #ifdef: built without MPI (FM_MPI=OFF), dist.c has
+ * the P = 1 bodies only.
+ *
+ * Every function is collective: all ranks call it, in the same order, or the run hangs. The
+ * engine calls them only from code every rank runs in step (the step, the frame, the end). */
+#ifndef FM_DIST_H
+#define FM_DIST_H
+
+#include "fm_internal.h"
+
+#include <stdint.h>
+
+typedef struct fm_dist fm_dist;
+
+/* 1 when this process was started by an MPI launcher (mpirun, srun: their environment variables)
+ * and the build has MPI; such a process calls fm_dist_init before anything else. */
+int fm_dist_launched(void);
+/* MPI_Init (threads: funneled, the OpenMP regions make no MPI calls). NULL, with err set, on
+ * failure; the world communicator otherwise, also for P = 1. */
+fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err);
+void fm_dist_finalize(fm_dist *d);
+/* Ends every rank now with `code` (a rank that cannot reach the others' next collective). */
+void fm_dist_abort(const fm_dist *d, int code);
+
+int fm_dist_rank(const fm_dist *d); /* 0 for NULL */
+int fm_dist_size(const fm_dist *d); /* 1 for NULL */
+
+/* Element-wise sums, maxima and minima over the ranks, in place (integers: exact for any P;
+ * the float min and max are exact too). */
+void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count);
+void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count);
+void fm_dist_max_f64(const fm_dist *d, double *v, int count);
+void fm_dist_min_f32(const fm_dist *d, float *v, int count);
+void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root);
+
+/* The ranks agree on one outcome: the worst status (the largest fm_status) and, with it, err's
+ * message from the lowest rank that had it, so every rank returns the same status and rank 0 can
+ * print what another rank met. Returns that status (FM_OK when every rank had FM_OK). */
+fm_status fm_dist_agree(const fm_dist *d, fm_status st, fm_error *err);
+
+/* Every rank's `count` int32 values, concatenated in rank order, in *all (fm_alloc'd; NULL when
+ * the total is 0) with the total in *total. */
+fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
+                                fm_error *err);
+
+/* Personalised all-to-all of records of `size` bytes: send holds send_count[r] records for rank r,
+ * rank after rank. *recv (fm_alloc'd, NULL when empty) gets every rank's records for this one, in
+ * rank order, *recv_count of them. */
+fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *send_count, size_t size, void **recv,
+                           int64_t *recv_count, fm_error *err);
+
+/* Rank 0 gets every rank's records of `size` bytes, in rank order (*all fm_alloc'd there, NULL on
+ * the other ranks); the other ranks' *total is 0. */
+fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                         fm_error *err);
+
+#endif

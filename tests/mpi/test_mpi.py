@@ -1,0 +1,214 @@
+#!/usr/bin/env python3
+"""The MPI scale-out (docs/scale-out.md) through mpirun and the flockmorph CLI.
+
+- the same cache bytes, and the same stats.json but for timings and the rank count, as the plain
+  run (no mpirun) for P = 1, 2, 3, 4 ranks of one thread and 2 ranks of two, on castling (with
+  obstacles, curl noise and MDE) and on words;
+- a stress case: on 4 ranks every agent changes rank (castling's flock sweeps the slab axis),
+  halos are exchanged, and the bytes still match;
+- what one rank cannot do yet (the shape flock, checkpoints) is refused with exit 1 before any
+  work, and -np 1 runs the shape flock as the plain run does;
+- failure: a full disk on rank 0 (ulimit -f) stops every rank with exit 3 and a readable partial
+  cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
+
+    test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
+"""
+import argparse
+import hashlib
+import json
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import unittest
+
+ARGS = None
+fmc = None  # python/flockmorph_cache.py, imported from --source
+
+# stats.json keys that may differ between runs of different P or T (docs/stats.md)
+VARYING = {"preprocess_seconds", "simulate_seconds", "output_seconds", "agent_steps_per_second",
+           "steps_per_second", "threads", "ranks", "scale_out", "command_line", "start_time", "machine", "cache"}
+
+
+def env():
+    e = dict(os.environ)
+    if os.geteuid() == 0:  # Open MPI refuses root without both
+        e["OMPI_ALLOW_RUN_AS_ROOT"] = "1"
+        e["OMPI_ALLOW_RUN_AS_ROOT_CONFIRM"] = "1"
+    e["OMPI_MCA_mpi_yield_when_idle"] = "1"  # oversubscribed ranks give the core back while they wait
+    return e
+
+
+def command(scene, out, ranks=None, threads=1, extra=()):
+    cmd = [ARGS.cli, "run", os.path.join(ARGS.source, scene), "-o", out, "--quiet", "--threads", str(threads),
+           *extra]
+    if ranks is not None:
+        cmd = [ARGS.mpiexec, "--oversubscribe", "-np", str(ranks)] + cmd
+    return cmd
+
+
+def run(scene, name, ranks=None, threads=1, extra=(), timeout=600, preexec=None):
+    out = os.path.join(ARGS.tmp, "mpi_" + name)
+    shutil.rmtree(out, ignore_errors=True)
+    done = subprocess.run(command(scene, out, ranks, threads, extra), stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True, timeout=timeout, env=env(), preexec_fn=preexec)
+    return done, out
+
+
+def sha256(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def stats(out):
+    with open(os.path.join(out, "stats.json")) as f:
+        j = json.load(f)
+    return {k: v for k, v in j.items() if k not in VARYING}
+
+
+class SameBytes(unittest.TestCase):
+    def check_scene(self, scene, runs):
+        plain, out = run(scene, "plain", threads=2)
+        self.assertEqual(plain.returncode, 0, plain.stderr)
+        want, want_stats = sha256(os.path.join(out, "frames.fmc")), stats(out)
+        for ranks, threads in runs:
+            done, got = run(scene, f"p{ranks}t{threads}", ranks, threads)
+            self.assertEqual(done.returncode, 0, f"{scene} on {ranks} ranks: {done.stderr}")
+            self.assertEqual(sha256(os.path.join(got, "frames.fmc")), want,
+                             f"{scene}: the cache of {ranks} ranks x {threads} threads differs from the plain run's")
+            self.assertEqual(stats(got), want_stats, f"{scene}: stats.json of {ranks} ranks differs")
+            with open(os.path.join(got, "stats.json")) as f:
+                j = json.load(f)
+            self.assertEqual(j["ranks"], ranks)
+            if ranks > 1:
+                self.assertGreater(j["scale_out"]["bytes_sent_per_agent_step"], 0)
+
+    def test_castling(self):
+        self.check_scene("examples/castling/scene.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
+
+    def test_words(self):
+        self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)])
+
+
+class Stress(unittest.TestCase):
+    def test_every_agent_changes_rank(self):
+        """castling's flock sweeps along the slab axis from the source to the target: on 4 ranks
+        every agent is handed on at least once, halos carry MDE neighbours, the bytes still match."""
+        plain, out = run("examples/castling/scene.json", "stress_plain")
+        self.assertEqual(plain.returncode, 0, plain.stderr)
+        done, got = run("examples/castling/scene.json", "stress4", 4)
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
+        with open(os.path.join(got, "stats.json")) as f:
+            j = json.load(f)
+        s = j["scale_out"]
+        self.assertGreaterEqual(s["migrations"], j["agents"], s)
+        self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
+        self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
+
+
+class Refused(unittest.TestCase):
+    FLOCK = "examples/flock_cylinder_sphere/scene.json"
+
+    def test_shape_flock_on_two_ranks(self):
+        done, out = run(self.FLOCK, "flock2", 2, timeout=120)
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertIn("one MPI rank", done.stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
+    def test_checkpoints_on_two_ranks(self):
+        done, _ = run("examples/words/scene.json", "ckpt2", 2, extra=("--checkpoint-every", "10"), timeout=120)
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertIn("--checkpoint-every", done.stderr)
+
+    def test_shape_flock_on_one_rank(self):
+        plain, out = run(self.FLOCK, "flock_plain", extra=("--set", "time.frame_limit=40"))
+        self.assertEqual(plain.returncode, 0, plain.stderr)
+        done, got = run(self.FLOCK, "flock1", 1, extra=("--set", "time.frame_limit=40"))
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
+
+
+def frames_in(path):
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a cut-short cache reads with a warning
+        return fmc.open(path).frames
+
+
+class Failure(unittest.TestCase):
+    def test_disk_full_on_rank_0(self):
+        limit = 8 << 20  # bytes: castling's cache is about 45 MiB
+
+        def small_files():
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        start = time.time()
+        done, out = run("examples/castling/scene.json", "full2", 2, timeout=300, preexec=small_files)
+        self.assertEqual(done.returncode, 3, done.stderr)  # I/O error, from every rank
+        self.assertLess(time.time() - start, 300)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+        partial = os.path.join(out, "frames.fmc.partial")
+        self.assertTrue(os.path.exists(partial), os.listdir(out))
+        self.assertGreater(frames_in(partial), 0)
+
+    def start_long_run(self, name):
+        out = os.path.join(ARGS.tmp, "mpi_" + name)
+        shutil.rmtree(out, ignore_errors=True)
+        cmd = command("examples/castling/scene.json", out, 2, 1, ("--set", "n=60000"))
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env())
+        partial = os.path.join(out, "frames.fmc.partial")
+        deadline = time.time() + 240
+        while time.time() < deadline and proc.poll() is None:  # until frames are being written
+            if os.path.exists(partial) and os.path.getsize(partial) > (1 << 20):
+                break
+            time.sleep(0.2)
+        self.assertIsNone(proc.poll(), "the run ended before it could be interrupted")
+        return proc, out
+
+    def test_sigterm_stops_every_rank(self):
+        proc, out = self.start_long_run("term2")
+        proc.send_signal(signal.SIGTERM)
+        try:
+            _, err = proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            self.fail("mpirun did not end within 120 s of SIGTERM")
+        self.assertNotEqual(proc.returncode, 0)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+        # every rank stopped at the same frame boundary: rank 0 said so, the frames so far read back
+        self.assertIn("interrupted at frame", err)
+        self.assertGreater(frames_in(os.path.join(out, "frames.fmc.partial")), 0)
+
+    def test_killed_rank_ends_the_job(self):
+        proc, out = self.start_long_run("kill2")
+        ranks = subprocess.run(["pgrep", "-P", str(proc.pid)], stdout=subprocess.PIPE, text=True).stdout.split()
+        self.assertTrue(ranks, "no rank processes under mpirun")
+        os.kill(int(ranks[-1]), signal.SIGKILL)
+        try:
+            proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            self.fail("mpirun did not end within 120 s of a rank's death")
+        self.assertNotEqual(proc.returncode, 0)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
+
+def main():
+    global ARGS, fmc
+    p = argparse.ArgumentParser()
+    p.add_argument("--cli", required=True)
+    p.add_argument("--mpiexec", required=True)
+    p.add_argument("--source", required=True)
+    p.add_argument("--tmp", required=True)
+    ARGS, rest = p.parse_known_args()
+    sys.path.insert(0, os.path.join(ARGS.source, "python"))
+    import flockmorph_cache
+    fmc = flockmorph_cache
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
+
+
+if __name__ == "__main__":
+    main()
