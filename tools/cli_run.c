@@ -165,9 +165,10 @@ static int open_run(const cli_mode *mode, void *run, const cli_run_options *o, c
         int rc = cli_is_root() && !*cache ? cli_report(&err) : 0;
         return cli_agree(rc, NULL);
     }
-    if (mode->load_checkpoint(run, files->checkpoint, &err) != FM_OK) return cli_report(&err);
-    *cache = fm_cache_writer_resume(files->cache, (uint32_t)common->totals->frames, &err);
-    return *cache ? 0 : cli_report(&err);
+    st = fm_dist_agree(cli_dist, mode->load_checkpoint(run, files->checkpoint, &err), &err); /* every rank reads it */
+    if (st != FM_OK) return cli_is_root() ? cli_report(&err) : (int)st;
+    if (cli_is_root()) *cache = fm_cache_writer_resume(files->cache, (uint32_t)common->totals->frames, &err);
+    return cli_agree(cli_is_root() && !*cache ? cli_report(&err) : 0, NULL);
 }
 
 /* A rank but 0 after the run: the exit status rank 0 gives for the same outcome (the ranks agreed
@@ -176,15 +177,6 @@ static int rank_exit_status(fm_status st)
 {
     if (st == FM_STOPPED) return 128 + (cli_stop_signal ? cli_stop_signal : SIGTERM);
     return (int)st;
-}
-
-/* Runs on P ranks take no checkpoint yet (docs/scale-out.md): the frames so far stay readable. */
-static int report_interrupted_ranks(fm_cache_writer *cache, int64_t frames)
-{
-    fm_cache_writer_close_partial(cache);
-    fprintf(stderr, "flockmorph: interrupted at frame %lld; a run on several ranks writes no checkpoint, so it "
-            "cannot be resumed: the frames so far are kept in the partial cache\n", (long long)frames - 1);
-    return 128 + (cli_stop_signal ? cli_stop_signal : SIGTERM);
 }
 
 /* The run after the model build: the cache (new, or the interrupted run's), the simulation with
@@ -211,7 +203,6 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (progress.show == 1) fprintf(stderr, "\n");
     if (!cli_is_root()) return rank_exit_status(st);
     const fm_run_totals *t = common->totals;
-    if (st == FM_STOPPED && fm_dist_size(cli_dist) > 1) return report_interrupted_ranks(cache, t->frames);
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
@@ -257,13 +248,10 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 static int check_ranks(const cli_run_options *o, const fm_scene_def *def)
 {
     if (fm_dist_size(cli_dist) == 1) return 0;
-    const char *what = def->mode == FM_MODE_SHAPE_FLOCK ? "the shape flock (mode \"shape_flock\")"
-                       : o->resume                     ? "--resume"
-                       : o->checkpoint_every > 0       ? "--checkpoint-every"
-                                                       : NULL;
-    if (!what) return 0;
-    fprintf(stderr, "flockmorph: %s runs on one MPI rank only in this version: run without mpirun, or with -np 1\n",
-            what);
+    (void)o;
+    if (def->mode != FM_MODE_SHAPE_FLOCK) return 0;
+    fprintf(stderr, "flockmorph: the shape flock (mode \"shape_flock\") runs on one MPI rank only in this version: "
+            "run it without mpirun, or with -np 1\n");
     return FM_ERR_USAGE;
 }
 

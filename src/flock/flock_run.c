@@ -90,7 +90,7 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
-                                    m->def.frame_limit, c, &stats->run, cache};
+                                    m->def.frame_limit, c, &stats->run, cache, NULL};
         st = fm_frame_loop_run(&loop, err);
     }
     stats->run.steps = s->step;

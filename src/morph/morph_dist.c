@@ -337,3 +337,70 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     fm_free(all);
     return FM_OK;
 }
+
+/* The one-process store of the whole run on rank 0, from every rank's agents (in `all`): every
+ * launched agent in [0, launched), in rank order, then the waiting ones in id order, as
+ * fm_morph_state_create and the step leave them. */
+static void assemble_store(const fm_morph_model *m, fm_morph_state *s, const agent_record *all, int64_t total)
+{
+    for (int64_t k = 0; k < total; k++) unpack_agent(m, s, all + k, k);
+    for (int64_t i = s->launched; i < s->n; i++) {
+        agent_record r = {.target = -1, .id = (int32_t)i, .phase = FM_PHASE_WAITING};
+        for (int k = 0; k < 3; k++) r.p[k] = m->src_c[k][i];
+        unpack_agent(m, s, &r, i);
+    }
+    s->active_begin = 0, s->active_end = s->launched;
+}
+
+/* On P ranks: rank 0 writes the checkpoint of one process (morph_checkpoint.c) holding every
+ * rank's agents, so any P, or one process, resumes it; rank 0's own store is put back after. */
+fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
+                                        const fm_morph_run_stats *stats, fm_error *err)
+{
+    const int64_t mine = s->active_end, begin = s->active_begin;
+    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(mine, 1));
+    fm_status st = fm_dist_agree(s->dist, out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a checkpoint"), err);
+    void *all = NULL;
+    int64_t total = 0;
+    for (int64_t a = 0; st == FM_OK && a < mine; a++) pack_agent(s, a, out + a);
+    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, sizeof(agent_record), &all, &total, err);
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
+        if (total != s->launched)
+            st = fm_fail(err, FM_ERR_INTERNAL, "checkpoint: the ranks hold %lld agents, %lld were launched",
+                         (long long)total, (long long)s->launched);
+        if (st == FM_OK) {
+            const fm_dist *dist = s->dist;
+            assemble_store(m, s, all, total);
+            s->dist = NULL; /* the store is one process's now */
+            st = fm_morph_checkpoint_save(path, m, s, stats, err);
+            s->dist = dist;
+            for (int64_t a = 0; a < mine; a++) unpack_agent(m, s, (const agent_record *)all + a, a); /* rank 0's first */
+            s->active_begin = begin, s->active_end = mine;
+        }
+    }
+    fm_free(out), fm_free(all);
+    return fm_dist_agree(s->dist, st, err);
+}
+
+/* After every rank loaded the same one-process checkpoint: the cuts at the quantiles of its
+ * agents in flight (every rank counts the same), and each rank keeps the agents in its slab. */
+void fm_morph_dist_adopt(fm_morph_state *s)
+{
+    fm_morph_slabs *d = s->slabs;
+    int64_t *bins = calloc(BALANCE_BINS, sizeof(int64_t));
+    const float *x = s->p[d->axis];
+    if (bins) {
+        for (int64_t a = s->active_begin; a < s->active_end; a++)
+            if (in_flight(s->phase[a])) bins[bin_of(d, x[a])]++;
+        cuts_from_histogram(d, bins);
+        free(bins);
+    }
+    int64_t kept = 0, arrived = 0;
+    for (int64_t a = 0; a < s->active_end; a++) { /* arrivals before the last re-sort stay first */
+        if (owner(d, x[a], 0) != d->rank) continue;
+        if (kept != a) move_slot(s, a, kept);
+        kept++;
+        arrived += a < s->active_begin;
+    }
+    s->active_begin = arrived, s->active_end = kept;
+}

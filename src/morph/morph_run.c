@@ -5,7 +5,6 @@
 #include "cache_format.h"
 
 #include <math.h>
-#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -188,8 +187,6 @@ typedef struct morph_run {
     float *verts;
     uint8_t *phases;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
-    volatile sig_atomic_t *user_stop; /* on P ranks: the caller's stop flag, and ... */
-    volatile sig_atomic_t agreed_stop; /* ... the loop's, set at each frame from every rank's */
 } morph_run;
 
 static void morph_step(void *sim)
@@ -208,11 +205,6 @@ static int morph_finished(const void *sim)
 static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
     morph_run *r = sim;
-    if (r->s->dist) { /* a signal reaches the ranks at different frames: all stop at the same one */
-        int64_t stop = r->user_stop ? *r->user_stop : 0;
-        fm_dist_max_i64(r->s->dist, &stop, 1);
-        r->agreed_stop = (sig_atomic_t)stop;
-    }
     fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
@@ -226,7 +218,8 @@ static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 /* The loop's checkpoint (the cache already flushed): the state and the statistics so far. */
 static fm_status morph_save(void *sim, const char *path, fm_error *err)
 {
-    const morph_run *r = sim;
+    morph_run *r = sim;
+    if (r->s->dist) return fm_morph_dist_checkpoint_save(path, r->m, r->s, r->stats, err);
     return fm_morph_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
@@ -235,10 +228,7 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
 {
     if (!c->resume) memset(stats, 0, sizeof *stats);
     morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
-                   s->flying_agent_steps, s->mde_agent_steps, 0, c->stop, 0};
-    fm_run_control dist_control = *c; /* on P ranks: the agreed stop flag, no checkpoints (not yet) */
-    if (s->dist) dist_control.stop = &r.agreed_stop, dist_control.checkpoint_path = NULL, dist_control.checkpoint = NULL;
-    if (s->dist) c = &dist_control, r.c = c;
+                   s->flying_agent_steps, s->mde_agent_steps, 0};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->run.frames, 1), &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
@@ -246,7 +236,7 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
     }
     if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
     const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
-                                m->def.frame_limit, c, &stats->run, cache};
+                                m->def.frame_limit, c, &stats->run, cache, s->dist};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(m, s, r.verts, stats);
     fm_free(r.verts), fm_free(r.phases);

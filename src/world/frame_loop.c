@@ -41,6 +41,14 @@ static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, 
     return st;
 }
 
+/* Whether any rank says yes (one process: whether this one does). */
+static int agreed(const fm_frame_loop *loop, int yes)
+{
+    int64_t v = yes;
+    fm_dist_max_i64(loop->dist, &v, 1);
+    return v != 0;
+}
+
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
 {
     const fm_run_control *c = loop->control;
@@ -54,11 +62,11 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
         times->frames = 1;
     }
     while (st == FM_OK && !loop->finished(loop->sim) && times->frames < loop->frame_limit) {
-        if (c->stop && *c->stop) {
+        if (agreed(loop, c->stop && *c->stop)) {
             st = checkpoint(loop, &clock, times, err); /* the cache flushed at least */
             return st == FM_OK ? FM_STOPPED : st;
         }
-        if (takes_checkpoints(c) && checkpoint_due(c, &clock, times->frames) &&
+        if (takes_checkpoints(c) && agreed(loop, checkpoint_due(c, &clock, times->frames)) &&
             (st = checkpoint(loop, &clock, times, err)) != FM_OK)
             break;
         double t0 = fm_seconds();

@@ -8,6 +8,7 @@
 #ifndef FM_FRAME_LOOP_H
 #define FM_FRAME_LOOP_H
 
+#include "dist.h"
 #include "fm_internal.h"
 
 typedef struct fm_frame_loop {
@@ -24,6 +25,9 @@ typedef struct fm_frame_loop {
                                       the loop adds frames and seconds, the mode sets the steps */
     fm_cache_writer *cache;        /* may be NULL; flushed before every checkpoint (and on a stop), so
                                       the cache on disk holds the frames the checkpoint counts */
+    const fm_dist *dist;           /* on P ranks (NULL: one process): a stop or a checkpoint any rank
+                                      wants is taken by all at the same frame (a signal, the wall
+                                      clock reach each rank at its own time) */
 } fm_frame_loop;
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
