@@ -406,6 +406,53 @@ static void test_mesh_counts_beyond_file(void)
     }
 }
 
+/* A PLY face whose list of indices is empty (count 0): assimp's triangulation asserted on it and
+ * aborted the process (found by fuzz_ply_binary; tests/fuzz/regressions/ply_binary). Now exit 2
+ * naming the file and the face, in the binary and the ASCII form. */
+static void test_mesh_face_without_indices(void)
+{
+    static const char head[] = "ply\nformat %s 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                               "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n";
+    static const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    static const int32_t f[3][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}};
+    unsigned char bin[512];
+    size_t len = (size_t)snprintf((char *)bin, sizeof bin, head, "binary_little_endian"); /* the test runs on x86 */
+    memcpy(bin + len, v, sizeof v), len += sizeof v;
+    for (int k = 0; k < 3; k++) bin[len++] = 3, memcpy(bin + len, f[k], sizeof f[k]), len += sizeof f[k];
+    bin[len++] = 0; /* the fourth face: no indices */
+    write_binary("face_without_indices.ply", bin, len);
+    char text[512];
+    snprintf(text, sizeof text, head, "ascii");
+    strncat(text, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n0\n", sizeof text - strlen(text) - 1);
+    write_mesh("face_without_indices_ascii.ply", text);
+    expect_bad_mesh("face_without_indices.ply", "face 4 (of mesh 1 in the file) has no vertex indices: the file is damaged");
+    expect_bad_mesh("face_without_indices_ascii.ply", "face 4 (of mesh 1 in the file) has no vertex indices");
+}
+
+/* A binary PLY face whose list count (uint) says 4294967280 entries, with 12 bytes after it: assimp
+ * sized the list from the count (34 GB) before reading it; a 300-byte file took 2.2 GB this way.
+ * Refused from the file's size, under a 2 GiB address space like the counts above. */
+static void test_mesh_list_longer_than_file(void)
+{
+    static const char head[] = "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty "
+                               "float y\nproperty float z\nelement face 4\nproperty list uint int vertex_indices\nend_header\n";
+    static const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    static const uint32_t f[4][4] = {{3, 0, 2, 1}, {3, 0, 1, 3}, {3, 0, 3, 2}, {4294967280u, 1, 2, 3}};
+    unsigned char bin[512];
+    size_t len = sizeof head - 1;
+    memcpy(bin, head, len);
+    memcpy(bin + len, v, sizeof v), len += sizeof v; /* little-endian: the test runs on x86 */
+    memcpy(bin + len, f, sizeof f), len += sizeof f;
+    write_binary("list_too_long.ply", bin, len);
+    char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+    const char *path = mesh_scene("list_too_long.ply", where, sizeof where);
+    cli_env limited = {.memory_limit = 2LL << 30};
+    expect_output(run_scene(&limited, path, "out"), 2, "list_too_long.ply",
+                  (const char *const[]){where, tmp_path(mesh, "list_too_long.ply"), "'face' element 4: the list "
+                                        "'vertex_indices' declares 4294967280 entries of 4 bytes, but 12 bytes are left "
+                                        "in the file: it is damaged or cut short", NULL});
+}
+
 static void test_mesh_empty_or_not_a_mesh(void)
 {
     write_mesh("empty.obj", "");
@@ -1224,6 +1271,8 @@ int main(void)
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
     RUN_TEST(test_mesh_counts_beyond_file);
+    RUN_TEST(test_mesh_face_without_indices);
+    RUN_TEST(test_mesh_list_longer_than_file);
     RUN_TEST(test_mesh_garbage_bytes);
     RUN_TEST(test_mesh_open);
     RUN_TEST(test_mesh_non_manifold);
