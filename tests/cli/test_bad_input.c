@@ -1133,20 +1133,48 @@ static void test_tetgen_volume_bound_too_fine(void)
                0, "");
 }
 
-/* lambda 100, oversample 16 for 300 agents ran for over 400 s; now refused at load, naming the keys. */
-static void test_stratified_work_too_large(void)
+/* A shape flock of n agents over the octahedra, one frame, with the shape_flock group given. */
+static const char *flock_sampling_scene(const char *name, int n, const char *shape_flock)
+{
+    char extra[512];
+    snprintf(extra, sizeof extra, FLOCK ",\n  \"n\": %d,\n  \"time\": {\"frame_limit\": 1},\n  \"shape_flock\": %s", n,
+             shape_flock);
+    return plain_scene(name, extra);
+}
+
+/* A flock of n agents whose sampling group `too_much` is refused at once, at the position of `needle`
+ * in the scene, with every one of `parts`; with `fits` instead, the run goes. */
+static void expect_sampling_work_refused(const char *name, int n, const char *too_much, const char *needle,
+                                         const char *const *parts, const char *fits)
 {
     char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("strat.json", FLOCK ",\n  \"n\": 300,\n  \"shape_flock\": {\"sampling\": \"stratified\", "
-                                   "\"stratified\": {\"lambda\": 100, \"oversample\": 16}}");
-    scene_position("100", where, sizeof where);
-    expect_quick_refusal(path, 5, (const char *const[]){where, "shape_flock.stratified.lambda: 100 with "
-                         "shape_flock.stratified.oversample 16 and n 300", "3.84e+08 triangle pieces per surface",
-                         "4800 voxels", "more than the limit of 2.68e+08", "lambda of at most 83.6", NULL});
-    /* lambda 4 passes at any n: the same keys with a large n fail only later, on memory */
-    path = plain_scene("strat_ok.json", FLOCK ",\n  \"n\": 300,\n  \"time\": {\"frame_limit\": 1},\n  \"shape_flock\": "
-                       "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 4, \"oversample\": 16}}");
-    EXPECT_RUN(path, 0, "");
+    const char *path = flock_sampling_scene(name, n, too_much);
+    scene_position(needle, where, sizeof where);
+    expect_quick_refusal(path, 5, parts);
+    ENSURE_MSG(strstr(g_err, where) != NULL, "%s: '%s' not in stderr: %s", name, where, g_err);
+    EXPECT_RUN(flock_sampling_scene("sampling_fits.json", n, fits), 0, "");
+}
+
+/* lambda 100, oversample 16 for 300 agents ran for over 400 s; now refused at load, naming the keys.
+ * lambda 4 passes at any n (the same keys with a large n fail only later, on memory). */
+static void test_stratified_work_too_large(void)
+{
+    expect_sampling_work_refused("strat.json", 300, "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 100, "
+                                 "\"oversample\": 16}}", "100", (const char *const[]){"shape_flock.stratified.lambda: 100 "
+                                 "with shape_flock.stratified.oversample 16 and n 300", "3.84e+08 triangle pieces per surface",
+                                 "4800 voxels", "more than the limit of 2.68e+08", "lambda of at most 83.6", NULL},
+                                 "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 4, \"oversample\": 16}}");
+}
+
+/* k 16 and 10^5 mosaic iterations for 2000 agents would sample each surface for about 40 CPU
+ * minutes; refused before the first iteration at the sampling key, naming the iterations that fit.
+ * k 16 itself is allowed: 10 iterations run. */
+static void test_mosaic_work_too_large(void)
+{
+    expect_sampling_work_refused("mosaic.json", 2000, "{\"sampling\": \"mosaic\", \"mosaic\": {\"k\": 16, \"iterations\": "
+                                 "100000}}", "\"mosaic\"", (const char *const[]){"shape_flock.sampling: mosaic sampling: 100000 "
+                                 "iterations over 2000 points with k 16", "more than the limit of 300 CPU s", "use at most", NULL},
+                                 "{\"sampling\": \"mosaic\", \"mosaic\": {\"k\": 16, \"iterations\": 10}}");
 }
 
 /* ---------------------------------------------------------------- messages that help (issue 15, item 13) */
@@ -1304,6 +1332,7 @@ int main(void)
     RUN_TEST(test_runaway_state_is_an_error);
     RUN_TEST(test_tetgen_volume_bound_too_fine);
     RUN_TEST(test_stratified_work_too_large);
+    RUN_TEST(test_mosaic_work_too_large);
     RUN_TEST(test_messages_name_what_decides);
     RUN_TEST(test_scene_byte_order_mark);
     RUN_TEST(test_flock_mesh_errors_located);
