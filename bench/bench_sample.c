@@ -1,7 +1,7 @@
 /* Surface sampling (SCF §3): time and uniformity of random, mosaic and stratified sampling.
  *
  *   bench_sample [--mesh PATH] [--method random|mosaic|stratified] [--n N] [--threads T]
- *                [--iterations I] [--step S] [--lambda L] [--oversample O] [--manhattan] [--seed S]
+ *                [--iterations I] [--step S] [--k K] [--lambda L] [--oversample O] [--manhattan] [--seed S]
  *
  * Without --method/--n it runs the standard set on examples/creatures/suzanne.obj: every method at
  * N = 10^4 and 10^5, random and stratified also at 10^6. Prints one JSON object; per run the
@@ -64,6 +64,7 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--threads")) opts.threads = atoi(v), i++;
         else if (!strcmp(a, "--iterations")) opts.iterations = atoi(v), i++;
         else if (!strcmp(a, "--step")) opts.step = atof(v), i++;
+        else if (!strcmp(a, "--k")) opts.k = atof(v), i++;
         else if (!strcmp(a, "--lambda")) opts.lambda = atof(v), i++;
         else if (!strcmp(a, "--oversample")) opts.oversample = atof(v), i++;
         else if (!strcmp(a, "--seed")) opts.seed = strtoull(v, NULL, 10), i++;
@@ -74,9 +75,9 @@ int main(int argc, char **argv)
     fm_mesh mesh = {0};
     fm_error err = {0};
     if (fm_mesh_load(mesh_path, &mesh, &err) != FM_OK) return fprintf(stderr, "bench_sample: %s\n", err.message), 2;
-    printf("{\"mesh\": \"%s\", \"triangles\": %lld, \"threads\": %d, \"iterations\": %d, \"step\": %g, "
+    printf("{\"mesh\": \"%s\", \"triangles\": %lld, \"threads\": %d, \"iterations\": %d, \"step\": %g, \"k\": %g, "
            "\"lambda\": %g, \"oversample\": %g, \"manhattan\": %d, \"runs\": [",
-           mesh_path, (long long)mesh.nt, opts.threads, opts.iterations, opts.step, opts.lambda, opts.oversample,
+           mesh_path, (long long)mesh.nt, opts.threads, opts.iterations, opts.step, opts.k, opts.lambda, opts.oversample,
            opts.manhattan);
     int rc = 0, first = 1;
     for (int m = 0; m < 3 && rc == 0; m++) {

@@ -9,6 +9,8 @@
 #include <string.h>
 
 #define CLI_MAX_WEDGES 1000000L /* one farm task each: more is not a wedge, it is a mistake */
+/* The file of that many wedges, each setting a few keys; a larger one is not read to its end. */
+#define CLI_WEDGE_FILE_MAX_BYTES ((size_t)256 << 20)
 
 static int wedge_error(const char *path, const char *key, const char *what)
 {
@@ -91,9 +93,13 @@ int cli_wedges_load(const char *path, cli_wedges *w)
     memset(w, 0, sizeof *w);
     w->path = path;
     fm_error err = {0};
-    if (fm_check_input_file(path, "wedge file", &err) != FM_OK) return cli_report(&err);
+    fm_status st;
+    size_t len;
+    char *text = fm_read_text_file(path, "wedge file", CLI_WEDGE_FILE_MAX_BYTES, &len, &st, &err);
+    if (!text) return cli_report(&err);
     json_error_t jerr;
-    json_t *root = json_load_file(path, JSON_REJECT_DUPLICATES, &jerr);
+    json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &jerr);
+    free(text);
     if (!root) return fprintf(stderr, "flockmorph: error: %s:%d:%d: %s\n", path, jerr.line, jerr.column, jerr.text), FM_ERR_INPUT;
     const json_t *list = json_object_get(root, "wedges"), *product = json_object_get(root, "product");
     int rc;

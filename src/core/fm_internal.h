@@ -58,6 +58,15 @@ void fm_output_keep_partial(fm_output_file *o);
  * did not cause. Never blocks (a FIFO is refused without being opened). */
 fm_status fm_check_input_file(const char *path, const char *what, fm_error *err);
 
+/* A user's JSON file (the scene, a wedge file) read whole and NUL-terminated into a malloc'ed
+ * buffer (*out_len bytes before the NUL), without the UTF-8 byte-order mark some editors write
+ * first (RFC 8259 lets a parser ignore one; jansson does not), so that every such file takes one
+ * alike. fm_check_input_file first; a file of max_bytes or more is not a <what> and is refused
+ * (FM_ERR_INPUT) before it is read to its end. NULL on failure, with the status in *st and the
+ * message ("PATH: ...") in err. */
+char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, size_t *out_len, fm_status *st,
+                        fm_error *err);
+
 /* The OpenMP threads the engine uses when asked for `requested`: that many (at most
  * FM_MAX_THREADS, the --threads limit), or for 0 OpenMP's default capped at FM_MAX_THREADS and at
  * FM_THREADS_PER_CORE x the cores. The default comes from OMP_NUM_THREADS, which nothing bounds:

@@ -175,3 +175,56 @@ fm_status fm_check_input_file(const char *path, const char *what, fm_error *err)
                    strerror(e));
 }
 
+/* Reads f to its end into a growing buffer, NUL-terminated; stops once the buffer would have to
+ * grow to max_bytes or more (*too_big then set): such a file is not read to its end. */
+static char *read_stream(FILE *f, size_t max_bytes, size_t *out_len, int *too_big)
+{
+    size_t cap = 1 << 16, len = 0;
+    char *text = malloc(cap);
+    *too_big = 0;
+    while (text) {
+        len += fread(text + len, 1, cap - len - 1, f);
+        if (len < cap - 1) break;
+        if (cap >= max_bytes) {
+            free(text);
+            *too_big = 1;
+            return NULL;
+        }
+        char *bigger = realloc(text, cap *= 2);
+        if (!bigger) free(text);
+        text = bigger;
+    }
+    if (text) text[len] = 0;
+    *out_len = len;
+    return text;
+}
+
+char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, size_t *out_len, fm_status *st,
+                        fm_error *err)
+{
+    if ((*st = fm_check_input_file(path, what, err)) != FM_OK) return NULL;
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        *st = fm_fail(err, FM_ERR_IO, "%s: cannot open the %s: %s", path, what, strerror(errno));
+        return NULL;
+    }
+    size_t len = 0;
+    int too_big;
+    char *text = read_stream(f, max_bytes, &len, &too_big);
+    int bad = ferror(f);
+    fclose(f);
+    if (too_big) {
+        *st = fm_fail(err, FM_ERR_INPUT, "%s: the %s is larger than %zu MiB: it is not a %s", path, what,
+                      max_bytes >> 20, what);
+        return NULL;
+    }
+    if (!text || bad) {
+        free(text);
+        *st = fm_fail(err, bad ? FM_ERR_IO : FM_ERR_MEMORY, "%s: cannot read the %s", path, what);
+        return NULL;
+    }
+    if (len >= 3 && !memcmp(text, "\xEF\xBB\xBF", 3)) memmove(text, text + 3, (len -= 3) + 1); /* the mark */
+    *out_len = len;
+    return text;
+}
+

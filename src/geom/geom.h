@@ -31,11 +31,11 @@ fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
 fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,
                         fm_error *err);
 void fm_mesh_free(fm_mesh *mesh);
-/* mesh_counts.c: the element counts a PLY or OFF header or a binary STL declares must fit in the
- * file's bytes (head: its first head_len bytes; format: the extension), else FM_ERR_INPUT before
- * assimp allocates from them. fm_mesh_check_file_counts reads the head of a file. */
-fm_status fm_mesh_check_counts(const char *head, size_t head_len, uint64_t file_bytes, const char *format,
-                               const char *name, fm_error *err);
+/* mesh_counts.c: the element counts a PLY or OFF header or a binary STL declares, and the list
+ * lengths of a binary PLY body, must fit in the file's bytes (data: the whole file, len bytes;
+ * format: the extension), else FM_ERR_INPUT before assimp allocates from them.
+ * fm_mesh_check_file_counts reads the file. */
+fm_status fm_mesh_check_counts(const void *data, size_t len, const char *format, const char *name, fm_error *err);
 fm_status fm_mesh_check_file_counts(const char *path, fm_error *err);
 /* Every edge shared by exactly two faces with opposite directions, no zero-area triangle, and a
  * volume inside; names the first bad edge or triangle (numbered from 1 in file order). */

@@ -118,13 +118,36 @@ static fm_status check_finite(const fm_mesh *mesh, const char *path, fm_error *e
     return FM_OK;
 }
 
+/* A face without indices cannot come from a sound file; some readers (binary PLY: a face whose
+ * list count is 0) still make one. assimp's ValidateDataStructure runs before its scene
+ * preprocessor has set the primitive types, so it does not see it; the preprocessor then marks such
+ * a face as a polygon and the triangulation's assertion aborts the process. So the faces are
+ * checked here, between the import and the post-processing. */
+static fm_status check_faces(const struct aiScene *scene, const char *name, fm_error *err)
+{
+    for (unsigned m = 0; m < scene->mNumMeshes; m++)
+        for (unsigned f = 0; f < scene->mMeshes[m]->mNumFaces; f++)
+            if (scene->mMeshes[m]->mFaces[f].mNumIndices == 0)
+                return fm_fail(err, FM_ERR_INPUT, "%s: face %u (of mesh %u in the file) has no vertex indices: the "
+                               "file is damaged", name, f + 1, m + 1);
+    return FM_OK;
+}
+
 /* Triangles of an imported assimp scene (NULL: the import failed) into out, welded. */
 static fm_status take_scene(const struct aiScene *scene, const char *name, fm_mesh *out, fm_error *err)
 {
     if (!scene)
         return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
                        "STL, OFF, glTF", name, aiGetErrorString());
-    fm_status st = gather_triangles(scene, name, out, err);
+    fm_status st = check_faces(scene, name, err);
+    if (st != FM_OK) {
+        aiReleaseImport(scene);
+        return st;
+    }
+    /* releases the scene itself if a step fails */
+    if (!(scene = aiApplyPostProcessing(scene, aiProcess_Triangulate | aiProcess_PreTransformVertices)))
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot triangulate the mesh (%s)", name, aiGetErrorString());
+    st = gather_triangles(scene, name, out, err);
     aiReleaseImport(scene);
     if (st == FM_OK) st = check_finite(out, name, err);
     if (st == FM_OK) st = weld_vertices(out, err);
@@ -132,10 +155,10 @@ static fm_status take_scene(const struct aiScene *scene, const char *name, fm_me
     return st;
 }
 
-/* ValidateDataStructure runs first and rejects what a damaged file leaves behind (a face without
- * indices, an index past the vertices); without it, assimp's later steps abort the process. */
-static const unsigned IMPORT_FLAGS =
-    aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices;
+/* The import runs only assimp's ValidateDataStructure, which rejects what a damaged file leaves
+ * behind (a face without an index array, an index past the vertices); without it, assimp's later
+ * steps abort the process. The triangulation follows in take_scene, after check_faces. */
+static const unsigned IMPORT_FLAGS = aiProcess_ValidateDataStructure;
 
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
 {
@@ -151,7 +174,7 @@ fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const 
 {
     memset(out, 0, sizeof *out);
     if (len == 0 || len > UINT32_MAX) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh data is empty or too large", name);
-    fm_status st = fm_mesh_check_counts(data, len < (1 << 16) ? len : (1 << 16), len, format, name, err);
+    fm_status st = fm_mesh_check_counts(data, len, format, name, err);
     if (st != FM_OK) return st;
     return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, out, err);
 }

@@ -104,6 +104,10 @@ typedef struct fm_sample_ctx {
 
 /* Area-weighted uniform samples into out (allocated by the caller: n entries), with doubles. */
 void fm_sample_random_into(const fm_sample_ctx *c, double *x, int32_t *tri);
+/* The mosaic's work is bounded: FM_ERR_INPUT, naming the iterations and k and the iterations that
+ * fit, when its estimated CPU time is over FM_SAMPLE_MOSAIC_MAX_SECONDS and over what the default
+ * iterations and k take for n points (sample_mosaic.c, docs/limits.md). */
+#define FM_SAMPLE_MOSAIC_MAX_SECONDS 300.0
 fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
 fm_status fm_sample_stratified(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
 

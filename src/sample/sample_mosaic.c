@@ -54,14 +54,16 @@ static double distance_metric(const double d[3], int manhattan)
 }
 
 /* Eq 4 for point i: the sum over its neighbourhood U_i of norm(p_i - p_j) E_ij. The grid's float
-   copies reject the far candidates (most of the 27 cells) before the double arithmetic. */
-static void repulsion(const mosaic *m, const double *x, int64_t i, double f[3])
+   copies reject the far candidates (most of the 27 cells) before the double arithmetic. Returns
+   the candidates examined (the iteration's work, check_work). */
+static int64_t repulsion(const mosaic *m, const double *x, int64_t i, double f[3])
 {
     int32_t rk[2 * FM_GRID_MAX_RANGES];
     const float q[3] = {m->xyz[0][i], m->xyz[1][i], m->xyz[2][i]};
     const int nr = fm_grid_ranges(&m->grid, q[0], q[1], q[2], rk);
     const double *pi = x + 3 * i;
     const float r2 = m->cell * m->cell;
+    int64_t candidates = 0;
     f[0] = f[1] = f[2] = 0;
     for (int r = 0; r < nr; r++)
         for (int32_t k = rk[2 * r]; k < rk[2 * r + 1]; k++) {
@@ -85,13 +87,16 @@ static void repulsion(const mosaic *m, const double *x, int64_t i, double f[3])
                 for (int a = 0; a < 3; a++) f[a] += s * (double)u[a];
             }
         }
+    for (int r = 0; r < nr; r++) candidates += rk[2 * r + 1] - rk[2 * r];
+    return candidates;
 }
 
-/* One point's move: eq 5 in the tangent plane, then the orthogonal projection onto the mesh. */
-static void move_point(const mosaic *m, const double *x, const int32_t *tri, int64_t i, double *x_out, int32_t *tri_out)
+/* One point's move: eq 5 in the tangent plane, then the orthogonal projection onto the mesh.
+   Returns the neighbour candidates it examined. */
+static int64_t move_point(const mosaic *m, const double *x, const int32_t *tri, int64_t i, double *x_out, int32_t *tri_out)
 {
     double f[3];
-    repulsion(m, x, i, f);
+    const int64_t candidates = repulsion(m, x, i, f);
     const double *n = fm_closest_face_normal(m->surface, tri[i]);
     double fn = f[0] * n[0] + f[1] * n[1] + f[2] * n[2];
     double step[3], len2 = 0;
@@ -99,13 +104,14 @@ static void move_point(const mosaic *m, const double *x, const int32_t *tri, int
     if (!(len2 > 0)) { /* no neighbour: stays */
         memcpy(x_out + 3 * i, x + 3 * i, 3 * sizeof(double));
         tri_out[i] = tri[i];
-        return;
+        return candidates;
     }
     double q[3] = {x[3 * i] + step[0], x[3 * i + 1] + step[1], x[3 * i + 2] + step[2]};
     int64_t t = -1;
     /* x_i is on the mesh, so the mesh is within |step| of q: the search starts there */
     fm_closest_point(m->surface, q, sqrt(len2) + m->slack, x_out + 3 * i, &t);
     tri_out[i] = (int32_t)t;
+    return candidates;
 }
 
 /* Reorders the points along a Hilbert curve through their bounding box, so that neighbours on the
@@ -162,6 +168,96 @@ static void mosaic_free(mosaic *m)
     for (int k = 0; k < 3; k++) fm_free(m->xyz[k]);
 }
 
+/* One iteration's work: the neighbour candidates the repulsion examines, every point's 27 grid
+ * cells, itself included (so at least n). The count depends on k and on the surface: about 14 k^2
+ * a point on a smooth surface, up to n when the neighbourhood A spans the mesh, and more where
+ * sheets of the surface lie closer than A. Counted here before the first iteration; the iterations
+ * count their own (move_point). */
+static int64_t iteration_candidates(const mosaic *m, int64_t n, int threads)
+{
+    int64_t total = 0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : total)
+    for (int64_t i = 0; i < n; i++) {
+        int32_t rk[2 * FM_GRID_MAX_RANGES];
+        const int nr = fm_grid_ranges(&m->grid, m->xyz[0][i], m->xyz[1][i], m->xyz[2][i], rk);
+        for (int r = 0; r < nr; r++) total += rk[2 * r + 1] - rk[2 * r];
+    }
+    return total;
+}
+
+/* The work bound. The iterations' CPU time is estimated from what they do: the neighbour candidates
+ * the repulsion examines, and the points each iteration moves and projects (the grid, the Embree
+ * query). Measured with bench_sample (one thread, the project's 2-vCPU VM), a point and iteration
+ * take 0.84 us at k 2 (55 candidates), 1.6 at k 4 (208), 4.5 at k 8 (947) and 15.6 at k 16 (3602)
+ * on suzanne at 10^4 points, and 12.5 us at k 16 on the 320-triangle sphere at 2000 points, where
+ * every point is every other's candidate: 6 ns a candidate and 0.6 us a point bound them all. The
+ * iterations may take FM_SAMPLE_MOSAIC_MAX_SECONDS a surface, or what the default iterations take
+ * at the default k for n points (with room: MOSAIC_FREE_CANDIDATES a point) if that is more, so
+ * that the defaults run at any n the memory check allows, in a time that grows only as n. Past it
+ * (k 16 and 10^5 iterations at 2000 points: about 40 minutes a surface) the sampler refuses before
+ * its first iteration, with the iterations that would fit. */
+#define MOSAIC_CANDIDATE_SECONDS 6e-9
+#define MOSAIC_POINT_SECONDS 6e-7
+#define MOSAIC_FREE_CANDIDATES 100.0
+
+static double iteration_seconds(double candidates, int64_t n)
+{
+    return candidates * MOSAIC_CANDIDATE_SECONDS + (double)n * MOSAIC_POINT_SECONDS;
+}
+
+static double seconds_limit(int64_t n)
+{
+    return fmax(FM_SAMPLE_MOSAIC_MAX_SECONDS, FM_SAMPLE_MOSAIC_ITERATIONS * iteration_seconds(MOSAIC_FREE_CANDIDATES * (double)n, n));
+}
+
+/* Before iteration it: the time spent (done) and the rest at the rate of `now` candidates an
+ * iteration (the first iteration's, counted up front, then the last one's) must stay within the
+ * limit. So work past the limit is refused before the first iteration, and a run whose points move
+ * into denser neighbourhoods (sheets of the surface nearer each other than A) stops when it would
+ * pass the limit, not after. */
+static fm_status check_work(const fm_sample_ctx *c, int it, double done, int64_t now, fm_error *err)
+{
+    const double each = iteration_seconds((double)now, c->n), total = done + each * (c->opts.iterations - it);
+    const double limit = seconds_limit(c->n);
+    if (total <= limit) return FM_OK;
+    const int most = it + (int)fmax(0, floor((limit - done) / each));
+    return fm_fail(err, FM_ERR_INPUT, "mosaic sampling: %d iterations over %lld points with k %g would take about %.0f CPU s "
+                   "(%.0f neighbour candidates a point and iteration%s), more than the limit of %.0f CPU s; use at most %d "
+                   "iterations, or a smaller k (the candidates are the points within about k sqrt(M/N) of each other)",
+                   c->opts.iterations, (long long)c->n, c->opts.k, total, (double)now / (double)c->n,
+                   it ? " once the points moved" : "", limit, most);
+}
+
+static void grid_points(mosaic *m, const fm_sample_ctx *c, const double *x)
+{
+    for (int64_t i = 0; i < c->n; i++)
+        for (int k = 0; k < 3; k++) m->xyz[k][i] = (float)x[3 * i + k];
+    fm_grid_build(&m->grid, (const float *const *)m->xyz, NULL, c->n, m->cell, c->threads);
+}
+
+/* The relaxation (Table I, lines 2-9), its time bounded by check_work. */
+static fm_status relax(mosaic *m, const fm_sample_ctx *c, double *x, int32_t *tri, double *x2, int32_t *tri2, fm_error *err)
+{
+    /* cells larger than A by the float rounding of both points: a neighbour with dis_ij < A (in
+       double) is always in the 27 cells around a point's (float) cell */
+    m->cell = (float)(m->reach * (1.0 + 1e-6) + 4.0 * FLT_EPSILON * m->scale);
+    double done = 0;
+    int64_t now = 0;
+    for (int it = 0; it < c->opts.iterations; it++) {
+        grid_points(m, c, x);
+        if (it == 0) now = iteration_candidates(m, c->n, c->threads);
+        fm_status st = check_work(c, it, done, now, err);
+        if (st != FM_OK) return st;
+        now = 0;
+#pragma omp parallel for num_threads(c->threads) schedule(dynamic, 256) reduction(+ : now)
+        for (int64_t i = 0; i < c->n; i++) now += move_point(m, x, tri, i, x2, tri2);
+        done += iteration_seconds((double)now, c->n);
+        memcpy(x, x2, sizeof(double) * 3 * (size_t)c->n);
+        memcpy(tri, tri2, sizeof(int32_t) * (size_t)c->n);
+    }
+    return FM_OK;
+}
+
 fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err)
 {
     mosaic m = {0};
@@ -177,20 +273,7 @@ fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_e
         fm_sample_random_into(c, x, tri); /* Table I starts from random sampling */
         st = sort_spatially(c->n, x, tri, err);
     }
-    if (st == FM_OK) {
-        /* cells larger than A by the float rounding of both points: a neighbour with dis_ij < A
-           (in double) is always in the 27 cells around a point's (float) cell */
-        m.cell = (float)(m.reach * (1.0 + 1e-6) + 4.0 * FLT_EPSILON * m.scale);
-        for (int it = 0; it < c->opts.iterations; it++) {
-            for (int64_t i = 0; i < c->n; i++)
-                for (int k = 0; k < 3; k++) m.xyz[k][i] = (float)x[3 * i + k];
-            fm_grid_build(&m.grid, (const float *const *)m.xyz, NULL, c->n, m.cell, c->threads);
-#pragma omp parallel for num_threads(c->threads) schedule(dynamic, 256)
-            for (int64_t i = 0; i < c->n; i++) move_point(&m, x, tri, i, x2, tri2);
-            memcpy(x, x2, sizeof(double) * 3 * (size_t)c->n);
-            memcpy(tri, tri2, sizeof(int32_t) * (size_t)c->n);
-        }
-    }
+    if (st == FM_OK) st = relax(&m, c, x, tri, x2, tri2, err);
     fm_free(x2);
     fm_free(tri2);
     mosaic_free(&m);

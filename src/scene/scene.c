@@ -12,7 +12,6 @@
 
 #include <jansson.h>
 
-#include <errno.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -1006,41 +1005,10 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
 /* Scenes are a few KiB (256 path points and every key fit in well under 1 MiB). */
 #define FM_SCENE_MAX_BYTES (64 << 20)
 
+/* The scene's text, without a byte-order mark (fm_read_text_file, which wedge files share). */
 static char *read_text(const char *path, size_t *out_len, fm_status *st, fm_error *err)
 {
-    if ((*st = fm_check_input_file(path, "scene file", err)) != FM_OK) return NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        *st = fm_fail(err, FM_ERR_IO, "%s: cannot open the scene file: %s", path, strerror(errno));
-        return NULL;
-    }
-    size_t cap = 1 << 16, len = 0;
-    char *text = malloc(cap);
-    while (text) {
-        len += fread(text + len, 1, cap - len - 1, f);
-        if (len < cap - 1) break;
-        if (cap >= FM_SCENE_MAX_BYTES) { /* a file of that size is not a scene: do not read it all */
-            free(text), fclose(f);
-            *st = fm_fail(err, FM_ERR_INPUT, "%s: the scene file is larger than %d MiB: it is not a scene", path,
-                          FM_SCENE_MAX_BYTES >> 20);
-            return NULL;
-        }
-        char *bigger = realloc(text, cap *= 2);
-        if (!bigger) free(text);
-        text = bigger;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (!text || bad) {
-        free(text);
-        *st = fm_fail(err, bad ? FM_ERR_IO : FM_ERR_MEMORY, "%s: cannot read the scene file", path);
-        return NULL;
-    }
-    text[len] = 0;
-    if (len >= 3 && !memcmp(text, "\xEF\xBB\xBF", 3)) /* a UTF-8 byte-order mark (editors on Windows write one): */
-        memmove(text, text + 3, (len -= 3) + 1);        /* RFC 8259 lets a parser ignore it, and jansson does not */
-    *out_len = len;
-    return text;
+    return fm_read_text_file(path, "scene file", FM_SCENE_MAX_BYTES, out_len, st, err);
 }
 
 void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, size_t size)

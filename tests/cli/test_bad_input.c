@@ -406,6 +406,53 @@ static void test_mesh_counts_beyond_file(void)
     }
 }
 
+/* A PLY face whose list of indices is empty (count 0): assimp's triangulation asserted on it and
+ * aborted the process (found by fuzz_ply_binary; tests/fuzz/regressions/ply_binary). Now exit 2
+ * naming the file and the face, in the binary and the ASCII form. */
+static void test_mesh_face_without_indices(void)
+{
+    static const char head[] = "ply\nformat %s 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                               "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n";
+    static const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    static const int32_t f[3][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}};
+    unsigned char bin[512];
+    size_t len = (size_t)snprintf((char *)bin, sizeof bin, head, "binary_little_endian"); /* the test runs on x86 */
+    memcpy(bin + len, v, sizeof v), len += sizeof v;
+    for (int k = 0; k < 3; k++) bin[len++] = 3, memcpy(bin + len, f[k], sizeof f[k]), len += sizeof f[k];
+    bin[len++] = 0; /* the fourth face: no indices */
+    write_binary("face_without_indices.ply", bin, len);
+    char text[512];
+    snprintf(text, sizeof text, head, "ascii");
+    strncat(text, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n0\n", sizeof text - strlen(text) - 1);
+    write_mesh("face_without_indices_ascii.ply", text);
+    expect_bad_mesh("face_without_indices.ply", "face 4 (of mesh 1 in the file) has no vertex indices: the file is damaged");
+    expect_bad_mesh("face_without_indices_ascii.ply", "face 4 (of mesh 1 in the file) has no vertex indices");
+}
+
+/* A binary PLY face whose list count (uint) says 4294967280 entries, with 12 bytes after it: assimp
+ * sized the list from the count (34 GB) before reading it; a 300-byte file took 2.2 GB this way.
+ * Refused from the file's size, under a 2 GiB address space like the counts above. */
+static void test_mesh_list_longer_than_file(void)
+{
+    static const char head[] = "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty "
+                               "float y\nproperty float z\nelement face 4\nproperty list uint int vertex_indices\nend_header\n";
+    static const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    static const uint32_t f[4][4] = {{3, 0, 2, 1}, {3, 0, 1, 3}, {3, 0, 3, 2}, {4294967280u, 1, 2, 3}};
+    unsigned char bin[512];
+    size_t len = sizeof head - 1;
+    memcpy(bin, head, len);
+    memcpy(bin + len, v, sizeof v), len += sizeof v; /* little-endian: the test runs on x86 */
+    memcpy(bin + len, f, sizeof f), len += sizeof f;
+    write_binary("list_too_long.ply", bin, len);
+    char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+    const char *path = mesh_scene("list_too_long.ply", where, sizeof where);
+    cli_env limited = {.memory_limit = 2LL << 30};
+    expect_output(run_scene(&limited, path, "out"), 2, "list_too_long.ply",
+                  (const char *const[]){where, tmp_path(mesh, "list_too_long.ply"), "'face' element 4: the list "
+                                        "'vertex_indices' declares 4294967280 entries of 4 bytes, but 12 bytes are left "
+                                        "in the file: it is damaged or cut short", NULL});
+}
+
 static void test_mesh_empty_or_not_a_mesh(void)
 {
     write_mesh("empty.obj", "");
@@ -1086,20 +1133,48 @@ static void test_tetgen_volume_bound_too_fine(void)
                0, "");
 }
 
-/* lambda 100, oversample 16 for 300 agents ran for over 400 s; now refused at load, naming the keys. */
-static void test_stratified_work_too_large(void)
+/* A shape flock of n agents over the octahedra, one frame, with the shape_flock group given. */
+static const char *flock_sampling_scene(const char *name, int n, const char *shape_flock)
+{
+    char extra[512];
+    snprintf(extra, sizeof extra, FLOCK ",\n  \"n\": %d,\n  \"time\": {\"frame_limit\": 1},\n  \"shape_flock\": %s", n,
+             shape_flock);
+    return plain_scene(name, extra);
+}
+
+/* A flock of n agents whose sampling group `too_much` is refused at once, at the position of `needle`
+ * in the scene, with every one of `parts`; with `fits` instead, the run goes. */
+static void expect_sampling_work_refused(const char *name, int n, const char *too_much, const char *needle,
+                                         const char *const *parts, const char *fits)
 {
     char where[FM_PATH_MAX + 32];
-    const char *path = plain_scene("strat.json", FLOCK ",\n  \"n\": 300,\n  \"shape_flock\": {\"sampling\": \"stratified\", "
-                                   "\"stratified\": {\"lambda\": 100, \"oversample\": 16}}");
-    scene_position("100", where, sizeof where);
-    expect_quick_refusal(path, 5, (const char *const[]){where, "shape_flock.stratified.lambda: 100 with "
-                         "shape_flock.stratified.oversample 16 and n 300", "3.84e+08 triangle pieces per surface",
-                         "4800 voxels", "more than the limit of 2.68e+08", "lambda of at most 83.6", NULL});
-    /* lambda 4 passes at any n: the same keys with a large n fail only later, on memory */
-    path = plain_scene("strat_ok.json", FLOCK ",\n  \"n\": 300,\n  \"time\": {\"frame_limit\": 1},\n  \"shape_flock\": "
-                       "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 4, \"oversample\": 16}}");
-    EXPECT_RUN(path, 0, "");
+    const char *path = flock_sampling_scene(name, n, too_much);
+    scene_position(needle, where, sizeof where);
+    expect_quick_refusal(path, 5, parts);
+    ENSURE_MSG(strstr(g_err, where) != NULL, "%s: '%s' not in stderr: %s", name, where, g_err);
+    EXPECT_RUN(flock_sampling_scene("sampling_fits.json", n, fits), 0, "");
+}
+
+/* lambda 100, oversample 16 for 300 agents ran for over 400 s; now refused at load, naming the keys.
+ * lambda 4 passes at any n (the same keys with a large n fail only later, on memory). */
+static void test_stratified_work_too_large(void)
+{
+    expect_sampling_work_refused("strat.json", 300, "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 100, "
+                                 "\"oversample\": 16}}", "100", (const char *const[]){"shape_flock.stratified.lambda: 100 "
+                                 "with shape_flock.stratified.oversample 16 and n 300", "3.84e+08 triangle pieces per surface",
+                                 "4800 voxels", "more than the limit of 2.68e+08", "lambda of at most 83.6", NULL},
+                                 "{\"sampling\": \"stratified\", \"stratified\": {\"lambda\": 4, \"oversample\": 16}}");
+}
+
+/* k 16 and 10^5 mosaic iterations for 2000 agents would sample each surface for about 40 CPU
+ * minutes; refused before the first iteration at the sampling key, naming the iterations that fit.
+ * k 16 itself is allowed: 10 iterations run. */
+static void test_mosaic_work_too_large(void)
+{
+    expect_sampling_work_refused("mosaic.json", 2000, "{\"sampling\": \"mosaic\", \"mosaic\": {\"k\": 16, \"iterations\": "
+                                 "100000}}", "\"mosaic\"", (const char *const[]){"shape_flock.sampling: mosaic sampling: 100000 "
+                                 "iterations over 2000 points with k 16", "more than the limit of 300 CPU s", "use at most", NULL},
+                                 "{\"sampling\": \"mosaic\", \"mosaic\": {\"k\": 16, \"iterations\": 10}}");
 }
 
 /* ---------------------------------------------------------------- messages that help (issue 15, item 13) */
@@ -1224,6 +1299,8 @@ int main(void)
     RUN_TEST(test_mesh_file_unreadable);
     RUN_TEST(test_mesh_empty_or_not_a_mesh);
     RUN_TEST(test_mesh_counts_beyond_file);
+    RUN_TEST(test_mesh_face_without_indices);
+    RUN_TEST(test_mesh_list_longer_than_file);
     RUN_TEST(test_mesh_garbage_bytes);
     RUN_TEST(test_mesh_open);
     RUN_TEST(test_mesh_non_manifold);
@@ -1255,6 +1332,7 @@ int main(void)
     RUN_TEST(test_runaway_state_is_an_error);
     RUN_TEST(test_tetgen_volume_bound_too_fine);
     RUN_TEST(test_stratified_work_too_large);
+    RUN_TEST(test_mosaic_work_too_large);
     RUN_TEST(test_messages_name_what_decides);
     RUN_TEST(test_scene_byte_order_mark);
     RUN_TEST(test_flock_mesh_errors_located);

@@ -205,6 +205,31 @@ static void test_product_order(void)
     ENSURE(!strcmp(help, g_out) && strstr(help, "usage: flockmorph wedge"));
 }
 
+/* A UTF-8 byte-order mark at the start of a wedge file is skipped, as in a scene file (the same
+ * reader, fm_read_text_file): the same wedges, the same run, and an error's line and column those
+ * of the text after the mark. */
+static void test_wedge_file_byte_order_mark(void)
+{
+    clear_index_variables();
+    write_scene("base.json", "");
+    char text[sizeof PRODUCT + 3], plain[sizeof g_out];
+    write_file("product.json", PRODUCT);
+    snprintf(text, sizeof text, "\xEF\xBB\xBF%s", PRODUCT);
+    write_file("bom_product.json", text);
+    ENSURE_RUN("wedge list @product.json --json", 0);
+    snprintf(plain, sizeof plain, "%s", g_out);
+    ENSURE_RUN("wedge list @bom_product.json --json", 0);
+    json_t *a = json_loads(plain, 0, NULL), *b = json_loads(g_out, 0, NULL);
+    ENSURE_MSG(a && b && json_equal(at(a, "wedges"), at(b, "wedges")), "with the mark: %s\nwithout: %s", g_out, plain);
+    json_decref(a), json_decref(b);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 5 -o '@bom_plain/{wedge}' --quiet", 0);
+    ENSURE_RUN("run @base.json --wedge-file @bom_product.json --wedge 5 -o '@bom_marked/{wedge}' --quiet", 0);
+    ENSURE_MSG(same_output("bom_plain/0005", "bom_marked/0005", "frames.fmc"), "the marked file ran another wedge");
+    write_file("bom_bad.json", "\xEF\xBB\xBF{\"product\": {\"seed\": [1, 2,]}}\n");
+    ENSURE_RUN("wedge count @bom_bad.json", 2);
+    ENSURE_ERR("wedge_bom_bad.json:1:28: unexpected token near ']'"); /* 1:28 without the mark too */
+}
+
 /* The wedge index from each farm's variable runs the wedge --wedge runs; --wedge and Slurm's
  * variable come first; an index out of range or missing is an error that names the count. */
 static void test_wedge_index(void)
@@ -317,6 +342,7 @@ int main(void)
     RUN_TEST(test_set_equals_edited_file);
     RUN_TEST(test_set_errors);
     RUN_TEST(test_product_order);
+    RUN_TEST(test_wedge_file_byte_order_mark);
     RUN_TEST(test_wedge_index);
     RUN_TEST(test_manifest);
     return test_result();

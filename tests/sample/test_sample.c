@@ -3,6 +3,7 @@
  * margin on two meshes, determinism for a seed and across thread counts, evaluation on deformed
  * meshes, the agent-sample correspondence, the uniformity measure itself, and bad input. */
 #include "closest.h"
+#include "fm_internal.h"
 #include "geom.h"
 #include "sample.h"
 #include "test_macros.h"
@@ -276,6 +277,31 @@ static void test_nn_stats(void)
     free(p);
 }
 
+/* The mosaic's iterations are bounded by their estimated CPU time (sample_mosaic.c): k 16 and 10^5
+ * iterations at 2000 points make every point every other's candidate on the torus, about 40 CPU
+ * minutes, and are refused before the first iteration, with the iterations that fit; 10 iterations
+ * of the same run pass. */
+static void test_mosaic_work_bounded(void)
+{
+    fm_mesh m = load_mesh("torus");
+    fm_sample_opts o = fm_default_sample_opts();
+    o.method = FM_SAMPLE_MOSAIC, o.k = 16, o.iterations = 100000, o.threads = 1;
+    fm_samples s;
+    fm_error err = {0};
+    double t0 = fm_seconds();
+    fm_status st = fm_sample_surface(&m, 2000, &o, &s, &err);
+    ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "mosaic sampling: 100000 iterations over 2000 points with k 16") &&
+               strstr(err.message, "more than the limit of 300 CPU s; use at most "), "%d %s", (int)st, err.message);
+    ENSURE_MSG(fm_seconds() - t0 < 5, "refused after %.1f s, not before the first iteration", fm_seconds() - t0);
+    const char *most = strstr(err.message, "use at most ");
+    int fit = most ? atoi(most + 12) : 0;
+    ENSURE_MSG(fit > 10 && fit < 100000, "iterations that fit: %d", fit);
+    o.iterations = 10;
+    ENSURE_MSG(fm_sample_surface(&m, 2000, &o, &s, &err) == FM_OK, "%s", err.message);
+    fm_samples_free(&s);
+    fm_mesh_free(&m);
+}
+
 static void expect_sample_error(const fm_mesh *m, int64_t n, const fm_sample_opts *o, const char *want)
 {
     fm_samples s = {(float *)1, NULL, NULL, 5};
@@ -350,5 +376,6 @@ int main(void)
     RUN_TEST(test_match);
     RUN_TEST(test_nn_stats);
     RUN_TEST(test_bad_input);
+    RUN_TEST(test_mosaic_work_bounded);
     return test_result();
 }
