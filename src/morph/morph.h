@@ -150,6 +150,7 @@ fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_e
 fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err);
 void fm_morph_dist_rebalance(fm_morph_state *s);
 void fm_morph_dist_record_load(fm_morph_state *s);
+void fm_morph_dist_add_busy(fm_morph_state *s, double seconds); /* the step's own work, for the balance */
 /* Checkpoints on P ranks: one file of one process's layout, written by rank 0 (any P resumes it);
  * after each rank loaded one, adopt keeps the rank's share. */
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,

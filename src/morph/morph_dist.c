@@ -42,6 +42,10 @@ struct fm_morph_slabs {
     double *cut;     /* ranks + 1 */
     float halo;      /* d_min, and a margin for the rounding of a distance */
     int64_t *count;  /* per rank: records to send */
+    double cost;     /* since the last cut, the least time per agent a step of this rank took
+                        (neighbour grid, velocity, move): the next cut's weight. The least, since a
+                        step that shared the core (rank 0's cache writer, the machine's other jobs)
+                        says nothing about the work */
     fm_morph_dist_totals totals;
 };
 
@@ -56,6 +60,7 @@ static int longest_axis(const fm_morph_model *m)
 static int owner(const fm_morph_slabs *d, float x, int current)
 {
     if (!(x == x)) return current; /* NaN: kept where it is; the frame's runaway check reports it */
+    if (x >= d->cut[d->rank] && x < d->cut[d->rank + 1]) return d->rank; /* most agents stay */
     int lo = 0, hi = d->ranks - 1;
     while (lo < hi) { /* the last r with cut[r] <= x */
         int mid = (lo + hi + 1) / 2;
@@ -66,17 +71,17 @@ static int owner(const fm_morph_slabs *d, float x, int current)
 }
 
 /* The cuts at the weighted quantiles of a histogram over [lo, hi] along the axis. */
-static void cuts_from_histogram(fm_morph_slabs *d, const int64_t *bins)
+static void cuts_from_histogram(fm_morph_slabs *d, const double *bins)
 {
-    int64_t total = 0;
+    double total = 0;
     for (int b = 0; b < BALANCE_BINS; b++) total += bins[b];
-    if (total == 0) return;
+    if (!(total > 0)) return;
     const double width = (d->hi - d->lo) / BALANCE_BINS;
-    int64_t seen = 0;
+    double seen = 0;
     int b = 0;
     for (int r = 1; r < d->ranks; r++) {
-        const double share = (double)total * r / d->ranks;
-        while (b < BALANCE_BINS && (double)(seen + bins[b]) < share) seen += bins[b++];
+        const double share = total * r / d->ranks;
+        while (b < BALANCE_BINS && seen + bins[b] < share) seen += bins[b++];
         d->cut[r] = d->lo + width * (b + 1);
     }
 }
@@ -88,9 +93,9 @@ static int bin_of(const fm_morph_slabs *d, float x)
 }
 
 /* The first cuts: quantiles of every source tet's centroid (the flock starts as the source). */
-static void initial_cuts(const fm_morph_model *m, fm_morph_slabs *d, int64_t *bins)
+static void initial_cuts(const fm_morph_model *m, fm_morph_slabs *d, double *bins)
 {
-    memset(bins, 0, sizeof(int64_t) * BALANCE_BINS);
+    memset(bins, 0, sizeof(double) * BALANCE_BINS);
     for (int64_t i = 0; i < m->n; i++) bins[bin_of(d, m->src_c[d->axis][i])]++;
     cuts_from_histogram(d, bins);
 }
@@ -98,7 +103,7 @@ static void initial_cuts(const fm_morph_model *m, fm_morph_slabs *d, int64_t *bi
 fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err)
 {
     fm_morph_slabs *d = calloc(1, sizeof *d);
-    int64_t *bins = malloc(sizeof(int64_t) * BALANCE_BINS);
+    double *bins = malloc(sizeof(double) * BALANCE_BINS);
     const int ranks = fm_dist_size(dist);
     if (d) d->cut = malloc(sizeof(double) * (size_t)(ranks + 1)), d->count = calloc((size_t)ranks, sizeof(int64_t));
     if (!d || !bins || !d->cut || !d->count) {
@@ -109,6 +114,7 @@ fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, 
     d->lo = m->scene_lo[d->axis], d->hi = m->scene_hi[d->axis];
     if (!(d->hi > d->lo)) d->hi = d->lo + 1;
     for (int r = 0; r <= ranks; r++) d->cut[r] = r == 0 ? -INFINITY : r == ranks ? INFINITY : d->lo;
+    d->cost = INFINITY;
     d->halo = (float)(m->def.d_min * (1 + 1e-4)) + 1e-6f * (float)fmax(fabs(d->lo), fabs(d->hi));
     initial_cuts(m, d, bins);
     free(bins);
@@ -166,7 +172,7 @@ static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent
     s->rest_radius[a] = m->src_radius[i];
 }
 
-/* Slot `from`'s agent to slot `to` (to < from), every per-slot array. */
+/* Slot `from`'s agent to slot `to`, every per-slot array. */
 static void move_slot(fm_morph_state *s, int64_t from, int64_t to)
 {
     for (int k = 0; k < 3; k++) s->p[k][to] = s->p[k][from], s->v[k][to] = s->v[k][from], s->p2[k][to] = s->p2[k][from];
@@ -179,7 +185,9 @@ static void move_slot(fm_morph_state *s, int64_t from, int64_t to)
 
 static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase == FM_PHASE_HOMING; }
 
-/* Packs the leaving agents rank by rank (two passes: count, then fill) and closes the gaps. */
+/* Packs the leaving agents rank by rank (two passes: count, then fill) and fills each gap with the
+ * last agent of the range: the cost is the leavers', not the store's (the order changes, which no
+ * result depends on; the next re-sort restores the locality). */
 static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error *err)
 {
     fm_morph_slabs *d = s->slabs;
@@ -193,15 +201,18 @@ static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error 
     }
     agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(*leaving, 1));
     if (!out) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating agents", (long long)*leaving), NULL;
-    int64_t *at = calloc((size_t)d->ranks, sizeof(int64_t)), kept = s->active_begin;
+    int64_t *at = calloc((size_t)d->ranks, sizeof(int64_t));
     if (!at) return fm_free(out), fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
-    for (int64_t a = s->active_begin; a < s->active_end; a++) {
+    for (int64_t a = s->active_begin; a < s->active_end;) {
         int r = in_flight(s->phase[a]) ? owner(d, x[a], d->rank) : d->rank;
-        if (r != d->rank) pack_agent(s, a, out + at[r]++);
-        else if (kept++ != a) move_slot(s, a, kept - 1);
+        if (r == d->rank) {
+            a++;
+            continue;
+        }
+        pack_agent(s, a, out + at[r]++);
+        if (a != --s->active_end) move_slot(s, s->active_end, a); /* slot a is looked at again */
     }
-    s->active_end = kept;
     free(at);
     return out;
 }
@@ -229,6 +240,13 @@ static int near_slab(const fm_morph_slabs *d, int r, float x)
     return x >= d->cut[r] - d->halo && x < d->cut[r + 1] + d->halo;
 }
 
+/* Whether this rank's flying agent at x is in another slab's halo: only near its own slab's faces
+ * (the common case, deep inside, costs two comparisons). */
+static int in_halo(const fm_morph_slabs *d, float x)
+{
+    return x < d->cut[d->rank] + d->halo || x >= d->cut[d->rank + 1] - d->halo;
+}
+
 /* This step's ghosts: the other ranks' flying agents within the halo of this slab, appended at
  * [active_end, active_end + ghosts) (position and id: what the MDE walk reads). */
 fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err)
@@ -238,7 +256,7 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
     int64_t sending = 0, received = 0;
     for (int64_t a = s->active_begin; a < s->active_end; a++) /* count, then fill */
-        if (s->phase[a] == FM_PHASE_FLYING)
+        if (s->phase[a] == FM_PHASE_FLYING && in_halo(d, x[a]))
             for (int r = 0; r < d->ranks; r++) d->count[r] += r != d->rank && near_slab(d, r, x[a]);
     for (int r = 0; r < d->ranks; r++) sending += d->count[r];
     ghost_record *out = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(sending, 1));
@@ -247,7 +265,7 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     if (st == FM_OK) {
         for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
         for (int64_t a = s->active_begin; a < s->active_end; a++) {
-            if (s->phase[a] != FM_PHASE_FLYING) continue;
+            if (s->phase[a] != FM_PHASE_FLYING || !in_halo(d, x[a])) continue;
             for (int r = 0; r < d->ranks; r++)
                 if (r != d->rank && near_slab(d, r, x[a]))
                     out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, s->id[a]};
@@ -271,19 +289,30 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     return st;
 }
 
-/* Every FM_RESORT_INTERVAL steps: the cuts to the quantiles of the agents in flight (all ranks
- * together), and the load spread of the step before recorded. */
+/* Every FM_RESORT_INTERVAL steps: the cuts to the quantiles of the agents in flight, each weighted
+ * by its rank's measured cost per agent-step since the last cut (an agent near an obstacle or in a
+ * dense part of the flock costs more), all ranks together; so the slabs follow the flock and the
+ * cost. The cuts decide only where an agent is computed, never what: no result depends on them,
+ * so the timings may steer them. */
 void fm_morph_dist_rebalance(fm_morph_state *s)
 {
     fm_morph_slabs *d = s->slabs;
-    int64_t *bins = calloc(BALANCE_BINS, sizeof(int64_t));
+    double *bins = calloc(BALANCE_BINS, sizeof(double));
     if (!bins) return; /* the cuts stay: still correct, only less balanced */
+    const double cost = isfinite(d->cost) && d->cost > 0 ? d->cost : 1;
     const float *x = s->p[d->axis];
     for (int64_t a = s->active_begin; a < s->active_end; a++)
-        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])]++;
-    fm_dist_sum_i64(s->dist, bins, BALANCE_BINS); /* every rank gets the same histogram: the same cuts */
+        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += cost;
+    fm_dist_sum_f64(s->dist, bins, BALANCE_BINS);
     cuts_from_histogram(d, bins);
+    d->cost = INFINITY;
     free(bins);
+}
+
+void fm_morph_dist_add_busy(fm_morph_state *s, double seconds)
+{
+    const int64_t agents = s->active_end - s->active_begin;
+    if (agents > 0) s->slabs->cost = fmin(s->slabs->cost, seconds / (double)agents);
 }
 
 /* The load of this step: agents in flight on the busiest rank, and on all ranks together. */
@@ -387,11 +416,11 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
 void fm_morph_dist_adopt(fm_morph_state *s)
 {
     fm_morph_slabs *d = s->slabs;
-    int64_t *bins = calloc(BALANCE_BINS, sizeof(int64_t));
+    double *bins = calloc(BALANCE_BINS, sizeof(double));
     const float *x = s->p[d->axis];
     if (bins) {
         for (int64_t a = s->active_begin; a < s->active_end; a++)
-            if (in_flight(s->phase[a])) bins[bin_of(d, x[a])]++;
+            if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += 1;
         cuts_from_histogram(d, bins);
         free(bins);
     }

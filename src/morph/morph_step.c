@@ -301,6 +301,7 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
     lap(s, FM_STAGE_LAUNCH, &t);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
     lap(s, FM_STAGE_FIELDS, &t);
+    const double busy_from = t;
     if (m->def.d_min > 0) build_neighbour_grid(m, s, ghosts);
     lap(s, FM_STAGE_GRID, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
@@ -318,6 +319,7 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
         move_block(m, s, begin, end, t_end, &bc[b]);
     }
     lap(s, FM_STAGE_MOVE, &t);
+    if (s->dist) fm_morph_dist_add_busy(s, t - busy_from);
     if ((s->dist_status = hand_out_targets(m, s, bc, blocks, t_end)) != FM_OK) return;
     lap(s, FM_STAGE_HANDOUT, &t);
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)

@@ -83,6 +83,11 @@ void fm_dist_max_f64(const fm_dist *d, double *v, int count)
     if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_DOUBLE, MPI_MAX, d->comm);
 }
 
+void fm_dist_sum_f64(const fm_dist *d, double *v, int count)
+{
+    if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_DOUBLE, MPI_SUM, d->comm);
+}
+
 void fm_dist_min_f32(const fm_dist *d, float *v, int count)
 {
     if (d && d->size > 1) MPI_Allreduce(MPI_IN_PLACE, v, count, MPI_FLOAT, MPI_MIN, d->comm);
@@ -224,6 +229,7 @@ int fm_dist_size(const fm_dist *d) { return (void)d, 1; }
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_f64(const fm_dist *d, double *v, int count) { (void)d, (void)v, (void)count; }
+void fm_dist_sum_f64(const fm_dist *d, double *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_min_f32(const fm_dist *d, float *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root) { (void)d, (void)data, (void)bytes, (void)root; }
 fm_status fm_dist_agree(const fm_dist *d, fm_status st, fm_error *err) { return (void)d, (void)err, st; }

@@ -34,6 +34,7 @@ int fm_dist_size(const fm_dist *d); /* 1 for NULL */
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count);
 void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count);
 void fm_dist_max_f64(const fm_dist *d, double *v, int count);
+void fm_dist_sum_f64(const fm_dist *d, double *v, int count); /* in MPI's order: for what no result depends on */
 void fm_dist_min_f32(const fm_dist *d, float *v, int count);
 void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root);
 
