@@ -335,16 +335,19 @@ typedef struct frame_record {
 } frame_record;
 
 /* The frame on rank 0 in id order: each rank's agents gathered, the waiting ones (in no store)
- * added from the model. The other ranks' `verts` hold their own agents only. */
+ * added from the model. Rank 0's own agents are already in place (fm_morph_tet_vertices writes by
+ * id) and are not sent; the other ranks' `verts` hold their own agents only. */
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases,
                               fm_error *err)
 {
     fm_morph_tet_vertices(m, s, verts);
-    const int64_t count = s->active_end;
+    const int root = fm_dist_rank(s->dist) == 0;
+    const int64_t count = root ? 0 : s->active_end;
     frame_record *mine = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(count, 1));
     fm_status st = mine ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)count);
     st = fm_dist_agree(s->dist, st, err);
     if (st != FM_OK) return fm_free(mine), st;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < count; a++) {
         frame_record *r = mine + a;
         r->id = s->id[a], r->phase = s->phase[a];
@@ -354,9 +357,11 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     int64_t total = 0;
     st = fm_dist_gather(s->dist, mine, count, sizeof(frame_record), &all, &total, err);
     fm_free(mine);
-    if (fm_dist_rank(s->dist) != 0) s->slabs->totals.bytes_sent += count * (int64_t)sizeof(frame_record);
-    if (st != FM_OK || fm_dist_rank(s->dist) != 0) return fm_free(all), st;
-    for (int64_t k = 0; k < total; k++) {
+    s->slabs->totals.bytes_sent += count * (int64_t)sizeof(frame_record);
+    if (st != FM_OK || !root) return fm_free(all), st;
+    fm_morph_phases(s, phases); /* rank 0's own */
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t k = 0; k < total; k++) { /* distinct ids: no two write one place */
         const frame_record *r = (const frame_record *)all + k;
         memcpy(verts + 12 * (size_t)r->id, r->v, sizeof r->v);
         phases[r->id] = r->phase;

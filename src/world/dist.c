@@ -1,4 +1,5 @@
 /* The ranks of a run (dist.h): MPI when the build has it (FM_HAVE_MPI), P = 1 otherwise. */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include "dist.h"
 
 #include <limits.h>
@@ -35,6 +36,10 @@ int fm_dist_launched(void)
 
 fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
 {
+    /* Open MPI busy-polls in a collective unless the node is oversubscribed; a rank waiting for the
+     * others then takes a core from its own OpenMP threads and cache writer. Yield by default (the
+     * user's setting, environment or --mca, wins). */
+    setenv("OMPI_MCA_mpi_yield_when_idle", "1", 0);
     int provided = 0;
     if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
         fm_fail(err, FM_ERR_INTERNAL, "MPI_Init_thread failed");
