@@ -21,6 +21,9 @@ install(TARGETS ${FM_ENGINE_TARGETS} EXPORT flockmorphTargets
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS flockmorph_reader EXPORT flockmorphReaderTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS flockmorph_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The CLI's manual page, with the one version (man/flockmorph.1.in).
+configure_file(${PROJECT_SOURCE_DIR}/man/flockmorph.1.in ${CMAKE_BINARY_DIR}/package/flockmorph.1 @ONLY)
+install(FILES ${CMAKE_BINARY_DIR}/package/flockmorph.1 DESTINATION ${CMAKE_INSTALL_MANDIR}/man1)
 install(EXPORT flockmorphTargets NAMESPACE flockmorph:: DESTINATION ${FM_CMAKE_DIR})
 install(EXPORT flockmorphReaderTargets NAMESPACE flockmorph:: DESTINATION ${FM_CMAKE_DIR})
 

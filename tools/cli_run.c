@@ -41,7 +41,10 @@ static const char *const USAGE_RUN =
     "                        records what ran\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
-    "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n";
+    "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n"
+    "\n"
+    "Under MPI, 'mpirun -np P flockmorph run ...' runs the tetra morph on P ranks of --threads N\n"
+    "threads each, with the same cache bytes as one process (docs/scale-out.md).\n";
 
 /* --set KEY=VALUE: a key before the first '=' (what it names is the scene loader's to check). */
 static int parse_set(const char *arg, cli_run_options *o)

@@ -45,8 +45,12 @@ missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# What it does goes to stderr, a line a step, so a caller that hides the build's output
+# (tools/run-example.sh) still shows progress on a fresh machine.
+say() { echo "flockmorph setup: $*" >&2; }
+start=$SECONDS
 if [ ${#missing[@]} -gt 0 ]; then
-  echo "flockmorph setup: installing ${missing[*]}"
+  say "installing ${#missing[@]} Debian packages with apt-get: ${missing[*]}"
   sudo=""
   [ "$(id -u)" -ne 0 ] && sudo=sudo
   $sudo apt-get update -qq
@@ -54,6 +58,9 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 mkdir -p "$build_dir"
+say "configuring $build_dir/ (${FM_BUILD_TYPE:-Release}; log: $build_dir/cmake-configure.log)"
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="${FM_BUILD_TYPE:-Release}" "$@" > "$build_dir/cmake-configure.log" 2>&1 \
   || { cat "$build_dir/cmake-configure.log"; exit 1; }
+[ -x "$build_dir/flockmorph" ] || say "building $build_dir/ on $(nproc) cores: a first build takes several minutes on 2 cores"
 cmake --build "$build_dir" -j"$(nproc)"
+say "ready in $((SECONDS - start)) s: $build_dir/flockmorph"

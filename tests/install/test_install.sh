@@ -35,6 +35,12 @@ export PKG_CONFIG_PATH=$prefix/$libdir/pkgconfig
 version=$(pkg-config --modversion flockmorph)
 [ "$(pkg-config --modversion flockmorph_reader)" = "$version" ] || fail "the two .pc files disagree on the version"
 [ "$("$prefix/bin/flockmorph" --version)" = "flockmorph $version" ] || fail "installed CLI: $("$prefix/bin/flockmorph" --version), .pc: $version"
+man=$prefix/share/man/man1/flockmorph.1
+[ -e "$man" ] || fail "not installed: share/man/man1/flockmorph.1"
+grep -q "^\.TH FLOCKMORPH 1 .*flockmorph $version" "$man" || fail "the man page does not carry version $version"
+if command -v groff > /dev/null; then # renders without a warning
+  [ -z "$(groff -man -Tutf8 -ww -z "$man" 2>&1)" ] || fail "groff warns on the man page: $(groff -man -Tutf8 -ww -z "$man" 2>&1)"
+fi
 log "installed flockmorph $version into $prefix"
 
 # a cache of a tiny run (an octahedron onto itself 6 units away), written by the installed CLI
