@@ -294,6 +294,69 @@ static fm_status walk_ply_body(const ply_header *h, body_reader *r, uint64_t fil
     return st;
 }
 
+/* The next byte of an ASCII body, or -1 past its end (*left: the bytes not yet read). */
+static int body_byte(body_reader *r, uint64_t *left)
+{
+    if (*left == 0) return -1;
+    --*left;
+    if (!r->f) return r->mem[r->pos++];
+    int c = getc_unlocked(r->f); /* one byte at a time: without the stream's lock */
+    if (c == EOF) *left = 0;
+    return c;
+}
+
+/* The next word of an ASCII body (blanks and line ends separate words, as assimp splits them)
+ * into word (cut to its size); 0 at the end of the body. */
+static int body_word(body_reader *r, uint64_t *left, char *word, size_t size)
+{
+    int c;
+    while ((c = body_byte(r, left)) >= 0 && (c == ' ' || c == '\t' || line_end((char)c))) {}
+    size_t n = 0;
+    for (; c >= 0 && !(c == ' ' || c == '\t' || line_end((char)c)); c = body_byte(r, left))
+        if (n + 1 < size) word[n++] = (char)c;
+    word[n] = 0;
+    return n > 0;
+}
+
+/* An ASCII list's count: UINT64_MAX for a negative one or one that is not a number. */
+static uint64_t ascii_count(const char *word)
+{
+    if (word[0] < '0' || word[0] > '9') return UINT64_MAX;
+    uint64_t count = 0;
+    for (const char *c = word; *c >= '0' && *c <= '9'; c++) count = count > MAX_COUNT ? count : count * 10 + (uint64_t)(*c - '0');
+    return count;
+}
+
+/* The same for an ASCII body: assimp sizes a list from its count as well (a face line
+ * "300000000 1 2 3" grew it to 4.7 GB), and a list of c entries takes at least 2c - 1 bytes. Words
+ * that run out end the walk: assimp reports a body cut short itself. */
+static fm_status walk_ply_ascii(const ply_header *h, body_reader *r, uint64_t file_bytes, const char *name, fm_error *err)
+{
+    if (!body_seek(r, h->body)) return FM_OK;
+    uint64_t left = file_bytes > h->body ? file_bytes - h->body : 0;
+    char word[64];
+    for (int i = 0; i < h->n_elements; i++) {
+        const ply_element *e = &h->elements[i];
+        for (uint64_t row = 0; row < e->count; row++)
+            for (int k = e->first; k < e->first + e->n; k++) {
+                const ply_property *p = &h->props[k];
+                if (!body_word(r, &left, word, sizeof word)) return FM_OK;
+                if (p->item_type == -2) continue;
+                const uint64_t count = ascii_count(word);
+                if (count == UINT64_MAX || count > (left + 1) / 2)
+                    return count == UINT64_MAX ? list_too_long(name, e, row, p, count, left, err)
+                                               : fm_fail(err, FM_ERR_INPUT, "%s: '%s' element %llu: the list '%s' declares "
+                                                         "%llu entries, but %llu bytes are left in the file: it is "
+                                                         "damaged or cut short", name, e->name,
+                                                         (unsigned long long)row + 1, p->name, (unsigned long long)count,
+                                                         (unsigned long long)left);
+                for (uint64_t j = 0; j < count; j++)
+                    if (!body_word(r, &left, word, sizeof word)) return FM_OK;
+            }
+    }
+    return FM_OK;
+}
+
 static fm_status check_ply(const char *head, size_t head_len, uint64_t file_bytes, body_reader *r, const char *name,
                            fm_error *err)
 {
@@ -302,6 +365,7 @@ static fm_status check_ply(const char *head, size_t head_len, uint64_t file_byte
     if (st == FM_OK) st = check_ply_sizes(&h, file_bytes, name, err);
     if (st == FM_OK && h.binary) st = check_ply_types(&h, name, err);
     if (st == FM_OK && h.binary && r) st = walk_ply_body(&h, r, file_bytes, name, err);
+    if (st == FM_OK && !h.binary && r) st = walk_ply_ascii(&h, r, file_bytes, name, err);
     ply_header_free(&h);
     return st;
 }

@@ -453,6 +453,31 @@ static void test_mesh_list_longer_than_file(void)
                                         "in the file: it is damaged or cut short", NULL});
 }
 
+/* The same in an ASCII PLY: a face line whose count says 3·10^8 (assimp sized the list from it:
+ * 4.7 GB for a 200-byte file). */
+static void test_mesh_ascii_list_longer_than_file(void)
+{
+    write_mesh("ascii_list_too_long.ply",
+               "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+               "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+               "3 0 2 1\n3 0 1 3\n3 0 3 2\n300000000 1 2 3\n");
+    char where[FM_PATH_MAX + 64], mesh[FM_PATH_MAX];
+    const char *path = mesh_scene("ascii_list_too_long.ply", where, sizeof where);
+    cli_env limited = {.memory_limit = 2LL << 30};
+    expect_output(run_scene(&limited, path, "out"), 2, "ascii_list_too_long.ply",
+                  (const char *const[]){where, tmp_path(mesh, "ascii_list_too_long.ply"), "'face' element 4: the list "
+                                        "'vertex_indices' declares 300000000 entries, but 6 bytes are left in the file",
+                                        NULL});
+    /* a well-formed ASCII PLY still imports (the walk refuses nothing that fits) */
+    write_mesh("ascii_ok.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n"
+               "1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3");
+    path = mesh_scene("ascii_ok.ply", where, sizeof where);
+    int rc = run_scene(NULL, path, "out_ok");
+    ENSURE_MSG(!strstr(g_err, "declares") && !strstr(g_err, "ascii_ok.ply"),
+               "a valid ASCII PLY (no newline at the end) was refused (exit %d): %s", rc, g_err);
+}
+
 static void test_mesh_empty_or_not_a_mesh(void)
 {
     write_mesh("empty.obj", "");
@@ -1301,6 +1326,7 @@ int main(void)
     RUN_TEST(test_mesh_counts_beyond_file);
     RUN_TEST(test_mesh_face_without_indices);
     RUN_TEST(test_mesh_list_longer_than_file);
+    RUN_TEST(test_mesh_ascii_list_longer_than_file);
     RUN_TEST(test_mesh_garbage_bytes);
     RUN_TEST(test_mesh_open);
     RUN_TEST(test_mesh_non_manifold);
