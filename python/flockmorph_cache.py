@@ -2,9 +2,12 @@
 
     import flockmorph_cache
     with flockmorph_cache.open("out/frames.fmc") as cache:
-        print(cache.agents, cache.frames, cache.frame_rate, cache.attributes)
-        tets = cache.read(cache.frames - 1, "tet_vertices")   # float32, shape (agents, 4, 3)
-        phase = cache.read(0, "phase")                        # uint8, shape (agents, 1)
+        print(len(cache), cache.agents, cache.frame_rate, cache.attributes)
+        tets = cache.read(-1, "tet_vertices")                 # float32, shape (agents, 4, 3)
+        for frame in cache[::10]:                             # Frame objects, read when asked
+            print(frame.index, frame.time, frame.phase.max())  # attributes by name (or frame["phase"])
+        ids = cache.read_range("id", 0, 50)                   # uint32, shape (50, agents, 1)
+        t = cache.times()                                     # seconds, frame k at k / frame_rate
         lo, hi = cache.bounds()                               # over all frames
 
 Frames are read by random access through the cache's index; every chunk's crc32 is checked
@@ -13,16 +16,19 @@ the key frame before it, and the last decoded frame is kept, so reading frames i
 one chunk each. A cache without a valid index, or (format 3) whose header still states 0 frames
 (a run that was killed), is opened up to its last complete frame, with a warnings.warn. A file that
 is not a valid cache, or whose header states another frame count than its index, raises ValueError
-naming the file; a frame that does not exist raises IndexError, an attribute the cache lacks KeyError.
+naming the file; a frame that does not exist raises IndexError, an attribute the cache lacks
+KeyError, a frame number that is not an int (1.5, True, "3") or a name that is not a str TypeError.
 
 Needs numpy and a zstd decoder: the zstandard module (Debian python3-zstandard) or, without it,
-libzstd.so.1 through ctypes.
+libzstd.so.1 through ctypes. Installs with `pip install ./python` (docs/cache-format.md), or is
+used as this one file, copied or put on sys.path.
 """
 import os
 import stat
 import struct
 import warnings
 import zlib
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -31,7 +37,11 @@ try:
 except ImportError:  # pragma: no cover - exercised only where python3-zstandard is missing
     _zstandard = None
 
-__all__ = ["open", "Cache", "ATTRIBUTES"]
+__all__ = ["open", "Cache", "Frame", "ATTRIBUTES"]
+
+# The CMake project's version (project(flockmorph VERSION ...) in CMakeLists.txt), which
+# pyproject.toml reads from here; tests/python/test_package.py checks that they agree.
+__version__ = "0.1.0"
 
 MAGIC = b"FMCACHE1"
 END_MAGIC = b"FMCEND\0\0"
@@ -58,6 +68,7 @@ ATTRIBUTES = {
     5: ("id", 1, U32),
     6: ("phase", 1, U8),
 }
+_ATTRIBUTE_NAMES = frozenset(name for name, _, _ in ATTRIBUTES.values())
 
 
 def _zstd_bound(n):
@@ -121,6 +132,21 @@ class _Attr:
         self.nbytes = agents * self.components * self.dtype.itemsize
 
 
+def _int_arg(value, path, what):
+    """value as an int, or TypeError naming the file. Python ints and numpy integers only: int()
+    would truncate 1.5 and parse "3", and True is an int to Python but a frame number almost only
+    by mistake (read(True, ...) reading frame 1 hides a bug)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{path}: {what} must be an int, not {type(value).__name__} {value!r}")
+    return int(value)
+
+
+def _str_arg(value, path, what="attribute name"):
+    if not isinstance(value, str):
+        raise TypeError(f"{path}: {what} must be a str, not {type(value).__name__} {value!r}")
+    return value
+
+
 def _open_regular(path):
     """The file opened for reading if it is a regular file; ValueError for a directory, a FIFO or a
     device (a FIFO would block the read until a writer comes, /dev/zero never ends). O_NONBLOCK
@@ -135,6 +161,58 @@ def _open_regular(path):
                          ", not a regular file"))
     os.set_blocking(fd, True)
     return os.fdopen(fd, "rb")
+
+
+class Frame(Mapping):
+    """One frame of a cache, as cache[k], cache[a:b] and iteration give it: a read-only mapping
+    from attribute name to array (frame["position"]), also by attribute (frame.position), with
+    index (the frame number, 0 ... len(cache) - 1) and time (index / frame_rate, in seconds).
+
+    An attribute is decoded when first asked for and then kept, so iterating over a cache and
+    using one attribute decodes only that one. Its arrays are Cache.read's: new arrays the caller
+    may change. Reading needs the cache still open; arrays read before close stay valid."""
+
+    def __init__(self, cache, index):
+        self.cache, self.index = cache, index
+        self.time = index / cache.frame_rate
+        self._arrays = {}
+
+    def __getitem__(self, name):
+        if _str_arg(name, self.cache.path) not in self._arrays:
+            self._arrays[name] = self.cache.read(self.index, name)
+        return self._arrays[name]
+
+    def __getattr__(self, name):
+        # Called only when ordinary lookup fails. Only the attribute names resolve, so a typo
+        # (frame.posiiton) or a missing attribute is an AttributeError and hasattr() works. It
+        # touches self.cache only for those names: copy and pickle probe a bare instance.
+        if name not in _ATTRIBUTE_NAMES:
+            raise AttributeError(f"'Frame' object has no attribute {name!r}")
+        if name not in self.cache.attributes:
+            raise AttributeError(f"{self.cache.path}: frame {self.index} has no {name!r} attribute "
+                                 f"(the cache has {', '.join(self.cache.attributes)})")
+        return self[name]
+
+    def __iter__(self):
+        return iter(self.cache.attributes)
+
+    def __len__(self):
+        return len(self.cache.attributes)
+
+    def __contains__(self, name):
+        # Mapping's default would read the attribute to find out
+        return name in self.cache.attributes
+
+    # Mapping compares values, and comparing numpy arrays has no single truth value: a frame is
+    # equal to the same frame of the same open cache.
+    def __eq__(self, other):
+        return isinstance(other, Frame) and other.cache is self.cache and other.index == self.index
+
+    def __hash__(self):
+        return hash((id(self.cache), self.index))
+
+    def __repr__(self):
+        return f"<flockmorph_cache.Frame {self.index} of {self.cache.path!r} at {self.time:g} s>"
 
 
 class Cache:
@@ -167,27 +245,57 @@ class Cache:
     # ------------------------------------------------------------ public
 
     def read(self, frame, name):
-        """Attribute `name` of frame `frame` (negative counts from the end) as a new numpy array of
-        shape (agents, components), or (agents, 4, 3) for tet_vertices."""
-        frame = self._frame_number(frame)
-        if name not in self.attributes:
-            raise KeyError(f"{self.path}: the cache has no {name!r} attribute (it has {', '.join(self.attributes)})")
-        i = self.attributes.index(name)
-        a = self._attrs[i]
-        words = self._stored(frame, i)
-        if a.filters & SHUFFLE4:
-            words = words.reshape(4, -1).T
-        values = np.ascontiguousarray(words).reshape(-1)
-        if a.filters & QUANTISE:
-            out = (values.view("<i4").astype(np.float64) * self.options["quantum"]).astype(np.float32)
-        else:
-            out = values.view(a.dtype).copy()
-        return out.reshape(self.agents, 4, 3) if name == "tet_vertices" else out.reshape(self.agents, a.components)
+        """Attribute `name` of frame `frame` (an int; negative counts from the end) as a new numpy
+        array of shape (agents, components), or (agents, 4, 3) for tet_vertices."""
+        k, i = self._frame_number(frame), self._attr_index(name)
+        return self._decode(k, i).reshape(self._shape(i))
+
+    def read_range(self, name, start=None, stop=None, step=None):
+        """Attribute `name` of the frames range(start, stop, step) selects, with slice semantics
+        (None, negative and out-of-range bounds as in cache[start:stop:step]), as one new array of
+        shape (frames, agents, components), or (frames, agents, 4, 3) for tet_vertices."""
+        i = self._attr_index(name)
+        frames = self._frame_range(slice(start, stop, step))
+        out = np.empty((len(frames),) + self._shape(i), dtype=self._attrs[i].dtype)
+        for j, k in enumerate(frames):
+            out[j] = self._decode(k, i).reshape(self._shape(i))
+        return out
+
+    def time(self, frame):
+        """Frame `frame`'s time in seconds: frame k lies at k / frame_rate, frame 0 at 0."""
+        return self._frame_number(frame) / self.frame_rate
+
+    def times(self):
+        """Every frame's time in seconds (float64, shape (frames,)); times()[k] == time(k)."""
+        return np.arange(self.frames) / self.frame_rate
+
+    @property
+    def closed(self):
+        return self._f.closed
+
+    def __len__(self):
+        return self.frames
+
+    def __iter__(self):
+        for k in range(self.frames):
+            yield Frame(self, k)
+
+    def __getitem__(self, key):
+        """cache[k]: frame k as a Frame (negative counts from the end); cache[a:b:s]: a list of
+        Frames, with slice semantics."""
+        if isinstance(key, slice):
+            return [Frame(self, k) for k in self._frame_range(key)]
+        if isinstance(key, str):  # a likely slip for an attribute: say where that is
+            raise TypeError(f"{self.path}: cache[...] takes a frame number or a slice, not the str {key!r}; "
+                            f"for an attribute over frames use read_range({key!r}) or cache[k][{key!r}]")
+        return Frame(self, self._frame_number(key))
 
     def bounds(self, name=None):
         """(min, max), each float32 of shape (3,), of tet_vertices (or position) over all frames;
         None if the cache has no frames or no agents."""
-        if name is None:
+        if name is not None:
+            _str_arg(name, self.path)
+        else:
             name = next((n for n in ("tet_vertices", "position") if n in self.attributes), None)
             if name is None:
                 raise KeyError(f"{self.path}: the cache has neither tet_vertices nor position")
@@ -394,12 +502,44 @@ class Cache:
         return not self.options["delta"] or k % self.options["key_interval"] == 0
 
     def _frame_number(self, frame):
-        k = int(frame)
+        k = _int_arg(frame, self.path, "frame")
         if k < 0:
             k += self.frames
         if not 0 <= k < self.frames:
-            raise IndexError(f"{self.path}: frame {frame} does not exist (the cache has {self.frames} frames)")
+            has = (f"{self.frames} frames: 0 to {self.frames - 1}, or -{self.frames} to -1 from the end"
+                   if self.frames else "no frames")
+            raise IndexError(f"{self.path}: frame {frame} does not exist (the cache has {has})")
         return k
+
+    def _frame_range(self, key):
+        """The frame numbers slice `key` selects. Its bounds are checked as strictly as a frame
+        number: slice.indices would take True as 1."""
+        for bound in (key.start, key.stop, key.step):
+            if bound is not None:
+                _int_arg(bound, self.path, "a slice bound")
+        return range(*key.indices(self.frames))
+
+    def _attr_index(self, name):
+        if _str_arg(name, self.path) not in self.attributes:
+            raise KeyError(f"{self.path}: the cache has no {name!r} attribute (it has {', '.join(self.attributes)})")
+        if self._f.closed:  # checked here, as the kept chunk and frame would otherwise still answer
+            raise ValueError(f"{self.path}: the cache is closed")
+        return self.attributes.index(name)
+
+    def _shape(self, i):
+        a = self._attrs[i]
+        return (self.agents, 4, 3) if a.name == "tet_vertices" else (self.agents, a.components)
+
+    def _decode(self, k, i):
+        """Attribute i of frame k as a new flat array of its values (quantisation undone)."""
+        a = self._attrs[i]
+        words = self._stored(k, i)
+        if a.filters & SHUFFLE4:
+            words = words.reshape(4, -1).T
+        values = np.ascontiguousarray(words).reshape(-1)
+        if a.filters & QUANTISE:
+            return (values.view("<i4").astype(np.float64) * self.options["quantum"]).astype(np.float32)
+        return values.view(a.dtype).copy()
 
     def _load_chunk(self, k):
         """Chunk k's bytes, its header and crc32 checked."""

@@ -25,6 +25,10 @@ packages=(
   python3
   python3-numpy
   python3-zstandard
+  python3-venv
+  python3-pip
+  python3-setuptools
+  python3-wheel
   libxxhash-dev
   ffmpeg
   libopenmpi-dev

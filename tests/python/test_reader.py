@@ -3,9 +3,12 @@
 
 Runs small scenes through the flockmorph CLI (a cache of whole frames, and one with delta encoding
 and quantisation), then compares every frame of every attribute the module returns with the bytes the
-C reader decodes (tests/cache_dump.c) and its metadata with `flockmorph inspect --json`. Also reads
-the committed format-1 fixture, a cache cut short (recovery with a warning), a flipped byte
-(checksum error) and files that are not caches.
+C reader decodes (tests/cache_dump.c) and its metadata with `flockmorph inspect --json`, through
+read() and through the sequence API (len, iteration, cache[k], slices, Frame attributes by name,
+read_range, times). Also reads the committed format-1 fixture, a cache cut short (recovery with a
+warning), a flipped byte (checksum error) and files that are not caches, and checks that frame
+numbers and names of the wrong type are TypeErrors. tests/python/test_package.py tests the pip
+install.
 
     test_reader.py --cli build/flockmorph --dump build/tests/cache_dump --tmp DIR --source REPO
 """
@@ -82,15 +85,14 @@ def inspect(path):
     return json.loads(run(ARGS.cli, "inspect", path, "--json"))
 
 
-class CacheCase(unittest.TestCase):
-    lossless = compact = None
+def frame_number_calls(cache):
+    """Every way a frame number reaches the module, by name."""
+    return {"read": lambda k: cache.read(k, "phase"), "cache[k]": lambda k: cache[k], "time": cache.time,
+            "frame_bytes": cache.frame_bytes}
 
-    @classmethod
-    def setUpClass(cls):
-        if CacheCase.lossless is None:
-            CacheCase.lossless = run_scene("lossless", {"delta": False})
-            CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001,
-                                                      "compression_level": -3})
+
+class MatchesC:
+    """Checks of a whole cache against the C reader, for the test cases that read caches."""
 
     def assert_matches_c(self, path):
         """Metadata as inspect reports it, and every frame bitwise equal to the C reader's, read in
@@ -118,6 +120,7 @@ class CacheCase(unittest.TestCase):
                 self.assertEqual(got.shape, (cache.agents, 4, 3) if name == "tet_vertices" else expect.shape)
                 self.assertTrue(np.array_equal(got.reshape(expect.shape).view(np.uint8), expect.view(np.uint8)),
                                 f"{path}: frame {k} {name} differs from the C reader")
+            self.assert_sequence_matches_c(cache, want, info)
             b = info["bounds"]["tet_vertices"]
             if cache.frames == 0:
                 self.assertIsNone(cache.bounds())
@@ -127,6 +130,61 @@ class CacheCase(unittest.TestCase):
             np.testing.assert_allclose(lo, b["min"], rtol=1e-6)
             np.testing.assert_allclose(hi, b["max"], rtol=1e-6)
             return cache
+
+    def assert_same(self, got, expect, what):
+        """got (the module's shape) bitwise equal to expect (the C reader's (agents, components))."""
+        self.assertEqual(got.dtype, expect.dtype, what)
+        self.assertTrue(np.array_equal(got.reshape(expect.shape).view(np.uint8), expect.view(np.uint8)),
+                        f"{what} differs from the C reader")
+
+    def assert_sequence_matches_c(self, cache, want, info):
+        """len, iteration, cache[k], slices, range reads and frame times against the C reader's
+        frames and inspect's duration."""
+        self.assertEqual(len(cache), info["frames"])
+        shapes = {n: cache.read(0, n).shape for n in cache.attributes} if cache.frames else {}
+        frames = list(cache)
+        self.assertEqual([f.index for f in frames], list(range(cache.frames)))
+        for f in frames:
+            self.assertEqual((list(f), len(f), f.time), (cache.attributes, len(cache.attributes),
+                                                          f.index / cache.frame_rate))
+            for name in reversed(cache.attributes):  # each attribute alone, not in the file's order
+                self.assertIn(name, f)
+                self.assert_same(getattr(f, name), want[f.index, name], f"frame {f.index}.{name}")
+                self.assertIs(f[name], getattr(f, name))  # decoded once, then kept
+        if cache.frames:
+            self.assertEqual((cache[-1].index, cache[0]), (cache.frames - 1, frames[0]))
+        n = cache.frames
+        for key in (slice(None), slice(1, None, 2), slice(-3, None), slice(None, None, -1),
+                    slice(2, n + 100), slice(n - 1, 2, -3), slice(5, 2), slice(-n - 9, 1)):
+            ks = list(range(*key.indices(n)))
+            self.assertEqual([f.index for f in cache[key]], ks, key)
+            for name in cache.attributes:
+                block = cache.read_range(name, key.start, key.stop, key.step)
+                self.assertEqual(block.shape[0], len(ks))
+                if ks:
+                    self.assertEqual(block.shape[1:], shapes[name])
+                for j, k in enumerate(ks):
+                    self.assert_same(block[j], want[k, name], f"read_range({name!r}, {key}) row {j} (frame {k})")
+        self.assertEqual(cache.read_range(cache.attributes[0]).shape[:2], (n, cache.agents))
+        times = cache.times()
+        self.assertEqual((times.dtype, times.shape), (np.float64, (n,)))
+        self.assertTrue(np.array_equal(times, np.arange(n) / cache.frame_rate))
+        if n:
+            self.assertEqual((cache.time(0), cache.time(-1)), (0.0, times[-1]))
+        if n >= 2:
+            self.assertAlmostEqual(times[-1] - times[0], info["duration_seconds"], places=9)
+
+
+
+class CacheCase(MatchesC, unittest.TestCase):
+    lossless = compact = None
+
+    @classmethod
+    def setUpClass(cls):
+        if CacheCase.lossless is None:
+            CacheCase.lossless = run_scene("lossless", {"delta": False})
+            CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001,
+                                                      "compression_level": -3})
 
     def test_lossless_run(self):
         cache = self.assert_matches_c(self.lossless)
@@ -210,6 +268,77 @@ class CacheCase(unittest.TestCase):
             with self.assertRaisesRegex(KeyError, "no 'velocity' attribute"):
                 c.read(0, "velocity")
 
+    def test_frames_out_of_range(self):
+        """IndexError naming the file and the frames there are, wherever a frame number is taken."""
+        with fmc.open(self.lossless) as c:
+            n = c.frames
+            calls = frame_number_calls(c)
+            for what, call in calls.items():
+                for k in (n, -n - 1, 10 ** 12):
+                    with self.assertRaises(IndexError, msg=f"{what}({k})") as e:
+                        call(k)
+                    self.assertEqual(str(e.exception), f"{self.lossless}: frame {k} does not exist (the cache "
+                                     f"has {n} frames: 0 to {n - 1}, or -{n} to -1 from the end)")
+            self.assertEqual(c[-n].index, 0)
+
+    def test_strict_argument_types(self):
+        """Frame numbers are ints (Python or numpy), never floats, bools or strings; names are str."""
+        with fmc.open(self.lossless) as c:
+            want = c.read(1, "phase")
+            for good in (1, np.int64(1), np.uint8(1), np.int32(1 - c.frames) + c.frames):
+                self.assertTrue(np.array_equal(c.read(good, "phase"), want), repr(good))
+                self.assertEqual(c[good].index, 1)
+            calls = frame_number_calls(c)
+            for bad in (1.5, 1.0, True, False, np.True_, np.float32(1), "3", b"3", None, [1]):
+                for what, call in calls.items():
+                    message = ("takes a frame number or a slice, not the str" if what == "cache[k]" and isinstance(bad, str)
+                               else "frame must be an int, not")
+                    with self.assertRaisesRegex(TypeError, message, msg=f"{what}({bad!r})") as e:
+                        call(bad)
+                    self.assertIn(self.lossless, str(e.exception))
+            for key in (slice(1.5, 3), slice(True, None), slice(0, 2.0), slice(None, None, np.True_), slice("1", 2)):
+                with self.assertRaisesRegex(TypeError, "a slice bound must be an int"):
+                    c[key]
+                with self.assertRaisesRegex(TypeError, "a slice bound must be an int"):
+                    c.read_range("phase", key.start, key.stop, key.step)
+            with self.assertRaisesRegex(ValueError, "slice step cannot be zero"):
+                c.read_range("phase", 0, 2, 0)
+            for bad in (5, b"phase", None, ["phase"]):
+                calls = [lambda: c.read(0, bad), lambda: c.read_range(bad), lambda: c[0][bad]]
+                if bad is not None:  # bounds(None): the default attribute
+                    calls.append(lambda: c.bounds(bad))
+                for call in calls:
+                    with self.assertRaisesRegex(TypeError, "attribute name must be a str"):
+                        call()
+            with self.assertRaisesRegex(TypeError, r"takes a frame number or a slice.*read_range\('phase'\)"):
+                c["phase"]
+
+    def test_frame_attributes_by_name(self):
+        with fmc.open(self.lossless) as c:
+            f = c[2]
+            self.assertEqual(set(f.keys()), {"tet_vertices", "id", "phase"})
+            self.assertEqual(f.id.reshape(-1).tolist(), list(range(AGENTS)))
+            self.assertEqual(f.tet_vertices.shape, (AGENTS, 4, 3))
+            self.assertFalse(hasattr(f, "velocity"))
+            self.assertNotIn("velocity", f)
+            with self.assertRaisesRegex(AttributeError, "frame 2 has no 'velocity' attribute"):
+                f.velocity
+            with self.assertRaisesRegex(KeyError, "no 'velocity' attribute"):
+                f["velocity"]
+            with self.assertRaisesRegex(AttributeError, "no attribute 'positon'"):
+                f.positon
+            self.assertEqual(dict(f.items()).keys(), f.keys())
+            self.assertNotEqual(c[2], c[3])
+            self.assertEqual(len({c[2], c[2], c[3]}), 2)
+            self.assertIn(f"Frame 2 of {self.lossless!r}", repr(f))
+            kept, unread = f.phase, c[3]
+        self.assertTrue(c.closed)
+        self.assertIs(f.phase, kept)  # what was read stays
+        with self.assertRaisesRegex(ValueError, f"{self.lossless}: the cache is closed"):
+            unread.id
+        with self.assertRaisesRegex(ValueError, "the cache is closed"):
+            c.read(2, "phase")  # the kept chunk would answer: refused all the same
+
 
 class FormatOne(unittest.TestCase):
     """tests/data/cache_v1.fmc: 5 agents, 3 frames at 24 fps, float i of frame f = 0.001 i + f."""
@@ -238,7 +367,7 @@ class FormatOne(unittest.TestCase):
                 c.read(1, "tet_vertices")
 
 
-class FormatTwo(unittest.TestCase):
+class FormatTwo(MatchesC, unittest.TestCase):
     """tests/data/cache_v2.fmc: 5 agents, 4 frames at 24 fps, tet_vertices (float i of frame f =
     0.001 i + f) and phase ((a + f) mod 4), delta with key interval 2, level 3."""
 
@@ -254,7 +383,7 @@ class FormatTwo(unittest.TestCase):
         copy = tmp("v2.fmc")  # the C reader's dump goes next to the file, not into the source tree
         shutil.copyfile(path, copy)
         self.assertIsNone(inspect(copy)["header_frames"])
-        CacheCase.assert_matches_c(self, copy)
+        self.assert_matches_c(copy)
 
 
 class NotACache(unittest.TestCase):
