@@ -27,8 +27,9 @@ static const char *const USAGE_EXPORT =
     "3ds Max or Cinema 4D: a tet's 4 vertices, or a flock's agent positions, per frame.\n"
     "\n"
     "Tets become 4 triangles each with id and phase (PLY, OBJ), VTK_TETRA cells with cell data\n"
-    "agent_id (VTK), or points at their centroids (VDB). Points carry Houdini's attributes v,\n"
-    "orient (x, y, z, w), pscale, age, id and phase in PLY and VDB.\n"
+    "agent_id, velocity and phase (VTK), or points at their centroids (VDB). Points carry\n"
+    "Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY and VDB, and\n"
+    "id, velocity, orient and phase in VTK. VTK's data are zlib-compressed as VTK writes them.\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
@@ -190,7 +191,7 @@ typedef struct export_job {
     double frame_rate;
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
-    int need_velocity;            /* VDB always; point flocks in every format */
+    int need_velocity;            /* VDB and VTK always (tets: the centroids'); point flocks in every format */
     int cache_velocity, cache_ids, cache_phases, cache_orientation;
     int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
     int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
@@ -222,8 +223,8 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
         fprintf(stderr, "flockmorph: error: %s has neither tet vertices nor positions to export\n", job->cache);
         return FM_ERR_INPUT;
     }
-    job->need_velocity = job->format == FM_EXPORT_VDB || job->points;
-    if ((job->need_velocity || job->format == FM_EXPORT_VTK) && !(job->frame_rate > 0 && isfinite(job->frame_rate))) {
+    job->need_velocity = job->format == FM_EXPORT_VDB || job->format == FM_EXPORT_VTK || job->points;
+    if (job->need_velocity && !(job->frame_rate > 0 && isfinite(job->frame_rate))) { /* VTK: and the .pvd's times */
         fprintf(stderr, "flockmorph: error: %s has frame rate %g; velocities and timesteps need a "
                 "positive one\n", job->cache, job->frame_rate);
         return FM_ERR_INPUT;
@@ -232,7 +233,8 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     job->cache_ids = fm_cache_has_attr(r, FM_ATTR_ID);
     job->houdini = job->format == FM_EXPORT_PLY || job->format == FM_EXPORT_VDB;
     job->cache_phases = (job->format == FM_EXPORT_VTK || job->houdini) && fm_cache_has_attr(r, FM_ATTR_PHASE);
-    job->cache_orientation = job->houdini && job->points && fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
+    job->cache_orientation = (job->houdini || job->format == FM_EXPORT_VTK) && job->points &&
+                             fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
     return job->houdini && job->points && !(job->pscale > 0) ? default_pscale(r, job) : 0;
 }
 
@@ -252,7 +254,8 @@ typedef struct frame_source {
     long slot_frame[POSITION_SLOTS];
     uint32_t *ids;
     uint8_t *phases;
-    float *orientation, *pscales, *ages; /* Houdini's attributes (PLY and VDB) */
+    float *orientation;           /* points: PLY, VDB and VTK */
+    float *pscales, *ages;        /* Houdini's attributes (PLY and VDB) */
 } frame_source;
 
 static void source_close(frame_source *s)
@@ -284,8 +287,8 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     if (job->cache_orientation) s->orientation = alloc_or_flag(sizeof(float) * 4 * n, &failed);
     if (job->houdini) s->pscales = alloc_or_flag(sizeof(float) * n, &failed);
     if (job->houdini) s->ages = alloc_or_flag(sizeof(float) * n, &failed);
-    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for VDB */
-        if (job->points || job->format == FM_EXPORT_VDB) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for velocities */
+        if (job->need_velocity) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
         s->slot_frame[i] = -1;
     }
     if (!failed) return FM_OK;
@@ -365,25 +368,28 @@ static void tet_radii(const float *tets, size_t n, float *out)
     }
 }
 
-/* Houdini's attributes of frame k (PLY and VDB): orientation (turned with --up y), pscale, age
- * (every agent exists from frame 0, so its age is the frame's time), and ids 0 .. n-1 when the
- * cache has none, so tet PLY carry them too. s->tets holds frame k for tets. */
-static fm_status houdini_attrs(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f,
-                               fm_error *err)
+/* Frame k's orientations (turned with --up y). */
+static fm_status read_orientation(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f,
+                                  fm_error *err)
+{
+    fm_status st = fm_cache_read_attr(s->r, k, FM_ATTR_ORIENTATION, s->orientation, err);
+    if (st == FM_OK && job->up_y) fm_export_up_y_quaternions(s->orientation, job->agents);
+    if (st == FM_OK) f->orientations = s->orientation;
+    return st;
+}
+
+/* Houdini's attributes of frame k (PLY and VDB) besides orient: pscale, age (every agent exists
+ * from frame 0, so its age is the frame's time), and ids 0 .. n-1 when the cache has none, so
+ * tet PLY carry them too. s->tets holds frame k for tets. */
+static void houdini_attrs(frame_source *s, const export_job *job, uint32_t k, fm_export_frame *f)
 {
     size_t n = job->agents;
-    fm_status st = FM_OK;
-    if (job->cache_orientation && (st = fm_cache_read_attr(s->r, k, FM_ATTR_ORIENTATION, s->orientation, err)) == FM_OK) {
-        if (job->up_y) fm_export_up_y_quaternions(s->orientation, n);
-        f->orientations = s->orientation;
-    }
     for (size_t i = 0; i < n; i++) s->ages[i] = (float)(k / job->frame_rate);
     if (job->points)
         for (size_t i = 0; i < n; i++) s->pscales[i] = job->pscale;
     else tet_radii(s->tets, n, s->pscales);
     for (size_t i = 0; !job->cache_ids && i < n; i++) s->ids[i] = (uint32_t)i;
     f->ages = s->ages, f->pscales = s->pscales, f->ids = s->ids;
-    return st;
 }
 
 /* Frame k as the exporters take it. */
@@ -393,7 +399,9 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
     memset(f, 0, sizeof *f);
     f->n = job->agents;
     fm_status st = FM_OK;
-    if (job->need_velocity) { /* first: the difference may read the neighbours' tets */
+    /* first: for tets (VDB, VTK) the difference reads the neighbours' tets into s->tets, which
+     * read_tets then fills with frame k's */
+    if (job->need_velocity) {
         st = job->cache_velocity ? read_vectors(s, job, k, FM_ATTR_VELOCITY, s->velocity, err)
                                  : difference_velocity(s, job, k, err);
         f->velocities = s->velocity;
@@ -410,7 +418,9 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
         st = fm_cache_read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
         f->phases = s->phases;
     }
-    return st == FM_OK && job->houdini ? houdini_attrs(s, job, k, f, err) : st;
+    if (st == FM_OK && job->cache_orientation) st = read_orientation(s, job, k, f, err);
+    if (st == FM_OK && job->houdini) houdini_attrs(s, job, k, f);
+    return st;
 }
 
 /* Room for any <stem>_<frame>.<ext>, and for DIR/ before it; paths of FM_PATH_MAX bytes or more

@@ -42,6 +42,14 @@ packages=(
 if [ "${FM_WITH_BLENDER:-0}" = 1 ]; then
   packages+=(blender)
 fi
+# Debian's VTK 9.1 for Python reads the .vtu export back in tests/io/test_vtk_reader.py, the
+# reader ParaView uses. With --no-install-recommends it is 27 packages, a 36 MB download and
+# 185 MiB installed (Debian 12, Qt 5 included), so, like Blender, it comes only when the tests
+# need it: tools/run-tests.sh sets FM_WITH_VTK=1 (FM_WITH_VTK=0 leaves it out, and the test
+# reports SKIPPED).
+if [ "${FM_WITH_VTK:-0}" = 1 ]; then
+  packages+=(python3-vtk9)
+fi
 # Packages a calling script needs besides these (tools/fuzz.sh and tools/run-tsan.sh: clang).
 read -r -a extra_packages <<< "${FM_EXTRA_PACKAGES:-}"
 packages+=("${extra_packages[@]}")

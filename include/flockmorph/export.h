@@ -4,7 +4,9 @@
  *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase), points as
  *         vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase
  *   OBJ   tets as 4 triangles each, points as `v` lines
- *   VTK   XML UnstructuredGrid (.vtu, appended raw data): VTK_TETRA or VTK_VERTEX cells
+ *   VTK   XML UnstructuredGrid (.vtu, appended data zlib-compressed as VTK's writer does):
+ *         VTK_TETRA cells (cell data agent_id, velocity, phase) or VTK_VERTEX cells (point data
+ *         id, velocity, orient, phase)
  *   VDB   OpenVDB PointDataGrid: P, v, orient, pscale, age, id, phase (Houdini's names)
  *   PC2   point cache (Blender's Mesh Cache modifier, Maya, 3ds Max): every frame in one file
  *   MDD   the same, big-endian, with frame times (fm_pointcache_create)
@@ -52,19 +54,27 @@ typedef struct fm_export_frame {
     size_t n;                  /* agents */
     const float *tet_vertices; /* n × 12: 4 vertices × xyz per tet; NULL for a point flock */
     const float *positions;    /* n × 3: points; for tets the centroids (VDB only; computed if NULL) */
-    const float *velocities;   /* n × 3: written for points (PLY, VTK) and by VDB; NULL: none / zero */
+    const float *velocities;   /* n × 3: written for points (PLY, VTK), for tets by VTK (cell data)
+                                  and by VDB; NULL: none (VDB: zero) */
     const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: not written) */
     const uint8_t *phases;     /* n fm_phase values; NULL: not written */
-    /* Houdini's point attributes (PLY and VDB points; NULL: not written): */
+    /* Houdini's point attributes (PLY and VDB points, orientations also VTK; NULL: not written): */
     const float *orientations; /* n × 4: unit quaternions w, x, y, z as the cache stores them;
                                   written as Houdini's orient, x, y, z, w */
     const float *pscales;      /* n: the agent's radius in world units */
     const float *ages;         /* n: seconds the agent has existed */
 } fm_export_frame;
 
+/* VTK's default zlib level: level 1 gives nearly the size of 6 and 9 on a frame's floats (they
+ * hardly compress; the connectivity and ids compress at any level) in a fraction of the time
+ * (docs/export.md has the measurements). */
+#define FM_EXPORT_VTK_ZLIB_DEFAULT 1
+
 typedef struct fm_export_options {
     double voxel_size;      /* VDB: voxel size in world units; 0 = chosen from the point density */
     int points_per_voxel;   /* VDB: the density target when voxel_size is 0 (default 8) */
+    int vtk_zlib_level;     /* VTK: zlib level of the appended data, 1 (fastest) to 9 (smallest),
+                               or 0 for raw, uncompressed data (default FM_EXPORT_VTK_ZLIB_DEFAULT) */
 } fm_export_options;
 
 fm_export_options fm_default_export_options(void);

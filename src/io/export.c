@@ -57,7 +57,7 @@ const char *fm_export_extension(fm_export_format format)
 
 fm_export_options fm_default_export_options(void)
 {
-    return (fm_export_options){.voxel_size = 0.0, .points_per_voxel = 8};
+    return (fm_export_options){.voxel_size = 0.0, .points_per_voxel = 8, .vtk_zlib_level = FM_EXPORT_VTK_ZLIB_DEFAULT};
 }
 
 /* ---------------------------------------------------------------- little-endian output */
@@ -96,11 +96,12 @@ void fm_le_u32(fm_le_writer *w, uint32_t v)
     for (int k = 0; k < 4; k++) p[k] = (unsigned char)(v >> (8 * k));
 }
 
-void fm_le_u64(fm_le_writer *w, uint64_t v)
+void fm_le_store_u64(unsigned char *p, uint64_t v)
 {
-    unsigned char *p = le_reserve(w, 8);
     for (int k = 0; k < 8; k++) p[k] = (unsigned char)(v >> (8 * k));
 }
+
+void fm_le_u64(fm_le_writer *w, uint64_t v) { fm_le_store_u64(le_reserve(w, 8), v); }
 
 void fm_le_f32(fm_le_writer *w, float v)
 {
@@ -160,7 +161,7 @@ static int ply_prop_header(FILE *file, const fm_export_frame *f)
 static void ply_emit_props(fm_le_writer *w, const fm_export_frame *f, size_t i)
 {
     for (int c = 0; has_prop(f, P_V) && c < 3; c++) fm_le_f32(w, f->velocities[3 * i + c]);
-    for (int c = 0; has_prop(f, P_ORIENT) && c < 4; c++) fm_le_f32(w, f->orientations[4 * i + (c + 1) % 4]);
+    for (int c = 0; has_prop(f, P_ORIENT) && c < 4; c++) fm_le_f32(w, fm_orient_xyzw(f->orientations + 4 * i, c));
     if (has_prop(f, P_PSCALE)) fm_le_f32(w, f->pscales[i]);
     if (has_prop(f, P_AGE)) fm_le_f32(w, f->ages[i]);
     if (has_prop(f, P_ID)) fm_le_u32(w, agent_id(f, i));
@@ -333,6 +334,15 @@ static fm_status write_vdb(const fm_export_frame *frame, const fm_export_options
     return st;
 }
 
+static fm_status write_vtu(const fm_export_frame *frame, const fm_export_options *opts, const char *path,
+                           fm_error *err)
+{
+    if (opts->vtk_zlib_level < 0 || opts->vtk_zlib_level > 9)
+        return fm_fail(err, FM_ERR_USAGE, "cannot export to '%s': the zlib level %d is not 0 (raw) to 9",
+                       path, opts->vtk_zlib_level);
+    return fm_export_with_body(path, fm_vtu_body, &(fm_vtu_input){frame, opts->vtk_zlib_level}, err);
+}
+
 fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format format,
                                 const fm_export_options *opts, const char *path, fm_error *err)
 {
@@ -347,7 +357,7 @@ fm_status fm_export_frame_write(const fm_export_frame *frame, fm_export_format f
     case FM_EXPORT_OBJ:
         return fm_export_with_body(path, tets ? obj_tets_body : obj_points_body, frame, err);
     case FM_EXPORT_VTK:
-        return fm_export_with_body(path, fm_vtu_body, frame, err);
+        return write_vtu(frame, opts ? opts : &defaults, path, err);
     case FM_EXPORT_VDB:
         return write_vdb(frame, opts ? opts : &defaults, path, err);
     case FM_EXPORT_PC2:

@@ -25,6 +25,9 @@ typedef struct fm_le_writer {
     unsigned char buf[1 << 16];
 } fm_le_writer;
 
+/* v as 8 little-endian bytes at p (fm_le_u64 and headers built in memory). */
+void fm_le_store_u64(unsigned char *p, uint64_t v);
+
 void fm_le_u8(fm_le_writer *w, uint8_t v);
 void fm_le_u32(fm_le_writer *w, uint32_t v);
 void fm_le_u64(fm_le_writer *w, uint64_t v);
@@ -41,8 +44,17 @@ typedef int (*fm_body_fn)(FILE *f, const void *data);
 /* Opens path.partial, runs body, commits or discards: the one place write errors become messages. */
 fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *data, fm_error *err);
 
-/* export_vtk.c: the .vtu body for an fm_export_frame (tets as VTK_TETRA, points as VTK_VERTEX). */
-int fm_vtu_body(FILE *f, const void *frame);
+/* Component c (0 x, 1 y, 2 z, 3 w) of the quaternion q stored as the cache stores it, w, x, y, z:
+ * Houdini's orient (PLY, VTK) is x, y, z, w. */
+static inline float fm_orient_xyzw(const float *q, int c) { return q[(c + 1) % 4]; }
+
+/* export_vtk.c: the .vtu body (tets as VTK_TETRA, points as VTK_VERTEX) of a frame, its appended
+ * data zlib-compressed at zlib_level (1..9), or raw for 0. */
+typedef struct fm_vtu_input {
+    const fm_export_frame *frame;
+    int zlib_level;
+} fm_vtu_input;
+int fm_vtu_body(FILE *f, const void *input);
 
 /* export_vdb.cpp: the frame's points at `positions` (its own, or its tets' centroids) as an
  * OpenVDB PointDataGrid named "points" with the attributes P, v (vec3s; zero without

@@ -1,8 +1,9 @@
 /* `flockmorph export` on caches made here, whose agents move on known quadratic paths: a tet
  * cache (format 1), point caches with and without velocity and ids, and a tet cache with phases
  * (format 3). File names and counts for every --frames form, PLY/OBJ sequences re-imported with
- * assimp, VTK checked with Python's xml module (tests/check_vtk.py), VDB read back with the
- * cache's or the finite-difference velocities, byte-identical files for any thread count, and
+ * assimp, VTK (compressed) decoded with Python's xml and zlib modules (tests/check_vtk.py): the
+ * tets' centroid velocities and a flock's orient too, VDB read back with the cache's or the
+ * finite-difference velocities, byte-identical files for any thread count, and
  * the usage and I/O errors. */
 #define _POSIX_C_SOURCE 200809L
 #include "export.h" /* fm_vdb_points_read */
@@ -228,24 +229,71 @@ static void test_frame_ranges(void)
     }
 }
 
+/* Agent positions of a frame as the exporter takes them, floats: a point cache's, or the tets'
+ * centroids summed as the exporter sums them (fm_tet_centroids). */
+static void float_positions(const test_cache *c, int frame, float out[3 * AGENTS])
+{
+    for (int i = 0; i < 3 * AGENTS; i++) {
+        const float *v = g_frames[frame] + 12 * (i / 3) + i % 3;
+        out[i] = c->tets ? (float)(0.25 * ((double)v[0] + v[3] + v[6] + v[9])) : g_pos[frame][i];
+    }
+}
+
+/* The finite difference of the float positions between frames before and after, computed as the
+ * exporter computes it, so equal bit for bit. */
+static void difference_velocity(const test_cache *c, int before, int after, float out[3 * AGENTS])
+{
+    static float xb[3 * AGENTS], xa[3 * AGENTS];
+    float_positions(c, before, xb), float_positions(c, after, xa);
+    for (int i = 0; i < 3 * AGENTS; i++) out[i] = (float)(((double)xa[i] - xb[i]) / ((after - before) / RATE));
+}
+
+/* The velocities the exporter derives for frame k of a cache without them: the documented
+ * central difference, one-sided at the first and last frames. */
+static void exported_velocity(const test_cache *c, int k, float out[3 * AGENTS])
+{
+    difference_velocity(c, k > 0 ? k - 1 : k, k < FRAMES - 1 ? k + 1 : k, out);
+}
+
+/* Frame k of a tet cache as a .vtu must hold it: the tets, agent_id 0 .. n-1, the centroids'
+ * velocity (central difference, one-sided at the ends), and phase when the cache has it; checked
+ * by check_vtk.py, which decodes the compressed blocks itself. Returns its exit status. With
+ * forward set, the velocity expected is the forward difference from frame k - 1 instead, which
+ * the checker must refuse. */
+static int check_tet_vtu(const test_cache *c, const char *path, int k, int forward)
+{
+    char expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    uint32_t ids[AGENTS];
+    static float v[3 * AGENTS];
+    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
+    if (forward) difference_velocity(c, k - 1, k, v);
+    else exported_velocity(c, k, v);
+    export_write_raw(export_tmp(expected, "tet_vtu.expected"), g_frames[k], sizeof g_frames[k], 0);
+    export_write_raw(expected, ids, sizeof ids, 1);
+    export_write_raw(expected, v, sizeof v, 1);
+    if (c->phases) export_write_raw(expected, g_phase[k], sizeof g_phase[k], 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity%s", path, expected, c->phases ? " phase" : "");
+    int rc = export_run_check_vtk(args, forward);
+    ENSURE_MSG(forward || rc == 0, "check_vtk.py %s failed", args);
+    return rc;
+}
+
 static void test_vtk_sequence(void)
 {
-    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096], expected[FM_PATH_MAX];
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], want[4096];
     char path[FM_PATH_MAX + 32];
     snprintf(args, sizeof args, "--format vtk --frames 1:-2 -o '%s'", fresh_dir(dir, "seq_vtk"));
     ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
     list_dir(dir, have, sizeof have);
     expected_names(1, FRAMES - 2, "vtu", 1, want, sizeof want);
     ENSURE_MSG(!strcmp(have, want), "files '%s', expected '%s'", have, want);
-    uint32_t ids[AGENTS];
-    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
     for (int k = 1; k <= FRAMES - 2; k++) {
-        export_write_raw(export_tmp(expected, "seq_vtk.expected"), g_frames[k], sizeof g_frames[k], 0);
-        export_write_raw(expected, ids, sizeof ids, 1);
         snprintf(path, sizeof path, "%s/seq_%05d.vtu", dir, k);
-        snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
-        ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+        check_tet_vtu(&g_tets, path, k, 0);
     }
+    /* a wrong velocity is caught: the forward difference is not what the file holds */
+    snprintf(path, sizeof path, "%s/seq_%05d.vtu", dir, 4);
+    ENSURE_MSG(check_tet_vtu(&g_tets, path, 4, 1) == 1, "check_vtk.py took the forward difference for %s", path);
     snprintf(args, sizeof args, "pvd '%s/seq.pvd' %.17g", dir, RATE);
     for (int k = 1; k <= FRAMES - 2; k++) snprintf(args + strlen(args), sizeof args - strlen(args), " %d", k);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
@@ -366,33 +414,19 @@ static void test_vdb_sequence(void)
 
 static void test_single_file(void)
 {
-    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX], expected[FM_PATH_MAX];
+    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
     snprintf(args, sizeof args, "-o '%s'", export_tmp(path, "seq_last.ply"));
     ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
     export_check_assimp_tets(path, g_frames[FRAMES - 1], AGENTS, 0);
-    snprintf(args, sizeof args, "-o '%s' --frame 3", export_tmp(path, "seq_three.vtu"));
+    snprintf(args, sizeof args, "-o '%s' --frame 0", export_tmp(path, "seq_first.vtu"));
     ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
-    uint32_t ids[AGENTS];
-    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
-    export_write_raw(export_tmp(expected, "seq_three.expected"), g_frames[3], sizeof g_frames[3], 0);
-    export_write_raw(expected, ids, sizeof ids, 1);
-    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
-    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    check_tet_vtu(&g_tets, path, 0, 0); /* the first frame: the forward difference to frame 1 */
     snprintf(args, sizeof args, "-o '%s' --frame 0", export_tmp(path, "seq_first.vdb"));
     ENSURE_MSG(export_cmd(args) == 0, "%s: %s", args, g_err);
     check_vdb_frame(&g_tets, path, 0);
 }
 
 /* ---------------------------------------------------------------- point caches and phases */
-
-/* The velocities the exporter derives for a cache without them: the documented finite difference
- * of the float positions, computed the same way, so equal bit for bit. */
-static void difference_velocity(int k, float out[3 * AGENTS])
-{
-    int before = k > 0 ? k - 1 : k, after = k < FRAMES - 1 ? k + 1 : k;
-    for (int i = 0; i < 3 * AGENTS; i++)
-        out[i] = (float)(((double)g_pos[after][i] - g_pos[before][i]) / ((after - before) / RATE));
-}
 
 /* The pscale the exporter gives points without --pscale: render's radius for the last frame. */
 static float default_pscale(const test_cache *c)
@@ -424,7 +458,7 @@ static void test_point_cache(void)
         export_write_raw(expected, g_vel[k], sizeof g_vel[k], 1);
         export_write_raw(expected, g_ids, sizeof g_ids, 1);
         snprintf(path, sizeof path, "%s/points_%05d.vtu", dir, k);
-        snprintf(args, sizeof args, "vtu '%s' '%s' points", path, expected);
+        snprintf(args, sizeof args, "vtu '%s' '%s' points velocity id", path, expected);
         ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
     }
     snprintf(args, sizeof args, "pvd '%s/points.pvd' %.17g 0 1", dir, RATE);
@@ -454,7 +488,7 @@ static void test_point_cache_without_velocity(void)
     ENSURE_MSG(export_cmd_on(g_bare_points.path, args) == 0, "%s: %s", args, g_err);
     static float v[3 * AGENTS];
     for (int k = 0; k <= 4; k += 4) { /* one-sided, then central */
-        difference_velocity(k, v);
+        exported_velocity(&g_bare_points, k, v);
         snprintf(path, sizeof path, "%s/bare_%05d.ply", dir, k);
         export_ply_points e = {g_pos[k], v, NULL, 1, 1, default_pscale(&g_bare_points), (float)(k / RATE), NULL, NULL};
         export_check_ply(path, &e, AGENTS);
@@ -464,14 +498,9 @@ static void test_point_cache_without_velocity(void)
 /* A tet cache with phases gives VTK cell data phase beside agent_id. */
 static void test_phases_in_vtk(void)
 {
-    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], expected[FM_PATH_MAX];
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32];
     snprintf(args, sizeof args, "--format vtk --frames 2 -o '%s'", fresh_dir(dir, "phase_vtk"));
     ENSURE_MSG(export_cmd_on(g_phased_tets.path, args) == 0, "%s: %s", args, g_err);
-    uint32_t ids[AGENTS];
-    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
-    export_write_raw(export_tmp(expected, "phase_vtk.expected"), g_frames[2], sizeof g_frames[2], 0);
-    export_write_raw(expected, ids, sizeof ids, 1);
-    export_write_raw(expected, g_phase[2], sizeof g_phase[2], 1);
     snprintf(path, sizeof path, "%s/phased_00002.vtu", dir);
     FILE *f = fopen(path, "rb");
     char head[4096] = "";
@@ -479,8 +508,28 @@ static void test_phases_in_vtk(void)
     if (f) fclose(f);
     head[len] = 0;
     ENSURE_MSG(strstr(head, "Name=\"phase\""), "%s has no phase array", path);
-    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
-    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    check_tet_vtu(&g_phased_tets, path, 2, 0);
+}
+
+/* A shape flock's .vtu: point data id, velocity (the cache's), orient (x, y, z, w, as Houdini's
+ * and the VDB export's) and phase, bit for bit; the last frame too. */
+static void test_flock_vtk(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], expected[FM_PATH_MAX];
+    snprintf(args, sizeof args, "--format vtk --frames 3:-1:5 -o '%s'", fresh_dir(dir, "flock_vtk"));
+    ENSURE_MSG(export_cmd_on(g_flock.path, args) == 0, "%s: %s", args, g_err);
+    static float xyzw[4 * AGENTS];
+    for (int k = 3; k < FRAMES; k += 5) {
+        for (int i = 0; i < 4 * AGENTS; i++) xyzw[i] = g_orient[k][4 * (i / 4) + (i % 4 + 1) % 4];
+        export_write_raw(export_tmp(expected, "flock_vtk.expected"), g_pos[k], sizeof g_pos[k], 0);
+        export_write_raw(expected, g_vel[k], sizeof g_vel[k], 1);
+        export_write_raw(expected, g_ids, sizeof g_ids, 1);
+        export_write_raw(expected, xyzw, sizeof xyzw, 1);
+        export_write_raw(expected, g_phase[k], sizeof g_phase[k], 1);
+        snprintf(path, sizeof path, "%s/flock_%05d.vtu", dir, k);
+        snprintf(args, sizeof args, "vtu '%s' '%s' points velocity id orient phase", path, expected);
+        ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    }
 }
 
 /* ---------------------------------------------------------------- Houdini's conventions */
@@ -889,6 +938,7 @@ int main(void)
     RUN_TEST(test_point_cache);
     RUN_TEST(test_point_cache_without_velocity);
     RUN_TEST(test_phases_in_vtk);
+    RUN_TEST(test_flock_vtk);
     RUN_TEST(test_point_caches);
     RUN_TEST(test_houdini_ply_points);
     RUN_TEST(test_up_y);

@@ -1,5 +1,5 @@
 /* Helpers the export tests share: scratch paths, assimp re-import compared with what was written,
- * and tests/check_vtk.py (Python's xml module) run on VTK output. */
+ * and tests/check_vtk.py (Python's xml and zlib modules) run on VTK output. */
 #ifndef FM_TEST_EXPORT_HELPERS_H
 #define FM_TEST_EXPORT_HELPERS_H
 

@@ -1,11 +1,12 @@
 /* The exporters on plain arrays (include/flockmorph/export.h), without a cache: tets and points
- * to PLY and OBJ re-imported with assimp, VTK checked with Python's xml module
- * (tests/check_vtk.py), OpenVDB points read back through the adapter. */
+ * to PLY and OBJ re-imported with assimp, VTK's compressed and raw layouts decoded with Python's
+ * xml and zlib modules (tests/check_vtk.py), OpenVDB points read back through the adapter. */
 #define _POSIX_C_SOURCE 200809L
 #include "export.h" /* fm_vdb_points_read */
 #include "test_export_helpers.h"
 
 #include <stdint.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 enum { NT = 40, NP = 300 };
@@ -110,47 +111,161 @@ static void test_points_obj(void)
 
 /* ---------------------------------------------------------------- VTK */
 
+/* Writes what a tet .vtu should hold into expected: the vertices, ids, velocities, phases. */
+static void expect_tets(const char *expected, const float *v, const uint32_t *ids, const float *vel,
+                        const uint8_t *phases, size_t n)
+{
+    export_write_raw(expected, v, 48 * n, 0);
+    export_write_raw(expected, ids, 4 * n, 1);
+    export_write_raw(expected, vel, 12 * n, 1);
+    if (phases) export_write_raw(expected, phases, n, 1);
+}
+
 static void test_vtu_tets(void)
 {
-    static float v[12 * NT];
+    static float v[12 * NT], vel[3 * NT];
     static uint8_t phases[NT];
     random_tets(v, NT);
     uint32_t ids[NT];
     for (int i = 0; i < NT; i++) ids[i] = (uint32_t)i, phases[i] = (uint8_t)(3 - i % 4);
+    for (int i = 0; i < 3 * NT; i++) vel[i] = (float)uniform(-5, 5);
     char path[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
-    fm_export_frame f = {.n = NT, .tet_vertices = v, .phases = phases};
+    fm_export_frame f = {.n = NT, .tet_vertices = v, .velocities = vel, .phases = phases};
     if (write_frame(&f, FM_EXPORT_VTK, "formats_tets.vtu", path) != FM_OK) return;
-    export_write_raw(export_tmp(expected, "formats_tets.expected"), v, sizeof v, 0);
-    export_write_raw(expected, ids, sizeof ids, 1);
-    export_write_raw(expected, phases, sizeof phases, 1);
-    snprintf(args, sizeof args, "vtu '%s' '%s' tets", path, expected);
+    expect_tets(export_tmp(expected, "formats_tets.expected"), v, ids, vel, phases, NT);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity phase", path, expected);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
-    /* the checker can fail: one coordinate off by one ulp */
+    /* the checker can fail: one coordinate off by one ulp, then one velocity */
     uint32_t bits;
     memcpy(&bits, &v[17], 4), bits ^= 1, memcpy(&v[17], &bits, 4);
-    export_write_raw(expected, v, sizeof v, 0);
-    export_write_raw(expected, ids, sizeof ids, 1);
-    export_write_raw(expected, phases, sizeof phases, 1);
+    expect_tets(expected, v, ids, vel, phases, NT);
     ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed coordinate");
+    memcpy(&bits, &v[17], 4), bits ^= 1, memcpy(&v[17], &bits, 4);
+    vel[3 * NT - 2] = -vel[3 * NT - 2];
+    expect_tets(expected, v, ids, vel, phases, NT);
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed velocity");
 }
 
 static void test_vtu_points(void)
 {
     static point_set p;
+    static float orient[4 * NP], xyzw[4 * NP];
     random_points(&p);
+    for (int i = 0; i < NP; i++) { /* w, x, y, z as the cache stores them; the file: x, y, z, w */
+        for (int c = 0; c < 4; c++) orient[4 * i + c] = (float)uniform(-1, 1);
+        for (int c = 0; c < 4; c++) xyzw[4 * i + c] = orient[4 * i + (c + 1) % 4];
+    }
     char path[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
-    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids};
+    fm_export_frame f = {.n = NP, .positions = p.pos, .velocities = p.vel, .ids = p.ids, .orientations = orient};
     if (write_frame(&f, FM_EXPORT_VTK, "formats_points.vtu", path) != FM_OK) return;
     export_write_raw(export_tmp(expected, "formats_points.expected"), p.pos, sizeof p.pos, 0);
     export_write_raw(expected, p.vel, sizeof p.vel, 1);
     export_write_raw(expected, p.ids, sizeof p.ids, 1);
-    snprintf(args, sizeof args, "vtu '%s' '%s' points", path, expected);
+    export_write_raw(expected, xyzw, sizeof xyzw, 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' points velocity id orient", path, expected);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
-    p.ids[NP / 2]++; /* and a changed id is caught */
+    /* a changed id is caught, and so is the cache's order w, x, y, z */
+    p.ids[NP / 2]++;
     export_write_raw(expected, p.pos, sizeof p.pos, 0);
     export_write_raw(expected, p.vel, sizeof p.vel, 1);
     export_write_raw(expected, p.ids, sizeof p.ids, 1);
+    export_write_raw(expected, xyzw, sizeof xyzw, 1);
     ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed id");
+    p.ids[NP / 2]--;
+    export_write_raw(expected, p.pos, sizeof p.pos, 0);
+    export_write_raw(expected, p.vel, sizeof p.vel, 1);
+    export_write_raw(expected, p.ids, sizeof p.ids, 1);
+    export_write_raw(expected, orient, sizeof orient, 1);
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py took orient as w, x, y, z");
+}
+
+static long file_size(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 ? (long)st.st_size : -1;
+}
+
+/* Overwrites 8 bytes at offset `at` of the appended data (after its '_') with v, little-endian. */
+static void poke_appended(const char *path, long at, uint64_t v)
+{
+    FILE *fp = fopen(path, "r+b");
+    char buf[8192];
+    size_t len = fp ? fread(buf, 1, sizeof buf - 1, fp) : 0;
+    buf[len] = 0;
+    const char *mark = strstr(buf, "<AppendedData encoding=\"raw\">");
+    const char *underscore = mark ? strchr(mark, '_') : NULL;
+    ENSURE_MSG(underscore != NULL, "%s: no appended data", path);
+    unsigned char le[8];
+    for (int k = 0; k < 8; k++) le[k] = (unsigned char)(v >> (8 * k));
+    if (underscore) ENSURE(fseek(fp, (long)(underscore + 1 - buf) + at, SEEK_SET) == 0 && fwrite(le, 1, 8, fp) == 8);
+    if (fp) fclose(fp);
+}
+
+/* n tets of a jittered lattice's cubes, 6 to a cube (Kuhn's: corner, then one step along each
+ * axis in one of the 6 orders), each positively oriented: neighbours share their vertices, as a
+ * tetrahedralised mesh's do, which is what lets a frame's coordinates compress. */
+static void lattice_tets(float *v, size_t n)
+{
+    enum { L = 8 }; /* (L - 1)^3 cubes */
+    static float grid[L][L][L][3];
+    static const int order[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (int i = 0; i < L * L * L; i++) {
+        const int at[3] = {i / (L * L), i / L % L, i % L};
+        for (int k = 0; k < 3; k++) grid[at[0]][at[1]][at[2]][k] = (float)(at[k] + uniform(-0.2, 0.2));
+    }
+    for (size_t t = 0; t < n && t < 6 * (L - 1) * (L - 1) * (L - 1); t++) {
+        int cube = (int)(t / 6), at[3] = {cube / ((L - 1) * (L - 1)), cube / (L - 1) % (L - 1), cube % (L - 1)};
+        float *tv = v + 12 * t;
+        for (int j = 0; j < 4; j++) {
+            if (j > 0) at[order[t % 6][j - 1]]++;
+            memcpy(tv + 3 * j, grid[at[0]][at[1]][at[2]], sizeof(float) * 3);
+        }
+        if (volume6(tv) < 0)
+            for (int k = 0; k < 3; k++) {
+                float tmp = tv[3 + k];
+                tv[3 + k] = tv[6 + k], tv[6 + k] = tmp;
+            }
+    }
+}
+
+/* Enough tets for several blocks: 2048 make Points three whole 32 KiB blocks (the header's
+ * last-block size 0) and connectivity two; the other arrays one partial block. The default
+ * (compressed) and raw layouts hold the same values, the compressed file of these lattice tets
+ * is well under the raw one (a real frame: a third), and a wrong block size in a header is
+ * caught. */
+static void test_vtu_blocks(void)
+{
+    enum { NB = 2048 };
+    static float v[12 * NB], vel[3 * NB];
+    static uint32_t ids[NB];
+    lattice_tets(v, NB);
+    for (int i = 0; i < NB; i++) ids[i] = (uint32_t)i;
+    for (int i = 0; i < 3 * NB; i++) vel[i] = (float)uniform(-5, 5);
+    fm_export_frame f = {.n = NB, .tet_vertices = v, .velocities = vel};
+    char zpath[FM_PATH_MAX], rpath[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    fm_export_options raw = fm_default_export_options();
+    raw.vtk_zlib_level = 0;
+    fm_error err = {0};
+    if (write_frame(&f, FM_EXPORT_VTK, "formats_blocks.vtu", zpath) != FM_OK) return;
+    ENSURE_MSG(fm_export_frame_write(&f, FM_EXPORT_VTK, &raw, export_tmp(rpath, "formats_blocks_raw.vtu"), &err) == FM_OK,
+               "%s", err.message);
+    expect_tets(export_tmp(expected, "formats_blocks.expected"), v, ids, vel, NULL, NB);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity", zpath, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    snprintf(args, sizeof args, "vtu-raw '%s' '%s' tets agent_id velocity", rpath, expected);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
+    long z = file_size(zpath), r = file_size(rpath);
+    ENSURE_MSG(z > 0 && z < 0.6 * r, "compressed %ld bytes against raw %ld", z, r);
+    /* Points' header: [3, 32768, 0, sizes]; a block size of 32767 no longer matches the blocks */
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity", zpath, expected);
+    poke_appended(zpath, 8, 32767);
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a wrong block size");
+    poke_appended(zpath, 8, 32768);
+    ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed after the repair", args);
+    poke_appended(zpath, 16, 100); /* and a partial last block that is not there */
+    ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a wrong last-block size");
+    raw.vtk_zlib_level = 10;
+    ENSURE(fm_export_frame_write(&f, FM_EXPORT_VTK, &raw, rpath, &err) == FM_ERR_USAGE);
 }
 
 static void test_pvd(void)
@@ -310,7 +425,7 @@ static void test_empty_frames(void)
         snprintf(name, sizeof name, "formats_empty.%s", fm_export_extension(formats[i]));
         write_frame(&f, formats[i], name, path);
     }
-    snprintf(args, sizeof args, "vtu '%s' /dev/null tets", export_tmp(path, "formats_empty.vtu"));
+    snprintf(args, sizeof args, "vtu '%s' /dev/null tets agent_id", export_tmp(path, "formats_empty.vtu"));
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
     double voxel;
     check_vdb(export_tmp(path, "formats_empty.vdb"), NULL, NULL, NULL, 0, &voxel);
@@ -427,6 +542,7 @@ int main(void)
     RUN_TEST(test_points_obj);
     RUN_TEST(test_vtu_tets);
     RUN_TEST(test_vtu_points);
+    RUN_TEST(test_vtu_blocks);
     RUN_TEST(test_pvd);
     RUN_TEST(test_vdb_points);
     RUN_TEST(test_vdb_tets);
