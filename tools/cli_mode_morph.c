@@ -83,6 +83,18 @@ static void add_warning(morph_run *r, const char *text)
     json_array_append_new(r->warnings, cli_json_string(text));
 }
 
+/* stats.json's source_quality / target_quality: the agents' tets and TetGen's before subdivision. */
+static json_t *quality_json(const fm_morph_tet_quality *agents, const fm_morph_tet_quality *tetgen)
+{
+    json_t *q = json_object();
+    json_object_set_new(q, "bound", json_real(agents->bound));
+    json_object_set_new(q, "max_ratio", json_real(agents->max_ratio));
+    json_object_set_new(q, "share_above", json_real(agents->share_above));
+    json_object_set_new(q, "tetgen_max_ratio", json_real(tetgen->max_ratio));
+    json_object_set_new(q, "tetgen_share_above", json_real(tetgen->share_above));
+    return q;
+}
+
 static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
 {
     morph_run *r = run;
@@ -98,6 +110,8 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
+    json_object_set_new(j, "source_quality", quality_json(&mi->source_quality, &mi->source_tetgen_quality));
+    json_object_set_new(j, "target_quality", quality_json(&mi->target_quality, &mi->target_tetgen_quality));
     json_object_set_new(j, "launch_rate", json_real(mi->launch_rate));
     json_object_set_new(j, "all_arrived", json_boolean(rs->all_arrived));
     json_object_set_new(j, "stopped_at_frame_limit", json_boolean(rs->stopped_at_frame_limit));

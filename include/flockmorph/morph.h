@@ -22,6 +22,13 @@ fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn pro
                          fm_error *err);
 void fm_morph_model_destroy(fm_morph_model *model);
 
+/* Radius-edge ratio (circumradius / shortest edge, what TetGen's -q bounds) over a tet set. */
+typedef struct fm_morph_tet_quality {
+    double bound;               /* the scene's tetgen.quality, the bound asked of TetGen */
+    double max_ratio;           /* the largest ratio */
+    double share_above;         /* fraction of the tets whose ratio exceeds the bound */
+} fm_morph_tet_quality;
+
 typedef struct fm_morph_model_info {
     int64_t agents;             /* n */
     int64_t source_tets;        /* n1: TetGen's count before subdivision */
@@ -39,6 +46,10 @@ typedef struct fm_morph_model_info {
     int fields_baked;           /* the style fields' noise is baked on style.grid (only where the grid
                                    resolves it: cells of at most a quarter of the noise scale) */
     double field_bake_error;    /* baked against direct, relative RMS at t = 0; NaN when not baked */
+    fm_morph_tet_quality source_quality;        /* the n source tets the agents are (after subdivision) */
+    fm_morph_tet_quality target_quality;        /* the n target tets */
+    fm_morph_tet_quality source_tetgen_quality; /* TetGen's n1 tets, before subdivision */
+    fm_morph_tet_quality target_tetgen_quality; /* TetGen's n2 tets */
 } fm_morph_model_info;
 
 fm_morph_model_info fm_morph_model_get_info(const fm_morph_model *model);

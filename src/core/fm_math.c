@@ -405,20 +405,28 @@ static int fm_ball_circle(const fm_msph *ms, fm_ball *b, double (*p)[3])
     return fm_ball_accept(ms, b, p, 3);
 }
 
-/* Sphere through the tetrahedron p[0..3]: with u, v, w the edges from p0, the centre solves
- * 2 u.x = |u|^2 (etc.), i.e. x = (|u|^2 v x w + |v|^2 w x u + |w|^2 u x v) / (2 u.(v x w)). */
-static int fm_ball_tetra(const fm_msph *ms, fm_ball *b, double (*p)[3])
+/* Circumcentre of the tetrahedron p0..p3, written as p0 + x: with u, v, w the edges from p0, x
+ * solves 2 u.x = |u|^2 (etc.), i.e. x = (|u|^2 v x w + |v|^2 w x u + |w|^2 u x v) / (2 u.(v x w)).
+ * Not finite for a flat tetrahedron. */
+static void fm_circumcenter4(const double p0[3], const double p1[3], const double p2[3], const double p3[3],
+                             double c[3])
 {
     double u[3], v[3], w[3], vw[3], wu[3], uv[3];
-    fm_sub3(p[1], p[0], u);
-    fm_sub3(p[2], p[0], v);
-    fm_sub3(p[3], p[0], w);
+    fm_sub3(p1, p0, u);
+    fm_sub3(p2, p0, v);
+    fm_sub3(p3, p0, w);
     fm_cross3(v, w, vw);
     fm_cross3(w, u, wu);
     fm_cross3(u, v, uv);
     double uu = fm_dot3(u, u), vv = fm_dot3(v, v), ww = fm_dot3(w, w);
     double det2 = 2.0 * fm_dot3(u, vw);
-    for (int k = 0; k < 3; ++k) b->c[k] = p[0][k] + (uu * vw[k] + vv * wu[k] + ww * uv[k]) / det2;
+    for (int k = 0; k < 3; ++k) c[k] = p0[k] + (uu * vw[k] + vv * wu[k] + ww * uv[k]) / det2;
+}
+
+/* Sphere through the tetrahedron p[0..3]. */
+static int fm_ball_tetra(const fm_msph *ms, fm_ball *b, double (*p)[3])
+{
+    fm_circumcenter4(p[0], p[1], p[2], p[3], b->c);
     return fm_ball_accept(ms, b, p, 4);
 }
 
@@ -608,4 +616,24 @@ void fm_grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count
 {
     for (int64_t i = 0; i < count; i++)
         for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
+}
+
+/* ================================================================ tetrahedron quality */
+
+/* The circumradius is measured from the centre to all four vertices and the largest taken, so a
+ * rounded centre can only overstate the ratio, never hide a bad tet. The tet is recentred on its
+ * first vertex first: rounding then scales with the tet's size, not its distance from 0. */
+double fm_tet_radius_edge(const double *tet)
+{
+    double p[4][3], c[3];
+    for (int k = 0; k < 4; ++k) fm_sub3(tet + 3 * k, tet, p[k]);
+    fm_circumcenter4(p[0], p[1], p[2], p[3], c);
+    if (!isfinite(c[0]) || !isfinite(c[1]) || !isfinite(c[2])) return INFINITY; /* flat: as bad as it gets */
+    double r2 = 0.0, e2 = INFINITY;
+    for (int a = 0; a < 4; ++a) {
+        r2 = fmax(r2, fm_dist2(c, p[a]));
+        for (int b = a + 1; b < 4; ++b) e2 = fmin(e2, fm_dist2(p[a], p[b]));
+    }
+    if (!isfinite(r2) || e2 == 0.0) return INFINITY;
+    return sqrt(r2 / e2);
 }

@@ -60,6 +60,11 @@ fm_mat3 fm_rotation_axis_angle(const double axis[3], double theta);
    to any point, so every point is inside to rounding. */
 int fm_min_sphere(const double *xyz, size_t n, uint64_t seed, double center[3], double *radius);
 
+/* Radius-edge ratio of a tetrahedron (4 vertices, 12 doubles): circumradius over shortest edge,
+   the measure TetGen's -q bounds. sqrt(6)/4 ~ 0.612 for a regular tet, the smallest possible;
+   +inf for a flat or collapsed one. */
+double fm_tet_radius_edge(const double *tet);
+
 /* Grows the box [lo, hi] to hold `count` points (3 doubles each). */
 void fm_grow_bounds(double lo[3], double hi[3], const double *pts, int64_t count);
 

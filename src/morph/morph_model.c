@@ -348,6 +348,13 @@ static void free_scratch(prep_scratch *s, int count)
     free(s->obstacles);
 }
 
+/* The quality of a tet set for fm_morph_model_info (one pass; the scene's bound). */
+static fm_morph_tet_quality tet_quality(const fm_morph_model *m, const fm_tets *tets)
+{
+    fm_tet_quality q = fm_tets_quality(tets, m->def.tet_quality);
+    return (fm_morph_tet_quality){q.bound, q.max_ratio, q.count > 0 ? (double)q.above / (double)q.count : 0.0};
+}
+
 /* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
 static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
@@ -359,6 +366,8 @@ static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_
     if ((st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
     m->info.source_tets = s->src.n;
     m->info.target_tets = s->dst.n;
+    m->info.source_tetgen_quality = tet_quality(m, &s->src);
+    m->info.target_tetgen_quality = tet_quality(m, &s->dst);
     if ((st = warn_if_shapes_overlap(m, s, err)) != FM_OK) return st;
     if (def->obstacle_count > 0 && (st = load_obstacles(m, s, err)) != FM_OK) return st;
     return choose_n(m, &s->src, &s->dst, err);
@@ -373,6 +382,9 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     if ((st = fm_subdivide_to(&s->src, m->n, err)) != FM_OK) return st;
     if ((st = fm_subdivide_to(&s->dst, m->n, err)) != FM_OK) return st;
     m->info.agents = m->n;
+    /* Subdividing can only worsen the shapes TetGen made: measure the tets the agents are. */
+    m->info.source_quality = tet_quality(m, &s->src);
+    m->info.target_quality = tet_quality(m, &s->dst);
     m->info.source_volume = total_volume(&s->src, m->info.source_centroid);
     m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
     report(progress, user, "order", 0.8);
