@@ -73,6 +73,6 @@ mkdir -p "$build_dir"
 say "configuring $build_dir/ (${FM_BUILD_TYPE:-Release}; log: $build_dir/cmake-configure.log)"
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="${FM_BUILD_TYPE:-Release}" "$@" > "$build_dir/cmake-configure.log" 2>&1 \
   || { cat "$build_dir/cmake-configure.log"; exit 1; }
-[ -x "$build_dir/flockmorph" ] || say "building $build_dir/ on $(nproc) cores: a first build takes several minutes on 2 cores"
+[ -x "$build_dir/flockmorph" ] || say "building $build_dir/ on $(nproc) cores: a first build takes about a minute on 2 cores (65 s Release, 77 s with the sanitizers, measured on a 2-vCPU Xeon)"
 cmake --build "$build_dir" -j"$(nproc)"
 say "ready in $((SECONDS - start)) s: $build_dir/flockmorph"
