@@ -248,11 +248,9 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 
 /* The output directory, taken, and the manifest's first version; then the run and its last. */
 /* What a run on several ranks does not do yet (docs/scale-out.md): the same answer on every rank. */
-static int check_ranks(const cli_run_options *o, const fm_scene_def *def)
+static int check_ranks(const fm_scene_def *def)
 {
-    if (fm_dist_size(cli_dist) == 1) return 0;
-    (void)o;
-    if (def->mode != FM_MODE_SHAPE_FLOCK) return 0;
+    if (fm_dist_size(cli_dist) == 1 || def->mode != FM_MODE_SHAPE_FLOCK) return 0;
     fprintf(stderr, "flockmorph: the shape flock (mode \"shape_flock\") runs on one MPI rank only in this version: "
             "run it without mpirun, or with -np 1\n");
     return FM_ERR_USAGE;
@@ -272,7 +270,7 @@ static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const 
 
 static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
-    int rc = check_ranks(o, def);
+    int rc = check_ranks(def);
     if (rc) return rc;
     rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
     if (rc) return rc;

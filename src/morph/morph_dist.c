@@ -137,18 +137,24 @@ fm_morph_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s)
 
 /* Stage 1 on P ranks: agents id in [launched, due) leave the source; each rank takes those whose
  * rest centroid lies in its slab, in id order, after its active range. */
+static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent_record *r, int64_t a);
+
+/* Agent i as it leaves the source (or waits there): at its rest centroid, no target, the rest of
+ * its state zero; rest data come from the model as for any agent that arrives in a store. */
+static agent_record rest_record(const fm_morph_model *m, int64_t i, uint8_t phase)
+{
+    agent_record r = {.target = -1, .id = (int32_t)i, .phase = phase};
+    for (int k = 0; k < 3; k++) r.p[k] = m->src_c[k][i];
+    return r;
+}
+
 void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due)
 {
     const fm_morph_slabs *d = s->slabs;
     for (int64_t i = s->launched; i < due; i++) {
         if (owner(d, m->src_c[d->axis][i], 0) != d->rank) continue;
-        const int64_t a = s->active_end++;
-        for (int k = 0; k < 3; k++) s->p[k][a] = m->src_c[k][i], s->v[k][a] = 0, s->p2[k][a] = 0;
-        for (int j = 0; j < 12; j++) s->rest_rel[j][a] = m->src_rel[12 * i + j];
-        s->rest_radius[a] = m->src_radius[i];
-        s->id[a] = (int32_t)i, s->phase[a] = FM_PHASE_FLYING, s->target[a] = -1;
-        s->t2[a] = 0, s->tf[a] = 0, s->perm[a] = 0, s->morph_safe[a] = 0;
-        memset(s->morph + FM_MORPH_FLOATS * a, 0, sizeof(float) * FM_MORPH_FLOATS);
+        const agent_record r = rest_record(m, i, FM_PHASE_FLYING);
+        unpack_agent(m, s, &r, s->active_end++);
     }
 }
 
@@ -294,19 +300,26 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
  * dense part of the flock costs more), all ranks together; so the slabs follow the flock and the
  * cost. The cuts decide only where an agent is computed, never what: no result depends on them,
  * so the timings may steer them. */
-void fm_morph_dist_rebalance(fm_morph_state *s)
+/* The cuts at the quantiles of the store's agents in flight, each weighing `weight`, summed over
+ * the ranks when `dist` is set. Without memory the cuts stay: still correct, only less balanced. */
+static void cut_at_flight(fm_morph_state *s, double weight, const fm_dist *dist)
 {
     fm_morph_slabs *d = s->slabs;
     double *bins = calloc(BALANCE_BINS, sizeof(double));
-    if (!bins) return; /* the cuts stay: still correct, only less balanced */
-    const double cost = isfinite(d->cost) && d->cost > 0 ? d->cost : 1;
+    if (!bins) return;
     const float *x = s->p[d->axis];
     for (int64_t a = s->active_begin; a < s->active_end; a++)
-        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += cost;
-    fm_dist_sum_f64(s->dist, bins, BALANCE_BINS);
+        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += weight;
+    fm_dist_sum_f64(dist, bins, BALANCE_BINS); /* every rank gets the same histogram: the same cuts */
     cuts_from_histogram(d, bins);
-    d->cost = INFINITY;
     free(bins);
+}
+
+void fm_morph_dist_rebalance(fm_morph_state *s)
+{
+    fm_morph_slabs *d = s->slabs;
+    cut_at_flight(s, isfinite(d->cost) && d->cost > 0 ? d->cost : 1, s->dist);
+    d->cost = INFINITY;
 }
 
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds)
@@ -379,8 +392,7 @@ static void assemble_store(const fm_morph_model *m, fm_morph_state *s, const age
 {
     for (int64_t k = 0; k < total; k++) unpack_agent(m, s, all + k, k);
     for (int64_t i = s->launched; i < s->n; i++) {
-        agent_record r = {.target = -1, .id = (int32_t)i, .phase = FM_PHASE_WAITING};
-        for (int k = 0; k < 3; k++) r.p[k] = m->src_c[k][i];
+        const agent_record r = rest_record(m, i, FM_PHASE_WAITING);
         unpack_agent(m, s, &r, i);
     }
     s->active_begin = 0, s->active_end = s->launched;
@@ -421,14 +433,8 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
 void fm_morph_dist_adopt(fm_morph_state *s)
 {
     fm_morph_slabs *d = s->slabs;
-    double *bins = calloc(BALANCE_BINS, sizeof(double));
+    cut_at_flight(s, 1, NULL); /* every rank holds the whole store: no sum over the ranks */
     const float *x = s->p[d->axis];
-    if (bins) {
-        for (int64_t a = s->active_begin; a < s->active_end; a++)
-            if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += 1;
-        cuts_from_histogram(d, bins);
-        free(bins);
-    }
     int64_t kept = 0, arrived = 0;
     for (int64_t a = 0; a < s->active_end; a++) { /* arrivals before the last re-sort stay first */
         if (owner(d, x[a], 0) != d->rank) continue;

@@ -30,8 +30,8 @@ static double max_vertex_error(const fm_morph_model *m, const fm_morph_state *s,
     double worst = s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
     for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
         if (s->target[a] < 0) {
-            worst = INFINITY;
-            break;
+            worst = INFINITY; /* not arrived: the loop ends */
+            continue;
         }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         const double *t = m->tgt + 12 * s->target[a];

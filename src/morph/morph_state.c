@@ -205,12 +205,9 @@ static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t
 /* An agent's tet in any phase but phase 1 (the synthesis kernel, kernel_synth.h, has those). */
 static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, float *out)
 {
-    const float c[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
-    float rest[12];
     switch (s->phase[a]) {
-    case FM_PHASE_WAITING: /* p and rest_rel are the model's src_c and src_rel: fm_morph_waiting_tet */
-        fm_morph_state_rest_tet(s, a, rest);
-        place_tet(c, 1.0, NULL, rest, out);
+    case FM_PHASE_WAITING: /* at rest: the store's p and rest_rel are the model's, as on P ranks */
+        fm_morph_waiting_tet(m, s->id[a], out);
         break;
     case FM_PHASE_HOMING:
         homing_tet(m, s, a, s->time, out);
