@@ -96,6 +96,11 @@ typedef enum fm_flock_sampling {
 typedef enum fm_flock_match { FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1 } fm_flock_match;
 /* The mosaic's dis_ij (SCF eqs 1-2): it both selects the neighbours and enters E_ij. */
 typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN = 1 } fm_mosaic_distance;
+/* What the Kalman filter's R is scaled over (SCF: R "adjusts how closely the agents follow the
+ * virtual leaders"): nothing (R fixed), the agent's distance to its destination, or its leader's speed. */
+typedef enum fm_kalman_r_over {
+    FM_KALMAN_R_FIXED = 0, FM_KALMAN_R_OVER_DISTANCE = 1, FM_KALMAN_R_OVER_LEADER_SPEED = 2
+} fm_kalman_r_over;
 typedef enum fm_flock_arrival { FM_ARRIVAL_BIND = 0, FM_ARRIVAL_FLOAT = 1 } fm_flock_arrival;
 typedef enum fm_deform_kind {
     FM_DEFORM_NONE = 0,     /* a static target */
@@ -124,6 +129,8 @@ typedef struct fm_flock_def {
     double kalman_q;             /* spectral density of Q's acceleration noise, units^2/s^3 */
     double kalman_r_position;    /* R's position variance, units^2 (> 0) */
     double kalman_r_velocity;    /* R's velocity variance, units^2/s^2 (> 0) */
+    fm_kalman_r_over kalman_r_over; /* R scaled per agent by kalman_r_scale over this; FIXED: not */
+    fm_fuzzy_def kalman_r_scale; /* [x, scale] points, scale > 0, linear between, flat beyond */
     fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];          /* SCF's static strategy (a static target) */
     fm_fuzzy_def fuzzy_tracking[FM_FUZZY_FORCES]; /* its tracking strategy (a deforming target) */
     double damping;              /* c of the damping force -m c (v - v_destination), 1/s */

@@ -52,6 +52,7 @@ struct fm_flock_model {
     float *max_accel;              /* MaxForce / mass: bounds each force's acceleration */
     float max_radius;              /* the neighbour grid's cell */
     fm_fuzzy fuzzy[FM_FUZZY_FORCES];
+    fm_fuzzy r_scale;              /* R's factor over def.flock.kalman_r_over (unused when R is fixed) */
     fm_field_plan fields;          /* whether the state bakes the style fields (fields.h) */
     char warning[1024];            /* fm_flock_model_warning 0: the fields' plan, located */
     fm_obstacles *obstacles;       /* NULL without obstacles */
@@ -82,6 +83,8 @@ struct fm_flock_state {
     float *eval;                   /* deforming: destinations, 3 per agent (fm_samples_eval) */
     uint8_t *member;               /* every agent is listed in the grid */
     fm_kalman kalman;              /* the covariance and gain, shared by all agents (flock_kalman.h) */
+    double *kalman_p;              /* R over the run: each agent's own covariance, 3 per agent; else NULL */
+    float *r_scale;                /* R over the run: scratch, the agent's factor of R this step */
     fm_fields *fields;
     fm_grid grid;
     int grid_ready;

@@ -10,32 +10,42 @@ void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_v
 
 void fm_kalman_advance(fm_kalman *kf)
 {
-    const double dt = kf->dt, a = kf->p[0], b = kf->p[1], c = kf->p[2];
+    fm_kalman_covariance_step(kf, 1.0, kf->p, kf->k);
+}
+
+void fm_kalman_covariance_step(const fm_kalman *kf, double r_scale, double p[3], double k[4])
+{
+    const double dt = kf->dt, a = p[0], b = p[1], c = p[2];
     /* P- = A P A^T + Q */
     const double pa = a + 2 * b * dt + c * dt * dt + kf->q * dt * dt * dt / 3;
     const double pb = b + c * dt + kf->q * dt * dt / 2;
     const double pc = c + kf->q * dt;
     /* K = P- S^-1, S = P- + R */
-    const double sa = pa + kf->r_pos, sc = pc + kf->r_vel, det = sa * sc - pb * pb;
+    const double sa = pa + kf->r_pos * r_scale, sc = pc + kf->r_vel * r_scale, det = sa * sc - pb * pb;
     const double ia = sc / det, ib = -pb / det, ic = sa / det;
-    double *k = kf->k;
     k[0] = pa * ia + pb * ib, k[1] = pa * ib + pb * ic;
     k[2] = pb * ia + pc * ib, k[3] = pb * ib + pc * ic;
     /* P+ = (I - K) P-, symmetrised against rounding */
     const double na = (1 - k[0]) * pa - k[1] * pb;
     const double nb = 0.5 * (((1 - k[0]) * pb - k[1] * pc) + (-k[2] * pa + (1 - k[3]) * pb));
     const double nc = -k[2] * pb + (1 - k[3]) * pc;
-    kf->p[0] = na, kf->p[1] = nb, kf->p[2] = nc;
+    p[0] = na, p[1] = nb, p[2] = nc;
 }
 
-void fm_kalman_homing(const fm_kalman *kf, int64_t begin, int64_t end, const uint8_t *phase,
+void fm_kalman_homing(const fm_kalman *kf, const fm_kalman_agents *own, int64_t begin, int64_t end, const uint8_t *phase,
                       uint8_t phase_sel, const float *const p[3], const float *const v[3],
                       const float *const z_p[3], const float *const z_v[3], const float *weight,
                       const float *max_accel, const float *const u[3], float *const h[3])
 {
-    const double dt = kf->dt, k_pp = kf->k[0], k_pv = kf->k[1], gain = 2.0 / (dt * dt);
+    const double dt = kf->dt, gain = 2.0 / (dt * dt);
+    double k_pp = kf->k[0], k_pv = kf->k[1];
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
+        if (own) {
+            double k[4];
+            fm_kalman_covariance_step(kf, own->r_scale[a], own->p + 3 * a, k);
+            k_pp = k[0], k_pv = k[1];
+        }
         double f[3], f2 = 0;
         for (int k = 0; k < 3; k++) {
             const double e_p = (double)z_p[k][a] - ((double)p[k][a] + (double)v[k][a] * dt); /* z - x- */

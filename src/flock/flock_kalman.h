@@ -24,7 +24,13 @@
  * and R = diag(r_position, r_velocity) (units^2, units^2/s^2). A larger R trusts the leader less, so
  * the agent tracks it more loosely; R -> 0 makes Pos+ the leader's position (the paper keeps R away
  * from zero to keep the flocking fluctuations; both must be > 0 here). P starts at 0: the agent knows
- * its own state, so the gain grows from 0 to its steady value over the first steps. */
+ * its own state, so the gain grows from 0 to its steady value over the first steps.
+ *
+ * R adjustable over the run (SCF: R sets how closely the agents follow the virtual leaders): with
+ * shape_flock.kalman.r_scale each agent's R is R times a curve of its distance to the destination
+ * or of its leader's speed, so P and K become the agent's own (fm_kalman_agents): the same
+ * recursion per agent, only when it is under forces. With the scale 1 everywhere it is the shared
+ * filter's arithmetic, bit for bit. */
 #ifndef FM_KALMAN_H
 #define FM_KALMAN_H
 
@@ -36,18 +42,28 @@ typedef struct fm_kalman {
     double k[4];   /* gain of the last advance, row-major 2x2 */
 } fm_kalman;
 
+/* Per-agent filters: p holds 3 doubles an agent (its posterior covariance, 0 at the start), r_scale
+ * the factor of its R for this step. */
+typedef struct fm_kalman_agents {
+    double *p;
+    const float *r_scale;
+} fm_kalman_agents;
+
 /* dt > 0, q >= 0, r_pos > 0, r_vel > 0 (callers validate). */
 void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_vel);
 
 /* One step of the covariance recursion: P- from P, the gain K, then P+. */
 void fm_kalman_advance(fm_kalman *kf);
 
+/* The same for a covariance p (3 doubles, updated in place) with R scaled by r_scale; the gain into k. */
+void fm_kalman_covariance_step(const fm_kalman *kf, double r_scale, double p[3], double k[4]);
+
 /* For agents a in [begin, end) with phase[a] == phase_sel: h(a) = weight[a] * F_h / m (eq 9, with the
- * gain of the last advance), u being the acceleration of the agent's other forces (the prediction's
+ * gain of the last advance, or with own != NULL each agent's own filter advanced here), u being the acceleration of the agent's other forces (the prediction's
  * B u) and z_p, z_v the leader's position and velocity at the end of the step, truncated to
  * |h| <= max_accel[a] (MaxForce / m; NULL: unbounded). Others are untouched; h may be u (each agent
  * reads its u before it writes h). Computed in double per agent; no allocation. */
-void fm_kalman_homing(const fm_kalman *kf, int64_t begin, int64_t end, const uint8_t *phase,
+void fm_kalman_homing(const fm_kalman *kf, const fm_kalman_agents *own, int64_t begin, int64_t end, const uint8_t *phase,
                       uint8_t phase_sel, const float *const p[3], const float *const v[3],
                       const float *const z_p[3], const float *const z_v[3], const float *weight,
                       const float *max_accel, const float *const u[3], float *const h[3]);

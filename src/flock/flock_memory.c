@@ -10,6 +10,8 @@ static const double FLOCK_MODEL_PER_AGENT = sizeof(float) * (6 + 3 * FM_BOIDS_RU
 /* The store: p, v, dest, dest_v, leader, leader_v, acc, steer, ext (3 floats each), the orientation, the
  * bind time and homing weight, phase and grid membership, the per-block counts. */
 static const double FLOCK_STATE_PER_AGENT = sizeof(float) * (9 * 3 + 4 + 2) + 2 + (double)sizeof(flock_block) / FM_BLOCK;
+/* R over the run: each agent's own Kalman covariance (3 doubles) and its factor of R (a float). */
+static const double FLOCK_OWN_KALMAN_PER_AGENT = sizeof(double) * 3 + sizeof(float);
 /* A deforming target's destinations, evaluated each step (3 floats). */
 static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
 /* The frame: position, velocity (3 floats), orientation (4) and phase (1 byte). */
@@ -41,7 +43,8 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     fm_memory_estimate e = {0};
     double agents = (double)n;
     e.model = FLOCK_MODEL_PER_AGENT;
-    e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0);
+    e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +
+              (def->flock.kalman_r_over != FM_KALMAN_R_FIXED ? FLOCK_OWN_KALMAN_PER_AGENT : 0);
     e.frames = fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
     /* the boids' neighbour grid, always, with its copy of the velocities (grid.h) */
     e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float) : 0;

@@ -150,6 +150,7 @@ static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
         snprintf(key, sizeof key, "shape_flock.fuzzy.%s%s", tracking ? "tracking." : "", names[f]);
         st = fm_fuzzy_init(&m->fuzzy[f], &curves[f], key, err);
     }
+    if (st == FM_OK) st = fm_fuzzy_init(&m->r_scale, &m->def.flock.kalman_r_scale, "shape_flock.kalman.r_scale.points", err);
     return st;
 }
 

@@ -11,7 +11,8 @@
 
 /* Every member that carries the run from one step to the next (a checkpoint saves exactly these):
  * positions, velocities, orientations, phases, bind times, the destinations and the leaders (each
- * step differences them for their velocities), the shared Kalman covariance, the counters and the
+ * step differences them for their velocities), the Kalman covariance (shared, and the agents' own
+ * when R varies over the run; a run without them saves that member empty), the counters and the
  * tracking lag's running sum. Not listed: what each step rebuilds before reading it (dest_v and
  * leader_v, by those differences; a static target's dest_v stays 0; acc, ext, w_homing, mesh_v,
  * eval, the grid, blocks), member (set from phase before each grid build) and the style fields, whose baked grid is a pure
@@ -22,7 +23,7 @@
 #define SCALAR(member) {#member, offsetof(fm_flock_state, member), sizeof(((fm_flock_state *)0)->member), 0}
 const fm_store_member fm_flock_state_members[] = {
     AGENT_XYZ(p), AGENT_XYZ(v), AGENT_ARRAY(orient, 4 * sizeof(float)), AGENT_ARRAY(phase, sizeof(uint8_t)),
-    AGENT_ARRAY(t_bind, sizeof(float)), AGENT_XYZ(dest), AGENT_XYZ(leader),
+    AGENT_ARRAY(t_bind, sizeof(float)), AGENT_XYZ(dest), AGENT_XYZ(leader), AGENT_ARRAY(kalman_p, 3 * sizeof(double)),
     SCALAR(step), SCALAR(time), SCALAR(kalman), SCALAR(count), SCALAR(lag_sum),
 };
 #undef AGENT_ARRAY
@@ -30,7 +31,7 @@ const fm_store_member fm_flock_state_members[] = {
 #undef SCALAR
 const int fm_flock_state_member_count = (int)(sizeof fm_flock_state_members / sizeof fm_flock_state_members[0]);
 
-static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv)
+static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv, int own_kalman)
 {
     size_t n = (size_t)s->n;
     int ok = (s->orient = fm_alloc(sizeof(float) * 4 * n)) && (s->phase = fm_alloc(n)) &&
@@ -39,6 +40,8 @@ static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv)
     float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->steer, s->ext};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
         for (int k = 0; k < 3; k++) ok = ok && (arrays[i][k] = fm_alloc(sizeof(float) * n));
+    if (own_kalman) ok = ok && (s->kalman_p = fm_alloc(sizeof(double) * 3 * n)) && (s->r_scale = fm_alloc(sizeof(float) * n));
+    if (ok && s->kalman_p) memset(s->kalman_p, 0, sizeof(double) * 3 * n); /* P starts at 0 */
     if (deforming) ok = ok && (s->mesh_v = fm_alloc(sizeof(double) * 3 * (size_t)nv)) && (s->eval = fm_alloc(sizeof(float) * 3 * n));
     return ok;
 }
@@ -73,7 +76,7 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
     s->n = m->n;
     s->threads = fm_threads(threads);
     const fm_scene_def *def = &m->def;
-    fm_status st = alloc_arrays(s, m->info.deforming, m->target.mesh.nv)
+    fm_status st = alloc_arrays(s, m->info.deforming, m->target.mesh.nv, def->flock.kalman_r_over != FM_KALMAN_R_FIXED)
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
     if (st == FM_OK && def->field_count > 0) {
@@ -100,7 +103,7 @@ void fm_flock_state_destroy(fm_flock_state *s)
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
         for (int k = 0; k < 3; k++) fm_free(arrays[i][k]);
     fm_free(s->orient), fm_free(s->phase), fm_free(s->t_bind), fm_free(s->w_homing), fm_free(s->member);
-    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->eval);
+    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->eval), fm_free(s->kalman_p), fm_free(s->r_scale);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     free(s);

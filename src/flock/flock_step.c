@@ -6,7 +6,8 @@
  *                 (barycentric coordinates), its velocity by difference
  *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at s = (t + dt) / path
  *                 time, which ends on the destination; R is evaluated once for all agents
- *   3. prepare    the Kalman covariance and gain (shared); the style-field grid; the neighbour grid
+ *   3. prepare    the Kalman covariance and gain (shared; with R over the run each agent's own
+ *                 is advanced in stage 4); the style-field grid; the neighbour grid
  *                 over the agents not bound (counting sort, cell = the largest perception radius)
  *   4. forces     for agents under forces (FM_PHASE_FLYING), the fuzzy weights of their distance
  *                 to the destination (the static or the tracking strategy's curves) weigh the boids
@@ -91,6 +92,15 @@ static void truncate3(float x[3], float limit)
         for (int k = 0; k < 3; k++) x[k] *= limit / sqrtf(len2);
 }
 
+/* R's factor for the agent this step: the curve over its distance d to the destination or over its
+ * leader's speed (SCF: a larger R follows the leader more loosely). */
+static float r_scale(const fm_flock_model *m, const fm_flock_state *s, int64_t a, float d)
+{
+    if (m->def.flock.kalman_r_over == FM_KALMAN_R_OVER_DISTANCE) return fm_fuzzy_eval(&m->r_scale, d);
+    const float lv[3] = {s->leader_v[0][a], s->leader_v[1][a], s->leader_v[2][a]};
+    return fm_fuzzy_eval(&m->r_scale, sqrtf(lv[0] * lv[0] + lv[1] * lv[1] + lv[2] * lv[2]));
+}
+
 /* The fuzzy-weighted forces besides homing (SCF "Fuzzy Control Logic"), each bounded by MaxForce:
  * the boids steering (already, kernel_boids.h) into s->steer, and u, the acceleration of them all
  * (boids, damping relative to the destination, the fields of eqs 7-8 and obstacles), into s->acc. */
@@ -102,6 +112,7 @@ static void other_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
     const float w_damp = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_DAMPING], d);
     const float w_ext = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_EXTERNAL], d);
     s->w_homing[a] = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_HOMING], d);
+    if (s->r_scale) s->r_scale[a] = r_scale(m, s, a, d);
     float damp[3], ext[3] = {0, 0, 0}, acc[3];
     for (int k = 0; k < 3; k++) {
         damp[k] = -(float)f->damping * (s->v[k][a] - s->dest_v[k][a]);
@@ -143,7 +154,8 @@ static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t beg
         if (s->phase[a] == FM_PHASE_FLYING) other_forces(m, s, a);
     /* w_homing F_h / m (eq 9) into ext (read above): the Kalman filter predicts with u = acc and
      * updates with the leader */
-    fm_kalman_homing(&s->kalman, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
+    const fm_kalman_agents own = {s->kalman_p, s->r_scale};
+    fm_kalman_homing(&s->kalman, s->kalman_p ? &own : NULL, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
                      (const float *const *)s->leader_v, s->w_homing, m->max_accel, (const float *const *)s->acc, s->ext);
     for (int64_t a = begin; a < end; a++)
         if (s->phase[a] == FM_PHASE_FLYING) combine_forces(m, s, a);

@@ -58,6 +58,7 @@ static fm_flock_def fm_default_flock_def(void)
         .cohesion = {{10, 40}, {240, 300}, {0.1, 0.2}},
         .alignment = {{20, 40}, {120, 180}, {2, 3}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
+        .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
         .damping = 3, .external_gain = 1,
         .arrival_radius = 0.3, .arrival_time = 0.2, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
@@ -105,7 +106,7 @@ typedef enum param_type {
     P_PATTERN   /* a mesh file name pattern, resolved like P_MESH but optional */
 } param_type;
 
-enum { OPEN_MIN = 1, OPEN_MAX = 2 };
+enum { OPEN_MIN = 1, OPEN_MAX = 2, POSITIVE_WEIGHTS = 4 /* P_FUZZY: the curve's values are > 0 */ };
 
 typedef struct param {
     const char *key;    /* dotted: "time.frame_rate" */
@@ -121,11 +122,12 @@ static const char *const SAMPLING_NAMES[] = {"random", "mosaic", "stratified", N
 static const char *const MATCH_NAMES[] = {"random", "spherical", NULL};
 static const char *const DISTANCE_NAMES[] = {"euclidean", "manhattan", NULL};
 static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
+static const char *const R_OVER_NAMES[] = {"none", "distance", "leader_speed", NULL};
 static const char *const DEFORM_NAMES[] = {"none", "wave", "pulse", "sequence", NULL};
 static const struct { const char *key; const char *const *names; } ENUM_NAMES[] = {
     {"mode", MODE_NAMES}, {"shape_flock.sampling", SAMPLING_NAMES}, {"shape_flock.match", MATCH_NAMES},
     {"shape_flock.arrival.mode", ARRIVAL_NAMES}, {"shape_flock.deform.type", DEFORM_NAMES},
-    {"shape_flock.mosaic.distance", DISTANCE_NAMES},
+    {"shape_flock.mosaic.distance", DISTANCE_NAMES}, {"shape_flock.kalman.r_scale.over", R_OVER_NAMES},
 };
 
 static const char *const *enum_names(const param *p)
@@ -235,6 +237,8 @@ static const param PARAMS[] = {
     {"shape_flock.kalman.q", P_DOUBLE, OFF(flock.kalman_q), 0, 1e12, 0},
     {"shape_flock.kalman.r_position", P_DOUBLE, OFF(flock.kalman_r_position), 0, 1e12, OPEN_MIN},
     {"shape_flock.kalman.r_velocity", P_DOUBLE, OFF(flock.kalman_r_velocity), 0, 1e12, OPEN_MIN},
+    {"shape_flock.kalman.r_scale.over", P_ENUM, OFF(flock.kalman_r_over), 0, 0, 0},
+    {"shape_flock.kalman.r_scale.points", P_FUZZY, OFF(flock.kalman_r_scale), 0, 1e9, POSITIVE_WEIGHTS},
     {"shape_flock.fuzzy.steering", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_STEERING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.homing", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_HOMING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.damping", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_DAMPING]), 0, 1e9, 0},
@@ -547,7 +551,7 @@ static fm_status read_range(where *w, const param *p, const json_t *v, double *o
 static fm_status read_fuzzy_point(where *w, const param *p, const json_t *v, fm_fuzzy_def *c, int i)
 {
     param weight = *p; /* named like the curve; weights are 0 .. 10^6 */
-    weight.min = 0, weight.max = 1e6, weight.open = 0;
+    weight.min = 0, weight.max = 1e6, weight.open = p->open & POSITIVE_WEIGHTS ? OPEN_MIN : 0;
     if (!json_is_array(v) || json_array_size(v) != 2)
         return fail_at(w, KEY(w, p), "expected a point [distance, weight], got %s", fm_json_type_name(v));
     w->steps[w->depth++] = (fm_json_step){NULL, 0};
@@ -947,7 +951,10 @@ static fm_status check_table(where *w, const param *table, size_t count, const v
         else if (p->type == P_ENUM && (*(const int *)field < 0 || *(const int *)field >= name_count(enum_names(p))))
             st = fail_at(w, KEY(w, p), "unknown value %d", *(const int *)field);
         else if (p->type == P_FUZZY) {
-            st = fm_fuzzy_def_check((const fm_fuzzy_def *)field, KEY(w, p), w->err);
+            const fm_fuzzy_def *c = (const fm_fuzzy_def *)field;
+            st = fm_fuzzy_def_check(c, KEY(w, p), w->err);
+            for (int32_t j = 0; j < c->count && st == FM_OK && (p->open & POSITIVE_WEIGHTS); j++)
+                if (!(c->w[j] > 0)) st = fail_at(w, KEY(w, p), "point %d: the value must be > 0, got %g", j, c->w[j]);
         }
         w->label[0] = 0;
         if (st != FM_OK) return st;
@@ -1059,12 +1066,24 @@ static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_sce
     return FM_OK;
 }
 
+/* R's scale curve without what it is a curve over would be ignored. */
+static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def *def)
+{
+    const json_t *v;
+    fm_status st = lookup(w, root, "shape_flock.kalman.r_scale.points", &v);
+    if (st != FM_OK || !v || def->flock.kalman_r_over != FM_KALMAN_R_FIXED) return st;
+    w->at_key = 1;
+    return fail_at(w, "shape_flock.kalman.r_scale.points", "set shape_flock.kalman.r_scale.over to \"distance\" or "
+                   "\"leader_speed\": the curve's x is one of them");
+}
+
 /* Reads the document (changed by the overrides, if any) into def. */
 static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
 {
     fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_r_scale(w, root, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_fuzzy_strategy(w, root, def);
     return st;

@@ -96,7 +96,8 @@ static uint64_t layout_hash(const fm_store_member *members, int count)
     return fm_hash_end(h);
 }
 
-/* Where a member's bytes are: the array a pointer member points at, or the member itself. */
+/* Where a member's bytes are: the array a pointer member points at, or the member itself. An array
+ * this run does not have (NULL) has no bytes. */
 static void *member_data(void *base, int64_t n, const fm_store_member *mb, uint64_t *bytes)
 {
     char *field = (char *)base + mb->offset;
@@ -104,6 +105,7 @@ static void *member_data(void *base, int64_t n, const fm_store_member *mb, uint6
     if (!mb->per_agent) return field;
     void *array;
     memcpy(&array, field, sizeof array);
+    if (!array) *bytes = 0;
     return array;
 }
 
@@ -312,7 +314,7 @@ static fm_status read_members(const source *src, const fm_ckpt_store *c)
         if (st != FM_OK) return st;
         name[len] = 0;
         if (strcmp(name, mb->name) != 0 || bytes != want) return damaged(src, "unexpected member");
-        if ((st = get(src, data, (size_t)bytes)) != FM_OK) return st;
+        if (bytes && (st = get(src, data, (size_t)bytes)) != FM_OK) return st;
     }
     return ftello(src->f) == src->size - TRAILER_BYTES ? FM_OK : damaged(src, "unexpected bytes after the state");
 }

@@ -255,6 +255,12 @@ static const flock_value_case FLOCK_VALUE_CASES[] = {
     {"\"sampling\": @", "\"poisson\"", "shape_flock.sampling", "expected \"random\", \"mosaic\" or \"stratified\""},
     {"\"deform\": {\"type\": \"wave\", \"period\": @}", "0", "shape_flock.deform.period", "0 is out of range: must be > 0"},
     {"\"deform\": {\"type\": \"wave\", \"wavelength\": @}", "-4", "shape_flock.deform.wavelength", "-4 is out of range: must be > 0"},
+    {"\"kalman\": {\"r_scale\": {\"over\": @}}", "\"time\"", "shape_flock.kalman.r_scale.over",
+     "expected \"none\", \"distance\" or \"leader_speed\""},
+    {"\"kalman\": {\"r_scale\": {\"over\": \"distance\", \"points\": [[0, 1], [2, @]]}}", "0",
+     "shape_flock.kalman.r_scale.points", "0 is out of range: must be > 0"},
+    {"\"kalman\": {\"r_scale\": {@: [[0, 2]]}}", "\"points\"", "shape_flock.kalman.r_scale.points",
+     "set shape_flock.kalman.r_scale.over to \"distance\" or \"leader_speed\": the curve's x is one of them"},
     {"\"kalman\": {@: 1}", "\"qq\"", "shape_flock.kalman.qq", "unknown key"}, /* '@' at the key */
 };
 

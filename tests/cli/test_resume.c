@@ -746,6 +746,29 @@ static void test_flock_checkpoint_restores_or_refuses_model(void)
     fm_flock_state_destroy(s), fm_flock_state_destroy(t), fm_flock_model_destroy(m);
 }
 
+/* With R over the run each agent's own Kalman covariance is part of the store: saved and restored
+ * (the run without it saves that member empty, above). */
+static void test_flock_checkpoint_keeps_own_filters(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    ENSURE(fm_scene_load(g_flock.scene, &def, &err) == FM_OK);
+    def.flock.kalman_r_over = FM_KALMAN_R_OVER_DISTANCE;
+    def.flock.kalman_r_scale = (fm_fuzzy_def){.count = 2, .d = {0, 30}, .w = {1, 8}};
+    fm_flock_model *m = fm_flock_model_build(&def, NULL, NULL, &err);
+    fm_flock_state *s = m ? fm_flock_state_create(m, 1, &err) : NULL, *t = m ? fm_flock_state_create(m, 2, &err) : NULL;
+    ENSURE_MSG(s && t && s->kalman_p && t->kalman_p, "%s", err.message);
+    if (!s || !t || !s->kalman_p) return;
+    for (int k = 0; k < 30; k++) fm_flock_step(m, s);
+    ENSURE(s->kalman_p[0] != s->kalman_p[3 * (s->n - 1)]); /* the agents' filters differ */
+    const char *path = in(FLOCK_DIR, "own_filters.fmck");
+    fm_flock_run_stats saved = {.run = {.frames = 3}}, got;
+    ENSURE_MSG(fm_flock_checkpoint_save(path, m, s, &saved, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_flock_checkpoint_load(path, m, t, &got, &err) == FM_OK, "%s", err.message);
+    ENSURE(!memcmp(t->kalman_p, s->kalman_p, sizeof(double) * 3 * (size_t)s->n));
+    fm_flock_state_destroy(s), fm_flock_state_destroy(t), fm_flock_model_destroy(m);
+}
+
 /* One mode's checkpoint is another scene's for the other mode: refused, nothing changed. */
 static void test_flock_refuses_tetra_checkpoint(void)
 {
@@ -780,5 +803,6 @@ int main(void)
     RUN_TEST(test_flock_sigterm_then_resume);
     RUN_TEST(test_flock_refuses_tetra_checkpoint);
     RUN_TEST(test_flock_checkpoint_restores_or_refuses_model);
+    RUN_TEST(test_flock_checkpoint_keeps_own_filters);
     return test_result();
 }

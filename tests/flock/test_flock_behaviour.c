@@ -10,20 +10,11 @@
  *   - every agent still binds exactly on its destination, within 15 % of the steps it took before.
  * The speed bound is checked from a cache through the public reader (include/flockmorph/cache.h). */
 #include "flockmorph/flockmorph.h"
+#include "example_helpers.h"
 #include "test_macros.h"
 
 #include <stdlib.h>
 #include <string.h>
-
-static fm_scene_def load_example(const char *name)
-{
-    fm_scene_def def;
-    fm_error err = {0};
-    char scene[FM_PATH_MAX];
-    snprintf(scene, sizeof scene, "%s/examples/%s/scene.json", FM_SOURCE_DIR, name);
-    ENSURE_MSG(fm_scene_load(scene, &def, &err) == FM_OK, "%s", err.message);
-    return def;
-}
 
 static fm_scene_def example_def(void) { return load_example("flock_cylinder_sphere"); }
 

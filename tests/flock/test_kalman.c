@@ -5,6 +5,7 @@
 #include "test_macros.h"
 
 #include <math.h>
+#include <string.h>
 
 enum { AGENTS = 3 };
 
@@ -33,7 +34,7 @@ static track_result track(double q, double r_pos, double r_vel, int steps)
         for (int a = 0; a < AGENTS; a++)
             for (int k = 0; k < 3; k++) zp[k][a] = (float)(start[k] + u[k] * t_end), zv[k][a] = (float)u[k], acc[k][a] = 0;
         fm_kalman_advance(&kf);
-        fm_kalman_homing(&kf, 0, AGENTS, phase, 1, (const float *const *)p, (const float *const *)v,
+        fm_kalman_homing(&kf, NULL, 0, AGENTS, phase, 1, (const float *const *)p, (const float *const *)v,
                          (const float *const *)zp, (const float *const *)zv, weight, NULL, (const float *const *)acc, acc);
         double lag = 0;
         for (int a = 0; a < AGENTS; a++) {
@@ -115,10 +116,39 @@ static void test_phase_and_weight(void)
     const float *p[3] = {zero, zero, zero}, *v[3] = {zero, zero, zero}, *zp[3] = {one, one, one}, *zv[3] = {zero, zero, zero};
     float *acc[3] = {ax, ay, az};
     uint8_t phase[3] = {1, 1, 2};
-    fm_kalman_homing(&kf, 0, 3, phase, 1, p, v, zp, zv, w, NULL, (const float *const *)acc, acc);
+    fm_kalman_homing(&kf, NULL, 0, 3, phase, 1, p, v, zp, zv, w, NULL, (const float *const *)acc, acc);
     ENSURE(ax[0] > 0 && fabsf(ax[1] - 0.5f * ax[0]) <= 1e-6f * ax[0]);
     ENSURE(ax[2] == 7 && ay[2] == 7 && az[2] == 7);
     ENSURE_NEAR(ax[0], 2 * kf.k[0] / (0.1 * 0.1), 1e-3);
+}
+
+/* Per-agent filters (R over the run): with the scale 1 an agent's own filter is the shared one bit
+ * for bit; a larger scale of R gives a smaller gain (a looser follower), and a zero-weight agent
+ * still advances its covariance. */
+static void test_own_filters(void)
+{
+    fm_kalman kf;
+    fm_kalman_init(&kf, 1.0 / 48, 1, 0.2, 1);
+    double own[9] = {0}, k[4];
+    const float scale[3] = {1, 4, 1}, w[3] = {1, 1, 0};
+    float zero[3] = {0, 0, 0}, one[3] = {1, 1, 1}, ax[3], ay[3], az[3];
+    const float *p[3] = {zero, zero, zero}, *v[3] = {zero, zero, zero}, *zp[3] = {one, one, one}, *zv[3] = {zero, zero, zero};
+    float *acc[3] = {ax, ay, az};
+    uint8_t phase[3] = {1, 1, 1};
+    const fm_kalman_agents agents = {own, scale};
+    for (int s = 0; s < 200; s++) {
+        fm_kalman_advance(&kf);
+        memset(ax, 0, sizeof ax), memset(ay, 0, sizeof ay), memset(az, 0, sizeof az);
+        fm_kalman_homing(&kf, &agents, 0, 3, phase, 1, p, v, zp, zv, w, NULL, (const float *const *)acc, acc);
+        ENSURE(memcmp(own, kf.p, sizeof kf.p) == 0);     /* agent 0, scale 1 */
+        ENSURE(memcmp(own + 6, kf.p, sizeof kf.p) == 0); /* agent 2: weight 0, same covariance */
+    }
+    ENSURE_NEAR(ax[0], 2 * kf.k[0] / (kf.dt * kf.dt), 1e-6 * ax[0]);
+    ENSURE_MSG(ax[1] < 0.98 * ax[0], "R x 4 pulls %g against %g", ax[1], ax[0]);
+    ENSURE(ax[2] == 0);
+    double p4[3] = {0, 0, 0};
+    for (int s = 0; s < 200; s++) fm_kalman_covariance_step(&kf, 4, p4, k);
+    ENSURE(memcmp(p4, own + 3, sizeof p4) == 0);
 }
 
 int main(void)
@@ -128,5 +158,6 @@ int main(void)
     RUN_TEST(test_tiny_r_puts_the_agent_on_its_leader);
     RUN_TEST(test_covariance_converges);
     RUN_TEST(test_phase_and_weight);
+    RUN_TEST(test_own_filters);
     return test_result();
 }
