@@ -24,6 +24,31 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
                      f->mass);
 }
 
+/* The flock measures (fm_flock_measure): a summary, {"NAME": {"mean": x, "mid_flight": y}}, and one
+ * array a measure, index k for frame k: frame 0 is the rest state, which no step made (null), and
+ * null where the measure is undefined (no agent in flight). */
+static json_t *measures_json(const fm_flock_run_stats *rs)
+{
+    json_t *j = json_object();
+    for (int i = 0; i < FM_FLOCK_MEASURES; i++)
+        json_object_set_new(j, fm_flock_measure_names[i], json_pack("{soso}", "mean", number_or_null(rs->measures_mean[i]),
+                                                                     "mid_flight", number_or_null(rs->measures_mid_flight[i])));
+    return j;
+}
+
+static json_t *measures_per_frame_json(const fm_flock_run_stats *rs)
+{
+    json_t *j = json_object();
+    for (int i = 0; i < FM_FLOCK_MEASURES; i++) {
+        json_t *a = json_array();
+        json_array_append_new(a, json_null());
+        for (int64_t f = 0; rs->measures && f + 1 < rs->run.frames; f++)
+            json_array_append_new(a, number_or_null(rs->measures[f * FM_FLOCK_MEASURES + i]));
+        json_object_set_new(j, fm_flock_measure_names[i], a);
+    }
+    return j;
+}
+
 /* The shape flock's run: the model, the state and the statistics. */
 typedef struct flock_run {
     cli_mode_run common; /* first: what cli_run.c reads */
@@ -46,6 +71,8 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "bound_fraction", json_real(rs->bound_fraction));
     json_object_set_new(j, "tracking_lag", number_or_null(rs->tracking_lag));
     json_object_set_new(j, "tracking_frames", json_integer(rs->tracking_frames));
+    json_object_set_new(j, "flock_measures", measures_json(rs));
+    json_object_set_new(j, "flock_measures_per_frame", measures_per_frame_json(rs));
     json_object_set_new(j, "shape_flock", settings_json(def, mi));
     json_t *warnings = json_array();
     for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
@@ -111,6 +138,7 @@ static void summary(const void *run, const fm_scene_def *def)
 static void close_run(void *run)
 {
     flock_run *r = run;
+    fm_flock_run_stats_free(&r->rs);
     fm_flock_state_destroy(r->state);
     fm_flock_model_destroy(r->model);
 }

@@ -73,6 +73,30 @@ void fm_flock_distance(const fm_flock_state *state, double *mean, double *max);
 fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *model,
                                        const fm_cache_options *opts, fm_error *err);
 
+/* The flock measures of a frame (docs/stats.md, "Flock measures"), what a user tunes against. Over
+ * the agents in flight (not bound): polarisation, the norm of the mean unit velocity (1: all fly the
+ * same way); the mean nearest-neighbour distance (among agents in flight, from up to 4,096 of them
+ * spread evenly over the ids; NaN with fewer than 2 in flight); the mean distance from the agent's
+ * own eq-12 path point (its virtual leader); the mean speed. Over all agents: the mean distance to
+ * the destination. And the fraction of agents in flight. NaN where no agent is in flight. */
+typedef enum fm_flock_measure {
+    FM_FLOCK_POLARISATION = 0,
+    FM_FLOCK_NN_DISTANCE = 1,
+    FM_FLOCK_LEADER_DISTANCE = 2,
+    FM_FLOCK_SPEED = 3,
+    FM_FLOCK_DESTINATION_DISTANCE = 4,
+    FM_FLOCK_IN_FLIGHT = 5,
+    FM_FLOCK_MEASURES = 6
+} fm_flock_measure;
+
+/* Their names in stats.json: "polarisation", "nn_distance", "leader_distance", "speed",
+ * "destination_distance", "in_flight". */
+extern const char *const fm_flock_measure_names[FM_FLOCK_MEASURES];
+
+/* The measures of the state's current positions into out[FM_FLOCK_MEASURES]. The same for any
+ * thread count. Rebuilds the state's neighbour grid (the next step rebuilds it anyway). */
+void fm_flock_measure_frame(const fm_flock_model *model, fm_flock_state *state, double out[FM_FLOCK_MEASURES]);
+
 typedef struct fm_flock_run_stats {
     fm_run_totals run;              /* frames, steps, seconds stepping (fm_flock_step) and writing */
     int all_bound;                  /* every agent bound or floating at its destination */
@@ -83,7 +107,14 @@ typedef struct fm_flock_run_stats {
     double tracking_lag;            /* deforming target: mean distance to the moving destination over
                                        the frames after path_time; NaN for a static target */
     int64_t tracking_frames;        /* frames that mean is taken over */
+    double *measures;               /* per frame after frame 0, FM_FLOCK_MEASURES each: row k - 1 is
+                                       frame k's (malloc'ed; fm_flock_run_stats_free) */
+    double measures_mean[FM_FLOCK_MEASURES];       /* over the frames with agents in flight */
+    double measures_mid_flight[FM_FLOCK_MEASURES]; /* at the frame nearest half the path time */
 } fm_flock_run_stats;
+
+/* Frees stats->measures (and sets it to NULL); stats from a run or a checkpoint load. */
+void fm_flock_run_stats_free(fm_flock_run_stats *stats);
 
 
 /* Steps until every agent is bound (static targets only) or def.frame_limit frames are written,

@@ -59,10 +59,13 @@ static const char *check_state(const void *state)
 
 static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats)
 {
-    return (fm_ckpt_store){fm_flock_state_members, fm_flock_state_member_count, (void *)s, s->n, FLOCK_RUN_STATS,
-                           (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]), (void *)stats, NULL, &m->def,
-                           flock_model_hash(m), "the samples, the path (or the obstacles)", check_state,
-                           stats->run.frames};
+    return (fm_ckpt_store){.members = fm_flock_state_members, .member_count = fm_flock_state_member_count,
+                           .state = (void *)s, .n = s->n, .stats = FLOCK_RUN_STATS,
+                           .stats_count = (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]),
+                           .run_stats = (void *)stats, .per_frame = (double **)&stats->measures,
+                           .per_frame_width = FM_FLOCK_MEASURES, .def = &m->def, .model_hash = flock_model_hash(m),
+                           .model_what = "the samples, the path (or the obstacles)", .check = check_state,
+                           .frames = stats->run.frames};
 }
 
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
@@ -77,6 +80,8 @@ fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm
 {
     memset(stats, 0, sizeof *stats);
     fm_ckpt_store c = flock_store(m, s, stats);
-    return fm_ckpt_load(path, &c, &stats->run.frames, err);
+    fm_status st = fm_ckpt_load(path, &c, &stats->run.frames, err);
+    if (st != FM_OK) fm_flock_run_stats_free(stats);
+    return st;
 }
 

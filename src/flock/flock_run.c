@@ -1,10 +1,12 @@
-/* fm_flock_run: the shape flock's frames through the shared frame loop, and its end-state
- * measures (distance to the destinations, the bound fraction, the tracking lag). */
+/* fm_flock_run: the shape flock's frames through the shared frame loop, the flock measures of every
+ * frame (flock_measures.c) and its end-state measures (distance to the destinations, the bound
+ * fraction, the tracking lag). */
 #include "cache_format.h"
 #include "flock.h"
 #include "frame_loop.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* The attributes of a flock cache, in the order fm_flock_run hands them over. */
@@ -26,6 +28,7 @@ typedef struct flock_run {
     fm_cache_writer *cache;
     const fm_run_control *c;
     fm_flock_run_stats *stats;
+    int64_t capacity;  /* rows of stats->measures */
 } flock_run;
 
 static void flock_step(void *sim)
@@ -58,6 +61,9 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
                                               r->phase}; /* ids 0 … n−1: frames are in id order */
         st = fm_cache_writer_add_frame_attrs(r->cache, data, err);
     }
+    if (frame > 0) st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
+    if (st != FM_OK) return st;
+    if (frame > 0) fm_flock_measure_frame(r->m, r->s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
     if (r->m->info.deforming && r->s->time >= r->m->path_time && frame > 0) { /* tracking lag */
         double mean, max;
         fm_flock_distance(r->s, &mean, &max);
@@ -78,16 +84,45 @@ static fm_status flock_save(void *sim, const char *path, fm_error *err)
     return fm_flock_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
+void fm_flock_run_stats_free(fm_flock_run_stats *stats)
+{
+    free(stats->measures);
+    stats->measures = NULL;
+}
+
+/* The measures' summaries: the mean over the frames with agents in flight, summed in frame order (so
+ * a resumed run adds the same numbers in the same order), and the frame nearest half the path time. */
+static void summarise_measures(const fm_flock_model *m, fm_flock_run_stats *stats)
+{
+    const int64_t rows = stats->run.frames - 1;
+    for (int i = 0; i < FM_FLOCK_MEASURES; i++) {
+        double sum = 0;
+        int64_t count = 0;
+        for (int64_t f = 0; f < rows; f++) {
+            const double x = stats->measures[f * FM_FLOCK_MEASURES + i];
+            if (!isnan(x) && stats->measures[f * FM_FLOCK_MEASURES + FM_FLOCK_IN_FLIGHT] > 0) sum += x, count++;
+        }
+        stats->measures_mean[i] = count > 0 ? sum / (double)count : NAN;
+        stats->measures_mid_flight[i] = NAN;
+    }
+    const int64_t mid = (int64_t)llround(0.5 * m->path_time * m->def.frame_rate);
+    if (rows > 0 && mid >= 1)
+        for (int i = 0; i < FM_FLOCK_MEASURES; i++)
+            stats->measures_mid_flight[i] = stats->measures[(FM_MIN(mid, rows) - 1) * FM_FLOCK_MEASURES + i];
+}
+
 fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,
                                   const fm_run_control *c, fm_flock_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), s->lag_sum = 0;
     const size_t n = (size_t)s->n;
     flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
-                   fm_alloc(n), cache, c, stats};
+                   fm_alloc(n), cache, c, stats, 0};
     fm_status st = r.position && r.velocity && r.orientation && r.phase
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    /* capacity 0: a resumed run's array holds exactly its frames so far */
+    if (st == FM_OK) st = fm_frame_rows_room(&stats->measures, FM_MAX(stats->run.frames, 1), FM_FLOCK_MEASURES, &r.capacity, err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
                                     m->def.frame_limit, c, &stats->run, cache, NULL};
@@ -99,6 +134,7 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
     fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
     stats->bound_fraction = (double)s->count[FM_PHASE_ARRIVED] / (double)s->n;
     stats->tracking_lag = stats->tracking_frames > 0 ? s->lag_sum / (double)stats->tracking_frames : NAN;
+    if (stats->measures) summarise_measures(m, stats);
     fm_free(r.position), fm_free(r.velocity), fm_free(r.orientation), fm_free(r.phase);
     return st;
 }

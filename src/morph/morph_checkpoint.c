@@ -55,10 +55,13 @@ static const char *check_state(const void *state)
 /* The tetra morph's store and statistics (per-frame MDE fractions included). */
 static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats)
 {
-    return (fm_ckpt_store){fm_morph_state_members, fm_morph_state_member_count, (void *)s, s->n, RUN_STATS,
-                           (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), (void *)stats, (double **)&stats->mde_fraction,
-                           &m->def, model_hash(m), "the tets after TetGen and subdivision (or the obstacles)",
-                           check_state, stats->run.frames};
+    return (fm_ckpt_store){.members = fm_morph_state_members, .member_count = fm_morph_state_member_count,
+                           .state = (void *)s, .n = s->n, .stats = RUN_STATS,
+                           .stats_count = (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), .run_stats = (void *)stats,
+                           .per_frame = (double **)&stats->mde_fraction, .per_frame_width = 1, .def = &m->def,
+                           .model_hash = model_hash(m),
+                           .model_what = "the tets after TetGen and subdivision (or the obstacles)",
+                           .check = check_state, .frames = stats->run.frames};
 }
 
 fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,

@@ -129,24 +129,12 @@ void fm_morph_run_stats_free(fm_morph_run_stats *stats)
     stats->mde_fraction = NULL;
 }
 
-/* Makes room for `count` per-frame values, growing by doubling from 1024. */
-static fm_status mde_room(fm_morph_run_stats *stats, int64_t count, int64_t *capacity, fm_error *err)
-{
-    if (count <= *capacity) return FM_OK;
-    int64_t cap = *capacity > 0 ? *capacity : 1024;
-    while (cap < count) cap *= 2;
-    double *grown = realloc(stats->mde_fraction, sizeof(double) * (size_t)cap);
-    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
-    stats->mde_fraction = grown, *capacity = cap;
-    return FM_OK;
-}
-
 /* Records frame k's MDE fraction (FM Table I's last column, k >= 1) from the step counters. */
 static fm_status record_mde(const fm_morph_state *s, int64_t k, int64_t *flying_before, int64_t *mde_before,
                             fm_morph_run_stats *stats, int64_t *capacity, fm_error *err)
 {
     int64_t flying = s->flying_agent_steps - *flying_before, mde = s->mde_agent_steps - *mde_before;
-    fm_status st = mde_room(stats, k, capacity, err);
+    fm_status st = fm_frame_rows_room(&stats->mde_fraction, k, 1, capacity, err);
     if (st != FM_OK) return st;
     stats->mde_fraction[k - 1] = flying > 0 ? (double)mde / (double)flying : NAN;
     *flying_before = s->flying_agent_steps, *mde_before = s->mde_agent_steps;
@@ -230,7 +218,7 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
     morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
                    s->flying_agent_steps, s->mde_agent_steps, 0};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
-    if (!r.verts || !r.phases || mde_room(stats, FM_MAX(stats->run.frames, 1), &r.capacity, err) != FM_OK) {
+    if (!r.verts || !r.phases || fm_frame_rows_room(&stats->mde_fraction, FM_MAX(stats->run.frames, 1), 1, &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     }

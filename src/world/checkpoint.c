@@ -5,7 +5,8 @@
  *            frames written, layout hash, 0
  *   stats    the scalars of the mode's statistics table, in order (the tetra morph:
  *            inverted_tet_frames, simulate_seconds, output_seconds), then its per-frame values
- *            if it has any (the tetra morph's MDE fraction of frames 1 .. frames-1, f64 each)
+ *            if it has any: for frames 1 .. frames-1, the mode's doubles a frame (the tetra morph's
+ *            MDE fraction, the shape flock's measures), f64 each
  *   members  for each entry of the mode's member table, in order: name length (u32), name, byte
  *            count (u64), the bytes (a per-agent array: agents x element size)
  *   trailer  XXH3-64 of every byte before it
@@ -31,7 +32,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-enum { CHECKPOINT_VERSION = 1, HEADER_BYTES = 64, TRAILER_BYTES = 8, NAME_MAX_BYTES = 64 };
+enum { CHECKPOINT_VERSION = 2, HEADER_BYTES = 64, TRAILER_BYTES = 8, NAME_MAX_BYTES = 64 };
 static const char MAGIC[8] = {'F', 'M', 'C', 'H', 'K', 'P', 'T', 0};
 
 typedef struct header {
@@ -140,7 +141,7 @@ static void put_header(sink *k, const fm_ckpt_store *c)
 static void put_stats(sink *k, const fm_ckpt_store *c)
 {
     for (int i = 0; i < c->stats_count; i++) put(k, (const char *)c->run_stats + c->stats[i].offset, c->stats[i].bytes);
-    if (c->per_frame) put(k, *c->per_frame, sizeof(double) * (size_t)(c->frames - 1));
+    if (c->per_frame) put(k, *c->per_frame, sizeof(double) * (size_t)c->per_frame_width * (size_t)(c->frames - 1));
 }
 
 static void put_members(sink *k, const fm_ckpt_store *c)
@@ -170,6 +171,8 @@ static void sync_directory(const char *path)
 fm_status fm_ckpt_save(const char *path, const fm_ckpt_store *c, fm_error *err)
 {
     if (c->frames < 1) return fm_fail(err, FM_ERR_INTERNAL, "%s: a checkpoint needs at least frame 0", path);
+    if (c->per_frame && !*c->per_frame && c->frames > 1)
+        return fm_fail(err, FM_ERR_INTERNAL, "%s: no per-frame statistics for %lld frames", path, (long long)c->frames);
     fm_output_file out;
     fm_status st = fm_output_open(&out, path, err);
     if (st != FM_OK) return st;
@@ -293,7 +296,7 @@ static fm_status read_stats(const source *src, const header *h, const fm_ckpt_st
     fm_status st = FM_OK;
     for (int i = 0; i < c->stats_count && st == FM_OK; i++) st = get(src, (char *)c->run_stats + c->stats[i].offset, c->stats[i].bytes);
     if (st != FM_OK || !c->per_frame) return st;
-    size_t count = (size_t)(h->frames - 1);
+    size_t count = (size_t)c->per_frame_width * (size_t)(h->frames - 1);
     *c->per_frame = malloc(sizeof(double) * (count ? count : 1));
     if (!*c->per_frame) return fm_fail(src->err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
     return get(src, *c->per_frame, sizeof(double) * count);

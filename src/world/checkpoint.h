@@ -34,6 +34,7 @@ typedef struct fm_ckpt_store {
     int stats_count;
     void *run_stats;
     double **per_frame;           /* NULL, or the statistics' per-frame array (malloc'ed on load) */
+    int per_frame_width;          /* its doubles per frame */
     const fm_scene_def *def;
     uint64_t model_hash;          /* of every model array the step reads (fm_hash_*) */
     const char *model_what;       /* what differs when the model hash does not match, for the message */

@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 fm_run_control fm_default_run_control(void)
@@ -105,4 +106,15 @@ fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, con
     return fm_fail(err, FM_ERR_INPUT,
                    "frame %lld: agent %lld %s (%g, %g, %g): the simulation ran away; check the parameters that set "
                    "speeds and forces: %s", (long long)frame, (long long)agent, where, p[0], p[1], p[2], hint);
+}
+
+fm_status fm_frame_rows_room(double **rows, int64_t count, int width, int64_t *capacity, fm_error *err)
+{
+    if (count <= *capacity) return FM_OK;
+    int64_t cap = *capacity > 0 ? *capacity : 1024;
+    while (cap < count) cap *= 2;
+    double *grown = realloc(*rows, sizeof(double) * (size_t)width * (size_t)cap);
+    if (!grown) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the per-frame statistics");
+    *rows = grown, *capacity = cap;
+    return FM_OK;
 }

@@ -43,4 +43,9 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
 fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, const double lo[3], const double hi[3],
                                  int64_t frame, const char *hint, fm_error *err);
 
+/* Per-frame statistics (a mode's run stats): makes room in *rows (malloc'ed, or NULL) for `count`
+ * rows of `width` doubles, growing by doubling from 1024 rows; *capacity is its rows so far (0 for
+ * an array that holds exactly what a checkpoint restored). */
+fm_status fm_frame_rows_room(double **rows, int64_t count, int width, int64_t *capacity, fm_error *err);
+
 #endif

@@ -116,6 +116,77 @@ static json_t *run_flock_example(const char *name)
     return stats;
 }
 
+/* The stats' per-frame flock measure `name` at frame k (NaN for null). */
+static double measure_at(const json_t *stats, const char *name, uint32_t k)
+{
+    const json_t *v = json_array_get(json_object_get(json_object_get(stats, "flock_measures_per_frame"), name), k);
+    return json_is_number(v) ? json_number_value(v) : NAN;
+}
+
+/* Frame k's polarisation, mean speed, mean nearest-neighbour distance (all pairs, in double) and
+ * share of agents in flight, from the cache's positions, velocities and phases. */
+static void measures_from_cache(fm_cache_reader *r, uint32_t k, double out[4])
+{
+    const uint64_t n = fm_cache_agents(r);
+    float *p = malloc(sizeof(float) * 3 * n), *v = malloc(sizeof(float) * 3 * n);
+    uint8_t *phase = malloc(n);
+    fm_error err = {0};
+    ENSURE(fm_cache_read_attr(r, k, FM_ATTR_POSITION, p, &err) == FM_OK && fm_cache_read_attr(r, k, FM_ATTR_VELOCITY, v, &err) == FM_OK &&
+           fm_cache_read_attr(r, k, FM_ATTR_PHASE, phase, &err) == FM_OK);
+    double unit[3] = {0, 0, 0}, speed = 0, nn = 0;
+    uint64_t flying = 0;
+    for (uint64_t a = 0; a < n; a++) {
+        if (phase[a] == FM_PHASE_ARRIVED) continue;
+        const double s = sqrt((double)v[3 * a] * v[3 * a] + (double)v[3 * a + 1] * v[3 * a + 1] + (double)v[3 * a + 2] * v[3 * a + 2]);
+        for (int c = 0; c < 3 && s > 0; c++) unit[c] += v[3 * a + c] / s;
+        speed += s, flying++;
+        double best = INFINITY;
+        for (uint64_t b = 0; b < n; b++) {
+            if (b == a || phase[b] == FM_PHASE_ARRIVED) continue;
+            double d2 = 0;
+            for (int c = 0; c < 3; c++) d2 += ((double)p[3 * a + c] - p[3 * b + c]) * ((double)p[3 * a + c] - p[3 * b + c]);
+            best = fmin(best, d2);
+        }
+        nn += sqrt(best);
+    }
+    out[0] = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2]) / (double)flying;
+    out[1] = speed / (double)flying, out[2] = nn / (double)flying, out[3] = (double)flying / (double)n;
+    free(p), free(v), free(phase);
+}
+
+/* stats.json's flock measures (fm_flock_measure) against the same figures computed from the cache
+ * at a few frames in flight and arrival, and its summaries against its own per-frame arrays. */
+static void flock_measures_match_the_cache(const json_t *stats, const char *name)
+{
+    char cache[FM_PATH_MAX + 32];
+    snprintf(cache, sizeof cache, "%s/example_%s/frames.fmc", FM_TEST_TMP, name);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    const uint32_t frames = fm_cache_frames(r);
+    const double path_time = json_number_value(json_object_get(json_object_get(stats, "shape_flock"), "path_time"));
+    const uint32_t mid = (uint32_t)llround(0.5 * path_time * 24), checked[3] = {mid, (uint32_t)(1.6 * mid), frames - 25};
+    static const char *const names[4] = {"polarisation", "speed", "nn_distance", "in_flight"};
+    for (int i = 0; i < 3; i++) {
+        double want[4];
+        measures_from_cache(r, checked[i], want);
+        for (int m = 0; m < 4; m++)
+            ENSURE_MSG(fabs(measure_at(stats, names[m], checked[i]) - want[m]) <= 1e-5 * fabs(want[m]), "frame %u: %s %.9g, the cache says %.9g",
+                       checked[i], names[m], measure_at(stats, names[m], checked[i]), want[m]);
+    }
+    const json_t *summary = json_object_get(stats, "flock_measures");
+    double sum = 0;
+    int count = 0;
+    for (uint32_t k = 1; k < frames; k++)
+        if (measure_at(stats, "in_flight", k) > 0) sum += measure_at(stats, "speed", k), count++;
+    ENSURE_NEAR(json_number_value(json_object_get(json_object_get(summary, "speed"), "mean")), sum / count, 1e-9 * sum / count);
+    ENSURE(json_number_value(json_object_get(json_object_get(summary, "polarisation"), "mid_flight")) == measure_at(stats, "polarisation", mid));
+    ENSURE(json_array_size(json_object_get(json_object_get(stats, "flock_measures_per_frame"), "speed")) == frames);
+    ENSURE(json_is_null(json_array_get(json_object_get(json_object_get(stats, "flock_measures_per_frame"), "speed"), 0)));
+    fm_cache_close(r);
+}
+
 static void test_flock_cylinder_sphere_binds_everyone(void)
 {
     json_t *stats = run_flock_example("flock_cylinder_sphere");
@@ -125,6 +196,7 @@ static void test_flock_cylinder_sphere_binds_everyone(void)
     ENSURE_MSG(json_number_value(json_object_get(stats, "final_max_distance")) <= 1e-6, "an agent ended %g from its destination",
                json_number_value(json_object_get(stats, "final_max_distance")));
     ENSURE(json_is_null(json_object_get(stats, "tracking_lag")));
+    flock_measures_match_the_cache(stats, "flock_cylinder_sphere");
     json_decref(stats);
 }
 

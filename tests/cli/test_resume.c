@@ -721,10 +721,14 @@ static void test_flock_checkpoint_restores_or_refuses_model(void)
     for (int k = 0; k < 30; k++) fm_flock_step(m, s);
     s->lag_sum = 0.25;
     const char *path = in(FLOCK_DIR, "inprocess.fmck");
-    fm_flock_run_stats saved = {.run = {.frames = 3, .simulate_seconds = 1.5}, .tracking_frames = 2}, got;
+    double measures[2 * FM_FLOCK_MEASURES];
+    for (int i = 0; i < 2 * FM_FLOCK_MEASURES; i++) measures[i] = 0.5 + i;
+    fm_flock_run_stats saved = {.run = {.frames = 3, .simulate_seconds = 1.5}, .tracking_frames = 2, .measures = measures}, got;
     ENSURE_MSG(fm_flock_checkpoint_save(path, m, s, &saved, &err) == FM_OK, "%s", err.message);
     ENSURE_MSG(fm_flock_checkpoint_load(path, m, t, &got, &err) == FM_OK, "%s", err.message);
     ENSURE(got.run.frames == 3 && got.run.simulate_seconds == 1.5 && got.tracking_frames == 2);
+    ENSURE(got.measures && !memcmp(got.measures, measures, sizeof measures)); /* the per-frame flock measures */
+    fm_flock_run_stats_free(&got);
     ENSURE(t->step == 30 && t->time == s->time && t->lag_sum == 0.25 && !memcmp(&t->kalman, &s->kalman, sizeof s->kalman));
     for (int k = 0; k < 3; k++) ENSURE(!memcmp(t->p[k], s->p[k], sizeof(float) * (size_t)s->n));
     ENSURE(!memcmp(t->orient, s->orient, sizeof(float) * 4 * (size_t)s->n) && !memcmp(t->phase, s->phase, (size_t)s->n));
@@ -762,9 +766,11 @@ static void test_flock_checkpoint_keeps_own_filters(void)
     for (int k = 0; k < 30; k++) fm_flock_step(m, s);
     ENSURE(s->kalman_p[0] != s->kalman_p[3 * (s->n - 1)]); /* the agents' filters differ */
     const char *path = in(FLOCK_DIR, "own_filters.fmck");
-    fm_flock_run_stats saved = {.run = {.frames = 3}}, got;
+    double measures[FM_FLOCK_MEASURES] = {0};
+    fm_flock_run_stats saved = {.run = {.frames = 2}, .measures = measures}, got;
     ENSURE_MSG(fm_flock_checkpoint_save(path, m, s, &saved, &err) == FM_OK, "%s", err.message);
     ENSURE_MSG(fm_flock_checkpoint_load(path, m, t, &got, &err) == FM_OK, "%s", err.message);
+    fm_flock_run_stats_free(&got);
     ENSURE(!memcmp(t->kalman_p, s->kalman_p, sizeof(double) * 3 * (size_t)s->n));
     fm_flock_state_destroy(s), fm_flock_state_destroy(t), fm_flock_model_destroy(m);
 }

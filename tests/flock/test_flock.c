@@ -185,6 +185,8 @@ static void test_caches_are_identical_for_threads_and_runs(void)
     fm_flock_run_stats r1 = run_to_cache(m, 1, p1), r2 = run_to_cache(m, 2, p2), r3 = run_to_cache(m, 2, p3);
     ENSURE(r1.all_bound && !r1.stopped_at_frame_limit && r1.bound_fraction == 1 && r1.final_max_distance == 0);
     ENSURE(r1.run.frames == r2.run.frames && r2.run.frames == r3.run.frames && r1.run.steps == r2.run.steps && isnan(r1.tracking_lag));
+    ENSURE(r1.measures && r2.measures && !memcmp(r1.measures, r2.measures, sizeof(double) * FM_FLOCK_MEASURES * (size_t)(r1.run.frames - 1)));
+    ENSURE(!memcmp(r1.measures_mean, r2.measures_mean, sizeof r1.measures_mean));
     long n1 = 0, n2 = 0, n3 = 0;
     char *a = slurp(p1, &n1), *b = slurp(p2, &n2), *c = slurp(p3, &n3);
     ENSURE_MSG(a && b && n1 == n2 && !memcmp(a, b, (size_t)n1), "1 and 2 threads give different caches");
@@ -207,6 +209,7 @@ static void test_caches_are_identical_for_threads_and_runs(void)
         fm_cache_close(r);
     }
     fm_flock_model_destroy(m);
+    fm_flock_run_stats_free(&r1), fm_flock_run_stats_free(&r2), fm_flock_run_stats_free(&r3);
 }
 
 /* Each flying agent's frame has its x axis along its velocity and stays upright (z has no part
