@@ -7,8 +7,9 @@ shape flock, docs/shape-flock.md#a-flapping-bird).
 One wingbeat in FRAMES meshes, looping (mesh FRAMES would be mesh 0 again). The bird flies along +x
 with +z up: a body, head, beak and fan tail as one closed tube along x (elliptic sections, a pole at
 each end), and two wings, each a closed thin tube along the span, hinged at the shoulders on axes
-parallel to x. A wing flaps by theta(t) = DIHEDRAL + AMPLITUDE sin(2 pi t), bending more toward the
-tip. Mesh 0 (t = 0, wings near level) is also the rest shape the scene uses as target.mesh.
+parallel to x. A wing's root angle is theta = DIHEDRAL + AMPLITUDE sin(2 pi k / FRAMES) in mesh k,
+bending more toward the tip. Mesh 0 (wings near level) is also the rest shape the scene uses as
+target.mesh.
 
 Every mesh has the same vertices in the same order and the same triangles; only the wings' y and z
 change. flockmorph welds a mesh's vertices in sorted (x, y, z) order, so a sequence must keep that
