@@ -12,11 +12,12 @@ bending more toward the tip. Mesh 0 (wings near level) is also the rest shape th
 target.mesh.
 
 Every mesh has the same vertices in the same order and the same triangles; only the wings' y and z
-change. flockmorph welds a mesh's vertices in sorted (x, y, z) order, so a sequence must keep that
-order in every mesh: the wings rotate about axes parallel to x (x never changes) and a wing vertex's
-x is made unique at the printed precision (moved by 0.001 where it would equal another's, except its
-mirror image on the other wing, which lies on the other side of y = 0). The script checks the order,
-that no two vertices coincide, and that each part is closed and outward, and fails otherwise.
+change (the wings rotate about axes parallel to x). flockmorph matches a sequence's meshes to the
+target vertex for vertex as the files list them. A wing vertex's x is made unique at the printed
+precision (moved by 0.001 where it would equal another's): an older flockmorph matched meshes by the
+sorted order of their positions, and the meshes are kept as they were committed then. The script
+checks that no two vertices coincide (the engine would weld them into one) and that each part is
+closed and outward, and fails otherwise.
 
 Deterministic, standard library only; positions printed with DECIMALS decimals.
 """
@@ -217,16 +218,11 @@ def check_closed(faces, nverts):
                  f"{nverts - len(used)} unused vertices)")
 
 
-def check_order(meshes):
-    """The same sorted (x, y, z) order in every mesh, with no two vertices equal."""
-    order = None
+def check_distinct(meshes):
+    """No two vertices at one position in any mesh: the engine welds such vertices into one."""
     for k, verts in enumerate(meshes):
         if len(set(verts)) != len(verts):
             sys.exit(f"make-bird-sequence: mesh {k} has two vertices at one position")
-        this = sorted(range(len(verts)), key=lambda i: verts[i])
-        if order is not None and this != order:
-            sys.exit(f"make-bird-sequence: mesh {k} sorts its vertices differently from mesh 0")
-        order = this
 
 
 def write_obj(path, frame, verts, faces):
@@ -249,7 +245,7 @@ def main():
     meshes = [rounded(bird(k, xs)) for k in range(FRAMES)]
     faces = bird_faces(meshes[0])
     check_closed(faces, len(meshes[0]))
-    check_order(meshes)
+    check_distinct(meshes)
     os.makedirs(args.out_dir, exist_ok=True)
     for k, verts in enumerate(meshes):
         write_obj(os.path.join(args.out_dir, f"bird_{k:03d}.obj"), k, verts, faces)

@@ -31,6 +31,8 @@ typedef struct fm_flock_target {
     double *normals;       /* wave: unit vertex normals, 3 per vertex */
     double center[3];      /* pulse: the centre it scales about (mean of the vertices) */
     double *frames;        /* sequence: deform_frames vertex arrays, 3 * nv doubles each */
+    int32_t *file_vertex;  /* sequence: the welded vertex of each of the target file's vertices as read */
+    int64_t file_count;
     fm_samples dest;       /* agent a's destination: dest.tri[a], dest.bary[3a..], dest.p at rest */
 } fm_flock_target;
 

@@ -31,7 +31,20 @@ static fm_status vertex_normals(fm_flock_target *t, fm_error *err)
     return FM_OK;
 }
 
-/* Mesh i of the sequence, placed like the target, checked to have the target's connectivity. */
+/* Frame is the target's mesh as read, vertex for vertex (the same count and triangles over the same
+ * file vertices, which welding maps onto the target's)? Welding alone cannot tell: it orders the
+ * vertices by position, and a deformation changes that order. */
+static int same_connectivity(const fm_flock_target *t, const fm_mesh *frame)
+{
+    if (frame->nv != t->file_count || frame->nt != t->mesh.nt) return 0;
+    for (int64_t k = 0; k < 3 * frame->nt; k++)
+        if (t->file_vertex[frame->tri[k]] != t->mesh.tri[k]) return 0;
+    return 1;
+}
+
+/* Mesh i of the sequence, placed like the target, checked to have the target's connectivity; its
+ * vertices as read go where the target's went (vertices welded in the target move as one: the
+ * first of them read). */
 static fm_status load_frame(fm_flock_target *t, const fm_scene_def *def, int32_t i, double *out, fm_error *err)
 {
     char path[FM_PATH_MAX + 32];
@@ -39,17 +52,17 @@ static fm_status load_frame(fm_flock_target *t, const fm_scene_def *def, int32_t
     fm_mesh frame;
     char key[64];
     snprintf(key, sizeof key, "shape_flock.deform.sequence: mesh %d", i);
-    fm_status st = fm_name_key(fm_mesh_load(path, &frame, err), key, err);
+    fm_status st = fm_name_key(fm_mesh_load_as_read(path, &frame, err), key, err);
     if (st != FM_OK) return st;
-    int same = frame.nv == t->mesh.nv && frame.nt == t->mesh.nt &&
-               !memcmp(frame.tri, t->mesh.tri, sizeof(int32_t) * 3 * (size_t)frame.nt);
-    if (same) {
+    if (same_connectivity(t, &frame)) {
         fm_mesh_place(&frame, &def->target);
-        memcpy(out, frame.v, sizeof(double) * 3 * (size_t)frame.nv);
+        for (int64_t v = frame.nv - 1; v >= 0; v--) /* backwards: the first one read is written last */
+            memcpy(out + 3 * (size_t)t->file_vertex[v], frame.v + 3 * v, 3 * sizeof(double));
     } else
-        st = fm_fail(err, FM_ERR_INPUT, "shape_flock.deform.sequence: %s has %lld vertices and %lld triangles, or other "
-                     "triangles, than the target %s (%lld and %lld): a sequence keeps the target's connectivity", path,
-                     (long long)frame.nv, (long long)frame.nt, def->target.path, (long long)t->mesh.nv, (long long)t->mesh.nt);
+        st = fm_fail(err, FM_ERR_INPUT, "shape_flock.deform.sequence: %s has other vertices or triangles than the "
+                     "target %s (as read: %lld vertices and %lld triangles, against %lld and %lld): a sequence keeps "
+                     "the target's connectivity", path, def->target.path, (long long)frame.nv, (long long)frame.nt,
+                     (long long)t->file_count, (long long)t->mesh.nt);
     fm_mesh_free(&frame);
     return st;
 }
@@ -58,7 +71,10 @@ fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_
 {
     memset(t, 0, sizeof *t);
     t->kind = def->flock.deform;
-    fm_status st = fm_name_key(fm_mesh_load(def->target.path, &t->mesh, err), "target.mesh", err);
+    fm_status st = t->kind == FM_DEFORM_SEQUENCE
+                       ? fm_mesh_load_mapped(def->target.path, &t->mesh, &t->file_vertex, &t->file_count, err)
+                       : fm_mesh_load(def->target.path, &t->mesh, err);
+    st = fm_name_key(st, "target.mesh", err);
     if (st != FM_OK) return st;
     fm_mesh_place(&t->mesh, &def->target);
     if ((st = fm_scene_name_key(def, fm_mesh_check_extent(&t->mesh, def->target.path, err), "target.mesh", err)))
@@ -81,9 +97,10 @@ fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_
 void fm_flock_target_free(fm_flock_target *t)
 {
     fm_mesh_free(&t->mesh);
-    free(t->normals), free(t->frames);
+    free(t->normals), free(t->frames), free(t->file_vertex);
     fm_samples_free(&t->dest);
     t->normals = t->frames = NULL;
+    t->file_vertex = NULL;
 }
 
 void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def, double time, double *out)

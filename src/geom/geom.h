@@ -26,6 +26,13 @@ typedef struct fm_tets {
 extern "C" {
 #endif
 fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err);
+/* fm_mesh_load, and for each of the *file_count vertices as the importer reads them (for OBJ one
+ * per face corner, in the file's face order) the welded vertex it became (*file_vertex, malloc'ed). */
+fm_status fm_mesh_load_mapped(const char *path, fm_mesh *out, int32_t **file_vertex, int64_t *file_count,
+                              fm_error *err);
+/* The vertices as the importer reads them, not welded, with the triangles over them: a mesh
+ * sequence's frame matches its rest mesh vertex for vertex this way, whatever the positions' order. */
+fm_status fm_mesh_load_as_read(const char *path, fm_mesh *out, fm_error *err);
 /* The same from len bytes in memory; format is the file extension ("obj", "ply", "off", "stl")
  * and name stands for the file in messages. */
 fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,

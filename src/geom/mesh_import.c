@@ -36,8 +36,9 @@ static int compare_vertex_index(const void *a, const void *b)
     return (i > j) - (i < j);
 }
 
-/* Merges vertices with exactly equal positions (STL and glTF repeat them per face). */
-static fm_status weld_vertices(fm_mesh *mesh, fm_error *err)
+/* Merges vertices with exactly equal positions (STL and glTF repeat them per face). With file_vertex,
+ * hands over remap: for each vertex as read, the welded vertex it became. */
+static fm_status weld_vertices(fm_mesh *mesh, int32_t **file_vertex, fm_error *err)
 {
     int64_t n = mesh->nv;
     int64_t *idx = malloc(sizeof *idx * (size_t)(n ? n : 1));
@@ -63,7 +64,8 @@ static fm_status weld_vertices(fm_mesh *mesh, fm_error *err)
     mesh->v = welded;
     mesh->nv = unique;
     free(idx);
-    free(remap);
+    if (file_vertex) *file_vertex = remap;
+    else free(remap);
     return FM_OK;
 }
 
@@ -133,8 +135,16 @@ static fm_status check_faces(const struct aiScene *scene, const char *name, fm_e
     return FM_OK;
 }
 
-/* Triangles of an imported assimp scene (NULL: the import failed) into out, welded. */
-static fm_status take_scene(const struct aiScene *scene, const char *name, fm_mesh *out, fm_error *err)
+/* How take_scene hands the vertices over. */
+typedef enum vertex_mode {
+    WELDED,        /* coincident vertices merged (fm_mesh_load) */
+    WELDED_MAPPED, /* the same, with the map from the vertices as read (fm_mesh_load_mapped) */
+    AS_READ        /* as assimp reads them, unmerged (fm_mesh_load_as_read) */
+} vertex_mode;
+
+/* Triangles of an imported assimp scene (NULL: the import failed) into out, welded or not. */
+static fm_status take_scene(const struct aiScene *scene, const char *name, vertex_mode mode, fm_mesh *out,
+                            int32_t **file_vertex, int64_t *file_count, fm_error *err)
 {
     if (!scene)
         return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
@@ -150,7 +160,8 @@ static fm_status take_scene(const struct aiScene *scene, const char *name, fm_me
     st = gather_triangles(scene, name, out, err);
     aiReleaseImport(scene);
     if (st == FM_OK) st = check_finite(out, name, err);
-    if (st == FM_OK) st = weld_vertices(out, err);
+    if (st == FM_OK && file_count) *file_count = out->nv;
+    if (st == FM_OK && mode != AS_READ) st = weld_vertices(out, mode == WELDED_MAPPED ? file_vertex : NULL, err);
     if (st != FM_OK) fm_mesh_free(out);
     return st;
 }
@@ -160,13 +171,31 @@ static fm_status take_scene(const struct aiScene *scene, const char *name, fm_me
  * steps abort the process. The triangulation follows in take_scene, after check_faces. */
 static const unsigned IMPORT_FLAGS = aiProcess_ValidateDataStructure;
 
-fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
+static fm_status load_file(const char *path, vertex_mode mode, fm_mesh *out, int32_t **file_vertex,
+                           int64_t *file_count, fm_error *err)
 {
     memset(out, 0, sizeof *out);
     fm_status st = fm_check_input_file(path, "mesh", err);
     if (st == FM_OK) st = fm_mesh_check_file_counts(path, err);
     if (st != FM_OK) return st;
-    return take_scene(aiImportFile(path, IMPORT_FLAGS), path, out, err);
+    return take_scene(aiImportFile(path, IMPORT_FLAGS), path, mode, out, file_vertex, file_count, err);
+}
+
+fm_status fm_mesh_load(const char *path, fm_mesh *out, fm_error *err)
+{
+    return load_file(path, WELDED, out, NULL, NULL, err);
+}
+
+fm_status fm_mesh_load_mapped(const char *path, fm_mesh *out, int32_t **file_vertex, int64_t *file_count,
+                              fm_error *err)
+{
+    *file_vertex = NULL;
+    return load_file(path, WELDED_MAPPED, out, file_vertex, file_count, err);
+}
+
+fm_status fm_mesh_load_as_read(const char *path, fm_mesh *out, fm_error *err)
+{
+    return load_file(path, AS_READ, out, NULL, NULL, err);
 }
 
 fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const char *name, fm_mesh *out,
@@ -176,7 +205,7 @@ fm_status fm_mesh_parse(const void *data, size_t len, const char *format, const 
     if (len == 0 || len > UINT32_MAX) return fm_fail(err, FM_ERR_INPUT, "%s: the mesh data is empty or too large", name);
     fm_status st = fm_mesh_check_counts(data, len, format, name, err);
     if (st != FM_OK) return st;
-    return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, out, err);
+    return take_scene(aiImportFileFromMemory(data, (unsigned)len, IMPORT_FLAGS, format), name, WELDED, out, NULL, NULL, err);
 }
 
 typedef struct directed_edge {

@@ -296,7 +296,7 @@ static void test_deforming_target_is_tracked(void)
 
 /* A sequence of meshes: a sphere moving 1 unit along +z per mesh at 12 meshes a second.
  * Destinations interpolate between the meshes and loop. */
-static void write_shifted_sphere(const char *path, double dz)
+static void write_moved_sphere(const char *path, double dz, double xy_sign)
 {
     char src[FM_PATH_MAX];
     snprintf(src, sizeof src, "%s/examples/flock_cylinder_sphere/sphere.obj", FM_SOURCE_DIR);
@@ -304,7 +304,7 @@ static void write_shifted_sphere(const char *path, double dz)
     char line[256];
     while (in && out && fgets(line, sizeof line, in)) {
         double x, y, z;
-        if (sscanf(line, "v %lf %lf %lf", &x, &y, &z) == 3) fprintf(out, "v %.9g %.9g %.9g\n", x, y, z + dz);
+        if (sscanf(line, "v %lf %lf %lf", &x, &y, &z) == 3) fprintf(out, "v %.9g %.9g %.9g\n", xy_sign * x, xy_sign * y, z + dz);
         else fputs(line, out);
     }
     if (in) fclose(in);
@@ -316,7 +316,7 @@ static void test_mesh_sequence_moves_the_destinations(void)
     char pattern[FM_PATH_MAX];
     for (int i = 0; i < 3; i++) {
         snprintf(pattern, sizeof pattern, "%s/seq_%02d.obj", FM_TEST_TMP, i);
-        write_shifted_sphere(pattern, i);
+        write_moved_sphere(pattern, i, 1);
     }
     fm_scene_def def = flock_def(100);
     snprintf(def.target.path, sizeof def.target.path, "%s/seq_00.obj", FM_TEST_TMP);
@@ -350,6 +350,38 @@ static void test_mesh_sequence_moves_the_destinations(void)
     fm_error err = {0};
     ENSURE(fm_flock_model_build(&def, NULL, NULL, &err) == NULL && err.status == FM_ERR_INPUT);
     ENSURE_MSG(strstr(err.message, "seq_01.obj") && strstr(err.message, "connectivity"), "%s", err.message);
+}
+
+/* A sequence whose mesh 1 is the sphere turned half a turn about z: every vertex moves, and the
+ * order of the positions (which welding sorts by) changes; the vertices still match the target's
+ * one for one as the file lists them, so each destination turns with its triangle. */
+static void test_mesh_sequence_matches_vertices_as_listed(void)
+{
+    char pattern[FM_PATH_MAX];
+    for (int i = 0; i < 2; i++) {
+        snprintf(pattern, sizeof pattern, "%s/turn_%02d.obj", FM_TEST_TMP, i);
+        write_moved_sphere(pattern, 0, i ? -1 : 1);
+    }
+    fm_scene_def def = flock_def(100);
+    snprintf(def.target.path, sizeof def.target.path, "%s/turn_00.obj", FM_TEST_TMP);
+    def.flock.deform = FM_DEFORM_SEQUENCE;
+    snprintf(def.flock.deform_sequence, sizeof def.flock.deform_sequence, "%s/turn_%%02d.obj", FM_TEST_TMP);
+    def.flock.deform_frames = 2, def.flock.deform_frame_rate = 12;
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *s = fm_flock_state_create(m, 1, NULL);
+    float *c2 = malloc(sizeof(float) * 300), *dest = malloc(sizeof(float) * 300);
+    fm_flock_model_endpoints(m, NULL, c2);
+    for (int k = 0; k < 4; k++) fm_flock_step(m, s); /* t = 1/12: mesh 1 */
+    fm_flock_destinations(s, dest);
+    double worst = 0;
+    for (int a = 0; a < 100; a++) /* the target is placed at x + 12 */
+        worst = fmax(worst, fabs(dest[3 * a] - (24 - c2[3 * a])) + fabs(dest[3 * a + 1] + c2[3 * a + 1]) +
+                                fabs(dest[3 * a + 2] - c2[3 * a + 2]));
+    ENSURE_MSG(worst < 1e-4, "destinations %g off the turned sphere", worst);
+    free(c2), free(dest);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
 }
 
 #define MESHES "\"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"}"
@@ -524,6 +556,7 @@ int main(void)
     RUN_TEST(test_orientation_follows_velocity);
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
+    RUN_TEST(test_mesh_sequence_matches_vertices_as_listed);
     RUN_TEST(test_scene_keys_belong_to_their_mode);
     RUN_TEST(test_fuzzy_strategy_keys);
     RUN_TEST(test_sampling_keys_are_read_and_checked);
