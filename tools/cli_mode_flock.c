@@ -13,7 +13,7 @@ static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : js
 /* The settings that shape the result, for the record. */
 static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info *mi)
 {
-    static const char *const sampling[] = {"random", "mosaic", "stratified"}, *const match[] = {"random", "spherical"};
+    static const char *const sampling[] = {"random", "mosaic", "stratified"}, *const match[] = {"random", "spherical", "projected"};
     static const char *const deform[] = {"none", "wave", "pulse", "sequence"}, *const arrival[] = {"bind", "float"};
     const fm_flock_def *f = &def->flock;
     return json_pack("{sssssssfsfsfsfsssfsfsisisfsf}", "sampling", sampling[f->sampling], "match", match[f->match],

@@ -93,7 +93,11 @@ typedef struct fm_boid_rule_def {
 typedef enum fm_flock_sampling {
     FM_FLOCK_SAMPLE_RANDOM = 0, FM_FLOCK_SAMPLE_MOSAIC = 1, FM_FLOCK_SAMPLE_STRATIFIED = 2
 } fm_flock_sampling;
-typedef enum fm_flock_match { FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1 } fm_flock_match;
+/* Agents to destinations: random; spherical (both sets sampled, matched by direction); projected
+ * (the target's points are the source's projected and relaxed, SCF's own method). */
+typedef enum fm_flock_match {
+    FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1, FM_FLOCK_MATCH_PROJECTED = 2
+} fm_flock_match;
 /* The mosaic's dis_ij (SCF eqs 1-2): it both selects the neighbours and enters E_ij. */
 typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN = 1 } fm_mosaic_distance;
 /* What the Kalman filter's R is scaled over (SCF: R "adjusts how closely the agents follow the

@@ -3,6 +3,8 @@
 #include "flock.h"
 #include "memory.h"
 
+#include <math.h>
+
 /* The shape flock (flock_model.c, flock_state.c, flock_run.c). The model: start and destination at
  * time 0 (6 floats), the boids parameters (3 rules x radius, angle, weight; max speed, force and
  * acceleration) and the destination's sample (a point, barycentrics, a triangle). */
@@ -19,7 +21,8 @@ static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST
 
 /* The peak of preprocessing, while the target is sampled: the model, the agent-sample match
  * (int64) and the source's samples (point, barycentrics, triangle), plus the sampler's own arrays
- * per sample (sample.c, sample_mosaic.c, sample_stratified.c): the double points and triangles;
+ * per sample (sample.c, sample_mosaic.c, sample_stratified.c), the larger of the source's and the
+ * target's (match "projected" relaxes the target with the mosaic): the double points and triangles;
  * for mosaic also a float copy, the neighbour grid, the moved points and the Hilbert sort's keys
  * and copies; for stratified the candidates (point in double, triangle) and their elimination's
  * float copy, flags, neighbours, keys, heap and grid, 1.1 x oversample candidates per sample. */
@@ -27,13 +30,13 @@ static double flock_preprocess_per_agent(const fm_scene_def *def, int64_t n)
 {
     const double samples = sizeof(float) * 6 + sizeof(int32_t), points = sizeof(double) * 3 + sizeof(int32_t);
     const double grid = n > 0 ? fm_memory_grid_bytes(n) / (double)n : 0;
-    double sampler = points;
-    if (def->flock.sampling == FM_FLOCK_SAMPLE_MOSAIC)
-        sampler += sizeof(float) * 3 + grid + points + sizeof(fm_keyed) + points;
-    else if (def->flock.sampling == FM_FLOCK_SAMPLE_STRATIFIED) {
+    const double mosaic = points + sizeof(float) * 3 + grid + points + sizeof(fm_keyed) + points;
+    double sampler = points; /* the larger of the source's and the target's sampler */
+    if (def->flock.sampling == FM_FLOCK_SAMPLE_MOSAIC || def->flock.match == FM_FLOCK_MATCH_PROJECTED) sampler = mosaic;
+    if (def->flock.sampling == FM_FLOCK_SAMPLE_STRATIFIED) {
         const double candidate = points + 4 /* padding */ + sizeof(float) * 3 + 1 + sizeof(int64_t) + sizeof(double) +
                                  sizeof(double) + sizeof(int64_t) + grid;
-        sampler += 1.1 * FM_SAMPLE_OVERSAMPLE * candidate;
+        sampler = fmax(sampler, points + 1.1 * FM_SAMPLE_OVERSAMPLE * candidate);
     }
     return FLOCK_MODEL_PER_AGENT + sizeof(int64_t) + samples + sampler;
 }

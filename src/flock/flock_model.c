@@ -13,7 +13,7 @@
 /* Random streams of the scene seed (fm_random_unit), one per use. */
 enum { STREAM_SOURCE = 1, STREAM_TARGET, STREAM_MATCH, STREAM_PARAMS = 16 };
 
-static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
+static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream)
 {
     fm_sample_opts opts = fm_default_sample_opts();
     opts.method = (fm_sample_method)m->def.flock.sampling;
@@ -22,7 +22,25 @@ static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t s
     opts.iterations = f->mosaic_iterations, opts.manhattan = f->mosaic_distance == FM_MOSAIC_MANHATTAN;
     opts.k = f->mosaic_k, opts.w = f->mosaic_w, opts.step = f->mosaic_step;
     opts.lambda = f->stratified_lambda, opts.oversample = f->stratified_oversample;
+    return opts;
+}
+
+static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
+{
+    const fm_sample_opts opts = sample_opts(m, stream);
     return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
+}
+
+/* match "projected" (SCF "Point Correspondence"): the target's points are the source samples
+ * projected onto it and relaxed by the mosaic's energy (the shape_flock.mosaic keys), agent a keeping
+ * its own: match[a] = a. */
+static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, const fm_samples *src, fm_samples *out,
+                                  int64_t *match, fm_error *err)
+{
+    const fm_sample_opts opts = sample_opts(m, STREAM_TARGET);
+    fm_status st = fm_name_key(fm_sample_projected(mesh, src->p, m->n, &opts, out, err), "shape_flock.match", err);
+    for (int64_t a = 0; st == FM_OK && a < m->n; a++) match[a] = a;
+    return st;
 }
 
 static fm_status alloc_agent_arrays(fm_flock_model *m, fm_error *err)
@@ -180,9 +198,11 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progr
     if (progress) progress("sample source", 0.1, user);
     fm_status st = match ? sample(source, m, STREAM_SOURCE, &src, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (progress && st == FM_OK) progress("sample target", 0.4, user);
-    if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, &tgt, err);
+    const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
+    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, &src, &tgt, match, err);
+    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, &tgt, err);
     if (progress && st == FM_OK) progress("match", 0.7, user);
-    if (st == FM_OK)
+    if (st == FM_OK && !projected)
         st = fm_name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
                                       fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);

@@ -174,12 +174,50 @@ static fm_status finish(const fm_sample_ctx *c, const double *x, const int32_t *
     return FM_OK;
 }
 
-fm_status fm_sample_surface(const fm_mesh *mesh, int64_t n, const fm_sample_opts *opts, fm_samples *out,
-                            fm_error *err)
+/* The mesh's area-weighted centroid and its largest vertex distance from it. */
+static void mesh_sphere(const fm_sample_ctx *c, double center[3], double *radius)
 {
-    if (!out) return fm_fail(err, FM_ERR_INPUT, "fm_sample_surface: no output given");
+    const fm_mesh *m = c->mesh;
+    double sum[3] = {0, 0, 0}, prev = 0;
+    for (int64_t t = 0; t < m->nt; t++) {
+        const double area = c->cdf[t] - prev;
+        prev = c->cdf[t];
+        for (int k = 0; k < 3; k++)
+            for (int j = 0; j < 3; j++) sum[k] += area * m->v[3 * (int64_t)m->tri[3 * t + j] + k] / 3;
+    }
+    for (int k = 0; k < 3; k++) center[k] = sum[k] / c->area;
+    *radius = 0;
+    for (int64_t i = 0; i < m->nv; i++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (m->v[3 * i + k] - center[k]) * (m->v[3 * i + k] - center[k]);
+        *radius = fmax(*radius, sqrt(d2));
+    }
+}
+
+/* The start of fm_sample_projected: each point of `from`, by its direction from their centroid, on
+ * the sphere around the mesh (the centre itself for a point at the centroid). */
+static void project_directions(const fm_sample_ctx *c, const float *from, double *x)
+{
+    double mid[3] = {0, 0, 0}, center[3], radius;
+    for (int64_t i = 0; i < c->n; i++)
+        for (int k = 0; k < 3; k++) mid[k] += (double)from[3 * i + k] / (double)c->n;
+    mesh_sphere(c, center, &radius);
+    for (int64_t i = 0; i < c->n; i++) {
+        double d[3], len = 0;
+        for (int k = 0; k < 3; k++) d[k] = (double)from[3 * i + k] - mid[k], len += d[k] * d[k];
+        len = sqrt(len);
+        for (int k = 0; k < 3; k++) x[3 * i + k] = center[k] + (len > 0 ? radius * d[k] / len : 0);
+    }
+}
+
+/* The points of the method opts chose, or (from != NULL) the projection of `from` relaxed by the
+ * mosaic, into out. */
+static fm_status run_sampler(const char *who, const fm_mesh *mesh, int64_t n, const fm_sample_opts *opts,
+                             const float *from, fm_samples *out, fm_error *err)
+{
+    if (!out) return fm_fail(err, FM_ERR_INPUT, "%s: no output given", who);
     *out = (fm_samples){0};
-    if (!mesh) return fm_fail(err, FM_ERR_INPUT, "fm_sample_surface: no mesh given");
+    if (!mesh) return fm_fail(err, FM_ERR_INPUT, "%s: no mesh given", who);
     fm_sample_ctx c = {0};
     fm_status st = resolve_opts(opts, &c.opts, err);
     c.threads = c.opts.threads;
@@ -192,7 +230,8 @@ fm_status fm_sample_surface(const fm_mesh *mesh, int64_t n, const fm_sample_opts
         if (!x || !tri) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld samples", (long long)n);
     }
     if (st == FM_OK) {
-        if (c.opts.method == FM_SAMPLE_MOSAIC) st = fm_sample_mosaic(&c, x, tri, err);
+        if (from) project_directions(&c, from, x), st = fm_sample_mosaic_from(&c, x, tri, err);
+        else if (c.opts.method == FM_SAMPLE_MOSAIC) st = fm_sample_mosaic(&c, x, tri, err);
         else if (c.opts.method == FM_SAMPLE_STRATIFIED) st = fm_sample_stratified(&c, x, tri, err);
         else fm_sample_random_into(&c, x, tri);
     }
@@ -202,6 +241,29 @@ fm_status fm_sample_surface(const fm_mesh *mesh, int64_t n, const fm_sample_opts
     fm_free(tri);
     fm_free(c.cdf);
     return st;
+}
+
+fm_status fm_sample_surface(const fm_mesh *mesh, int64_t n, const fm_sample_opts *opts, fm_samples *out,
+                            fm_error *err)
+{
+    return run_sampler("fm_sample_surface", mesh, n, opts, NULL, out, err);
+}
+
+fm_status fm_sample_projected(const fm_mesh *mesh, const float *from, int64_t n, const fm_sample_opts *opts,
+                              fm_samples *out, fm_error *err)
+{
+    if (!from) {
+        if (out) *out = (fm_samples){0};
+        return fm_fail(err, FM_ERR_INPUT, "fm_sample_projected: no points given");
+    }
+    for (int64_t i = 0; i < 3 * n; i++)
+        if (!isfinite(from[i])) {
+            if (out) *out = (fm_samples){0};
+            return fm_fail(err, FM_ERR_INPUT, "fm_sample_projected: point %lld is not finite", (long long)(i / 3));
+        }
+    fm_sample_opts o = opts ? *opts : fm_default_sample_opts();
+    o.method = FM_SAMPLE_MOSAIC;
+    return run_sampler("fm_sample_projected", mesh, n, &o, from, out, err);
 }
 
 /* ------------------------------------------------------------------ uniformity */

@@ -85,6 +85,17 @@ typedef enum fm_match_method { FM_MATCH_RANDOM = 0, FM_MATCH_SPHERICAL = 1 } fm_
 fm_status fm_match_agents(const float *agents, const float *samples, int64_t n, fm_match_method m,
                           uint64_t seed, int64_t *out, fm_error *err);
 
+/* SCF's correspondence by projection ("spherically projecting source positions on the first shape
+ * onto the surface of the second shape, and let these projected points subject to energy
+ * optimization"): point a of `from` (n points, 3 floats each) is seen from their centroid along the
+ * unit direction u_a; the point c + rho u_a, c the mesh's area-weighted centroid and rho its largest
+ * vertex distance from c (a sphere around the mesh), goes to its closest point of the mesh; then the
+ * mosaic's relaxation (opts: iterations, k, w, step, the metric; method ignored) spreads the points
+ * evenly, each keeping its index, so out's sample a is point a's. Errors as fm_sample_surface's, and
+ * FM_ERR_INPUT for a non-finite point of `from` (named). */
+fm_status fm_sample_projected(const fm_mesh *mesh, const float *from, int64_t n, const fm_sample_opts *opts,
+                              fm_samples *out, fm_error *err);
+
 /* Uniformity: the mean and the coefficient of variation (standard deviation / mean) of every
  * point's Euclidean distance to its nearest other point (exact, on the hash grid of grid.h; n >= 2;
  * coincident points count as distance 0). Same result for any thread count. */
@@ -109,6 +120,9 @@ void fm_sample_random_into(const fm_sample_ctx *c, double *x, int32_t *tri);
  * iterations and k take for n points (sample_mosaic.c, docs/limits.md). */
 #define FM_SAMPLE_MOSAIC_MAX_SECONDS 300.0
 fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
+/* The same relaxation from the points given in x (near the mesh: first projected onto it), each
+ * point keeping its index. */
+fm_status fm_sample_mosaic_from(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
 fm_status fm_sample_stratified(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err);
 
 /* The index along a 3D Hilbert curve (Skilling, "Programming the Hilbert curve", 2004;

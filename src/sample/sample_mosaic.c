@@ -258,7 +258,21 @@ static fm_status relax(mosaic *m, const fm_sample_ctx *c, double *x, int32_t *tr
     return FM_OK;
 }
 
-fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err)
+/* x (3 doubles a point) onto the mesh: each point's closest point and its triangle. */
+static void project_points(const mosaic *m, int64_t n, double *x, int32_t *tri, double *x2)
+{
+#pragma omp parallel for num_threads(m->c->threads) schedule(dynamic, 256)
+    for (int64_t i = 0; i < n; i++) {
+        int64_t t = -1;
+        fm_closest_point(m->surface, x + 3 * i, INFINITY, x2 + 3 * i, &t);
+        tri[i] = (int32_t)t;
+    }
+    memcpy(x, x2, sizeof(double) * 3 * (size_t)n);
+}
+
+/* The mosaic from a random start (Table I) or, with `given`, from the points in x projected onto
+ * the mesh; the relaxation then moves every point under its own index. */
+static fm_status run_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, int given, fm_error *err)
 {
     mosaic m = {0};
     fm_status st = mosaic_init(&m, c, err);
@@ -269,7 +283,8 @@ fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_e
         tri2 = fm_alloc(sizeof(int32_t) * (size_t)c->n);
         if (!x2 || !tri2) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld mosaic points", (long long)c->n);
     }
-    if (st == FM_OK) {
+    if (st == FM_OK && given) project_points(&m, c->n, x, tri, x2);
+    else if (st == FM_OK) {
         fm_sample_random_into(c, x, tri); /* Table I starts from random sampling */
         st = sort_spatially(c->n, x, tri, err);
     }
@@ -278,4 +293,14 @@ fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_e
     fm_free(tri2);
     mosaic_free(&m);
     return st;
+}
+
+fm_status fm_sample_mosaic(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err)
+{
+    return run_mosaic(c, x, tri, 0, err);
+}
+
+fm_status fm_sample_mosaic_from(const fm_sample_ctx *c, double *x, int32_t *tri, fm_error *err)
+{
+    return run_mosaic(c, x, tri, 1, err);
 }

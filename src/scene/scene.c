@@ -119,7 +119,7 @@ typedef struct param {
 /* The values of each P_ENUM key, NULL-terminated. */
 static const char *const MODE_NAMES[] = {"tetra_morph", "shape_flock", NULL};
 static const char *const SAMPLING_NAMES[] = {"random", "mosaic", "stratified", NULL};
-static const char *const MATCH_NAMES[] = {"random", "spherical", NULL};
+static const char *const MATCH_NAMES[] = {"random", "spherical", "projected", NULL};
 static const char *const DISTANCE_NAMES[] = {"euclidean", "manhattan", NULL};
 static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
 static const char *const R_OVER_NAMES[] = {"none", "distance", "leader_speed", NULL};

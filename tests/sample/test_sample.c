@@ -248,6 +248,87 @@ static void test_match(void)
     free(agents), free(samples), free(rnd), free(sph), free(again);
 }
 
+static double dist2f(const float *a, const float *b)
+{
+    double d[3] = {(double)a[0] - b[0], (double)a[1] - b[1], (double)a[2] - b[2]};
+    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+}
+
+/* Mean over the points a of `from` of the distance between out's point a and out's point of a's
+ * nearest neighbour in `from` (all pairs): how well the projection keeps neighbours together. */
+static double neighbour_spread(const float *from, const float *out, int64_t n)
+{
+    double sum = 0;
+    for (int64_t a = 0; a < n; a++) {
+        double best = INFINITY;
+        int64_t who = -1;
+        for (int64_t b = 0; b < n; b++) {
+            double d2 = 0;
+            for (int k = 0; k < 3 && b != a; k++) d2 += ((double)from[3 * a + k] - from[3 * b + k]) * ((double)from[3 * a + k] - from[3 * b + k]);
+            if (b != a && d2 < best) best = d2, who = b;
+        }
+        double e2 = 0;
+        for (int k = 0; k < 3; k++) e2 += ((double)out[3 * a + k] - out[3 * who + k]) * ((double)out[3 * a + k] - out[3 * who + k]);
+        sum += sqrt(e2);
+    }
+    return sum / (double)n;
+}
+
+/* SCF's projection and relaxation (fm_sample_projected): points of a sphere around the torus
+ * projected onto it land on it; the relaxation spreads them (the nearest-neighbour CV at least
+ * halves against the bare projection) while each point stays near its projection and neighbours
+ * stay neighbours (their spread far below a random assignment's); 1 and 2 threads agree bit for bit. */
+static void test_projected(void)
+{
+    fm_mesh m = load_mesh("torus");
+    const int64_t n = 2000;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, c[3];
+    for (int64_t i = 0; i < m.nv; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], m.v[3 * i + k]), hi[k] = fmax(hi[k], m.v[3 * i + k]);
+    for (int k = 0; k < 3; k++) c[k] = 0.5 * (lo[k] + hi[k]) + 0.3;
+    float *from = sphere_points(n, c, 1.0, 11);
+    fm_sample_opts o = fm_default_sample_opts();
+    fm_samples bare, relaxed, two;
+    fm_error err = {0};
+    o.iterations = 0;
+    ENSURE_MSG(fm_sample_projected(&m, from, n, &o, &bare, &err) == FM_OK, "%s", err.message);
+    o = fm_default_sample_opts(), o.threads = 1;
+    ENSURE_MSG(fm_sample_projected(&m, from, n, &o, &relaxed, &err) == FM_OK, "%s", err.message);
+    o.threads = 2;
+    ENSURE_MSG(fm_sample_projected(&m, from, n, &o, &two, &err) == FM_OK, "%s", err.message);
+    fm_closest *surface = fm_closest_build(&m, 1, "torus", 0, &err);
+    check_on_surface(&m, surface, &bare, n, "projected");
+    check_on_surface(&m, surface, &relaxed, n, "projected, relaxed");
+    fm_closest_destroy(surface);
+    ENSURE(same_samples(&relaxed, &two));
+    double moved = 0, spacing = 0, area = 0;
+    for (int64_t t = 0; t < m.nt; t++) {
+        const double *a = m.v + 3 * m.tri[3 * t], *b = m.v + 3 * m.tri[3 * t + 1], *d = m.v + 3 * m.tri[3 * t + 2];
+        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+        const double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        area += 0.5 * sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    }
+    spacing = sqrt(area / (double)n);
+    for (int64_t a = 0; a < n; a++)
+        moved += sqrt(dist2f(bare.p + 3 * a, relaxed.p + 3 * a)) / (double)n;
+    int64_t *rnd = malloc(sizeof(int64_t) * (size_t)n);
+    float *shuffled = malloc(sizeof(float) * 3 * (size_t)n);
+    ENSURE(fm_match_agents(from, relaxed.p, n, FM_MATCH_RANDOM, 3, rnd, &err) == FM_OK);
+    for (int64_t a = 0; a < n; a++) memcpy(shuffled + 3 * a, relaxed.p + 3 * rnd[a], 3 * sizeof(float));
+    const double cv_bare = nn_cv(&bare), cv = nn_cv(&relaxed);
+    const double spread = neighbour_spread(from, relaxed.p, n), spread_random = neighbour_spread(from, shuffled, n);
+    printf("  projected onto the torus: nn CV %.3f bare, %.3f relaxed; moved %.2f spacings; neighbours %.3f apart "
+           "(random %.3f)\n", cv_bare, cv, moved / spacing, spread, spread_random);
+    ENSURE_MSG(cv < 0.5 * cv_bare, "relaxation: CV %g against %g", cv, cv_bare);
+    ENSURE_MSG(moved < 3 * spacing, "the relaxation moved points %g (spacing %g)", moved, spacing);
+    ENSURE_MSG(spread < 0.2 * spread_random, "neighbours %g apart against %g at random", spread, spread_random);
+    from[7] = NAN;
+    ENSURE(fm_sample_projected(&m, from, n, &o, &two, &err) == FM_ERR_INPUT && strstr(err.message, "point 2 is not finite"));
+    free(rnd), free(shuffled), free(from);
+    fm_samples_free(&bare), fm_samples_free(&relaxed), fm_samples_free(&two);
+    fm_mesh_free(&m);
+}
+
 /* ------------------------------------------------------------------ the measure, bad input */
 
 /* A square lattice of spacing 0.5 has every nearest neighbour at 0.5 (CV 0). Moving point (0.5, 0)
@@ -374,6 +455,7 @@ int main(void)
     RUN_TEST(test_deterministic);
     RUN_TEST(test_eval_follows_affine_deformation);
     RUN_TEST(test_match);
+    RUN_TEST(test_projected);
     RUN_TEST(test_nn_stats);
     RUN_TEST(test_bad_input);
     RUN_TEST(test_mosaic_work_bounded);
