@@ -5,7 +5,9 @@
 # the animation updates the file (--update) in the same commit and says why.
 #   tools/check-example-caches.sh [BUILD_DIR]            default BUILD_DIR: build
 #   tools/check-example-caches.sh [BUILD_DIR] --update   rewrite the file from this build
-# Exit 0 if every cache matches, 1 otherwise (each mismatch is named).
+# It also checks that every static shape-flock example (deform "none", arrival "bind") ends with every
+# agent bound within its frame limit, as stats.json's all_bound says.
+# Exit 0 if every cache matches and every static flock binds, 1 otherwise (each failure is named).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir=${1:-build}
@@ -27,6 +29,10 @@ for scene in examples/*/scene.json; do
     out="$tmp/$name-$threads"
     if ! "$cli" run "$scene" -o "$out" --threads "$threads" --quiet > "$out.log" 2>&1; then
       echo "FAIL $name ($threads threads): the run failed:"; cat "$out.log"; failed=1; continue
+    fi
+    if grep -q '"deform": "none"' "$out/stats.json" && grep -q '"arrival_mode": "bind"' "$out/stats.json" &&
+       ! grep -q '"all_bound": true' "$out/stats.json"; then
+      echo "FAIL $name ($threads threads): a static flock whose agents are not all bound at the frame limit"; failed=1
     fi
     cache=$(find "$out" -maxdepth 1 -name '*.fmc' | head -n 1)
     got=$(sha256sum "$cache" | cut -d' ' -f1)

@@ -75,7 +75,7 @@ fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *m
 
 /* The flock measures of a frame (docs/stats.md, "Flock measures"), what a user tunes against. Over
  * the agents in flight (not bound): polarisation, the norm of the mean unit velocity (1: all fly the
- * same way); the mean nearest-neighbour distance (among agents in flight, from up to 4,096 of them
+ * same way); the mean nearest-neighbour distance (among agents in flight, from up to 1,024 of them
  * spread evenly over the ids; NaN with fewer than 2 in flight); the mean distance from the agent's
  * own eq-12 path point (its virtual leader); the mean speed. Over all agents: the mean distance to
  * the destination. And the fraction of agents in flight. NaN where no agent is in flight. */

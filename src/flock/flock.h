@@ -90,6 +90,7 @@ struct fm_flock_state {
     fm_fields *fields;
     fm_grid grid;
     int grid_ready;
+    int grid_current;              /* the grid is the one the next step would build (fm_flock_measure_frame) */
     flock_block *blocks;
     int64_t count[4];
     double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */

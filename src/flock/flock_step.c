@@ -290,9 +290,12 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
     fm_kalman_advance(&s->kalman);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
-    mark_flock(s);
-    fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n,
-                         m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
+    if (!s->grid_current) { /* else the frame's measures built this very grid (flock_measures.c) */
+        mark_flock(s);
+        fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n,
+                             m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
+    }
+    s->grid_current = 0;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);

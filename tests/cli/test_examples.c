@@ -123,8 +123,10 @@ static double measure_at(const json_t *stats, const char *name, uint32_t k)
     return json_is_number(v) ? json_number_value(v) : NAN;
 }
 
-/* Frame k's polarisation, mean speed, mean nearest-neighbour distance (all pairs, in double) and
- * share of agents in flight, from the cache's positions, velocities and phases. */
+/* Frame k's polarisation, mean speed, mean nearest-neighbour distance and share of agents in
+ * flight, from the cache's positions, velocities and phases. The nearest-neighbour mean is taken as
+ * stats.md says: over every stride-th agent in flight in id order (stride ceil(in flight / 1024)),
+ * each against all the others in flight, in double. */
 static void measures_from_cache(fm_cache_reader *r, uint32_t k, double out[4])
 {
     const uint64_t n = fm_cache_agents(r);
@@ -134,12 +136,15 @@ static void measures_from_cache(fm_cache_reader *r, uint32_t k, double out[4])
     ENSURE(fm_cache_read_attr(r, k, FM_ATTR_POSITION, p, &err) == FM_OK && fm_cache_read_attr(r, k, FM_ATTR_VELOCITY, v, &err) == FM_OK &&
            fm_cache_read_attr(r, k, FM_ATTR_PHASE, phase, &err) == FM_OK);
     double unit[3] = {0, 0, 0}, speed = 0, nn = 0;
-    uint64_t flying = 0;
+    uint64_t flying = 0, total = 0, queried = 0;
+    for (uint64_t a = 0; a < n; a++) total += phase[a] != FM_PHASE_ARRIVED;
+    const uint64_t stride = total > 1024 ? (total + 1023) / 1024 : 1;
     for (uint64_t a = 0; a < n; a++) {
         if (phase[a] == FM_PHASE_ARRIVED) continue;
         const double s = sqrt((double)v[3 * a] * v[3 * a] + (double)v[3 * a + 1] * v[3 * a + 1] + (double)v[3 * a + 2] * v[3 * a + 2]);
         for (int c = 0; c < 3 && s > 0; c++) unit[c] += v[3 * a + c] / s;
-        speed += s, flying++;
+        speed += s;
+        if (flying++ % stride != 0) continue;
         double best = INFINITY;
         for (uint64_t b = 0; b < n; b++) {
             if (b == a || phase[b] == FM_PHASE_ARRIVED) continue;
@@ -147,10 +152,10 @@ static void measures_from_cache(fm_cache_reader *r, uint32_t k, double out[4])
             for (int c = 0; c < 3; c++) d2 += ((double)p[3 * a + c] - p[3 * b + c]) * ((double)p[3 * a + c] - p[3 * b + c]);
             best = fmin(best, d2);
         }
-        nn += sqrt(best);
+        nn += sqrt(best), queried++;
     }
     out[0] = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2]) / (double)flying;
-    out[1] = speed / (double)flying, out[2] = nn / (double)flying, out[3] = (double)flying / (double)n;
+    out[1] = speed / (double)flying, out[2] = nn / (double)queried, out[3] = (double)flying / (double)n;
     free(p), free(v), free(phase);
 }
 

@@ -283,7 +283,7 @@ static void test_speed_is_bounded_on_a_fast_target(void)
     fm_cache_close(r);
 }
 
-/* stats.json's flock measures on a flock larger than the 4,096 nearest-neighbour queries: the
+/* stats.json's flock measures on a flock larger than the 1,024 nearest-neighbour queries: the
  * sampled mean is within 3 % of every agent's (in double, all pairs), the polarisation is the one
  * of the velocities, and both threads counts give the same figures bit for bit. */
 static void test_measures_of_a_large_flock(void)
