@@ -1,6 +1,7 @@
 /* flockmorph render: a frame of a cache to a PNG, or a range of frames to an MP4 through ffmpeg. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "cli_colour.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -15,8 +16,8 @@ static const char *const USAGE_RENDER =
     "       flockmorph render CACHE -o NAME.%04d.png [--frames A:B[:S]] [options]\n"
     "\n"
     "Ray casts the tets (or, for a point cache, spheres) with Embree: a key light with hard shadows,\n"
-    "a ground plane, and a colour per agent from a gradient over its index. The camera is fitted to\n"
-    "the whole animation's bounds, so all frames of a video share it. The output's extension picks\n"
+    "a ground plane, and a colour per agent (--color). The camera is fitted to the whole\n"
+    "animation's bounds, so all frames of a video share it. The output's extension picks\n"
     "the format: .png renders frame K (default: the last; negative counts from the end); .mp4 renders\n"
     "frames A to B inclusive (default: all; A:, :B and a single K work too; A:B:S every S-th)\n"
     "into H.264 with the ffmpeg program, at F frames per second (default: the cache's frame rate).\n"
@@ -30,18 +31,26 @@ static const char *const USAGE_RENDER =
     "  --samples N     N x N rays per pixel for smoother edges (1..8, default 1)\n"
     "  --radius R      sphere radius of a point cache's agents (default: from their spacing)\n"
     "  --no-ground     leave out the ground plane\n"
+    "  --color MODE    speed (default): each agent's speed on the viridis map, dark violet (slow)\n"
+    "                  to yellow (fast), |velocity| or a tet centroid's motion between frames;\n"
+    "                  phase: 0 waiting blue, 1 flying orange, 2 homing purple, 3 arrived green;\n"
+    "                  id: a gradient over the agent id, blue (first) to coral (last)\n"
+    "  --color-range LO:HI  the speeds (units/s) at the two ends of the map, one scale for all\n"
+    "                  frames (default: 0 to the 99th percentile of the speeds in the frames\n"
+    "                  rendered, at most 64 of them evenly spread); speeds outside are clamped\n"
     "  --threads N     rendering threads (default: all cores; the image does not depend on it)\n";
 
 /* Options only render has; the shared parser takes CACHE, -o, --frame and --size. */
 typedef struct render_args {
     cli_frame_options o;
-    const char *view, *frames, *fps;
+    const char *view, *frames, *fps, *color, *color_range;
     long samples, threads;
     double radius;
     int no_ground;
 } render_args;
 
-static const char *const RENDER_ONLY[] = {"--view", "--frames", "--fps", "--samples", "--radius", "--threads"};
+static const char *const RENDER_ONLY[] = {"--view",   "--frames", "--fps",   "--samples",
+                                          "--radius", "--threads", "--color", "--color-range"};
 
 static int is_render_only(const char *opt)
 {
@@ -55,6 +64,8 @@ static int set_render_only(render_args *a, const char *opt, const char *val)
     if (!strcmp(opt, "--view")) a->view = val;
     else if (!strcmp(opt, "--frames")) a->frames = val;
     else if (!strcmp(opt, "--fps")) a->fps = val;
+    else if (!strcmp(opt, "--color")) a->color = val;
+    else if (!strcmp(opt, "--color-range")) a->color_range = val;
     else if (!strcmp(opt, "--samples") && cli_parse_int(val, 1, 8, &a->samples))
         return cli_usage_error(USAGE_RENDER, "--samples wants a whole number in 1..8, not '%s'", val);
     else if (!strcmp(opt, "--threads") && cli_parse_int(val, 1, 1024, &a->threads))
@@ -130,6 +141,8 @@ typedef struct frame_source {
     size_t n;
     float *data;  /* one frame: n x 12 (tets) or n x 3 (points) floats */
     uint32_t frame; /* the frame data holds */
+    cli_colouring colour;
+    fm_render_colours colours; /* of that frame (source_load) */
 } frame_source;
 
 static int is_point_cache(fm_cache_reader *r)
@@ -137,7 +150,7 @@ static int is_point_cache(fm_cache_reader *r)
     return fm_cache_has_attr(r, FM_ATTR_POSITION) && !fm_cache_has_attr(r, FM_ATTR_TET_VERTICES);
 }
 
-static int source_open(const char *path, frame_source *s)
+static int source_open(const char *path, const cli_colour_options *colour, frame_source *s)
 {
     memset(s, 0, sizeof *s);
     s->path = path;
@@ -147,11 +160,12 @@ static int source_open(const char *path, frame_source *s)
     s->n = fm_cache_agents(s->r);
     s->data = malloc(sizeof(float) * (s->points ? 3 : 12) * (s->n ? s->n : 1));
     if (!s->data) return fprintf(stderr, "flockmorph: error: out of memory for %zu agents\n", s->n), FM_ERR_MEMORY;
-    return 0;
+    return cli_colour_open(&s->colour, colour, s->r, path, s->points);
 }
 
 static void source_close(frame_source *s)
 {
+    cli_colour_free(&s->colour);
     if (s->r) fm_cache_close(s->r);
     free(s->data);
 }
@@ -180,13 +194,21 @@ static int refuse_non_finite(const frame_source *s)
     return FM_ERR_INPUT;
 }
 
+/* A frame to draw: its colours (which may read the frame before it), then its coordinates. */
+static int source_load(frame_source *s, uint32_t frame)
+{
+    int rc = cli_colour_frame(&s->colour, frame, &s->colours);
+    return rc ? rc : source_read(s, frame);
+}
+
+/* Draws the frame source_load read, coloured as --color says. */
 static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
 {
     int rc = refuse_non_finite(s);
     if (rc) return rc;
     fm_error err = {0};
-    fm_status st = s->points ? fm_renderer_draw_points(rr, s->data, s->n, rgb, &err)
-                             : fm_renderer_draw_tets(rr, s->data, s->n, rgb, &err);
+    fm_status st = s->points ? fm_renderer_draw_points_coloured(rr, s->data, s->n, &s->colours, rgb, &err)
+                             : fm_renderer_draw_tets_coloured(rr, s->data, s->n, &s->colours, rgb, &err);
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
@@ -231,7 +253,8 @@ static int render_png(frame_source *s, fm_renderer *rr, const render_args *a, un
 {
     uint32_t frame;
     int rc = cli_pick_frame(s->path, fm_cache_frames(s->r), a->o.has_frame ? a->o.frame : -1, &frame);
-    if (!rc) rc = source_read(s, frame);
+    if (!rc) rc = cli_colour_fix_scale(&s->colour, frame, frame, 1);
+    if (!rc) rc = source_load(s, frame);
     double t0 = cli_seconds();
     if (!rc) rc = source_draw(s, rr, rgb);
     double ms = 1e3 * (cli_seconds() - t0);
@@ -278,11 +301,12 @@ static int render_frames(frame_source *s, fm_renderer *rr, const frame_sink *k, 
     int rc = 0, progress = isatty(STDERR_FILENO);
     uint32_t count = (last - first) / step + 1;
     *drawing = 0.0;
+    if ((rc = cli_colour_fix_scale(&s->colour, first, last, step))) return rc;
     for (uint32_t i = 0; i < count && !rc; i++) {
         uint32_t f = first + i * step;
         if (progress) fprintf(stderr, "\rrender: frame %u (%u of %u)", f, i + 1, count);
         double t = cli_seconds();
-        if (!(rc = source_read(s, f)) && !(rc = source_draw(s, rr, rgb))) {
+        if (!(rc = source_load(s, f)) && !(rc = source_draw(s, rr, rgb))) {
             *drawing += cli_seconds() - t;
             rc = sink_add(k, f, rgb);
         }
@@ -343,7 +367,9 @@ int cli_render(int argc, char **argv)
     render_args a;
     out_format fmt = OUT_PNG;
     fm_render_opts ro;
+    cli_colour_options colour;
     int rc = parse_args(argc, argv, &a);
+    if (!rc) rc = cli_colour_parse(a.color, a.color_range, USAGE_RENDER, &colour);
     if (!rc) rc = check_format(&a, &fmt);
     if (!rc) rc = render_options(&a, &ro);
     if (rc) return rc;
@@ -354,7 +380,7 @@ int cli_render(int argc, char **argv)
     fm_renderer *rr = NULL;
     unsigned char *rgb = malloc(3 * (size_t)ro.width * (size_t)ro.height);
     if (!rgb) rc = (fprintf(stderr, "flockmorph: error: out of memory for the image\n"), FM_ERR_MEMORY);
-    if (!rc) rc = source_open(a.o.cache, &s);
+    if (!rc) rc = source_open(a.o.cache, &colour, &s);
     if (!rc) rc = fix_camera(&s, &ro, bounds);
     if (!rc && !(rr = fm_renderer_create(&ro, &err))) rc = cli_report(&err);
     if (!rc) rc = fmt == OUT_PNG ? render_png(&s, rr, &a, rgb)

@@ -10,7 +10,9 @@ scenes=(words moon creatures castling)
 for name in "${scenes[@]}"; do
   [ -f "out/$name/frames.fmc" ] || build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet > /dev/null
 done
-render() { build/flockmorph render "out/$1/frames.fmc" --size 800x400 --samples 2 "${@:2}" > /dev/null; }
+# --color id: their captions say the colour follows the launch order (the agent id), which is what
+# render drew before --color speed became its default.
+render() { build/flockmorph render "out/$1/frames.fmc" --size 800x400 --samples 2 --color id "${@:2}" > /dev/null; }
 # README: the words example at frames 0, 30, 60, 90 and its last frame.
 for k in 0 30 60 90; do render words --frame "$k" -o "docs/images/words_$k.png"; done
 render words --frame -1 -o docs/images/words_last.png

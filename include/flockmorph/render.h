@@ -11,7 +11,7 @@ extern "C" {
 
 /* The preview renderer (docs/render.md): Embree ray casting of tets (4 triangles each) or points
  * (spheres), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
- * a colour per agent from a gradient over agent index, sRGB output. Every pixel is computed by one
+ * a colour per agent (by default from a gradient over agent index; fm_render_colours), sRGB output. Every pixel is computed by one
  * thread from fixed rays, so the image does not depend on the thread count. */
 typedef struct fm_render_opts {
     int width, height;      /* pixels, 1..16384 */
@@ -55,6 +55,43 @@ fm_status fm_renderer_draw_tets(fm_renderer *r, const float *verts, size_t n, un
                                 fm_error *err);
 fm_status fm_renderer_draw_points(fm_renderer *r, const float *positions, size_t n,
                                   unsigned char *rgb, fm_error *err);
+
+/* How the agents of one drawing are coloured (docs/render.md, "Colour"). A zeroed struct is
+ * FM_COLOUR_INDEX, what fm_renderer_draw_tets and _points do. */
+typedef enum fm_render_colour_mode {
+    FM_COLOUR_INDEX = 0, /* agent i of n: i / (n - 1) of the gradient blue, teal, green, amber, coral */
+    FM_COLOUR_VALUE = 1, /* values[i] on the colormap (fm_render_colormap): lo its first colour, hi its
+                            last, values outside [lo, hi] clamped, NaN grey */
+    FM_COLOUR_RGB = 2    /* rgb[3i .. 3i + 2]: agent i's sRGB colour, each channel in [0, 1] (clamped) */
+} fm_render_colour_mode;
+
+typedef struct fm_render_colours {
+    fm_render_colour_mode mode;
+    const float *values; /* FM_COLOUR_VALUE: n values, one per agent */
+    double lo, hi;       /* FM_COLOUR_VALUE: the range, finite, lo < hi; keep it fixed across the
+                            frames of a video so that a colour means one value throughout */
+    const float *rgb;    /* FM_COLOUR_RGB: n x 3 sRGB */
+} fm_render_colours;
+
+/* As fm_renderer_draw_tets and _points, with the agents coloured as c says (NULL: by index). A
+ * mode other than the three, missing values or rgb (n > 0), or a range that is not finite with
+ * lo < hi is a usage error. The image does not depend on the thread count in any mode. */
+fm_status fm_renderer_draw_tets_coloured(fm_renderer *r, const float *verts, size_t n,
+                                         const fm_render_colours *c, unsigned char *rgb,
+                                         fm_error *err);
+fm_status fm_renderer_draw_points_coloured(fm_renderer *r, const float *positions, size_t n,
+                                           const fm_render_colours *c, unsigned char *rgb,
+                                           fm_error *err);
+
+/* The sequential colormap of FM_COLOUR_VALUE: viridis (matplotlib's, CC0), 33 of its 256 entries
+ * interpolated linearly in sRGB. u in [0, 1] (clamped; NaN gives the grey of a NaN value) from
+ * dark blue-violet (0) through blue and teal to yellow (1); srgb in [0, 1]. */
+void fm_render_colormap(double u, float srgb[3]);
+
+/* The palette of `flockmorph render --color phase`: fm_phase 0 waiting blue, 1 flying orange,
+ * 2 homing reddish purple, 3 arrived bluish green (Okabe and Ito's colours); any other value grey.
+ * srgb in [0, 1]. */
+void fm_render_phase_colour(unsigned phase, float srgb[3]);
 
 /* Writes an 8-bit RGB image (rows top to bottom) as PNG through PATH.partial and rename(). */
 fm_status fm_write_png(const unsigned char *rgb, int width, int height, const char *path,

@@ -1,6 +1,7 @@
 /* The preview renderer: Embree 3 ray casting of a frame's tets (4 triangles each) or points
  * (spheres), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
- * a colour per agent from a gradient over its index, sRGB output. docs/render.md describes it.
+ * a colour per agent (render_colour.c: by index, by value or given), sRGB output. docs/render.md
+ * describes it.
  *
  * Camera. The image's right axis is normalize(view_dir x up) and its up axis right x view_dir, so
  * looking along +Y with up +Z puts +X on the right and +Z at the top. A point p lands on the image
@@ -31,10 +32,6 @@
 /* Colours in sRGB (converted to linear light once). */
 static const double fm_background_srgb[3] = {0.118, 0.129, 0.157};
 static const double fm_ground_srgb[3] = {0.62, 0.62, 0.64};
-/* The agent gradient, from agent 0 to agent n - 1: blue, teal, green, amber, coral. */
-#define FM_RAMP_STOPS 5
-static const double fm_ramp_srgb[FM_RAMP_STOPS][3] = {
-    {0.27, 0.47, 0.80}, {0.19, 0.70, 0.73}, {0.54, 0.77, 0.31}, {0.94, 0.71, 0.20}, {0.88, 0.35, 0.31}};
 static const double fm_ambient = 0.28; /* linear light that reaches surfaces in shadow */
 static const double fm_key = 0.85;     /* the key light's strength */
 
@@ -69,17 +66,12 @@ static int finite_nonzero3(const double v[3])
 
 /* ---------------------------------------------------------------- colour */
 
-static double srgb_to_linear(double c)
-{
-    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
-}
-
 /* edge[v] = the linear value at which the 8-bit sRGB code reaches v (edge[0] = -inf), so that
  * encoding is a search instead of a pow() per channel. */
 static void srgb_edges(float edge[256])
 {
     edge[0] = -INFINITY;
-    for (int v = 1; v < 256; v++) edge[v] = (float)srgb_to_linear((v - 0.5) / 255.0);
+    for (int v = 1; v < 256; v++) edge[v] = (float)fm_srgb_to_linear((v - 0.5) / 255.0);
 }
 
 static unsigned char srgb_encode(const float edge[256], float linear)
@@ -92,7 +84,7 @@ static unsigned char srgb_encode(const float edge[256], float linear)
 
 static void linear_colour(const double srgb[3], float out[3])
 {
-    for (int k = 0; k < 3; k++) out[k] = (float)srgb_to_linear(srgb[k]);
+    for (int k = 0; k < 3; k++) out[k] = (float)fm_srgb_to_linear(srgb[k]);
 }
 
 /* ---------------------------------------------------------------- options and views */
@@ -184,7 +176,8 @@ struct fm_renderer {
     RTCDevice device;
     char embree_error[256];
     float srgb_edge[256];
-    float background[3], ground_albedo[3], ramp[FM_RAMP_STOPS][3]; /* linear */
+    float background[3], ground_albedo[3]; /* linear */
+    fm_colour_tables colours;
 };
 
 static void on_embree_error(void *user, enum RTCError code, const char *str)
@@ -220,7 +213,7 @@ static fm_status renderer_create(const fm_render_opts *opts, fm_renderer **out, 
     srgb_edges(r->srgb_edge);
     linear_colour(fm_background_srgb, r->background);
     linear_colour(fm_ground_srgb, r->ground_albedo);
-    for (int i = 0; i < FM_RAMP_STOPS; i++) linear_colour(fm_ramp_srgb[i], r->ramp[i]);
+    fm_colour_tables_init(&r->colours);
     *out = r;
     return FM_OK;
 }
@@ -237,16 +230,6 @@ void fm_renderer_destroy(fm_renderer *r)
     if (!r) return;
     rtcReleaseDevice(r->device);
     free(r);
-}
-
-/* Agent `agent` of n: its place on the gradient, interpolated in linear light. */
-static void agent_colour(const fm_renderer *r, uint32_t agent, size_t n, float out[3])
-{
-    double u = n > 1 ? (double)agent / (double)(n - 1) * (FM_RAMP_STOPS - 1) : 0.0;
-    int i = (int)u;
-    if (i >= FM_RAMP_STOPS - 1) i = FM_RAMP_STOPS - 2;
-    float f = (float)(u - i);
-    for (int k = 0; k < 3; k++) out[k] = r->ramp[i][k] + f * (r->ramp[i + 1][k] - r->ramp[i][k]);
 }
 
 /* ---------------------------------------------------------------- camera, ground and light */
@@ -403,7 +386,8 @@ static void camera_ray(const view *v, double x, double y, float org[3], float di
 typedef struct frame_scene {
     RTCScene scene;    /* NULL when nothing finite is drawn */
     uint32_t *agent;   /* agent of each kept tet or point */
-    size_t n;          /* agents in the frame (the gradient's length) */
+    float *colour;     /* n x 3: each agent's colour, linear */
+    size_t n;          /* agents in the frame */
     int tets;          /* 1: primitive p is face p % 4 of kept tet p / 4; 0: primitive p is kept point p */
     int have_bounds;   /* lo, hi hold the kept geometry's bounds */
     double lo[3], hi[3];
@@ -413,6 +397,7 @@ static void frame_scene_free(frame_scene *sc)
 {
     if (sc->scene) rtcReleaseScene(sc->scene);
     free(sc->agent);
+    free(sc->colour);
     memset(sc, 0, sizeof *sc);
 }
 
@@ -459,7 +444,9 @@ static fm_status commit_scene(fm_renderer *r, RTCGeometry g, frame_scene *sc, fm
     return embree_status(r, err);
 }
 
-static fm_status start_scene(size_t n, int tets, frame_scene *sc, fm_error *err)
+/* The scene's agent list and each agent's colour, as c says (NULL: by index). */
+static fm_status start_scene(const fm_renderer *r, size_t n, int tets, const fm_render_colours *c,
+                             frame_scene *sc, fm_error *err)
 {
     memset(sc, 0, sizeof *sc);
     sc->n = n, sc->tets = tets;
@@ -467,15 +454,18 @@ static fm_status start_scene(size_t n, int tets, frame_scene *sc, fm_error *err)
     if ((uint64_t)n * 4 > UINT32_MAX)
         return fm_fail(err, FM_ERR_USAGE, "render: %zu agents are more than Embree can hold", n);
     sc->agent = malloc(sizeof(uint32_t) * (n ? n : 1));
-    if (!sc->agent) return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu agents", n);
+    sc->colour = malloc(3 * sizeof(float) * (n ? n : 1));
+    if (!sc->agent || !sc->colour)
+        return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu agents", n);
+    fm_agent_colours(&r->colours, c, n, sc->colour);
     return FM_OK;
 }
 
-static fm_status build_tets(fm_renderer *r, const float *verts, size_t n, frame_scene *sc,
-                            fm_error *err)
+static fm_status build_tets(fm_renderer *r, const float *verts, size_t n,
+                            const fm_render_colours *c, frame_scene *sc, fm_error *err)
 {
     static const unsigned faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-    fm_status st = start_scene(n, 1, sc, err);
+    fm_status st = start_scene(r, n, 1, c, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(verts, n, 12, sc);
     if (kept == 0) return FM_OK;
@@ -499,10 +489,10 @@ static fm_status build_tets(fm_renderer *r, const float *verts, size_t n, frame_
     return commit_scene(r, g, sc, err);
 }
 
-static fm_status build_points(fm_renderer *r, const float *pos, size_t n, frame_scene *sc,
-                              fm_error *err)
+static fm_status build_points(fm_renderer *r, const float *pos, size_t n,
+                              const fm_render_colours *c, frame_scene *sc, fm_error *err)
 {
-    fm_status st = start_scene(n, 0, sc, err);
+    fm_status st = start_scene(r, n, 0, c, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(pos, n, 3, sc);
     if (kept == 0) return FM_OK;
@@ -570,7 +560,7 @@ static int trace(const fm_renderer *r, const view *v, const frame_scene *sc, con
     double t_gnd = ground_hit(v, o, d);
     if (t_obj == INFINITY && t_gnd == INFINITY) return 0;
     if (t_obj <= t_gnd) {
-        agent_colour(r, agent, sc->n, hit->albedo);
+        memcpy(hit->albedo, sc->colour + 3 * (size_t)agent, sizeof hit->albedo);
     } else {
         memcpy(n, v->w, sizeof n);
         memcpy(hit->albedo, r->ground_albedo, sizeof hit->albedo);
@@ -666,31 +656,47 @@ static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_er
     return embree_status(r, err);
 }
 
-static fm_status check_draw_args(const void *data, size_t n, const unsigned char *rgb,
+static fm_status check_draw_args(const fm_renderer *r, const void *data, size_t n,
+                                 const fm_render_colours *c, const unsigned char *rgb,
                                  fm_error *err)
 {
+    if (!r) return fm_fail(err, FM_ERR_USAGE, "render: no renderer given");
     if (n > 0 && !data) return fm_fail(err, FM_ERR_USAGE, "render: no coordinates given");
     if (!rgb) return fm_fail(err, FM_ERR_USAGE, "render: no image buffer given");
-    return FM_OK;
+    return fm_check_colours(c, n, err);
+}
+
+fm_status fm_renderer_draw_tets_coloured(fm_renderer *r, const float *verts, size_t n,
+                                         const fm_render_colours *c, unsigned char *rgb,
+                                         fm_error *err)
+{
+    fm_status st = check_draw_args(r, verts, n, c, rgb, err);
+    frame_scene sc;
+    if (st == FM_OK && (st = build_tets(r, verts, n, c, &sc, err)) != FM_OK) frame_scene_free(&sc);
+    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
+}
+
+fm_status fm_renderer_draw_points_coloured(fm_renderer *r, const float *positions, size_t n,
+                                           const fm_render_colours *c, unsigned char *rgb,
+                                           fm_error *err)
+{
+    fm_status st = check_draw_args(r, positions, n, c, rgb, err);
+    frame_scene sc;
+    if (st == FM_OK && (st = build_points(r, positions, n, c, &sc, err)) != FM_OK)
+        frame_scene_free(&sc);
+    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
 }
 
 fm_status fm_renderer_draw_tets(fm_renderer *r, const float *verts, size_t n, unsigned char *rgb,
                                 fm_error *err)
 {
-    fm_status st = check_draw_args(verts, n, rgb, err);
-    frame_scene sc;
-    if (st == FM_OK && (st = build_tets(r, verts, n, &sc, err)) != FM_OK) frame_scene_free(&sc);
-    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
+    return fm_renderer_draw_tets_coloured(r, verts, n, NULL, rgb, err);
 }
 
 fm_status fm_renderer_draw_points(fm_renderer *r, const float *positions, size_t n,
                                   unsigned char *rgb, fm_error *err)
 {
-    fm_status st = check_draw_args(positions, n, rgb, err);
-    frame_scene sc;
-    if (st == FM_OK && (st = build_points(r, positions, n, &sc, err)) != FM_OK)
-        frame_scene_free(&sc);
-    return st == FM_OK ? draw(r, &sc, rgb, err) : st;
+    return fm_renderer_draw_points_coloured(r, positions, n, NULL, rgb, err);
 }
 
 /* ---------------------------------------------------------------- one-call forms */

@@ -36,21 +36,31 @@ static int brightness(const rgb_image *im, int x, int y)
     return p[0] + p[1] + p[2];
 }
 
-/* Renders tets (points = 0) or points into a new image; rgb is NULL on failure. */
-static rgb_image render(const float *data, size_t n, int points, const fm_render_opts *o)
+/* Renders tets (points = 0) or points, coloured as c says (NULL: by index), into a new image; rgb
+ * is NULL on failure. */
+static rgb_image render_coloured(const float *data, size_t n, int points, const fm_render_colours *c,
+                                 const fm_render_opts *o)
 {
     rgb_image im = {o->width, o->height, malloc(3 * (size_t)o->width * (size_t)o->height)};
     fm_error err = {0};
     fm_renderer *r = fm_renderer_create(o, &err);
     ENSURE_MSG(r != NULL, "create: %s", err.message);
     fm_status st = FM_ERR_INTERNAL;
-    if (r && im.rgb)
+    if (r && im.rgb && c)
+        st = points ? fm_renderer_draw_points_coloured(r, data, n, c, im.rgb, &err)
+                    : fm_renderer_draw_tets_coloured(r, data, n, c, im.rgb, &err);
+    else if (r && im.rgb)
         st = points ? fm_renderer_draw_points(r, data, n, im.rgb, &err)
                     : fm_renderer_draw_tets(r, data, n, im.rgb, &err);
     ENSURE_MSG(st == FM_OK, "draw: status %d: %s", (int)st, err.message);
     fm_renderer_destroy(r);
     if (st != FM_OK) free(im.rgb), im.rgb = NULL;
     return im;
+}
+
+static rgb_image render(const float *data, size_t n, int points, const fm_render_opts *o)
+{
+    return render_coloured(data, n, points, NULL, o);
 }
 
 /* Reads an 8-bit RGB PNG (anything else fails); 0 on success. */
@@ -246,6 +256,137 @@ static void test_gradient_over_agents(void)
     free(im.rgb);
 }
 
+/* ---------------------------------------------------------------- colours */
+
+/* Two tets side by side, the left one agent 0. */
+static void two_tets(float tets[24])
+{
+    make_tet(tets, -0.5, 0.0, 0.0, 0.3, 0.5, 0.4);
+    make_tet(tets + 12, 0.5, 0.0, 0.0, 0.3, 0.5, 0.4);
+}
+
+static int same_image(const rgb_image *a, const rgb_image *b)
+{
+    return a->rgb && b->rgb && a->width == b->width && a->height == b->height &&
+           memcmp(a->rgb, b->rgb, 3 * (size_t)a->width * (size_t)a->height) == 0;
+}
+
+/* Relative luminance of an sRGB colour. */
+static double luminance(const float srgb[3])
+{
+    double y = 0.0;
+    const double w[3] = {0.2126, 0.7152, 0.0722};
+    for (int k = 0; k < 3; k++) {
+        double c = srgb[k];
+        y += w[k] * (c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
+    }
+    return y;
+}
+
+/* The colormap is viridis: matplotlib's first and last entries at the ends, clamped outside, its
+ * lightness rising all the way (a sequential map); the phase palette has four distinct colours. */
+static void test_colormap_and_palette(void)
+{
+    float c[3], d[3];
+    fm_render_colormap(0.0, c);
+    ENSURE_NEAR(c[0], 0.267004, 1e-6);
+    ENSURE_NEAR(c[1], 0.004874, 1e-6);
+    ENSURE_NEAR(c[2], 0.329415, 1e-6);
+    fm_render_colormap(1.0, c);
+    ENSURE_NEAR(c[0], 0.993248, 1e-6);
+    ENSURE_NEAR(c[1], 0.906157, 1e-6);
+    ENSURE_NEAR(c[2], 0.143936, 1e-6);
+    fm_render_colormap(0.5, c); /* matplotlib's entry 128 of 256 */
+    ENSURE_NEAR(c[0], 0.127568, 2e-3);
+    ENSURE_NEAR(c[1], 0.566949, 2e-3);
+    ENSURE_NEAR(c[2], 0.550556, 2e-3);
+    fm_render_colormap(7.0, d);
+    fm_render_colormap(1.0, c);
+    ENSURE(memcmp(c, d, sizeof c) == 0);
+    double last = -1.0;
+    for (int i = 0; i <= 256; i++) {
+        fm_render_colormap(i / 256.0, c);
+        ENSURE_MSG(luminance(c) > last, "lightness falls at u = %d / 256", i);
+        last = luminance(c);
+    }
+    float phase[5][3];
+    for (unsigned p = 0; p < 5; p++) fm_render_phase_colour(p, phase[p]);
+    for (int a = 0; a < 5; a++)
+        for (int b = a + 1; b < 5; b++) {
+            double dist = fabs(phase[a][0] - phase[b][0]) + fabs(phase[a][1] - phase[b][1]) +
+                          fabs(phase[a][2] - phase[b][2]);
+            ENSURE_MSG(dist > 0.3, "phase colours %d and %d are alike", a, b);
+        }
+    fm_render_phase_colour(200, c);
+    ENSURE(memcmp(c, phase[4], sizeof c) == 0); /* every unknown phase is the same grey */
+}
+
+/* FM_COLOUR_VALUE: lo takes the map's first colour and hi its last (the same bytes as giving those
+ * colours as FM_COLOUR_RGB), values outside are clamped, and NaN is the palette's grey. */
+static void test_values_on_the_map(void)
+{
+    fm_render_opts o = front_opts();
+    o.width = 240, o.height = 160;
+    float tets[24], ends[6], grey[6];
+    two_tets(tets);
+    fm_render_colormap(0.0, ends), fm_render_colormap(1.0, ends + 3);
+    const float slow_fast[2] = {2.0f, 10.0f}, outside[2] = {-50.0f, 1e6f}, nan_fast[2] = {NAN, 10.0f};
+    fm_render_colours value = {FM_COLOUR_VALUE, slow_fast, 2.0, 10.0, NULL};
+    fm_render_colours given = {FM_COLOUR_RGB, NULL, 0.0, 0.0, ends};
+    rgb_image v = render_coloured(tets, 2, 0, &value, &o), g = render_coloured(tets, 2, 0, &given, &o);
+    ENSURE_MSG(same_image(&v, &g), "values at lo and hi are not the map's ends");
+    value.values = outside;
+    rgb_image clamped = render_coloured(tets, 2, 0, &value, &o);
+    ENSURE_MSG(same_image(&v, &clamped), "values outside the range are not clamped to its ends");
+    value.values = nan_fast;
+    fm_render_phase_colour(99, grey), memcpy(grey + 3, ends + 3, 3 * sizeof(float));
+    given.rgb = grey;
+    rgb_image nan = render_coloured(tets, 2, 0, &value, &o), nan_given = render_coloured(tets, 2, 0, &given, &o);
+    ENSURE_MSG(same_image(&nan, &nan_given), "a NaN value is not grey");
+    /* And the ends look like viridis: dark violet on the left, yellow on the right. */
+    long left = 0, right = 0, wrong = 0;
+    for (int y = 0; v.rgb && y < v.height; y++)
+        for (int x = 0; x < v.width; x++) {
+            if (!is_fg(&v, x, y)) continue;
+            const unsigned char *p = pixel(&v, x, y);
+            if (x < v.width / 2) left++, wrong += !(p[2] > p[1] + 20 && p[0] > p[1]);
+            else right++, wrong += !(p[0] > p[2] + 40 && p[1] > p[2] + 40);
+        }
+    ENSURE_MSG(left > 500 && right > 500 && wrong == 0, "left %ld, right %ld, %ld of another colour", left,
+               right, wrong);
+    free(v.rgb), free(g.rgb), free(clamped.rgb), free(nan.rgb), free(nan_given.rgb);
+}
+
+/* Colours that cannot be used are usage errors, and nothing is drawn. */
+static void test_bad_colours(void)
+{
+    fm_render_opts o = front_opts();
+    o.width = 32, o.height = 32;
+    float tets[24];
+    two_tets(tets);
+    const float values[2] = {1, 2};
+    const fm_render_colours bad[] = {{(fm_render_colour_mode)7, NULL, 0, 0, NULL},
+                                     {FM_COLOUR_VALUE, NULL, 0, 1, NULL},
+                                     {FM_COLOUR_VALUE, values, 1, 1, NULL},
+                                     {FM_COLOUR_VALUE, values, 2, 1, NULL},
+                                     {FM_COLOUR_VALUE, values, NAN, 1, NULL},
+                                     {FM_COLOUR_VALUE, values, 0, INFINITY, NULL},
+                                     {FM_COLOUR_RGB, values, 0, 1, NULL}};
+    fm_error err = {0};
+    fm_renderer *r = fm_renderer_create(&o, &err);
+    unsigned char rgb[3 * 32 * 32];
+    for (size_t i = 0; r && i < sizeof bad / sizeof bad[0]; i++) {
+        fm_status st = fm_renderer_draw_tets_coloured(r, tets, 2, &bad[i], rgb, &err);
+        ENSURE_MSG(st == FM_ERR_USAGE && strstr(err.message, "colour"), "case %zu: status %d: %s", i, (int)st,
+                   err.message);
+        ENSURE(fm_renderer_draw_points_coloured(r, tets, 2, &bad[i], rgb, &err) == FM_ERR_USAGE);
+    }
+    /* No agents: no values needed. */
+    const fm_render_colours none = {FM_COLOUR_VALUE, NULL, 0, 1, NULL};
+    ENSURE(r && fm_renderer_draw_tets_coloured(r, NULL, 0, &none, rgb, &err) == FM_OK);
+    fm_renderer_destroy(r);
+}
+
 /* ---------------------------------------------------------------- shadows */
 
 /* Light from straight above, camera looking down at 45 degrees from the front (orthographic): a
@@ -316,19 +457,26 @@ static void test_same_bytes_for_any_thread_count(void)
     size_t n = kuhn_block(tets, CELLS);
     fm_render_opts o = fm_default_render_opts();
     o.width = 320, o.height = 200, o.samples = 2;
-    rgb_image im[3];
-    for (int i = 0; i < 3; i++) {
-        o.threads = i + 1;
-        im[i] = render(tets, n, 0, &o);
+    /* By index, and by a value that varies from tet to tet (what --color speed draws). */
+    float *values = malloc(sizeof(float) * n);
+    for (size_t i = 0; values && i < n; i++) values[i] = (float)sin(0.37 * (double)i) * 3.0f;
+    const fm_render_colours by_value = {FM_COLOUR_VALUE, values, -2.0, 2.5, NULL};
+    for (int mode = 0; mode < 2 && values; mode++) {
+        rgb_image im[3];
+        for (int i = 0; i < 3; i++) {
+            o.threads = i + 1;
+            im[i] = render_coloured(tets, n, 0, mode ? &by_value : NULL, &o);
+        }
+        if (im[0].rgb && im[1].rgb && im[2].rgb) {
+            coverage c = cover(&im[0]);
+            ENSURE_MSG(c.fg > 320 * 200 / 4, "only %ld pixels drawn", c.fg);
+            size_t bytes = 3 * 320 * 200;
+            ENSURE_MSG(memcmp(im[0].rgb, im[1].rgb, bytes) == 0, "mode %d: 1 and 2 threads differ", mode);
+            ENSURE_MSG(memcmp(im[0].rgb, im[2].rgb, bytes) == 0, "mode %d: 1 and 3 threads differ", mode);
+        }
+        for (int i = 0; i < 3; i++) free(im[i].rgb);
     }
-    if (im[0].rgb && im[1].rgb && im[2].rgb) {
-        coverage c = cover(&im[0]);
-        ENSURE_MSG(c.fg > 320 * 200 / 4, "only %ld pixels drawn", c.fg);
-        size_t bytes = 3 * 320 * 200;
-        ENSURE_MSG(memcmp(im[0].rgb, im[1].rgb, bytes) == 0, "1 and 2 threads differ");
-        ENSURE_MSG(memcmp(im[0].rgb, im[2].rgb, bytes) == 0, "1 and 3 threads differ");
-    }
-    for (int i = 0; i < 3; i++) free(im[i].rgb);
+    free(values);
     free(tets);
 }
 
@@ -627,7 +775,16 @@ static void test_cli_usage_errors(void)
                  {"x.mp4", "--fps -1", "--fps"},
                  {"x.png", "--view diagonal", "persp"},
                  {"x.png", "--samples 0", "--samples"},
-                 {"x.png", "--radius 0", "--radius"}};
+                 {"x.png", "--radius 0", "--radius"},
+                 {"x.png", "--color foo", "--color is speed, phase or id, not 'foo'"},
+                 {"x.png", "--color-range 3:1", "--color-range wants LO:HI"},
+                 {"x.png", "--color-range 1:1", "--color-range wants LO:HI"},
+                 {"x.png", "--color-range a:2", "--color-range wants LO:HI"},
+                 {"x.png", "--color-range 2", "--color-range wants LO:HI"},
+                 {"x.png", "--color-range 0:inf", "--color-range wants LO:HI"},
+                 {"x.png", "--color-range 0:1x", "--color-range wants LO:HI"},
+                 {"x.png", "--color id --color-range 0:1", "--color-range 0:1 sets the scale of --color speed"},
+                 {"x.png", "--color phase", "--color phase"}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         tmp_path(out, sizeof out, cases[i].out);
         remove(out);
@@ -659,6 +816,9 @@ int main(void)
     RUN_TEST(test_front_view_inside_projected_box);
     RUN_TEST(test_perspective_fit);
     RUN_TEST(test_gradient_over_agents);
+    RUN_TEST(test_colormap_and_palette);
+    RUN_TEST(test_values_on_the_map);
+    RUN_TEST(test_bad_colours);
     RUN_TEST(test_shadow_on_ground);
     RUN_TEST(test_same_bytes_for_any_thread_count);
     RUN_TEST(test_points_are_spheres);
