@@ -323,6 +323,7 @@ static void test_projected(void)
     ENSURE_MSG(moved < 3 * spacing, "the relaxation moved points %g (spacing %g)", moved, spacing);
     ENSURE_MSG(spread < 0.2 * spread_random, "neighbours %g apart against %g at random", spread, spread_random);
     from[7] = NAN;
+    fm_samples_free(&two);
     ENSURE(fm_sample_projected(&m, from, n, &o, &two, &err) == FM_ERR_INPUT && strstr(err.message, "point 2 is not finite"));
     free(rnd), free(shuffled), free(from);
     fm_samples_free(&bare), fm_samples_free(&relaxed), fm_samples_free(&two);
