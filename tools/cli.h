@@ -39,6 +39,8 @@ int cli_wants_help(int argc, char **argv);
 int cli_parse_int(const char *s, long lo, long hi, long *out);
 /* Parses a finite number > 0; -1 if it is not one. */
 int cli_parse_positive(const char *s, double *out);
+/* A finite number that fills s: 0, or -1 if s is not one. */
+int cli_parse_number(const char *s, double *out);
 /* A frame-number pattern (frames.%04d.ply): exactly one integer conversion %d, %i or %u with an
  * optional 0 flag and a width of at most 2 digits, and %% for a literal %; 0 if it is one, -1
  * otherwise. cli_frame_name prints it with the frame number (the pattern was checked). */

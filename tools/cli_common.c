@@ -111,11 +111,19 @@ int cli_wants_help(int argc, char **argv)
     return 0;
 }
 
-int cli_parse_positive(const char *s, double *out)
+int cli_parse_number(const char *s, double *out)
 {
     char *end;
     double v = strtod(s, &end);
-    if (end == s || *end || !(v > 0.0) || !isfinite(v)) return -1;
+    if (end == s || *end || !isfinite(v)) return -1;
+    *out = v;
+    return 0;
+}
+
+int cli_parse_positive(const char *s, double *out)
+{
+    double v;
+    if (cli_parse_number(s, &v) || !(v > 0.0)) return -1;
     *out = v;
     return 0;
 }

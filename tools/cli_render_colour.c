@@ -17,15 +17,6 @@
 
 /* ---------------------------------------------------------------- options */
 
-/* A finite number that fills s; -1 if it is not one. */
-static int parse_number(const char *s, double *out)
-{
-    char *end;
-    if (!*s) return -1;
-    *out = strtod(s, &end);
-    return *end == 0 && isfinite(*out) ? 0 : -1;
-}
-
 /* "LO:HI" with LO < HI; -1 if it is not that. */
 static int parse_range(const char *spec, double *lo, double *hi)
 {
@@ -34,7 +25,7 @@ static int parse_range(const char *spec, double *lo, double *hi)
     if (!colon || (size_t)(colon - spec) >= sizeof first) return -1;
     memcpy(first, spec, (size_t)(colon - spec));
     first[colon - spec] = 0;
-    if (parse_number(first, lo) || parse_number(colon + 1, hi)) return -1;
+    if (cli_parse_number(first, lo) || cli_parse_number(colon + 1, hi)) return -1;
     return *lo < *hi ? 0 : -1;
 }
 

@@ -61,16 +61,17 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
                                               r->phase}; /* ids 0 … n−1: frames are in id order */
         st = fm_cache_writer_add_frame_attrs(r->cache, data, err);
     }
-    if (frame > 0) st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
+    if (st != FM_OK || frame == 0) return st; /* frame 0 is the rest state: no step made it, nothing to measure */
+    st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
     if (st != FM_OK) return st;
-    if (frame > 0) fm_flock_measure_frame(r->m, r->s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
-    if (r->m->info.deforming && r->s->time >= r->m->path_time && frame > 0) { /* tracking lag */
+    fm_flock_measure_frame(r->m, r->s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
+    if (r->m->info.deforming && r->s->time >= r->m->path_time) { /* tracking lag */
         double mean, max;
         fm_flock_distance(r->s, &mean, &max);
         r->s->lag_sum += mean;
         r->stats->tracking_frames++;
     }
-    if (r->c->progress && frame > 0) {
+    if (r->c->progress) {
         fm_run_info info = fm_flock_get_info(r->s);
         r->c->progress(&info, frame, r->c->progress_user);
     }

@@ -218,6 +218,8 @@ static fm_status run_sampler(const char *who, const fm_mesh *mesh, int64_t n, co
     if (!out) return fm_fail(err, FM_ERR_INPUT, "%s: no output given", who);
     *out = (fm_samples){0};
     if (!mesh) return fm_fail(err, FM_ERR_INPUT, "%s: no mesh given", who);
+    for (int64_t i = 0; from && i < 3 * n; i++)
+        if (!isfinite(from[i])) return fm_fail(err, FM_ERR_INPUT, "%s: point %lld is not finite", who, (long long)(i / 3));
     fm_sample_ctx c = {0};
     fm_status st = resolve_opts(opts, &c.opts, err);
     c.threads = c.opts.threads;
@@ -256,11 +258,6 @@ fm_status fm_sample_projected(const fm_mesh *mesh, const float *from, int64_t n,
         if (out) *out = (fm_samples){0};
         return fm_fail(err, FM_ERR_INPUT, "fm_sample_projected: no points given");
     }
-    for (int64_t i = 0; i < 3 * n; i++)
-        if (!isfinite(from[i])) {
-            if (out) *out = (fm_samples){0};
-            return fm_fail(err, FM_ERR_INPUT, "fm_sample_projected: point %lld is not finite", (long long)(i / 3));
-        }
     fm_sample_opts o = opts ? *opts : fm_default_sample_opts();
     o.method = FM_SAMPLE_MOSAIC;
     return run_sampler("fm_sample_projected", mesh, n, &o, from, out, err);
