@@ -123,6 +123,8 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "mde_fraction_per_frame", mde_frames_json(rs));
     json_object_set_new(j, "min_obstacle_clearance",
                         isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
+    json_object_set_new(j, "min_vertex_clearance",
+                        isinf(rs->min_vertex_clearance) ? json_null() : json_real(rs->min_vertex_clearance));
     json_t *velocity = velocity_json(def, mi);
     json_object_set_new(velocity, "field_bake_error", isnan(mi->field_bake_error) ? json_null() : json_real(mi->field_bake_error));
     json_object_set_new(j, "velocity_model", velocity);

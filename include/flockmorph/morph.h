@@ -104,6 +104,7 @@ typedef struct fm_morph_run_stats {
                                        NaN for frames with nobody in phase 1; free with fm_morph_run_stats_free */
     double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */
     double min_obstacle_clearance;  /* smallest d_t - R_X in phase 1; +inf without obstacles */
+    double min_vertex_clearance;    /* smallest fm_morph_vertex_clearance over the frames written */
 } fm_morph_run_stats;
 
 void fm_morph_run_stats_free(fm_morph_run_stats *stats);
@@ -129,6 +130,13 @@ fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *model
  * failure state is unusable and stats hold nothing to free. */
 fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *model, fm_morph_state *state, fm_morph_run_stats *stats,
                              fm_error *err);
+
+/* The smallest signed distance (negative inside) from the scene's obstacles of any vertex of n tets
+ * (n × 12 floats, e.g. a frame): measured exactly (Embree's closest point) at every vertex whose
+ * distance-grid value is within two voxels of the smallest, so it is the true minimum. When every
+ * vertex is beyond the grid's band (k_a plus the largest tet radius plus two voxels) it is the
+ * band's width, a lower bound; +inf without obstacles. Does not depend on the thread count. */
+double fm_morph_vertex_clearance(const fm_morph_model *model, const float *verts, size_t n);
 
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
 int64_t fm_count_inverted_tets(const float *verts, size_t n);

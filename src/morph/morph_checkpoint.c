@@ -9,6 +9,7 @@
 /* The tetra morph's statistics (the MDE fractions follow per frame). */
 static const fm_store_member RUN_STATS[] = {
     FM_STORE_SCALAR(fm_morph_run_stats, inverted_tet_frames), FM_STORE_SCALAR(fm_morph_run_stats, run.simulate_seconds), FM_STORE_SCALAR(fm_morph_run_stats, run.output_seconds),
+    FM_STORE_SCALAR(fm_morph_run_stats, min_vertex_clearance),
 };
 
 /* Everything of the model the step reads: if TetGen, the subdivision or an obstacle mesh came out

@@ -90,13 +90,49 @@ static fm_status cache_frame(fm_cache_writer *cache, const float *verts, const u
 static const char *const MORPH_SPEEDS = "speed0 and omega1, time.time_step, style.omega2 and the fields' gain, speed "
                                         "and strength, mde.speed, path.attraction";
 
-/* Frame k: the tet vertices (and phases), checked, written to the cache, with the inverted-tet count. */
+/* Vertices whose grid distance is within this many voxels of the frame's smallest are measured
+ * exactly: the grid's nodes are exact and trilinear interpolation of a distance errs by less than
+ * a voxel, so the nearest vertex is among them. */
+static const float EXACT_WITHIN_VOXELS = 2.0f;
+
+/* The smallest grid distance over every vertex of n tets. */
+static float grid_min_vertex(const fm_sdf_view *g, const float *verts, int64_t vertices)
+{
+    float least = INFINITY;
+#pragma omp parallel for num_threads(fm_threads(0)) reduction(min : least) schedule(static)
+    for (int64_t i = 0; i < vertices; i++)
+        least = fminf(least, fm_sdf_sample(g, verts[3 * i], verts[3 * i + 1], verts[3 * i + 2], NULL));
+    return least;
+}
+
+double fm_morph_vertex_clearance(const fm_morph_model *m, const float *verts, size_t n)
+{
+    if (!m->obstacles || n == 0) return INFINITY;
+    const fm_sdf_view g = fm_obstacles_sdf(m->obstacles);
+    const int64_t vertices = 4 * (int64_t)n;
+    const float least = grid_min_vertex(&g, verts, vertices);
+    if (!(least < g.far)) return g.far; /* every vertex beyond the band: at least its width */
+    const float near = least + EXACT_WITHIN_VOXELS * g.voxel;
+    double exact = INFINITY;
+#pragma omp parallel for num_threads(fm_threads(0)) reduction(min : exact) schedule(dynamic, 4096)
+    for (int64_t i = 0; i < vertices; i++) {
+        const float *v = verts + 3 * i;
+        if (!(fm_sdf_sample(&g, v[0], v[1], v[2], NULL) <= near)) continue;
+        const double p[3] = {v[0], v[1], v[2]};
+        exact = fmin(exact, fm_obstacles_closest(m->obstacles, p, NULL, NULL));
+    }
+    return exact;
+}
+
+/* Frame k: the tet vertices (and phases), checked, written to the cache, with the inverted-tet count
+ * and the vertices' clearance. */
 static fm_status check_and_write(const fm_morph_model *m, const fm_morph_state *s, int64_t k, const float *verts,
                                  const uint8_t *phases, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
     fm_status st = fm_frame_check_runaway(verts, 12, s->n, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
     if (st != FM_OK) return st;
     stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
+    stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, fm_morph_vertex_clearance(m, verts, (size_t)s->n));
     return cache ? cache_frame(cache, verts, phases, err) : FM_OK;
 }
 
@@ -110,6 +146,7 @@ static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int
     if (st == FM_OK && fm_dist_rank(s->dist) == 0) st = check_and_write(m, s, k, verts, phases, cache, stats, err);
     st = fm_dist_agree(s->dist, st, err);
     fm_dist_bcast(s->dist, &stats->inverted_tet_frames, sizeof stats->inverted_tet_frames, 0);
+    fm_dist_bcast(s->dist, &stats->min_vertex_clearance, sizeof stats->min_vertex_clearance, 0);
     return st;
 }
 
@@ -214,7 +251,7 @@ static fm_status morph_save(void *sim, const char *path, fm_error *err)
 fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, const fm_run_control *c,
                                   fm_morph_run_stats *stats, fm_error *err)
 {
-    if (!c->resume) memset(stats, 0, sizeof *stats);
+    if (!c->resume) memset(stats, 0, sizeof *stats), stats->min_vertex_clearance = INFINITY;
     morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
                    s->flying_agent_steps, s->mde_agent_steps, 0};
     /* capacity 0: a resumed run's array holds exactly its frames so far */

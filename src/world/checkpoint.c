@@ -4,7 +4,7 @@
  *   header   64 bytes: "FMCHKPT\0", version, member count, scene hash, model hash, agents,
  *            frames written, layout hash, 0
  *   stats    the scalars of the mode's statistics table, in order (the tetra morph:
- *            inverted_tet_frames, simulate_seconds, output_seconds), then its per-frame values
+ *            inverted_tet_frames, simulate_seconds, output_seconds, min_vertex_clearance), then its per-frame values
  *            if it has any: for frames 1 .. frames-1, the mode's doubles a frame (the tetra morph's
  *            MDE fraction, the shape flock's measures), f64 each
  *   members  for each entry of the mode's member table, in order: name length (u32), name, byte
@@ -32,7 +32,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-enum { CHECKPOINT_VERSION = 2, HEADER_BYTES = 64, TRAILER_BYTES = 8, NAME_MAX_BYTES = 64 };
+enum { CHECKPOINT_VERSION = 3, HEADER_BYTES = 64, TRAILER_BYTES = 8, NAME_MAX_BYTES = 64 };
 static const char MAGIC[8] = {'F', 'M', 'C', 'H', 'K', 'P', 'T', 0};
 
 typedef struct header {

@@ -3,7 +3,8 @@
  *             the target within 1e-5, no tet ever inverts, every target tet is taken exactly once.
  *   castling: the rook's tets fly past the king standing in their path (FM Figure 8 bottom), its
  *             curl noise evaluated directly (stats.json says so):
- *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0).
+ *             also no tet's bounding sphere ever enters the king (min_obstacle_clearance >= 0) and
+ *             no vertex does (min_vertex_clearance >= 0, measured at the vertices).
  *   flock_cylinder_sphere: the shape flock's static scenario (SCF Figure 9): every agent ends
  *             bound on its destination, the cache holds the flock's attributes.
  *   flock_tracking: the shape flock tracks a waving torus (SCF Figure 11): a mean distance to the
@@ -98,6 +99,9 @@ static void test_castling_example_passes_the_king(void)
     ENSURE_MSG(json_is_number(json_object_get(stats, "min_obstacle_clearance")) && clearance >= 0,
                "a tet entered the king: clearance %g", clearance);
     ENSURE_MSG(clearance < 0.3, "the flock never came near the king (clearance %g)", clearance);
+    const json_t *vertex = json_object_get(stats, "min_vertex_clearance");
+    ENSURE_MSG(json_is_number(vertex) && json_number_value(vertex) >= 0 && json_number_value(vertex) < 0.3,
+               "a vertex entered the king or the flock never came near: vertex clearance %g", json_number_value(vertex));
     ENSURE(json_number_value(json_object_get(stats, "mde_fraction_mean")) > 0);
     /* its curl noise (scale 0.15) is evaluated directly, and says so: no grid could resolve it */
     const json_t *velocity = json_object_get(stats, "velocity_model");

@@ -231,6 +231,9 @@ static void test_stop_restore_continue_same_bytes(void)
     ENSURE(memcmp(&rest.mde_fraction_mean, &ref.mde_fraction_mean, sizeof(double)) == 0);
     ENSURE(rest.final_max_vertex_error == ref.final_max_vertex_error);
     ENSURE(memcmp(&rest.min_obstacle_clearance, &ref.min_obstacle_clearance, sizeof(double)) == 0);
+    ENSURE(memcmp(&rest.min_vertex_clearance, &ref.min_vertex_clearance, sizeof(double)) == 0);
+    ENSURE_MSG(ref.min_vertex_clearance >= 0 && ref.min_vertex_clearance < 1.0, "vertex clearance %g",
+               ref.min_vertex_clearance);
     ENSURE_MSG(ref.min_obstacle_clearance < 1.0, "the flock should pass the obstacle (clearance %g)", ref.min_obstacle_clearance);
     fm_morph_run_stats_free(&ref), fm_morph_run_stats_free(&first), fm_morph_run_stats_free(&rest);
     fm_morph_state_destroy(stopped), fm_morph_state_destroy(s);

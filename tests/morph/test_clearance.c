@@ -4,7 +4,9 @@
  * (tests/helpers/inside_test.h). A vertex found inside counts when it is deeper than DEPTH_TOL: a
  * tet in contact has a vertex on the surface, where float rounding decides the side.
  *   castling:  examples/castling, the rook's tets past the king (FM Figure 8), 1 and 2 threads;
- *   slalom:    three obstacles staggered across a straight path, the tets weaving between them. */
+ *   slalom:    three obstacles staggered across a straight path, the tets weaving between them.
+ * Every SAMPLE_EVERY-th frame, the engine's fm_morph_vertex_clearance (stats.json's
+ * min_vertex_clearance) is also checked against the same helper's brute-force distances. */
 #include "flockmorph/flockmorph.h"
 #include "geom.h"
 #include "inside_test.h"
@@ -16,6 +18,7 @@
 #include <sys/stat.h>
 
 static const double DEPTH_TOL = 1e-5; /* units; the scenes are 5 to 25 units across */
+static const int64_t SAMPLE_EVERY = 20;  /* frames between brute-force clearance checks */
 
 typedef struct obstacle_set {
     fm_mesh mesh[FM_MAX_OBSTACLES];
@@ -46,7 +49,78 @@ typedef struct inside_count {
     int64_t tets;       /* tet-frames with such a vertex */
     double deepest;
     int64_t first_frame;
+    double engine_min;  /* the engine's vertex clearance, smallest over the frames */
+    int64_t compared;   /* sampled frames where it was compared with the brute-force distance */
+    double worst_gap;   /* the largest |engine - brute force| among them */
 } inside_count;
+
+/* Distance from p to the box [lo, hi]; 0 inside it. */
+static double box_distance(const double p[3], const double lo[3], const double hi[3])
+{
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        double e = p[k] < lo[k] ? lo[k] - p[k] : p[k] > hi[k] ? p[k] - hi[k] : 0;
+        d2 += e * e;
+    }
+    return sqrt(d2);
+}
+
+typedef struct vertex_key {
+    double box;
+    int64_t i;
+} vertex_key;
+
+static int by_box_distance(const void *a, const void *b)
+{
+    double x = ((const vertex_key *)a)->box, y = ((const vertex_key *)b)->box;
+    return (x > y) - (x < y);
+}
+
+/* The smallest signed distance (negative inside) of any vertex from obstacle k, by brute force over
+ * its triangles, the vertices taken nearest box first so that the search stops early. */
+static double brute_clearance_one(const inside_mesh *m, const float *verts, int64_t vertices, vertex_key *keys)
+{
+    for (int64_t i = 0; i < vertices; i++) {
+        const double p[3] = {verts[3 * i], verts[3 * i + 1], verts[3 * i + 2]};
+        keys[i] = (vertex_key){box_distance(p, m->lo, m->hi), i};
+    }
+    qsort(keys, (size_t)vertices, sizeof *keys, by_box_distance);
+    double best = INFINITY;
+    for (int64_t j = 0; j < vertices && keys[j].box < fabs(best); j++) {
+        const float *v = verts + 3 * keys[j].i;
+        const double p[3] = {v[0], v[1], v[2]};
+        double d = inside_depth(m, p);
+        best = fmin(best, inside_point(m, p) ? -d : d);
+    }
+    return best;
+}
+
+static double brute_clearance(const obstacle_set *o, const float *verts, int64_t n)
+{
+    vertex_key *keys = malloc(sizeof *keys * 4 * (size_t)n);
+    double best = INFINITY;
+    for (int k = 0; keys && k < o->count; k++) best = fmin(best, brute_clearance_one(&o->inside[k], verts, 4 * n, keys));
+    free(keys);
+    return best;
+}
+
+/* The engine's vertex clearance of one frame; on sampled frames compared with the brute force. It
+ * may only be lower (a lower bound) where every vertex is farther than k_a, beyond its grid's band. */
+static void check_engine_clearance(const fm_morph_model *model, const fm_scene_def *def, const obstacle_set *o,
+                                   const float *verts, int64_t n, int64_t frame, inside_count *c)
+{
+    double engine = fm_morph_vertex_clearance(model, verts, (size_t)n);
+    c->engine_min = fmin(c->engine_min, engine);
+    if (frame % SAMPLE_EVERY) return;
+    double brute = brute_clearance(o, verts, n);
+    ENSURE_MSG(engine <= brute + 1e-6, "frame %lld: the engine's vertex clearance %.9g exceeds the true %.9g",
+               (long long)frame, engine, brute);
+    if (brute < def->k_a) {
+        ENSURE_MSG(fabs(engine - brute) <= 1e-6, "frame %lld: vertex clearance %.9g, brute force %.9g", (long long)frame,
+                   engine, brute);
+        c->compared++, c->worst_gap = fmax(c->worst_gap, fabs(engine - brute));
+    }
+}
 
 /* Every vertex of one frame against every obstacle. */
 static void check_frame(const obstacle_set *o, const float *verts, int64_t n, int64_t frame, inside_count *c)
@@ -73,7 +147,7 @@ static void check_frame(const obstacle_set *o, const float *verts, int64_t n, in
 static inside_count run_and_check(const fm_morph_model *model, const fm_scene_def *def, const obstacle_set *o,
                                   int threads, int64_t *frames, int64_t *arrived)
 {
-    inside_count c = {0, 0, 0, -1};
+    inside_count c = {0, 0, 0, -1, INFINITY, 0, 0};
     fm_error err = {0};
     fm_morph_state *s = fm_morph_state_create(model, threads, &err);
     ENSURE_MSG(s != NULL, "%s", err.message);
@@ -84,6 +158,7 @@ static inside_count run_and_check(const fm_morph_model *model, const fm_scene_de
     for (;; frame++) {
         fm_morph_tet_vertices(model, s, verts);
         check_frame(o, verts, mi.agents, frame, &c);
+        check_engine_clearance(model, def, o, verts, mi.agents, frame, &c);
         fm_morph_info info = fm_morph_get_info(s);
         if (info.all_arrived || frame + 1 >= def->frame_limit) break;
         for (int k = 0; k < mi.steps_per_frame; k++) fm_morph_step(model, s);
@@ -107,10 +182,13 @@ static void check_scene(const char *name, const fm_scene_def *def, double must_a
         int64_t frames = 0, arrived = 0, n = fm_morph_model_get_info(model).agents;
         inside_count c = run_and_check(model, def, &o, threads, &frames, &arrived);
         printf("  %s, %d thread(s): %lld frames, %lld of %lld arrived, %lld vertex-frames inside (%lld tet-frames), "
-               "deepest %.3g\n", name, threads, (long long)frames, (long long)arrived, (long long)n, (long long)c.vertices,
-               (long long)c.tets, c.deepest);
+               "deepest %.3g; engine's vertex clearance %.4g, within %.2g of brute force on %lld frames\n", name, threads,
+               (long long)frames, (long long)arrived, (long long)n, (long long)c.vertices, (long long)c.tets, c.deepest,
+               c.engine_min, c.worst_gap, (long long)c.compared);
         ENSURE_MSG((double)arrived >= must_arrive * (double)n, "%s: %lld of %lld agents arrived in %lld frames", name,
                    (long long)arrived, (long long)n, (long long)frames);
+        ENSURE_MSG(c.engine_min >= 0, "%s: the engine's vertex clearance %g", name, c.engine_min);
+        ENSURE_MSG(c.compared >= 3, "%s: only %lld sampled frames came within k_a", name, (long long)c.compared);
         ENSURE_MSG(c.vertices == 0, "%s: %lld vertices of %lld tet-frames inside an obstacle, from frame %lld, up to %g deep",
                    name, (long long)c.vertices, (long long)c.tets, (long long)c.first_frame, c.deepest);
     }
