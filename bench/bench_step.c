@@ -1,7 +1,7 @@
 /* Step throughput at a chosen agent count, with a per-stage breakdown; `bench_step --help` for the
  * options.
  *
- * Loads the scene (default: examples/castling/scene.json: path, baked curl noise, an obstacle and
+ * Loads the scene (default: examples/castling/rook.json: path, baked curl noise, an obstacle and
  * MDE, the whole velocity model), sets n = N and launches every agent at t = 0 so all of them are in
  * flight, then times S steps; with --synthesis 1 every step also computes every tet's four vertices
  * (FM §6, what a renderer needs each step). Prints one JSON object. */
@@ -34,7 +34,7 @@ int main(int argc, char **argv)
 {
     long agents = 100000, steps = 20, threads = omp_get_max_threads(), synthesis = 1;
     char scene[4096];
-    snprintf(scene, sizeof scene, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
+    snprintf(scene, sizeof scene, "%s/examples/castling/rook.json", FM_SOURCE_DIR);
     static const char *const flags[] = {"0", "1"};
     bench_args a = bench_args_begin("bench_step", USAGE, argc, argv);
     while (bench_next(&a)) {

@@ -67,6 +67,7 @@ ATTRIBUTES = {
     4: ("orientation", 4, F32),
     5: ("id", 1, U32),
     6: ("phase", 1, U8),
+    7: ("group", 1, U8),
 }
 _ATTRIBUTE_NAMES = frozenset(name for name, _, _ in ATTRIBUTES.values())
 

@@ -19,8 +19,8 @@ trap 'rm -rf "$tmp"' EXIT
 echo "castling, 10^6 agents, $((60 / spf)) frames of $spf steps; $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(nproc) cores"
 for round in $(seq 1 "$rounds"); do
   rm -rf "$tmp/a" "$tmp/b"
-  "$cli" run examples/castling/scene.json -o "$tmp/a" --threads "$ranks" --quiet "${sets[@]}" > /dev/null
-  mpirun --oversubscribe ${FM_MPIRUN_OPTIONS:-} -np "$ranks" "$cli" run examples/castling/scene.json -o "$tmp/b" --threads 1 --quiet "${sets[@]}" > /dev/null
+  "$cli" run examples/castling/rook.json -o "$tmp/a" --threads "$ranks" --quiet "${sets[@]}" > /dev/null
+  mpirun --oversubscribe ${FM_MPIRUN_OPTIONS:-} -np "$ranks" "$cli" run examples/castling/rook.json -o "$tmp/b" --threads 1 --quiet "${sets[@]}" > /dev/null
   cmp -s "$tmp/a/frames.fmc" "$tmp/b/frames.fmc" && same=identical || same=DIFFERENT
   /usr/bin/python3 - "$tmp/a/stats.json" "$tmp/b/stats.json" "$round" "$ranks" "$same" <<'PY'
 import json, sys

@@ -142,6 +142,8 @@ void cli_remove_checkpoint(const cli_outputs *out); /* and its .partial */
 int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def);
 /* After a stop (FM_STOPPED: the checkpoint is written): keeps the cache's frames as .partial for
  * --resume and prints how to resume; returns 128 + the signal. */
+/* A stop of a run that keeps no checkpoint (a shot): the partial cache kept, 128 + the signal. */
+int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames);
 int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
 /* After a failed run: with a checkpoint, keeps it and the partial cache and prints how to resume
  * once the cause is fixed; without, as cli_fail_keeping_partial_cache. Returns the exit status. */
@@ -207,7 +209,9 @@ typedef struct cli_mode {
     void (*summary)(const void *run, const fm_scene_def *def);
     void (*close)(void *run);
 } cli_mode;
-extern const cli_mode cli_mode_morph, cli_mode_flock;
+extern const cli_mode cli_mode_morph, cli_mode_flock, cli_mode_shot;
+/* The run's overrides, which the shot mode reads each group with (cli_mode_shot.c). */
+void cli_shot_use_overrides(const fm_scene_override *set, int count);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

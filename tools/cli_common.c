@@ -480,6 +480,14 @@ int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int
     return 128 + cli_stop_signal;
 }
 
+int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: interrupted at frame %lld; a scene with groups keeps no checkpoint in this version, "
+            "so it cannot resume: the frames so far are in the .partial cache\n", (long long)frames - 1);
+    return 128 + cli_stop_signal;
+}
+
 int cli_report_failed(const cli_run_options *o, const cli_outputs *out, fm_cache_writer *cache, const fm_error *err)
 {
     if (access(out->checkpoint, F_OK) != 0) return cli_fail_keeping_partial_cache(err, cache, out->cache);

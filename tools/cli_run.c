@@ -206,6 +206,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (progress.show == 1) fprintf(stderr, "\n");
     if (!cli_is_root()) return rank_exit_status(st);
     const fm_run_totals *t = common->totals;
+    if (st == FM_STOPPED && !mode->load_checkpoint) return cli_report_stopped_without_checkpoint(cache, t->frames);
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
@@ -227,6 +228,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
 /* The scene's mode: the CLI's one choice by mode. */
 static const cli_mode *scene_mode(const fm_scene_def *def)
 {
+    if (def->group_count > 0) return &cli_mode_shot;
     return def->mode == FM_MODE_SHAPE_FLOCK ? &cli_mode_flock : &cli_mode_morph;
 }
 
@@ -250,6 +252,11 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 /* What a run on several ranks does not do yet (docs/scale-out.md): the same answer on every rank. */
 static int check_ranks(const fm_scene_def *def)
 {
+    if (fm_dist_size(cli_dist) > 1 && def->group_count > 0) {
+        fprintf(stderr, "flockmorph: a scene with groups runs on one MPI rank only in this version: run it without "
+                "mpirun, or with -np 1\n");
+        return FM_ERR_USAGE;
+    }
     if (fm_dist_size(cli_dist) == 1 || def->mode != FM_MODE_SHAPE_FLOCK) return 0;
     fprintf(stderr, "flockmorph: the shape flock (mode \"shape_flock\") runs on one MPI rank only in this version: "
             "run it without mpirun, or with -np 1\n");
@@ -260,6 +267,9 @@ static int check_ranks(const fm_scene_def *def)
 static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST};
+    if (def->group_count > 0 && (o->resume || o->checkpoint_every >= 0))
+        return cli_usage_error(USAGE_RUN, "a scene with groups keeps no checkpoint in this version: leave out %s",
+                               o->resume ? "--resume" : "--checkpoint-every");
     int rc = cli_check_json_path("-o", o->outdir);
     if (!rc) rc = cli_make_outdir(o->outdir, outputs, 3);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
@@ -290,6 +300,7 @@ int cli_run(int argc, char **argv)
     rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
     if (!rc) rc = cli_expand_outdir(&o);
     if (!rc) rc = cli_overrides_load(&o, &ov, &def);
+    cli_shot_use_overrides(ov.set, ov.count);
     if (!rc) rc = run_in_outdir(&o, &ov, &def);
     cli_overrides_free(&ov);
     return rc;

@@ -48,7 +48,8 @@ typedef enum fm_cache_attr {
     FM_ATTR_VELOCITY = 3,     /* 3 × f32 */
     FM_ATTR_ORIENTATION = 4,  /* 4 × f32: unit quaternion w x y z, the agent's frame (x along velocity) */
     FM_ATTR_ID = 5,           /* 1 × u32: stable agent id */
-    FM_ATTR_PHASE = 6         /* 1 × u8: fm_phase (tetra morph) or the flock's own phase */
+    FM_ATTR_PHASE = 6,        /* 1 × u8: fm_phase (tetra morph) or the flock's own phase */
+    FM_ATTR_GROUP = 7         /* 1 × u8: the index of the scene's group that moves the agent (a shot) */
 } fm_cache_attr;
 
 typedef enum fm_cache_scalar { FM_SCALAR_F32 = 1, FM_SCALAR_U32 = 2, FM_SCALAR_U8 = 3 } fm_cache_scalar;

@@ -138,6 +138,51 @@ fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *model
  * band's width, a lower bound; +inf without obstacles. Does not depend on the thread count. */
 double fm_morph_vertex_clearance(const fm_morph_model *model, const float *verts, size_t n);
 
+/* ---------------------------------------------------------------- shots (docs/scene.md, "Groups")
+ *
+ * Several morphs in one shot: the groups of one scene file (fm_scene_load_group 0 .. count-1) on
+ * one clock, written to one cache with a `group` attribute. A group starts `start` seconds into the
+ * shot or after its `after` group has arrived; a group whose source is another's formed shape takes
+ * over that group's agents (their cache rows) and flies on from where they stand; a group's
+ * `avoid` list makes those groups' shapes obstacles to it (their target if it flies after them,
+ * their source if before). One process, no checkpoints in this version. */
+typedef struct fm_shot fm_shot;
+
+fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_progress_fn progress, void *user,
+                       fm_error *err);
+void fm_shot_destroy(fm_shot *shot);
+int fm_shot_groups(const fm_shot *shot);
+int64_t fm_shot_rows(const fm_shot *shot);   /* agents in the cache: the n of each group from a mesh */
+const fm_morph_model *fm_shot_model(const fm_shot *shot, int g);
+const fm_morph_state *fm_shot_state(const fm_shot *shot, int g);
+
+typedef struct fm_shot_group_stats {
+    int64_t agents;
+    int all_arrived;
+    double start_time, arrival_time;  /* seconds into the shot; NaN when it never started or arrived */
+    double final_max_vertex_error;    /* as fm_morph_run_stats' (INFINITY unless all arrived) */
+    int target_tets_filled_once;
+    int64_t inverted_tet_frames;      /* over the frames it wrote */
+    double min_vertex_clearance;      /* fm_morph_vertex_clearance against its own obstacles, over the frames it wrote */
+    double min_obstacle_clearance;    /* smallest d_t - R_X its flying tets saw */
+    double mde_fraction;              /* MDE agent-steps / flying agent-steps over its flight */
+} fm_shot_group_stats;
+
+typedef struct fm_shot_stats {
+    fm_run_totals run;
+    int64_t rows;
+    int all_arrived;
+    int64_t inverted_tet_frames;
+    double min_vertex_clearance;      /* the smallest of the groups' */
+    fm_shot_group_stats group[FM_MAX_GROUPS];
+} fm_shot_stats;
+
+/* Steps until every group has arrived or the frame limit, writing every frame to `cache` (may be
+ * NULL; created with FM_ATTR_TET_VERTICES and any of FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP).
+ * control's stop flag and progress are honoured, its checkpoints not. */
+fm_status fm_shot_run(fm_shot *shot, fm_cache_writer *cache, const fm_run_control *control, fm_shot_stats *stats,
+                      fm_error *err);
+
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
 int64_t fm_count_inverted_tets(const float *verts, size_t n);
 

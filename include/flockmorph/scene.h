@@ -32,6 +32,18 @@ typedef struct fm_mesh_ref {
 
 #define FM_MAX_FIELDS 8
 #define FM_MAX_OBSTACLES 16
+#define FM_MAX_GROUPS 8
+
+/* One morph of a shot (docs/scene.md, "Groups"). Times are seconds of animation time. */
+typedef struct fm_group_def {
+    char name[64];
+    double start;                 /* from the shot's start, or from `after`'s arrival */
+    int32_t after;                /* the earlier group whose last agent's arrival `start` counts from; -1: none */
+    int32_t source_group;         /* the earlier group whose formed shape this one starts from (its agents
+                                     fly on); -1: the source mesh */
+    int32_t avoid[FM_MAX_GROUPS]; /* groups whose shape is an obstacle to this one's agents */
+    int32_t avoid_count;
+} fm_group_def;
 
 typedef enum fm_field_kind {
     FM_FIELD_CURL_NOISE = 0, /* FM eq 5: curl of three Perlin potentials */
@@ -228,12 +240,26 @@ typedef struct fm_scene_def {
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
     char cache_name[256];       /* file name of the cache inside the output directory */
     fm_flock_def flock;         /* mode FM_MODE_SHAPE_FLOCK only */
+    /* a shot of several morphs (docs/scene.md, "Groups"): group_count > 0 when the file has a
+       `groups` list. fm_scene_load then gives the shared values only (group_index -1), which no
+       model is built from; fm_scene_load_group gives group g's whole definition (group_index g) */
+    int32_t group_count;
+    int32_t group_index;
+    fm_group_def group;
     /* the overrides it was read with (fm_scene_load_overridden), in order; for messages only */
     fm_scene_override_note overrides[FM_MAX_OVERRIDES];
     int32_t override_count;
 } fm_scene_def;
 
 fm_scene_def fm_default_scene_def(void);
+
+/* Group g of a scene with `groups` (0 <= g < group_count): the scene's top level with the group's
+ * item laid over it (objects merged key by key, other values replaced), read and validated as a
+ * scene is; errors name the key in the group's item ("FILE:LINE:COL: groups[1].speed0: ...") or
+ * at the top level where the value comes from there. A group whose source is another group's
+ * formed shape ("source": {"group": NAME}) gets that group's target as its source mesh. */
+fm_status fm_scene_load_group(const char *path, const fm_scene_override *overrides, int count, int g,
+                              fm_scene_def *def, fm_error *err);
 
 /* Reads and validates a JSON scene file. Relative mesh paths are resolved against the scene
  * file's directory. Unknown keys, wrong types and out-of-range values fail with

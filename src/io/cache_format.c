@@ -16,6 +16,7 @@ static const fm_cache_attr_info ATTRS[] = {
     {FM_ATTR_ORIENTATION, "orientation", 4, FM_SCALAR_F32, 16},
     {FM_ATTR_ID, "id", 1, FM_SCALAR_U32, 4},
     {FM_ATTR_PHASE, "phase", 1, FM_SCALAR_U8, 1},
+    {FM_ATTR_GROUP, "group", 1, FM_SCALAR_U8, 1},
 };
 
 const fm_cache_attr_info *fm_cache_attr_describe(fm_cache_attr attr)

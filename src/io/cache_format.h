@@ -26,7 +26,7 @@ enum {
     CACHE_ATTR_RECORD = 16,
     CACHE_CHUNK_HEADER = 24,
     CACHE_FOOTER = 16,
-    CACHE_MAX_ATTRS = 6, /* every kind at most once */
+    CACHE_MAX_ATTRS = 7, /* every kind at most once */
     CACHE_CODEC_ZSTD = 1,
     CACHE_DEFAULT_KEY_INTERVAL = 16,
     CACHE_MAX_KEY_INTERVAL = 1 << 16,

@@ -33,6 +33,7 @@ struct fm_morph_model {
     int32_t key_count;
     float sphere_c[3];
     float sphere_r;
+    int64_t *src_index;      /* each agent's source tet before the launch order (D1) sorted them */
     float *src_radius;       /* R_X at rest: radius of each source tet's minimal bounding sphere */
     float max_radius;        /* the largest R_X */
     fm_field_plan fields;    /* whether the state bakes the style fields (fields.h) */
@@ -45,6 +46,14 @@ struct fm_morph_model {
     char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_morph_model_warning) */
     int warning_count;
 };
+
+/* A group of a shot that starts from group `from`'s formed shape (morph_shot.c): its source tets
+ * are from's target tets, slot j as source tet j, and its n is from's. */
+fm_morph_model *fm_morph_model_build_from_targets(const fm_scene_def *def, const fm_morph_model *from,
+                                                  fm_progress_fn progress, void *user, fm_error *err);
+/* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
+double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts);
+int fm_morph_targets_taken_once(const fm_morph_state *s);
 
 typedef struct fm_morph_slabs fm_morph_slabs;
 
@@ -207,6 +216,8 @@ fm_status fm_morph_memory_check(const fm_scene_def *def, int64_t n, fm_error *er
 
 /* morph_tet.c */
 extern const uint8_t fm_even_permutations[12][4];
+/* The index of the even permutation p with p[i] = inner[outer[i]]. */
+uint8_t fm_compose_even_permutations(uint8_t outer, uint8_t inner);
 /* Chooses the correspondence and A = RS for one agent: src and dst are 12 floats each, relative
  * to their centroids, both positively oriented. Returns 1 if the safe form had to be used. */
 int fm_morph_setup(const float *src, const float *dst, float *morph, uint8_t *perm);

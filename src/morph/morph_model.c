@@ -21,6 +21,7 @@ typedef struct prep_scratch {
     fm_path path;
     int64_t *d1, *d2;
     fm_mesh *obstacles;  /* obstacle meshes, placed (def.obstacle_count) */
+    const fm_morph_model *from; /* a shot's group from another's formed shape: its target tets are the source */
 } prep_scratch;
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
@@ -74,10 +75,38 @@ static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, c
     return fm_scene_name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
 }
 
+/* A shot's group from another's formed shape: that group's target mesh (placed) and its n target
+ * tets, slot j as tet j. */
+static fm_status source_from_targets(const fm_scene_def *def, const fm_morph_model *from, fm_mesh *mesh, fm_tets *tets,
+                                     fm_error *err)
+{
+    fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", mesh, err);
+    if (st != FM_OK) return st;
+    tets->v = malloc(sizeof(double) * 12 * (size_t)from->n);
+    if (!tets->v) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld tets", (long long)from->n);
+    memcpy(tets->v, from->tgt, sizeof(double) * 12 * (size_t)from->n);
+    tets->n = from->n;
+    return FM_OK;
+}
+
+/* A group from another's shape has that group's agents: its target must fit in as many tets. */
+static fm_status check_group_target(const fm_morph_model *m, const fm_tets *dst, fm_error *err)
+{
+    char where[FM_PATH_MAX + 64];
+    fm_scene_key_location(&m->def, "target.mesh", where, sizeof where);
+    return fm_fail(err, FM_ERR_INPUT, "%s: TetGen made %lld tets of %s, more than the %lld agents this group takes over "
+                   "from the group it starts from: give that group an n of at least %lld, or a coarser tetgen here",
+                   where, (long long)dst->n, m->def.target.path, (long long)m->n, (long long)dst->n);
+}
+
 /* FM §4: n >= max(n1, n2); say which mesh needs more. */
 static fm_status choose_n(fm_morph_model *m, const fm_tets *src, const fm_tets *dst, fm_error *err)
 {
     int64_t most = FM_MAX(src->n, dst->n);
+    if (m->def.group_index >= 0 && m->def.group.source_group >= 0) {
+        m->n = src->n;
+        return dst->n > m->n ? check_group_target(m, dst, err) : fm_morph_memory_check(&m->def, m->n, err);
+    }
     m->n = m->def.n > 0 ? m->def.n : most;
     if (m->n < most) {
         char where[FM_PATH_MAX + 64];
@@ -141,7 +170,8 @@ static fm_status alloc_model_arrays(fm_morph_model *m, fm_error *err)
     m->src_rel = fm_alloc(sizeof(float) * 12 * n);
     m->tgt = fm_alloc(sizeof(double) * 12 * n);
     m->tgt_f = fm_alloc(sizeof(float) * 12 * n);
-    int ok = m->src_rel && m->tgt && m->tgt_f;
+    m->src_index = fm_alloc(sizeof(int64_t) * n);
+    int ok = m->src_rel && m->tgt && m->tgt_f && m->src_index;
     for (int k = 0; k < 3; k++) {
         m->src_c[k] = fm_alloc(sizeof(float) * n);
         m->tgt_c[k] = fm_alloc(sizeof(float) * n);
@@ -154,6 +184,7 @@ static fm_status alloc_model_arrays(fm_morph_model *m, fm_error *err)
 static void store_sources(fm_morph_model *m, const fm_tets *src, const int64_t *d1)
 {
     for (int64_t a = 0; a < m->n; a++) {
+        m->src_index[a] = d1[a];
         const double *t = src->v + 12 * d1[a];
         double c[3];
         fm_tet_centroid(t, c);
@@ -360,7 +391,8 @@ static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
-    fm_status st = prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, err);
+    fm_status st = s->from ? source_from_targets(def, s->from, &s->src_mesh, &s->src, err)
+                           : prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, err);
     if (st != FM_OK) return st;
     report(progress, user, "tetrahedralize target", 0.3);
     if ((st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
@@ -414,9 +446,15 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     return FM_OK;
 }
 
-fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model *from, fm_progress_fn progress,
+                                   void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
+    if (def->group_count > 0 && def->group_index < 0) {
+        fm_fail(err, FM_ERR_USAGE, "%s: the scene is a shot of %d groups: build each group (fm_scene_load_group) "
+                "and run them together (fm_shot_build), as flockmorph run does", def->scene_path, def->group_count);
+        return NULL;
+    }
     if (def->n > 0 && fm_morph_memory_check(def, def->n, err) != FM_OK) return NULL; /* before TetGen runs */
     fm_morph_model *m = calloc(1, sizeof *m);
     if (!m) {
@@ -426,6 +464,7 @@ fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn pro
     m->def = *def;
     prep_scratch scratch;
     memset(&scratch, 0, sizeof scratch);
+    scratch.from = from;
     fm_status st = build(m, &scratch, progress, user, err);
     free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
@@ -435,10 +474,21 @@ fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn pro
     return m;
 }
 
+fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    return build_model(def, NULL, progress, user, err);
+}
+
+fm_morph_model *fm_morph_model_build_from_targets(const fm_scene_def *def, const fm_morph_model *from,
+                                                  fm_progress_fn progress, void *user, fm_error *err)
+{
+    return build_model(def, from, progress, user, err);
+}
+
 void fm_morph_model_destroy(fm_morph_model *m)
 {
     if (!m) return;
-    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius);
+    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius), fm_free(m->src_index);
     fm_obstacles_destroy(m->obstacles); /* NULL-safe */
     fm_obstacles_destroy(m->target_sdf);
     for (int k = 0; k < 3; k++) {

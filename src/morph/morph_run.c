@@ -25,7 +25,7 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 }
 
 /* Largest distance between an agent's vertex and its target tet's matching vertex. */
-static double max_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts)
+double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts)
 {
     double worst = s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
     for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
@@ -59,7 +59,7 @@ static int each_target_taken_once_here(int64_t n, const int64_t *target, int64_t
 }
 
 /* Every target slot taken by exactly one agent (on P ranks: checked on rank 0, told to all). */
-static int each_target_taken_once(const fm_morph_state *s)
+int fm_morph_targets_taken_once(const fm_morph_state *s)
 {
     if (!s->dist) return each_target_taken_once_here(s->n, s->target, s->n);
     void *all = NULL;
@@ -195,8 +195,8 @@ static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const
     stats->run.steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !stats->all_arrived;
-    stats->final_max_vertex_error = max_vertex_error(m, s, verts);
-    stats->target_tets_filled_once = each_target_taken_once(s);
+    stats->final_max_vertex_error = fm_morph_final_vertex_error(m, s, verts);
+    stats->target_tets_filled_once = fm_morph_targets_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
     stats->mde_fraction_mean = mde_mean(stats);
     stats->min_obstacle_clearance = s->min_clearance;

@@ -28,6 +28,15 @@ const uint8_t fm_even_permutations[12][4] = {
     {1, 3, 2, 0}, {3, 0, 2, 1}, {2, 1, 3, 0}, {3, 1, 0, 2},
 };
 
+uint8_t fm_compose_even_permutations(uint8_t outer, uint8_t inner)
+{
+    uint8_t p[4];
+    for (int i = 0; i < 4; i++) p[i] = fm_even_permutations[inner][fm_even_permutations[outer][i]];
+    for (uint8_t k = 0; k < 12; k++)
+        if (!memcmp(p, fm_even_permutations[k], 4)) return k;
+    return 0; /* unreachable: even permutations compose to an even one */
+}
+
 enum { DET_CHECK_SAMPLES = 256 };
 static const double HALF_PI = 1.57079632679489661923;
 

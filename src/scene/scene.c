@@ -7,6 +7,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "fm_internal.h"
 #include "json_locate.h"
+#include "scene_groups.h"
 #include "scene_internal.h"
 #include "scene_override.h"
 
@@ -86,6 +87,8 @@ fm_scene_def fm_default_scene_def(void)
     d.shrink_time = 0.25;
     d.morph_fraction = 0.75;
     d.seed = 1;
+    d.group_index = -1;
+    d.group.after = d.group.source_group = -1;
     d.compression_level = 1; /* zstd level 1: twice as fast as 3 on frames, about 10 % larger */
     d.cache_delta = 1; /* lossless, and it pays: docs/performance.md, "Cache writer" */
     d.cache_key_interval = 16;
@@ -326,6 +329,7 @@ typedef struct where {
     int at_key;             /* point at the key rather than the value */
     char label[160];        /* the key named in messages inside list elements ("style.fields[1].gain") */
     const fm_scene_def *overridden; /* the overrides an error may be about (fm_override_blame), or NULL */
+    int in_group, group;    /* reading group `group`'s merged document: keys are sought in its item first */
 } where;
 
 #define KEY(w, p) ((w)->label[0] ? (w)->label : (p)->key)
@@ -371,6 +375,15 @@ static const fm_scene_override_note *blame(const where *w, const char *key)
     return note ? note : fm_override_blame(w->overridden, key);
 }
 
+/* In a group's merged document, w's key as it stands in the group's item (groups[i].KEY), if it
+ * does: 0 and its line and column, else -1. */
+static int locate_in_group(const where *w, int *line, int *col)
+{
+    fm_json_step steps[10] = {{"groups", 0}, {NULL, w->group}};
+    for (int d = 0; d < w->depth && d < 8; d++) steps[d + 2] = w->steps[d];
+    return fm_json_locate(w->text, steps, w->depth + 2, w->at_key, line, col);
+}
+
 /* The error message: "FILE:LINE:COL: key: what" (FILE: key: what without a text), or
  * "--set KEY=VALUE: key: what" when an override set the value. */
 static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
@@ -386,9 +399,12 @@ static fm_status fail_at(const where *w, const char *key, const char *fmt, ...)
     const fm_scene_override_note *note = blame(w, key);
     if (note) return fm_fail(w->err, FM_ERR_INPUT, "%s: %s: %s", note->label, key, what);
     int line = 0, col = 0;
-    if (w->text) fm_json_locate(w->text, w->steps, w->depth, w->at_key, &line, &col);
+    char group_key[192] = "";
+    if (w->text && w->in_group && locate_in_group(w, &line, &col) == 0)
+        snprintf(group_key, sizeof group_key, "groups[%d].", w->group);
+    else if (w->text) fm_json_locate(w->text, w->steps, w->depth, w->at_key, &line, &col);
     const char *file = w->file && w->file[0] ? w->file : "scene";
-    if (line > 0) return fm_fail(w->err, FM_ERR_INPUT, "%s:%d:%d: %s: %s", file, line, col, key, what);
+    if (line > 0) return fm_fail(w->err, FM_ERR_INPUT, "%s:%d:%d: %s%s: %s", file, line, col, group_key, key, what);
     return fm_fail(w->err, FM_ERR_INPUT, "%s: %s: %s", file, key, what);
 }
 
@@ -746,6 +762,7 @@ static fm_status check_unknown_keys(where *w, const json_t *obj, const char *pre
     json_object_foreach((json_t *)obj, key, value) {
         char full[160];
         snprintf(full, sizeof full, "%s%s%s", prefix, prefix[0] ? "." : "", key);
+        if (!prefix[0] && !strcmp(key, "groups")) continue; /* scene_groups.c reads it */
         if (!known_key(prefix, key)) {
             where_set_key(w, prefix);
             if (!prefix[0]) w->depth = 0;
@@ -787,7 +804,7 @@ static fm_status read_scene(where *w, const json_t *root, fm_scene_def *def)
         st = lookup(w, root, PARAMS[i].key, &v);
         if (st == FM_OK && v) st = check_applies(w, &PARAMS[i], def);
         if (st == FM_OK && v) st = read_param(w, &PARAMS[i], v, def, def);
-        else if (st == FM_OK && PARAMS[i].type == P_MESH) {
+        else if (st == FM_OK && PARAMS[i].type == P_MESH && !(def->group_count > 0 && def->group_index < 0)) {
             where_set_key(w, PARAMS[i].key);
             w->depth = 0;
             st = fail_at(w, PARAMS[i].key, "required key is missing");
@@ -988,7 +1005,7 @@ static fm_status check_lists(where *w, const fm_scene_def *def)
 
 fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
 {
-    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, "", def};
+    where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, "", def, 0, 0};
     if (!def->source.path[0] || !def->target.path[0])
         return fail_at(&w, def->source.path[0] ? "target.mesh" : "source.mesh", "no mesh given");
     fm_status st = check_table(&w, PARAMS, PARAM_COUNT, def, NULL);
@@ -1032,7 +1049,7 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     json_t *root = text ? json_loads(text, JSON_REJECT_DUPLICATES, NULL) : NULL; /* locate needs valid JSON */
     int line = 0, col = 0;
     if (root) {
-        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, "", NULL};
+        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, "", NULL, 0, 0};
         where_set_key(&w, key);
         fm_json_locate(text, w.steps, w.depth, 0, &line, &col);
         json_decref(root);
@@ -1078,9 +1095,29 @@ static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def 
 }
 
 /* Reads the document (changed by the overrides, if any) into def. */
+/* The scene's groups (scene_groups.c), read before the rest: a shot's top level needs no meshes. */
+static fm_status read_groups(where *w, const json_t *root, fm_group_def *groups, fm_scene_def *def)
+{
+    int count = 0;
+    fm_status st = json_is_object(root) ? fm_groups_read(root, w->file && w->file[0] ? w->file : "scene", w->text,
+                                                         groups, &count, w->err)
+                                        : FM_OK;
+    def->group_count = count;
+    const json_t *mode = json_object_get(root, "mode");
+    if (st == FM_OK && count > 0 && json_is_string(mode) && strcmp(json_string_value(mode), "tetra_morph")) {
+        where_set_key(w, "groups");
+        w->at_key = 1;
+        return fail_at(w, "groups", "only the tetra morph takes groups; a shape flock's sequence of targets runs as "
+                       "one scene per target (docs/shape-flock.md)");
+    }
+    return st;
+}
+
 static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
 {
+    fm_group_def groups[FM_MAX_GROUPS];
     fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
+    if (st == FM_OK) st = read_groups(w, root, groups, def);
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_r_scale(w, root, def);
@@ -1089,8 +1126,11 @@ static fm_status read_document(where *w, json_t *root, const fm_scene_override *
     return st;
 }
 
+static fm_status read_group_document(where *w, json_t *root, const fm_scene_override *set, int count, int g,
+                                     fm_scene_def *def);
+
 static fm_status parse_scene(const char *text, size_t len, const char *name, const fm_scene_override *set, int count,
-                             fm_scene_def *def, fm_error *err)
+                             int group, fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", name ? name : "");
@@ -1106,8 +1146,8 @@ static fm_status parse_scene(const char *text, size_t len, const char *name, con
     if (!root) {
         st = fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: %s", file, jerr.line, jerr.column, jerr.text);
     } else {
-        where w = {def->scene_path, copy, err, {{0}}, {{0}}, 0, 0, "", def};
-        st = read_document(&w, root, set, count, def);
+        where w = {def->scene_path, copy, err, {{0}}, {{0}}, 0, 0, "", def, 0, 0};
+        st = group < 0 ? read_document(&w, root, set, count, def) : read_group_document(&w, root, set, count, group, def);
         json_decref(root);
     }
     free(copy);
@@ -1116,11 +1156,12 @@ static fm_status parse_scene(const char *text, size_t len, const char *name, con
 
 fm_status fm_scene_parse(const char *text, size_t len, const char *name, fm_scene_def *def, fm_error *err)
 {
-    return parse_scene(text, len, name, NULL, 0, def, err);
+    return parse_scene(text, len, name, NULL, 0, -1, def, err);
 }
 
-fm_status fm_scene_load_overridden(const char *path, const fm_scene_override *overrides, int count,
-                                   fm_scene_def *def, fm_error *err)
+/* The file's scene, or its group `group` (>= 0). */
+static fm_status load_scene(const char *path, const fm_scene_override *overrides, int count, int group,
+                            fm_scene_def *def, fm_error *err)
 {
     *def = fm_default_scene_def();
     snprintf(def->scene_path, sizeof def->scene_path, "%s", path);
@@ -1128,9 +1169,42 @@ fm_status fm_scene_load_overridden(const char *path, const fm_scene_override *ov
     fm_status st = FM_OK;
     char *text = read_text(path, &len, &st, err);
     if (!text) return st;
-    st = parse_scene(text, len, path, overrides, count, def, err);
+    st = parse_scene(text, len, path, overrides, count, group, def, err);
     free(text);
     return st;
+}
+
+fm_status fm_scene_load_overridden(const char *path, const fm_scene_override *overrides, int count,
+                                   fm_scene_def *def, fm_error *err)
+{
+    return load_scene(path, overrides, count, -1, def, err);
+}
+
+/* Group g's merged document read as a scene (fm_scene_load_group). */
+static fm_status read_group_document(where *w, json_t *root, const fm_scene_override *set, int count, int g,
+                                     fm_scene_def *def)
+{
+    fm_group_def groups[FM_MAX_GROUPS];
+    fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
+    if (st == FM_OK) st = read_groups(w, root, groups, def);
+    if (st == FM_OK && (g < 0 || g >= def->group_count))
+        return fm_fail(w->err, FM_ERR_USAGE, "%s: no group %d (the scene has %d)", w->file, g, def->group_count);
+    if (st != FM_OK) return st;
+    json_t *doc = fm_groups_merge(root, groups, g);
+    if (!doc) return fm_fail(w->err, FM_ERR_MEMORY, "%s: out of memory for group %d", w->file, g);
+    def->group_index = g, def->group = groups[g];
+    w->in_group = 1, w->group = g;
+    st = read_scene(w, doc, def);
+    if (st == FM_OK) st = check_consistency(w, def);
+    json_decref(doc);
+    return st;
+}
+
+fm_status fm_scene_load_group(const char *path, const fm_scene_override *overrides, int count, int g,
+                              fm_scene_def *def, fm_error *err)
+{
+    if (g < 0) return fm_fail(err, FM_ERR_USAGE, "%s: no group %d", path, g);
+    return load_scene(path, overrides, count, g, def, err);
 }
 
 fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)

@@ -82,7 +82,7 @@ def test_flock_mode(build, source):
     one = run0.get("one_thread", {})
     check(one.get("agent_steps_per_second", 0) > 0 and "step" in one.get("stage_ns_per_agent", {}), "one_thread")
     r = run([os.path.join(build, "bench_suite"), "--mode", "flock", "--agents", "2000", "--steps", "1", "--machine", "0",
-             "--scene", os.path.join(source, "examples/castling/scene.json")])
+             "--scene", os.path.join(source, "examples/castling/rook.json")])
     check(r.returncode == 2 and "needs a shape_flock scene" in r.stderr, "--mode flock refuses a morph scene", r.stderr)
 
 

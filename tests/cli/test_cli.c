@@ -323,6 +323,25 @@ static void test_stats_provenance(void)
     check_stats_keys_documented(stats, "## Shape flock");
 }
 
+/* A shot (examples/castling, two groups): its stats.json keys documented both ways; what a shot
+ * does not do yet (checkpoints, resume) refused before anything runs. */
+static void test_shot_run(void)
+{
+    char outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
+    tmp_path(outdir, "shot_out");
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --quiet --threads 2", FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(strstr(g_out, "2 groups: king arrived, rook arrived") != NULL, "'%s'", g_out);
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    check_stats_keys_documented(stats, "## Shot");
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --resume", FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "a scene with groups keeps no checkpoint in this version: leave out --resume"), "'%s'", g_err);
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
+}
+
 static void test_run_stops_at_frame_limit(void)
 {
     char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
@@ -717,6 +736,7 @@ int main(void)
     RUN_TEST(test_version_and_help_command);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_run_unknown_key);
+    RUN_TEST(test_shot_run);
     RUN_TEST(test_run_missing_mesh);
     RUN_TEST(test_successful_run);
     RUN_TEST(test_huge_omp_num_threads);

@@ -229,7 +229,7 @@ static void test_castling_no_vertex_inside_the_king(void)
     fm_scene_def def;
     fm_error err = {0};
     char path[FM_PATH_MAX];
-    snprintf(path, sizeof path, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
+    snprintf(path, sizeof path, "%s/examples/castling/rook.json", FM_SOURCE_DIR);
     ENSURE_MSG(fm_scene_load(path, &def, &err) == FM_OK, "%s", err.message);
     if (err.status == FM_OK) check_scene("castling", &def, 1.0);
 }

@@ -20,7 +20,7 @@ static fm_morph_model *castling(void)
     fm_scene_def def;
     fm_error err = {0};
     char path[4096];
-    snprintf(path, sizeof path, "%s/examples/castling/scene.json", FM_SOURCE_DIR);
+    snprintf(path, sizeof path, "%s/examples/castling/rook.json", FM_SOURCE_DIR);
     ENSURE_MSG(fm_scene_load(path, &def, &err) == FM_OK, "%s", err.message);
     def.frame_limit = 60;
     fm_morph_model *m = fm_morph_model_build(&def, NULL, NULL, &err);

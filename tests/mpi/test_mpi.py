@@ -6,7 +6,7 @@
   obstacles, curl noise and MDE) and on words;
 - a stress case: on 4 ranks every agent changes rank (castling's flock sweeps the slab axis),
   halos are exchanged, and the bytes still match;
-- what one rank cannot do yet (the shape flock) is refused with exit 1 before any work, and
+- what one rank cannot do yet (the shape flock, a scene with groups) is refused with exit 1 before any work, and
   -np 1 runs the shape flock as the plain run does;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes;
 - failure: a full disk on rank 0 (ulimit -f) stops every rank with exit 3 and a readable partial
@@ -88,7 +88,7 @@ class SameBytes(unittest.TestCase):
                 self.assertGreater(j["scale_out"]["bytes_sent_per_agent_step"], 0)
 
     def test_castling(self):
-        self.check_scene("examples/castling/scene.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
+        self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
 
     def test_words(self):
         self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)])
@@ -98,9 +98,9 @@ class Stress(unittest.TestCase):
     def test_every_agent_changes_rank(self):
         """castling's flock sweeps along the slab axis from the source to the target: on 4 ranks
         every agent is handed on at least once, halos carry MDE neighbours, the bytes still match."""
-        plain, out = run("examples/castling/scene.json", "stress_plain")
+        plain, out = run("examples/castling/rook.json", "stress_plain")
         self.assertEqual(plain.returncode, 0, plain.stderr)
-        done, got = run("examples/castling/scene.json", "stress4", 4)
+        done, got = run("examples/castling/rook.json", "stress4", 4)
         self.assertEqual(done.returncode, 0, done.stderr)
         self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
         with open(os.path.join(got, "stats.json")) as f:
@@ -120,6 +120,12 @@ class Refused(unittest.TestCase):
         self.assertIn("one MPI rank", done.stderr)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
 
+    def test_groups_on_two_ranks(self):
+        done, out = run("examples/castling/scene.json", "shot2", 2, timeout=120)
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertIn("a scene with groups runs on one MPI rank", done.stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
     def test_shape_flock_on_one_rank(self):
         plain, out = run(self.FLOCK, "flock_plain", extra=("--set", "time.frame_limit=40"))
         self.assertEqual(plain.returncode, 0, plain.stderr)
@@ -135,7 +141,7 @@ def frames_in(path):
         return fmc.open(path).frames
 
 
-LONG_SCENE, LONG_SETS = "examples/castling/scene.json", ("--set", "n=60000")  # about 20 s on two cores
+LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000")  # about 20 s on two cores
 
 
 class Failure(unittest.TestCase):
@@ -145,7 +151,7 @@ class Failure(unittest.TestCase):
         def small_files():
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
         start = time.time()
-        done, out = run("examples/castling/scene.json", "full2", 2, timeout=300, preexec=small_files)
+        done, out = run("examples/castling/rook.json", "full2", 2, timeout=300, preexec=small_files)
         self.assertEqual(done.returncode, 3, done.stderr)  # I/O error, from every rank
         self.assertLess(time.time() - start, 300)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))

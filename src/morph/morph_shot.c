@@ -1,0 +1,335 @@
+/* A shot: several tetra morphs (the scene's groups, docs/scene.md "Groups") on one clock, written
+ * to one cache. Each group is an ordinary model and state; what the shot adds is when each starts,
+ * which cache rows each writes, and the shapes the groups are to each other as obstacles.
+ *
+ *   rows      a group that starts from a mesh adds its n agents as new rows; a group that starts
+ *             from another's formed shape ("source": {"group": A}) takes over A's rows when it
+ *             starts: its agent with source tet j is the agent of A that formed A's target slot j,
+ *             and writes its vertices in that agent's vertex order, so the rows run on unbroken
+ *   starts    a group starts `start` seconds into the shot, or after the step where its `after`
+ *             group's last agent arrived; its own clock starts at 0 then
+ *   obstacles a group that avoids another sees that group's target if it flies after it, its
+ *             source if it flies before it (fm_shot_build refuses a pair that may fly together) */
+#include "morph.h"
+#include "frame_loop.h"
+#include "cache_format.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct fm_shot {
+    int count;
+    fm_scene_def def[FM_MAX_GROUPS];
+    fm_morph_model *model[FM_MAX_GROUPS];
+    fm_morph_state *state[FM_MAX_GROUPS];
+    int64_t rows;
+    int64_t row0[FM_MAX_GROUPS];  /* a group from a mesh: its first row */
+    int64_t *row[FM_MAX_GROUPS];  /* a group from another's shape, once started: each agent's row */
+    uint8_t *perm[FM_MAX_GROUPS]; /* ... and the even permutation from its vertex order to the row's */
+    int started[FM_MAX_GROUPS], arrived[FM_MAX_GROUPS], writes[FM_MAX_GROUPS];
+    int64_t start_step[FM_MAX_GROUPS], arrival_step[FM_MAX_GROUPS], step;
+    double dt;
+    double scene_lo[3], scene_hi[3]; /* the union of the groups' scene bounds (runaway check) */
+    int32_t steps_per_frame, frame_limit;
+    float *verts, *scratch;       /* a frame (rows x 12), one group's tets */
+    uint8_t *phases, *groups, *scratch_phases;
+    fm_shot_stats *stats;
+};
+
+/* Whether group a starts only after group b has arrived (through any chain of `after`). */
+static int starts_after(const fm_scene_def *def, int a, int b)
+{
+    for (int g = def[a].group.after; g >= 0; g = def[g].group.after)
+        if (g == b) return 1;
+    return 0;
+}
+
+/* Group g's obstacles: the scene's, then the shape of each group it avoids. */
+static fm_status add_group_obstacles(fm_scene_def *def, int g, fm_error *err)
+{
+    fm_scene_def *d = &def[g];
+    for (int k = 0; k < d->group.avoid_count; k++) {
+        int h = d->group.avoid[k];
+        int after = starts_after(def, g, h), before = starts_after(def, h, g);
+        char where[FM_PATH_MAX + 64];
+        fm_scene_key_location(d, "avoid", where, sizeof where);
+        if (!after && !before)
+            return fm_fail(err, FM_ERR_INPUT, "%s: \"%s\" may fly while \"%s\" does (neither starts after the other), "
+                           "so its shape is no fixed obstacle: give one of them an \"after\" the other",
+                           where, def[h].group.name, d->group.name);
+        if (d->obstacle_count == FM_MAX_OBSTACLES)
+            return fm_fail(err, FM_ERR_INPUT, "%s: more than %d obstacles with the groups'", where, FM_MAX_OBSTACLES);
+        d->obstacles[d->obstacle_count++] = after ? def[h].target : def[h].source;
+    }
+    return FM_OK;
+}
+
+static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        fm_status st = add_group_obstacles(s->def, g, err);
+        if (st != FM_OK) return st;
+        const int from = s->def[g].group.source_group;
+        s->model[g] = from < 0 ? fm_morph_model_build(&s->def[g], progress, user, err)
+                               : fm_morph_model_build_from_targets(&s->def[g], s->model[from], progress, user, err);
+        if (!s->model[g]) return err->status;
+        if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
+        if (s->model[g]->dt != s->model[0]->dt || s->model[g]->steps_per_frame != s->model[0]->steps_per_frame)
+            return fm_fail(err, FM_ERR_INTERNAL, "group %d has another time step", g);
+    }
+    return FM_OK;
+}
+
+static fm_status alloc_frame(fm_shot *s, int threads, fm_error *err)
+{
+    int64_t most = 0;
+    for (int g = 0; g < s->count; g++) {
+        if (!(s->state[g] = fm_morph_state_create(s->model[g], threads, err))) return err->status;
+        most = FM_MAX(most, s->model[g]->n);
+        s->writes[g] = s->def[g].group.source_group < 0;
+    }
+    s->verts = fm_alloc(sizeof(float) * 12 * (size_t)s->rows);
+    s->scratch = fm_alloc(sizeof(float) * 12 * (size_t)most);
+    s->phases = fm_alloc((size_t)s->rows), s->groups = fm_alloc((size_t)s->rows);
+    s->scratch_phases = fm_alloc((size_t)most);
+    if (!s->verts || !s->scratch || !s->phases || !s->groups || !s->scratch_phases)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->rows);
+    return FM_OK;
+}
+
+fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_progress_fn progress, void *user,
+                       fm_error *err)
+{
+    if (count < 1 || count > FM_MAX_GROUPS) {
+        fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
+        return NULL;
+    }
+    fm_shot *s = calloc(1, sizeof *s);
+    if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    s->count = count;
+    memcpy(s->def, defs, sizeof *defs * (size_t)count);
+    fm_status st = build_models(s, progress, user, err);
+    if (st == FM_OK) st = alloc_frame(s, threads, err);
+    if (st != FM_OK) return fm_shot_destroy(s), NULL;
+    s->dt = s->model[0]->dt, s->steps_per_frame = s->model[0]->steps_per_frame;
+    s->frame_limit = defs[0].frame_limit;
+    for (int k = 0; k < 3; k++) s->scene_lo[k] = INFINITY, s->scene_hi[k] = -INFINITY;
+    for (int g = 0; g < count; g++)
+        for (int k = 0; k < 3; k++)
+            s->scene_lo[k] = fmin(s->scene_lo[k], s->model[g]->scene_lo[k]),
+            s->scene_hi[k] = fmax(s->scene_hi[k], s->model[g]->scene_hi[k]);
+    for (int g = 0; g < count; g++) s->start_step[g] = s->arrival_step[g] = -1;
+    return s;
+}
+
+void fm_shot_destroy(fm_shot *s)
+{
+    if (!s) return;
+    for (int g = 0; g < s->count; g++) {
+        fm_morph_state_destroy(s->state[g]), fm_morph_model_destroy(s->model[g]);
+        fm_free(s->row[g]), fm_free(s->perm[g]);
+    }
+    fm_free(s->verts), fm_free(s->scratch), fm_free(s->phases), fm_free(s->groups), fm_free(s->scratch_phases);
+    free(s);
+}
+
+int fm_shot_groups(const fm_shot *s) { return s->count; }
+int64_t fm_shot_rows(const fm_shot *s) { return s->rows; }
+const fm_morph_model *fm_shot_model(const fm_shot *s, int g) { return s->model[g]; }
+const fm_morph_state *fm_shot_state(const fm_shot *s, int g) { return s->state[g]; }
+
+/* Group g (from group a's formed shape) takes over a's rows: its agent with source tet j (a's
+ * target slot j) gets the row, and the vertex order, of a's agent that holds slot j. */
+static fm_status take_over_rows(fm_shot *s, int g, fm_error *err)
+{
+    const int a = s->def[g].group.source_group;
+    const fm_morph_state *from = s->state[a];
+    const fm_morph_model *m = s->model[g];
+    int64_t n = m->n, *agent_of_slot = fm_alloc(sizeof(int64_t) * (size_t)n);
+    uint8_t *perm_of_slot = fm_alloc((size_t)n);
+    s->row[g] = fm_alloc(sizeof(int64_t) * (size_t)n), s->perm[g] = fm_alloc((size_t)n);
+    if (!agent_of_slot || !perm_of_slot || !s->row[g] || !s->perm[g]) {
+        fm_free(agent_of_slot), fm_free(perm_of_slot);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)n);
+    }
+    for (int64_t k = 0; k < fm_morph_slots(from); k++)
+        agent_of_slot[from->target[k]] = from->id[k], perm_of_slot[from->target[k]] = from->perm[k];
+    for (int64_t i = 0; i < n; i++) {
+        int64_t slot = m->src_index[i], agent = agent_of_slot[slot];
+        s->row[g][i] = s->row[a] ? s->row[a][agent] : s->row0[a] + agent;
+        s->perm[g][i] = perm_of_slot[slot];
+        if (s->perm[a]) s->perm[g][i] = fm_compose_even_permutations(s->perm[a][agent], perm_of_slot[slot]);
+    }
+    fm_free(agent_of_slot), fm_free(perm_of_slot);
+    s->writes[a] = 0, s->writes[g] = 1;
+    return FM_OK;
+}
+
+/* The step at which group g may start: its own start, counted from the shot's start or from the
+ * step after its `after` group arrived; -1 while that is not known yet. */
+static int64_t start_step(const fm_shot *s, int g)
+{
+    const fm_group_def *d = &s->def[g].group;
+    int64_t from = d->after < 0 ? 0 : s->arrival_step[d->after];
+    if (from < 0) return -1;
+    return from + (int64_t)ceil(d->start / s->dt - 1e-9);
+}
+
+static fm_status start_groups(fm_shot *s, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        int64_t at = s->started[g] ? -1 : start_step(s, g);
+        if (at < 0 || s->step < at) continue;
+        if (s->def[g].group.source_group >= 0) {
+            fm_status st = take_over_rows(s, g, err);
+            if (st != FM_OK) return st;
+        }
+        s->started[g] = 1, s->start_step[g] = s->step;
+    }
+    return FM_OK;
+}
+
+/* One step of the shot: the groups that may start do, the started ones that still fly step. */
+static fm_status shot_step(fm_shot *s, fm_error *err)
+{
+    fm_status st = start_groups(s, err);
+    if (st != FM_OK) return st;
+    for (int g = 0; g < s->count; g++) {
+        if (!s->started[g] || s->arrived[g]) continue;
+        fm_morph_step(s->model[g], s->state[g]);
+        if (s->state[g]->count[FM_PHASE_ARRIVED] == s->state[g]->n) s->arrived[g] = 1, s->arrival_step[g] = s->step + 1;
+    }
+    s->step++;
+    return FM_OK;
+}
+
+static int all_arrived(const fm_shot *s)
+{
+    for (int g = 0; g < s->count; g++)
+        if (!s->arrived[g]) return 0;
+    return 1;
+}
+
+/* Group g's tets into its rows (in the rows' vertex order), with its phases and its index. */
+static void scatter_group(fm_shot *s, int g)
+{
+    const fm_morph_model *m = s->model[g];
+    fm_morph_tet_vertices(m, s->state[g], s->scratch);
+    fm_morph_phases(s->state[g], s->scratch_phases);
+    for (int64_t i = 0; i < m->n; i++) {
+        int64_t r = s->row[g] ? s->row[g][i] : s->row0[g] + i;
+        const uint8_t *perm = fm_even_permutations[s->perm[g] ? s->perm[g][i] : 0];
+        for (int v = 0; v < 4; v++) memcpy(s->verts + 12 * r + 3 * v, s->scratch + 12 * i + 3 * perm[v], 3 * sizeof(float));
+        s->phases[r] = s->scratch_phases[i], s->groups[r] = (uint8_t)g;
+    }
+}
+
+/* The frame's per-group measures: its vertices' clearance from its obstacles while it writes. */
+static void measure_group(fm_shot *s, int g)
+{
+    fm_shot_group_stats *gs = &s->stats->group[g];
+    double c = fm_morph_vertex_clearance(s->model[g], s->scratch, (size_t)s->model[g]->n);
+    gs->min_vertex_clearance = fmin(gs->min_vertex_clearance, c);
+    gs->inverted_tet_frames += fm_count_inverted_tets(s->scratch, (size_t)s->model[g]->n);
+}
+
+static fm_status write_frame(fm_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++)
+        if (s->writes[g]) scatter_group(s, g), measure_group(s, g);
+    fm_status st = fm_frame_check_runaway(s->verts, 12, s->rows, s->scene_lo, s->scene_hi, k,
+                                          "each group's speed0, omega1, style and obstacles", err);
+    if (st != FM_OK || !cache) return st;
+    const cache_layout *l = fm_cache_writer_layout(cache);
+    const void *data[CACHE_MAX_ATTRS];
+    for (int i = 0; i < l->attr_count; i++) {
+        fm_cache_attr a = l->attrs[i]->attr;
+        data[i] = a == FM_ATTR_TET_VERTICES ? (const void *)s->verts : a == FM_ATTR_PHASE ? (const void *)s->phases
+                  : a == FM_ATTR_GROUP      ? (const void *)s->groups : (const void *)fm_cache_writer_ids(cache);
+    }
+    return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+/* The shot in the shared frame loop (frame_loop.h). */
+typedef struct shot_run {
+    fm_shot *s;
+    fm_cache_writer *cache;
+    const fm_run_control *c;
+    fm_status step_status;
+    fm_error step_error;
+} shot_run;
+
+static void loop_step(void *sim)
+{
+    shot_run *r = sim;
+    if (r->step_status == FM_OK) r->step_status = shot_step(r->s, &r->step_error);
+}
+
+static int loop_finished(const void *sim)
+{
+    const shot_run *r = sim;
+    return all_arrived(r->s) || r->step_status != FM_OK;
+}
+
+static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
+{
+    shot_run *r = sim;
+    if (r->step_status != FM_OK) return *err = r->step_error, r->step_status;
+    fm_status st = write_frame(r->s, r->cache, k, err);
+    if (st == FM_OK && k > 0 && r->c->progress) {
+        fm_run_info info = {.step = r->s->step, .time = (double)r->s->step * r->s->dt};
+        for (int g = 0; g < r->s->count; g++)
+            if (r->s->writes[g])
+                for (int p = 0; p < 4; p++) info.count[p] += r->s->state[g]->count[p];
+        r->c->progress(&info, k, r->c->progress_user);
+    }
+    return st;
+}
+
+static fm_status loop_save(void *sim, const char *path, fm_error *err)
+{
+    (void)sim;
+    return fm_fail(err, FM_ERR_USAGE, "%s: a shot (a scene with groups) keeps no checkpoint in this version", path);
+}
+
+/* Each group's end-state checks. */
+static void finish_stats(fm_shot *s, fm_shot_stats *stats)
+{
+    stats->all_arrived = all_arrived(s);
+    stats->run.steps = s->step;
+    stats->rows = s->rows;
+    for (int g = 0; g < s->count; g++) {
+        fm_shot_group_stats *gs = &stats->group[g];
+        fm_morph_tet_vertices(s->model[g], s->state[g], s->scratch);
+        gs->agents = s->model[g]->n;
+        gs->all_arrived = s->arrived[g];
+        gs->final_max_vertex_error = fm_morph_final_vertex_error(s->model[g], s->state[g], s->scratch);
+        gs->target_tets_filled_once = fm_morph_targets_taken_once(s->state[g]);
+        gs->start_time = s->start_step[g] < 0 ? NAN : (double)s->start_step[g] * s->dt;
+        gs->arrival_time = s->arrival_step[g] < 0 ? NAN : (double)s->arrival_step[g] * s->dt;
+        gs->min_obstacle_clearance = s->state[g]->min_clearance;
+        gs->mde_fraction = s->state[g]->flying_agent_steps
+                               ? (double)s->state[g]->mde_agent_steps / (double)s->state[g]->flying_agent_steps : 0.0;
+        stats->inverted_tet_frames += gs->inverted_tet_frames;
+        stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, gs->min_vertex_clearance);
+    }
+}
+
+fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *control, fm_shot_stats *stats,
+                      fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    stats->min_vertex_clearance = INFINITY;
+    for (int g = 0; g < s->count; g++) stats->group[g].min_vertex_clearance = INFINITY;
+    s->stats = stats;
+    fm_run_control c = *control;
+    c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
+    shot_run r = {s, cache, &c, FM_OK, {0}};
+    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, loop_save, s->steps_per_frame,
+                                s->frame_limit, &c, &stats->run, cache, NULL};
+    fm_status st = fm_frame_loop_run(&loop, err);
+    finish_stats(s, stats);
+    return st;
+}

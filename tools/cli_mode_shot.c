@@ -1,0 +1,130 @@
+/* `run` for a scene with `groups` (a shot of several tetra morphs, docs/scene.md "Groups"): every
+ * group's model, the shot on one clock, one cache (tet vertices, id, phase, group) and stats.json
+ * with each group's end-state checks (cli_run.c drives it through cli_mode_shot). */
+#define _POSIX_C_SOURCE 200809L
+#include "cli.h"
+#include "morph.h" /* the engine's internal header: each group's model */
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+typedef struct shot_run {
+    cli_mode_run common;         /* first: cli_run.c reads it */
+    fm_scene_def defs[FM_MAX_GROUPS];
+    int count;
+    int threads;
+    fm_shot *shot;
+    fm_shot_stats stats;
+    json_t *warnings;
+} shot_run;
+
+static const fm_scene_override *g_overrides;
+static int g_override_count;
+
+void cli_shot_use_overrides(const fm_scene_override *set, int count) { g_overrides = set, g_override_count = count; }
+
+static int build(void *run, const fm_scene_def *def, int *show)
+{
+    shot_run *r = run;
+    fm_error err = {0};
+    r->warnings = json_array();
+    r->count = def->group_count;
+    for (int g = 0; g < r->count; g++) {
+        if (fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, &r->defs[g], &err) != FM_OK)
+            return cli_report(&err);
+        r->defs[g].seed = def->seed == r->defs[g].seed ? def->seed : r->defs[g].seed;
+    }
+    r->shot = fm_shot_build(r->defs, r->count, 0, cli_prep_progress, show, &err);
+    if (!r->shot) return cli_report(&err);
+    for (int g = 0; g < r->count; g++) {
+        const fm_morph_model *m = fm_shot_model(r->shot, g);
+        for (int i = 0; i < fm_morph_model_warning_count(m); i++)
+            json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_morph_model_warning(m, i)));
+    }
+    fm_morph_model_info mi = fm_morph_model_get_info(fm_shot_model(r->shot, 0));
+    r->common = (cli_mode_run){fm_shot_rows(r->shot), mi.time_step, &r->stats.run};
+    return 0;
+}
+
+static fm_status create_state(void *run, int threads, fm_error *err)
+{
+    (void)run, (void)threads, (void)err; /* the shot made its states; threads are OpenMP's */
+    return FM_OK;
+}
+
+static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const char *path, fm_error *err)
+{
+    const shot_run *r = run;
+    const fm_cache_options options = cli_cache_options(def);
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP};
+    return fm_cache_writer_create_attrs(path, (uint64_t)fm_shot_rows(r->shot), def->frame_rate, attrs, 4, &options, err);
+}
+
+static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
+{
+    shot_run *r = run;
+    return fm_shot_run(r->shot, cache, control, &r->stats, err);
+}
+
+static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : json_null(); }
+
+static json_t *group_json(const shot_run *r, int g)
+{
+    const fm_shot_group_stats *gs = &r->stats.group[g];
+    const fm_group_def *d = &r->defs[g].group;
+    const fm_morph_model_info mi = fm_morph_model_get_info(fm_shot_model(r->shot, g));
+    json_t *j = json_object();
+    json_object_set_new(j, "name", json_string(d->name));
+    json_object_set_new(j, "agents", json_integer(gs->agents));
+    json_object_set_new(j, "source_group", d->source_group < 0 ? json_null() : json_string(r->defs[d->source_group].group.name));
+    json_object_set_new(j, "source_tets", json_integer(mi.source_tets));
+    json_object_set_new(j, "target_tets", json_integer(mi.target_tets));
+    json_object_set_new(j, "start_time", number_or_null(gs->start_time));
+    json_object_set_new(j, "arrival_time", number_or_null(gs->arrival_time));
+    json_object_set_new(j, "all_arrived", json_boolean(gs->all_arrived));
+    json_object_set_new(j, "final_max_vertex_error", gs->all_arrived ? json_real(gs->final_max_vertex_error) : json_null());
+    json_object_set_new(j, "target_tets_filled_once", json_boolean(gs->target_tets_filled_once));
+    json_object_set_new(j, "inverted_tet_frames", json_integer(gs->inverted_tet_frames));
+    json_object_set_new(j, "obstacles", json_integer(fm_shot_model(r->shot, g)->def.obstacle_count));
+    json_object_set_new(j, "min_obstacle_clearance", number_or_null(gs->min_obstacle_clearance));
+    json_object_set_new(j, "min_vertex_clearance", number_or_null(gs->min_vertex_clearance));
+    json_object_set_new(j, "mde_fraction_mean", json_real(gs->mde_fraction));
+    return j;
+}
+
+static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
+{
+    shot_run *r = run;
+    json_t *j = cli_stats_json(def, record);
+    json_t *groups = json_array();
+    for (int g = 0; g < r->count; g++) json_array_append_new(groups, group_json(r, g));
+    json_object_set_new(j, "all_arrived", json_boolean(r->stats.all_arrived));
+    json_object_set_new(j, "stopped_at_frame_limit", json_boolean(!r->stats.all_arrived));
+    json_object_set_new(j, "inverted_tet_frames", json_integer(r->stats.inverted_tet_frames));
+    json_object_set_new(j, "min_vertex_clearance", number_or_null(r->stats.min_vertex_clearance));
+    json_object_set_new(j, "groups", groups);
+    json_object_set(j, "warnings", r->warnings);
+    return cli_write_json(path, j);
+}
+
+static void summary(const void *run, const fm_scene_def *def)
+{
+    const shot_run *r = run;
+    (void)def;
+    printf("; %d groups", r->count);
+    for (int g = 0; g < r->count; g++)
+        printf("%s %s %s", g ? "," : ":", r->defs[g].group.name, r->stats.group[g].all_arrived ? "arrived" : "did not arrive");
+    printf("\n");
+}
+
+static void close_run(void *run)
+{
+    shot_run *r = run;
+    fm_shot_destroy(r->shot);
+    json_decref(r->warnings);
+}
+
+/* No load_checkpoint: a shot keeps no checkpoint in this version (cli_run.c refuses --resume). */
+const cli_mode cli_mode_shot = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(shot_run), build,
+                                create_state, create_cache, NULL, simulate, write_stats, summary, close_run};
