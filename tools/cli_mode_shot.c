@@ -89,7 +89,7 @@ static json_t *group_json(const shot_run *r, int g)
     json_object_set_new(j, "obstacles", json_integer(fm_shot_model(r->shot, g)->def.obstacle_count));
     json_object_set_new(j, "min_obstacle_clearance", number_or_null(gs->min_obstacle_clearance));
     json_object_set_new(j, "min_vertex_clearance", number_or_null(gs->min_vertex_clearance));
-    json_object_set_new(j, "mde_fraction_mean", json_real(gs->mde_fraction));
+    json_object_set_new(j, "mde_fraction", json_real(gs->mde_fraction));
     return j;
 }
 

@@ -7,8 +7,8 @@ cd "$(dirname "$0")/.."
 threads=${1:-$(nproc)}
 tools/setup.sh build > /dev/null
 stat() { sed -n "s/^  \"$2\": \\([^,]*\\),*$/\\1/p" "out/$1/stats.json"; }
-echo "| scenario | agents | frames | steps | preprocess s | steps/s | agent-steps/s | MDE % | min clearance | all arrived |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+echo "| scenario | agents | frames | steps | preprocess s | steps/s | agent-steps/s | MDE % | min clearance | min vertex clearance | all arrived |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
 # castling's row is the rook's morph (examples/castling/rook.json), the one FM Table I times; the
 # example's scene.json is the whole two-part castling (docs/scenarios.md).
 for name in words moon creatures castling_rook; do
@@ -20,6 +20,7 @@ for name in words moon creatures castling_rook; do
   steps=$(stat "$name" steps); sim=$(stat "$name" simulate_seconds)
   awk -v n="$name" -v a="$(stat "$name" agents)" -v f="$frames" -v s="$steps" -v p="$(stat "$name" preprocess_seconds)" \
       -v t="$sim" -v r="$(stat "$name" agent_steps_per_second)" -v m="$(stat "$name" mde_fraction_mean)" \
-      -v c="$(stat "$name" min_obstacle_clearance)" -v ok="$(stat "$name" all_arrived)" \
-      'BEGIN { printf "| %s | %d | %d | %d | %.2f | %.0f | %.3g | %.2f | %s | %s |\n", n, a, f, s, p, s / t, r, 100 * m, c, ok }'
+      -v c="$(stat "$name" min_obstacle_clearance)" -v vc="$(stat "$name" min_vertex_clearance)" \
+      -v ok="$(stat "$name" all_arrived)" \
+      'BEGIN { printf "| %s | %d | %d | %d | %.2f | %.0f | %.3g | %.2f | %s | %s | %s |\n", n, a, f, s, p, s / t, r, 100 * m, c, vc, ok }'
 done

@@ -120,7 +120,7 @@ static void test_castling_example_is_the_whole_castling(void)
     double clearance = json_number_value(json_object_get(rook, "min_vertex_clearance"));
     ENSURE_MSG(json_is_number(json_object_get(rook, "min_vertex_clearance")) && clearance >= 0 && clearance < 0.3,
                "a rook vertex entered the king, or the rook never came near it: vertex clearance %g", clearance);
-    ENSURE(json_number_value(json_object_get(rook, "mde_fraction_mean")) > 0);
+    ENSURE(json_number_value(json_object_get(rook, "mde_fraction")) > 0);
     ENSURE(json_array_size(json_object_get(stats, "warnings")) == 0);
     json_decref(stats);
 }
