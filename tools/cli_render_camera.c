@@ -8,10 +8,14 @@
  *
  * A box fitted to each frame alone would make the camera jitter as agents come and go at the
  * edges, so it is smoothed over the frames within about half a second on each side: the mean of
- * their boxes' centres and, on each axis, the largest of their half-extents. The largest rather
- * than the mean, so the box is never smaller than that of any frame in the window and a growing
- * flock stays in the picture. It depends on the per-frame boxes alone: a PNG of frame K gets the
- * camera frame K has in a video or a sequence, whatever the range rendered.
+ * their boxes' centres and, on each axis, the largest of their half-extents. The window stays
+ * centred: near the first and the last frame it narrows to the frames left on that side, so the
+ * mean follows a flock in steady flight exactly and the first and last frames are framed as they
+ * are. The largest half-extent rather than the mean keeps the box from being smaller than that
+ * of any frame in the window, and the box is widened further where the frame's own agents would
+ * still reach out of it (a flock that speeds up), so every agent is always in the picture. It
+ * depends on the per-frame boxes alone: a PNG of frame K gets the camera frame K has in a video or
+ * a sequence, whatever the range rendered.
  *
  * --camera animation: one box, every finite agent of every frame, as before issue 14. */
 #include "cli_render_camera.h"
@@ -96,20 +100,28 @@ static void add_near_obstacles(double box[6], const cli_triangles *ob)
     memcpy(box, grown, sizeof grown);
 }
 
-/* Frame f's framed box: the mean centre and the largest half-extents of the window's boxes; the
- * animation's box when no frame in the window has an agent. */
+/* Frame f's framed box: the mean centre and the largest half-extents of the boxes of the centred
+ * window, widened to hold frame f's own box; the animation's box when no frame in the window has
+ * an agent. */
 static void smooth(const cli_camera *c, uint32_t f, double out[6])
 {
     double centre[3] = {0, 0, 0}, half[3] = {0, 0, 0};
-    long count = 0, first = (long)f - c->half_window, last = (long)f + c->half_window;
-    for (long g = first < 0 ? 0 : first; g <= last && g < (long)c->frames; g++) {
+    long side = c->half_window, count = 0;
+    side = side < (long)f ? side : (long)f;
+    side = side < (long)c->frames - 1 - (long)f ? side : (long)c->frames - 1 - (long)f;
+    for (long g = (long)f - side; g <= (long)f + side; g++) {
         const double *b = c->agents[g];
         if (is_empty(b)) continue;
         for (int k = 0; k < 3; k++) centre[k] += 0.5 * (b[k] + b[3 + k]), half[k] = fmax(half[k], 0.5 * (b[3 + k] - b[k]));
         count++;
     }
     if (!count) return (void)memcpy(out, c->animation, 6 * sizeof(double));
-    for (int k = 0; k < 3; k++) out[k] = centre[k] / count - half[k], out[3 + k] = centre[k] / count + half[k];
+    const double *own = c->agents[f];
+    for (int k = 0; k < 3; k++) {
+        double mid = centre[k] / (double)count, h = half[k];
+        if (!is_empty(own)) h = fmax(h, fmax(own[3 + k] - mid, mid - own[k]));
+        out[k] = mid - h, out[3 + k] = mid + h;
+    }
 }
 
 void cli_camera_finish(cli_camera *c, double pad, const cli_triangles *obstacles)
