@@ -58,7 +58,8 @@ fm_status fm_renderer_set_bounds(fm_renderer *r, const double *bounds, fm_error 
  * vertex indices. They are drawn in a light warm grey that no agent colour takes, Lambert shaded,
  * casting shadows on the agents and the ground and receiving theirs. They do not move the camera:
  * it is fitted to the bounds (fm_render_opts.bounds, or without them to the frame's agents, or
- * to the obstacles when no agent is drawn). The renderer keeps its own copy; nt = 0 removes them.
+ * to the obstacles when no agent is drawn); the ground's rectangle reaches under them. The renderer
+ * keeps its own copy; nt = 0 removes them.
  * A vertex that is not finite or an index >= nv is a usage error (the obstacles are unchanged). */
 fm_status fm_renderer_set_obstacles(fm_renderer *r, const float *verts, size_t nv,
                                     const uint32_t *tris, size_t nt, fm_error *err);

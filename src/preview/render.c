@@ -404,11 +404,26 @@ static void perpendicular(const double w[3], const double hint[3], double out[3]
     normalize3(out);
 }
 
+/* Widens the ground's rectangle to reach under the obstacles' box, so that an obstacle the camera
+ * sees beside the framed box stands on the ground rather than beyond its edge. */
+static void ground_under_obstacles(const obstacle_mesh *ob, view *v)
+{
+    if (!ob->nt) return;
+    for (int i = 0; i < 8; i++) {
+        double p[3];
+        box_corner(ob->lo, ob->hi, i, p);
+        double a = dot3(p, v->g1), b = dot3(p, v->g2);
+        v->lo1 = fmin(v->lo1, a), v->hi1 = fmax(v->hi1, a);
+        v->lo2 = fmin(v->lo2, b), v->hi2 = fmax(v->hi2, b);
+    }
+}
+
 /* The ground: a rectangle just under the box, wider than it by 0.3 x its largest extent on each
- * side. The key light: opts' light_dir, or else high above (about 60 degrees), from the left and
- * a little from the camera's side, so shadows fall to the right and away from the camera. */
+ * side and reaching under the obstacles. The key light: opts' light_dir, or else high above (about
+ * 60 degrees), from the left and a little from the camera's side, so shadows fall to the right and
+ * away from the camera. */
 static void view_ground_and_light(const fm_render_opts *o, const double lo[3], const double hi[3],
-                                  view *v)
+                                  const obstacle_mesh *ob, view *v)
 {
     memcpy(v->w, o->world_up, sizeof v->w);
     normalize3(v->w);
@@ -427,6 +442,7 @@ static void view_ground_and_light(const fm_render_opts *o, const double lo[3], c
     double extent = fmax(fmax(v->hi1 - v->lo1, v->hi2 - v->lo2), hmax - hmin);
     double pad = extent > 0.0 ? 0.3 * extent : 1.0;
     v->lo1 -= pad, v->hi1 += pad, v->lo2 -= pad, v->hi2 += pad;
+    ground_under_obstacles(ob, v);
     /* A hair under the lowest point, so faces resting on the bounds' floor never tie with it. */
     v->level = hmin - 1e-3 * pad;
     v->ground = o->ground;
@@ -755,7 +771,7 @@ static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_er
     }
     view v;
     view_camera(o, lo, hi, &v);
-    view_ground_and_light(o, lo, hi, &v);
+    view_ground_and_light(o, lo, hi, &r->obstacles, &v);
     int threads = fm_threads(o->threads);
     const fm_renderer *cr = r;
 #pragma omp parallel for schedule(dynamic, 2) num_threads(threads)
