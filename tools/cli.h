@@ -122,12 +122,13 @@ int cli_overrides_load(const cli_run_options *o, cli_overrides *ov, fm_scene_def
  * end; a plain run removes an earlier run's at its start. */
 int cli_write_manifest(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def, int exit_status);
 void cli_overrides_free(cli_overrides *ov);
-/* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json, OUTDIR/checkpoint.fmck) and with
- * how many threads. */
+/* Where a run writes (OUTDIR/<output.cache>, OUTDIR/stats.json, OUTDIR/checkpoint.fmck,
+ * OUTDIR/obstacles.ply) and with how many threads. */
 typedef struct cli_outputs {
     char cache[FM_PATH_MAX + 300];
     char stats[FM_PATH_MAX + 16];
     char checkpoint[FM_PATH_MAX + 32];
+    char obstacles[FM_PATH_MAX + 32];
     int threads;
 } cli_outputs;
 void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outputs *out);
@@ -135,7 +136,7 @@ void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outp
 int64_t cli_checkpoint_every(const cli_run_options *o);
 double cli_checkpoint_seconds(const cli_run_options *o);
 /* A new run (not --resume): warns if an interrupted run's checkpoint is in the way, and removes it
- * with the previous run's cache and stats.json. */
+ * with the previous run's cache, stats.json and obstacles.ply. */
 void cli_start_over(const cli_outputs *out);
 void cli_remove_checkpoint(const cli_outputs *out); /* and its .partial */
 /* --resume: the checkpoint checked against the scene (fm_checkpoint_check), before preprocessing. */

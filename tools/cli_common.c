@@ -412,6 +412,7 @@ void cli_run_outputs(const cli_run_options *o, const fm_scene_def *def, cli_outp
     snprintf(out->cache, sizeof out->cache, "%s/%s", o->outdir, def->cache_name);
     snprintf(out->stats, sizeof out->stats, "%s/" FM_OUTPUT_STATS, o->outdir);
     snprintf(out->checkpoint, sizeof out->checkpoint, "%s/" FM_OUTPUT_CHECKPOINT, o->outdir);
+    snprintf(out->obstacles, sizeof out->obstacles, "%s/" FM_OUTPUT_OBSTACLES, o->outdir);
     out->threads = fm_threads(o->threads);
 }
 
@@ -435,6 +436,7 @@ void cli_start_over(const cli_outputs *out)
                 "continues such a run)\n", out->checkpoint);
     cli_remove_checkpoint(out); /* this run's cache replaces the one it describes */
     cli_remove_previous_results(out->cache, out->stats);
+    remove(out->obstacles); /* render draws one it finds beside the cache: not a previous scene's */
 }
 
 int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def)

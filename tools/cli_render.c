@@ -2,12 +2,15 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 #include "cli_colour.h"
+#include "cli_render_camera.h"
+#include "geom.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static const char *const USAGE_RENDER =
@@ -16,11 +19,13 @@ static const char *const USAGE_RENDER =
     "       flockmorph render CACHE -o NAME.%04d.png [--frames A:B[:S]] [options]\n"
     "\n"
     "Ray casts the tets (or, for a point cache, spheres) with Embree: a key light with hard shadows,\n"
-    "a ground plane, and a colour per agent (--color). The camera is fitted to the whole\n"
-    "animation's bounds, so all frames of a video share it. The output's extension picks\n"
-    "the format: .png renders frame K (default: the last; negative counts from the end); .mp4 renders\n"
-    "frames A to B inclusive (default: all; A:, :B and a single K work too; A:B:S every S-th)\n"
-    "into H.264 with the ffmpeg program, at F frames per second (default: the cache's frame rate).\n"
+    "a ground plane, a colour per agent (--color), and the scene's obstacles (obstacles.ply beside\n"
+    "the cache, which 'flockmorph run' writes) in a light warm grey. The camera frames each frame's\n"
+    "agents and the obstacles near them, smoothed over about a second of frames (--camera).\n"
+    "The output's extension picks the format: .png renders frame K (default: the last; negative\n"
+    "counts from the end); .mp4 renders frames A to B inclusive (default: all; A:, :B and a single\n"
+    "K work too; A:B:S every S-th) into H.264 with the ffmpeg program, at F frames per second\n"
+    "(default: the cache's frame rate).\n"
     "A .png name with one integer conversion (%d, %04d) renders the frames into a numbered PNG\n"
     "sequence, each file named with its cache frame number (out/f.0012.png).\n"
     "\n"
@@ -31,6 +36,12 @@ static const char *const USAGE_RENDER =
     "  --samples N     N x N rays per pixel for smoother edges (1..8, default 1)\n"
     "  --radius R      sphere radius of a point cache's agents (default: from their spacing)\n"
     "  --no-ground     leave out the ground plane\n"
+    "  --camera C      frame (default): fitted to each frame's agents and the obstacles near them,\n"
+    "                  smoothed over about a second of frames; animation: one camera fitted to\n"
+    "                  every agent of every frame\n"
+    "  --obstacles F   draw the triangle mesh F as the obstacles (default: obstacles.ply beside\n"
+    "                  the cache, if it is there)\n"
+    "  --no-obstacles  leave the obstacles out\n"
     "  --color MODE    speed (default): each agent's speed on the viridis map, dark violet (slow)\n"
     "                  to yellow (fast), |velocity| or a tet centroid's motion between frames;\n"
     "                  phase: 0 waiting blue, 1 flying orange, 2 homing purple, 3 arrived green;\n"
@@ -43,14 +54,15 @@ static const char *const USAGE_RENDER =
 /* Options only render has; the shared parser takes CACHE, -o, --frame and --size. */
 typedef struct render_args {
     cli_frame_options o;
-    const char *view, *frames, *fps, *color, *color_range;
+    const char *view, *frames, *fps, *color, *color_range, *camera, *obstacles;
     long samples, threads;
     double radius;
-    int no_ground;
+    int no_ground, no_obstacles;
 } render_args;
 
-static const char *const RENDER_ONLY[] = {"--view",   "--frames", "--fps",   "--samples",
-                                          "--radius", "--threads", "--color", "--color-range"};
+static const char *const RENDER_ONLY[] = {"--view",    "--frames", "--fps",         "--samples",
+                                          "--radius",  "--threads", "--color",      "--color-range",
+                                          "--camera",  "--obstacles"};
 
 static int is_render_only(const char *opt)
 {
@@ -66,6 +78,8 @@ static int set_render_only(render_args *a, const char *opt, const char *val)
     else if (!strcmp(opt, "--fps")) a->fps = val;
     else if (!strcmp(opt, "--color")) a->color = val;
     else if (!strcmp(opt, "--color-range")) a->color_range = val;
+    else if (!strcmp(opt, "--camera")) a->camera = val;
+    else if (!strcmp(opt, "--obstacles")) a->obstacles = val;
     else if (!strcmp(opt, "--samples") && cli_parse_int(val, 1, 8, &a->samples))
         return cli_usage_error(USAGE_RENDER, "--samples wants a whole number in 1..8, not '%s'", val);
     else if (!strcmp(opt, "--threads") && cli_parse_int(val, 1, 1024, &a->threads))
@@ -85,12 +99,17 @@ static int parse_args(int argc, char **argv, render_args *a)
     int n = 0, rc = 0;
     for (int i = 0; i < argc && !rc; i++) {
         if (!strcmp(argv[i], "--no-ground")) a->no_ground = 1;
+        else if (!strcmp(argv[i], "--no-obstacles")) a->no_obstacles = 1;
         else if (is_render_only(argv[i]) && i + 1 < argc) rc = set_render_only(a, argv[i], argv[i + 1]), i++;
         else rest[n++] = argv[i];
     }
     rest[n] = NULL;
     if (!rc) rc = cli_parse_frame_options(n, rest, USAGE_RENDER, 0, &a->o);
     free(rest);
+    if (!rc && a->camera && strcmp(a->camera, "frame") && strcmp(a->camera, "animation"))
+        rc = cli_usage_error(USAGE_RENDER, "--camera is frame or animation, not '%s'", a->camera);
+    if (!rc && a->obstacles && a->no_obstacles)
+        rc = cli_usage_error(USAGE_RENDER, "%s", "--obstacles FILE and --no-obstacles contradict each other: give one");
     return rc;
 }
 
@@ -143,6 +162,7 @@ typedef struct frame_source {
     uint32_t frame; /* the frame data holds */
     cli_colouring colour;
     fm_render_colours colours; /* of that frame (source_load) */
+    cli_camera camera;         /* each frame's bounds (fix_camera) */
 } frame_source;
 
 static int is_point_cache(fm_cache_reader *r)
@@ -165,6 +185,7 @@ static int source_open(const char *path, const cli_colour_options *colour, frame
 
 static void source_close(frame_source *s)
 {
+    cli_camera_free(&s->camera);
     cli_colour_free(&s->colour);
     if (s->r) fm_cache_close(s->r);
     free(s->data);
@@ -201,50 +222,78 @@ static int source_load(frame_source *s, uint32_t frame)
     return rc ? rc : source_read(s, frame);
 }
 
-/* Draws the frame source_load read, coloured as --color says. */
+/* Draws the frame source_load read, coloured as --color says, with that frame's camera. */
 static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
 {
     int rc = refuse_non_finite(s);
     if (rc) return rc;
     fm_error err = {0};
+    if (fm_renderer_set_bounds(rr, cli_camera_bounds(&s->camera, s->frame), &err) != FM_OK) return cli_report(&err);
     fm_status st = s->points ? fm_renderer_draw_points_coloured(rr, s->data, s->n, &s->colours, rgb, &err)
                              : fm_renderer_draw_tets_coloured(rr, s->data, s->n, &s->colours, rgb, &err);
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
-/* Bounds of every finite coordinate of every frame, so all renders of a cache share one camera;
- * *found = 0 when there is none. */
-static int animation_bounds(frame_source *s, double b[6], int *found)
+/* The cameras of every frame (cli_render_camera.c) from every frame's agents, and for points one
+ * sphere radius for all frames. */
+static int fix_camera(frame_source *s, const render_args *a, const cli_triangles *obstacles, fm_render_opts *ro)
 {
-    size_t values = (s->points ? 3 : 12) * s->n;
-    for (int k = 0; k < 3; k++) b[k] = INFINITY, b[3 + k] = -INFINITY;
-    *found = 0;
-    for (uint32_t f = 0; f < fm_cache_frames(s->r); f++) {
-        int rc = source_read(s, f);
-        if (rc) return rc;
-        for (size_t i = 0; i < values; i += 3) {
-            const float *p = s->data + i;
-            if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) continue;
-            for (int k = 0; k < 3; k++) b[k] = fmin(b[k], p[k]), b[3 + k] = fmax(b[3 + k], p[k]);
-            *found = 1;
-        }
+    cli_camera_mode mode = a->camera && !strcmp(a->camera, "animation") ? CLI_CAMERA_ANIMATION : CLI_CAMERA_FRAME;
+    uint32_t frames = fm_cache_frames(s->r);
+    int rc = cli_camera_init(&s->camera, mode, frames, fm_cache_frame_rate(s->r));
+    for (uint32_t f = 0; f < frames && !rc; f++)
+        if (!(rc = source_read(s, f))) cli_camera_add_frame(&s->camera, f, s->data, (s->points ? 1 : 4) * s->n);
+    if (rc || !s->camera.have_animation) return rc;
+    if (s->points && !(ro->point_radius > 0.0)) {
+        if ((rc = source_read(s, frames - 1))) return rc; /* the formed shape */
+        ro->point_radius = fm_render_point_radius(s->data, s->n);
     }
+    cli_camera_finish(&s->camera, s->points ? ro->point_radius : 0.0, obstacles);
     return 0;
 }
 
-/* Fixes the camera (the animation's bounds) and, for points, one sphere radius for all frames. */
-static int fix_camera(frame_source *s, fm_render_opts *ro, double bounds[6])
+/* ---------------------------------------------------------------- obstacles */
+
+/* The mesh at path as the renderer's triangles (floats, unsigned indices). */
+static int load_triangles(const char *path, cli_triangles *t, fm_error *err)
 {
-    int found, rc = animation_bounds(s, bounds, &found);
-    if (rc || !found) return rc;
-    if (s->points && !(ro->point_radius > 0.0)) {
-        if ((rc = source_read(s, fm_cache_frames(s->r) - 1))) return rc; /* the formed shape */
-        ro->point_radius = fm_render_point_radius(s->data, s->n);
-    }
-    double pad = s->points ? ro->point_radius : 0.0;
-    for (int k = 0; k < 3; k++) bounds[k] -= pad, bounds[3 + k] += pad;
-    ro->bounds = bounds;
-    return 0;
+    fm_mesh m = {0};
+    if (fm_mesh_load(path, &m, err) != FM_OK) return 1;
+    t->verts = malloc(3 * sizeof(float) * (size_t)m.nv);
+    t->tris = malloc(3 * sizeof(uint32_t) * (size_t)m.nt);
+    int ok = t->verts && t->tris;
+    for (int64_t i = 0; ok && i < 3 * m.nv; i++) t->verts[i] = (float)m.v[i];
+    for (int64_t i = 0; ok && i < 3 * m.nt; i++) t->tris[i] = (uint32_t)m.tri[i];
+    t->nv = (size_t)m.nv, t->nt = (size_t)m.nt;
+    fm_mesh_free(&m);
+    if (!ok) fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the obstacles", path);
+    return !ok;
+}
+
+/* The obstacles to draw: --obstacles FILE, or else obstacles.ply beside the cache when it is
+ * there (a cache without one draws none, silently); none with --no-obstacles. A file that cannot
+ * be read is an input error naming it (exit 2). */
+static int load_obstacles(const render_args *a, cli_triangles *t)
+{
+    memset(t, 0, sizeof *t);
+    if (a->no_obstacles) return 0;
+    char beside[FM_PATH_MAX + 32];
+    const char *slash = strrchr(a->o.cache, '/');
+    snprintf(beside, sizeof beside, "%.*s" FM_OUTPUT_OBSTACLES, slash ? (int)(slash - a->o.cache + 1) : 0, a->o.cache);
+    struct stat st;
+    const char *path = a->obstacles ? a->obstacles : beside;
+    if (!a->obstacles && stat(beside, &st) != 0) return 0;
+    fm_error err = {0};
+    if (!load_triangles(path, t, &err)) return 0;
+    fprintf(stderr, "flockmorph: error: %s: %s%s\n", a->obstacles ? "--obstacles" : "the obstacles beside the cache",
+            err.message, a->obstacles ? "" : " (--no-obstacles leaves them out)");
+    return err.status ? (int)err.status : FM_ERR_INPUT;
+}
+
+static void free_triangles(cli_triangles *t)
+{
+    free(t->verts);
+    free(t->tris);
 }
 
 /* ---------------------------------------------------------------- PNG and MP4 */
@@ -375,18 +424,22 @@ int cli_render(int argc, char **argv)
     if (rc) return rc;
 
     frame_source s = {0};
-    double bounds[6];
+    cli_triangles obstacles = {0};
     fm_error err = {0};
     fm_renderer *rr = NULL;
     unsigned char *rgb = malloc(3 * (size_t)ro.width * (size_t)ro.height);
     if (!rgb) rc = (fprintf(stderr, "flockmorph: error: out of memory for the image\n"), FM_ERR_MEMORY);
     if (!rc) rc = source_open(a.o.cache, &colour, &s);
-    if (!rc) rc = fix_camera(&s, &ro, bounds);
+    if (!rc) rc = load_obstacles(&a, &obstacles);
+    if (!rc) rc = fix_camera(&s, &a, &obstacles, &ro);
     if (!rc && !(rr = fm_renderer_create(&ro, &err))) rc = cli_report(&err);
+    if (!rc && fm_renderer_set_obstacles(rr, obstacles.verts, obstacles.nv, obstacles.tris, obstacles.nt, &err) != FM_OK)
+        rc = cli_report(&err);
     if (!rc) rc = fmt == OUT_PNG ? render_png(&s, rr, &a, rgb)
                   : fmt == OUT_MP4 ? render_mp4(&s, rr, &a, rgb) : render_png_sequence(&s, rr, &a, rgb);
     fm_renderer_destroy(rr);
     source_close(&s);
+    free_triangles(&obstacles);
     free(rgb);
     return rc;
 }

@@ -2,6 +2,9 @@
  * what differs is in each mode's cli_mode (cli_mode_morph.c, cli_mode_flock.c). */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "export.h"
+#include "geom.h"
+#include "obstacles.h"
 
 #include <jansson.h>
 
@@ -21,7 +24,8 @@ static const char *const USAGE_RUN =
     "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
     "(\"mode\": \"shape_flock\", docs/shape-flock.md) samples the surfaces and simulates until every\n"
     "agent is bound; both stop at the scene's frame limit. Writes OUTDIR/<output.cache> (default\n"
-    "frames.fmc, docs/cache-format.md) and OUTDIR/stats.json. OUTDIR is created if needed.\n"
+    "frames.fmc, docs/cache-format.md) and OUTDIR/stats.json, and with obstacles their placed\n"
+    "meshes in OUTDIR/obstacles.ply (render draws them). OUTDIR is created if needed.\n"
     "\n"
     "  -o, --output DIR      output directory (required)\n"
     "  --threads N           worker threads (default: all cores); results do not depend on N\n"
@@ -182,6 +186,31 @@ static int rank_exit_status(fm_status st)
     return (int)st;
 }
 
+/* OUTDIR/obstacles.ply: the scene's obstacle meshes placed in the world, loaded as the modes load
+ * them (fm_obstacle_mesh_load), so that `render` can draw them and Blender or Houdini import them
+ * beside the cache. Nothing is written for a scene without obstacles. */
+static int write_obstacles(const fm_scene_def *def, const char *path)
+{
+    if (def->obstacle_count == 0) return 0;
+    fm_error err = {0};
+    fm_mesh meshes[FM_MAX_OBSTACLES];
+    fm_ply_mesh views[FM_MAX_OBSTACLES];
+    char names[FM_MAX_OBSTACLES][FM_PATH_MAX + 32];
+    fm_status st = FM_OK;
+    int loaded = 0;
+    for (; loaded < def->obstacle_count && st == FM_OK; loaded++) {
+        st = fm_obstacle_mesh_load(def, loaded, NULL, NULL, &meshes[loaded], &err);
+        snprintf(names[loaded], sizeof names[loaded], "obstacles.meshes[%d] %s", loaded, def->obstacles[loaded].path);
+        for (char *c = names[loaded]; *c; c++)
+            if ((unsigned char)*c < 0x20) *c = '?'; /* the name is a line of the PLY header */
+        views[loaded] = (fm_ply_mesh){names[loaded], meshes[loaded].v, meshes[loaded].nv, meshes[loaded].tri,
+                                      meshes[loaded].nt};
+    }
+    if (st == FM_OK) st = fm_export_ply_meshes(views, def->obstacle_count, path, &err);
+    for (int i = 0; i < loaded; i++) fm_mesh_free(&meshes[i]);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
 /* The run after the model build: the cache (new, or the interrupted run's), the simulation with
  * checkpoints and the stop signals, then the finished cache, stats.json and the summary; the
  * checkpoint of a complete run is removed. */
@@ -216,12 +245,14 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     }
     const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
                                    t->simulate_seconds, t->output_seconds, files.threads, files.cache, o};
+    if ((rc = write_obstacles(def, files.obstacles))) return rc;
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
     cli_remove_checkpoint(&files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s", (long long)agents, (long long)record.frames,
            (long long)record.steps, cli_agent_steps_per_second(&record));
     mode->summary(run, def);
     printf("cache: %s\nstats: %s\n", files.cache, files.stats);
+    if (def->obstacle_count > 0) printf("obstacles: %s\n", files.obstacles);
     return 0;
 }
 
@@ -266,12 +297,12 @@ static int check_ranks(const fm_scene_def *def)
 /* The output directory, taken (by rank 0 on P ranks), and the manifest's first version. */
 static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
-    const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST};
+    const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST, FM_OUTPUT_OBSTACLES};
     if (def->group_count > 0 && (o->resume || o->checkpoint_every >= 0))
         return cli_usage_error(USAGE_RUN, "a scene with groups keeps no checkpoint in this version: leave out %s",
                                o->resume ? "--resume" : "--checkpoint-every");
     int rc = cli_check_json_path("-o", o->outdir);
-    if (!rc) rc = cli_make_outdir(o->outdir, outputs, 3);
+    if (!rc) rc = cli_make_outdir(o->outdir, outputs, 4);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
     if (!rc && o->resume) rc = cli_check_checkpoint(o, def); /* before the long preprocessing */
     if (!rc) rc = cli_write_manifest(o, ov, def, -1);

@@ -10,7 +10,7 @@ extern "C" {
 #endif
 
 /* The preview renderer (docs/render.md): Embree ray casting of tets (4 triangles each) or points
- * (spheres), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
+ * (spheres) and of obstacle triangles (fm_renderer_set_obstacles), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
  * a colour per agent (by default from a gradient over agent index; fm_render_colours), sRGB output. Every pixel is computed by one
  * thread from fixed rays, so the image does not depend on the thread count. */
 typedef struct fm_render_opts {
@@ -47,6 +47,22 @@ typedef struct fm_renderer fm_renderer;
 
 fm_renderer *fm_renderer_create(const fm_render_opts *opts, fm_error *err);
 void fm_renderer_destroy(fm_renderer *r);
+
+/* Changes the bounds the camera and the ground are fitted to (as fm_render_opts.bounds; NULL: each
+ * frame's own), e.g. for each frame of a video whose camera follows the flock. Bounds that are
+ * not finite or not ordered are a usage error and leave the renderer as it was. */
+fm_status fm_renderer_set_bounds(fm_renderer *r, const double *bounds, fm_error *err);
+
+/* Static triangles drawn with every frame after this call: the scene's obstacles, in world space
+ * (`flockmorph run` writes them to OUTDIR/obstacles.ply). verts: nv x 3 floats; tris: nt x 3
+ * vertex indices. They are drawn in a light warm grey that no agent colour takes, Lambert shaded,
+ * casting shadows on the agents and the ground and receiving theirs. They do not move the camera:
+ * it is fitted to the bounds (fm_render_opts.bounds, or without them to the frame's agents, or
+ * to the obstacles when no agent is drawn); the ground's rectangle reaches under them. The renderer
+ * keeps its own copy; nt = 0 removes them.
+ * A vertex that is not finite or an index >= nv is a usage error (the obstacles are unchanged). */
+fm_status fm_renderer_set_obstacles(fm_renderer *r, const float *verts, size_t nv,
+                                    const uint32_t *tris, size_t nt, fm_error *err);
 
 /* Render tets (n x 12 floats) or points (n x 3 floats) into rgb: width x height x 3 bytes, rows top
  * to bottom, sRGB. Agent i (its index) gets colour i / (n - 1) of the gradient. Tets or points

@@ -18,6 +18,7 @@ extern "C" {
 #define FM_OUTPUT_CHECKPOINT "checkpoint.fmck"
 #define FM_OUTPUT_LOCK ".flockmorph.lock"
 #define FM_OUTPUT_MANIFEST "wedge.json" /* what ran, with which overrides (docs/wedges.md) */
+#define FM_OUTPUT_OBSTACLES "obstacles.ply" /* the placed obstacle meshes, when the scene has any */
 
 typedef enum fm_curve { FM_CURVE_POLYLINE = 0, FM_CURVE_CATMULL_ROM = 1 } fm_curve;
 

@@ -214,6 +214,56 @@ static int ply_points_body(FILE *f, const void *data)
     return fm_le_write(f, ply_points_data, frame);
 }
 
+/* Triangle meshes (a run's placed obstacles): one vertex and one face element for all of them, each
+ * mesh's indices offset by the vertices of the meshes before it; a comment per mesh says which
+ * vertices and faces are its. */
+typedef struct ply_meshes {
+    const fm_ply_mesh *m;
+    int count;
+} ply_meshes;
+
+static void ply_meshes_data(fm_le_writer *w, const void *data)
+{
+    const ply_meshes *pm = data;
+    for (int i = 0; i < pm->count; i++)
+        for (int64_t j = 0; j < 3 * pm->m[i].nv; j++) fm_le_f32(w, (float)pm->m[i].v[j]);
+    int64_t base = 0;
+    for (int i = 0; i < pm->count; base += pm->m[i].nv, i++)
+        for (int64_t t = 0; t < pm->m[i].nt; t++) {
+            fm_le_u8(w, 3);
+            for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(base + pm->m[i].tri[3 * t + k]));
+        }
+}
+
+static int ply_meshes_body(FILE *f, const void *data)
+{
+    const ply_meshes *pm = data;
+    int64_t nv = 0, nt = 0;
+    for (int i = 0; i < pm->count; i++) nv += pm->m[i].nv, nt += pm->m[i].nt;
+    if (fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment flockmorph %s: %d meshes\n",
+                FM_VERSION_STRING, pm->count) < 0)
+        return -1;
+    int64_t v0 = 0, t0 = 0;
+    for (int i = 0; i < pm->count; v0 += pm->m[i].nv, t0 += pm->m[i].nt, i++)
+        if (fprintf(f, "comment %s: vertices %lld..%lld, faces %lld..%lld\n", pm->m[i].name, (long long)v0,
+                    (long long)(v0 + pm->m[i].nv - 1), (long long)t0, (long long)(t0 + pm->m[i].nt - 1)) < 0)
+            return -1;
+    if (fprintf(f, "element vertex %lld\nproperty float x\nproperty float y\nproperty float z\n"
+                "element face %lld\nproperty list uchar int vertex_indices\nend_header\n", (long long)nv,
+                (long long)nt) < 0)
+        return -1;
+    return fm_le_write(f, ply_meshes_data, pm);
+}
+
+fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err)
+{
+    int64_t nv = 0;
+    for (int i = 0; i < count; i++) nv += meshes[i].nv;
+    if (nv > INT32_MAX) return fm_fail(err, FM_ERR_INPUT, "'%s': %lld vertices do not fit PLY's int indices", path, (long long)nv);
+    const ply_meshes pm = {meshes, count};
+    return fm_export_with_body(path, ply_meshes_body, &pm, err);
+}
+
 /* ---------------------------------------------------------------- OBJ */
 
 /* %.9g gives every float back bit for bit. */

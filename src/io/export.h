@@ -44,6 +44,23 @@ typedef int (*fm_body_fn)(FILE *f, const void *data);
 /* Opens path.partial, runs body, commits or discards: the one place write errors become messages. */
 fm_status fm_export_with_body(const char *path, fm_body_fn body, const void *data, fm_error *err);
 
+/* One triangle mesh of fm_export_ply_meshes: nv vertices (3 doubles each) and nt triangles (3
+ * 0-based indices into its own vertices); name (a line of text) goes into a header comment. */
+typedef struct fm_ply_mesh {
+    const char *name;
+    const double *v;
+    int64_t nv;
+    const int32_t *tri;
+    int64_t nt;
+} fm_ply_mesh;
+
+/* Writes the meshes as one binary little-endian PLY through PATH.partial and rename(): float x y z
+ * per vertex and a uchar-counted int list per face, each mesh's indices offset by the vertices of
+ * those before it, and a comment per mesh naming its vertex and face ranges. It is how `flockmorph
+ * run` writes the placed obstacles (OUTDIR/obstacles.ply), which Blender and Houdini import with the
+ * cache's axes. */
+fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
+
 /* Component c (0 x, 1 y, 2 z, 3 w) of the quaternion q stored as the cache stores it, w, x, y, z:
  * Houdini's orient (PLY, VTK) is x, y, z, w. */
 static inline float fm_orient_xyzw(const float *q, int c) { return q[(c + 1) % 4]; }

@@ -1,5 +1,5 @@
 /* The preview renderer: Embree 3 ray casting of a frame's tets (4 triangles each) or points
- * (spheres), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
+ * (spheres) and of static obstacle triangles (fm_renderer_set_obstacles), Lambert shading with one key light and hard shadows, a ground plane under the bounds,
  * a colour per agent (render_colour.c: by index, by value or given), sRGB output. docs/render.md
  * describes it.
  *
@@ -32,6 +32,9 @@
 /* Colours in sRGB (converted to linear light once). */
 static const double fm_background_srgb[3] = {0.118, 0.129, 0.157};
 static const double fm_ground_srgb[3] = {0.62, 0.62, 0.64};
+/* Obstacles: a light warm grey, lighter and warmer than the ground and the grey of unknown values,
+ * and far from every agent colour (the index gradient, viridis, the phase palette). */
+static const double fm_obstacle_srgb[3] = {0.84, 0.80, 0.74};
 static const double fm_ambient = 0.28; /* linear light that reaches surfaces in shadow */
 static const double fm_key = 0.85;     /* the key light's strength */
 
@@ -170,14 +173,23 @@ static fm_status check_opts(const fm_render_opts *o, fm_error *err)
 
 /* ---------------------------------------------------------------- the renderer */
 
+/* Static triangles drawn with every frame (fm_renderer_set_obstacles): the renderer's own copy. */
+typedef struct obstacle_mesh {
+    float *verts;      /* nv x 3 */
+    uint32_t *tris;    /* nt x 3 */
+    size_t nv, nt;
+    double lo[3], hi[3];
+} obstacle_mesh;
+
 struct fm_renderer {
     fm_render_opts o;      /* o.bounds points at bounds below (or is NULL) */
     double bounds[6];
     RTCDevice device;
     char embree_error[256];
     float srgb_edge[256];
-    float background[3], ground_albedo[3]; /* linear */
+    float background[3], ground_albedo[3], obstacle_albedo[3]; /* linear */
     fm_colour_tables colours;
+    obstacle_mesh obstacles;
 };
 
 static void on_embree_error(void *user, enum RTCError code, const char *str)
@@ -213,6 +225,7 @@ static fm_status renderer_create(const fm_render_opts *opts, fm_renderer **out, 
     srgb_edges(r->srgb_edge);
     linear_colour(fm_background_srgb, r->background);
     linear_colour(fm_ground_srgb, r->ground_albedo);
+    linear_colour(fm_obstacle_srgb, r->obstacle_albedo);
     fm_colour_tables_init(&r->colours);
     *out = r;
     return FM_OK;
@@ -225,11 +238,75 @@ fm_renderer *fm_renderer_create(const fm_render_opts *opts, fm_error *err)
     return r;
 }
 
+static void obstacles_free(obstacle_mesh *m)
+{
+    free(m->verts);
+    free(m->tris);
+    memset(m, 0, sizeof *m);
+}
+
 void fm_renderer_destroy(fm_renderer *r)
 {
     if (!r) return;
+    obstacles_free(&r->obstacles);
     rtcReleaseDevice(r->device);
     free(r);
+}
+
+fm_status fm_renderer_set_bounds(fm_renderer *r, const double *bounds, fm_error *err)
+{
+    if (!r) return fm_fail(err, FM_ERR_USAGE, "render: no renderer given");
+    fm_render_opts o = r->o;
+    o.bounds = bounds;
+    fm_status st = check_opts(&o, err);
+    if (st != FM_OK) return st;
+    if (bounds) memcpy(r->bounds, bounds, sizeof r->bounds);
+    r->o.bounds = bounds ? r->bounds : NULL;
+    return FM_OK;
+}
+
+/* Every vertex finite (and within Embree's reach), every corner a vertex. */
+static fm_status check_obstacles(const float *verts, size_t nv, const uint32_t *tris, size_t nt,
+                                 fm_error *err)
+{
+    if (nt > 0 && (!verts || !tris))
+        return fm_fail(err, FM_ERR_USAGE, "render: obstacles without vertices or triangles");
+    if (nv > UINT32_MAX || nt > UINT32_MAX)
+        return fm_fail(err, FM_ERR_USAGE, "render: %zu obstacle vertices and %zu triangles are more "
+                       "than Embree can hold", nv, nt);
+    for (size_t i = 0; i < nv; i++)
+        if (!fm_render_coords_ok(verts + 3 * i, 3))
+            return fm_fail(err, FM_ERR_USAGE, "render: obstacle vertex %zu is not finite", i);
+    for (size_t i = 0; i < 3 * nt; i++)
+        if (tris[i] >= nv)
+            return fm_fail(err, FM_ERR_USAGE, "render: obstacle triangle %zu names vertex %u of %zu",
+                           i / 3, (unsigned)tris[i], nv);
+    return FM_OK;
+}
+
+fm_status fm_renderer_set_obstacles(fm_renderer *r, const float *verts, size_t nv,
+                                    const uint32_t *tris, size_t nt, fm_error *err)
+{
+    if (!r) return fm_fail(err, FM_ERR_USAGE, "render: no renderer given");
+    fm_status st = check_obstacles(verts, nv, tris, nt, err);
+    if (st != FM_OK) return st;
+    obstacles_free(&r->obstacles);
+    if (nt == 0) return FM_OK;
+    obstacle_mesh *m = &r->obstacles;
+    m->verts = malloc(3 * sizeof(float) * (nv ? nv : 1));
+    m->tris = malloc(3 * sizeof(uint32_t) * nt);
+    if (!m->verts || !m->tris) {
+        obstacles_free(m);
+        return fm_fail(err, FM_ERR_MEMORY, "render: out of memory for %zu obstacle triangles", nt);
+    }
+    memcpy(m->verts, verts, 3 * sizeof(float) * nv);
+    memcpy(m->tris, tris, 3 * sizeof(uint32_t) * nt);
+    m->nv = nv, m->nt = nt;
+    for (int k = 0; k < 3; k++) m->lo[k] = INFINITY, m->hi[k] = -INFINITY;
+    for (size_t i = 0; i < nv; i++)
+        for (int k = 0; k < 3; k++)
+            m->lo[k] = fmin(m->lo[k], verts[3 * i + k]), m->hi[k] = fmax(m->hi[k], verts[3 * i + k]);
+    return FM_OK;
 }
 
 /* ---------------------------------------------------------------- camera, ground and light */
@@ -327,11 +404,26 @@ static void perpendicular(const double w[3], const double hint[3], double out[3]
     normalize3(out);
 }
 
+/* Widens the ground's rectangle to reach under the obstacles' box, so that an obstacle the camera
+ * sees beside the framed box stands on the ground rather than beyond its edge. */
+static void ground_under_obstacles(const obstacle_mesh *ob, view *v)
+{
+    if (!ob->nt) return;
+    for (int i = 0; i < 8; i++) {
+        double p[3];
+        box_corner(ob->lo, ob->hi, i, p);
+        double a = dot3(p, v->g1), b = dot3(p, v->g2);
+        v->lo1 = fmin(v->lo1, a), v->hi1 = fmax(v->hi1, a);
+        v->lo2 = fmin(v->lo2, b), v->hi2 = fmax(v->hi2, b);
+    }
+}
+
 /* The ground: a rectangle just under the box, wider than it by 0.3 x its largest extent on each
- * side. The key light: opts' light_dir, or else high above (about 60 degrees), from the left and
- * a little from the camera's side, so shadows fall to the right and away from the camera. */
+ * side and reaching under the obstacles. The key light: opts' light_dir, or else high above (about
+ * 60 degrees), from the left and a little from the camera's side, so shadows fall to the right and
+ * away from the camera. */
 static void view_ground_and_light(const fm_render_opts *o, const double lo[3], const double hi[3],
-                                  view *v)
+                                  const obstacle_mesh *ob, view *v)
 {
     memcpy(v->w, o->world_up, sizeof v->w);
     normalize3(v->w);
@@ -350,6 +442,7 @@ static void view_ground_and_light(const fm_render_opts *o, const double lo[3], c
     double extent = fmax(fmax(v->hi1 - v->lo1, v->hi2 - v->lo2), hmax - hmin);
     double pad = extent > 0.0 ? 0.3 * extent : 1.0;
     v->lo1 -= pad, v->hi1 += pad, v->lo2 -= pad, v->hi2 += pad;
+    ground_under_obstacles(ob, v);
     /* A hair under the lowest point, so faces resting on the bounds' floor never tie with it. */
     v->level = hmin - 1e-3 * pad;
     v->ground = o->ground;
@@ -385,6 +478,7 @@ static void camera_ray(const view *v, double x, double y, float org[3], float di
 
 typedef struct frame_scene {
     RTCScene scene;    /* NULL when nothing finite is drawn */
+    unsigned obstacle_geom; /* the obstacles' geometry ID in scene, RTC_INVALID_GEOMETRY_ID if none */
     uint32_t *agent;   /* agent of each kept tet or point */
     float *colour;     /* n x 3: each agent's colour, linear */
     size_t n;          /* agents in the frame */
@@ -429,18 +523,44 @@ static fm_status embree_status(fm_renderer *r, fm_error *err)
     return st;
 }
 
-/* Commits g as the scene's only geometry (and releases the caller's reference). */
+/* The obstacles as a triangle geometry, copied into Embree's buffers (a few thousand triangles
+ * per frame: cheaper than keeping Embree's padding rules for shared buffers); NULL on failure. */
+static RTCGeometry obstacle_geometry(fm_renderer *r)
+{
+    const obstacle_mesh *m = &r->obstacles;
+    RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!g) return NULL;
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                        3 * sizeof(float), m->nv);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                           3 * sizeof(unsigned), m->nt);
+    if (!vb || !ib) return rtcReleaseGeometry(g), NULL;
+    memcpy(vb, m->verts, 3 * sizeof(float) * m->nv);
+    memcpy(ib, m->tris, 3 * sizeof(unsigned) * m->nt);
+    return g;
+}
+
+/* Commits g (the agents, or NULL when none is finite) and the obstacles as the frame's scene,
+ * and releases the caller's reference to g. sc->scene stays NULL when there is neither. */
 static fm_status commit_scene(fm_renderer *r, RTCGeometry g, frame_scene *sc, fm_error *err)
 {
-    sc->scene = rtcNewScene(r->device);
+    sc->obstacle_geom = RTC_INVALID_GEOMETRY_ID;
+    RTCGeometry obstacles = r->obstacles.nt ? obstacle_geometry(r) : NULL;
+    if (r->obstacles.nt && !obstacles) {
+        if (g) rtcReleaseGeometry(g);
+        fm_status st = embree_status(r, err);
+        return st != FM_OK ? st : fm_fail(err, FM_ERR_MEMORY, "render: out of memory for the obstacles");
+    }
+    if (g || obstacles) sc->scene = rtcNewScene(r->device);
     if (sc->scene) {
         /* Watertight traversal: rays do not slip through the shared edges of neighbouring faces. */
         rtcSetSceneFlags(sc->scene, RTC_SCENE_FLAG_ROBUST);
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(sc->scene, g);
+        if (g) rtcCommitGeometry(g), rtcAttachGeometry(sc->scene, g);
+        if (obstacles) rtcCommitGeometry(obstacles), sc->obstacle_geom = rtcAttachGeometry(sc->scene, obstacles);
         rtcCommitScene(sc->scene);
     }
-    rtcReleaseGeometry(g);
+    if (g) rtcReleaseGeometry(g);
+    if (obstacles) rtcReleaseGeometry(obstacles);
     return embree_status(r, err);
 }
 
@@ -449,6 +569,7 @@ static fm_status start_scene(const fm_renderer *r, size_t n, int tets, const fm_
                              frame_scene *sc, fm_error *err)
 {
     memset(sc, 0, sizeof *sc);
+    sc->obstacle_geom = RTC_INVALID_GEOMETRY_ID; /* 0 is a valid ID */
     sc->n = n, sc->tets = tets;
     for (int k = 0; k < 3; k++) sc->lo[k] = INFINITY, sc->hi[k] = -INFINITY;
     if ((uint64_t)n * 4 > UINT32_MAX)
@@ -468,7 +589,7 @@ static fm_status build_tets(fm_renderer *r, const float *verts, size_t n,
     fm_status st = start_scene(r, n, 1, c, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(verts, n, 12, sc);
-    if (kept == 0) return FM_OK;
+    if (kept == 0) return commit_scene(r, NULL, sc, err);
     RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     if (!g) return embree_status(r, err);
     float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
@@ -495,7 +616,7 @@ static fm_status build_points(fm_renderer *r, const float *pos, size_t n,
     fm_status st = start_scene(r, n, 0, c, sc, err);
     if (st != FM_OK) return st;
     size_t kept = keep_finite(pos, n, 3, sc);
-    if (kept == 0) return FM_OK;
+    if (kept == 0) return commit_scene(r, NULL, sc, err);
     float radius = (float)(r->o.point_radius > 0.0 ? r->o.point_radius
                                                    : fm_render_point_radius(pos, n));
     RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
@@ -540,6 +661,7 @@ static int trace(const fm_renderer *r, const view *v, const frame_scene *sc, con
 {
     double t_obj = INFINITY, n[3] = {0, 0, 0};
     uint32_t agent = 0;
+    int obstacle = 0;
     if (sc->scene) {
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
@@ -553,14 +675,16 @@ static int trace(const fm_renderer *r, const view *v, const frame_scene *sc, con
         if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
             t_obj = rh.ray.tfar;
             n[0] = rh.hit.Ng_x, n[1] = rh.hit.Ng_y, n[2] = rh.hit.Ng_z;
-            agent = sc->agent[sc->tets ? rh.hit.primID / 4 : rh.hit.primID];
+            obstacle = rh.hit.geomID == sc->obstacle_geom;
+            if (!obstacle) agent = sc->agent[sc->tets ? rh.hit.primID / 4 : rh.hit.primID];
         }
     }
     double o[3] = {org[0], org[1], org[2]}, d[3] = {dir[0], dir[1], dir[2]};
     double t_gnd = ground_hit(v, o, d);
     if (t_obj == INFINITY && t_gnd == INFINITY) return 0;
     if (t_obj <= t_gnd) {
-        memcpy(hit->albedo, sc->colour + 3 * (size_t)agent, sizeof hit->albedo);
+        memcpy(hit->albedo, obstacle ? r->obstacle_albedo : sc->colour + 3 * (size_t)agent,
+               sizeof hit->albedo);
     } else {
         memcpy(n, v->w, sizeof n);
         memcpy(hit->albedo, r->ground_albedo, sizeof hit->albedo);
@@ -638,6 +762,8 @@ static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_er
         memcpy(lo, o->bounds, sizeof lo), memcpy(hi, o->bounds + 3, sizeof hi);
     } else if (sc->have_bounds) {
         memcpy(lo, sc->lo, sizeof lo), memcpy(hi, sc->hi, sizeof hi);
+    } else if (r->obstacles.nt) { /* no agents: the obstacles alone */
+        memcpy(lo, r->obstacles.lo, sizeof lo), memcpy(hi, r->obstacles.hi, sizeof hi);
     } else { /* nothing to fit: an empty picture */
         fill_background(r, rgb);
         frame_scene_free(sc);
@@ -645,7 +771,7 @@ static fm_status draw(fm_renderer *r, frame_scene *sc, unsigned char *rgb, fm_er
     }
     view v;
     view_camera(o, lo, hi, &v);
-    view_ground_and_light(o, lo, hi, &v);
+    view_ground_and_light(o, lo, hi, &r->obstacles, &v);
     int threads = fm_threads(o->threads);
     const fm_renderer *cr = r;
 #pragma omp parallel for schedule(dynamic, 2) num_threads(threads)

@@ -486,7 +486,8 @@ static fm_status read_mesh_path(const where *w, const param *p, const json_t *v,
  * named like one of them would overwrite it or be overwritten. */
 static const char *cache_name_problem(const char *name)
 {
-    static const char *const taken[] = {FM_OUTPUT_STATS, FM_OUTPUT_CHECKPOINT, FM_OUTPUT_LOCK, FM_OUTPUT_MANIFEST};
+    static const char *const taken[] = {FM_OUTPUT_STATS, FM_OUTPUT_CHECKPOINT, FM_OUTPUT_LOCK, FM_OUTPUT_MANIFEST,
+                                         FM_OUTPUT_OBSTACLES};
     size_t len = strlen(name), suffix = strlen(".partial");
     if (!name[0] || strchr(name, '/') || len >= 256 || !strcmp(name, ".") || !strcmp(name, ".."))
         return "is not a plain file name (no '/', at most 255 bytes)";

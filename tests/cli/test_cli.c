@@ -5,6 +5,7 @@
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
 #include "test_cli_helpers.h"
+#include "geom.h"
 
 #include <jansson.h>
 #include <math.h>
@@ -340,6 +341,51 @@ static void test_shot_run(void)
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
     ENSURE_EXIT(args, 1);
     ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
+}
+
+static int file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+/* A scene with an obstacle writes OUTDIR/obstacles.ply, which reads back as the obstacle placed in
+ * the world (the octahedron scaled by 2, turned 45 degrees about z, moved to y = 3); a run of a
+ * scene without obstacles into the same directory removes it, so render does not draw a stale one;
+ * and the cache may not take its name. */
+static void test_run_writes_obstacles(void)
+{
+    char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], ply[FM_PATH_MAX + 32], partial[FM_PATH_MAX + 48], args[3 * FM_PATH_MAX];
+    write_scene(tmp_path(scene, "obstacle.json"), ",\n  \"time\": {\"frame_limit\": 3},\n"
+                "  \"obstacles\": {\"meshes\": [{\"mesh\": \"cli_octahedron.obj\", \"translate\": [0, 3, 0], "
+                "\"scale\": 2, \"rotate_deg\": [0, 0, 45]}], \"k_a\": 1.0}");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene, tmp_path(outdir, "obstacle_out"));
+    snprintf(ply, sizeof ply, "%s/obstacles.ply", outdir);
+    snprintf(partial, sizeof partial, "%s.partial", ply);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(strstr(g_out, "obstacles: ") && strstr(g_out, ply), "%s", g_out);
+    ENSURE(!file_exists(partial));
+    fm_mesh m = {0};
+    fm_error err = {0};
+    ENSURE_MSG(fm_mesh_load(ply, &m, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(m.nv == 6 && m.nt == 8, "%lld vertices, %lld triangles", (long long)m.nv, (long long)m.nt);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int64_t i = 0; i < m.nv; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], m.v[3 * i + k]), hi[k] = fmax(hi[k], m.v[3 * i + k]);
+    const double r = sqrt(2.0), want_lo[3] = {-r, 3 - r, -2}, want_hi[3] = {r, 3 + r, 2};
+    for (int k = 0; k < 3; k++) {
+        ENSURE_NEAR(lo[k], want_lo[k], 1e-5);
+        ENSURE_NEAR(hi[k], want_hi[k], 1e-5);
+    }
+    ENSURE(fm_mesh_check_closed(&m, ply, &err) == FM_OK);
+    fm_mesh_free(&m);
+
+    write_scene(scene, ",\n  \"time\": {\"frame_limit\": 3}");
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(!file_exists(ply), "%s of the scene before is still there", ply);
+    write_scene(scene, ",\n  \"output\": {\"cache\": \"obstacles.ply\"}");
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "'obstacles.ply' is the name of another file the run writes"), "%s", g_err);
 }
 
 static void test_run_stops_at_frame_limit(void)
@@ -741,6 +787,7 @@ int main(void)
     RUN_TEST(test_successful_run);
     RUN_TEST(test_huge_omp_num_threads);
     RUN_TEST(test_run_stops_at_frame_limit);
+    RUN_TEST(test_run_writes_obstacles);
     RUN_TEST(test_stats_provenance);
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);

@@ -1,9 +1,12 @@
 /* The preview renderer (src/preview/render.c) and its video writer (src/preview/video.c): render small scenes
  * whose projection is known and check where the pixels land, that a tet shadows the ground, that
- * the bytes do not depend on the thread count, that points become spheres; then `flockmorph render`
- * to MP4 through ffmpeg, counted back with ffprobe, and its errors. */
+ * the bytes do not depend on the thread count, that points become spheres, that obstacles are drawn
+ * and cast and take shadows; then `flockmorph render` to MP4 through ffmpeg, counted back with
+ * ffprobe, and its errors; and the shot (issue 14): the camera that follows the flock, the old
+ * camera under --camera animation, and the obstacles beside the cache. */
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
+#include "export.h"
 #include "test_macros.h"
 
 #include <png.h>
@@ -425,6 +428,106 @@ static void test_shadow_on_ground(void)
     free(bare.rgb);
 }
 
+/* ---------------------------------------------------------------- obstacles */
+
+/* The obstacle colour, light warm grey, shaded: red over green over blue, but by little (every
+ * agent colour that has red > green > blue, amber and coral, has far more red than blue), which
+ * neither the bluish ground and background nor the neutral grey of unknown values have. */
+static int is_obstacle_colour(const unsigned char *p)
+{
+    return p[0] > p[1] && p[1] > p[2] && p[0] - p[2] <= p[0] / 4 + 2;
+}
+
+static long obstacle_pixels(const rgb_image *im)
+{
+    long n = 0;
+    for (int y = 0; y < im->height; y++)
+        for (int x = 0; x < im->width; x++) n += is_obstacle_colour(pixel(im, x, y));
+    return n;
+}
+
+/* The plate |x|, |y| <= 0.3 at z = 0.5, two triangles. */
+static const float plate_verts[] = {-0.3f, -0.3f, 0.5f, 0.3f, -0.3f, 0.5f, 0.3f, 0.3f, 0.5f, -0.3f, 0.3f, 0.5f};
+static const uint32_t plate_tris[] = {0, 1, 2, 0, 2, 3};
+
+/* Renders tets with the plate as the obstacles (plate = 0: without). */
+static rgb_image render_with_plate(const float *tets, size_t n, int plate, const fm_render_opts *o)
+{
+    rgb_image im = {o->width, o->height, malloc(3 * (size_t)o->width * (size_t)o->height)};
+    fm_error err = {0};
+    fm_renderer *r = fm_renderer_create(o, &err);
+    fm_status st = r && im.rgb ? FM_OK : FM_ERR_INTERNAL;
+    if (st == FM_OK && plate) st = fm_renderer_set_obstacles(r, plate_verts, 4, plate_tris, 2, &err);
+    if (st == FM_OK) st = fm_renderer_draw_tets(r, tets, n, im.rgb, &err);
+    ENSURE_MSG(st == FM_OK, "status %d: %s", (int)st, err.message);
+    fm_renderer_destroy(r);
+    if (st != FM_OK) free(im.rgb), im.rgb = NULL;
+    return im;
+}
+
+/* The view of test_shadow_on_ground with the light straight above: the plate is drawn in the
+ * obstacle colour, its shadow darkens the ground under it, and a tet above it shadows the plate. */
+static void test_obstacles_drawn_with_shadows(void)
+{
+    fm_render_opts o = fm_default_render_opts();
+    o.perspective = 0;
+    o.view_dir[0] = 0, o.view_dir[1] = 1, o.view_dir[2] = -1;
+    o.light_dir[2] = 1;
+    o.bounds = unit_box;
+    o.width = 400, o.height = 300;
+    float tet[12];
+    make_tet(tet, 0.0, 0.1, 0.8, 0.15, 0.1, 0.2); /* over the plate's centre, clear of it */
+    rgb_image bare = render_with_plate(NULL, 0, 0, &o), plate = render_with_plate(NULL, 0, 1, &o);
+    rgb_image shaded = render_with_plate(tet, 1, 1, &o);
+    if (!bare.rgb || !plate.rgb || !shaded.rgb) return free(bare.rgb), free(plate.rgb), free(shaded.rgb);
+    /* Image plane: s = x, t = (y + z) / sqrt 2, as in test_shadow_on_ground. */
+    double scale = box_scale(&o, 2.0, 2.0 * sqrt(2.0)), r2 = sqrt(0.5);
+    int cx = (int)(0.5 * o.width), plate_y = (int)(0.5 * o.height - 0.5 * r2 * scale);
+    int ground_y = (int)(0.5 * o.height + r2 * scale), far_x = (int)(0.5 * o.width + 0.7 * scale);
+    const unsigned char *p = pixel(&plate, cx, plate_y);
+    ENSURE_MSG(is_obstacle_colour(p), "the plate's centre is (%d %d %d)", p[0], p[1], p[2]);
+    ENSURE_MSG(obstacle_pixels(&bare) == 0, "%ld obstacle-coloured pixels without obstacles", obstacle_pixels(&bare));
+    int under = brightness(&plate, cx, ground_y), far = brightness(&plate, far_x, ground_y);
+    ENSURE_MSG(under < 0.7 * far, "the ground under the plate (%d) is not darker than far from it (%d)", under, far);
+    ENSURE_MSG(brightness(&bare, cx, ground_y) == far, "without the plate the ground under it is lit differently");
+    int lit = brightness(&plate, cx, plate_y), dark = brightness(&shaded, cx, plate_y);
+    ENSURE_MSG(dark < 0.7 * lit && is_obstacle_colour(pixel(&shaded, cx, plate_y)),
+               "the tet's shadow on the plate (%d) is not darker than the lit plate (%d)", dark, lit);
+    /* the same bytes with 1 and 2 threads */
+    o.threads = 1;
+    rgb_image one = render_with_plate(tet, 1, 1, &o);
+    o.threads = 2;
+    rgb_image two = render_with_plate(tet, 1, 1, &o);
+    ENSURE(one.rgb && two.rgb && memcmp(one.rgb, two.rgb, 3 * (size_t)o.width * (size_t)o.height) == 0);
+    free(one.rgb), free(two.rgb);
+    free(bare.rgb), free(plate.rgb), free(shaded.rgb);
+}
+
+static void test_obstacle_and_bounds_errors(void)
+{
+    fm_error err = {0};
+    fm_renderer *r = fm_renderer_create(NULL, &err);
+    ENSURE(r != NULL);
+    if (!r) return;
+    const uint32_t bad_index[] = {0, 1, 4};
+    float nan_verts[12];
+    memcpy(nan_verts, plate_verts, sizeof nan_verts);
+    nan_verts[4] = NAN;
+    ENSURE(fm_renderer_set_obstacles(r, plate_verts, 4, bad_index, 1, &err) == FM_ERR_USAGE);
+    ENSURE_MSG(strstr(err.message, "vertex 4 of 4"), "%s", err.message);
+    ENSURE(fm_renderer_set_obstacles(r, nan_verts, 4, plate_tris, 2, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_set_obstacles(r, NULL, 4, plate_tris, 2, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_set_obstacles(NULL, plate_verts, 4, plate_tris, 2, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_set_obstacles(r, plate_verts, 4, plate_tris, 2, &err) == FM_OK);
+    ENSURE(fm_renderer_set_obstacles(r, NULL, 0, NULL, 0, &err) == FM_OK); /* removed */
+    const double inverted[6] = {1, 0, 0, 0, 1, 1}, nan_box[6] = {0, 0, 0, NAN, 1, 1};
+    ENSURE(fm_renderer_set_bounds(r, inverted, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_set_bounds(r, nan_box, &err) == FM_ERR_USAGE);
+    ENSURE(fm_renderer_set_bounds(r, unit_box, &err) == FM_OK);
+    ENSURE(fm_renderer_set_bounds(r, NULL, &err) == FM_OK);
+    fm_renderer_destroy(r);
+}
+
 /* ---------------------------------------------------------------- threads */
 
 /* A block of cubes, each split into the 6 tets of its Kuhn triangulation, so neighbouring tets
@@ -810,6 +913,162 @@ static void test_cli_png(void)
     free(im.rgb);
 }
 
+/* ---------------------------------------------------------------- the CLI: the shot (issue 14) */
+
+#define TRAVEL_FRAMES 48
+#define TRAVEL_DIR FM_TEST_TMP "/render_shot"
+
+/* A flock of 8 tets in a 2 x 2 x 2 block that travels from x = -20 to x = 20 at 24 frames per
+ * second, in a directory of its own (an obstacles.ply there is drawn with it). */
+static int write_travel_cache(const char *path)
+{
+    fm_error err = {0};
+    fm_cache_writer *w = fm_cache_writer_create(path, 8, 24.0, 1, &err);
+    ENSURE_MSG(w != NULL, "%s", err.message);
+    if (!w) return -1;
+    float tets[12 * 8];
+    for (int f = 0; f < TRAVEL_FRAMES; f++) {
+        double x = -20.0 + 40.0 * f / (TRAVEL_FRAMES - 1);
+        for (int a = 0; a < 8; a++)
+            make_tet(tets + 12 * a, x + 0.8 * (a & 1), 0.8 * (a >> 1 & 1), 0.8 * (a >> 2 & 1), 0.4, 0.4, 0.5);
+        ENSURE(fm_cache_writer_add_frame(w, tets, &err) == FM_OK);
+    }
+    ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    return 0;
+}
+
+/* Renders `flockmorph render CACHE -o TRAVEL_DIR/NAME OPTS` and reads the PNG back (rgb NULL if
+ * it failed). */
+static rgb_image cli_png(const char *cache, const char *name, const char *opts)
+{
+    char out[512], args[2048];
+    snprintf(out, sizeof out, "%s/%s", TRAVEL_DIR, name);
+    remove(out);
+    snprintf(args, sizeof args, "render '%s' -o '%s' %s", cache, out, opts);
+    ENSURE_EXIT("", args, 0);
+    rgb_image im = {0, 0, NULL};
+    ENSURE_MSG(read_png(out, &im) == 0, "cannot read %s", out);
+    return im;
+}
+
+static long box_area(const coverage *c) { return c->fg ? (long)(c->x1 - c->x0 + 1) * (c->y1 - c->y0 + 1) : 0; }
+
+/* The camera follows the flock: at the first frame and half-way, the flock (without the ground)
+ * fills a far larger part of the picture than under --camera animation, which sees the whole
+ * 40-unit trip, and sits in the middle of it. */
+static void test_cli_camera_frames_the_shot(void)
+{
+    char cache[512];
+    mkdir(TRAVEL_DIR, 0777);
+    snprintf(cache, sizeof cache, "%s/travel.fmc", TRAVEL_DIR);
+    if (write_travel_cache(cache)) return;
+    for (int k = 0; k < 2; k++) {
+        const char *frame = k ? "--frame 24" : "--frame 0";
+        char opts[256];
+        snprintf(opts, sizeof opts, "%s --size 200x120 --no-ground", frame);
+        rgb_image near = cli_png(cache, "near.png", opts);
+        snprintf(opts, sizeof opts, "%s --size 200x120 --no-ground --camera animation", frame);
+        rgb_image far = cli_png(cache, "far.png", opts);
+        if (near.rgb && far.rgb) {
+            coverage n = cover(&near), f = cover(&far);
+            ENSURE_MSG(box_area(&n) > 8 * box_area(&f), "%s: the flock's box covers %ld pixels following it, %ld "
+                       "fitted to the animation", frame, box_area(&n), box_area(&f));
+            ENSURE_MSG(n.y1 - n.y0 + 1 > 120 / 2, "%s: the flock is %d of 120 pixels tall", frame, n.y1 - n.y0 + 1);
+            double mx = 0.5 * (n.x0 + n.x1) / 200.0, my = 0.5 * (n.y0 + n.y1) / 120.0;
+            ENSURE_MSG(fabs(mx - 0.5) < 0.1 && fabs(my - 0.5) < 0.1, "%s: the flock's centre is at (%.2f, %.2f) of "
+                       "the picture", frame, mx, my);
+        }
+        free(near.rgb), free(far.rgb);
+    }
+}
+
+/* --camera animation is the camera of before: the same bytes as the C API's renderer fitted to
+ * the bounds of every frame (what render did), coloured by index as --color id. */
+static void test_cli_camera_animation_is_the_old_camera(void)
+{
+    char cache[512];
+    snprintf(cache, sizeof cache, "%s/travel.fmc", TRAVEL_DIR);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (!r) return;
+    float tets[12 * 8], frame5[12 * 8];
+    double b[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t f = 0; f < fm_cache_frames(r); f++) {
+        ENSURE(fm_cache_read_frame(r, f, tets, &err) == FM_OK);
+        if (f == 5) memcpy(frame5, tets, sizeof tets);
+        for (int i = 0; i < 12 * 8; i++) b[i % 3] = fmin(b[i % 3], tets[i]), b[3 + i % 3] = fmax(b[3 + i % 3], tets[i]);
+    }
+    fm_cache_close(r);
+    fm_render_opts o = fm_default_render_opts();
+    o.width = 200, o.height = 120, o.bounds = b;
+    rgb_image old = render(frame5, 8, 0, &o);
+    rgb_image now = cli_png(cache, "animation.png", "--frame 5 --size 200x120 --camera animation --color id");
+    ENSURE(old.rgb && now.rgb && memcmp(old.rgb, now.rgb, 3 * 200 * 120) == 0);
+    free(old.rgb), free(now.rgb);
+}
+
+/* A cube |x + 20| <= 2, 1.5 <= y <= 3, |z| <= 2 behind the flock's start. */
+static void write_cube_ply(const char *path)
+{
+    double v[8 * 3];
+    for (int i = 0; i < 8; i++)
+        v[3 * i] = i & 1 ? -18 : -22, v[3 * i + 1] = i & 2 ? 3 : 1.5, v[3 * i + 2] = i & 4 ? 2 : -2;
+    static const int32_t tri[] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                  2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+    const fm_ply_mesh cube = {"cube", v, 8, tri, 12};
+    fm_error err = {0};
+    ENSURE_MSG(fm_export_ply_meshes(&cube, 1, path, &err) == FM_OK, "%s", err.message);
+}
+
+/* obstacles.ply beside the cache is drawn in the obstacle colour (seen from the front it fills
+ * the picture behind the flock); --no-obstacles leaves it out; --obstacles FILE draws another
+ * file; a missing one is an input error that names it; the bytes do not depend on the threads. */
+static void test_cli_obstacles(void)
+{
+    char cache[512], beside[512], other[512], args[2048];
+    snprintf(cache, sizeof cache, "%s/travel.fmc", TRAVEL_DIR);
+    snprintf(beside, sizeof beside, "%s/obstacles.ply", TRAVEL_DIR);
+    tmp_path(other, sizeof other, "cube.ply");
+    write_cube_ply(beside);
+    write_cube_ply(other);
+    const char *front = "--frame 0 --size 200x120 --view front --no-ground --color id";
+    char opts[1024];
+    rgb_image with = cli_png(cache, "with.png", front);
+    snprintf(opts, sizeof opts, "%s --no-obstacles", front);
+    rgb_image without = cli_png(cache, "without.png", opts);
+    snprintf(opts, sizeof opts, "%s --obstacles '%s' --threads 1", front, other);
+    rgb_image named = cli_png(cache, "named.png", opts);
+    snprintf(opts, sizeof opts, "%s --threads 2", front);
+    rgb_image two = cli_png(cache, "two.png", opts);
+    if (with.rgb && without.rgb) {
+        ENSURE_MSG(obstacle_pixels(&with) > 200 * 120 / 3, "%ld obstacle pixels", obstacle_pixels(&with));
+        ENSURE_MSG(is_obstacle_colour(pixel(&with, 3, 3)), "the corner is (%d %d %d), not the cube behind",
+                   pixel(&with, 3, 3)[0], pixel(&with, 3, 3)[1], pixel(&with, 3, 3)[2]);
+        ENSURE_MSG(obstacle_pixels(&without) == 0, "--no-obstacles: %ld obstacle pixels", obstacle_pixels(&without));
+        ENSURE(cover(&without).fg > 0); /* the flock is there */
+    }
+    ENSURE(with.rgb && named.rgb && memcmp(with.rgb, named.rgb, 3 * 200 * 120) == 0);
+    ENSURE(with.rgb && two.rgb && memcmp(with.rgb, two.rgb, 3 * 200 * 120) == 0);
+    free(with.rgb), free(without.rgb), free(named.rgb), free(two.rgb);
+
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.png' --obstacles '%s/no_such.ply'", cache, TRAVEL_DIR, TRAVEL_DIR);
+    ENSURE_EXIT("", args, 2);
+    ENSURE_MSG(strstr(g_err, "--obstacles") && strstr(g_err, "no_such.ply") && strstr(g_err, "No such file"), "%s", g_err);
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.png' --obstacles '%s' --no-obstacles", cache, TRAVEL_DIR, other);
+    ENSURE_EXIT("", args, 1);
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.png' --camera orbit", cache, TRAVEL_DIR);
+    ENSURE_EXIT("", args, 1);
+    ENSURE_MSG(strstr(g_err, "--camera is frame or animation, not 'orbit'"), "%s", g_err);
+    FILE *f = fopen(beside, "w"); /* beside the cache but not a mesh: refused, with the way out */
+    if (f) fputs("not a mesh\n", f), fclose(f);
+    snprintf(args, sizeof args, "render '%s' -o '%s/x.png'", cache, TRAVEL_DIR);
+    ENSURE_EXIT("", args, 2);
+    ENSURE_MSG(strstr(g_err, "obstacles.ply") && strstr(g_err, "--no-obstacles"), "%s", g_err);
+    remove(beside);
+    ENSURE_EXIT("", args, 0); /* none beside the cache: silently fine */
+}
+
 int main(void)
 {
     RUN_TEST(test_defaults_and_views);
@@ -820,6 +1079,8 @@ int main(void)
     RUN_TEST(test_values_on_the_map);
     RUN_TEST(test_bad_colours);
     RUN_TEST(test_shadow_on_ground);
+    RUN_TEST(test_obstacles_drawn_with_shadows);
+    RUN_TEST(test_obstacle_and_bounds_errors);
     RUN_TEST(test_same_bytes_for_any_thread_count);
     RUN_TEST(test_points_are_spheres);
     RUN_TEST(test_point_radius);
@@ -830,5 +1091,8 @@ int main(void)
     RUN_TEST(test_cli_mp4_without_ffmpeg);
     RUN_TEST(test_cli_usage_errors);
     RUN_TEST(test_cli_png);
+    RUN_TEST(test_cli_camera_frames_the_shot);
+    RUN_TEST(test_cli_camera_animation_is_the_old_camera);
+    RUN_TEST(test_cli_obstacles);
     return test_result();
 }
