@@ -118,7 +118,7 @@ static inline int write_attrs_cache(const char *path, uint64_t agents, uint32_t 
     fm_cache_writer *w = fm_cache_writer_create_attrs(path, agents, 25.0, attrs, n, opts, &err);
     ENSURE_MSG(w != NULL, "%s", err.message);
     if (!w) return -1;
-    void *data[6];
+    void *data[7]; /* every kind at most once (cache_format.h CACHE_MAX_ATTRS) */
     for (int i = 0; i < n; i++) data[i] = malloc(fm_cache_attr_describe(attrs[i])->bytes_per_agent * agents + 1);
     fm_status st = FM_OK;
     for (uint32_t f = 0; f < frames && st == FM_OK; f++) {
@@ -166,7 +166,7 @@ static inline int frame_matches(fm_cache_reader *r, uint32_t frame, data_kind ki
 }
 
 static const fm_cache_attr ALL_ATTRS[] = {FM_ATTR_TET_VERTICES, FM_ATTR_POSITION, FM_ATTR_VELOCITY,
-                                          FM_ATTR_ORIENTATION, FM_ATTR_ID, FM_ATTR_PHASE};
-#define ALL_ATTR_COUNT 6
+                                          FM_ATTR_ORIENTATION, FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP};
+#define ALL_ATTR_COUNT 7
 
 #endif

@@ -12,18 +12,19 @@ static void test_attribute_table(void)
         {FM_ATTR_TET_VERTICES, "tet_vertices", 12, FM_SCALAR_F32, 48}, {FM_ATTR_POSITION, "position", 3, FM_SCALAR_F32, 12},
         {FM_ATTR_VELOCITY, "velocity", 3, FM_SCALAR_F32, 12},        {FM_ATTR_ORIENTATION, "orientation", 4, FM_SCALAR_F32, 16},
         {FM_ATTR_ID, "id", 1, FM_SCALAR_U32, 4},                     {FM_ATTR_PHASE, "phase", 1, FM_SCALAR_U8, 1},
+        {FM_ATTR_GROUP, "group", 1, FM_SCALAR_U8, 1},
     };
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
         const fm_cache_attr_info *a = fm_cache_attr_describe(want[i].attr);
         ENSURE(a && a->attr == want[i].attr && !strcmp(a->name, want[i].name) && a->components == want[i].components &&
                a->scalar == want[i].scalar && a->bytes_per_agent == want[i].bytes);
     }
-    ENSURE(fm_cache_attr_describe((fm_cache_attr)0) == NULL && fm_cache_attr_describe((fm_cache_attr)7) == NULL);
+    ENSURE(fm_cache_attr_describe((fm_cache_attr)0) == NULL && fm_cache_attr_describe((fm_cache_attr)8) == NULL);
     fm_cache_options o = fm_default_cache_options();
     ENSURE(o.compression_level == 1 && o.delta == 1 && o.key_interval == 16 && o.quantum == 0);
 }
 
-/* Writes all six attributes under `opts` and reads every frame back twice: in order, and in a
+/* Writes all seven attributes under `opts` and reads every frame back twice: in order, and in a
  * shuffled order with a second reader (random access, across key intervals with delta). */
 static void round_trip(const char *name, uint64_t agents, uint32_t frames, const fm_cache_options *opts, data_kind kind)
 {
@@ -189,7 +190,7 @@ static void test_argument_errors(void)
     fm_cache_options o = fm_default_cache_options();
     expect_create_fails(twice, 3, &o, "'position' is given twice");
     expect_create_fails(unknown, 1, &o, "unknown attribute kind 42");
-    expect_create_fails(ALL_ATTRS, 0, &o, "1 to 6 attributes");
+    expect_create_fails(ALL_ATTRS, 0, &o, "1 to 7 attributes");
     o.key_interval = 0;
     expect_create_fails(ALL_ATTRS, 1, &o, "key interval 0");
     o = fm_default_cache_options(), o.quantum = -1;
