@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Renders the pictures of README.md and docs/scenarios.md (docs/images/*.png) with
-# `flockmorph render`, from the caches tools/run-scenarios.sh leaves in out/NAME/ (any that are
-# missing are run first).
+# `flockmorph render`, from runs of the bundled scenes into out/NAME/ (run afresh, so that a cache
+# an older engine or scene left there is not drawn; they take about 10 s together).
 #   tools/readme-images.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup.sh build > /dev/null
 scenes=(words moon creatures castling)
 for name in "${scenes[@]}"; do
-  [ -f "out/$name/frames.fmc" ] || build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet > /dev/null
+  build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet > /dev/null
 done
 # --color id: their captions say the colour follows the launch order (the agent id), which is what
 # render drew before --color speed became its default.
@@ -16,9 +16,11 @@ render() { build/flockmorph render "out/$1/frames.fmc" --size 800x400 --samples 
 # README: the words example at frames 0, 30, 60, 90 and its last frame.
 for k in 0 30 60 90; do render words --frame "$k" -o "docs/images/words_$k.png"; done
 render words --frame -1 -o docs/images/words_last.png
-# docs/scenarios.md: each scenario 40 % of the way through (the frame run-scenarios.sh previews).
+# docs/scenarios.md: each scenario 40 % of the way through (the frame run-scenarios.sh previews);
+# the whole castling at 60 %, while the rook passes the king (at 40 % the king has just formed).
 for name in "${scenes[@]}"; do
   frames=$(sed -n 's/^  "frames": \([0-9]*\),*$/\1/p' "out/$name/stats.json")
-  render "$name" --frame $((frames * 2 / 5)) -o "docs/images/scenario_$name.png"
+  k=$((frames * 2 / 5)); [ "$name" = castling ] && k=$((frames * 3 / 5))
+  render "$name" --frame "$k" -o "docs/images/scenario_$name.png"
 done
 echo "docs/images: ${#scenes[@]} scenarios and 5 frames of words rendered"
