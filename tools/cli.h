@@ -210,7 +210,7 @@ typedef struct cli_mode {
     void (*summary)(const void *run, const fm_scene_def *def);
     void (*close)(void *run);
 } cli_mode;
-extern const cli_mode cli_mode_morph, cli_mode_flock, cli_mode_shot;
+extern const cli_mode cli_mode_morph, cli_mode_flock, cli_mode_shot, cli_mode_flock_shot;
 /* The run's overrides, which the shot mode reads each group with (cli_mode_shot.c). */
 void cli_shot_use_overrides(const fm_scene_override *set, int count);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */

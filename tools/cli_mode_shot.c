@@ -1,9 +1,11 @@
-/* `run` for a scene with `groups` (a shot of several tetra morphs, docs/scene.md "Groups"): every
- * group's model, the shot on one clock, one cache (tet vertices, id, phase, group) and stats.json
- * with each group's end-state checks (cli_run.c drives it through cli_mode_shot). */
+/* `run` for a scene with `groups` (a shot, docs/scene.md "Groups"): of tetra morphs (morph_shot.c)
+ * or of shape flocks (flock_shot.c). Every group's model, the shot on one clock, one cache (the
+ * mode's attributes and group) and stats.json with each group's end-state checks (cli_run.c drives
+ * it through cli_mode_shot). */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
-#include "morph.h" /* the engine's internal header: each group's model */
+#include "flock.h" /* the engine's internal headers: each group's model */
+#include "morph.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -14,8 +16,11 @@ typedef struct shot_run {
     fm_scene_def defs[FM_MAX_GROUPS];
     int count;
     int threads;
+    int flock;                   /* shape-flock groups (flock_shot), else tetra morphs (shot) */
     fm_shot *shot;
     fm_shot_stats stats;
+    fm_flock_shot *flock_shot;
+    fm_flock_shot_stats flock_stats;
     json_t *warnings;
 } shot_run;
 
@@ -24,17 +29,19 @@ static int g_override_count;
 
 void cli_shot_use_overrides(const fm_scene_override *set, int count) { g_overrides = set, g_override_count = count; }
 
-static int build(void *run, const fm_scene_def *def, int *show)
+static int load_groups(shot_run *r, const fm_scene_def *def)
 {
-    shot_run *r = run;
     fm_error err = {0};
-    r->warnings = json_array();
     r->count = def->group_count;
-    for (int g = 0; g < r->count; g++) {
+    for (int g = 0; g < r->count; g++)
         if (fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, &r->defs[g], &err) != FM_OK)
             return cli_report(&err);
-        r->defs[g].seed = def->seed == r->defs[g].seed ? def->seed : r->defs[g].seed;
-    }
+    return 0;
+}
+
+static int build_morphs(shot_run *r, int *show)
+{
+    fm_error err = {0};
     r->shot = fm_shot_build(r->defs, r->count, 0, cli_prep_progress, show, &err);
     if (!r->shot) return cli_report(&err);
     for (int g = 0; g < r->count; g++) {
@@ -42,14 +49,41 @@ static int build(void *run, const fm_scene_def *def, int *show)
         for (int i = 0; i < fm_morph_model_warning_count(m); i++)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_morph_model_warning(m, i)));
     }
-    fm_morph_model_info mi = fm_morph_model_get_info(fm_shot_model(r->shot, 0));
-    r->common = (cli_mode_run){fm_shot_rows(r->shot), mi.time_step, &r->stats.run};
+    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run};
     return 0;
 }
 
+static int build_flocks(shot_run *r, int *show)
+{
+    fm_error err = {0};
+    r->flock_shot = fm_flock_shot_build(r->defs, r->count, cli_prep_progress, show, &err);
+    if (!r->flock_shot) return cli_report(&err);
+    for (int g = 0; g < r->count; g++) {
+        const fm_flock_model *m = fm_flock_shot_model(r->flock_shot, g);
+        for (int i = 0; i < fm_flock_model_warning_count(m); i++)
+            json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_flock_model_warning(m, i)));
+    }
+    r->common = (cli_mode_run){fm_flock_shot_rows(r->flock_shot), fm_flock_shot_model(r->flock_shot, 0)->dt,
+                               &r->flock_stats.run};
+    return 0;
+}
+
+static int build(void *run, const fm_scene_def *def, int *show)
+{
+    shot_run *r = run;
+    r->warnings = json_array();
+    r->flock = def->mode == FM_MODE_SHAPE_FLOCK;
+    int rc = load_groups(r, def);
+    return rc ? rc : r->flock ? build_flocks(r, show) : build_morphs(r, show);
+}
+
+/* The shot made its states; they take the run's thread count here. */
 static fm_status create_state(void *run, int threads, fm_error *err)
 {
-    (void)run, (void)threads, (void)err; /* the shot made its states; threads are OpenMP's */
+    shot_run *r = run;
+    (void)err;
+    if (r->flock) fm_flock_shot_set_threads(r->flock_shot, threads);
+    else fm_shot_set_threads(r->shot, threads);
     return FM_OK;
 }
 
@@ -57,14 +91,18 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 {
     const shot_run *r = run;
     const fm_cache_options options = cli_cache_options(def);
-    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP};
-    return fm_cache_writer_create_attrs(path, (uint64_t)fm_shot_rows(r->shot), def->frame_rate, attrs, 4, &options, err);
+    static const fm_cache_attr tets[] = {FM_ATTR_TET_VERTICES, FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP};
+    static const fm_cache_attr points[] = {FM_ATTR_POSITION, FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION, FM_ATTR_ID,
+                                           FM_ATTR_PHASE, FM_ATTR_GROUP};
+    return r->flock ? fm_cache_writer_create_attrs(path, (uint64_t)r->common.agents, def->frame_rate, points, 6, &options, err)
+                    : fm_cache_writer_create_attrs(path, (uint64_t)r->common.agents, def->frame_rate, tets, 4, &options, err);
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     shot_run *r = run;
-    return fm_shot_run(r->shot, cache, control, &r->stats, err);
+    return r->flock ? fm_flock_shot_run(r->flock_shot, cache, control, &r->flock_stats, err)
+                    : fm_shot_run(r->shot, cache, control, &r->stats, err);
 }
 
 static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : json_null(); }
@@ -93,16 +131,43 @@ static json_t *group_json(const shot_run *r, int g)
     return j;
 }
 
+static json_t *flock_group_json(const shot_run *r, int g)
+{
+    const fm_flock_shot_group_stats *gs = &r->flock_stats.group[g];
+    const fm_group_def *d = &r->defs[g].group;
+    json_t *j = json_object();
+    json_object_set_new(j, "name", json_string(d->name));
+    json_object_set_new(j, "agents", json_integer(gs->agents));
+    json_object_set_new(j, "source_group", d->source_group < 0 ? json_null() : json_string(r->defs[d->source_group].group.name));
+    json_object_set_new(j, "start_time", number_or_null(gs->start_time));
+    json_object_set_new(j, "bound_time", number_or_null(gs->bound_time));
+    json_object_set_new(j, "all_bound", json_boolean(gs->all_bound));
+    json_object_set_new(j, "bound_fraction", json_real(gs->bound_fraction));
+    json_object_set_new(j, "final_mean_distance", json_real(gs->final_mean_distance));
+    json_object_set_new(j, "final_max_distance", json_real(gs->final_max_distance));
+    return j;
+}
+
+static void morph_shot_stats(const shot_run *r, json_t *j)
+{
+    json_object_set_new(j, "all_arrived", json_boolean(r->stats.all_arrived));
+    json_object_set_new(j, "stopped_at_frame_limit", json_boolean(!r->stats.all_arrived));
+    json_object_set_new(j, "inverted_tet_frames", json_integer(r->stats.inverted_tet_frames));
+    json_object_set_new(j, "min_vertex_clearance", number_or_null(r->stats.min_vertex_clearance));
+}
+
 static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
 {
     shot_run *r = run;
     json_t *j = cli_stats_json(def, record);
     json_t *groups = json_array();
-    for (int g = 0; g < r->count; g++) json_array_append_new(groups, group_json(r, g));
-    json_object_set_new(j, "all_arrived", json_boolean(r->stats.all_arrived));
-    json_object_set_new(j, "stopped_at_frame_limit", json_boolean(!r->stats.all_arrived));
-    json_object_set_new(j, "inverted_tet_frames", json_integer(r->stats.inverted_tet_frames));
-    json_object_set_new(j, "min_vertex_clearance", number_or_null(r->stats.min_vertex_clearance));
+    for (int g = 0; g < r->count; g++) json_array_append_new(groups, r->flock ? flock_group_json(r, g) : group_json(r, g));
+    if (r->flock) {
+        json_object_set_new(j, "all_bound", json_boolean(r->flock_stats.all_bound));
+        json_object_set_new(j, "stopped_at_frame_limit", json_boolean(!r->flock_stats.all_bound));
+    } else {
+        morph_shot_stats(r, j);
+    }
     json_object_set_new(j, "groups", groups);
     json_object_set(j, "warnings", r->warnings);
     return cli_write_json(path, j);
@@ -113,8 +178,11 @@ static void summary(const void *run, const fm_scene_def *def)
     const shot_run *r = run;
     (void)def;
     printf("; %d groups", r->count);
-    for (int g = 0; g < r->count; g++)
-        printf("%s %s %s", g ? "," : ":", r->defs[g].group.name, r->stats.group[g].all_arrived ? "arrived" : "did not arrive");
+    for (int g = 0; g < r->count; g++) {
+        int done = r->flock ? r->flock_stats.group[g].all_bound : r->stats.group[g].all_arrived;
+        printf("%s %s %s", g ? "," : ":", r->defs[g].group.name,
+               r->flock ? (done ? "bound" : "not all bound") : (done ? "arrived" : "did not arrive"));
+    }
     printf("\n");
 }
 
@@ -122,9 +190,12 @@ static void close_run(void *run)
 {
     shot_run *r = run;
     fm_shot_destroy(r->shot);
+    fm_flock_shot_destroy(r->flock_shot);
     json_decref(r->warnings);
 }
 
 /* No load_checkpoint: a shot keeps no checkpoint in this version (cli_run.c refuses --resume). */
 const cli_mode cli_mode_shot = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(shot_run), build,
                                 create_state, create_cache, NULL, simulate, write_stats, summary, close_run};
+const cli_mode cli_mode_flock_shot = {"shape_flock", {NULL, "flying", "arriving", "bound"}, sizeof(shot_run), build,
+                                      create_state, create_cache, NULL, simulate, write_stats, summary, close_run};

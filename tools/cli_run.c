@@ -259,7 +259,7 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
 /* The scene's mode: the CLI's one choice by mode. */
 static const cli_mode *scene_mode(const fm_scene_def *def)
 {
-    if (def->group_count > 0) return &cli_mode_shot;
+    if (def->group_count > 0) return def->mode == FM_MODE_SHAPE_FLOCK ? &cli_mode_flock_shot : &cli_mode_shot;
     return def->mode == FM_MODE_SHAPE_FLOCK ? &cli_mode_flock : &cli_mode_morph;
 }
 

@@ -136,6 +136,47 @@ fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *model
 fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *model, fm_flock_state *state,
                                    fm_flock_run_stats *stats, fm_error *err);
 
+/* ---------------------------------------------------------------- shots (docs/scene.md, "Groups")
+ *
+ * A shape flock that "transforms among different static shapes" (SCF): the groups of one scene file
+ * (fm_scene_load_group 0 .. count-1) on one clock, written to one cache with a `group` attribute. A
+ * group from a mesh adds its n agents; a group whose source is another's formed shape ("source":
+ * {"group": A}) takes over A's agents (the same rows), starting where A bound them, once A has bound
+ * them all and `start` seconds later. A's target must be static and bind. One process, no
+ * checkpoints in this version. */
+typedef struct fm_flock_shot fm_flock_shot;
+
+fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progress_fn progress, void *user,
+                                   fm_error *err);
+void fm_flock_shot_destroy(fm_flock_shot *shot);
+void fm_flock_shot_set_threads(fm_flock_shot *shot, int threads); /* <= 0: OpenMP's default */
+int fm_flock_shot_groups(const fm_flock_shot *shot);
+int64_t fm_flock_shot_rows(const fm_flock_shot *shot);
+const fm_flock_model *fm_flock_shot_model(const fm_flock_shot *shot, int g);
+
+typedef struct fm_flock_shot_group_stats {
+    int64_t agents;
+    int all_bound;                  /* every agent bound (a static target that binds) */
+    double start_time, bound_time;  /* seconds into the shot; NaN when it never started or bound all */
+    double final_mean_distance;     /* to the destination, at the last frame */
+    double final_max_distance;
+    double bound_fraction;
+} fm_flock_shot_group_stats;
+
+typedef struct fm_flock_shot_stats {
+    fm_run_totals run;
+    int64_t rows;
+    int all_bound;                  /* every group bound all its agents */
+    fm_flock_shot_group_stats group[FM_MAX_GROUPS];
+} fm_flock_shot_stats;
+
+/* Steps until every group has bound its agents or the frame limit, writing every frame to `cache`
+ * (may be NULL; created with FM_ATTR_POSITION and any of FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION,
+ * FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP). control's stop flag and progress are honoured, its
+ * checkpoints not. */
+fm_status fm_flock_shot_run(fm_flock_shot *shot, fm_cache_writer *cache, const fm_run_control *control,
+                            fm_flock_shot_stats *stats, fm_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -151,6 +151,7 @@ typedef struct fm_shot fm_shot;
 fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_progress_fn progress, void *user,
                        fm_error *err);
 void fm_shot_destroy(fm_shot *shot);
+void fm_shot_set_threads(fm_shot *shot, int threads); /* <= 0: OpenMP's default; results do not depend on it */
 int fm_shot_groups(const fm_shot *shot);
 int64_t fm_shot_rows(const fm_shot *shot);   /* agents in the cache: the n of each group from a mesh */
 const fm_morph_model *fm_shot_model(const fm_shot *shot, int g);

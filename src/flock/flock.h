@@ -59,7 +59,13 @@ struct fm_flock_model {
     char warning[1024];            /* fm_flock_model_warning 0: the fields' plan, located */
     fm_obstacles *obstacles;       /* NULL without obstacles */
     double scene_lo[3], scene_hi[3]; /* source, target and path, padded: the style-field grid spans them */
+    const fm_flock_model *from;    /* during the build only: a shot's group starting from this one's shape */
 };
+
+/* A group of a shot that starts from the shape `from` formed (flock_shot.c): its agents are from's,
+ * starting on from's destinations (a static target that binds). */
+fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,
+                                                fm_progress_fn progress, void *user, fm_error *err);
 
 /* Per-block results of a step, combined in block order. */
 typedef struct flock_block {

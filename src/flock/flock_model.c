@@ -43,6 +43,17 @@ static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, 
     return st;
 }
 
+/* A group of a shot that starts from the shape `from` formed: the agents start where they are bound,
+ * on from's destinations (a static target that binds: fm_flock_shot_build checks it). */
+static fm_status formed_shape(const fm_flock_model *from, fm_samples *out, fm_error *err)
+{
+    out->n = from->n;
+    out->p = malloc(sizeof(float) * 3 * (size_t)from->n);
+    if (!out->p) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)from->n);
+    memcpy(out->p, from->target.dest.p, sizeof(float) * 3 * (size_t)from->n);
+    return FM_OK;
+}
+
 static fm_status alloc_agent_arrays(fm_flock_model *m, fm_error *err)
 {
     size_t n = (size_t)m->n;
@@ -196,7 +207,8 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progr
     fm_samples src = {0}, tgt = {0};
     int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
     if (progress) progress("sample source", 0.1, user);
-    fm_status st = match ? sample(source, m, STREAM_SOURCE, &src, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    fm_status st = !match ? fm_fail(err, FM_ERR_MEMORY, "out of memory")
+                   : m->from ? formed_shape(m->from, &src, err) : sample(source, m, STREAM_SOURCE, &src, err);
     if (progress && st == FM_OK) progress("sample target", 0.4, user);
     const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
     if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, &src, &tgt, match, err);
@@ -239,7 +251,8 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     return st;
 }
 
-fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model *from, fm_progress_fn progress,
+                                   void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
     if (def->mode != FM_MODE_SHAPE_FLOCK) {
@@ -253,12 +266,31 @@ fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn pro
         return NULL;
     }
     m->def = *def;
-    m->n = def->n;
-    if (build(m, progress, user, err) != FM_OK) {
+    m->n = from ? from->n : def->n;
+    m->from = from;
+    fm_status st = build(m, progress, user, err);
+    m->from = NULL;
+    if (st != FM_OK) {
         fm_flock_model_destroy(m);
         return NULL;
     }
     return m;
+}
+
+fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    if (def->group_count > 0 && def->group_index < 0) {
+        fm_fail(err, FM_ERR_USAGE, "%s: the scene is a shot of %d groups: build each group (fm_scene_load_group) "
+                "and run them together (fm_flock_shot_build), as flockmorph run does", def->scene_path, def->group_count);
+        return NULL;
+    }
+    return build_model(def, NULL, progress, user, err);
+}
+
+fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,
+                                                fm_progress_fn progress, void *user, fm_error *err)
+{
+    return build_model(def, from, progress, user, err);
 }
 
 void fm_flock_model_destroy(fm_flock_model *m)

@@ -135,6 +135,11 @@ void fm_shot_destroy(fm_shot *s)
     free(s);
 }
 
+void fm_shot_set_threads(fm_shot *s, int threads)
+{
+    for (int g = 0; g < s->count; g++) s->state[g]->threads = fm_threads(threads);
+}
+
 int fm_shot_groups(const fm_shot *s) { return s->count; }
 int64_t fm_shot_rows(const fm_shot *s) { return s->rows; }
 const fm_morph_model *fm_shot_model(const fm_shot *s, int g) { return s->model[g]; }
@@ -278,20 +283,10 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
     shot_run *r = sim;
     if (r->step_status != FM_OK) return *err = r->step_error, r->step_status;
     fm_status st = write_frame(r->s, r->cache, k, err);
-    if (st == FM_OK && k > 0 && r->c->progress) {
-        fm_run_info info = {.step = r->s->step, .time = (double)r->s->step * r->s->dt};
-        for (int g = 0; g < r->s->count; g++)
-            if (r->s->writes[g])
-                for (int p = 0; p < 4; p++) info.count[p] += r->s->state[g]->count[p];
-        r->c->progress(&info, k, r->c->progress_user);
-    }
+    const int64_t *counts[FM_MAX_GROUPS];
+    for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
+    if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
     return st;
-}
-
-static fm_status loop_save(void *sim, const char *path, fm_error *err)
-{
-    (void)sim;
-    return fm_fail(err, FM_ERR_USAGE, "%s: a shot (a scene with groups) keeps no checkpoint in this version", path);
 }
 
 /* Each group's end-state checks. */
@@ -327,7 +322,7 @@ fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *
     fm_run_control c = *control;
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_run r = {s, cache, &c, FM_OK, {0}};
-    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, loop_save, s->steps_per_frame,
+    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
                                 s->frame_limit, &c, &stats->run, cache, NULL};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(s, stats);

@@ -1049,14 +1049,17 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     char *text = read_text(file, &len, &st, NULL);
     json_t *root = text ? json_loads(text, JSON_REJECT_DUPLICATES, NULL) : NULL; /* locate needs valid JSON */
     int line = 0, col = 0;
+    char group_key[32] = ""; /* a group's key where its item sets it: "groups[1]." */
     if (root) {
-        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, "", NULL, 0, 0};
+        where w = {file, text, NULL, {{0}}, {{0}}, 0, 0, "", NULL, def->group_index >= 0, def->group_index};
         where_set_key(&w, key);
-        fm_json_locate(text, w.steps, w.depth, 0, &line, &col);
+        if (w.in_group && locate_in_group(&w, &line, &col) == 0)
+            snprintf(group_key, sizeof group_key, "groups[%d].", def->group_index);
+        else fm_json_locate(text, w.steps, w.depth, 0, &line, &col);
         json_decref(root);
     }
     free(text);
-    if (line > 0) snprintf(out, size, "%s:%d:%d: %s", file, line, col, key);
+    if (line > 0) snprintf(out, size, "%s:%d:%d: %s%s", file, line, col, group_key, key);
     else snprintf(out, size, "%s: %s", file, key);
 }
 
@@ -1096,6 +1099,16 @@ static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def 
 }
 
 /* Reads the document (changed by the overrides, if any) into def. */
+/* What only the whole document of a mode can be checked for. */
+static fm_status check_mode(where *w, const json_t *root, const fm_scene_def *def)
+{
+    fm_status st = FM_OK;
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_r_scale(w, root, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_fuzzy_strategy(w, root, def);
+    return st;
+}
+
 /* The scene's groups (scene_groups.c), read before the rest: a shot's top level needs no meshes. */
 static fm_status read_groups(where *w, const json_t *root, fm_group_def *groups, fm_scene_def *def)
 {
@@ -1105,11 +1118,17 @@ static fm_status read_groups(where *w, const json_t *root, fm_group_def *groups,
                                         : FM_OK;
     def->group_count = count;
     const json_t *mode = json_object_get(root, "mode");
-    if (st == FM_OK && count > 0 && json_is_string(mode) && strcmp(json_string_value(mode), "tetra_morph")) {
-        where_set_key(w, "groups");
-        w->at_key = 1;
-        return fail_at(w, "groups", "only the tetra morph takes groups; a shape flock's sequence of targets runs as "
-                       "one scene per target (docs/shape-flock.md)");
+    const int flock = json_is_string(mode) && !strcmp(json_string_value(mode), "shape_flock");
+    for (int g = 0; st == FM_OK && flock && g < count; g++) {
+        if (groups[g].avoid_count > 0) {
+            where_set_key(w, "groups");
+            w->steps[w->depth++] = (fm_json_step){NULL, g};
+            w->steps[w->depth++] = (fm_json_step){"avoid", 0};
+            w->at_key = 1;
+            char key[48];
+            snprintf(key, sizeof key, "groups[%d].avoid", g);
+            return fail_at(w, key, "the shape flock's groups take no avoid in this version (the tetra morph's do)");
+        }
     }
     return st;
 }
@@ -1121,9 +1140,7 @@ static fm_status read_document(where *w, json_t *root, const fm_scene_override *
     if (st == FM_OK) st = read_groups(w, root, groups, def);
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);
-    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_r_scale(w, root, def);
-    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
-    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_fuzzy_strategy(w, root, def);
+    if (st == FM_OK && def->group_count == 0) st = check_mode(w, root, def); /* a shot's groups are checked whole */
     return st;
 }
 
@@ -1197,6 +1214,7 @@ static fm_status read_group_document(where *w, json_t *root, const fm_scene_over
     w->in_group = 1, w->group = g;
     st = read_scene(w, doc, def);
     if (st == FM_OK) st = check_consistency(w, def);
+    if (st == FM_OK) st = check_mode(w, doc, def);
     json_decref(doc);
     return st;
 }

@@ -209,9 +209,10 @@ json_t *fm_groups_merge(const json_t *root, const fm_group_def *groups, int g)
     if (groups[g].source_group < 0) return doc;
     /* the agents fly on from where the earlier group formed: its target is this group's source */
     json_t *earlier = fm_groups_merge(root, groups, groups[g].source_group);
-    json_t *target = json_object_get(earlier, "target");
+    json_t *target = json_object_get(earlier, "target"), *n = json_object_get(earlier, "n");
     int ok = target && json_object_set(doc, "source", target) == 0;
-    json_object_del(doc, "n");
+    /* the same agents: the earlier group's n (the tetra morph takes the count from its tets) */
+    ok = ok && (n ? json_object_set(doc, "n", n) == 0 : json_object_del(doc, "n") >= -1);
     json_decref(earlier);
     return ok ? doc : (json_decref(doc), NULL);
 }

@@ -118,3 +118,19 @@ fm_status fm_frame_rows_room(double **rows, int64_t count, int width, int64_t *c
     *rows = grown, *capacity = cap;
     return FM_OK;
 }
+
+fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err)
+{
+    (void)sim;
+    return fm_fail(err, FM_ERR_USAGE, "%s: a shot (a scene with groups) keeps no checkpoint in this version", path);
+}
+
+void fm_frame_loop_shot_progress(const fm_run_control *c, int64_t k, int64_t step, double dt,
+                                 const int64_t *const *counts, const int *writes, int groups)
+{
+    if (k == 0 || !c->progress) return;
+    fm_run_info info = {.step = step, .time = (double)step * dt};
+    for (int g = 0; g < groups; g++)
+        for (int p = 0; writes[g] && p < 4; p++) info.count[p] += counts[g][p];
+    c->progress(&info, k, c->progress_user);
+}

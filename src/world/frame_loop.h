@@ -32,6 +32,13 @@ typedef struct fm_frame_loop {
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
 
+/* For the shots (morph_shot.c, flock_shot.c), which keep no checkpoint in this version: the loop's
+ * save, a usage error naming the path; and the progress of frame k, the phase counts summed over
+ * the groups that write rows (writes[g]; counts[g] their fm_phase counts). */
+fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err);
+void fm_frame_loop_shot_progress(const fm_run_control *c, int64_t k, int64_t step, double dt,
+                                 const int64_t *const *counts, const int *writes, int groups);
+
 /* Agents farther than this many scene sizes from the scene's box have run away: no scene the
  * engine is meant for flies there, and float positions lose their precision on the way. */
 #define FM_RUNAWAY_SCENES 1000.0

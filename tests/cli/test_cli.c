@@ -324,8 +324,9 @@ static void test_stats_provenance(void)
     check_stats_keys_documented(stats, "## Shape flock");
 }
 
-/* A shot (examples/castling, two groups): its stats.json keys documented both ways; what a shot
- * does not do yet (checkpoints, resume) refused before anything runs. */
+/* Shots (examples/castling, two tetra-morph groups; examples/flock_sequence, two shape-flock groups):
+ * their stats.json keys documented both ways; what a shot does not do yet (checkpoints, resume)
+ * refused before anything runs. */
 static void test_shot_run(void)
 {
     char outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
@@ -334,7 +335,14 @@ static void test_shot_run(void)
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(strstr(g_out, "2 groups: king arrived, rook arrived") != NULL, "'%s'", g_out);
     snprintf(stats, sizeof stats, "%s/stats.json", outdir);
-    check_stats_keys_documented(stats, "## Shot");
+    check_stats_keys_documented(stats, "## Tetra-morph shot");
+    tmp_path(outdir, "flock_shot_out");
+    snprintf(args, sizeof args, "run '%s/examples/flock_sequence/scene.json' -o '%s' --quiet --threads 2", FM_SOURCE_DIR,
+             outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(strstr(g_out, "2 groups: sphere bound, torus bound") != NULL, "'%s'", g_out);
+    snprintf(stats, sizeof stats, "%s/stats.json", outdir);
+    check_stats_keys_documented(stats, "## Shape-flock shot");
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --resume", FM_SOURCE_DIR, outdir);
     ENSURE_EXIT(args, 1);
     ENSURE_MSG(strstr(g_err, "a scene with groups keeps no checkpoint in this version: leave out --resume"), "'%s'", g_err);

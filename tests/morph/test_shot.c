@@ -9,6 +9,7 @@
 #include "flockmorph/flockmorph.h"
 #include "geom.h"
 #include "inside_test.h"
+#include "shot_helpers.h"
 #include "test_macros.h"
 
 #include <math.h>
@@ -17,20 +18,6 @@
 #include <string.h>
 
 static const double DEPTH_TOL = 1e-5;
-
-static int load_groups(const char *path, fm_scene_def *defs, int *count)
-{
-    fm_error err = {0};
-    static fm_scene_def top;
-    ENSURE_MSG(fm_scene_load(path, &top, &err) == FM_OK, "%s", err.message);
-    if (err.status != FM_OK) return -1;
-    *count = top.group_count;
-    for (int g = 0; g < *count; g++) {
-        ENSURE_MSG(fm_scene_load_group(path, NULL, 0, g, &defs[g], &err) == FM_OK, "%s", err.message);
-        if (err.status != FM_OK) return -1;
-    }
-    return 0;
-}
 
 /* Runs the shot into `cache`; 0 on success. */
 static int run_shot(const fm_scene_def *defs, int count, int threads, const char *cache, fm_shot_stats *stats)
@@ -50,20 +37,6 @@ static int run_shot(const fm_scene_def *defs, int count, int threads, const char
     if (w) ENSURE_MSG(fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
     fm_shot_destroy(shot);
     return st == FM_OK ? 0 : -1;
-}
-
-static int same_file(const char *a, const char *b)
-{
-    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-    int same = fa && fb;
-    while (same) {
-        int x = fgetc(fa), y = fgetc(fb);
-        same = x == y;
-        if (x == EOF || y == EOF) break;
-    }
-    if (fa) fclose(fa);
-    if (fb) fclose(fb);
-    return same;
 }
 
 typedef struct placed {

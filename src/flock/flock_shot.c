@@ -1,0 +1,221 @@
+/* A shape-flock shot: the scene's groups (docs/scene.md "Groups") on one clock, in one cache: SCF's
+ * flock that "transforms among different static shapes". A group from a mesh adds its n agents as
+ * new rows; a group whose source is another's formed shape ("source": {"group": A}) takes over A's
+ * agents, the same rows, from where they are bound on A's destinations, once A has bound them all
+ * (and `start` seconds later). Each group is an ordinary flock model and state. */
+#include "cache_format.h"
+#include "flock.h"
+#include "frame_loop.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct fm_flock_shot {
+    int count;
+    fm_scene_def def[FM_MAX_GROUPS];
+    fm_flock_model *model[FM_MAX_GROUPS];
+    fm_flock_state *state[FM_MAX_GROUPS];
+    int64_t rows, row0[FM_MAX_GROUPS]; /* each group's first row (a chain shares its head's) */
+    int started[FM_MAX_GROUPS], done[FM_MAX_GROUPS], writes[FM_MAX_GROUPS];
+    int64_t start_step[FM_MAX_GROUPS], done_step[FM_MAX_GROUPS], step;
+    double dt, scene_lo[3], scene_hi[3];
+    int32_t steps_per_frame, frame_limit;
+    float *position, *velocity, *orientation;
+    uint8_t *phase, *group;
+};
+
+/* Whether group g can ever be done: a static target whose agents bind. */
+static int binds(const fm_scene_def *def)
+{
+    return def->flock.deform == FM_DEFORM_NONE && def->flock.arrival_mode == FM_ARRIVAL_BIND;
+}
+
+static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *err)
+{
+    const int a = def[g].group.source_group;
+    if (a < 0 || binds(&def[a])) return FM_OK;
+    char where[FM_PATH_MAX + 64];
+    fm_scene_key_location(&def[g], "source", where, sizeof where);
+    return fm_fail(err, FM_ERR_INPUT, "%s: \"%s\" never holds a formed shape to start from: its target %s; a group "
+                   "starts from a static target whose agents bind (shape_flock.arrival.mode \"bind\")", where,
+                   def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms" : "lets its agents float");
+}
+
+static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *user, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        const int from = s->def[g].group.source_group;
+        fm_status st = check_source_group(s->def, g, err);
+        if (st != FM_OK) return st;
+        s->model[g] = from < 0 ? fm_flock_model_build(&s->def[g], progress, user, err)
+                               : fm_flock_model_build_from_shape(&s->def[g], s->model[from], progress, user, err);
+        if (!s->model[g]) return err->status;
+        if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
+        else s->row0[g] = s->row0[from];
+        s->writes[g] = from < 0;
+        if (!(s->state[g] = fm_flock_state_create(s->model[g], 0, err))) return err->status;
+    }
+    return FM_OK;
+}
+
+static fm_status alloc_frame(fm_flock_shot *s, fm_error *err)
+{
+    const size_t n = (size_t)s->rows;
+    s->position = fm_alloc(sizeof(float) * 3 * n), s->velocity = fm_alloc(sizeof(float) * 3 * n);
+    s->orientation = fm_alloc(sizeof(float) * 4 * n), s->phase = fm_alloc(n), s->group = fm_alloc(n);
+    if (!s->position || !s->velocity || !s->orientation || !s->phase || !s->group)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->rows);
+    return FM_OK;
+}
+
+static void set_clock(fm_flock_shot *s, const fm_scene_def *defs)
+{
+    s->dt = s->model[0]->dt, s->steps_per_frame = s->model[0]->steps_per_frame, s->frame_limit = defs[0].frame_limit;
+    for (int k = 0; k < 3; k++) s->scene_lo[k] = INFINITY, s->scene_hi[k] = -INFINITY;
+    for (int g = 0; g < s->count; g++) {
+        s->start_step[g] = s->done_step[g] = -1;
+        for (int k = 0; k < 3; k++)
+            s->scene_lo[k] = fmin(s->scene_lo[k], s->model[g]->scene_lo[k]),
+            s->scene_hi[k] = fmax(s->scene_hi[k], s->model[g]->scene_hi[k]);
+    }
+}
+
+fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progress_fn progress, void *user,
+                                   fm_error *err)
+{
+    if (count < 1 || count > FM_MAX_GROUPS) {
+        fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
+        return NULL;
+    }
+    fm_flock_shot *s = calloc(1, sizeof *s);
+    if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    s->count = count;
+    memcpy(s->def, defs, sizeof *defs * (size_t)count);
+    fm_status st = build_groups(s, progress, user, err);
+    if (st == FM_OK) st = alloc_frame(s, err);
+    if (st != FM_OK) return fm_flock_shot_destroy(s), NULL;
+    set_clock(s, defs);
+    return s;
+}
+
+void fm_flock_shot_destroy(fm_flock_shot *s)
+{
+    if (!s) return;
+    for (int g = 0; g < s->count; g++) fm_flock_state_destroy(s->state[g]), fm_flock_model_destroy(s->model[g]);
+    fm_free(s->position), fm_free(s->velocity), fm_free(s->orientation), fm_free(s->phase), fm_free(s->group);
+    free(s);
+}
+
+void fm_flock_shot_set_threads(fm_flock_shot *s, int threads)
+{
+    for (int g = 0; g < s->count; g++) s->state[g]->threads = fm_threads(threads);
+}
+
+int fm_flock_shot_groups(const fm_flock_shot *s) { return s->count; }
+int64_t fm_flock_shot_rows(const fm_flock_shot *s) { return s->rows; }
+const fm_flock_model *fm_flock_shot_model(const fm_flock_shot *s, int g) { return s->model[g]; }
+
+/* The step at which group g may start (-1 while its `after` group is not done). */
+static int64_t start_step(const fm_flock_shot *s, int g)
+{
+    const fm_group_def *d = &s->def[g].group;
+    int64_t from = d->after < 0 ? 0 : s->done_step[d->after];
+    return from < 0 ? -1 : from + (int64_t)ceil(d->start / s->dt - 1e-9);
+}
+
+static void shot_step(fm_flock_shot *s)
+{
+    for (int g = 0; g < s->count; g++) {
+        int64_t at = s->started[g] ? -1 : start_step(s, g);
+        if (at < 0 || s->step < at) continue;
+        s->started[g] = 1, s->start_step[g] = s->step;
+        if (s->def[g].group.source_group >= 0) s->writes[s->def[g].group.source_group] = 0, s->writes[g] = 1;
+    }
+    for (int g = 0; g < s->count; g++) {
+        if (!s->started[g] || s->done[g]) continue;
+        fm_flock_step(s->model[g], s->state[g]);
+        if (binds(&s->def[g]) && s->state[g]->count[FM_PHASE_ARRIVED] == s->state[g]->n)
+            s->done[g] = 1, s->done_step[g] = s->step + 1;
+    }
+    s->step++;
+}
+
+static int all_done(const fm_flock_shot *s)
+{
+    for (int g = 0; g < s->count; g++)
+        if (!s->done[g]) return 0;
+    return 1;
+}
+
+static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        if (!s->writes[g]) continue;
+        const size_t r = (size_t)s->row0[g];
+        fm_flock_frame(s->state[g], s->position + 3 * r, s->velocity + 3 * r, s->orientation + 4 * r, s->phase + r);
+        memset(s->group + r, g, (size_t)s->model[g]->n);
+    }
+    fm_status st = fm_frame_check_runaway(s->position, 3, s->rows, s->scene_lo, s->scene_hi, k,
+                                          "each group's shape_flock speeds, forces and weights", err);
+    if (st != FM_OK || !cache) return st;
+    const cache_layout *l = fm_cache_writer_layout(cache);
+    const void *data[CACHE_MAX_ATTRS];
+    for (int i = 0; i < l->attr_count; i++) {
+        const fm_cache_attr a = l->attrs[i]->attr;
+        data[i] = a == FM_ATTR_POSITION ? (const void *)s->position : a == FM_ATTR_VELOCITY ? (const void *)s->velocity
+                : a == FM_ATTR_ORIENTATION ? (const void *)s->orientation : a == FM_ATTR_PHASE ? (const void *)s->phase
+                : a == FM_ATTR_GROUP ? (const void *)s->group : (const void *)fm_cache_writer_ids(cache);
+    }
+    return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+typedef struct shot_loop {
+    fm_flock_shot *s;
+    fm_cache_writer *cache;
+    const fm_run_control *c;
+} shot_loop;
+
+static void loop_step(void *sim) { shot_step(((shot_loop *)sim)->s); }
+static int loop_finished(const void *sim) { return all_done(((const shot_loop *)sim)->s); }
+
+static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
+{
+    shot_loop *r = sim;
+    fm_status st = write_frame(r->s, r->cache, k, err);
+    const int64_t *counts[FM_MAX_GROUPS];
+    for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
+    if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
+    return st;
+}
+
+static void finish_stats(const fm_flock_shot *s, fm_flock_shot_stats *stats)
+{
+    stats->run.steps = s->step;
+    stats->rows = s->rows;
+    stats->all_bound = all_done(s);
+    for (int g = 0; g < s->count; g++) {
+        fm_flock_shot_group_stats *gs = &stats->group[g];
+        const fm_flock_state *st = s->state[g];
+        gs->agents = st->n;
+        gs->all_bound = s->done[g];
+        gs->start_time = s->start_step[g] < 0 ? NAN : (double)s->start_step[g] * s->dt;
+        gs->bound_time = s->done_step[g] < 0 ? NAN : (double)s->done_step[g] * s->dt;
+        gs->bound_fraction = (double)st->count[FM_PHASE_ARRIVED] / (double)st->n;
+        fm_flock_distance(st, &gs->final_mean_distance, &gs->final_max_distance);
+    }
+}
+
+fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_run_control *control,
+                            fm_flock_shot_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    fm_run_control c = *control;
+    c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
+    shot_loop r = {s, cache, &c};
+    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
+                                s->frame_limit, &c, &stats->run, cache, NULL};
+    fm_status st = fm_frame_loop_run(&loop, err);
+    finish_stats(s, stats);
+    return st;
+}
