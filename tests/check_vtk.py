@@ -4,7 +4,7 @@ writer (run by the export tests, tests/cli/test_export_cli.c and tests/io/test_e
 
   check_vtk.py vtu[-raw] FILE.vtu EXPECTED tets|points [ARRAY...]
       EXPECTED holds little-endian raw values: the Points coordinates (tets: 12n f32, points:
-      3n f32), then each ARRAY's values in the order named (agent_id and id: n u32; phase: n u8;
+      3n f32), then each ARRAY's values in the order named (agent_id and id: n u32; phase, group: n u8;
       velocity: 3n f32; orient: 4n f32, x y z w). The cell data (tets) or point data (points)
       must be exactly the ARRAYs named.
       vtu: the appended data must be compressed as VTK's vtkZLibDataCompressor writes it: per
@@ -29,7 +29,7 @@ VTK_VERTEX, VTK_TETRA = 1, 10
 FORMATS = {"Float32": "f", "Int64": "q", "UInt8": "B", "UInt32": "I"}
 # the data arrays an EXPECTED file may hold: type and components
 DATA_ARRAYS = {"agent_id": ("UInt32", 1), "id": ("UInt32", 1), "phase": ("UInt8", 1),
-               "velocity": ("Float32", 3), "orient": ("Float32", 4)}
+               "velocity": ("Float32", 3), "orient": ("Float32", 4), "group": ("UInt8", 1)}
 failures = []
 
 

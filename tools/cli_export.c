@@ -29,7 +29,8 @@ static const char *const USAGE_EXPORT =
     "Tets become 4 triangles each with id and phase (PLY, OBJ), VTK_TETRA cells with cell data\n"
     "agent_id, velocity and phase (VTK), or points at their centroids (VDB). Points carry\n"
     "Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY and VDB, and\n"
-    "id, velocity, orient and phase in VTK. VTK's data are zlib-compressed as VTK writes them.\n"
+    "id, velocity, orient and phase in VTK. A shot's cache adds group to each. VTK's data are\n"
+    "zlib-compressed as VTK writes them.\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
@@ -192,7 +193,7 @@ typedef struct export_job {
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
     int need_velocity;            /* VDB and VTK always (tets: the centroids'); point flocks in every format */
-    int cache_velocity, cache_ids, cache_phases, cache_orientation;
+    int cache_velocity, cache_ids, cache_phases, cache_groups, cache_orientation;
     int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
     int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
     const char *name_pattern;     /* --name; NULL: <stem>_%05d.<ext> */
@@ -233,6 +234,7 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     job->cache_ids = fm_cache_has_attr(r, FM_ATTR_ID);
     job->houdini = job->format == FM_EXPORT_PLY || job->format == FM_EXPORT_VDB;
     job->cache_phases = (job->format == FM_EXPORT_VTK || job->houdini) && fm_cache_has_attr(r, FM_ATTR_PHASE);
+    job->cache_groups = (job->format == FM_EXPORT_VTK || job->houdini) && fm_cache_has_attr(r, FM_ATTR_GROUP);
     job->cache_orientation = (job->houdini || job->format == FM_EXPORT_VTK) && job->points &&
                              fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
     return job->houdini && job->points && !(job->pscale > 0) ? default_pscale(r, job) : 0;
@@ -253,7 +255,7 @@ typedef struct frame_source {
     float *tets, *velocity, *slot[POSITION_SLOTS];
     long slot_frame[POSITION_SLOTS];
     uint32_t *ids;
-    uint8_t *phases;
+    uint8_t *phases, *groups;
     float *orientation;           /* points: PLY, VDB and VTK */
     float *pscales, *ages;        /* Houdini's attributes (PLY and VDB) */
 } frame_source;
@@ -261,7 +263,7 @@ typedef struct frame_source {
 static void source_close(frame_source *s)
 {
     if (s->r) fm_cache_close(s->r);
-    free(s->tets), free(s->velocity), free(s->ids), free(s->phases);
+    free(s->tets), free(s->velocity), free(s->ids), free(s->phases), free(s->groups);
     free(s->orientation), free(s->pscales), free(s->ages);
     for (int i = 0; i < POSITION_SLOTS; i++) free(s->slot[i]);
     memset(s, 0, sizeof *s);
@@ -284,6 +286,7 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
     if (job->cache_ids || job->houdini) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
     if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
+    if (job->cache_groups) s->groups = alloc_or_flag(n, &failed);
     if (job->cache_orientation) s->orientation = alloc_or_flag(sizeof(float) * 4 * n, &failed);
     if (job->houdini) s->pscales = alloc_or_flag(sizeof(float) * n, &failed);
     if (job->houdini) s->ages = alloc_or_flag(sizeof(float) * n, &failed);
@@ -417,6 +420,10 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
     if (st == FM_OK && job->cache_phases) {
         st = fm_cache_read_attr(s->r, k, FM_ATTR_PHASE, s->phases, err);
         f->phases = s->phases;
+    }
+    if (st == FM_OK && job->cache_groups) {
+        st = fm_cache_read_attr(s->r, k, FM_ATTR_GROUP, s->groups, err);
+        f->groups = s->groups;
     }
     if (st == FM_OK && job->cache_orientation) st = read_orientation(s, job, k, f, err);
     if (st == FM_OK && job->houdini) houdini_attrs(s, job, k, f);

@@ -131,7 +131,7 @@ def agent_attributes(cache, k, scale):
         q = cache.read(k, "orientation")
         out["orientation"] = ("FLOAT_COLOR", "color", q)  # w, x, y, z in the colour's r, g, b, a
         out["rotation"] = ("FLOAT_VECTOR", "vector", euler_xyz(q))
-    for name in ("id", "phase"):
+    for name in ("id", "phase", "group"):
         if name in names:
             out[name] = ("INT", "value", cache.read(k, name).astype(np.int32))
     return out

@@ -1,13 +1,13 @@
 /* flockmorph exporters: one frame of agents, given as plain arrays, to the formats animation
  * and analysis tools read (docs/export.md).
  *
- *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase), points as
- *         vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase
+ *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase, group), points
+ *         as vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase, group
  *   OBJ   tets as 4 triangles each, points as `v` lines
  *   VTK   XML UnstructuredGrid (.vtu, appended data zlib-compressed as VTK's writer does):
- *         VTK_TETRA cells (cell data agent_id, velocity, phase) or VTK_VERTEX cells (point data
- *         id, velocity, orient, phase)
- *   VDB   OpenVDB PointDataGrid: P, v, orient, pscale, age, id, phase (Houdini's names)
+ *         VTK_TETRA cells (cell data agent_id, velocity, phase, group) or VTK_VERTEX cells (point
+ *         data id, velocity, orient, phase, group)
+ *   VDB   OpenVDB PointDataGrid: P, v, orient, pscale, age, id, phase, group (Houdini's names)
  *   PC2   point cache (Blender's Mesh Cache modifier, Maya, 3ds Max): every frame in one file
  *   MDD   the same, big-endian, with frame times (fm_pointcache_create)
  *
@@ -58,6 +58,7 @@ typedef struct fm_export_frame {
                                   and by VDB; NULL: none (VDB: zero) */
     const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: not written) */
     const uint8_t *phases;     /* n fm_phase values; NULL: not written */
+    const uint8_t *groups;     /* n: the scene group that moves each agent (a shot's cache); NULL: not written */
     /* Houdini's point attributes (PLY and VDB points, orientations also VTK; NULL: not written): */
     const float *orientations; /* n × 4: unit quaternions w, x, y, z as the cache stores them;
                                   written as Houdini's orient, x, y, z, w */

@@ -124,15 +124,16 @@ static uint32_t agent_id(const fm_export_frame *frame, size_t i)
 
 /* The vertex properties after x y z, in file order, with Houdini's attribute names: a vector's
  * components are NAMEx NAMEy NAMEz (NAMEw), since PLY has scalars only. */
-enum { P_V, P_ORIENT, P_PSCALE, P_AGE, P_ID, P_PHASE, P_COUNT };
+enum { P_V, P_ORIENT, P_PSCALE, P_AGE, P_ID, P_PHASE, P_GROUP, P_COUNT };
 static const struct {
     const char *name, *type;
     int components;
 } ply_props[P_COUNT] = {{"v", "float", 3},     {"orient", "float", 4}, {"pscale", "float", 1},
-                        {"age", "float", 1},   {"id", "int", 1},       {"phase", "uchar", 1}};
+                        {"age", "float", 1},   {"id", "int", 1},       {"phase", "uchar", 1},
+                        {"group", "uchar", 1}};
 
 /* Points carry every attribute given and always their id; tets (4 vertices each, a tet's values
- * on all four) carry id and phase when given. */
+ * on all four) carry id, phase and group when given. */
 static int has_prop(const fm_export_frame *f, int p)
 {
     const int points = f->tet_vertices == NULL;
@@ -142,7 +143,8 @@ static int has_prop(const fm_export_frame *f, int p)
     case P_PSCALE: return points && f->pscales;
     case P_AGE: return points && f->ages;
     case P_ID: return points || f->ids;
-    default: return f->phases != NULL;
+    case P_PHASE: return f->phases != NULL;
+    default: return f->groups != NULL;
     }
 }
 
@@ -166,6 +168,7 @@ static void ply_emit_props(fm_le_writer *w, const fm_export_frame *f, size_t i)
     if (has_prop(f, P_AGE)) fm_le_f32(w, f->ages[i]);
     if (has_prop(f, P_ID)) fm_le_u32(w, agent_id(f, i));
     if (has_prop(f, P_PHASE)) fm_le_u8(w, f->phases[i]);
+    if (has_prop(f, P_GROUP)) fm_le_u8(w, f->groups[i]);
 }
 
 static void ply_tets_data(fm_le_writer *w, const void *data)

@@ -143,6 +143,7 @@ void add_optional(vp::PointDataGrid &grid, const openvdb::tools::PointIndexGrid 
     if (f->pscales) add_attribute(grid, index, "pscale", std::vector<float>(f->pscales, f->pscales + n));
     if (f->ages) add_attribute(grid, index, "age", std::vector<float>(f->ages, f->ages + n));
     if (f->phases) add_attribute(grid, index, "phase", std::vector<int32_t>(f->phases, f->phases + n));
+    if (f->groups) add_attribute(grid, index, "group", std::vector<int32_t>(f->groups, f->groups + n));
 }
 
 openvdb::GridBase::Ptr build_grid(const std::vector<Vec3f> &p, const std::vector<Vec3f> &v,

@@ -23,7 +23,7 @@ enum { VTK_VERTEX = 1, VTK_TETRA = 10 };
 enum { VTU_BLOCK = 1 << 15 };
 
 /* Points, connectivity, offsets, types, id, phase, velocity, orient. */
-enum { VTU_MAX_ARRAYS = 8 };
+enum { VTU_MAX_ARRAYS = 9 };
 
 typedef enum vtu_section { SEC_POINTS, SEC_CELLS, SEC_CELL_DATA, SEC_POINT_DATA, SEC_COUNT } vtu_section;
 
@@ -74,6 +74,11 @@ static void emit_phases(fm_le_writer *w, const fm_export_frame *f)
     for (size_t i = 0; i < f->n; i++) fm_le_u8(w, f->phases[i]);
 }
 
+static void emit_groups(fm_le_writer *w, const fm_export_frame *f)
+{
+    for (size_t i = 0; i < f->n; i++) fm_le_u8(w, f->groups[i]);
+}
+
 static void emit_velocities(fm_le_writer *w, const fm_export_frame *f)
 {
     for (size_t i = 0; i < 3 * f->n; i++) fm_le_f32(w, f->velocities[i]);
@@ -102,6 +107,7 @@ static int vtu_arrays(const fm_export_frame *f, vtu_array a[VTU_MAX_ARRAYS])
     if (f->velocities) a[k++] = (vtu_array){data, "Float32", "velocity", 3, 12 * n, emit_velocities, NULL, 0};
     if (f->orientations && !is_tets(f))
         a[k++] = (vtu_array){SEC_POINT_DATA, "Float32", "orient", 4, 16 * n, emit_orientations, NULL, 0};
+    if (f->groups) a[k++] = (vtu_array){data, "UInt8", "group", 1, n, emit_groups, NULL, 0};
     return k;
 }
 

@@ -23,18 +23,20 @@ typedef struct test_cache {
     int tets;          /* tet vertices, else positions */
     int velocity, ids, phases, orientation;
     char path[FM_PATH_MAX];
+    int groups;        /* a shot's group attribute */
 } test_cache;
 
-static test_cache g_tets = {"seq.fmc", 1, 0, 0, 0, 0, ""};            /* format 1, as fm_cache_writer_create */
-static test_cache g_points = {"points.fmc", 0, 1, 1, 0, 0, ""};       /* position, velocity, id */
-static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, 0, ""};    /* position only */
-static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, 0, ""}; /* tet vertices and phase */
-static test_cache g_flock = {"flock.fmc", 0, 1, 1, 1, 1, ""};       /* a shape flock's five attributes */
+static test_cache g_tets = {"seq.fmc", 1, 0, 0, 0, 0, "", 0};            /* format 1, as fm_cache_writer_create */
+static test_cache g_points = {"points.fmc", 0, 1, 1, 0, 0, "", 0};       /* position, velocity, id */
+static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, 0, "", 0};    /* position only */
+static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, 0, "", 0}; /* tet vertices and phase */
+static test_cache g_flock = {"flock.fmc", 0, 1, 1, 1, 1, "", 0};       /* a shape flock's five attributes */
+static test_cache g_flock_shot = {"flock_shot.fmc", 0, 1, 1, 1, 1, "", 1}; /* and a shot's group */
 static const char *g_cache = g_tets.path;
 
 static float g_frames[FRAMES][12 * AGENTS], g_pos[FRAMES][3 * AGENTS], g_vel[FRAMES][3 * AGENTS];
 static uint32_t g_ids[AGENTS];
-static uint8_t g_phase[FRAMES][AGENTS];
+static uint8_t g_phase[FRAMES][AGENTS], g_group[FRAMES][AGENTS];
 static float g_orient[FRAMES][4 * AGENTS]; /* unit quaternions w, x, y, z */
 static char g_err[1 << 14]; /* the last command's stderr */
 
@@ -66,6 +68,7 @@ static void make_frames(void)
                 g_vel[f][3 * i + k] = (float)(v[k] + a[k] * t);
             }
             g_phase[f][i] = (uint8_t)((i + f) % 4);
+            g_group[f][i] = (uint8_t)(f >= FRAMES / 2) + (uint8_t)(i % 2); /* groups 0, 1 and 2 */
             double q[4] = {1.0 + 0.1 * f, 0.3 * (i % 3) - 0.3, 0.2 * (i % 5) - 0.4, 0.1 * (f % 4) + 0.05}, len = 0;
             for (int c = 0; c < 4; c++) len += q[c] * q[c];
             for (int c = 0; c < 4; c++) g_orient[f][4 * i + c] = (float)(q[c] / sqrt(len));
@@ -82,19 +85,21 @@ static const void *attr_data(fm_cache_attr attr, int frame)
     case FM_ATTR_VELOCITY: return g_vel[frame];
     case FM_ATTR_ID: return g_ids;
     case FM_ATTR_ORIENTATION: return g_orient[frame];
+    case FM_ATTR_GROUP: return g_group[frame];
     default: return g_phase[frame];
     }
 }
 
 static void write_cache(test_cache *c)
 {
-    fm_cache_attr attrs[5];
+    fm_cache_attr attrs[6];
     int count = 0;
     attrs[count++] = c->tets ? FM_ATTR_TET_VERTICES : FM_ATTR_POSITION;
     if (c->velocity) attrs[count++] = FM_ATTR_VELOCITY;
     if (c->orientation) attrs[count++] = FM_ATTR_ORIENTATION;
     if (c->ids) attrs[count++] = FM_ATTR_ID;
     if (c->phases) attrs[count++] = FM_ATTR_PHASE;
+    if (c->groups) attrs[count++] = FM_ATTR_GROUP;
     fm_error err = {0};
     fm_cache_options o = fm_default_cache_options();
     export_tmp(c->path, c->name);
@@ -102,7 +107,7 @@ static void write_cache(test_cache *c)
                                       : fm_cache_writer_create_attrs(c->path, AGENTS, RATE, attrs, count, &o, &err);
     ENSURE_MSG(w != NULL, "%s: %s", c->name, err.message);
     for (int f = 0; w && f < FRAMES; f++) {
-        const void *data[5];
+        const void *data[6];
         for (int a = 0; a < count; a++) data[a] = attr_data(attrs[a], f);
         ENSURE(fm_cache_writer_add_frame_attrs(w, data, &err) == FM_OK);
     }
@@ -117,6 +122,7 @@ static void make_caches(void)
     write_cache(&g_bare_points);
     write_cache(&g_phased_tets);
     write_cache(&g_flock);
+    write_cache(&g_flock_shot);
 }
 
 /* ---------------------------------------------------------------- running the CLI */
@@ -443,7 +449,7 @@ static void test_point_cache(void)
     float pscale = default_pscale(&g_points);
     for (int k = 1; k <= 2; k++) {
         snprintf(path, sizeof path, "%s/points_%05d.ply", dir, k);
-        export_ply_points e = {g_pos[k], g_vel[k], NULL, 1, 1, pscale, (float)(k / RATE), g_ids, NULL};
+        export_ply_points e = {g_pos[k], g_vel[k], NULL, 1, 1, pscale, (float)(k / RATE), g_ids, NULL, NULL};
         export_check_ply(path, &e, AGENTS);
         export_check_assimp_points(path, g_pos[k], AGENTS, 0);
     }
@@ -490,7 +496,7 @@ static void test_point_cache_without_velocity(void)
     for (int k = 0; k <= 4; k += 4) { /* one-sided, then central */
         exported_velocity(&g_bare_points, k, v);
         snprintf(path, sizeof path, "%s/bare_%05d.ply", dir, k);
-        export_ply_points e = {g_pos[k], v, NULL, 1, 1, default_pscale(&g_bare_points), (float)(k / RATE), NULL, NULL};
+        export_ply_points e = {g_pos[k], v, NULL, 1, 1, default_pscale(&g_bare_points), (float)(k / RATE), NULL, NULL, NULL};
         export_check_ply(path, &e, AGENTS);
     }
 }
@@ -564,7 +570,23 @@ static void test_houdini_ply_points(void)
     ENSURE_MSG(!strcmp(have, "fl.1001.ply fl.1003.ply"), "files '%s'", have); /* frames 3 and 5 */
     for (int k = 3; k <= 5; k += 2) {
         snprintf(path, sizeof path, "%s/fl.%04d.ply", dir, 998 + k);
-        export_ply_points e = {g_pos[k], g_vel[k], g_orient[k], 1, 1, 0.25f, (float)(k / RATE), g_ids, g_phase[k]};
+        export_ply_points e = {g_pos[k], g_vel[k], g_orient[k], 1, 1, 0.25f, (float)(k / RATE), g_ids, g_phase[k], NULL};
+        export_check_ply(path, &e, AGENTS);
+    }
+}
+
+/* A shot's flock (a group attribute): the PLY carries `uchar group` after phase, byte for byte, in
+ * a frame before and one after the groups change. */
+static void test_ply_points_with_groups(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32];
+    snprintf(args, sizeof args, "--format ply --frames 1:%d:%d --pscale 0.25 -o '%s'", FRAMES - 1, FRAMES - 2,
+             fresh_dir(dir, "group_ply"));
+    ENSURE_MSG(export_cmd_on(g_flock_shot.path, args) == 0, "%s: %s", args, g_err);
+    for (int k = 1; k < FRAMES; k += FRAMES - 2) {
+        snprintf(path, sizeof path, "%s/flock_shot_%05d.ply", dir, k);
+        export_ply_points e = {g_pos[k], g_vel[k], g_orient[k], 1, 1, 0.25f, (float)(k / RATE), g_ids, g_phase[k],
+                               g_group[k]};
         export_check_ply(path, &e, AGENTS);
     }
 }
@@ -941,6 +963,7 @@ int main(void)
     RUN_TEST(test_flock_vtk);
     RUN_TEST(test_point_caches);
     RUN_TEST(test_houdini_ply_points);
+    RUN_TEST(test_ply_points_with_groups);
     RUN_TEST(test_up_y);
     RUN_TEST(test_tet_ply_ids_and_phases);
     RUN_TEST(test_houdini_vdb);

@@ -95,6 +95,7 @@ typedef struct export_ply_points {
     float pscale, age;
     const uint32_t *ids; /* NULL: 0 .. n-1 */
     const uint8_t *phases;
+    const uint8_t *groups; /* NULL: none (a shot's cache has them) */
 } export_ply_points;
 
 /* Appends a value's 4 bytes (or 1 for the phase) to a record. */
@@ -105,7 +106,7 @@ static inline size_t export_put(unsigned char *r, size_t at, const void *v, size
 }
 
 /* Point i's record as the PLY should have it: x y z, vx vy vz, orientx..w (x, y, z, w), pscale,
- * age, id, phase. */
+ * age, id, phase, group. */
 static inline size_t export_ply_record(const export_ply_points *e, size_t i, unsigned char *r)
 {
     size_t at = export_put(r, 0, e->pos + 3 * i, 12);
@@ -115,7 +116,8 @@ static inline size_t export_ply_record(const export_ply_points *e, size_t i, uns
     if (e->has_age) at = export_put(r, at, &e->age, 4);
     uint32_t id = e->ids ? e->ids[i] : (uint32_t)i;
     at = export_put(r, at, &id, 4);
-    return e->phases ? export_put(r, at, e->phases + i, 1) : at;
+    if (e->phases) at = export_put(r, at, e->phases + i, 1);
+    return e->groups ? export_put(r, at, e->groups + i, 1) : at;
 }
 
 /* A point PLY: the exact header, then every record byte for byte. */
@@ -125,12 +127,12 @@ static inline void export_check_ply(const char *path, const export_ply_points *e
     snprintf(header, sizeof header,
              "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING " points\n"
              "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n%s%s%s%s"
-             "property int id\n%send_header\n", n,
+             "property int id\n%s%send_header\n", n,
              e->vel ? "property float vx\nproperty float vy\nproperty float vz\n" : "",
              e->orient ? "property float orientx\nproperty float orienty\nproperty float orientz\n"
                          "property float orientw\n" : "",
              e->has_pscale ? "property float pscale\n" : "", e->has_age ? "property float age\n" : "",
-             e->phases ? "property uchar phase\n" : "");
+             e->phases ? "property uchar phase\n" : "", e->groups ? "property uchar group\n" : "");
     unsigned char want[64];
     size_t hl = strlen(header), record = export_ply_record(e, 0, want), size = hl + record * n;
     unsigned char *buf = malloc(size + 1);

@@ -111,38 +111,40 @@ static void test_points_obj(void)
 
 /* ---------------------------------------------------------------- VTK */
 
-/* Writes what a tet .vtu should hold into expected: the vertices, ids, velocities, phases. */
+/* Writes what a tet .vtu should hold into expected: the vertices, ids, velocities, phases and
+ * groups. */
 static void expect_tets(const char *expected, const float *v, const uint32_t *ids, const float *vel,
-                        const uint8_t *phases, size_t n)
+                        const uint8_t *phases, const uint8_t *groups, size_t n)
 {
     export_write_raw(expected, v, 48 * n, 0);
     export_write_raw(expected, ids, 4 * n, 1);
     export_write_raw(expected, vel, 12 * n, 1);
     if (phases) export_write_raw(expected, phases, n, 1);
+    if (groups) export_write_raw(expected, groups, n, 1);
 }
 
 static void test_vtu_tets(void)
 {
     static float v[12 * NT], vel[3 * NT];
-    static uint8_t phases[NT];
+    static uint8_t phases[NT], groups[NT];
     random_tets(v, NT);
     uint32_t ids[NT];
-    for (int i = 0; i < NT; i++) ids[i] = (uint32_t)i, phases[i] = (uint8_t)(3 - i % 4);
+    for (int i = 0; i < NT; i++) ids[i] = (uint32_t)i, phases[i] = (uint8_t)(3 - i % 4), groups[i] = (uint8_t)(i % 3);
     for (int i = 0; i < 3 * NT; i++) vel[i] = (float)uniform(-5, 5);
     char path[FM_PATH_MAX], expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
-    fm_export_frame f = {.n = NT, .tet_vertices = v, .velocities = vel, .phases = phases};
+    fm_export_frame f = {.n = NT, .tet_vertices = v, .velocities = vel, .phases = phases, .groups = groups};
     if (write_frame(&f, FM_EXPORT_VTK, "formats_tets.vtu", path) != FM_OK) return;
-    expect_tets(export_tmp(expected, "formats_tets.expected"), v, ids, vel, phases, NT);
-    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity phase", path, expected);
+    expect_tets(export_tmp(expected, "formats_tets.expected"), v, ids, vel, phases, groups, NT);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity phase group", path, expected);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
     /* the checker can fail: one coordinate off by one ulp, then one velocity */
     uint32_t bits;
     memcpy(&bits, &v[17], 4), bits ^= 1, memcpy(&v[17], &bits, 4);
-    expect_tets(expected, v, ids, vel, phases, NT);
+    expect_tets(expected, v, ids, vel, phases, groups, NT);
     ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed coordinate");
     memcpy(&bits, &v[17], 4), bits ^= 1, memcpy(&v[17], &bits, 4);
     vel[3 * NT - 2] = -vel[3 * NT - 2];
-    expect_tets(expected, v, ids, vel, phases, NT);
+    expect_tets(expected, v, ids, vel, phases, groups, NT);
     ENSURE_MSG(export_run_check_vtk(args, 1) == 1, "check_vtk.py missed a changed velocity");
 }
 
@@ -249,7 +251,7 @@ static void test_vtu_blocks(void)
     if (write_frame(&f, FM_EXPORT_VTK, "formats_blocks.vtu", zpath) != FM_OK) return;
     ENSURE_MSG(fm_export_frame_write(&f, FM_EXPORT_VTK, &raw, export_tmp(rpath, "formats_blocks_raw.vtu"), &err) == FM_OK,
                "%s", err.message);
-    expect_tets(export_tmp(expected, "formats_blocks.expected"), v, ids, vel, NULL, NB);
+    expect_tets(export_tmp(expected, "formats_blocks.expected"), v, ids, vel, NULL, NULL, NB);
     snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity", zpath, expected);
     ENSURE_MSG(export_run_check_vtk(args, 0) == 0, "check_vtk.py %s failed", args);
     snprintf(args, sizeof args, "vtu-raw '%s' '%s' tets agent_id velocity", rpath, expected);
