@@ -673,6 +673,30 @@ static void test_tet_ply_ids_and_phases(void)
     }
 }
 
+/* A shot flock's VDB: group (int32) after phase, each agent's value. */
+static void test_vdb_with_groups(void)
+{
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], list[512];
+    snprintf(args, sizeof args, "--format vdb --frames %d --pscale 0.5 -o '%s'", FRAMES - 1, fresh_dir(dir, "group_vdb"));
+    ENSURE_MSG(export_cmd_on(g_flock_shot.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/flock_shot_%05d.vdb", dir, FRAMES - 1);
+    fm_error err = {0};
+    ENSURE_MSG(fm_vdb_points_list_attrs(path, list, sizeof list, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(!strcmp(list, "P:vec3s v:vec3s id:int32 orient:quats pscale:float age:float phase:int32 group:int32"), "%s",
+               list);
+    size_t n, m;
+    float *p, *v, *group;
+    int32_t *id;
+    int comps;
+    if (fm_vdb_points_read(path, &n, &p, &v, &id, NULL, &err) != FM_OK) return;
+    ENSURE(fm_vdb_points_read_attr(path, "group", &m, &comps, &group, &err) == FM_OK && m == n && comps == 1);
+    for (size_t j = 0; group && j < n; j++) {
+        int i = agent_of(&g_flock_shot, id[j]);
+        ENSURE_MSG(i >= 0 && group[j] == g_group[FRAMES - 1][i], "id %d: group %g", id[j], i >= 0 ? (double)group[j] : -1.0);
+    }
+    free(p), free(v), free(id), free(group);
+}
+
 /* The VDB's attributes by name and type, as Houdini names them, and their values. */
 static void test_houdini_vdb(void)
 {
@@ -964,6 +988,7 @@ int main(void)
     RUN_TEST(test_point_caches);
     RUN_TEST(test_houdini_ply_points);
     RUN_TEST(test_ply_points_with_groups);
+    RUN_TEST(test_vdb_with_groups);
     RUN_TEST(test_up_y);
     RUN_TEST(test_tet_ply_ids_and_phases);
     RUN_TEST(test_houdini_vdb);
