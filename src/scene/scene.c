@@ -369,8 +369,13 @@ static void where_path(const where *w, char *out, size_t size)
 static const fm_scene_override_note *blame(const where *w, const char *key)
 {
     if (!w->overridden) return NULL;
-    char path[256];
+    char path[256], in_group[300];
     where_path(w, path, sizeof path);
+    if (w->in_group) { /* a group's key, as an override names it: groups[1].speed0 */
+        snprintf(in_group, sizeof in_group, "groups[%d].%s", w->group, path);
+        const fm_scene_override_note *note = fm_override_blame(w->overridden, in_group);
+        if (note) return note;
+    }
     const fm_scene_override_note *note = fm_override_blame(w->overridden, path);
     return note ? note : fm_override_blame(w->overridden, key);
 }

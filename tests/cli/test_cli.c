@@ -349,6 +349,11 @@ static void test_shot_run(void)
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
     ENSURE_EXIT(args, 1);
     ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
+    /* --set reaches into a group, and an error in what it set names the override */
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --set groups.1.speed0=-6", FM_SOURCE_DIR,
+             outdir);
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "--set groups.1.speed0=-6: speed0: -6 is out of range"), "'%s'", g_err);
 }
 
 static int file_exists(const char *path)
