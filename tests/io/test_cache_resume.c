@@ -21,7 +21,7 @@ static int resume_and_finish(const char *path, uint32_t at, uint32_t total, uint
     ENSURE_MSG(w != NULL, "%s: %s", c->name, err.message);
     if (!w) return -1;
     ENSURE(fm_cache_writer_frames(w) == at);
-    void *data[6];
+    void *data[ALL_ATTR_COUNT];
     for (int i = 0; i < c->attr_count; i++) data[i] = malloc(fm_cache_attr_describe(c->attrs[i])->bytes_per_agent * agents);
     for (uint32_t f = at; f < total; f++) {
         for (int i = 0; i < c->attr_count; i++) make_attr(c->attrs[i], agents, f, DATA_SMOOTH, data[i]);
