@@ -43,6 +43,12 @@ double fm_closest_point(const fm_closest *c, const double p[3], double hint, dou
    documents; hint as for fm_closest_point. */
 double fm_closest_signed(const fm_closest *c, const double p[3], double hint, double closest[3], double normal[3]);
 
+/* The distance from p to the nearest triangle when it is nearer than radius, else +inf: one
+   Embree query within that sphere, which finds nothing quickly when no triangle is that near (NaN
+   for a point the queries cannot take). Unsigned: for a point outside every mesh it is the union's
+   distance. */
+double fm_closest_within(const fm_closest *c, const double p[3], double radius);
+
 /* The unit face normal of triangle t (outward with want_sign; 0 for a zero-area triangle). */
 const double *fm_closest_face_normal(const fm_closest *c, int64_t t);
 int64_t fm_closest_first_triangle(const fm_closest *c, int mesh);

@@ -246,6 +246,24 @@ double fm_closest_point(const fm_closest *o, const double p[3], double hint, dou
     return sqrt(best.d2);
 }
 
+double fm_closest_within(const fm_closest *o, const double p[3], double radius)
+{
+    if (!query_point_ok(o, p)) return NAN;
+    query q;
+    q.o = o;
+    memcpy(q.p, p, sizeof q.p);
+    q.pad = query_pad(o, p), q.only = -1;
+    q.d2 = INFINITY, q.t = -1, q.geom = -1, q.feature = F_FACE;
+    struct RTCPointQuery pq;
+    pq.x = (float)p[0], pq.y = (float)p[1], pq.z = (float)p[2];
+    pq.time = 0.0f;
+    pq.radius = nextafterf((float)(radius * (1.0 + 1e-6) + q.pad), INFINITY);
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(o->scene, &pq, &ctx, on_primitive, &q);
+    return q.t >= 0 && sqrt(q.d2) < radius ? sqrt(q.d2) : INFINITY;
+}
+
 double fm_closest_signed(const fm_closest *o, const double p[3], double hint, double closest[3], double normal[3])
 {
     if (!query_point_ok(o, p) || !o->want_sign) {

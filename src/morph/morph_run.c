@@ -114,12 +114,20 @@ double fm_morph_vertex_clearance(const fm_morph_model *m, const float *verts, si
     if (!(least < g.far)) return g.far; /* every vertex beyond the band: at least its width */
     const float near = least + EXACT_WITHIN_VOXELS * g.voxel;
     double exact = INFINITY;
-#pragma omp parallel for num_threads(fm_threads(0)) reduction(min : exact) schedule(dynamic, 4096)
-    for (int64_t i = 0; i < vertices; i++) {
-        const float *v = verts + 3 * i;
-        if (!(fm_sdf_sample(&g, v[0], v[1], v[2], NULL) <= near)) continue;
-        const double p[3] = {v[0], v[1], v[2]};
-        exact = fmin(exact, fm_obstacles_closest(m->obstacles, p, NULL, NULL));
+#pragma omp parallel num_threads(fm_threads(0)) reduction(min : exact)
+    {
+        double best = INFINITY; /* this thread's: only a nearer vertex can change the minimum */
+#pragma omp for schedule(dynamic, 4096)
+        for (int64_t i = 0; i < vertices; i++) {
+            const float *v = verts + 3 * i;
+            const float gv = fm_sdf_sample(&g, v[0], v[1], v[2], NULL);
+            if (!(gv <= near)) continue;
+            const double p[3] = {v[0], v[1], v[2]};
+            /* within a voxel of the surface the grid's sign may be wrong: the signed query there */
+            best = fmin(best, gv <= g.voxel || !(best > 0) ? fm_obstacles_closest(m->obstacles, p, NULL, NULL)
+                                                            : fm_obstacles_distance_within(m->obstacles, p, best));
+        }
+        exact = fmin(exact, best);
     }
     return exact;
 }

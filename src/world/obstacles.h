@@ -54,6 +54,11 @@ fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
    does not depend on it. Thread-safe: callable from OpenMP threads concurrently. */
 double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double closest[3], double normal[3]);
 
+/* The exact distance from p, a point outside every obstacle, to the obstacles when it is less than
+   radius, else +inf (fm_closest_within): the cheap query for "is p nearer than the nearest found
+   so far". */
+double fm_obstacles_distance_within(const fm_obstacles *o, const double p[3], double radius);
+
 /* scene_obstacles.c: the scene's meshes and obstacles as both modes load them. */
 
 /* Loads, checks closed and places one mesh of the scene; errors name where the scene sets `key`. */

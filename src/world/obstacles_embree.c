@@ -26,6 +26,11 @@ double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double clo
     return fm_closest_signed(o ? o->mesh : NULL, p, hint, closest, normal);
 }
 
+double fm_obstacles_distance_within(const fm_obstacles *o, const double p[3], double radius)
+{
+    return fm_closest_within(o ? o->mesh : NULL, p, radius);
+}
+
 void fm_obstacles_destroy(fm_obstacles *o)
 {
     if (!o) return;
