@@ -5,6 +5,7 @@
  * (and `start` seconds later). Each group is an ordinary flock model and state. */
 #include "cache_format.h"
 #include "flock.h"
+#include "fm_math.h"
 #include "frame_loop.h"
 
 #include <math.h>
@@ -75,9 +76,8 @@ static void set_clock(fm_flock_shot *s, const fm_scene_def *defs)
     for (int k = 0; k < 3; k++) s->scene_lo[k] = INFINITY, s->scene_hi[k] = -INFINITY;
     for (int g = 0; g < s->count; g++) {
         s->start_step[g] = s->done_step[g] = -1;
-        for (int k = 0; k < 3; k++)
-            s->scene_lo[k] = fmin(s->scene_lo[k], s->model[g]->scene_lo[k]),
-            s->scene_hi[k] = fmax(s->scene_hi[k], s->model[g]->scene_hi[k]);
+        fm_grow_bounds(s->scene_lo, s->scene_hi, s->model[g]->scene_lo, 1);
+        fm_grow_bounds(s->scene_lo, s->scene_hi, s->model[g]->scene_hi, 1);
     }
 }
 
@@ -116,18 +116,10 @@ int fm_flock_shot_groups(const fm_flock_shot *s) { return s->count; }
 int64_t fm_flock_shot_rows(const fm_flock_shot *s) { return s->rows; }
 const fm_flock_model *fm_flock_shot_model(const fm_flock_shot *s, int g) { return s->model[g]; }
 
-/* The step at which group g may start (-1 while its `after` group is not done). */
-static int64_t start_step(const fm_flock_shot *s, int g)
-{
-    const fm_group_def *d = &s->def[g].group;
-    int64_t from = d->after < 0 ? 0 : s->done_step[d->after];
-    return from < 0 ? -1 : from + (int64_t)ceil(d->start / s->dt - 1e-9);
-}
-
 static void shot_step(fm_flock_shot *s)
 {
     for (int g = 0; g < s->count; g++) {
-        int64_t at = s->started[g] ? -1 : start_step(s, g);
+        int64_t at = s->started[g] ? -1 : fm_frame_loop_group_start(&s->def[g].group, s->done_step, s->dt);
         if (at < 0 || s->step < at) continue;
         s->started[g] = 1, s->start_step[g] = s->step;
         if (s->def[g].group.source_group >= 0) s->writes[s->def[g].group.source_group] = 0, s->writes[g] = 1;

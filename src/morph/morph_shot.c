@@ -11,6 +11,7 @@
  *   obstacles a group that avoids another sees that group's target if it flies after it, its
  *             source if it flies before it (fm_shot_build refuses a pair that may fly together) */
 #include "morph.h"
+#include "fm_math.h"
 #include "frame_loop.h"
 #include "cache_format.h"
 
@@ -117,9 +118,8 @@ fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_prog
     s->frame_limit = defs[0].frame_limit;
     for (int k = 0; k < 3; k++) s->scene_lo[k] = INFINITY, s->scene_hi[k] = -INFINITY;
     for (int g = 0; g < count; g++)
-        for (int k = 0; k < 3; k++)
-            s->scene_lo[k] = fmin(s->scene_lo[k], s->model[g]->scene_lo[k]),
-            s->scene_hi[k] = fmax(s->scene_hi[k], s->model[g]->scene_hi[k]);
+        fm_grow_bounds(s->scene_lo, s->scene_hi, s->model[g]->scene_lo, 1),
+        fm_grow_bounds(s->scene_lo, s->scene_hi, s->model[g]->scene_hi, 1);
     for (int g = 0; g < count; g++) s->start_step[g] = s->arrival_step[g] = -1;
     return s;
 }
@@ -172,20 +172,10 @@ static fm_status take_over_rows(fm_shot *s, int g, fm_error *err)
     return FM_OK;
 }
 
-/* The step at which group g may start: its own start, counted from the shot's start or from the
- * step after its `after` group arrived; -1 while that is not known yet. */
-static int64_t start_step(const fm_shot *s, int g)
-{
-    const fm_group_def *d = &s->def[g].group;
-    int64_t from = d->after < 0 ? 0 : s->arrival_step[d->after];
-    if (from < 0) return -1;
-    return from + (int64_t)ceil(d->start / s->dt - 1e-9);
-}
-
 static fm_status start_groups(fm_shot *s, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
-        int64_t at = s->started[g] ? -1 : start_step(s, g);
+        int64_t at = s->started[g] ? -1 : fm_frame_loop_group_start(&s->def[g].group, s->arrival_step, s->dt);
         if (at < 0 || s->step < at) continue;
         if (s->def[g].group.source_group >= 0) {
             fm_status st = take_over_rows(s, g, err);

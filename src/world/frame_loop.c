@@ -125,6 +125,12 @@ fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err
     return fm_fail(err, FM_ERR_USAGE, "%s: a shot (a scene with groups) keeps no checkpoint in this version", path);
 }
 
+int64_t fm_frame_loop_group_start(const fm_group_def *group, const int64_t *done_step, double dt)
+{
+    const int64_t from = group->after < 0 ? 0 : done_step[group->after];
+    return from < 0 ? -1 : from + (int64_t)ceil(group->start / dt - 1e-9);
+}
+
 void fm_frame_loop_shot_progress(const fm_run_control *c, int64_t k, int64_t step, double dt,
                                  const int64_t *const *counts, const int *writes, int groups)
 {

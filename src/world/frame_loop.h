@@ -36,6 +36,10 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
  * save, a usage error naming the path; and the progress of frame k, the phase counts summed over
  * the groups that write rows (writes[g]; counts[g] their fm_phase counts). */
 fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err);
+/* The step at which a shot's group may start: `start` seconds (rounded up to whole steps of dt)
+ * after step 0, or after the step its `after` group was done (done_step[after]; -1 while it is
+ * not, and then so is the result). */
+int64_t fm_frame_loop_group_start(const fm_group_def *group, const int64_t *done_step, double dt);
 void fm_frame_loop_shot_progress(const fm_run_control *c, int64_t k, int64_t step, double dt,
                                  const int64_t *const *counts, const int *writes, int groups);
 
