@@ -6,7 +6,8 @@
 /* Bytes per agent of each array, as allocated by morph_model.c, morph_state.c, morph_run.c, the cache writer and grid.c. */
 static const double MODEL_PER_AGENT =
     sizeof(float) * (12 + 3 + 12 + 3 + 1) /* src_rel, src_c, tgt_f, tgt_c, src_radius */
-    + sizeof(double) * 12;                 /* tgt */
+    + sizeof(double) * 12                  /* tgt */
+    + sizeof(int64_t);                     /* src_index */
 static const double STATE_PER_AGENT =
     sizeof(float) * (3 + 3 + 3 + 2 + FM_MORPH_FLOATS + 3) /* p, v, p2, t2 and tf, morph, vla */
     + 6                                                 /* phase, perm, morph_safe, entered, member, mde_needed */
