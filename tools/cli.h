@@ -211,8 +211,9 @@ typedef struct cli_mode {
     void (*close)(void *run);
 } cli_mode;
 extern const cli_mode cli_mode_morph, cli_mode_flock, cli_mode_shot, cli_mode_flock_shot;
-/* The run's overrides, which the shot mode reads each group with (cli_mode_shot.c). */
-void cli_shot_use_overrides(const fm_scene_override *set, int count);
+/* The run's overrides, which the shot mode reads each group with, and the seed the file gave and the
+ * run's (a wedge's derived one), which the groups that keep the file's take (cli_mode_shot.c). */
+void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t file_seed, uint64_t run_seed);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

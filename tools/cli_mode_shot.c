@@ -27,15 +27,22 @@ typedef struct shot_run {
 static const fm_scene_override *g_overrides;
 static int g_override_count;
 
-void cli_shot_use_overrides(const fm_scene_override *set, int count) { g_overrides = set, g_override_count = count; }
+static uint64_t g_file_seed, g_run_seed; /* a wedge's derived seed replaces the file's (cli_overrides.c) */
+
+void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t file_seed, uint64_t run_seed)
+{
+    g_overrides = set, g_override_count = count, g_file_seed = file_seed, g_run_seed = run_seed;
+}
 
 static int load_groups(shot_run *r, const fm_scene_def *def)
 {
     fm_error err = {0};
     r->count = def->group_count;
-    for (int g = 0; g < r->count; g++)
+    for (int g = 0; g < r->count; g++) {
         if (fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, &r->defs[g], &err) != FM_OK)
             return cli_report(&err);
+        if (r->defs[g].seed == g_file_seed) r->defs[g].seed = g_run_seed; /* a group with its own seed keeps it */
+    }
     return 0;
 }
 

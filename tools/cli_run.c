@@ -331,7 +331,7 @@ int cli_run(int argc, char **argv)
     rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
     if (!rc) rc = cli_expand_outdir(&o);
     if (!rc) rc = cli_overrides_load(&o, &ov, &def);
-    cli_shot_use_overrides(ov.set, ov.count);
+    if (!rc) cli_shot_use_overrides(ov.set, ov.count, ov.base_seed, def.seed);
     if (!rc) rc = run_in_outdir(&o, &ov, &def);
     cli_overrides_free(&ov);
     return rc;

@@ -349,6 +349,18 @@ static void test_shot_run(void)
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
     ENSURE_EXIT(args, 1);
     ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
+    /* two wedges that change nothing else differ by their derived seed, in every group */
+    char wedges[FM_PATH_MAX], one[FM_PATH_MAX], two[FM_PATH_MAX + 16], other[FM_PATH_MAX + 16];
+    FILE *w = fopen(tmp_path(wedges, "shot_wedges.json"), "w");
+    if (w) fputs("{\"wedges\": [{\"speed0\": 8.0}, {\"speed0\": 8.0}]}\n", w), fclose(w);
+    for (int i = 0; i < 2; i++) {
+        snprintf(args, sizeof args, "run '%s/examples/flock_sequence/scene.json' -o '%s/{wedge}' --quiet --wedge-file '%s' "
+                 "--wedge %d", FM_SOURCE_DIR, tmp_path(one, "shot_wedge_out"), wedges, i);
+        ENSURE_EXIT(args, 0);
+    }
+    snprintf(two, sizeof two, "%s/0000/frames.fmc", one);
+    snprintf(other, sizeof other, "%s/0001/frames.fmc", one);
+    ENSURE_MSG(!same_file(two, other), "a shot's wedges 0 and 1 wrote the same cache: the derived seed did not reach its groups");
     /* --set reaches into a group, and an error in what it set names the override */
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --set groups.1.speed0=-6", FM_SOURCE_DIR,
              outdir);
