@@ -5,6 +5,7 @@
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
 #include "dist.h"
+#include "slabs.h"
 
 #include <jansson.h>
 #include <signal.h>
@@ -235,6 +236,10 @@ static inline int cli_is_root(void) { return fm_dist_rank(cli_dist) == 0; }
 /* The ranks agree on an exit code (the worst); rank 0 has printed its own reason, and prints
  * err's when another rank's was worse (err may be NULL: nothing to tell). */
 int cli_agree(int rc, fm_error *err);
+/* On P ranks (docs/scale-out.md): what the decomposition cost, every rank's sends together, and
+ * its stats.json object. These depend on P, as the timings do; everything else does not. */
+fm_dist_totals cli_sum_totals(fm_dist_totals mine);
+json_t *cli_scale_out_json(const fm_dist_totals *t);
 void cli_catch_stop_signals(int catch);
 
 typedef struct cli_frame_options {

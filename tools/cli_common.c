@@ -567,3 +567,21 @@ void cli_catch_stop_signals(int catch)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
 }
+
+fm_dist_totals cli_sum_totals(fm_dist_totals mine)
+{
+    fm_dist_sum_i64(cli_dist, &mine.migrated, 1);
+    fm_dist_sum_i64(cli_dist, &mine.ghost_agent_steps, 1);
+    fm_dist_sum_i64(cli_dist, &mine.bytes_sent, 1);
+    return mine;
+}
+
+json_t *cli_scale_out_json(const fm_dist_totals *t)
+{
+    double agent_steps = (double)FM_MAX(t->agent_steps, 1);
+    return json_pack("{sIsfsfsfsI}", "ranks", (json_int_t)fm_dist_size(cli_dist), "bytes_sent_per_agent_step",
+                     (double)t->bytes_sent / agent_steps, "halo_agents_per_agent_step",
+                     (double)t->ghost_agent_steps / agent_steps, "load_imbalance",
+                     t->agent_steps > 0 ? (double)t->max_rank_agent_steps * fm_dist_size(cli_dist) / (double)t->agent_steps : 1.0,
+                     "migrations", (json_int_t)t->migrated);
+}

@@ -61,21 +61,9 @@ typedef struct morph_run {
     fm_morph_model_info mi;
     fm_morph_state *state;
     fm_morph_run_stats rs;
-    fm_morph_dist_totals scale_out; /* on P ranks: summed over the ranks */
+    fm_dist_totals scale_out; /* on P ranks: summed over the ranks */
     json_t *warnings;
 } morph_run;
-
-/* On P ranks (docs/scale-out.md): what the decomposition cost. These depend on P, as the timings
- * do; everything else in stats.json does not. */
-static json_t *scale_out_json(const fm_morph_dist_totals *t)
-{
-    double agent_steps = (double)FM_MAX(t->agent_steps, 1);
-    return json_pack("{sIsfsfsfsI}", "ranks", (json_int_t)fm_dist_size(cli_dist), "bytes_sent_per_agent_step",
-                     (double)t->bytes_sent / agent_steps, "halo_agents_per_agent_step",
-                     (double)t->ghost_agent_steps / agent_steps, "load_imbalance",
-                     t->agent_steps > 0 ? (double)t->max_rank_agent_steps * fm_dist_size(cli_dist) / (double)t->agent_steps : 1.0,
-                     "migrations", (json_int_t)t->migrated);
-}
 
 static void add_warning(morph_run *r, const char *text)
 {
@@ -131,7 +119,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "source_volume", json_real(mi->source_volume));
     json_object_set_new(j, "target_volume", json_real(mi->target_volume));
     json_object_set_new(j, "target_sphere_radius", json_real(mi->sphere_radius));
-    if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", scale_out_json(&r->scale_out));
+    if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", cli_scale_out_json(&r->scale_out));
     json_object_set(j, "warnings", r->warnings);
     return cli_write_json(path, j);
 }
@@ -178,10 +166,7 @@ static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_contro
 {
     morph_run *r = run;
     fm_status st = fm_morph_run_controlled(r->model, r->state, cache, control, &r->rs, err);
-    r->scale_out = fm_morph_dist_get_totals(r->state); /* every rank's sends together */
-    fm_dist_sum_i64(cli_dist, &r->scale_out.migrated, 1);
-    fm_dist_sum_i64(cli_dist, &r->scale_out.ghost_agent_steps, 1);
-    fm_dist_sum_i64(cli_dist, &r->scale_out.bytes_sent, 1);
+    r->scale_out = cli_sum_totals(fm_morph_dist_get_totals(r->state));
     return st;
 }
 

@@ -11,6 +11,7 @@
 #include "memory.h"
 #include "obstacles.h"
 #include "scene_internal.h"
+#include "slabs.h"
 
 #include <stdint.h>
 
@@ -55,7 +56,6 @@ fm_morph_model *fm_morph_model_build_from_targets(const fm_scene_def *def, const
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts);
 int fm_morph_targets_taken_once(const fm_morph_state *s);
 
-typedef struct fm_morph_slabs fm_morph_slabs;
 
 /* Per-agent morph parameters (FM §6), set when the agent enters phase 2. */
 enum { FM_MORPH_FLOATS = 4 }; /* rotation axis n (3) and angle theta of A = RS */
@@ -127,7 +127,7 @@ struct fm_morph_state {
     /* On P ranks (morph_dist.c; NULL on one process): the store holds this rank's agents only,
      * [0, active_end); waiting agents are in no store; the step's halo follows the active range. */
     const fm_dist *dist;
-    fm_morph_slabs *slabs;
+    fm_slabs *slabs;
     fm_status dist_status;   /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
 };
@@ -142,18 +142,10 @@ static inline int64_t fm_morph_slots(const fm_morph_state *s)
 void fm_morph_waiting_tet(const fm_morph_model *m, int64_t id, float out[12]);
 
 /* morph_dist.c: the tetra morph on P ranks (docs/scale-out.md). */
-typedef struct fm_morph_dist_totals {
-    int64_t migrated;             /* agents that changed rank (this rank's sends) */
-    int64_t ghost_agent_steps;    /* halo agents received, summed over steps */
-    int64_t bytes_sent;           /* by this rank: migration, halos, frames */
-    int64_t agent_steps;          /* agents in flight, all ranks, summed over steps */
-    int64_t max_rank_agent_steps; /* the busiest rank's agents in flight, summed over steps */
-} fm_morph_dist_totals;
 /* Makes s (fresh from fm_morph_state_create) one rank's share of the run: slabs cut at the source's
  * quantiles, an empty store. */
 fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err);
-void fm_morph_slabs_free(fm_morph_slabs *d);
-fm_morph_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s);
+fm_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s);
 void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due);
 fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_error *err);
 fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err);

@@ -20,8 +20,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { BALANCE_BINS = 4096 }; /* the cut positions' resolution along the axis */
-
 /* An agent that changes rank: everything its store slot carries but the rest data. */
 typedef struct agent_record {
     float p[3], v[3], p2[3], t2, tf, morph[FM_MORPH_FLOATS];
@@ -36,102 +34,29 @@ typedef struct ghost_record {
     int32_t id;
 } ghost_record;
 
-struct fm_morph_slabs {
-    int axis, ranks, rank;
-    double lo, hi;   /* the scene along the axis (the balancing histogram's range) */
-    double *cut;     /* ranks + 1 */
-    float halo;      /* d_min, and a margin for the rounding of a distance */
-    int64_t *count;  /* per rank: records to send */
-    double cost;     /* since the last cut, the least time per agent a step of this rank took
-                        (neighbour grid, velocity, move): the next cut's weight. The least, since a
-                        step that shared the core (rank 0's cache writer, the machine's other jobs)
-                        says nothing about the work */
-    fm_morph_dist_totals totals;
-};
-
-static int longest_axis(const fm_morph_model *m)
-{
-    int axis = 0;
-    for (int k = 1; k < 3; k++)
-        if (m->scene_hi[k] - m->scene_lo[k] > m->scene_hi[axis] - m->scene_lo[axis]) axis = k;
-    return axis;
-}
-
-static int owner(const fm_morph_slabs *d, float x, int current)
-{
-    if (!(x == x)) return current; /* NaN: kept where it is; the frame's runaway check reports it */
-    if (x >= d->cut[d->rank] && x < d->cut[d->rank + 1]) return d->rank; /* most agents stay */
-    int lo = 0, hi = d->ranks - 1;
-    while (lo < hi) { /* the last r with cut[r] <= x */
-        int mid = (lo + hi + 1) / 2;
-        if (d->cut[mid] <= x) lo = mid;
-        else hi = mid - 1;
-    }
-    return lo;
-}
-
-/* The cuts at the weighted quantiles of a histogram over [lo, hi] along the axis. */
-static void cuts_from_histogram(fm_morph_slabs *d, const double *bins)
-{
-    double total = 0;
-    for (int b = 0; b < BALANCE_BINS; b++) total += bins[b];
-    if (!(total > 0)) return;
-    const double width = (d->hi - d->lo) / BALANCE_BINS;
-    double seen = 0;
-    int b = 0;
-    for (int r = 1; r < d->ranks; r++) {
-        const double share = total * r / d->ranks;
-        while (b < BALANCE_BINS && seen + bins[b] < share) seen += bins[b++];
-        d->cut[r] = d->lo + width * (b + 1);
-    }
-}
-
-static int bin_of(const fm_morph_slabs *d, float x)
-{
-    double q = ((double)x - d->lo) / (d->hi - d->lo) * BALANCE_BINS;
-    return !(q > 0) ? 0 : q >= BALANCE_BINS ? BALANCE_BINS - 1 : (int)q;
-}
-
 /* The first cuts: quantiles of every source tet's centroid (the flock starts as the source). */
-static void initial_cuts(const fm_morph_model *m, fm_morph_slabs *d, double *bins)
+static void initial_cuts(const fm_morph_model *m, fm_slabs *d)
 {
-    memset(bins, 0, sizeof(double) * BALANCE_BINS);
-    for (int64_t i = 0; i < m->n; i++) bins[bin_of(d, m->src_c[d->axis][i])]++;
-    cuts_from_histogram(d, bins);
+    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
+    if (!bins) return; /* the cuts stay: still correct, only less balanced */
+    for (int64_t i = 0; i < m->n; i++) bins[fm_slabs_bin(d, m->src_c[d->axis][i])]++;
+    fm_slabs_cut(d, bins, NULL);
+    free(bins);
 }
 
 fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err)
 {
-    fm_morph_slabs *d = calloc(1, sizeof *d);
-    double *bins = malloc(sizeof(double) * BALANCE_BINS);
-    const int ranks = fm_dist_size(dist);
-    if (d) d->cut = malloc(sizeof(double) * (size_t)(ranks + 1)), d->count = calloc((size_t)ranks, sizeof(int64_t));
-    if (!d || !bins || !d->cut || !d->count) {
-        free(bins), fm_morph_slabs_free(d);
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory");
-    }
-    d->axis = longest_axis(m), d->ranks = ranks, d->rank = fm_dist_rank(dist);
-    d->lo = m->scene_lo[d->axis], d->hi = m->scene_hi[d->axis];
-    if (!(d->hi > d->lo)) d->hi = d->lo + 1;
-    for (int r = 0; r <= ranks; r++) d->cut[r] = r == 0 ? -INFINITY : r == ranks ? INFINITY : d->lo;
-    d->cost = INFINITY;
-    d->halo = (float)(m->def.d_min * (1 + 1e-4)) + 1e-6f * (float)fmax(fabs(d->lo), fabs(d->hi));
-    initial_cuts(m, d, bins);
-    free(bins);
+    fm_slabs *d = fm_slabs_create(dist, m->scene_lo, m->scene_hi, m->def.d_min, err);
+    if (!d) return err->status;
+    initial_cuts(m, d);
     s->dist = dist, s->slabs = d;
     s->active_begin = s->active_end = 0; /* nothing launched: no slot holds an agent yet */
     return FM_OK;
 }
 
-void fm_morph_slabs_free(fm_morph_slabs *d)
+fm_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s)
 {
-    if (!d) return;
-    free(d->cut), free(d->count), free(d);
-}
-
-fm_morph_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s)
-{
-    fm_morph_dist_totals t = {0};
+    fm_dist_totals t = {0};
     return s->slabs ? s->slabs->totals : t;
 }
 
@@ -150,9 +75,9 @@ static agent_record rest_record(const fm_morph_model *m, int64_t i, uint8_t phas
 
 void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due)
 {
-    const fm_morph_slabs *d = s->slabs;
+    const fm_slabs *d = s->slabs;
     for (int64_t i = s->launched; i < due; i++) {
-        if (owner(d, m->src_c[d->axis][i], 0) != d->rank) continue;
+        if (fm_slabs_owner(d, m->src_c[d->axis][i], 0) != d->rank) continue;
         const agent_record r = rest_record(m, i, FM_PHASE_FLYING);
         unpack_agent(m, s, &r, s->active_end++);
     }
@@ -196,13 +121,13 @@ static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase =
  * result depends on; the next re-sort restores the locality). */
 static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error *err)
 {
-    fm_morph_slabs *d = s->slabs;
+    fm_slabs *d = s->slabs;
     const float *x = s->p[d->axis];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
     *leaving = 0;
     for (int64_t a = s->active_begin; a < s->active_end; a++) {
         if (!in_flight(s->phase[a])) continue;
-        int r = owner(d, x[a], d->rank);
+        int r = fm_slabs_owner(d, x[a], d->rank);
         if (r != d->rank) d->count[r]++, (*leaving)++;
     }
     agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(*leaving, 1));
@@ -211,7 +136,7 @@ static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error 
     if (!at) return fm_free(out), fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
     for (int64_t a = s->active_begin; a < s->active_end;) {
-        int r = in_flight(s->phase[a]) ? owner(d, x[a], d->rank) : d->rank;
+        int r = in_flight(s->phase[a]) ? fm_slabs_owner(d, x[a], d->rank) : d->rank;
         if (r == d->rank) {
             a++;
             continue;
@@ -220,50 +145,33 @@ static agent_record *pack_leaving(fm_morph_state *s, int64_t *leaving, fm_error 
         if (a != --s->active_end) move_slot(s, s->active_end, a); /* slot a is looked at again */
     }
     free(at);
+    d->totals.migrated += *leaving;
     return out;
 }
 
 /* Agents in flight that left this rank's slab go to their new owners; arrivals in place stay. */
 fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_error *err)
 {
-    fm_morph_slabs *d = s->slabs;
     int64_t leaving = 0, received = 0;
     agent_record *out = pack_leaving(s, &leaving, err);
-    fm_status st = fm_dist_agree(s->dist, out ? FM_OK : err->status, err);
-    void *in = NULL;
-    if (st == FM_OK) st = fm_dist_exchange(s->dist, out, d->count, sizeof(agent_record), &in, &received, err);
-    if (st == FM_OK) {
-        for (int64_t k = 0; k < received; k++) unpack_agent(m, s, (const agent_record *)in + k, s->active_end++);
-        d->totals.migrated += leaving, d->totals.bytes_sent += leaving * (int64_t)sizeof(agent_record);
-    }
+    void *in;
+    fm_status st = fm_slabs_send(s->slabs, s->dist, out ? FM_OK : err->status, out, sizeof(agent_record), &in, &received, err);
+    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_agent(m, s, (const agent_record *)in + k, s->active_end++);
     fm_free(out), fm_free(in);
     return st;
-}
-
-/* Whether x is within the halo of rank r's slab. */
-static int near_slab(const fm_morph_slabs *d, int r, float x)
-{
-    return x >= d->cut[r] - d->halo && x < d->cut[r + 1] + d->halo;
-}
-
-/* Whether this rank's flying agent at x is in another slab's halo: only near its own slab's faces
- * (the common case, deep inside, costs two comparisons). */
-static int in_halo(const fm_morph_slabs *d, float x)
-{
-    return x < d->cut[d->rank] + d->halo || x >= d->cut[d->rank + 1] - d->halo;
 }
 
 /* This step's ghosts: the other ranks' flying agents within the halo of this slab, appended at
  * [active_end, active_end + ghosts) (position and id: what the MDE walk reads). */
 fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err)
 {
-    fm_morph_slabs *d = s->slabs;
+    fm_slabs *d = s->slabs;
     const float *x = s->p[d->axis];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
     int64_t sending = 0, received = 0;
     for (int64_t a = s->active_begin; a < s->active_end; a++) /* count, then fill */
-        if (s->phase[a] == FM_PHASE_FLYING && in_halo(d, x[a]))
-            for (int r = 0; r < d->ranks; r++) d->count[r] += r != d->rank && near_slab(d, r, x[a]);
+        if (s->phase[a] == FM_PHASE_FLYING && fm_slabs_in_halo(d, x[a]))
+            for (int r = 0; r < d->ranks; r++) d->count[r] += r != d->rank && fm_slabs_near(d, r, x[a]);
     for (int r = 0; r < d->ranks; r++) sending += d->count[r];
     ghost_record *out = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(sending, 1));
     int64_t *at = calloc((size_t)d->ranks, sizeof(int64_t));
@@ -271,15 +179,14 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     if (st == FM_OK) {
         for (int r = 1; r < d->ranks; r++) at[r] = at[r - 1] + d->count[r - 1];
         for (int64_t a = s->active_begin; a < s->active_end; a++) {
-            if (s->phase[a] != FM_PHASE_FLYING || !in_halo(d, x[a])) continue;
+            if (s->phase[a] != FM_PHASE_FLYING || !fm_slabs_in_halo(d, x[a])) continue;
             for (int r = 0; r < d->ranks; r++)
-                if (r != d->rank && near_slab(d, r, x[a]))
+                if (r != d->rank && fm_slabs_near(d, r, x[a]))
                     out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, s->id[a]};
         }
     }
-    st = fm_dist_agree(s->dist, st, err);
-    void *in = NULL;
-    if (st == FM_OK) st = fm_dist_exchange(s->dist, out, d->count, sizeof(ghost_record), &in, &received, err);
+    void *in;
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(ghost_record), &in, &received, err);
     *ghosts = 0;
     if (st == FM_OK) {
         const ghost_record *g = in;
@@ -289,7 +196,7 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
             s->id[a] = g[k].id, s->member[a] = 1;
         }
         *ghosts = received;
-        d->totals.ghost_agent_steps += received, d->totals.bytes_sent += sending * (int64_t)sizeof(ghost_record);
+        d->totals.ghost_agent_steps += received;
     }
     fm_free(out), fm_free(in), free(at);
     return st;
@@ -298,46 +205,37 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
 /* Every FM_RESORT_INTERVAL steps: the cuts to the quantiles of the agents in flight, each weighted
  * by its rank's measured cost per agent-step since the last cut (an agent near an obstacle or in a
  * dense part of the flock costs more), all ranks together; so the slabs follow the flock and the
- * cost. The cuts decide only where an agent is computed, never what: no result depends on them,
- * so the timings may steer them. */
+ * cost (slabs.h). */
 /* The cuts at the quantiles of the store's agents in flight, each weighing `weight`, summed over
  * the ranks when `dist` is set. Without memory the cuts stay: still correct, only less balanced. */
 static void cut_at_flight(fm_morph_state *s, double weight, const fm_dist *dist)
 {
-    fm_morph_slabs *d = s->slabs;
-    double *bins = calloc(BALANCE_BINS, sizeof(double));
+    fm_slabs *d = s->slabs;
+    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
     if (!bins) return;
     const float *x = s->p[d->axis];
     for (int64_t a = s->active_begin; a < s->active_end; a++)
-        if (in_flight(s->phase[a])) bins[bin_of(d, x[a])] += weight;
-    fm_dist_sum_f64(dist, bins, BALANCE_BINS); /* every rank gets the same histogram: the same cuts */
-    cuts_from_histogram(d, bins);
+        if (in_flight(s->phase[a])) bins[fm_slabs_bin(d, x[a])] += weight;
+    fm_slabs_cut(d, bins, dist);
     free(bins);
 }
 
 void fm_morph_dist_rebalance(fm_morph_state *s)
 {
-    fm_morph_slabs *d = s->slabs;
-    cut_at_flight(s, isfinite(d->cost) && d->cost > 0 ? d->cost : 1, s->dist);
-    d->cost = INFINITY;
+    cut_at_flight(s, fm_slabs_take_weight(s->slabs), s->dist);
 }
 
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds)
 {
-    const int64_t agents = s->active_end - s->active_begin;
-    if (agents > 0) s->slabs->cost = fmin(s->slabs->cost, seconds / (double)agents);
+    fm_slabs_add_busy(s->slabs, seconds, s->active_end - s->active_begin);
 }
 
 /* The load of this step: agents in flight on the busiest rank, and on all ranks together. */
 void fm_morph_dist_record_load(fm_morph_state *s)
 {
-    fm_morph_slabs *d = s->slabs;
     int64_t mine = 0;
     for (int64_t a = s->active_begin; a < s->active_end; a++) mine += in_flight(s->phase[a]);
-    int64_t most = mine, all = mine;
-    fm_dist_max_i64(s->dist, &most, 1);
-    fm_dist_sum_i64(s->dist, &all, 1);
-    d->totals.max_rank_agent_steps += most, d->totals.agent_steps += all;
+    fm_slabs_record_load(s->slabs, s->dist, mine);
 }
 
 /* One agent's tet in a frame, for the gather to rank 0. */
@@ -432,12 +330,12 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
  * agents in flight (every rank counts the same), and each rank keeps the agents in its slab. */
 void fm_morph_dist_adopt(fm_morph_state *s)
 {
-    fm_morph_slabs *d = s->slabs;
+    fm_slabs *d = s->slabs;
     cut_at_flight(s, 1, NULL); /* every rank holds the whole store: no sum over the ranks */
     const float *x = s->p[d->axis];
     int64_t kept = 0, arrived = 0;
     for (int64_t a = 0; a < s->active_end; a++) { /* arrivals before the last re-sort stay first */
-        if (owner(d, x[a], 0) != d->rank) continue;
+        if (fm_slabs_owner(d, x[a], 0) != d->rank) continue;
         if (kept != a) move_slot(s, a, kept);
         kept++;
         arrived += a < s->active_begin;

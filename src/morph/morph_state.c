@@ -122,7 +122,7 @@ void fm_morph_state_destroy(fm_morph_state *s)
     fm_morph_state_free_sort(s);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
-    fm_morph_slabs_free(s->slabs);
+    fm_slabs_free(s->slabs);
     free(s);
 }
 
