@@ -3,6 +3,7 @@
  * cli_mode_flock). */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "flock.h" /* the engine's internal header: the decomposition */
 
 #include <math.h>
 #include <stdio.h>
@@ -59,6 +60,7 @@ typedef struct flock_run {
     fm_flock_model_info mi;
     fm_flock_state *state;
     fm_flock_run_stats rs;
+    fm_dist_totals scale_out; /* on P ranks: summed over the ranks */
 } flock_run;
 
 static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
@@ -83,6 +85,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "warnings", warnings);
     json_object_set_new(j, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"));
     json_object_set_new(j, "field_bake_error", number_or_null(mi->field_bake_error));
+    if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", cli_scale_out_json(&r->scale_out));
     return cli_write_json(path, j);
 }
 
@@ -104,7 +107,8 @@ static fm_status create_state(void *run, int threads, fm_error *err)
 {
     flock_run *r = run;
     r->state = fm_flock_state_create(r->model, threads, err);
-    return r->state ? FM_OK : err->status;
+    if (!r->state) return err->status;
+    return fm_dist_size(cli_dist) > 1 ? fm_flock_state_distribute(r->model, r->state, cli_dist, err) : FM_OK;
 }
 
 /* Position, velocity, orientation, id and phase (fm_flock_cache_create). */
@@ -118,13 +122,17 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
 {
     flock_run *r = run;
-    return fm_flock_checkpoint_load(path, r->model, r->state, &r->rs, err);
+    fm_status st = fm_flock_checkpoint_load(path, r->model, r->state, &r->rs, err);
+    if (st == FM_OK && fm_dist_size(cli_dist) > 1) fm_flock_dist_adopt(r->state); /* this rank's share */
+    return st;
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     flock_run *r = run;
-    return fm_flock_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+    fm_status st = fm_flock_run_controlled(r->model, r->state, cache, control, &r->rs, err);
+    r->scale_out = cli_sum_totals(fm_flock_dist_get_totals(r->state));
+    return st;
 }
 
 static void summary(const void *run, const fm_scene_def *def)

@@ -288,10 +288,7 @@ static int check_ranks(const fm_scene_def *def)
                 "mpirun, or with -np 1\n");
         return FM_ERR_USAGE;
     }
-    if (fm_dist_size(cli_dist) == 1 || def->mode != FM_MODE_SHAPE_FLOCK) return 0;
-    fprintf(stderr, "flockmorph: the shape flock (mode \"shape_flock\") runs on one MPI rank only in this version: "
-            "run it without mpirun, or with -np 1\n");
-    return FM_ERR_USAGE;
+    return 0;
 }
 
 /* The output directory, taken (by rank 0 on P ranks), and the manifest's first version. */

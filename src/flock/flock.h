@@ -19,6 +19,7 @@
 #include "obstacles.h"
 #include "sample.h"
 #include "scene_internal.h"
+#include "slabs.h"
 
 #include <stdint.h>
 
@@ -100,7 +101,18 @@ struct fm_flock_state {
     flock_block *blocks;
     int64_t count[4];
     double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */
+    /* On P ranks (flock_dist.c; NULL on one process): this rank computes the agents of its slab;
+     * the others have phase FM_FLOCK_ELSEWHERE here. */
+    const fm_dist *dist;
+    fm_slabs *slabs;
+    fm_status dist_status;         /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
+    fm_error dist_error;
+    void *gathered;                /* rank 0 during a frame: the records received (fm_flock_dist_gather) */
+    int64_t gathered_count;
 };
+
+/* On P ranks, the phase of an agent another rank computes: no stage of the step handles it. */
+#define FM_FLOCK_ELSEWHERE 0xFF
 
 /* flock_state.c: the members a checkpoint saves (checkpoint.h), in file order. */
 extern const fm_store_member fm_flock_state_members[];
@@ -115,6 +127,21 @@ void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def,
  * that does not fit (memory.h). */
 fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n);
 fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
+
+/* flock_dist.c: the shape flock on P ranks (docs/scale-out.md). distribute makes s (fresh from
+ * fm_flock_state_create) one rank's share; adopt does the same after every rank loaded the same
+ * checkpoint. Per step: migrate before mark_flock, ghosts after it, after_step at the end. At a
+ * frame: gather (rank 0 then holds every agent), release after the frame. */
+fm_status fm_flock_state_distribute(const fm_flock_model *m, fm_flock_state *s, const fm_dist *dist, fm_error *err);
+void fm_flock_dist_adopt(fm_flock_state *s);
+fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s);
+fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err);
+fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err);
+void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds);
+fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err);
+void fm_flock_dist_release(fm_flock_state *s);
+fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
+                                        const fm_flock_run_stats *stats, fm_error *err);
 
 /* flock_state.c */
 void fm_flock_update_orientation(float *q, const float v[3]);

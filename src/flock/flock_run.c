@@ -50,9 +50,9 @@ static int flock_finished(const void *sim)
 static const char *const FLOCK_FORCES = "shape_flock.mass, max_speed and max_force, the boids weights, the fuzzy "
                                         "weights, damping and external_gain, speed0, time.time_step";
 
-static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
+/* Frame k on one process, or on rank 0 holding every agent: checked, written, measured. */
+static fm_status write_and_measure(flock_run *r, int64_t frame, fm_error *err)
 {
-    flock_run *r = sim;
     fm_flock_frame(r->s, r->position, r->velocity, r->orientation, r->phase);
     fm_status st = fm_frame_check_runaway(r->position, 3, r->s->n, r->m->scene_lo, r->m->scene_hi, frame, FLOCK_FORCES, err);
     if (st != FM_OK) return st;
@@ -71,7 +71,26 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
         r->s->lag_sum += mean;
         r->stats->tracking_frames++;
     }
-    if (r->c->progress) {
+    return FM_OK;
+}
+
+/* On P ranks: every rank's agents gathered on rank 0, which writes and measures the frame; every
+ * rank returns the outcome (a failed step's, else rank 0's). */
+static fm_status dist_frame(flock_run *r, int64_t frame, fm_error *err)
+{
+    fm_flock_state *s = r->s;
+    if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
+    fm_status st = fm_flock_dist_gather(s, err);
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) st = write_and_measure(r, frame, err);
+    fm_flock_dist_release(s);
+    return fm_dist_agree(s->dist, st, err);
+}
+
+static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
+{
+    flock_run *r = sim;
+    fm_status st = r->s->dist ? dist_frame(r, frame, err) : write_and_measure(r, frame, err);
+    if (st == FM_OK && frame > 0 && r->c->progress) {
         fm_run_info info = fm_flock_get_info(r->s);
         r->c->progress(&info, frame, r->c->progress_user);
     }
@@ -82,6 +101,7 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
 static fm_status flock_save(void *sim, const char *path, fm_error *err)
 {
     const flock_run *r = sim;
+    if (r->s->dist) return fm_flock_dist_checkpoint_save(path, r->m, r->s, r->stats, err);
     return fm_flock_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
@@ -126,7 +146,7 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
     if (st == FM_OK) st = fm_frame_rows_room(&stats->measures, FM_MAX(stats->run.frames, 1), FM_FLOCK_MEASURES, &r.capacity, err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
-                                    m->def.frame_limit, c, &stats->run, cache, NULL};
+                                    m->def.frame_limit, c, &stats->run, cache, s->dist};
         st = fm_frame_loop_run(&loop, err);
     }
     stats->run.steps = s->step;

@@ -106,6 +106,7 @@ void fm_flock_state_destroy(fm_flock_state *s)
     fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->eval), fm_free(s->kalman_p), fm_free(s->r_scale);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
+    fm_slabs_free(s->slabs), fm_free(s->gathered);
     free(s);
 }
 

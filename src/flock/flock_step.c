@@ -51,6 +51,7 @@ static void leaders_block(const fm_flock_model *m, fm_flock_state *s, const doub
 {
     const double inv_dt = 1.0 / m->dt;
     for (int64_t a = begin; a < end; a++) {
+        if (s->phase[a] == FM_FLOCK_ELSEWHERE) continue; /* another rank's (flock_dist.c) */
         double z[3];
         if (u >= 1) {
             for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
@@ -262,6 +263,7 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
     memset(bc, 0, sizeof *bc);
     for (int64_t a = begin; a < end; a++) {
         uint8_t phase = s->phase[a];
+        if (phase == FM_FLOCK_ELSEWHERE) continue;
         if (phase == FM_PHASE_FLYING) phase = move_flying(m, s, a, dt);
         else if (phase == FM_PHASE_HOMING) phase = move_stepped(m, s, a, dt);
         else move_bound(m, s, a, dt);
@@ -274,15 +276,30 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
 
 /* The neighbour grid lists the agents still on their way: a bound agent is part of the shape, not
  * of the flock, and one that arrives late must not be held off its destination by the separation
- * from those already there. */
+ * from those already there. On P ranks, this rank's and (fm_flock_dist_ghosts, after this) the
+ * ghosts. */
 static void mark_flock(fm_flock_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
+    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING || s->phase[a] == FM_PHASE_HOMING;
+}
+
+/* The neighbour grid of this step: the agents on their way, on P ranks with the ghosts (after
+ * the migration, which changes which agents are this rank's). */
+static fm_status build_grid(const fm_flock_model *m, fm_flock_state *s)
+{
+    fm_status st = s->dist ? fm_flock_dist_migrate(s, &s->dist_error) : FM_OK;
+    if (st != FM_OK || s->grid_current) return st; /* else the frame's measures built this very grid (flock_measures.c) */
+    mark_flock(s);
+    if (s->dist && (st = fm_flock_dist_ghosts(s, &s->dist_error)) != FM_OK) return st;
+    fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n,
+                         m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
+    return FM_OK;
 }
 
 void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 {
+    if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
     if (m->info.deforming) update_destinations(m, s, t_end);
@@ -290,12 +307,9 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
     fm_kalman_advance(&s->kalman);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
-    if (!s->grid_current) { /* else the frame's measures built this very grid (flock_measures.c) */
-        mark_flock(s);
-        fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n,
-                             m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
-    }
+    if ((s->dist_status = build_grid(m, s)) != FM_OK) return;
     s->grid_current = 0;
+    const double busy_from = s->dist ? fm_seconds() : 0;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);
@@ -308,6 +322,7 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     memset(s->count, 0, sizeof s->count);
     for (int64_t b = 0; b < blocks; b++) /* combine in block order */
         for (int i = 0; i < 4; i++) s->count[i] += s->blocks[b].count[i];
+    if (s->dist) fm_flock_dist_after_step(s, fm_seconds() - busy_from);
     s->time = t_end;
     s->step++;
 }

@@ -1,0 +1,261 @@
+/* The shape flock on P ranks (docs/scale-out.md): slabs, migration, the boids' halo, the frame and
+ * checkpoint gathers.
+ *
+ * Every rank keeps the one-process store (arrays indexed by agent id, as flock_state.c lays them
+ * out) and computes only the agents whose position lies in its slab (slabs.h); an agent of another
+ * rank has the rank-local phase FM_FLOCK_ELSEWHERE there, which every stage of the step skips, as
+ * it skips a phase it does not handle. Every step:
+ *   - migration: an agent that left the slab moves, with all that carries it from one step to the
+ *     next (position, velocity, orientation, phase, bind time, leader, own Kalman covariance), to
+ *     the owner of its new place; the destinations are computed by every rank for every agent, so
+ *     they need not move;
+ *   - halo: the agents in flight within the largest perception radius of another slab go there as
+ *     ghosts (id, position, velocity: what the boids read of a neighbour), written in place and
+ *     listed in the neighbour grid. The grid lists agents by cell, then by id, and the boids walk
+ *     it in that order; with every neighbour within the radius present, each agent sums the same
+ *     neighbours in the same order as on one process: the same bits;
+ *   - the rest is per agent (leaders, fields, the Kalman filter, the moves), replicated (the path,
+ *     the shared covariance, the target), or an integer sum (the counts).
+ * At a frame (and a checkpoint) rank 0 receives every other rank's agents into its arrays, so the
+ * frame, its measures and the checkpoint are one process's; then it marks them elsewhere again. */
+#include "flock.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { RECUT_INTERVAL = 8 }; /* steps between two cuts */
+
+/* An arrived agent's share of a step's work against one in flight (no boids, no Kalman filter, no
+ * fields): its weight in the balance. */
+static const double ARRIVED_WEIGHT = 0.1;
+
+/* An agent that changes rank, or goes to rank 0 for a frame or a checkpoint. */
+typedef struct agent_record {
+    double kalman_p[3];
+    float p[3], v[3], orient[4], leader[3], t_bind;
+    int32_t id;
+    uint8_t phase, pad[3];
+} agent_record;
+
+/* A neighbour of another rank, for this step's boids. */
+typedef struct ghost_record {
+    float p[3], v[3];
+    int32_t id;
+} ghost_record;
+
+static int is_mine(uint8_t phase) { return phase != FM_FLOCK_ELSEWHERE; }
+static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase == FM_PHASE_HOMING; }
+
+static double agent_weight(uint8_t phase) { return phase == FM_PHASE_ARRIVED ? ARRIVED_WEIGHT : 1.0; }
+
+static void pack(const fm_flock_state *s, int64_t a, agent_record *r)
+{
+    memset(r, 0, sizeof *r);
+    for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->leader[k] = s->leader[k][a];
+    if (s->kalman_p) memcpy(r->kalman_p, s->kalman_p + 3 * a, sizeof r->kalman_p);
+    memcpy(r->orient, s->orient + 4 * a, sizeof r->orient);
+    r->t_bind = s->t_bind[a], r->id = (int32_t)a, r->phase = s->phase[a];
+}
+
+static void unpack(fm_flock_state *s, const agent_record *r)
+{
+    const int64_t a = r->id;
+    for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->leader[k][a] = r->leader[k];
+    if (s->kalman_p) memcpy(s->kalman_p + 3 * a, r->kalman_p, sizeof r->kalman_p);
+    memcpy(s->orient + 4 * a, r->orient, sizeof r->orient);
+    s->t_bind[a] = r->t_bind, s->phase[a] = r->phase;
+}
+
+/* The cuts at the quantiles of the agents this rank computes (every agent when all is set: every
+ * rank then holds the same store and needs no sum), each weighted by its phase times `weight`. */
+static void cut_at_agents(fm_flock_state *s, double weight, int all)
+{
+    fm_slabs *d = s->slabs;
+    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
+    if (!bins) return; /* the cuts stay: still correct, only less balanced */
+    const float *x = s->p[d->axis];
+    for (int64_t a = 0; a < s->n; a++)
+        if (all || is_mine(s->phase[a])) bins[fm_slabs_bin(d, x[a])] += weight * agent_weight(s->phase[a]);
+    fm_slabs_cut(d, bins, all ? NULL : s->dist);
+    free(bins);
+}
+
+/* Every rank holds every agent (a fresh state, or a loaded checkpoint): the cuts at their
+ * quantiles, and the agents of other slabs marked elsewhere. */
+static void keep_my_slab(fm_flock_state *s)
+{
+    cut_at_agents(s, 1, 1);
+    const fm_slabs *d = s->slabs;
+    for (int64_t a = 0; a < s->n; a++)
+        if (fm_slabs_owner(d, s->p[d->axis][a], 0) != d->rank) s->phase[a] = FM_FLOCK_ELSEWHERE;
+}
+
+fm_status fm_flock_state_distribute(const fm_flock_model *m, fm_flock_state *s, const fm_dist *dist, fm_error *err)
+{
+    s->slabs = fm_slabs_create(dist, m->scene_lo, m->scene_hi, m->max_radius, err);
+    if (!s->slabs) return err->status;
+    s->dist = dist;
+    keep_my_slab(s);
+    return FM_OK;
+}
+
+void fm_flock_dist_adopt(fm_flock_state *s) { keep_my_slab(s); }
+
+fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s)
+{
+    fm_dist_totals t = {0};
+    return s->slabs ? s->slabs->totals : t;
+}
+
+/* The records of this rank's agents that `go` sends elsewhere, grouped by rank (d->count). */
+static agent_record *pack_leaving(fm_flock_state *s, int64_t *leaving, fm_error *err)
+{
+    fm_slabs *d = s->slabs;
+    const float *x = s->p[d->axis];
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    *leaving = 0;
+    for (int64_t a = 0; a < s->n; a++) {
+        if (!is_mine(s->phase[a])) continue;
+        const int r = fm_slabs_owner(d, x[a], d->rank);
+        if (r != d->rank) d->count[r]++, (*leaving)++;
+    }
+    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(*leaving, 1));
+    int64_t *at = malloc(sizeof(int64_t) * (size_t)(d->ranks + 1));
+    if (!out || !at) {
+        fm_free(out), free(at);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating agents", (long long)*leaving), NULL;
+    }
+    fm_slabs_offsets(d, at);
+    for (int64_t a = 0; a < s->n && *leaving > 0; a++) {
+        if (!is_mine(s->phase[a])) continue;
+        const int r = fm_slabs_owner(d, x[a], d->rank);
+        if (r == d->rank) continue;
+        pack(s, a, out + at[r]++);
+        s->phase[a] = FM_FLOCK_ELSEWHERE;
+    }
+    free(at);
+    d->totals.migrated += *leaving;
+    return out;
+}
+
+static fm_status migrate(fm_flock_state *s, fm_error *err)
+{
+    int64_t leaving = 0, received = 0;
+    agent_record *out = pack_leaving(s, &leaving, err);
+    void *in;
+    fm_status st = fm_slabs_send(s->slabs, s->dist, out ? FM_OK : err->status, out, sizeof(agent_record), &in, &received, err);
+    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack(s, (const agent_record *)in + k);
+    fm_free(out), fm_free(in);
+    return st;
+}
+
+/* Before the grid build: the cuts (every RECUT_INTERVAL steps) and the migration. */
+fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err)
+{
+    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(s->slabs), 0);
+    return migrate(s, err);
+}
+
+/* Whether this rank's agent a goes to rank r as a ghost. */
+static int ghost_for(const fm_slabs *d, int r, float x) { return r != d->rank && fm_slabs_near(d, r, x); }
+
+/* This step's ghosts: the other ranks' agents in flight within the halo of this slab, written in
+ * place (position, velocity) and made members of the grid (after mark_flock). */
+fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err)
+{
+    fm_slabs *d = s->slabs;
+    const float *x = s->p[d->axis];
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    int64_t sending = 0, received = 0;
+    for (int64_t a = 0; a < s->n; a++) /* count, then fill */
+        if (in_flight(s->phase[a]) && fm_slabs_in_halo(d, x[a]))
+            for (int r = 0; r < d->ranks; r++) d->count[r] += ghost_for(d, r, x[a]);
+    for (int r = 0; r < d->ranks; r++) sending += d->count[r];
+    ghost_record *out = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(sending, 1));
+    int64_t *at = malloc(sizeof(int64_t) * (size_t)(d->ranks + 1));
+    fm_status st = out && at ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld halo agents", (long long)sending);
+    if (st == FM_OK) {
+        fm_slabs_offsets(d, at);
+        for (int64_t a = 0; a < s->n; a++) {
+            if (!in_flight(s->phase[a]) || !fm_slabs_in_halo(d, x[a])) continue;
+            for (int r = 0; r < d->ranks; r++)
+                if (ghost_for(d, r, x[a]))
+                    out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, {s->v[0][a], s->v[1][a], s->v[2][a]},
+                                                  (int32_t)a};
+        }
+    }
+    void *in;
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(ghost_record), &in, &received, err);
+    if (st == FM_OK) {
+        const ghost_record *g = in;
+        for (int64_t k = 0; k < received; k++) {
+            const int64_t a = g[k].id;
+            for (int c = 0; c < 3; c++) s->p[c][a] = g[k].p[c], s->v[c][a] = g[k].v[c];
+            s->member[a] = 1;
+        }
+        d->totals.ghost_agent_steps += received;
+    }
+    fm_free(out), fm_free(in), free(at);
+    return st;
+}
+
+/* After the step: the counts over all ranks, the load, and the time its work took for the balance. */
+void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds)
+{
+    double weight = 0;
+    for (int i = 0; i < 4; i++) weight += (double)s->count[i] * agent_weight((uint8_t)i);
+    if (weight > 0 && busy_seconds / weight < s->slabs->cost) s->slabs->cost = busy_seconds / weight;
+    fm_slabs_record_load(s->slabs, s->dist, s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING]);
+    fm_dist_sum_i64(s->dist, s->count, 4);
+}
+
+/* Rank 0 gets every rank's agents into its arrays with their phases (s->gathered keeps which, for
+ * fm_flock_dist_release); the other ranks send theirs. */
+fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
+{
+    const int root = fm_dist_rank(s->dist) == 0;
+    int64_t mine = 0;
+    for (int64_t a = 0; !root && a < s->n; a++) mine += is_mine(s->phase[a]);
+    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(mine, 1));
+    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)mine);
+    st = fm_dist_agree(s->dist, st, err);
+    for (int64_t a = 0, k = 0; st == FM_OK && !root && a < s->n; a++)
+        if (is_mine(s->phase[a])) pack(s, a, out + k++);
+    void *all = NULL;
+    int64_t total = 0;
+    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, sizeof(agent_record), &all, &total, err);
+    fm_free(out);
+    s->slabs->totals.bytes_sent += mine * (int64_t)sizeof(agent_record);
+    if (st == FM_OK && root)
+        for (int64_t k = 0; k < total; k++) unpack(s, (const agent_record *)all + k);
+    s->gathered = all, s->gathered_count = total;
+    return st;
+}
+
+/* Rank 0 after the frame: the agents it received are elsewhere again; the measures' grid is not
+ * the one this rank's next step builds (that lists its own agents and the ghosts). */
+void fm_flock_dist_release(fm_flock_state *s)
+{
+    const agent_record *r = s->gathered;
+    for (int64_t k = 0; k < s->gathered_count; k++) s->phase[r[k].id] = FM_FLOCK_ELSEWHERE;
+    fm_free(s->gathered);
+    s->gathered = NULL, s->gathered_count = 0;
+    s->grid_current = 0;
+}
+
+/* On P ranks: rank 0 writes the checkpoint of one process holding every rank's agents, so any P,
+ * or one process, resumes it. */
+fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
+                                        const fm_flock_run_stats *stats, fm_error *err)
+{
+    fm_status st = fm_flock_dist_gather(s, err);
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
+        const fm_dist *dist = s->dist;
+        s->dist = NULL; /* the store is one process's now */
+        st = fm_flock_checkpoint_save(path, m, s, stats, err);
+        s->dist = dist;
+    }
+    fm_flock_dist_release(s);
+    return fm_dist_agree(s->dist, st, err);
+}
