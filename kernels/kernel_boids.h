@@ -80,6 +80,14 @@ void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, c
 void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *const p[3], const float *const v[3],
                      const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end, float *const f[3]);
 
+/* The same forces, bit for bit, for the agents listed in g at entries [first, last) (0 <= first <=
+ * last <= g->count) with phase[a] == phase_sel: in the grid's order, so that agents of one cell
+ * follow each other and walk the same cells while they are in cache (an unsorted store, walked by
+ * agent, meets every neighbourhood cold). Each agent writes only its own f entries, so any split of
+ * the entries over threads gives the same bits. A selected agent that is not listed is not computed. */
+void fm_kernel_boids_listed(const fm_grid *g, const fm_boids_view *b, const float *const v[3], const uint8_t *phase,
+                            uint8_t phase_sel, int64_t first, int64_t last, float *const f[3]);
+
 /* The reference twin for tests: the same forces from every pair of the n agents (O(n^2)), every
  * agent a neighbour. */
 void fm_kernel_boids_reference(const fm_boids_view *b, const float *const p[3], const float *const v[3],

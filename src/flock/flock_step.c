@@ -9,7 +9,8 @@
  *   3. prepare    the Kalman covariance and gain (shared; with R over the run each agent's own
  *                 is advanced in stage 4); the style-field grid; the neighbour grid
  *                 over the agents not bound (counting sort, cell = the largest perception radius)
- *   4. forces     for agents under forces (FM_PHASE_FLYING), the fuzzy weights of their distance
+ *   4. forces     for agents under forces (FM_PHASE_FLYING): the boids steering, in the grid's
+ *                 order (each agent its own neighbours, so the order changes no bit); then the fuzzy weights of their distance
  *                 to the destination (the static or the tracking strategy's curves) weigh the boids
  *                 steering, damping and external forces, each bounded by MaxForce (their
  *                 acceleration u), and the homing force of eq 9 from the Kalman posterior, bounded
@@ -139,14 +140,26 @@ static void combine_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a
     for (int k = 0; k < 3; k++) s->acc[k][a] += h[k] + b[k] - s->steer[k][a];
 }
 
-/* Stage 4 for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
-static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end)
+/* Stage 4a: the boids steering F_steer of every agent under forces, into s->steer, in the grid's
+ * order (fm_kernel_boids_listed: the same bits as by agent, without meeting every neighbourhood
+ * cold). Every agent under forces is listed; each writes only its own entries, so the chunks may go
+ * to the threads in any order. */
+static void boids_pass(const fm_flock_model *m, fm_flock_state *s)
 {
     const fm_boids_view boids = {{m->radius[0], m->radius[1], m->radius[2]},
                                  {m->cos_half[0], m->cos_half[1], m->cos_half[2]},
                                  {m->weight[0], m->weight[1], m->weight[2]}, m->max_speed, m->max_force};
+    const int64_t entries = s->grid.count, chunks = (entries + FM_BLOCK - 1) / FM_BLOCK;
+#pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
+    for (int64_t c = 0; c < chunks; c++)
+        fm_kernel_boids_listed(&s->grid, &boids, (const float *const *)s->v, s->phase, FM_PHASE_FLYING, c * FM_BLOCK,
+                               FM_MIN((c + 1) * FM_BLOCK, entries), s->steer);
+}
+
+/* Stage 4b for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
+static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end)
+{
     const float *const *p = (const float *const *)s->p, *const *v = (const float *const *)s->v;
-    fm_kernel_boids(&s->grid, &boids, p, v, s->phase, FM_PHASE_FLYING, begin, end, s->steer); /* F_steer */
     if (s->fields) {
         for (int k = 0; k < 3; k++) memset(s->ext[k] + begin, 0, sizeof(float) * (size_t)(end - begin));
         fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, 1.0f, s->ext);
@@ -310,6 +323,7 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     if ((s->dist_status = build_grid(m, s)) != FM_OK) return;
     s->grid_current = 0;
     const double busy_from = s->dist ? fm_seconds() : 0;
+    boids_pass(m, s);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);

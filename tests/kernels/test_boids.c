@@ -72,6 +72,15 @@ static void run_both(flock *f)
         for (int64_t a = 0; a < f->n; a++)
             if (f->phase[a] != 1) copy[k][a] = f->f[k][a]; /* untouched by the kernel */
         ENSURE_MSG(memcmp(copy[k], f->f[k], sizeof(float) * (size_t)f->n) == 0, "velocity copy changed force axis %d", k);
+    }
+    /* in the grid's order, split at an odd entry: the same forces, bit for bit */
+    for (int k = 0; k < 3; k++)
+        for (int64_t a = 0; a < f->n; a++) copy[k][a] = f->phase[a] == 1 ? NAN : f->f[k][a];
+    const int64_t split = g.count / 3 + 1;
+    fm_kernel_boids_listed(&g, &b, (const float *const *)f->v, f->phase, 1, split, g.count, copy);
+    fm_kernel_boids_listed(&g, &b, (const float *const *)f->v, f->phase, 1, 0, split, copy);
+    for (int k = 0; k < 3; k++) {
+        ENSURE_MSG(memcmp(copy[k], f->f[k], sizeof(float) * (size_t)f->n) == 0, "grid order changed force axis %d", k);
         free(copy[k]);
     }
     fm_grid_free(&g);
