@@ -1,6 +1,8 @@
 /* Boids steering over the neighbour grid (SCF "Basic Steering Behaviors"); see kernel_boids.h. */
 #include "kernel_boids.h"
 
+#include <string.h>
+
 #if defined(__SSE2__) && !defined(FM_BOIDS_SCALAR)
 #include <emmintrin.h>
 #define BOIDS_SSE2 1
@@ -85,16 +87,15 @@ static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t
 #endif
 }
 
-/* Agent a at x heading h: its steering force from the listed agents, into f. */
+/* Agent a at x heading h: its steering force from the listed agents in the `count` ranges of its
+ * 27 cells (fm_grid_ranges), into f. */
 static void boids_agent(const fm_grid *g, const fm_boids_view *b, const float *const v[3], int64_t a, const float x[3],
-                        const float h[3], float *const f[3])
+                        const float h[3], const int32_t *ranges, int count, float *const f[3])
 {
     const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
     float r2[3], cos_half[3], r2_max;
     agent_params(b, a, r2, cos_half, &r2_max);
     fm_boids_sums sums = {{{0}}, {0}};
-    int32_t ranges[2 * FM_GRID_MAX_RANGES];
-    const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
     for (int ri = 0; ri < count; ri++)
         scan_range(&sums, g, ranges[2 * ri], ranges[2 * ri + 1], a, x, v, h, hlen, r2, cos_half, r2_max);
     float out[3];
@@ -108,22 +109,30 @@ void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *cons
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         const float x[3] = {p[0][a], p[1][a], p[2][a]}, h[3] = {v[0][a], v[1][a], v[2][a]};
-        boids_agent(g, b, v, a, x, h, f);
+        int32_t ranges[2 * FM_GRID_MAX_RANGES];
+        const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
+        boids_agent(g, b, v, a, x, h, ranges, count, f);
     }
 }
 
 void fm_kernel_boids_listed(const fm_grid *g, const fm_boids_view *b, const float *const v[3], const uint8_t *phase,
                             uint8_t phase_sel, int64_t first, int64_t last, float *const f[3])
 {
+    int32_t ranges[2 * FM_GRID_MAX_RANGES], cell[3] = {0, 0, 0};
+    int count = -1; /* the ranges of `cell`, which the agents of one cell, walked in a row, share */
     for (int64_t k = first; k < last; k++) {
         const fm_grid_quad *q = &g->quad[k >> 2];
         const int lane = (int)(k & 3);
         const int32_t a = q->i[lane];
         if (phase[a] != phase_sel) continue;
         const float x[3] = {q->x[lane], q->y[lane], q->z[lane]}; /* the grid's copy: the same floats */
+        const int32_t c[3] = {fm_grid_coord(fm_grid_scaled(g, x[0])), fm_grid_coord(fm_grid_scaled(g, x[1])),
+                              fm_grid_coord(fm_grid_scaled(g, x[2]))}; /* as fm_grid_ranges places x */
+        if (count < 0 || c[0] != cell[0] || c[1] != cell[1] || c[2] != cell[2])
+            count = fm_grid_ranges(g, x[0], x[1], x[2], ranges), memcpy(cell, c, sizeof cell);
         const fm_grid_quad *w = g->vel ? &g->vel[k >> 2] : NULL;
         const float h[3] = {w ? w->x[lane] : v[0][a], w ? w->y[lane] : v[1][a], w ? w->z[lane] : v[2][a]};
-        boids_agent(g, b, v, a, x, h, f);
+        boids_agent(g, b, v, a, x, h, ranges, count, f);
     }
 }
 
