@@ -21,6 +21,7 @@ typedef struct shot_run {
     fm_shot_stats stats;
     fm_flock_shot *flock_shot;
     fm_flock_shot_stats flock_stats;
+    fm_dist_totals scale_out; /* on P ranks: every group's, summed over the ranks */
     json_t *warnings;
 } shot_run;
 
@@ -84,14 +85,14 @@ static int build(void *run, const fm_scene_def *def, int *show)
     return rc ? rc : r->flock ? build_flocks(r, show) : build_morphs(r, show);
 }
 
-/* The shot made its states; they take the run's thread count here. */
+/* The shot made its states; they take the run's thread count here, and on P ranks (a shot of
+ * tetra morphs) each rank's share. */
 static fm_status create_state(void *run, int threads, fm_error *err)
 {
     shot_run *r = run;
-    (void)err;
     if (r->flock) fm_flock_shot_set_threads(r->flock_shot, threads);
     else fm_shot_set_threads(r->shot, threads);
-    return FM_OK;
+    return !r->flock && fm_dist_size(cli_dist) > 1 ? fm_shot_distribute(r->shot, cli_dist, err) : FM_OK;
 }
 
 static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const char *path, fm_error *err)
@@ -108,8 +109,16 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     shot_run *r = run;
-    return r->flock ? fm_flock_shot_run(r->flock_shot, cache, control, &r->flock_stats, err)
-                    : fm_shot_run(r->shot, cache, control, &r->stats, err);
+    if (r->flock) return fm_flock_shot_run(r->flock_shot, cache, control, &r->flock_stats, err);
+    fm_status st = fm_shot_run(r->shot, cache, control, &r->stats, err);
+    fm_dist_totals mine = {0};
+    for (int g = 0; g < r->count; g++) { /* the groups fly one after another: their loads add up */
+        const fm_dist_totals t = fm_morph_dist_get_totals(fm_shot_state(r->shot, g));
+        mine.migrated += t.migrated, mine.ghost_agent_steps += t.ghost_agent_steps, mine.bytes_sent += t.bytes_sent;
+        mine.agent_steps += t.agent_steps, mine.max_rank_agent_steps += t.max_rank_agent_steps;
+    }
+    r->scale_out = cli_sum_totals(mine);
+    return st;
 }
 
 static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : json_null(); }
@@ -177,6 +186,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     }
     json_object_set_new(j, "groups", groups);
     json_object_set(j, "warnings", r->warnings);
+    if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", cli_scale_out_json(&r->scale_out));
     return cli_write_json(path, j);
 }
 

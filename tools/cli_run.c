@@ -283,9 +283,9 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 /* What a run on several ranks does not do yet (docs/scale-out.md): the same answer on every rank. */
 static int check_ranks(const fm_scene_def *def)
 {
-    if (fm_dist_size(cli_dist) > 1 && def->group_count > 0) {
-        fprintf(stderr, "flockmorph: a scene with groups runs on one MPI rank only in this version: run it without "
-                "mpirun, or with -np 1\n");
+    if (fm_dist_size(cli_dist) > 1 && def->group_count > 0 && def->mode == FM_MODE_SHAPE_FLOCK) {
+        fprintf(stderr, "flockmorph: a shot of shape flocks (a scene with groups) runs on one MPI rank only in this "
+                "version: run it without mpirun, or with -np 1\n");
         return FM_ERR_USAGE;
     }
     return 0;

@@ -159,6 +159,10 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
 void fm_morph_dist_adopt(fm_morph_state *s);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
 
+/* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state one rank's share
+ * (fm_morph_state_distribute); its frames gathered on rank 0, which writes them. */
+fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
+
 /* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
 void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s);
 /* The rest vertices of slot a's tet relative to its centroid (12 floats). */

@@ -37,6 +37,7 @@ struct fm_shot {
     float *verts, *scratch;       /* a frame (rows x 12), one group's tets */
     uint8_t *phases, *groups, *scratch_phases;
     fm_shot_stats *stats;
+    const fm_dist *dist;          /* on P ranks (NULL: one process); rank 0 alone writes the frames */
 };
 
 /* Whether group a starts only after group b has arrived (through any chain of `after`). */
@@ -145,22 +146,60 @@ int64_t fm_shot_rows(const fm_shot *s) { return s->rows; }
 const fm_morph_model *fm_shot_model(const fm_shot *s, int g) { return s->model[g]; }
 const fm_morph_state *fm_shot_state(const fm_shot *s, int g) { return s->state[g]; }
 
+fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        fm_status st = fm_morph_state_distribute(s->model[g], s->state[g], dist, err);
+        if (st != FM_OK) return st;
+    }
+    s->dist = dist;
+    return FM_OK;
+}
+
+/* Which agent of a state holds each target slot, and with which vertex order: on P ranks every
+ * rank's agents, gathered on rank 0 (the only rank that writes frames, and so needs them; the
+ * others get 0 and nothing). */
+typedef struct slot_holder {
+    int64_t target;
+    int32_t id;
+    uint8_t perm, pad[3];
+} slot_holder;
+
+static fm_status gather_slot_holders(const fm_morph_state *from, slot_holder **all, int64_t *total, fm_error *err)
+{
+    const int64_t slots = fm_morph_slots(from);
+    slot_holder *mine = fm_alloc(sizeof(slot_holder) * (size_t)FM_MAX(slots, 1));
+    fm_status st = mine ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)slots);
+    for (int64_t k = 0; st == FM_OK && k < slots; k++) mine[k] = (slot_holder){from->target[k], from->id[k], from->perm[k], {0}};
+    st = fm_dist_agree(from->dist, st, err);
+    *all = NULL, *total = 0;
+    if (st == FM_OK && !from->dist) *all = mine, *total = slots, mine = NULL;
+    else if (st == FM_OK) st = fm_dist_gather(from->dist, mine, slots, sizeof(slot_holder), (void **)all, total, err);
+    fm_free(mine);
+    return st;
+}
+
 /* Group g (from group a's formed shape) takes over a's rows: its agent with source tet j (a's
  * target slot j) gets the row, and the vertex order, of a's agent that holds slot j. */
 static fm_status take_over_rows(fm_shot *s, int g, fm_error *err)
 {
     const int a = s->def[g].group.source_group;
-    const fm_morph_state *from = s->state[a];
+    slot_holder *holders;
+    int64_t held;
+    fm_status st = gather_slot_holders(s->state[a], &holders, &held, err);
+    s->writes[a] = 0, s->writes[g] = 1;
+    if (st != FM_OK || fm_dist_rank(s->dist) != 0) return fm_free(holders), st;
     const fm_morph_model *m = s->model[g];
     int64_t n = m->n, *agent_of_slot = fm_alloc(sizeof(int64_t) * (size_t)n);
     uint8_t *perm_of_slot = fm_alloc((size_t)n);
     s->row[g] = fm_alloc(sizeof(int64_t) * (size_t)n), s->perm[g] = fm_alloc((size_t)n);
     if (!agent_of_slot || !perm_of_slot || !s->row[g] || !s->perm[g]) {
-        fm_free(agent_of_slot), fm_free(perm_of_slot);
+        fm_free(agent_of_slot), fm_free(perm_of_slot), fm_free(holders);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)n);
     }
-    for (int64_t k = 0; k < fm_morph_slots(from); k++)
-        agent_of_slot[from->target[k]] = from->id[k], perm_of_slot[from->target[k]] = from->perm[k];
+    for (int64_t k = 0; k < held; k++)
+        agent_of_slot[holders[k].target] = holders[k].id, perm_of_slot[holders[k].target] = holders[k].perm;
+    fm_free(holders);
     for (int64_t i = 0; i < n; i++) {
         int64_t slot = m->src_index[i], agent = agent_of_slot[slot];
         s->row[g][i] = s->row[a] ? s->row[a][agent] : s->row0[a] + agent;
@@ -168,7 +207,6 @@ static fm_status take_over_rows(fm_shot *s, int g, fm_error *err)
         if (s->perm[a]) s->perm[g][i] = fm_compose_even_permutations(s->perm[a][agent], perm_of_slot[slot]);
     }
     fm_free(agent_of_slot), fm_free(perm_of_slot);
-    s->writes[a] = 0, s->writes[g] = 1;
     return FM_OK;
 }
 
@@ -207,12 +245,11 @@ static int all_arrived(const fm_shot *s)
     return 1;
 }
 
-/* Group g's tets into its rows (in the rows' vertex order), with its phases and its index. */
+/* Group g's tets into its rows (in the rows' vertex order), with its phases and its index, from
+ * the group's frame in s->scratch. */
 static void scatter_group(fm_shot *s, int g)
 {
     const fm_morph_model *m = s->model[g];
-    fm_morph_tet_vertices(m, s->state[g], s->scratch);
-    fm_morph_phases(s->state[g], s->scratch_phases);
     for (int64_t i = 0; i < m->n; i++) {
         int64_t r = s->row[g] ? s->row[g][i] : s->row0[g] + i;
         const uint8_t *perm = fm_even_permutations[s->perm[g] ? s->perm[g][i] : 0];
@@ -230,10 +267,26 @@ static void measure_group(fm_shot *s, int g)
     gs->inverted_tet_frames += fm_count_inverted_tets(s->scratch, (size_t)s->model[g]->n);
 }
 
+/* Group g's frame in s->scratch (tets by agent id) and s->scratch_phases: on P ranks gathered on
+ * rank 0 (collective). */
+static fm_status group_frame(fm_shot *s, int g, fm_error *err)
+{
+    if (s->dist) return fm_morph_dist_frame(s->model[g], s->state[g], s->scratch, s->scratch_phases, err);
+    fm_morph_tet_vertices(s->model[g], s->state[g], s->scratch);
+    fm_morph_phases(s->state[g], s->scratch_phases);
+    return FM_OK;
+}
+
+/* Frame k: every group that writes, into its rows; checked and written (on P ranks by rank 0). */
 static fm_status write_frame(fm_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
 {
-    for (int g = 0; g < s->count; g++)
-        if (s->writes[g]) scatter_group(s, g), measure_group(s, g);
+    const int root = fm_dist_rank(s->dist) == 0;
+    for (int g = 0; g < s->count; g++) {
+        fm_status st = s->writes[g] ? group_frame(s, g, err) : FM_OK;
+        if (st != FM_OK) return st; /* the ranks agreed on it */
+        if (s->writes[g] && root) scatter_group(s, g), measure_group(s, g);
+    }
+    if (!root) return FM_OK;
     fm_status st = fm_frame_check_runaway(s->verts, 12, s->rows, s->scene_lo, s->scene_hi, k,
                                           "each group's speed0, omega1, style and obstacles", err);
     if (st != FM_OK || !cache) return st;
@@ -272,7 +325,9 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
 {
     shot_run *r = sim;
     if (r->step_status != FM_OK) return *err = r->step_error, r->step_status;
-    fm_status st = write_frame(r->s, r->cache, k, err);
+    for (int g = 0; g < r->s->count; g++) /* an exchange that failed, which every rank knows */
+        if (r->s->state[g]->dist_status != FM_OK) return *err = r->s->state[g]->dist_error, err->status = r->s->state[g]->dist_status;
+    fm_status st = fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
     const int64_t *counts[FM_MAX_GROUPS];
     for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
     if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
@@ -313,7 +368,7 @@ fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_run r = {s, cache, &c, FM_OK, {0}};
     const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, NULL};
+                                s->frame_limit, &c, &stats->run, cache, s->dist};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(s, stats);
     return st;

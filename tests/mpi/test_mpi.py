@@ -7,7 +7,9 @@
   boids, a deforming target, the vortex, an obstacle, R over the run, stepped homing, floating);
 - a stress case: on 4 ranks every agent changes rank (castling's flock, and the shape flock, sweep
   the slab axis), halos are exchanged, and the bytes still match;
-- what several ranks cannot do yet (a scene with groups) is refused with exit 1 before any work;
+- shots of tetra morphs (castling's king then rook; a chain of groups each starting from the
+  previous one's shape) give the plain run's bytes on P ranks; what several ranks cannot do yet
+  (a shot of shape flocks) is refused with exit 1 before any work;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes (both modes);
 - failure: a full disk on rank 0 (ulimit -f) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
@@ -97,6 +99,16 @@ class SameBytes(unittest.TestCase):
     def test_words(self):
         self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)])
 
+    def test_castling_shot(self):
+        """The whole castling (groups king, then rook): every group's state on P ranks, each
+        group's frame gathered into its rows."""
+        self.check_scene("examples/castling/scene.json", [(2, 1), (3, 1)])
+
+    def test_shot_chain(self):
+        """Groups starting from the previous one's formed shape (a -> b -> c): the rows taken over
+        from the agents of every rank."""
+        self.check_scene("tests/data/mpi/shot_chain.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
+
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
         handed on (migrations at least the agent count), and the boids read ghosts."""
@@ -127,10 +139,10 @@ class Stress(unittest.TestCase):
 class Refused(unittest.TestCase):
     FLOCK = "examples/flock_cylinder_sphere/scene.json"
 
-    def test_groups_on_two_ranks(self):
-        done, out = run("examples/castling/scene.json", "shot2", 2, timeout=120)
+    def test_shape_flock_shot_on_two_ranks(self):
+        done, out = run("examples/flock_sequence/scene.json", "shot2", 2, timeout=120)
         self.assertEqual(done.returncode, 1, done.stderr)
-        self.assertIn("a scene with groups runs on one MPI rank", done.stderr)
+        self.assertIn("a shot of shape flocks (a scene with groups) runs on one MPI rank", done.stderr)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
 
     def test_shape_flock_on_one_rank(self):
