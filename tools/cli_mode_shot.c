@@ -86,13 +86,14 @@ static int build(void *run, const fm_scene_def *def, int *show)
 }
 
 /* The shot made its states; they take the run's thread count here, and on P ranks (a shot of
- * tetra morphs) each rank's share. */
+ * either mode) each rank's share. */
 static fm_status create_state(void *run, int threads, fm_error *err)
 {
     shot_run *r = run;
     if (r->flock) fm_flock_shot_set_threads(r->flock_shot, threads);
     else fm_shot_set_threads(r->shot, threads);
-    return !r->flock && fm_dist_size(cli_dist) > 1 ? fm_shot_distribute(r->shot, cli_dist, err) : FM_OK;
+    if (fm_dist_size(cli_dist) == 1) return FM_OK;
+    return r->flock ? fm_flock_shot_distribute(r->flock_shot, cli_dist, err) : fm_shot_distribute(r->shot, cli_dist, err);
 }
 
 static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const char *path, fm_error *err)
@@ -109,11 +110,12 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
 {
     shot_run *r = run;
-    if (r->flock) return fm_flock_shot_run(r->flock_shot, cache, control, &r->flock_stats, err);
-    fm_status st = fm_shot_run(r->shot, cache, control, &r->stats, err);
+    fm_status st = r->flock ? fm_flock_shot_run(r->flock_shot, cache, control, &r->flock_stats, err)
+                            : fm_shot_run(r->shot, cache, control, &r->stats, err);
     fm_dist_totals mine = {0};
     for (int g = 0; g < r->count; g++) { /* the groups fly one after another: their loads add up */
-        const fm_dist_totals t = fm_morph_dist_get_totals(fm_shot_state(r->shot, g));
+        const fm_dist_totals t = r->flock ? fm_flock_dist_get_totals(fm_flock_shot_state(r->flock_shot, g))
+                                          : fm_morph_dist_get_totals(fm_shot_state(r->shot, g));
         mine.migrated += t.migrated, mine.ghost_agent_steps += t.ghost_agent_steps, mine.bytes_sent += t.bytes_sent;
         mine.agent_steps += t.agent_steps, mine.max_rank_agent_steps += t.max_rank_agent_steps;
     }

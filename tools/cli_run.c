@@ -279,18 +279,6 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
     return rc;
 }
 
-/* The output directory, taken, and the manifest's first version; then the run and its last. */
-/* What a run on several ranks does not do yet (docs/scale-out.md): the same answer on every rank. */
-static int check_ranks(const fm_scene_def *def)
-{
-    if (fm_dist_size(cli_dist) > 1 && def->group_count > 0 && def->mode == FM_MODE_SHAPE_FLOCK) {
-        fprintf(stderr, "flockmorph: a shot of shape flocks (a scene with groups) runs on one MPI rank only in this "
-                "version: run it without mpirun, or with -np 1\n");
-        return FM_ERR_USAGE;
-    }
-    return 0;
-}
-
 /* The output directory, taken (by rank 0 on P ranks), and the manifest's first version. */
 static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
@@ -306,11 +294,10 @@ static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const 
     return rc;
 }
 
+/* The output directory, taken, and the manifest's first version; then the run and its last. */
 static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
-    int rc = check_ranks(def);
-    if (rc) return rc;
-    rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
+    int rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
     if (rc) return rc;
     rc = run_scene(o, def);
     int manifest = cli_is_root() ? cli_write_manifest(o, ov, def, rc) : 0;

@@ -143,6 +143,11 @@ void fm_flock_dist_release(fm_flock_state *s);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, fm_error *err);
 
+/* flock_shot.c: a shot on P ranks: every group's state one rank's share; each writing group
+ * gathered on rank 0 at a frame. */
+fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_error *err);
+const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g);
+
 /* flock_state.c */
 void fm_flock_update_orientation(float *q, const float v[3]);
 

@@ -24,6 +24,7 @@ struct fm_flock_shot {
     int32_t steps_per_frame, frame_limit;
     float *position, *velocity, *orientation;
     uint8_t *phase, *group;
+    const fm_dist *dist; /* on P ranks (NULL: one process); rank 0 alone writes the frames */
 };
 
 /* Whether group g can ever be done: a static target whose agents bind. */
@@ -112,6 +113,17 @@ void fm_flock_shot_set_threads(fm_flock_shot *s, int threads)
     for (int g = 0; g < s->count; g++) s->state[g]->threads = fm_threads(threads);
 }
 
+fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        fm_status st = fm_flock_state_distribute(s->model[g], s->state[g], dist, err);
+        if (st != FM_OK) return st;
+    }
+    s->dist = dist;
+    return FM_OK;
+}
+
+const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g) { return s->state[g]; }
 int fm_flock_shot_groups(const fm_flock_shot *s) { return s->count; }
 int64_t fm_flock_shot_rows(const fm_flock_shot *s) { return s->rows; }
 const fm_flock_model *fm_flock_shot_model(const fm_flock_shot *s, int g) { return s->model[g]; }
@@ -140,14 +152,26 @@ static int all_done(const fm_flock_shot *s)
     return 1;
 }
 
-static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+/* Group g's agents into its rows (on P ranks gathered on rank 0 first: collective). */
+static fm_status group_frame(fm_flock_shot *s, int g, fm_error *err)
 {
-    for (int g = 0; g < s->count; g++) {
-        if (!s->writes[g]) continue;
+    fm_status st = s->dist ? fm_flock_dist_gather(s->state[g], err) : FM_OK;
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
         const size_t r = (size_t)s->row0[g];
         fm_flock_frame(s->state[g], s->position + 3 * r, s->velocity + 3 * r, s->orientation + 4 * r, s->phase + r);
         memset(s->group + r, g, (size_t)s->model[g]->n);
     }
+    if (s->dist) fm_flock_dist_release(s->state[g]);
+    return st;
+}
+
+static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        fm_status st = s->writes[g] ? group_frame(s, g, err) : FM_OK;
+        if (st != FM_OK) return st; /* the ranks agreed on it */
+    }
+    if (fm_dist_rank(s->dist) != 0) return FM_OK;
     fm_status st = fm_frame_check_runaway(s->position, 3, s->rows, s->scene_lo, s->scene_hi, k,
                                           "each group's shape_flock speeds, forces and weights", err);
     if (st != FM_OK || !cache) return st;
@@ -174,14 +198,26 @@ static int loop_finished(const void *sim) { return all_done(((const shot_loop *)
 static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
 {
     shot_loop *r = sim;
-    fm_status st = write_frame(r->s, r->cache, k, err);
+    for (int g = 0; g < r->s->count; g++) /* an exchange that failed, which every rank knows */
+        if (r->s->state[g]->dist_status != FM_OK) return *err = r->s->state[g]->dist_error, err->status = r->s->state[g]->dist_status;
+    fm_status st = fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
     const int64_t *counts[FM_MAX_GROUPS];
     for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
     if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
     return st;
 }
 
-static void finish_stats(const fm_flock_shot *s, fm_flock_shot_stats *stats)
+/* Group g's distances to its destinations (on P ranks from its store gathered on rank 0: collective). */
+static void group_distance(fm_flock_shot *s, int g, double *mean, double *max)
+{
+    fm_error err = {0};
+    fm_status st = s->dist ? fm_flock_dist_gather(s->state[g], &err) : FM_OK;
+    if (st == FM_OK) fm_flock_distance(s->state[g], mean, max);
+    else *mean = *max = NAN;
+    if (s->dist) fm_flock_dist_release(s->state[g]);
+}
+
+static void finish_stats(fm_flock_shot *s, fm_flock_shot_stats *stats)
 {
     stats->run.steps = s->step;
     stats->rows = s->rows;
@@ -194,7 +230,7 @@ static void finish_stats(const fm_flock_shot *s, fm_flock_shot_stats *stats)
         gs->start_time = s->start_step[g] < 0 ? NAN : (double)s->start_step[g] * s->dt;
         gs->bound_time = s->done_step[g] < 0 ? NAN : (double)s->done_step[g] * s->dt;
         gs->bound_fraction = (double)st->count[FM_PHASE_ARRIVED] / (double)st->n;
-        fm_flock_distance(st, &gs->final_mean_distance, &gs->final_max_distance);
+        group_distance(s, g, &gs->final_mean_distance, &gs->final_max_distance);
     }
 }
 
@@ -206,7 +242,7 @@ fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_r
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_loop r = {s, cache, &c};
     const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, NULL};
+                                s->frame_limit, &c, &stats->run, cache, s->dist};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(s, stats);
     return st;

@@ -7,9 +7,8 @@
   boids, a deforming target, the vortex, an obstacle, R over the run, stepped homing, floating);
 - a stress case: on 4 ranks every agent changes rank (castling's flock, and the shape flock, sweep
   the slab axis), halos are exchanged, and the bytes still match;
-- shots of tetra morphs (castling's king then rook; a chain of groups each starting from the
-  previous one's shape) give the plain run's bytes on P ranks; what several ranks cannot do yet
-  (a shot of shape flocks) is refused with exit 1 before any work;
+- shots (castling's king then rook; a chain of groups each starting from the previous one's
+  shape; flock_sequence's sphere then torus) give the plain run's bytes on P ranks;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes (both modes);
 - failure: a full disk on rank 0 (ulimit -f) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
@@ -109,6 +108,11 @@ class SameBytes(unittest.TestCase):
         from the agents of every rank."""
         self.check_scene("tests/data/mpi/shot_chain.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
 
+    def test_shape_flock_shot(self):
+        """A sphere that becomes a torus (flock_sequence: the torus group takes over the sphere's
+        bound agents)."""
+        self.check_scene("examples/flock_sequence/scene.json", [(2, 1), (3, 1)])
+
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
         handed on (migrations at least the agent count), and the boids read ghosts."""
@@ -134,23 +138,6 @@ class Stress(unittest.TestCase):
         self.assertGreaterEqual(s["migrations"], j["agents"], s)
         self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
         self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
-
-
-class Refused(unittest.TestCase):
-    FLOCK = "examples/flock_cylinder_sphere/scene.json"
-
-    def test_shape_flock_shot_on_two_ranks(self):
-        done, out = run("examples/flock_sequence/scene.json", "shot2", 2, timeout=120)
-        self.assertEqual(done.returncode, 1, done.stderr)
-        self.assertIn("a shot of shape flocks (a scene with groups) runs on one MPI rank", done.stderr)
-        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
-
-    def test_shape_flock_on_one_rank(self):
-        plain, out = run(self.FLOCK, "flock_plain", extra=("--set", "time.frame_limit=40"))
-        self.assertEqual(plain.returncode, 0, plain.stderr)
-        done, got = run(self.FLOCK, "flock1", 1, extra=("--set", "time.frame_limit=40"))
-        self.assertEqual(done.returncode, 0, done.stderr)
-        self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
 
 
 def frames_in(path):
