@@ -109,6 +109,7 @@ struct fm_flock_state {
     fm_error dist_error;
     void *gathered;                /* rank 0 during a frame: the records received (fm_flock_dist_gather) */
     int64_t gathered_count;
+    size_t gathered_size;          /* bytes a record */
 };
 
 /* On P ranks, the phase of an agent another rank computes: no stage of the step handles it. */

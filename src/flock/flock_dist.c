@@ -30,13 +30,25 @@ enum { RECUT_INTERVAL = 8 }; /* steps between two cuts */
  * fields): its weight in the balance. */
 static const double ARRIVED_WEIGHT = 0.1;
 
-/* An agent that changes rank, or goes to rank 0 for a frame or a checkpoint. */
-typedef struct agent_record {
-    double kalman_p[3];
-    float p[3], v[3], orient[4], leader[3], t_bind;
+/* What every record to another rank starts with: rank 0 finds the agents it received by it. */
+typedef struct record_head {
     int32_t id;
     uint8_t phase, pad[3];
+} record_head;
+
+/* An agent that changes rank, or goes to rank 0 for a checkpoint: all that carries it to the next
+ * step (88 bytes). */
+typedef struct agent_record {
+    record_head h;
+    float p[3], v[3], orient[4], leader[3], t_bind;
+    double kalman_p[3];
 } agent_record;
+
+/* An agent in a frame on rank 0: what the frame and its measures read (60 bytes). */
+typedef struct frame_record {
+    record_head h;
+    float p[3], v[3], orient[4], leader[3];
+} frame_record;
 
 /* A neighbour of another rank, for this step's boids. */
 typedef struct ghost_record {
@@ -49,22 +61,42 @@ static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase =
 
 static double agent_weight(uint8_t phase) { return phase == FM_PHASE_ARRIVED ? ARRIVED_WEIGHT : 1.0; }
 
-static void pack(const fm_flock_state *s, int64_t a, agent_record *r)
+static void pack_frame(const fm_flock_state *s, int64_t a, void *out)
 {
+    frame_record *r = out;
+    memset(r, 0, sizeof *r);
+    for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->leader[k] = s->leader[k][a];
+    memcpy(r->orient, s->orient + 4 * a, sizeof r->orient);
+    r->h.id = (int32_t)a, r->h.phase = s->phase[a];
+}
+
+static void unpack_frame(fm_flock_state *s, const void *in)
+{
+    const frame_record *r = in;
+    const int64_t a = r->h.id;
+    for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->leader[k][a] = r->leader[k];
+    memcpy(s->orient + 4 * a, r->orient, sizeof r->orient);
+    s->phase[a] = r->h.phase;
+}
+
+static void pack(const fm_flock_state *s, int64_t a, void *out)
+{
+    agent_record *r = out;
     memset(r, 0, sizeof *r);
     for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->leader[k] = s->leader[k][a];
     if (s->kalman_p) memcpy(r->kalman_p, s->kalman_p + 3 * a, sizeof r->kalman_p);
     memcpy(r->orient, s->orient + 4 * a, sizeof r->orient);
-    r->t_bind = s->t_bind[a], r->id = (int32_t)a, r->phase = s->phase[a];
+    r->t_bind = s->t_bind[a], r->h.id = (int32_t)a, r->h.phase = s->phase[a];
 }
 
-static void unpack(fm_flock_state *s, const agent_record *r)
+static void unpack(fm_flock_state *s, const void *in)
 {
-    const int64_t a = r->id;
+    const agent_record *r = in;
+    const int64_t a = r->h.id;
     for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->leader[k][a] = r->leader[k];
     if (s->kalman_p) memcpy(s->kalman_p + 3 * a, r->kalman_p, sizeof r->kalman_p);
     memcpy(s->orient + 4 * a, r->orient, sizeof r->orient);
-    s->t_bind[a] = r->t_bind, s->phase[a] = r->phase;
+    s->t_bind[a] = r->t_bind, s->phase[a] = r->h.phase;
 }
 
 /* The cuts at the quantiles of the agents this rank computes (every agent when all is set: every
@@ -210,35 +242,43 @@ void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds)
     fm_dist_sum_i64(s->dist, s->count, 4);
 }
 
-/* Rank 0 gets every rank's agents into its arrays with their phases (s->gathered keeps which, for
- * fm_flock_dist_release); the other ranks send theirs. */
-fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
+/* Rank 0 gets every rank's agents into its arrays with their phases, as records of `size` bytes
+ * (s->gathered keeps them, for fm_flock_dist_release); the other ranks send theirs. */
+static fm_status gather(fm_flock_state *s, size_t size, void (*put)(const fm_flock_state *, int64_t, void *),
+                        void (*take)(fm_flock_state *, const void *), fm_error *err)
 {
     const int root = fm_dist_rank(s->dist) == 0;
     int64_t mine = 0;
     for (int64_t a = 0; !root && a < s->n; a++) mine += is_mine(s->phase[a]);
-    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(mine, 1));
+    char *out = fm_alloc(size * (size_t)FM_MAX(mine, 1));
     fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)mine);
     st = fm_dist_agree(s->dist, st, err);
     for (int64_t a = 0, k = 0; st == FM_OK && !root && a < s->n; a++)
-        if (is_mine(s->phase[a])) pack(s, a, out + k++);
+        if (is_mine(s->phase[a])) put(s, a, out + size * (size_t)k++);
     void *all = NULL;
     int64_t total = 0;
-    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, sizeof(agent_record), &all, &total, err);
+    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, size, &all, &total, err);
     fm_free(out);
-    s->slabs->totals.bytes_sent += mine * (int64_t)sizeof(agent_record);
+    s->slabs->totals.bytes_sent += mine * (int64_t)size;
     if (st == FM_OK && root)
-        for (int64_t k = 0; k < total; k++) unpack(s, (const agent_record *)all + k);
-    s->gathered = all, s->gathered_count = total;
+        for (int64_t k = 0; k < total; k++) take(s, (const char *)all + size * (size_t)k);
+    s->gathered = all, s->gathered_count = total, s->gathered_size = size;
     return st;
+}
+
+fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
+{
+    return gather(s, sizeof(frame_record), pack_frame, unpack_frame, err);
 }
 
 /* Rank 0 after the frame: the agents it received are elsewhere again; the measures' grid is not
  * the one this rank's next step builds (that lists its own agents and the ghosts). */
 void fm_flock_dist_release(fm_flock_state *s)
 {
-    const agent_record *r = s->gathered;
-    for (int64_t k = 0; k < s->gathered_count; k++) s->phase[r[k].id] = FM_FLOCK_ELSEWHERE;
+    for (int64_t k = 0; k < s->gathered_count; k++) {
+        const record_head *h = (const record_head *)((const char *)s->gathered + s->gathered_size * (size_t)k);
+        s->phase[h->id] = FM_FLOCK_ELSEWHERE;
+    }
     fm_free(s->gathered);
     s->gathered = NULL, s->gathered_count = 0;
     s->grid_current = 0;
@@ -249,7 +289,7 @@ void fm_flock_dist_release(fm_flock_state *s)
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, fm_error *err)
 {
-    fm_status st = fm_flock_dist_gather(s, err);
+    fm_status st = gather(s, sizeof(agent_record), pack, unpack, err);
     if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
         const fm_dist *dist = s->dist;
         s->dist = NULL; /* the store is one process's now */
