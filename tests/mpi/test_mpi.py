@@ -10,7 +10,7 @@
 - shots (castling's king then rook; a chain of groups each starting from the previous one's
   shape; flock_sequence's sphere then torus) give the plain run's bytes on P ranks;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes (both modes);
-- failure: a full disk on rank 0 (ulimit -f) stops every rank with exit 3 and a readable partial
+- failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
 
     test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
@@ -154,12 +154,17 @@ LONG_FLOCK_SETS = ("--set", "n=30000")  # about 15 s on two ranks
 
 class Failure(unittest.TestCase):
     def test_disk_full_on_rank_0(self):
-        limit = 8 << 20  # bytes: castling's cache is about 45 MiB
+        self.check_disk_full("examples/castling/rook.json", "full2", 8 << 20)  # castling's cache: about 45 MiB
 
+    def test_shape_flock_disk_full_on_rank_0(self):
+        self.check_disk_full(FLOCK_STRESS, "flock_full2", 8 << 20, LONG_FLOCK_SETS)  # its cache: about 90 MiB
+
+    def check_disk_full(self, scene, name, limit, sets=()):
+        """limit: at least 8 MiB, since Open MPI's own shared-memory files are made under it too."""
         def small_files():
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
         start = time.time()
-        done, out = run("examples/castling/rook.json", "full2", 2, timeout=300, preexec=small_files)
+        done, out = run(scene, name, 2, extra=sets, timeout=300, preexec=small_files)
         self.assertEqual(done.returncode, 3, done.stderr)  # I/O error, from every rank
         self.assertLess(time.time() - start, 300)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
