@@ -218,7 +218,7 @@ static fm_status hand_out_targets(const fm_morph_model *m, fm_morph_state *s, co
     int64_t total = 0;
     fm_status st = fm_dist_allgather_i32(s->dist, mine, count, &all, &total, &s->dist_error);
     if (st != FM_OK) return st;
-    qsort(all, (size_t)total, sizeof *all, by_id);
+    if (total > 0) qsort(all, (size_t)total, sizeof *all, by_id); /* all is NULL when no rank has an entry */
     for (int64_t k = 0; k < count; k++) { /* its place among every rank's entries */
         const int32_t *at = bsearch(&mine[k], all, (size_t)total, sizeof *all, by_id);
         take_target(m, s, (int64_t)(key[k] & 0xffffffffu), s->next_slot + (at - all), t_end);
