@@ -237,7 +237,7 @@ void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds)
 {
     double weight = 0;
     for (int i = 0; i < 4; i++) weight += (double)s->count[i] * agent_weight((uint8_t)i);
-    if (weight > 0 && busy_seconds / weight < s->slabs->cost) s->slabs->cost = busy_seconds / weight;
+    fm_slabs_add_busy(s->slabs, busy_seconds, weight);
     fm_slabs_record_load(s->slabs, s->dist, s->count[FM_PHASE_FLYING] + s->count[FM_PHASE_HOMING]);
     fm_dist_sum_i64(s->dist, s->count, 4);
 }

@@ -227,7 +227,7 @@ void fm_morph_dist_rebalance(fm_morph_state *s)
 
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds)
 {
-    fm_slabs_add_busy(s->slabs, seconds, s->active_end - s->active_begin);
+    fm_slabs_add_busy(s->slabs, seconds, (double)(s->active_end - s->active_begin));
 }
 
 /* The load of this step: agents in flight on the busiest rank, and on all ranks together. */

@@ -63,10 +63,11 @@ static inline int fm_slabs_in_halo(const fm_slabs *d, float x)
     return x < d->cut[d->rank] + d->halo || x >= d->cut[d->rank + 1] - d->halo;
 }
 
-/* The least time per agent of a step, for the next cut's weight (fm_slabs.cost). */
-static inline void fm_slabs_add_busy(fm_slabs *d, double seconds, int64_t agents)
+/* The least time per agent of a step, for the next cut's weight (fm_slabs.cost); `agents` may be
+ * weighted (the shape flock counts a bound agent as a fraction of one in flight). */
+static inline void fm_slabs_add_busy(fm_slabs *d, double seconds, double agents)
 {
-    if (agents > 0 && seconds / (double)agents < d->cost) d->cost = seconds / (double)agents;
+    if (agents > 0 && seconds / agents < d->cost) d->cost = seconds / agents;
 }
 
 /* The weight of an agent at the next cut (the measured cost, or 1 before any), and the cost reset. */
