@@ -46,13 +46,14 @@ __version__ = "0.1.0"
 MAGIC = b"FMCACHE1"
 END_MAGIC = b"FMCEND\0\0"
 HEADER = 64  # the bytes every version starts with (all of format 1's header)
-VERSION = 3
-FIXED_HEADER = {2: 64, 3: 72}  # where the attribute records start
+VERSION = 4
+FIXED_HEADER = {2: 64, 3: 72, 4: 72}  # where the attribute records start
 ATTR_RECORD = 16
 CHUNK_HEADER = 24
 FOOTER = 16
 MAX_ATTRS = 6
 MAX_KEY_INTERVAL = 1 << 16
+MIN_PIECE, MAX_PIECE = 256, 1 << 30  # format 4: agents per piece
 SHUFFLE4, DELTA, QUANTISE = 1, 2, 4
 KEY_FRAME = 1
 
@@ -130,7 +131,8 @@ class _Attr:
         self.name, self.components, self.scalar = ATTRIBUTES[kind]
         self.filters = filters
         self.dtype = _DTYPES[self.scalar]
-        self.nbytes = agents * self.components * self.dtype.itemsize
+        self.per_agent = self.components * self.dtype.itemsize
+        self.nbytes = agents * self.per_agent
 
 
 def _int_arg(value, path, what):
@@ -366,9 +368,10 @@ class Cache:
         self.agents, self.frame_rate, self._header_bytes = agents, rate, HEADER
         self.options = {"compression_level": level, "delta": False, "key_interval": 16, "quantum": 0.0}
         self._attrs = [_Attr(1, SHUFFLE4, agents)]
+        self._set_pieces(0)
 
     def _read_header_attrs(self, first):
-        """Formats 2 and 3: the options and the attribute records after the first 64 bytes."""
+        """Formats 2 to 4: the options and the attribute records after the first 64 bytes."""
         size, records = struct.unpack_from("<I", first, 12)[0], FIXED_HEADER[self.version]
         if size < records + ATTR_RECORD or size > records + ATTR_RECORD * MAX_ATTRS or (size - records) % ATTR_RECORD:
             self._fail(f"bad header size {size}")
@@ -384,10 +387,13 @@ class Cache:
             self._fail("bad options in the header")
         if not 1 <= count <= MAX_ATTRS or size != records + ATTR_RECORD * count:
             self._fail(f"bad attribute count {count} for a {size}-byte header")
+        piece = 0
         if self.version >= 3:
-            self.header_frames, reserved = struct.unpack_from("<II", h, 64)
-            if reserved:
+            self.header_frames, piece = struct.unpack_from("<II", h, 64)
+            if self.version == 3 and piece:
                 self._fail("damaged header: reserved bytes 68..71 are not 0")
+            if self.version >= 4 and not MIN_PIECE <= piece <= MAX_PIECE:
+                self._fail(f"{piece} agents per piece is outside {MIN_PIECE}..{MAX_PIECE}")
         delta = bool(flags & 1)
         self.agents, self.frame_rate, self._header_bytes = agents, rate, size
         self.options = {"compression_level": level, "delta": delta, "key_interval": key, "quantum": quantum}
@@ -404,6 +410,25 @@ class Cache:
             if filters != _expected_filters(scalar, delta, quantum):
                 self._fail(f"attribute '{name}' has unsupported filters {filters}")
             self._attrs.append(_Attr(kind, filters, agents))
+        self._set_pieces(piece)
+        if self.version >= 4:
+            self.options["piece_agents"] = piece
+
+    def _set_pieces(self, piece):
+        """Format 4: pieces of `piece` agents (the last one shorter); before it one piece of all."""
+        self._piece = piece or max(self.agents, 1)
+        self._pieces = max(-(-self.agents // self._piece), 1)
+
+    def _piece_agents(self, j):
+        return max(min(self._piece, self.agents - j * self._piece), 0)
+
+    def _blocks(self):
+        """(piece, attribute index, raw bytes) of every block of a chunk, in their order."""
+        return [(j, i, self._piece_agents(j) * a.per_agent)
+                for j in range(self._pieces) for i, a in enumerate(self._attrs)]
+
+    def _table_bytes(self):
+        return 0 if self.version == 1 else 8 * len(self._attrs) * self._pieces
 
     # ------------------------------------------------------------ index and recovery
 
@@ -459,13 +484,14 @@ class Cache:
         return CHUNK_HEADER + payload
 
     def _block_sizes_ok(self, table, payload):
-        sizes = struct.unpack_from(f"<{len(self._attrs)}Q", table)
-        return (all(c <= _zstd_bound(a.nbytes) for c, a in zip(sizes, self._attrs))
-                and 8 * len(self._attrs) + sum(sizes) == payload)
+        blocks = self._blocks()
+        sizes = struct.unpack_from(f"<{len(blocks)}Q", table)
+        return (all(c <= _zstd_bound(n) for c, (_, _, n) in zip(sizes, blocks))
+                and self._table_bytes() + sum(sizes) == payload)
 
     def _scan(self, why):
         """Walks the chunks from the header; every complete one is a readable frame."""
-        head = CHUNK_HEADER + (0 if self.version == 1 else 8 * len(self._attrs))
+        head = CHUNK_HEADER + self._table_bytes()
         pos, self._offsets, self._sizes = self._header_bytes, [], []
         announced = self.header_frames  # a finished file cut short: no more frames than this
         while pos + head <= self.file_bytes and not (announced and len(self._offsets) == announced):
@@ -535,8 +561,10 @@ class Cache:
         """Attribute i of frame k as a new flat array of its values (quantisation undone)."""
         a = self._attrs[i]
         words = self._stored(k, i)
-        if a.filters & SHUFFLE4:
-            words = words.reshape(4, -1).T
+        if a.filters & SHUFFLE4:  # four byte planes in each piece
+            step = self._piece * a.per_agent
+            words = np.concatenate([words[at:at + step].reshape(4, -1).T.reshape(-1)
+                                    for at in range(0, max(len(words), 1), step)])
         values = np.ascontiguousarray(words).reshape(-1)
         if a.filters & QUANTISE:
             return (values.view("<i4").astype(np.float64) * self.options["quantum"]).astype(np.float32)
@@ -548,10 +576,11 @@ class Cache:
             return self._chunk
         self._chunk_frame = -1
         n = self._sizes[k]
-        if n < CHUNK_HEADER or n > CHUNK_HEADER + 8 * len(self._attrs) + sum(_zstd_bound(a.nbytes) for a in self._attrs):
+        if n < CHUNK_HEADER + self._table_bytes() or n > CHUNK_HEADER + self._table_bytes() + sum(
+                _zstd_bound(b) for _, _, b in self._blocks()):
             self._fail(f"frame {k}: damaged chunk header")
         chunk = self._read_at(self._offsets[k], n)
-        stated = self._chunk_bytes(chunk[:CHUNK_HEADER + (0 if self.version == 1 else 8 * len(self._attrs))], k)
+        stated = self._chunk_bytes(chunk[:CHUNK_HEADER + self._table_bytes()], k)
         if self.version != 1 and stated == n:
             if zlib.crc32(chunk[16:], zlib.crc32(chunk[:12])) != struct.unpack_from("<I", chunk, 12)[0]:
                 self._fail(f"chunk {k}: checksum mismatch (frame {k} is corrupt)")
@@ -561,17 +590,22 @@ class Cache:
         return chunk
 
     def _block(self, k, i):
-        """Attribute i of chunk k, decompressed (stored words: quantised, shuffled, maybe a delta)."""
+        """Attribute i of chunk k, decompressed (stored words: quantised, shuffled piece by piece,
+        maybe a delta): its block in every piece, one after another."""
         chunk = self._load_chunk(k)
-        if self.version == 1:
-            start, size = CHUNK_HEADER, len(chunk) - CHUNK_HEADER
-        else:
-            sizes = struct.unpack_from(f"<{len(self._attrs)}Q", chunk, CHUNK_HEADER)
-            start = CHUNK_HEADER + 8 * len(self._attrs) + sum(sizes[:i])
-            size = sizes[i]
         a = self._attrs[i]
+        if self.version == 1:
+            parts = [(CHUNK_HEADER, len(chunk) - CHUNK_HEADER, a.nbytes)]
+        else:
+            blocks = self._blocks()
+            sizes = struct.unpack_from(f"<{len(blocks)}Q", chunk, CHUNK_HEADER)
+            parts, start = [], CHUNK_HEADER + self._table_bytes()
+            for (_, attr, raw), size in zip(blocks, sizes):
+                if attr == i:
+                    parts.append((start, size, raw))
+                start += size
         try:
-            data = self._zstd(chunk[start:start + size], a.nbytes)
+            data = b"".join(self._zstd(chunk[at:at + size], raw) for at, size, raw in parts)
         except ValueError as e:
             self._fail(f"frame {k} is corrupt ({a.name}: {e})")
         return np.frombuffer(data, dtype=np.uint8)

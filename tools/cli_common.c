@@ -357,6 +357,7 @@ fm_cache_options cli_cache_options(const fm_scene_def *def)
     fm_cache_options copts = fm_default_cache_options();
     copts.compression_level = def->compression_level;
     copts.delta = def->cache_delta, copts.key_interval = def->cache_key_interval, copts.quantum = def->cache_quantum;
+    copts.piece_agents = def->cache_piece_agents;
     return copts;
 }
 

@@ -41,8 +41,10 @@ static json_t *attributes_json(const fm_cache_reader *r)
 static json_t *options_json(const fm_cache_reader *r)
 {
     fm_cache_options o = fm_cache_get_options(r);
-    return json_pack("{s:i, s:b, s:i, s:f}", "compression_level", o.compression_level, "delta", o.delta,
-                     "key_interval", o.key_interval, "quantum", o.quantum);
+    json_t *j = json_pack("{s:i, s:b, s:i, s:f}", "compression_level", o.compression_level, "delta", o.delta,
+                          "key_interval", o.key_interval, "quantum", o.quantum);
+    if (o.piece_agents > 0) json_object_set_new(j, "piece_agents", json_integer(o.piece_agents)); /* format 4 */
+    return j;
 }
 
 static json_t *frame_bytes_json(const fm_cache_reader *r)
@@ -164,6 +166,8 @@ static void print_human(json_t *j)
     printf("\noptions       zstd level %lld, delta %s, key interval %lld, quantum %g%s\n", (long long)num(o, "compression_level"),
            json_is_true(json_object_get(o, "delta")) ? "on" : "off", (long long)num(o, "key_interval"),
            json_real_value(json_object_get(o, "quantum")), json_real_value(json_object_get(o, "quantum")) > 0 ? "" : " (lossless)");
+    if (json_is_integer(json_object_get(o, "piece_agents")))
+        printf("pieces        %lld agents each\n", (long long)num(o, "piece_agents"));
     printf("file size     %lld bytes\n", (long long)num(j, "file_bytes"));
     printf("raw bytes     %lld\n", (long long)num(j, "raw_bytes"));
     printf("compressed    %lld bytes", (long long)num(j, "compressed_bytes"));

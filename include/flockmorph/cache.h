@@ -75,6 +75,10 @@ typedef struct fm_cache_options {
     double quantum;          /* > 0: f32 attributes rounded to multiples of quantum and stored as
                                 int32 multiples (lossy, error <= quantum / 2 before the read value's
                                 own float rounding); 0: lossless (the default) */
+    int piece_agents;        /* agents per piece, 256 … 2^30 (default 65536; 0 means the default):
+                                each piece of every attribute is filtered and compressed on its own,
+                                so the writer's threads, and P ranks, encode a frame in parallel.
+                                A reader of a format-3 or older cache gives 0: one piece */
 } fm_cache_options;
 
 fm_cache_options fm_default_cache_options(void);

@@ -239,6 +239,7 @@ typedef struct fm_scene_def {
     int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */
     int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */
     double cache_quantum;       /* frame cache: round positions to multiples of this; 0 = lossless */
+    int32_t cache_piece_agents; /* frame cache: agents per piece (format 4), each compressed on its own */
     char cache_name[256];       /* file name of the cache inside the output directory */
     fm_flock_def flock;         /* mode FM_MODE_SHAPE_FLOCK only */
     /* a shot of several morphs (docs/scene.md, "Groups"): group_count > 0 when the file has a

@@ -30,7 +30,7 @@ fm_cache_options fm_default_cache_options(void)
 {
     /* delta: half the file size of the words scene and less writer time (docs/performance.md) */
     return (fm_cache_options){.compression_level = 1, .delta = 1, .key_interval = CACHE_DEFAULT_KEY_INTERVAL,
-                              .quantum = 0};
+                              .quantum = 0, .piece_agents = CACHE_DEFAULT_PIECE};
 }
 
 /* status: FM_ERR_USAGE for options given by a caller, FM_ERR_INPUT for options read from a file. */
@@ -43,6 +43,9 @@ static fm_status check_options(const fm_cache_options *o, fm_status status, cons
         return fm_fail(err, status, "%s: key interval %d is outside 1..%d", path, o->key_interval, CACHE_MAX_KEY_INTERVAL);
     if (!(o->quantum >= 0) || !isfinite(o->quantum))
         return fm_fail(err, status, "%s: quantum %g must be 0 (lossless) or a positive number", path, o->quantum);
+    if (o->piece_agents < CACHE_MIN_PIECE || o->piece_agents > CACHE_MAX_PIECE)
+        return fm_fail(err, status, "%s: %d agents per piece is outside %d..%d", path, o->piece_agents, CACHE_MIN_PIECE,
+                       CACHE_MAX_PIECE);
     return FM_OK;
 }
 
@@ -62,15 +65,18 @@ fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate,
     memset(l, 0, sizeof *l);
     if (attr_count < 1 || attr_count > CACHE_MAX_ATTRS)
         return fm_fail(err, FM_ERR_USAGE, "%s: a cache holds 1 to %d attributes, not %d", path, CACHE_MAX_ATTRS, attr_count);
-    fm_status st = check_options(opts, FM_ERR_USAGE, path, err);
+    fm_cache_options o = *opts;
+    if (o.piece_agents == 0) o.piece_agents = CACHE_DEFAULT_PIECE;
+    fm_status st = check_options(&o, FM_ERR_USAGE, path, err);
     if (st != FM_OK) return st;
     l->version = CACHE_VERSION;
     l->header_bytes = CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * (uint32_t)attr_count;
     l->header_frames = 0; /* unknown until the writer finishes */
     l->agents = agents;
     l->frame_rate = frame_rate;
-    l->opts = *opts;
-    l->opts.delta = opts->delta != 0;
+    l->opts = o;
+    l->opts.delta = o.delta != 0;
+    cache_layout_set_pieces(l, (uint64_t)o.piece_agents);
     for (int i = 0; i < attr_count; i++) {
         const fm_cache_attr_info *a = fm_cache_attr_describe(attrs[i]);
         if (!a) return fm_fail(err, FM_ERR_USAGE, "%s: unknown attribute kind %d", path, (int)attrs[i]);
@@ -103,7 +109,8 @@ void cache_header_encode(const cache_layout *l, unsigned char *h)
     put_f64(h + 40, l->frame_rate);
     put_u32(h + 48, (uint32_t)l->opts.key_interval);
     put_f64(h + 56, l->opts.quantum);
-    if (l->version >= 3) put_u32(h + 64, l->header_frames); /* h + 68 stays 0 (reserved) */
+    if (l->version >= 3) put_u32(h + 64, l->header_frames);
+    if (l->version >= 4) put_u32(h + 68, (uint32_t)l->piece_agents); /* format 3: 0 (reserved) */
     for (int i = 0; i < l->attr_count; i++) {
         unsigned char *a = h + records + CACHE_ATTR_RECORD * i;
         put_u32(a, (uint32_t)l->attrs[i]->attr);
@@ -144,6 +151,7 @@ fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const cha
         return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: frame rate %g", path, l->frame_rate);
     l->opts.key_interval = (int)get_u32(h + 48);
     l->opts.quantum = get_f64(h + 56);
+    l->opts.piece_agents = l->version >= 4 ? (int)FM_MIN(get_u32(h + 68), (uint32_t)INT32_MAX) : CACHE_DEFAULT_PIECE;
     if (get_u32(h + 32) != CACHE_CODEC_ZSTD || (get_u32(h + 28) & ~(uint32_t)HEADER_DELTA) != 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: unsupported codec or flags", path);
     fm_status st = check_options(&l->opts, FM_ERR_INPUT, path, err);
@@ -152,8 +160,10 @@ fm_status cache_header_decode(cache_layout *l, const unsigned char *h, const cha
     if (count < 1 || count > CACHE_MAX_ATTRS || l->header_bytes != records + CACHE_ATTR_RECORD * count)
         return fm_fail(err, FM_ERR_INPUT, "%s: bad attribute count %u for a %u-byte header", path, count, l->header_bytes);
     l->header_frames = l->version >= 3 ? get_u32(h + 64) : 0;
-    if (l->version >= 3 && get_u32(h + 68) != 0)
+    if (l->version == 3 && get_u32(h + 68) != 0)
         return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: reserved bytes 68..71 are not 0", path);
+    cache_layout_set_pieces(l, l->version >= 4 ? (uint64_t)l->opts.piece_agents : 0);
+    if (l->version < 4) l->opts.piece_agents = 0; /* one piece of every agent */
     for (uint32_t i = 0; i < count; i++) {
         st = decode_attr(l, (int)i, h + records + CACHE_ATTR_RECORD * i, path, err);
         if (st != FM_OK) return st;
@@ -170,10 +180,33 @@ size_t cache_frame_bytes(const cache_layout *l)
     return sum;
 }
 
+void cache_layout_set_pieces(cache_layout *l, uint64_t piece_agents)
+{
+    l->piece_agents = piece_agents ? piece_agents : FM_MAX(l->agents, 1); /* before format 4: one piece */
+    l->pieces = FM_MAX((l->agents + l->piece_agents - 1) / l->piece_agents, 1);
+}
+
+uint64_t cache_piece_first(const cache_layout *l, uint64_t j) { return j * l->piece_agents; }
+
+uint64_t cache_piece_agents(const cache_layout *l, uint64_t j)
+{
+    uint64_t first = cache_piece_first(l, j);
+    return first < l->agents ? FM_MIN(l->piece_agents, l->agents - first) : 0;
+}
+
+size_t cache_block_bytes(const cache_layout *l, uint64_t j, int i)
+{
+    return (size_t)cache_piece_agents(l, j) * l->attrs[i]->bytes_per_agent;
+}
+
+uint64_t cache_table_bytes(const cache_layout *l) { return 8 * (uint64_t)l->attr_count * l->pieces; }
+
+/* Every block at its bound: a full piece's bound times the full pieces, plus the last one's. */
 uint64_t cache_payload_bound(const cache_layout *l)
 {
-    uint64_t sum = 8 * (uint64_t)l->attr_count;
-    for (int i = 0; i < l->attr_count; i++) sum += ZSTD_compressBound(cache_attr_bytes(l, i));
+    uint64_t sum = cache_table_bytes(l), last = l->pieces - 1;
+    for (int i = 0; i < l->attr_count; i++)
+        sum += last * ZSTD_compressBound(cache_block_bytes(l, 0, i)) + ZSTD_compressBound(cache_block_bytes(l, last, i));
     return sum;
 }
 
@@ -216,6 +249,22 @@ void cache_shuffle4(const unsigned char *in, size_t count, unsigned char *out)
         memcpy(&w, in + 4 * i, 4);
         p0[i] = (unsigned char)w, p1[i] = (unsigned char)(w >> 8);
         p2[i] = (unsigned char)(w >> 16), p3[i] = (unsigned char)(w >> 24);
+    }
+}
+
+void cache_shuffle_pieces(const cache_layout *l, int i, const unsigned char *in, unsigned char *out)
+{
+    for (uint64_t j = 0; j < l->pieces; j++) {
+        size_t at = (size_t)cache_piece_first(l, j) * l->attrs[i]->bytes_per_agent;
+        cache_shuffle4(in + at, cache_block_bytes(l, j, i) / 4, out + at);
+    }
+}
+
+void cache_unshuffle_pieces(const cache_layout *l, int i, const unsigned char *in, unsigned char *out)
+{
+    for (uint64_t j = 0; j < l->pieces; j++) {
+        size_t at = (size_t)cache_piece_first(l, j) * l->attrs[i]->bytes_per_agent;
+        cache_unshuffle4(in + at, cache_block_bytes(l, j, i) / 4, out + at);
     }
 }
 

@@ -1,13 +1,16 @@
 /* The native frame cache's on-disk layout and filters, shared by the writer (cache_writer.c) and
  * the reader (cache_reader.c). docs/cache-format.md is the specification; the names here follow it.
  *
- * Format 3 (format 2 plus the frame count in the header):
+ * Format 4 (format 3 with the agents cut into pieces):
  *   header   72 bytes + 16 per attribute: magic, version, agents, attributes, options, frame rate,
- *            crc32 of the header, frame count (0 until the writer finishes)
+ *            crc32 of the header, frame count (0 until the writer finishes), agents per piece S
  *   chunks   one per frame: "FRAM", frame, flags, crc32, payload size; then one u64 compressed size
- *            per attribute and one zstd frame per attribute (each attribute decodes on its own)
+ *            per block and the blocks, piece by piece: for each piece of S agents (the last one
+ *            shorter), one zstd frame per attribute, filtered on its own (so a piece, and each
+ *            attribute of it, decodes on its own, and ranks can encode their pieces in parallel)
  *   index    "FIDX", frame count, (offset, size) per chunk, crc32
  *   footer   u64 offset of the index, "FMCEND\0\0"
+ * Format 3 (read only): format 4 with one piece of every agent (bytes 68..71 of the header are 0).
  * Format 2 (read only): format 3 without the frame count, a 64-byte fixed header.
  * Format 1 (read only): one attribute (tet vertices), 24-byte chunks without crc32 (zstd's own
  * checksum instead), an index of offsets only. */
@@ -18,10 +21,11 @@
 
 #include <stdint.h>
 #include <string.h>
+#include <zstd.h>
 
 enum {
-    CACHE_VERSION = 3,
-    CACHE_FIXED_HEADER = 72,    /* format 3 */
+    CACHE_VERSION = 4,
+    CACHE_FIXED_HEADER = 72,    /* formats 3 and 4 */
     CACHE_FIXED_HEADER_V2 = 64, /* formats 1 and 2: the bytes every reader reads first */
     CACHE_ATTR_RECORD = 16,
     CACHE_CHUNK_HEADER = 24,
@@ -34,6 +38,13 @@ enum {
     CACHE_MAX_LEVEL = 19,
     CACHE_WRITER_SLOTS = 2, /* frames handed over and not yet written before add_frame waits */
     CACHE_MAX_HEADER = CACHE_FIXED_HEADER + CACHE_ATTR_RECORD * CACHE_MAX_ATTRS,
+    /* Agents per piece (format 4): large enough for zstd to find the same redundancy as in a whole
+     * array (a piece of tets is 3 MiB), small enough that 2 … P writers share a frame. */
+    CACHE_DEFAULT_PIECE = 1 << 16,
+    CACHE_MIN_PIECE = 256,
+    CACHE_MAX_PIECE = 1 << 30,
+    CACHE_ENCODER_THREADS = 2, /* the writer thread's team that compresses a frame's blocks */
+    CACHE_ATTR_KINDS = FM_ATTR_GROUP + 1, /* arrays indexed by fm_cache_attr */
 };
 
 /* Per-attribute filter bits (header attribute record, offset 12). */
@@ -64,6 +75,8 @@ typedef struct cache_layout {
     uint32_t header_bytes;
     uint32_t header_frames;  /* format 3: the frame count in the header, 0 until the writer finishes */
     uint64_t agents;
+    uint64_t piece_agents;   /* S: format 4's agents per piece; before it, every agent (one piece) */
+    uint64_t pieces;         /* J = ceil(agents / S), at least 1 */
     double frame_rate;
     int attr_count;
     const fm_cache_attr_info *attrs[CACHE_MAX_ATTRS];
@@ -75,6 +88,9 @@ typedef struct cache_layout {
  * rules of the specification, frame count 0). */
 fm_status cache_layout_init(cache_layout *l, uint64_t agents, double frame_rate, const fm_cache_attr *attrs,
                             int attr_count, const fm_cache_options *opts, const char *path, fm_error *err);
+/* S agents a piece (format 4), or 0 for one piece of every agent (formats 1 to 3): sets the
+ * layout's piece size and count. */
+void cache_layout_set_pieces(cache_layout *l, uint64_t piece_agents);
 /* The header of l->version (2 or 3): l->header_bytes bytes. */
 void cache_header_encode(const cache_layout *l, unsigned char *out);
 /* Reads a version-2 or -3 header of l->header_bytes bytes (l->version and the size already read). */
@@ -86,6 +102,12 @@ uint32_t cache_fixed_header_bytes(uint32_t version);
 /* Bytes of attribute i in one frame, and their sum over attributes. */
 size_t cache_attr_bytes(const cache_layout *l, int i);
 size_t cache_frame_bytes(const cache_layout *l);
+/* Piece j: its first agent, its agents, and the bytes of attribute i in it (one block). */
+uint64_t cache_piece_first(const cache_layout *l, uint64_t j);
+uint64_t cache_piece_agents(const cache_layout *l, uint64_t j);
+size_t cache_block_bytes(const cache_layout *l, uint64_t j, int i);
+/* The size table's bytes: one u64 per block, J × A. */
+uint64_t cache_table_bytes(const cache_layout *l);
 /* Largest compressed payload (size table and blocks) a chunk of this layout can have. */
 uint64_t cache_payload_bound(const cache_layout *l);
 /* Frame k is stored whole (not as a delta) when it is a key frame. */
@@ -99,11 +121,75 @@ uint32_t cache_chunk_crc(const unsigned char *chunk, uint64_t payload);
 /* Byte k of 4-byte word i goes to k * count + i (and back). */
 void cache_shuffle4(const unsigned char *in, size_t count, unsigned char *out);
 void cache_unshuffle4(const unsigned char *in, size_t count, unsigned char *out);
+/* The same, piece by piece, over attribute i of a whole frame (the shuffle of format 4). */
+void cache_shuffle_pieces(const cache_layout *l, int i, const unsigned char *in, unsigned char *out);
+void cache_unshuffle_pieces(const cache_layout *l, int i, const unsigned char *in, unsigned char *out);
 void cache_xor(unsigned char *dst, const unsigned char *src, size_t n);
 /* Rounds each float to the nearest multiple of quantum, stored as the int32 multiple. Returns the
  * index of the first value that does not fit (non-finite or |x / quantum| >= 2^31), or -1. */
 int64_t cache_quantise(const float *in, size_t count, double quantum, int32_t *out);
 void cache_dequantise(const int32_t *in, size_t count, double quantum, float *out);
+
+/* The filters and compression of the pieces [piece_begin, piece_end) of every frame (format 4): the
+ * writer encodes all of them; on P ranks each rank encodes its own (cache_parts.c). A block goes
+ * through one zstd context with no workers, so its bytes do not depend on who encodes it, nor on
+ * how many threads share the frame. */
+typedef struct cache_encoder {
+    cache_layout l;
+    uint64_t piece_begin, piece_end, agent_begin, agent_end;
+    size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's words of the range in stored and prev */
+    unsigned char *stored;           /* this frame's stored words (quantised, shuffled, delta) */
+    unsigned char *prev;             /* delta: the previous frame's, before the delta */
+    size_t *bound_at;                /* block b's place in the output before compaction */
+    unsigned char **scratch;         /* a thread's quantised block */
+    ZSTD_CCtx **cctx;                /* a thread's compressor */
+    int threads;
+    char path[FM_PATH_MAX];          /* for messages */
+} cache_encoder;
+
+fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
+                             int threads, const char *path, fm_error *err);
+void cache_encoder_free(cache_encoder *e);
+/* Blocks of the range, and the bytes they can take compressed. */
+uint64_t cache_encoder_blocks(const cache_encoder *e);
+uint64_t cache_encoder_bound(const cache_encoder *e);
+/* Frame k: data[i] holds attribute i of the range's agents (agent_begin first). The blocks go to
+ * out one after another, piece by piece and attribute by attribute within a piece, their sizes to
+ * sizes[b], their total to *bytes. */
+fm_status cache_encode_frame(cache_encoder *e, const void *const *data, uint32_t k, unsigned char *out, uint64_t *sizes,
+                             uint64_t *bytes, fm_error *err);
+/* Delta: attribute i's stored words of the range at the previous frame (resume fills them). */
+unsigned char *cache_encoder_prev(cache_encoder *e, int i);
+
+/* A rank's share of every frame of a cache written by P ranks (docs/scale-out.md): the pieces
+ * [J r / P, J (r + 1) / P), which the rank encodes; rank 0's writer appends every rank's blocks, in
+ * rank order, as one chunk (fm_cache_writer_add_blocks). Blocks do not depend on who encodes
+ * them, so the file is the one process's. */
+typedef struct cache_share {
+    cache_encoder enc;
+    unsigned char *blocks; /* this frame's blocks, one after another */
+    uint64_t *sizes;       /* their compressed sizes */
+    uint64_t bytes;        /* their total */
+    uint32_t *ids;         /* agent_begin … agent_end − 1, the range's `id` attribute */
+} cache_share;
+
+/* The first agent of rank r's share among `ranks` (r = ranks: every agent). */
+uint64_t cache_share_agent_begin(const cache_layout *l, int r, int ranks);
+/* The share of `rank`, from the writer's header bytes (rank 0 sends them to all), encoding on
+ * `threads` threads. */
+fm_status cache_share_init(cache_share *sh, const unsigned char *header, uint32_t header_bytes, int rank, int ranks,
+                           int threads, fm_error *err);
+void cache_share_free(cache_share *sh);
+/* Frame k: by_kind[FM_ATTR_x] (CACHE_ATTR_KINDS entries) points at agent 0 of an id-indexed array of attribute x holding (at
+ * least) the share's agents; the id attribute comes from the share. */
+fm_status cache_share_encode(cache_share *sh, const void *const *by_kind, uint32_t k, fm_error *err);
+
+/* A frame whose blocks were encoded elsewhere (by P ranks' shares): sizes[b] for every block of
+ * the chunk, the blocks one after another. Waits for the frames handed over before it. */
+fm_status fm_cache_writer_add_blocks(fm_cache_writer *w, const uint64_t *sizes, const void *blocks, fm_error *err);
+/* Delta: attribute i's stored words of every agent at the last frame (a resumed writer hands the
+ * ranks their shares of it). */
+const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i);
 
 /* The writer's layout (morph_run.c and flock_run.c hand over the attributes it asks for). */
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);

@@ -1,4 +1,4 @@
-/* The frame cache reader: formats 1, 2 and 3 (docs/cache-format.md; cache_format.h has the layout).
+/* The frame cache reader: formats 1 to 4 (docs/cache-format.md; cache_format.h has the layout).
  *
  * Random access by frame through the index. With delta encoding a frame is rebuilt from the last
  * key frame before it; the last decoded frame of each attribute is kept, so reading frames in
@@ -59,6 +59,7 @@ static fm_status read_header_v1(fm_cache_reader *r, const unsigned char *h, fm_e
     l->opts = fm_default_cache_options();
     l->opts.delta = 0;
     l->opts.compression_level = (int)get_u32(h + 36);
+    cache_layout_set_pieces(l, 0);
     return FM_OK;
 }
 
@@ -87,7 +88,7 @@ static fm_status read_header(fm_cache_reader *r, fm_error *err)
     r->l.version = get_u32(h + 8);
     fm_status st;
     if (r->l.version == 1) st = read_header_v1(r, h, err);
-    else if (r->l.version == 2 || r->l.version == CACHE_VERSION) st = read_header_attrs(r, h, err);
+    else if (r->l.version >= 2 && r->l.version <= CACHE_VERSION) st = read_header_attrs(r, h, err);
     else
         return fm_fail(err, FM_ERR_INPUT, "%s: cache version %u is not supported (this build reads 1 to %d)", r->path,
                        r->l.version, CACHE_VERSION);
@@ -111,18 +112,19 @@ static int chunk_header_ok(const fm_cache_reader *r, const unsigned char *h, uin
     uint64_t payload = get_u64(h + 16);
     *bytes = CACHE_CHUNK_HEADER + payload;
     return get_u32(h + 8) == (cache_is_key_frame(&r->l, k) ? (uint32_t)CHUNK_KEY_FRAME : 0u) &&
-           payload >= 8 * (uint64_t)r->l.attr_count && payload <= cache_payload_bound(&r->l);
+           payload >= cache_table_bytes(&r->l) && payload <= cache_payload_bound(&r->l);
 }
 
-/* Format 2: the block size table adds up to the payload and no block exceeds its bound. */
+/* Formats 2 to 4: the block size table adds up to the payload and no block exceeds its bound. */
 static int block_sizes_ok(const fm_cache_reader *r, const unsigned char *table, uint64_t payload)
 {
-    uint64_t sum = 8 * (uint64_t)r->l.attr_count;
-    for (int i = 0; i < r->l.attr_count; i++) {
-        uint64_t c = get_u64(table + 8 * i);
-        if (c > ZSTD_compressBound(cache_attr_bytes(&r->l, i))) return 0;
-        sum += c;
-    }
+    uint64_t sum = cache_table_bytes(&r->l);
+    for (uint64_t j = 0; j < r->l.pieces; j++)
+        for (int i = 0; i < r->l.attr_count; i++) {
+            uint64_t c = get_u64(table + 8 * (j * (uint64_t)r->l.attr_count + (uint64_t)i));
+            if (c > ZSTD_compressBound(cache_block_bytes(&r->l, j, i))) return 0;
+            sum += c;
+        }
     return sum == payload;
 }
 
@@ -145,24 +147,35 @@ static fm_status load_chunk(fm_cache_reader *r, uint32_t k, fm_error *err)
     return FM_OK;
 }
 
-/* Decompresses attribute i's block of chunk k into dst (the attribute's bytes). */
+static fm_status corrupt(const fm_cache_reader *r, uint32_t k, int i, size_t got, fm_error *err)
+{
+    return fm_fail(err, FM_ERR_INPUT, "%s: frame %u is corrupt (%s: %s)", r->path, k, r->l.attrs[i]->name,
+                   ZSTD_isError(got) ? ZSTD_getErrorName(got) : "wrong size");
+}
+
+/* Decompresses attribute i of chunk k into dst (the attribute's bytes): its block in each piece,
+ * each into the piece's place. */
 static fm_status decode_block(fm_cache_reader *r, uint32_t k, int i, unsigned char *dst, fm_error *err)
 {
     fm_status st = load_chunk(r, k, err);
     if (st != FM_OK) return st;
-    const unsigned char *block = r->chunk + CACHE_CHUNK_HEADER;
-    uint64_t packed = r->sizes[k] - CACHE_CHUNK_HEADER;
-    if (r->l.version != 1) {
-        const unsigned char *table = r->chunk + CACHE_CHUNK_HEADER;
-        block = table + 8 * r->l.attr_count;
-        for (int j = 0; j < i; j++) block += get_u64(table + 8 * j);
-        packed = get_u64(table + 8 * i);
+    if (r->l.version == 1) {
+        size_t want = cache_attr_bytes(&r->l, 0);
+        size_t got = ZSTD_decompressDCtx(r->dctx, dst, want, r->chunk + CACHE_CHUNK_HEADER, (size_t)(r->sizes[k] - CACHE_CHUNK_HEADER));
+        return ZSTD_isError(got) || got != want ? corrupt(r, k, i, got, err) : FM_OK;
     }
-    size_t want = cache_attr_bytes(&r->l, i);
-    size_t got = ZSTD_decompressDCtx(r->dctx, dst, want, block, (size_t)packed);
-    if (ZSTD_isError(got) || got != want)
-        return fm_fail(err, FM_ERR_INPUT, "%s: frame %u is corrupt (%s: %s)", r->path, k, r->l.attrs[i]->name,
-                       ZSTD_isError(got) ? ZSTD_getErrorName(got) : "wrong size");
+    const unsigned char *table = r->chunk + CACHE_CHUNK_HEADER, *block = table + cache_table_bytes(&r->l);
+    const uint64_t blocks = cache_table_bytes(&r->l) / 8, a = (uint64_t)r->l.attr_count;
+    for (uint64_t b = 0; b < blocks; b++) {
+        const uint64_t packed = get_u64(table + 8 * b), j = b / a;
+        if ((int)(b % a) == i) {
+            size_t want = cache_block_bytes(&r->l, j, i);
+            size_t got = ZSTD_decompressDCtx(r->dctx, dst + (size_t)cache_piece_first(&r->l, j) * r->l.attrs[i]->bytes_per_agent,
+                                             want, block, (size_t)packed);
+            if (ZSTD_isError(got) || got != want) return corrupt(r, k, i, got, err);
+        }
+        block += packed;
+    }
     return FM_OK;
 }
 
@@ -206,24 +219,27 @@ static fm_status scan_chunks(fm_cache_reader *r, const char *why, fm_error *err)
 {
     uint64_t pos = r->l.header_bytes;
     uint32_t cap = 0;
-    size_t head = CACHE_CHUNK_HEADER + (r->l.version == 1 ? 0 : 8 * (size_t)r->l.attr_count);
-    unsigned char h[CACHE_CHUNK_HEADER + 8 * CACHE_MAX_ATTRS];
+    size_t head = CACHE_CHUNK_HEADER + (r->l.version == 1 ? 0 : (size_t)cache_table_bytes(&r->l));
+    const int fits = head <= r->file_bytes; /* a size table larger than the file: no chunk to find */
+    unsigned char *h = fits ? malloc(head) : NULL;
+    if (fits && !h) return fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", r->path);
     fm_error ignored;
     uint32_t announced = r->l.header_frames; /* format 3, a finished file cut short: no more than this */
     r->frames = 0;
     for (;;) {
         uint64_t bytes;
-        if ((announced && r->frames == announced) || pos + head > r->file_bytes ||
+        if (!fits || (announced && r->frames == announced) || pos + head > r->file_bytes ||
             read_at(r, pos, h, head, &ignored) != FM_OK)
             break;
         if (!chunk_header_ok(r, h, r->frames, &bytes) || pos + bytes > r->file_bytes ||
             (r->l.version != 1 && !block_sizes_ok(r, h + CACHE_CHUNK_HEADER, bytes - CACHE_CHUNK_HEADER)))
             break;
-        if (r->frames == cap && alloc_index(r, cap = cap ? 2 * cap : 256, err) != FM_OK) return FM_ERR_MEMORY;
+        if (r->frames == cap && alloc_index(r, cap = cap ? 2 * cap : 256, err) != FM_OK) return free(h), FM_ERR_MEMORY;
         r->offsets[r->frames] = pos, r->sizes[r->frames] = bytes;
         r->frames++;
         pos += bytes;
     }
+    free(h);
     int n = snprintf(r->warning, sizeof r->warning, "%s: %s; recovered the %u complete frames before byte %llu",
                      r->path, why, r->frames, (unsigned long long)pos);
     if (announced && n > 0 && (size_t)n < sizeof r->warning)
@@ -417,10 +433,10 @@ fm_status fm_cache_read_attr(fm_cache_reader *r, uint32_t frame, fm_cache_attr a
     size_t bytes = cache_attr_bytes(&r->l, i);
     uint32_t filters = r->l.filters[i];
     if (filters & FILTER_QUANTISE) {
-        cache_unshuffle4(r->words[i], bytes / 4, r->scratch);
+        cache_unshuffle_pieces(&r->l, i, r->words[i], r->scratch);
         cache_dequantise((const int32_t *)r->scratch, bytes / 4, r->l.opts.quantum, out);
     } else if (filters & FILTER_SHUFFLE4) {
-        cache_unshuffle4(r->words[i], bytes / 4, out);
+        cache_unshuffle_pieces(&r->l, i, r->words[i], out);
     } else {
         memcpy(out, r->words[i], bytes);
     }

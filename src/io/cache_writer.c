@@ -1,8 +1,8 @@
-/* The frame cache writer (docs/cache-format.md, format 3; cache_format.h has the layout).
+/* The frame cache writer (docs/cache-format.md, format 4; cache_format.h has the layout).
  *
  * The step loop only pays for a copy: add_frame hands the frame over into a ring of two (waiting
- * only while two frames are still to be written) and a worker thread filters, compresses and
- * appends them in order. The file's bytes do not depend on the timing. The writer works on
+ * only while two frames are still to be written) and a worker thread filters, compresses (with a
+ * team of CACHE_ENCODER_THREADS, a piece at a time: cache_encode.c) and appends them in order. The file's bytes do not depend on the timing. The writer works on
  * PATH.partial and renames it to PATH only after the index, the footer and the header's frame
  * count are on disk, so a file under the final name is always complete. Until then the header's
  * frame count is 0 ("still being written"). */
@@ -18,19 +18,15 @@
 #include <string.h>
 #include <unistd.h>
 
-enum { ZSTD_WORKERS = 2 };
-
 struct fm_cache_writer {
     fm_output_file out;      /* PATH.partial until finish() */
     cache_layout l;
     uint32_t handed;         /* frames handed over by add_frame (or kept by resume) */
     size_t attr_at[CACHE_MAX_ATTRS]; /* attribute i's place in a slot and prev (64-byte aligned) */
-    size_t largest;          /* bytes of the largest attribute */
-    unsigned char *prev;     /* delta: the previous frame's stored words */
+    cache_encoder enc;       /* every piece */
+    uint64_t *block_sizes;   /* the chunk's size table before it is written */
     uint32_t *ids;           /* 0 … n−1 when the layout has the id attribute */
-    unsigned char *quantised, *stored;
     unsigned char *chunk;
-    ZSTD_CCtx *cctx;
     uint64_t *offsets, *sizes;
     uint32_t frames, index_cap;
     uint64_t pos;
@@ -66,7 +62,7 @@ static fm_status write_bytes(fm_cache_writer *w, const void *data, size_t n, fm_
 static size_t align64(size_t n) { return (n + 63) / 64 * 64; }
 
 /* A writer with its buffers and compressor, without a file or a thread yet. */
-static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
+static fm_cache_writer *writer_alloc(const cache_layout *l, const char *path, fm_error *err)
 {
     fm_cache_writer *w = calloc(1, sizeof *w);
     if (!w) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
@@ -75,30 +71,21 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, fm_error *err)
     for (int i = 0; i < l->attr_count; i++) {
         w->attr_at[i] = total;
         total += align64(cache_attr_bytes(l, i));
-        w->largest = FM_MAX(w->largest, cache_attr_bytes(l, i));
     }
-    int slots_ok = 1;
-    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) slots_ok &= (w->slot[s] = fm_alloc(total)) != NULL;
-    w->prev = l->opts.delta ? fm_alloc(total) : NULL;
-    w->quantised = fm_alloc(w->largest);
-    w->stored = fm_alloc(w->largest);
+    pthread_mutex_init(&w->lock, NULL);
+    pthread_cond_init(&w->changed, NULL);
+    int ok = 1;
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) ok &= (w->slot[s] = fm_alloc(total)) != NULL;
     w->chunk = malloc(CACHE_CHUNK_HEADER + cache_payload_bound(l));
-    w->cctx = ZSTD_createCCtx();
+    w->block_sizes = malloc(cache_table_bytes(l));
     int with_ids = cache_attr_index(l, FM_ATTR_ID) >= 0;
     if (with_ids && (w->ids = fm_alloc(sizeof(uint32_t) * (size_t)l->agents)) != NULL)
         for (uint64_t a = 0; a < l->agents; a++) w->ids[a] = (uint32_t)a;
-    pthread_mutex_init(&w->lock, NULL);
-    pthread_cond_init(&w->changed, NULL);
-    if (!slots_ok || (l->opts.delta && !w->prev) || !w->quantised || !w->stored || !w->chunk || !w->cctx ||
-        (with_ids && !w->ids)) {
+    if (!ok || !w->chunk || !w->block_sizes || (with_ids && !w->ids) ||
+        cache_encoder_init(&w->enc, l, 0, l->pieces, CACHE_ENCODER_THREADS, path, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)l->agents), NULL;
     }
-    ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_compressionLevel, l->opts.compression_level);
-    /* zstd's own workers, a fixed number whatever the run's thread count: the compressed bytes
-     * depend on nbWorkers, so fixing it keeps caches identical for any --threads. Ignored (one
-     * thread) where libzstd lacks multithreading. The chunk's crc32 replaces zstd's checksum. */
-    ZSTD_CCtx_setParameter(w->cctx, ZSTD_c_nbWorkers, ZSTD_WORKERS);
     return w;
 }
 
@@ -123,7 +110,7 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
     fm_cache_options defaults = fm_default_cache_options();
     if (cache_layout_init(&l, agents, frame_rate, attrs, attr_count, opts ? opts : &defaults, path, err) != FM_OK)
         return NULL;
-    fm_cache_writer *w = writer_alloc(&l, err);
+    fm_cache_writer *w = writer_alloc(&l, path, err);
     if (!w) return NULL;
     unsigned char header[CACHE_MAX_HEADER];
     cache_header_encode(&l, header); /* frame count 0 until finish() */
@@ -143,39 +130,6 @@ fm_cache_writer *fm_cache_writer_create(const char *path, uint64_t agents, doubl
     return fm_cache_writer_create_attrs(path, agents, frame_rate, &tets, 1, &opts, err);
 }
 
-/* Stored words and prev become the delta to the previous frame and the current frame's words. */
-static void delta_encode(unsigned char *stored, unsigned char *prev, size_t n)
-{
-    for (size_t j = 0; j < n; j++) {
-        unsigned char cur = stored[j];
-        stored[j] ^= prev[j];
-        prev[j] = cur;
-    }
-}
-
-/* Filters attribute i of frame k into w->stored (quantise, shuffle, delta). */
-static fm_status filter_attr(fm_cache_writer *w, const unsigned char *frame, int i, uint32_t k, fm_error *err)
-{
-    const unsigned char *src = frame + w->attr_at[i];
-    size_t bytes = cache_attr_bytes(&w->l, i);
-    uint32_t filters = w->l.filters[i];
-    if (filters & FILTER_QUANTISE) {
-        int64_t bad = cache_quantise((const float *)src, bytes / 4, w->l.opts.quantum, (int32_t *)w->quantised);
-        if (bad >= 0)
-            return fm_fail(err, FM_ERR_INPUT, "%s: frame %u, %s, agent %lld: %g " CACHE_QUANTUM_FAILURE " %g below 2^31",
-                           w->out.path, k, w->l.attrs[i]->name, (long long)(bad / w->l.attrs[i]->components),
-                           (double)((const float *)src)[bad], w->l.opts.quantum);
-        src = w->quantised;
-    }
-    if (filters & FILTER_SHUFFLE4) cache_shuffle4(src, bytes / 4, w->stored);
-    else memcpy(w->stored, src, bytes);
-    if (!(filters & FILTER_DELTA)) return FM_OK;
-    unsigned char *prev = w->prev + w->attr_at[i];
-    if (cache_is_key_frame(&w->l, k)) memcpy(prev, w->stored, bytes);
-    else delta_encode(w->stored, prev, bytes);
-    return FM_OK;
-}
-
 static fm_status grow_index(fm_cache_writer *w, fm_error *err)
 {
     if (w->frames < w->index_cap) return FM_OK;
@@ -188,22 +142,34 @@ static fm_status grow_index(fm_cache_writer *w, fm_error *err)
     return FM_OK;
 }
 
+static fm_status append_chunk(fm_cache_writer *w, uint64_t packed, fm_error *err);
+
 /* Filters, compresses and appends one frame (the worker's job). */
 static fm_status write_frame(fm_cache_writer *w, const unsigned char *frame, fm_error *err)
 {
     const cache_layout *l = &w->l;
     uint32_t k = w->frames;
+    fm_status st = FM_OK;
+    const void *data[CACHE_MAX_ATTRS];
+    for (int i = 0; i < l->attr_count; i++) data[i] = frame + w->attr_at[i];
+    uint64_t packed = 0;
+    if (st == FM_OK)
+        st = cache_encode_frame(&w->enc, data, k, w->chunk + CACHE_CHUNK_HEADER + cache_table_bytes(l), w->block_sizes,
+                                &packed, err);
+    return st == FM_OK ? append_chunk(w, packed, err) : st;
+}
+
+/* Appends chunk w->frames: its blocks (`packed` bytes) already after the size table's place in
+ * w->chunk, their sizes in w->block_sizes. */
+static fm_status append_chunk(fm_cache_writer *w, uint64_t packed, fm_error *err)
+{
+    const cache_layout *l = &w->l;
+    const uint32_t k = w->frames;
+    const uint64_t table = cache_table_bytes(l);
     fm_status st = grow_index(w, err);
-    size_t at = CACHE_CHUNK_HEADER + 8 * (size_t)l->attr_count, cap = CACHE_CHUNK_HEADER + cache_payload_bound(l);
-    for (int i = 0; i < l->attr_count && st == FM_OK; i++) {
-        if ((st = filter_attr(w, frame, i, k, err)) != FM_OK) break;
-        size_t packed = ZSTD_compress2(w->cctx, w->chunk + at, cap - at, w->stored, cache_attr_bytes(l, i));
-        if (ZSTD_isError(packed))
-            return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", w->out.path, ZSTD_getErrorName(packed));
-        put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * i, packed);
-        at += packed;
-    }
     if (st != FM_OK) return st;
+    for (uint64_t b = 0; b < table / 8; b++) put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * b, w->block_sizes[b]);
+    const size_t at = CACHE_CHUNK_HEADER + table + packed;
     memcpy(w->chunk, "FRAM", 4);
     put_u32(w->chunk + 4, k);
     put_u32(w->chunk + 8, cache_is_key_frame(l, k) ? CHUNK_KEY_FRAME : 0);
@@ -268,6 +234,35 @@ fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const 
     return st;
 }
 
+fm_status fm_cache_writer_add_blocks(fm_cache_writer *w, const uint64_t *sizes, const void *blocks, fm_error *err)
+{
+    double t0 = fm_seconds();
+    pthread_mutex_lock(&w->lock);
+    fm_status st = wait_idle(w, err); /* the frames handed over before this one go first */
+    pthread_mutex_unlock(&w->lock);
+    w->wait_seconds += fm_seconds() - t0;
+    if (st != FM_OK) return st;
+    const uint64_t count = cache_table_bytes(&w->l) / 8;
+    uint64_t packed = 0;
+    for (uint64_t b = 0; b < count; b++) {
+        const uint64_t bound = ZSTD_compressBound(cache_block_bytes(&w->l, b / (uint64_t)w->l.attr_count, (int)(b % (uint64_t)w->l.attr_count)));
+        if (sizes[b] > bound)
+            return fm_fail(err, FM_ERR_INTERNAL, "%s: frame %u: block %llu of %llu bytes exceeds its bound %llu", w->out.path,
+                           w->frames, (unsigned long long)b, (unsigned long long)sizes[b], (unsigned long long)bound);
+        packed += sizes[b];
+    }
+    memcpy(w->block_sizes, sizes, sizeof *sizes * (size_t)count);
+    memcpy(w->chunk + CACHE_CHUNK_HEADER + 8 * count, blocks, (size_t)packed);
+    w->handed++;
+    st = append_chunk(w, packed, err); /* the worker is idle: the chunk buffer is free */
+    pthread_mutex_lock(&w->lock);
+    if (st != FM_OK && w->worker_status == FM_OK) w->worker_status = st, w->worker_err = *err;
+    pthread_mutex_unlock(&w->lock);
+    return st;
+}
+
+const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i) { return cache_encoder_prev(&w->enc, i); }
+
 fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err)
 {
     if (w->l.attr_count != 1 || w->l.attrs[0]->attr != FM_ATTR_TET_VERTICES)
@@ -309,9 +304,9 @@ static void free_writer(fm_cache_writer *w)
     pthread_mutex_destroy(&w->lock);
     pthread_cond_destroy(&w->changed);
     for (int s = 0; s < CACHE_WRITER_SLOTS; s++) fm_free(w->slot[s]);
-    fm_free(w->prev), fm_free(w->quantised), fm_free(w->stored), fm_free(w->ids);
-    free(w->chunk), free(w->offsets), free(w->sizes);
-    ZSTD_freeCCtx(w->cctx);
+    fm_free(w->ids);
+    cache_encoder_free(&w->enc);
+    free(w->chunk), free(w->block_sizes), free(w->offsets), free(w->sizes);
     free(w);
 }
 
@@ -402,7 +397,7 @@ static fm_status take_over_prefix(fm_cache_writer *w, fm_cache_reader *r, uint32
     for (int i = 0; i < l->attr_count && st == FM_OK && l->opts.delta && frames > 0; i++) {
         const unsigned char *words;
         if ((st = cache_reader_stored(r, frames - 1, i, &words, err)) == FM_OK)
-            memcpy(w->prev + w->attr_at[i], words, cache_attr_bytes(l, i));
+            memcpy(cache_encoder_prev(&w->enc, i), words, cache_attr_bytes(l, i));
     }
     return st;
 }
@@ -420,7 +415,7 @@ fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_er
                 probe.partial, cache_reader_layout(r)->version, CACHE_VERSION);
         return fm_cache_close(r), NULL;
     }
-    fm_cache_writer *w = writer_alloc(cache_reader_layout(r), err);
+    fm_cache_writer *w = writer_alloc(cache_reader_layout(r), path, err);
     if (!w) return fm_cache_close(r), NULL;
     snprintf(w->out.partial, sizeof w->out.partial, "%s", probe.partial); /* for messages */
     fm_status st = take_over_prefix(w, r, frames, err);

@@ -92,6 +92,7 @@ fm_scene_def fm_default_scene_def(void)
     d.compression_level = 1; /* zstd level 1: twice as fast as 3 on frames, about 10 % larger */
     d.cache_delta = 1; /* lossless, and it pays: docs/performance.md, "Cache writer" */
     d.cache_key_interval = 16;
+    d.cache_piece_agents = 65536;
     d.omega2 = 1.0;
     d.k_a = 1.0;
     d.path_attraction = 1.0;
@@ -202,6 +203,7 @@ static const param PARAMS[] = {
     {"output.delta", P_BOOL, OFF(cache_delta), 0, 0, 0},
     {"output.key_interval", P_INT32, OFF(cache_key_interval), 1, 65536, 0},
     {"output.quantum", P_DOUBLE, OFF(cache_quantum), 0, 1e6, 0},
+    {"output.piece_agents", P_INT32, OFF(cache_piece_agents), 256, 1 << 30, 0},
     {"style.omega2", P_DOUBLE, OFF(omega2), 0, 1e3, 0},
     {"style.grid", P_INT3, OFF(field_grid), 0, 2048, 0},
     {"style.fields", P_FIELDS, OFF(fields), 0, 0, 0},

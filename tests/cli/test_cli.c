@@ -649,7 +649,7 @@ static void test_inspect_json(void)
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (!j || !r) return json_decref(j), fm_cache_close(r);
     uint32_t frames = fm_cache_frames(r);
-    ENSURE(jnum(j, "format_version") == 3 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
+    ENSURE(jnum(j, "format_version") == 4 && jnum(j, "agents") == AGENTS && jnum(j, "frames") == frames && frames == g_frames);
     ENSURE(jnum(j, "header_frames") == frames && fm_cache_header_frames(r) == frames);
     ENSURE(jnum(j, "frame_rate") == 24 && fabs(jnum(j, "duration_seconds") - (frames - 1) / 24.0) < 1e-9);
     json_t *attrs = json_object_get(j, "attributes");
@@ -697,7 +697,7 @@ static void test_inspect_text_and_recovered(void)
     snprintf(args, sizeof args, "inspect '%s'", g_cache);
     ENSURE_EXIT(args, 0);
     snprintf(buf, sizeof buf, "frames        %lld (the header states %lld)\n", g_frames, g_frames);
-    ENSURE_MSG(strstr(g_out, "format        3\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
+    ENSURE_MSG(strstr(g_out, "format        4\n") && strstr(g_out, "status        complete\n") && strstr(g_out, buf) &&
                strstr(g_out, "attributes    tet_vertices (12 x f32), id (1 x u32), phase (1 x u8)\n") && strstr(g_out, "ratio ") &&
                strstr(g_out, "bounds        tet_vertices: ["), "%s", g_out);
     FILE *in = fopen(g_cache, "rb"), *out = fopen(tmp_path(cut, "cut.fmc"), "wb");

@@ -366,7 +366,7 @@ static void test_header_frame_count_when_finished(void)
     if (write_attrs_cache(tmp_path(path, "count.fmc"), 4, 6, COUNT_ATTRS, 3, NULL, DATA_SMOOTH) != 0) return;
     size_t len;
     unsigned char *bytes = read_all(path, &len);
-    ENSURE(bytes && len > 72 && bytes_u32(bytes + 8) == 3 && bytes_u32(bytes + 64) == 6 && bytes_u32(bytes + 68) == 0);
+    ENSURE(bytes && len > 72 && bytes_u32(bytes + 8) == 4 && bytes_u32(bytes + 64) == 6 && bytes_u32(bytes + 68) == 65536);
     free(bytes);
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(path, &err);
@@ -612,7 +612,7 @@ static void test_bad_version(void)
     bytes[8] = 7; /* version field */
     write_all(path, bytes, len);
     free(bytes);
-    expect_open_fails(path, "version 7 is not supported (this build reads 1 to 3)");
+    expect_open_fails(path, "version 7 is not supported (this build reads 1 to 4)");
 }
 
 /* A write that fails on the writer thread (the partial file is a symlink to /dev/full, which

@@ -1,7 +1,9 @@
-/* Cache format 3: every attribute kind under every option (delta, key interval, quantum, level),
- * random access against sequential reading, the quantisation bound, sizes, argument errors, and
- * writer bytes that do not depend on the OpenMP thread count. */
+/* Cache format 4: every attribute kind under every option (delta, key interval, quantum, level,
+ * piece size), random access against sequential reading, the quantisation bound, sizes, argument
+ * errors, writer bytes that do not depend on the OpenMP thread count, and blocks whose bytes do not
+ * depend on who encodes them (the parallel write of P ranks). */
 #define _POSIX_C_SOURCE 200809L
+#include "cache_format.h"
 #include "cache_helpers.h"
 
 #include <omp.h>
@@ -34,13 +36,14 @@ static void round_trip(const char *name, uint64_t agents, uint32_t frames, const
     fm_cache_reader *seq = fm_cache_open(path, &err), *rnd = fm_cache_open(path, &err);
     ENSURE_MSG(seq && rnd, "%s", err.message);
     if (seq && rnd) {
-        ENSURE(fm_cache_version(seq) == 3 && fm_cache_agents(seq) == agents && fm_cache_frames(seq) == frames);
+        ENSURE(fm_cache_version(seq) == 4 && fm_cache_agents(seq) == agents && fm_cache_frames(seq) == frames);
         ENSURE(fm_cache_header_frames(seq) == frames);
         ENSURE(fm_cache_frame_rate(seq) == 25.0 && fm_cache_warning(seq)[0] == 0 && fm_cache_attr_count(seq) == ALL_ATTR_COUNT);
         for (int i = 0; i < ALL_ATTR_COUNT; i++) ENSURE(fm_cache_attr_at(seq, i)->attr == ALL_ATTRS[i] && fm_cache_has_attr(seq, ALL_ATTRS[i]));
         fm_cache_options got = fm_cache_get_options(seq);
         ENSURE(got.compression_level == opts->compression_level && got.delta == (opts->delta != 0) &&
-               got.key_interval == opts->key_interval && got.quantum == opts->quantum);
+               got.key_interval == opts->key_interval && got.quantum == opts->quantum &&
+               got.piece_agents == (opts->piece_agents ? opts->piece_agents : 65536));
         for (uint32_t f = 0; f < frames; f++) frame_matches(seq, f, kind, opts->quantum, name);
         uint64_t state = 77;
         uint32_t order[64];
@@ -74,6 +77,14 @@ static void test_round_trip_every_attribute_and_option(void)
     round_trip("attrs_fast.fmc", 23, 9, &o, DATA_RANDOM);
     o.compression_level = -1, o.quantum = 1e-3;
     round_trip("attrs_fast_quantum.fmc", 300, 6, &o, DATA_SMOOTH);
+    o = fm_default_cache_options(), o.piece_agents = 256, o.key_interval = 3;
+    round_trip("attrs_pieces.fmc", 1000, 7, &o, DATA_RANDOM); /* 4 pieces, the last one of 232 agents */
+    o.quantum = 1e-3;
+    round_trip("attrs_pieces_quantum.fmc", 1000, 7, &o, DATA_SMOOTH);
+    o = fm_default_cache_options(), o.piece_agents = 256, o.delta = 0;
+    round_trip("attrs_pieces_exact.fmc", 512, 3, &o, DATA_RANDOM); /* two full pieces */
+    o.piece_agents = 0;                                              /* the default */
+    round_trip("attrs_pieces_default.fmc", 70000, 2, &o, DATA_SMOOTH);
 }
 
 /* Sequential reading decodes one chunk per frame, so random access must give the same bits even
@@ -148,6 +159,17 @@ static void test_quantisation_bound(void)
     ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "velocity") && strstr(err.message, "agent 17") &&
                strstr(err.message, "frame 0"), "status %d '%s'", (int)st, err.message);
     ENSURE(!file_exists(path));
+    /* in pieces: the message names the first agent in id order, here in the 12th piece of 16 */
+    in[3 * 17 + 1] = 0;
+    in[3 * 3000] = 1e8f, in[3 * 3900 + 2] = 1e8f;
+    o.piece_agents = 256;
+    w = fm_cache_writer_create_attrs(tmp_path(path, "quantum_pieces.fmc"), N, 24, &attr, 1, &o, &err);
+    ENSURE(w != NULL);
+    if (!w) return;
+    st = fm_cache_writer_add_frame_attrs(w, data, &err);
+    if (st == FM_OK) st = fm_cache_writer_finish(w, &err);
+    else fm_cache_writer_abort(w);
+    ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "agent 3000:"), "status %d '%s'", (int)st, err.message);
 }
 
 static void test_sizes(void)
@@ -201,6 +223,10 @@ static void test_argument_errors(void)
     expect_create_fails(ALL_ATTRS, 1, &o, "compression level 0 is outside -7..-1 and 1..19");
     o.compression_level = -8;
     expect_create_fails(ALL_ATTRS, 1, &o, "compression level -8");
+    o = fm_default_cache_options(), o.piece_agents = 255;
+    expect_create_fails(ALL_ATTRS, 1, &o, "255 agents per piece is outside 256..1073741824");
+    o.piece_agents = -1;
+    expect_create_fails(ALL_ATTRS, 1, &o, "-1 agents per piece");
 
     /* the tet shorthand on a cache of other attributes, and reading a missing attribute */
     char path[FM_PATH_MAX];
@@ -240,6 +266,118 @@ static void test_bytes_independent_of_threads(void)
     ENSURE(a == 0 && b == 0 && same_files(one, two));
 }
 
+/* Encodes frames 0..2 of `agents` smooth tets and phases, pieces [first, end) with `threads`, into
+ * out (the blocks) and sizes; returns the bytes, or 0 on failure. */
+static uint64_t encode_range(const cache_layout *l, uint64_t first, uint64_t end, int threads, unsigned char *out,
+                             uint64_t *sizes)
+{
+    cache_encoder e;
+    fm_error err = {0};
+    if (cache_encoder_init(&e, l, first, end, threads, "encode", &err) != FM_OK) return 0;
+    const uint64_t a0 = e.agent_begin, count = e.agent_end - e.agent_begin;
+    float *verts = malloc(sizeof(float) * 12 * (size_t)l->agents);
+    uint8_t *phase = malloc((size_t)l->agents);
+    uint64_t total = 0, bytes = 0, blocks = cache_encoder_blocks(&e);
+    for (uint32_t k = 0; k < 3 && verts && phase; k++) {
+        make_attr(FM_ATTR_TET_VERTICES, l->agents, k, DATA_SMOOTH, verts);
+        make_attr(FM_ATTR_PHASE, l->agents, k, DATA_SMOOTH, phase);
+        const void *data[2] = {verts + 12 * a0, phase + a0};
+        if (cache_encode_frame(&e, data, k, out + total, sizes + k * blocks, &bytes, &err) != FM_OK) break;
+        total += bytes;
+    }
+    ENSURE_MSG(count == 0 || total > 0, "%s", err.message);
+    free(verts), free(phase);
+    cache_encoder_free(&e);
+    return total;
+}
+
+/* A frame's blocks are the same bytes whoever encodes them: one thread or three, all pieces at once
+ * or in two runs of pieces (two ranks' shares), with delta across frames. The parallel write of a
+ * run on P ranks relies on this. */
+static void test_blocks_independent_of_encoder(void)
+{
+    enum { AGENTS = 3000, PIECE = 256, PIECES = 12, BLOCKS = 2 * PIECES };
+    const fm_cache_attr attrs[] = {FM_ATTR_TET_VERTICES, FM_ATTR_PHASE};
+    fm_cache_options o = fm_default_cache_options();
+    o.piece_agents = PIECE, o.key_interval = 2;
+    cache_layout l;
+    fm_error err = {0};
+    ENSURE(cache_layout_init(&l, AGENTS, 24, attrs, 2, &o, "encode", &err) == FM_OK && l.pieces == PIECES);
+    const size_t cap = 3 * (size_t)cache_payload_bound(&l);
+    unsigned char *whole = malloc(cap), *again = malloc(cap), *split = malloc(cap);
+    uint64_t sizes_whole[3 * BLOCKS], sizes_again[3 * BLOCKS], sizes_a[3 * 10], sizes_b[3 * 14];
+    if (!whole || !again || !split) return free(whole), free(again), free(split);
+    uint64_t n_whole = encode_range(&l, 0, PIECES, 1, whole, sizes_whole);
+    uint64_t n_again = encode_range(&l, 0, PIECES, 3, again, sizes_again);
+    ENSURE(n_whole > 0 && n_whole == n_again && memcmp(whole, again, n_whole) == 0);
+    ENSURE(memcmp(sizes_whole, sizes_again, sizeof sizes_whole) == 0);
+    /* pieces 0..4 and 5..11 (the last piece shorter), each frame's blocks one run after the other */
+    uint64_t n_a = encode_range(&l, 0, 5, 2, split, sizes_a);
+    uint64_t n_b = encode_range(&l, 5, PIECES, 1, split + n_a, sizes_b);
+    ENSURE(n_a + n_b == n_whole);
+    uint64_t at_whole = 0, at_a = 0, at_b = n_a;
+    for (int k = 0; k < 3; k++) {
+        for (int b = 0; b < BLOCKS; b++) {
+            const uint64_t size = b < 10 ? sizes_a[k * 10 + b] : sizes_b[k * 14 + b - 10];
+            uint64_t *at = b < 10 ? &at_a : &at_b;
+            ENSURE_MSG(size == sizes_whole[k * BLOCKS + b] && memcmp(whole + at_whole, split + *at, size) == 0,
+                       "frame %d block %d differs", k, b);
+            at_whole += size, *at += size;
+        }
+    }
+    free(whole), free(again), free(split);
+}
+
+/* Sets the header's version and bytes 68..71 (format 4's piece size, format 3's reserved field),
+ * with the header crc to match, and writes the file to path. */
+static void rewrite_header(unsigned char *bytes, size_t len, uint32_t version, uint32_t at68, const char *path)
+{
+    const uint32_t zero = 0, header = bytes_u32(bytes + 12);
+    memcpy(bytes + 8, &version, 4), memcpy(bytes + 68, &at68, 4), memcpy(bytes + 52, &zero, 4);
+    const uint32_t crc = cache_crc32(0, bytes, header);
+    memcpy(bytes + 52, &crc, 4);
+    write_all(path, bytes, len);
+}
+
+static void expect_open_refused(const char *path, const char *message)
+{
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(!r && strstr(err.message, message), "%s", err.message);
+    fm_cache_close(r);
+}
+
+/* A format-3 cache (one piece of every agent, bytes 68..71 reserved as 0) still reads: a
+ * one-piece format-4 file with its header rewritten to format 3 gives every frame's values. A
+ * non-zero reserved field is refused in format 3, and a piece size outside its range in format 4. */
+static void test_format_3_still_reads(void)
+{
+    enum { AGENTS = 300, FRAMES = 5 };
+    char path[FM_PATH_MAX], v3[FM_PATH_MAX];
+    fm_cache_options o = fm_default_cache_options();
+    o.key_interval = 2;
+    if (write_attrs_cache(tmp_path(path, "format4_one_piece.fmc"), AGENTS, FRAMES, ALL_ATTRS, ALL_ATTR_COUNT, &o, DATA_SMOOTH) != 0)
+        return;
+    size_t len;
+    unsigned char *bytes = read_all(path, &len);
+    ENSURE(bytes && len > 72 && bytes_u32(bytes + 8) == 4 && bytes_u32(bytes + 68) == 65536);
+    if (!bytes) return;
+    rewrite_header(bytes, len, 3, 0, tmp_path(v3, "format3.fmc"));
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(v3, &err);
+    ENSURE_MSG(r != NULL, "%s", err.message);
+    if (r) {
+        ENSURE(fm_cache_version(r) == 3 && fm_cache_frames(r) == FRAMES && fm_cache_get_options(r).piece_agents == 0);
+        for (uint32_t f = 0; f < FRAMES; f++) frame_matches(r, f, DATA_SMOOTH, 0, "format 3");
+        fm_cache_close(r);
+    }
+    rewrite_header(bytes, len, 3, 7, v3);
+    expect_open_refused(v3, "reserved bytes 68..71 are not 0");
+    rewrite_header(bytes, len, 4, 255, v3);
+    expect_open_refused(v3, "255 agents per piece is outside 256..1073741824");
+    free(bytes);
+}
+
 int main(void)
 {
     RUN_TEST(test_attribute_table);
@@ -249,5 +387,7 @@ int main(void)
     RUN_TEST(test_sizes);
     RUN_TEST(test_argument_errors);
     RUN_TEST(test_bytes_independent_of_threads);
+    RUN_TEST(test_blocks_independent_of_encoder);
+    RUN_TEST(test_format_3_still_reads);
     return test_result();
 }

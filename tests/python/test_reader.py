@@ -51,12 +51,12 @@ def write_octahedron(path):
             f.write(f"f {x} {z if odd else y} {y if odd else z}\n")
 
 
-def run_scene(name, output):
+def run_scene(name, output, agents=AGENTS):
     """Runs the octahedron from x = -10 to x = +10 with the given "output" keys; the cache path."""
     write_octahedron(tmp("octahedron.obj"))
     scene = {"source": {"mesh": "py_octahedron.obj", "translate": [-10, 0, 0]},
              "target": {"mesh": "py_octahedron.obj", "translate": [10, 0, 0]},
-             "n": AGENTS, "output": output}
+             "n": agents, "output": output}
     with open(tmp(name + ".json"), "w") as f:
         json.dump(scene, f)
     outdir = tmp(name + "_out")
@@ -177,7 +177,7 @@ class MatchesC:
 
 
 class CacheCase(MatchesC, unittest.TestCase):
-    lossless = compact = None
+    lossless = compact = pieces = None
 
     @classmethod
     def setUpClass(cls):
@@ -185,11 +185,14 @@ class CacheCase(MatchesC, unittest.TestCase):
             CacheCase.lossless = run_scene("lossless", {"delta": False})
             CacheCase.compact = run_scene("compact", {"delta": True, "key_interval": 5, "quantum": 0.001,
                                                       "compression_level": -3})
+            # four pieces, the last one of 232 agents (format 4: each piece shuffled and compressed on its own)
+            CacheCase.pieces = run_scene("pieces", {"delta": True, "key_interval": 3, "quantum": 0.001,
+                                                    "piece_agents": 256}, agents=1000)
 
     def test_lossless_run(self):
         cache = self.assert_matches_c(self.lossless)
         self.assertEqual(cache.attributes, ["tet_vertices", "id", "phase"])
-        self.assertEqual((cache.version, cache.header_frames), (3, cache.frames))
+        self.assertEqual((cache.version, cache.header_frames), (4, cache.frames))
         with fmc.open(self.lossless) as c:
             self.assertTrue((c.read(0, "phase") == 0).all() and (c.read(-1, "phase") == 3).all())
             self.assertEqual(c.read(c.frames // 2, "id").dtype, np.uint32)
@@ -199,10 +202,17 @@ class CacheCase(MatchesC, unittest.TestCase):
     def test_delta_and_quantum_run(self):
         self.assert_matches_c(self.compact)
         with fmc.open(self.lossless) as a, fmc.open(self.compact) as b:
-            self.assertEqual(b.options, {"compression_level": -3, "delta": True, "key_interval": 5, "quantum": 0.001})
+            self.assertEqual(b.options, {"compression_level": -3, "delta": True, "key_interval": 5, "quantum": 0.001,
+                                         "piece_agents": 65536})
             worst = max(np.abs(a.read(k, "tet_vertices") - b.read(k, "tet_vertices")).max() for k in range(a.frames))
             self.assertLessEqual(worst, 0.0005 + 1e-6)
             self.assertGreater(worst, 0.0002)  # the values really were rounded
+
+    def test_pieces_run(self):
+        cache = self.assert_matches_c(self.pieces)
+        self.assertEqual(cache.options["piece_agents"], 256)
+        with fmc.open(self.pieces) as c:
+            self.assertEqual(c.read(c.frames // 2, "id").reshape(-1).tolist(), list(range(1000)))
 
     def test_recovers_a_cut_cache(self):
         with open(self.compact, "rb") as f:

@@ -269,6 +269,8 @@ static void test_out_of_range(void)
                     "output.compression_level: 0 is not a level");
     expect_error_at("range_key.json", "{" MESHES ",\n  \"output\": {\"key_interval\": @0}}", "output.key_interval");
     expect_error_at("range_quantum.json", "{" MESHES ",\n  \"output\": {\"quantum\": @-1}}", "output.quantum");
+    expect_error_at("range_piece.json", "{" MESHES ",\n  \"output\": {\"piece_agents\": @255}}",
+                    "output.piece_agents: 255 is out of range: must be >= 256");
     expect_error_at("range_fraction.json", "{" MESHES ",\n  \"morph\": {\"morph_fraction\": @1.5}}",
                     "morph.morph_fraction");
     /* docs/scene.md: strictly between 0 and 1 */
