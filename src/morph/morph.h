@@ -158,6 +158,10 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
                                         const fm_morph_run_stats *stats, fm_error *err);
 void fm_morph_dist_adopt(fm_morph_state *s);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
+/* The cache written by P ranks in parallel: this rank's share of the frame's ids, begin[rank] …
+ * begin[rank + 1] − 1, complete in verts and phases (by id), from every rank's store. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *verts,
+                                    uint8_t *phases, fm_error *err);
 
 /* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state one rank's share
  * (fm_morph_state_distribute); its frames gathered on rank 0, which writes them. */

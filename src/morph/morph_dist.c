@@ -283,6 +283,72 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     return FM_OK;
 }
 
+/* The rank whose share of the ids (begin[r] <= id < begin[r + 1], P + 1 bounds) holds `id`. */
+static int share_owner(const int64_t *begin, int ranks, int64_t id)
+{
+    int lo = 0, hi = ranks - 1;
+    while (lo < hi) {
+        const int mid = (lo + hi + 1) / 2;
+        if (begin[mid] <= id) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
+}
+
+/* The other ranks' agents of this rank's share, in rank order (*recv), from every rank's store. */
+static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *verts, void **recv,
+                                int64_t *received, fm_error *err)
+{
+    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
+    int64_t *count = calloc((size_t)ranks + 1, sizeof *count), *at = calloc((size_t)ranks + 1, sizeof *at);
+    int32_t *dest = fm_alloc(sizeof(int32_t) * (size_t)FM_MAX(s->active_end, 1));
+    frame_record *send = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(s->active_end, 1));
+    fm_status st = count && at && dest && send ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
+    st = fm_dist_agree(s->dist, st, err);
+    for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
+        dest[a] = share_owner(begin, ranks, s->id[a]);
+        count[dest[a]] += dest[a] != me; /* its own agents are in place already */
+    }
+    for (int r = 0; st == FM_OK && r < ranks; r++) at[r + 1] = at[r] + count[r];
+    for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
+        if (dest[a] == me) continue;
+        frame_record *r = send + at[dest[a]]++;
+        r->id = s->id[a], r->phase = s->phase[a];
+        memset(r->pad, 0, sizeof r->pad);
+        memcpy(r->v, verts + 12 * (size_t)s->id[a], sizeof r->v);
+    }
+    if (st == FM_OK) st = fm_dist_exchange(s->dist, send, count, sizeof(frame_record), recv, received, err);
+    if (st == FM_OK)
+        for (int r = 0; r < ranks; r++) s->slabs->totals.bytes_sent += count[r] * (int64_t)sizeof(frame_record);
+    free(count), free(at), fm_free(dest), fm_free(send);
+    return st;
+}
+
+/* Every agent of this rank's share of the frame (ids begin[rank] … begin[rank + 1] − 1) in verts
+ * and phases by id: its own from the store, the other ranks' sent here, the waiting ones from the
+ * model. The other places of verts hold this rank's own agents, or nothing. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *verts,
+                                    uint8_t *phases, fm_error *err)
+{
+    fm_morph_tet_vertices(m, s, verts);
+    fm_morph_phases(s, phases);
+    void *recv = NULL;
+    int64_t received = 0;
+    fm_status st = exchange_share(s, begin, verts, &recv, &received, err);
+    if (st != FM_OK) return fm_free(recv), st;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t k = 0; k < received; k++) { /* distinct ids: no two write one place */
+        const frame_record *r = (const frame_record *)recv + k;
+        memcpy(verts + 12 * (size_t)r->id, r->v, sizeof r->v);
+        phases[r->id] = r->phase;
+    }
+    fm_free(recv);
+    const int me = fm_dist_rank(s->dist);
+    for (int64_t i = FM_MAX(s->launched, begin[me]); i < begin[me + 1]; i++)
+        fm_morph_waiting_tet(m, i, verts + 12 * (size_t)i), phases[i] = FM_PHASE_WAITING;
+    return FM_OK;
+}
+
 /* The one-process store of the whole run on rank 0, from every rank's agents (in `all`): every
  * launched agent in [0, launched), in rank order, then the waiting ones in id order, as
  * fm_morph_state_create and the step leave them. */

@@ -1,6 +1,7 @@
 /* fm_morph_run: fm_morph_step in the shared frame loop (frame_loop.h), with the end-state checks
  * reported in stats.json. */
 #include "frame_loop.h"
+#include "frame_share.h"
 #include "morph.h"
 #include "cache_format.h"
 
@@ -158,10 +159,35 @@ static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int
     return st;
 }
 
+/* On P ranks with the cache written in parallel: each rank checks and encodes its share of the
+ * frame (the checks' counts summed, the clearance the least), rank 0 appends the blocks. The
+ * runaway check's message is the lowest rank's: the first agent in id order, as on one process. */
+static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts,
+                                   uint8_t *phases, fm_frame_share *share, fm_cache_writer *cache,
+                                   fm_morph_run_stats *stats, fm_error *err)
+{
+    if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
+    fm_status st = fm_morph_dist_frame_share(m, s, share->begin, verts, phases, err);
+    const int64_t first = fm_frame_share_first(share, s->dist), count = fm_frame_share_count(share, s->dist);
+    const float *mine = verts + 12 * (size_t)first;
+    if (st == FM_OK)
+        st = fm_frame_check_runaway_from(mine, 12, first, count, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
+    int64_t inverted = st == FM_OK ? fm_count_inverted_tets(mine, (size_t)count) : 0;
+    double nearest = st == FM_OK ? -fm_morph_vertex_clearance(m, mine, (size_t)count) : -INFINITY;
+    if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
+    fm_dist_sum_i64(s->dist, &inverted, 1);
+    fm_dist_max_f64(s->dist, &nearest, 1); /* the least clearance: exact in any order */
+    stats->inverted_tet_frames += inverted;
+    stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, -nearest);
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_TET_VERTICES] = verts, [FM_ATTR_PHASE] = phases};
+    return fm_frame_share_write(share, s->dist, cache, by_kind, (uint32_t)k, &s->slabs->totals.bytes_sent, err);
+}
+
 /* Frame k: the tet vertices and phases, checked, written to the cache, with the inverted-tet count. */
 static fm_status emit_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
-                            fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
+                            fm_frame_share *share, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
+    if (share->on) return emit_shared_frame(m, s, k, verts, phases, share, cache, stats, err);
     if (s->dist) return emit_dist_frame(m, s, k, verts, phases, cache, stats, err);
     fm_morph_tet_vertices(m, s, verts);
     fm_morph_phases(s, phases);
@@ -220,6 +246,7 @@ typedef struct morph_run {
     float *verts;
     uint8_t *phases;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
+    fm_frame_share share;                        /* on P ranks: this rank's share of every frame */
 } morph_run;
 
 static void morph_step(void *sim)
@@ -238,7 +265,7 @@ static int morph_finished(const void *sim)
 static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
     morph_run *r = sim;
-    fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, r->cache, r->stats, err);
+    fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, &r->share, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
     if (st == FM_OK && r->c->progress) {
@@ -260,8 +287,9 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
                                   fm_morph_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), stats->min_vertex_clearance = INFINITY;
-    morph_run r = {m, s, cache, c, stats, fm_alloc(sizeof(float) * 12 * (size_t)s->n), fm_alloc((size_t)s->n),
-                   s->flying_agent_steps, s->mde_agent_steps, 0};
+    morph_run r = {.m = m, .s = s, .cache = cache, .c = c, .stats = stats,
+                   .verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n), .phases = fm_alloc((size_t)s->n),
+                   .flying_before = s->flying_agent_steps, .mde_before = s->mde_agent_steps};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (!r.verts || !r.phases || fm_frame_rows_room(&stats->mde_fraction, FM_MAX(stats->run.frames, 1), 1, &r.capacity, err) != FM_OK) {
         fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
@@ -270,8 +298,10 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
     if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
     const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
                                 m->def.frame_limit, c, &stats->run, cache, s->dist};
-    fm_status st = fm_frame_loop_run(&loop, err);
+    fm_status st = fm_frame_share_start(&r.share, s->dist, cache, s->threads, c->resume, err);
+    if (st == FM_OK) st = fm_frame_loop_run(&loop, err);
     finish_stats(m, s, r.verts, stats);
+    fm_frame_share_free(&r.share);
     fm_free(r.verts), fm_free(r.phases);
     return st;
 }

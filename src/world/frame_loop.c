@@ -85,6 +85,12 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
 fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, const double lo[3], const double hi[3],
                                  int64_t frame, const char *hint, fm_error *err)
 {
+    return fm_frame_check_runaway_from(pos, per_agent, 0, n, lo, hi, frame, hint, err);
+}
+
+fm_status fm_frame_check_runaway_from(const float *pos, int per_agent, int64_t first_agent, int64_t n, const double lo[3],
+                                      const double hi[3], int64_t frame, const char *hint, fm_error *err)
+{
     double size = 0, min[3], max[3];
     for (int k = 0; k < 3; k++) size = fmax(size, hi[k] - lo[k]);
     for (int k = 0; k < 3; k++) min[k] = lo[k] - FM_RUNAWAY_SCENES * size, max[k] = hi[k] + FM_RUNAWAY_SCENES * size;
@@ -98,7 +104,7 @@ fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, con
                 if (!(q[k] >= min[k] && q[k] <= max[k]) && 3 * i + k < first) first = 3 * i + k;
     }
     if (first == INT64_MAX) return FM_OK;
-    const int64_t agent = first / per_agent;
+    const int64_t agent = first_agent + first / per_agent;
     const float *p = pos + first - first % 3;
     char where[96];
     if (isfinite(pos[first])) snprintf(where, sizeof where, "flew over %g scene sizes out of the scene", FM_RUNAWAY_SCENES);

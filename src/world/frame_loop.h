@@ -53,6 +53,10 @@ void fm_frame_loop_shot_progress(const fm_run_control *c, int64_t k, int64_t ste
  * `hint`: the parameters that set the mode's speeds and forces. Nothing is written then. */
 fm_status fm_frame_check_runaway(const float *pos, int per_agent, int64_t n, const double lo[3], const double hi[3],
                                  int64_t frame, const char *hint, fm_error *err);
+/* The same for the agents first … first + n − 1 of a frame, pos pointing at agent first's values
+ * (a rank's share of the frame on P ranks): the message names the agent's id. */
+fm_status fm_frame_check_runaway_from(const float *pos, int per_agent, int64_t first, int64_t n, const double lo[3],
+                                      const double hi[3], int64_t frame, const char *hint, fm_error *err);
 
 /* Per-frame statistics (a mode's run stats): makes room in *rows (malloc'ed, or NULL) for `count`
  * rows of `width` doubles, growing by doubling from 1024 rows; *capacity is its rows so far (0 for

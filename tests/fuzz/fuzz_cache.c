@@ -25,7 +25,7 @@ static int write_all(int fd, const uint8_t *data, size_t size)
     return 0;
 }
 
-/* Every attribute of every frame the cache lists (formats 2 and 3 have several). */
+/* Every attribute of every frame the cache lists (formats 2 to 4 have several; format 4 in pieces). */
 static void read_every_frame(fm_cache_reader *r)
 {
     uint64_t agents = fm_cache_agents(r);
@@ -55,7 +55,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         /* what open promises: a usable frame rate, an index no larger than the file */
         FUZZ_ASSERT(isfinite(fm_cache_frame_rate(r)) && fm_cache_frame_rate(r) > 0);
         FUZZ_ASSERT((uint64_t)fm_cache_frames(r) * 8 <= size && fm_cache_warning(r) != NULL);
-        /* format 3: a complete cache's header states its frame count (0 only if it is empty) */
+        /* formats 3 and 4: a complete cache's header states its frame count (0 only if it is empty) */
         FUZZ_ASSERT(fm_cache_version(r) < 3 || fm_cache_warning(r)[0] || fm_cache_header_frames(r) == fm_cache_frames(r));
         read_every_frame(r);
         fm_cache_close(r);

@@ -71,15 +71,21 @@ def stats(out):
     return {k: v for k, v in j.items() if k not in VARYING}
 
 
+def pieces(agents):
+    """Cache pieces of `agents` agents (output.piece_agents): the ranks then write the frames in
+    parallel, each encoding the pieces of its share (docs/scale-out.md)."""
+    return ("--set", f"output.piece_agents={agents}")
+
+
 class SameBytes(unittest.TestCase):
-    def check_scene(self, scene, runs):
+    def check_scene(self, scene, runs, extra=()):
         """Returns each run's stats.json, by (ranks, threads)."""
-        plain, out = run(scene, "plain", threads=2)
+        plain, out = run(scene, "plain", threads=2, extra=extra)
         self.assertEqual(plain.returncode, 0, plain.stderr)
         want, want_stats = sha256(os.path.join(out, "frames.fmc")), stats(out)
         every = {}
         for ranks, threads in runs:
-            done, got = run(scene, f"p{ranks}t{threads}", ranks, threads)
+            done, got = run(scene, f"p{ranks}t{threads}", ranks, threads, extra)
             self.assertEqual(done.returncode, 0, f"{scene} on {ranks} ranks: {done.stderr}")
             self.assertEqual(sha256(os.path.join(got, "frames.fmc")), want,
                              f"{scene}: the cache of {ranks} ranks x {threads} threads differs from the plain run's")
@@ -93,10 +99,19 @@ class SameBytes(unittest.TestCase):
         return every
 
     def test_castling(self):
-        self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
+        """9038 agents in pieces of 1000: every rank encodes its share of each frame."""
+        self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1000))
+
+    def test_castling_one_piece(self):
+        """The default pieces (65536 agents): rank 0 encodes the one piece, the other shares are empty."""
+        self.check_scene("examples/castling/rook.json", [(2, 1), (3, 1)])
+
+    def test_more_ranks_than_pieces(self):
+        """Two pieces on three and four ranks: a share may hold no piece."""
+        self.check_scene("examples/castling/rook.json", [(3, 1), (4, 1)], pieces(5000))
 
     def test_words(self):
-        self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)])
+        self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)], pieces(2000))
 
     def test_castling_shot(self):
         """The whole castling (groups king, then rook): every group's state on P ranks, each
@@ -127,9 +142,9 @@ class Stress(unittest.TestCase):
     def test_every_agent_changes_rank(self):
         """castling's flock sweeps along the slab axis from the source to the target: on 4 ranks
         every agent is handed on at least once, halos carry MDE neighbours, the bytes still match."""
-        plain, out = run("examples/castling/rook.json", "stress_plain")
+        plain, out = run("examples/castling/rook.json", "stress_plain", extra=pieces(1000))
         self.assertEqual(plain.returncode, 0, plain.stderr)
-        done, got = run("examples/castling/rook.json", "stress4", 4)
+        done, got = run("examples/castling/rook.json", "stress4", 4, extra=pieces(1000))
         self.assertEqual(done.returncode, 0, done.stderr)
         self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
         with open(os.path.join(got, "stats.json")) as f:
@@ -147,7 +162,7 @@ def frames_in(path):
         return fmc.open(path).frames
 
 
-LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000")  # about 20 s on two cores
+LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000") + pieces(4096)  # about 20 s on two cores
 FLOCK_STRESS = "tests/data/mpi/flock_stress.json"
 LONG_FLOCK_SETS = ("--set", "n=30000")  # about 15 s on two ranks
 

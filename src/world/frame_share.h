@@ -1,0 +1,35 @@
+/* The cache written by P ranks in parallel (docs/scale-out.md): each rank filters and compresses
+ * its share of every frame, the pieces [J r / P, J (r + 1) / P) of the cache (ids begin[r] …
+ * begin[r + 1] − 1), and rank 0 appends every rank's blocks, in rank order, as the frame's chunk.
+ * A block's bytes do not depend on which rank or how many threads encode it, so the file is the
+ * one process's, byte for byte, for any P and T. What a rank hands over is compressed: the frame's
+ * filtering and compression, the run's serial term when rank 0 did it all, is spread over the
+ * ranks. */
+#ifndef FM_FRAME_SHARE_H
+#define FM_FRAME_SHARE_H
+
+#include "cache_format.h"
+#include "dist.h"
+
+typedef struct fm_frame_share {
+    cache_share share;
+    int64_t *begin; /* P + 1 bounds of the ranks' shares of the ids */
+    int on;         /* 0: one process, or no cache (nothing to encode) */
+} fm_frame_share;
+
+/* Every rank: the share of this rank of the cache rank 0 writes (`cache` there; NULL elsewhere),
+ * encoding on `threads` threads. On one process, or with no cache on rank 0, f->on stays 0. A
+ * resumed run's ranks get their shares of the writer's last frame (delta goes on from it). */
+fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, int threads, int resumed,
+                               fm_error *err);
+void fm_frame_share_free(fm_frame_share *f);
+/* This rank's first agent and its count. */
+int64_t fm_frame_share_first(const fm_frame_share *f, const fm_dist *d);
+int64_t fm_frame_share_count(const fm_frame_share *f, const fm_dist *d);
+/* Frame k, the rank's share complete in id-indexed arrays (by_kind, as cache_share_encode takes
+ * them): encoded here, appended by rank 0's writer. Every rank returns the same status; *sent
+ * adds the bytes this rank sent. */
+fm_status fm_frame_share_write(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, const void *const *by_kind,
+                               uint32_t k, int64_t *sent, fm_error *err);
+
+#endif
