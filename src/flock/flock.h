@@ -140,6 +140,23 @@ fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err);
 fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err);
 void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds);
 fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err);
+/* flock_state.c: agents begin … end − 1 of a frame (fm_flock_frame's arrays, by id); the mean and
+ * largest distance to the destinations over the blocks of [begin, end) (whole FM_BLOCK blocks),
+ * on P ranks (d) every rank's share summed on rank 0 in block order (NaN elsewhere). */
+void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,
+                          float *orientation, uint8_t *phase);
+void fm_flock_distance_blocks(const fm_flock_state *s, int64_t begin, int64_t end, const fm_dist *d, double *mean,
+                              double *max);
+/* flock_measures.c: fm_flock_measure_frame on P ranks from their shares (ids begin[r] … begin[r + 1]
+ * − 1, runs of whole FM_BLOCK blocks, complete on their ranks: fm_flock_dist_share); out on rank 0. */
+fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, const int64_t *begin,
+                                        double out[FM_FLOCK_MEASURES], fm_error *err);
+
+/* The cache written in parallel: this rank's share of the ids (begin[rank] … begin[rank + 1] − 1)
+ * complete in its arrays, from every rank; release after the frame. */
+fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err);
+/* s->member: this rank's own agents in flight (its slab's), not the share's agents it received. */
+void fm_flock_dist_own_in_flight(fm_flock_state *s);
 void fm_flock_dist_release(fm_flock_state *s);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, fm_error *err);

@@ -19,6 +19,7 @@
  * At a frame (and a checkpoint) rank 0 receives every other rank's agents into its arrays, so the
  * frame, its measures and the checkpoint are one process's; then it marks them elsewhere again. */
 #include "flock.h"
+#include "frame_share.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -269,6 +270,40 @@ static fm_status gather(fm_flock_state *s, size_t size, void (*put)(const fm_flo
 fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
 {
     return gather(s, sizeof(frame_record), pack_frame, unpack_frame, err);
+}
+
+/* The cache written in parallel (frame_share.h): every rank sends its agents whose ids lie in
+ * another rank's share there, and takes those of its own share into its arrays with their phases
+ * (s->gathered keeps them, for fm_flock_dist_release). The share's agents are then complete here. */
+fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
+{
+    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
+    int64_t *count = calloc((size_t)ranks + 1, sizeof *count), *at = calloc((size_t)ranks + 1, sizeof *at), mine = 0;
+    for (int64_t a = 0; count && a < s->n; a++)
+        if (is_mine(s->phase[a]) && (a < begin[me] || a >= begin[me + 1])) count[fm_frame_share_owner(begin, ranks, a)]++, mine++;
+    frame_record *send = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(mine, 1));
+    fm_status st = count && at && send ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
+    st = fm_dist_agree(s->dist, st, err);
+    for (int r = 0; st == FM_OK && r < ranks; r++) at[r + 1] = at[r] + count[r];
+    for (int64_t a = 0; st == FM_OK && a < s->n; a++)
+        if (is_mine(s->phase[a]) && (a < begin[me] || a >= begin[me + 1]))
+            pack_frame(s, a, send + at[fm_frame_share_owner(begin, ranks, a)]++);
+    void *recv = NULL;
+    int64_t received = 0;
+    if (st == FM_OK) st = fm_dist_exchange(s->dist, send, count, sizeof(frame_record), &recv, &received, err);
+    s->slabs->totals.bytes_sent += mine * (int64_t)sizeof(frame_record);
+    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_frame(s, (const frame_record *)recv + k);
+    s->gathered = recv, s->gathered_count = received, s->gathered_size = sizeof(frame_record);
+    free(count), free(at), fm_free(send);
+    return st;
+}
+
+void fm_flock_dist_own_in_flight(fm_flock_state *s)
+{
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++) s->member[a] = is_mine(s->phase[a]) && s->phase[a] != FM_PHASE_ARRIVED;
+    for (int64_t k = 0; k < s->gathered_count; k++)
+        s->member[((const record_head *)((const char *)s->gathered + s->gathered_size * (size_t)k))->id] = 0;
 }
 
 /* Rank 0 after the frame: the agents it received are elsewhere again; the measures' grid is not

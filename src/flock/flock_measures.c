@@ -40,12 +40,21 @@ static void measure_agent(const fm_flock_state *s, int64_t a, measure_block *b)
     b->leader += distance3(p, (const float *const *)s->leader, a);
 }
 
+/* A nearest-neighbour query: the agent and its position (the ranks exchange them as 4 words). */
+typedef struct nn_query {
+    int32_t id;
+    float x[3];
+} nn_query;
+
 /* The mean distance from each queried agent to its nearest neighbour in flight (s->member). The
  * first grid is the step's own (its cell, the agents in flight), so the next step keeps it. The
  * grid finds neighbours within its cell; agents with none ask again on a grid of four times the
  * cell, until all have one (at most 16 times: 4^16 cells reach past any scene a float holds), so an
- * isolated agent counts with its true distance. Summed in query order. */
-static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const int64_t *query, int64_t count, double *nn)
+ * isolated agent counts with its true distance. Summed in query order. On P ranks (d) each rank's
+ * s->member holds its own agents in flight, each rank answers every query from them, and the least
+ * squared distance over the ranks is the one process's: the same grid query over all the agents. */
+static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const fm_dist *d, const nn_query *query,
+                      int64_t count, double *nn, double *best)
 {
     float cell = m->max_radius > 0 ? m->max_radius : 1.0f;
     int64_t pending = count;
@@ -54,19 +63,20 @@ static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const int64_t 
     for (; pending > 0 && passes <= 16; passes++, cell *= 4) {
         fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n, cell,
                              s->threads);
-        pending = 0;
-#pragma omp parallel for num_threads(s->threads) schedule(static) reduction(+ : pending)
+#pragma omp parallel for num_threads(s->threads) schedule(static)
         for (int64_t q = 0; q < count; q++) {
-            if (!isnan(nn[q])) continue;
-            const int64_t a = query[q];
-            const float x[3] = {s->p[0][a], s->p[1][a], s->p[2][a]};
             double d2;
-            if (fm_grid_nearest(&s->grid, x, NULL, a, -1, &d2) >= 0) nn[q] = sqrt(d2);
-            else pending++;
+            best[q] = -INFINITY; /* negated: the ranks take the largest */
+            if (isnan(nn[q])) best[q] = fm_grid_nearest(&s->grid, query[q].x, NULL, query[q].id, -1, &d2) >= 0 ? -d2 : -INFINITY;
         }
+        fm_dist_max_f64(d, best, (int)count);
+        pending = 0;
+        for (int64_t q = 0; q < count; q++)
+            if (isnan(nn[q]) && best[q] > -INFINITY) nn[q] = sqrt(-best[q]);
+            else pending += isnan(nn[q]);
     }
     /* the first grid is the one the next step builds (its cell, the agents in flight): it keeps it */
-    s->grid_current = passes == 1;
+    s->grid_current = !d && passes == 1;
     double sum = 0;
     int64_t found = 0;
     for (int64_t q = 0; q < count; q++)
@@ -92,35 +102,104 @@ static void combine(const measure_block *blocks, int64_t count, int64_t n, doubl
     out[FM_FLOCK_IN_FLIGHT] = n > 0 ? (double)t.in_flight / (double)n : NAN;
 }
 
+/* Blocks [b0, b1): s->member of their agents (in flight) and their in-flight counts. */
+static void mark_blocks(fm_flock_state *s, int64_t b0, int64_t b1, measure_block *b)
+{
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t i = b0; i < b1; i++)
+        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->n); a++) {
+            s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
+            b[i - b0].in_flight += s->member[a];
+        }
+}
+
+/* Blocks [b0, b1), with `before` agents in flight ahead of them in id order: each block's sums, and
+ * every stride-th agent in flight, counted in id order from the first, asks for its nearest
+ * neighbour: query[k − first_query] for its number k. */
+static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int64_t before, int64_t stride,
+                            measure_block *b, nn_query *query, int64_t first_query)
+{
+    int64_t *first = malloc(sizeof(int64_t) * (size_t)FM_MAX(b1 - b0, 1));
+    if (!first) return FM_ERR_MEMORY;
+    for (int64_t i = b0; i < b1; i++) first[i - b0] = before, before += b[i - b0].in_flight;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t i = b0; i < b1; i++) {
+        int64_t rank = first[i - b0];
+        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->n); a++) {
+            measure_agent(s, a, &b[i - b0]);
+            if (s->member[a] && rank % stride == 0)
+                query[rank / stride - first_query] = (nn_query){(int32_t)a, {s->p[0][a], s->p[1][a], s->p[2][a]}};
+            rank += s->member[a];
+        }
+    }
+    free(first);
+    return FM_OK;
+}
+
 void fm_flock_measure_frame(const fm_flock_model *m, fm_flock_state *s, double out[FM_FLOCK_MEASURES])
 {
     const int64_t n = s->n, blocks = (n + FM_BLOCK - 1) / FM_BLOCK;
     measure_block *b = calloc((size_t)(blocks > 0 ? blocks : 1), sizeof *b);
-    int64_t *first = malloc(sizeof(int64_t) * (size_t)(blocks > 0 ? blocks : 1)), *query = malloc(sizeof(int64_t) * NN_QUERIES);
-    double *nn = malloc(sizeof(double) * NN_QUERIES);
+    nn_query *query = malloc(sizeof(nn_query) * NN_QUERIES);
+    double *nn = malloc(sizeof(double) * 2 * NN_QUERIES);
     for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
-    if (b && first && query && nn) {
-#pragma omp parallel for num_threads(s->threads) schedule(static)
-        for (int64_t i = 0; i < blocks; i++)
-            for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, n); a++) {
-                s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
-                b[i].in_flight += s->member[a];
-            }
+    if (b && query && nn) {
+        mark_blocks(s, 0, blocks, b);
         int64_t total = 0;
-        for (int64_t i = 0; i < blocks; i++) first[i] = total, total += b[i].in_flight;
-        /* every stride-th agent in flight, counted in id order, asks for its nearest neighbour */
+        for (int64_t i = 0; i < blocks; i++) total += b[i].in_flight;
         const int64_t stride = total > NN_QUERIES ? (total + NN_QUERIES - 1) / NN_QUERIES : 1;
-#pragma omp parallel for num_threads(s->threads) schedule(static)
-        for (int64_t i = 0; i < blocks; i++) {
-            int64_t rank = first[i];
-            for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, n); a++) {
-                measure_agent(s, a, &b[i]);
-                if (s->member[a] && rank % stride == 0) query[rank / stride] = a;
-                rank += s->member[a];
-            }
+        if (sum_blocks(s, 0, blocks, 0, stride, b, query, 0) == FM_OK) {
+            combine(b, blocks, n, out);
+            if (total >= 2) out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, NULL, query, (total + stride - 1) / stride, nn, nn + NN_QUERIES);
         }
-        combine(b, blocks, n, out);
-        if (total >= 2) out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, query, (total + stride - 1) / stride, nn);
     }
-    free(b), free(first), free(query), free(nn);
+    free(b), free(query), free(nn);
+}
+
+/* The agents in flight on every rank's share, in rank order (so in id order), summed on all. */
+static int64_t in_flight_before(const fm_dist *d, int64_t mine, int64_t *total)
+{
+    const int ranks = fm_dist_size(d), me = fm_dist_rank(d);
+    int64_t *each = calloc((size_t)ranks, sizeof *each), before = 0;
+    if (!each) return *total = -1, 0;
+    each[me] = mine;
+    fm_dist_sum_i64(d, each, ranks);
+    *total = 0;
+    for (int r = 0; r < ranks; r++) before += r < me ? each[r] : 0, *total += each[r];
+    free(each);
+    return before;
+}
+
+fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, const int64_t *begin,
+                                        double out[FM_FLOCK_MEASURES], fm_error *err)
+{
+    const fm_dist *d = s->dist;
+    const int me = fm_dist_rank(d);
+    const int64_t b0 = begin[me] / FM_BLOCK, b1 = (begin[me + 1] + FM_BLOCK - 1) / FM_BLOCK, blocks = b1 - b0;
+    measure_block *b = calloc((size_t)FM_MAX(blocks, 1), sizeof *b);
+    nn_query *mine = malloc(sizeof(nn_query) * NN_QUERIES);
+    double *nn = malloc(sizeof(double) * 2 * NN_QUERIES);
+    fm_status st = b && mine && nn ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the flock measures");
+    if ((st = fm_dist_agree(d, st, err)) != FM_OK) return free(b), free(mine), free(nn), st;
+    mark_blocks(s, b0, b1, b);
+    int64_t flying = 0, total;
+    for (int64_t i = 0; i < blocks; i++) flying += b[i].in_flight;
+    const int64_t before = in_flight_before(d, flying, &total);
+    const int64_t stride = total > NN_QUERIES ? (total + NN_QUERIES - 1) / NN_QUERIES : 1;
+    const int64_t q0 = (before + stride - 1) / stride, q1 = (before + flying + stride - 1) / stride; /* this rank's queries */
+    st = fm_dist_agree(d, total < 0 ? FM_ERR_MEMORY : sum_blocks(s, b0, b1, before, stride, b, mine, q0), err);
+    void *all = NULL;
+    int32_t *queries = NULL;
+    int64_t count = 0, words = 0;
+    if (st == FM_OK) st = fm_dist_gather(d, b, blocks, sizeof *b, &all, &count, err);
+    for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
+    if (st == FM_OK && me == 0) combine(all, count, s->n, out);
+    if (st == FM_OK && total >= 2)
+        st = fm_dist_allgather_i32(d, (const int32_t *)mine, 4 * (q1 - q0), &queries, &words, err);
+    if (st == FM_OK && total >= 2) {
+        fm_flock_dist_own_in_flight(s); /* s->member: this rank's own agents in flight, not its share's */
+        out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, d, (const nn_query *)queries, words / 4, nn, nn + NN_QUERIES);
+    }
+    fm_free(all), fm_free(queries), free(b), free(mine), free(nn);
+    return st;
 }

@@ -4,6 +4,7 @@
 #include "cache_format.h"
 #include "flock.h"
 #include "frame_loop.h"
+#include "frame_share.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -29,6 +30,7 @@ typedef struct flock_run {
     const fm_run_control *c;
     fm_flock_run_stats *stats;
     int64_t capacity;  /* rows of stats->measures */
+    fm_frame_share share; /* on P ranks: this rank's share of every frame (the cache written in parallel) */
 } flock_run;
 
 static void flock_step(void *sim)
@@ -86,10 +88,54 @@ static fm_status dist_frame(flock_run *r, int64_t frame, fm_error *err)
     return fm_dist_agree(s->dist, st, err);
 }
 
+/* On P ranks with the cache written in parallel: frame k's measures from the ranks' shares (on rank
+ * 0, which keeps the rows), and the tracking lag. */
+static fm_status measure_shared(flock_run *r, int64_t frame, fm_error *err)
+{
+    fm_flock_state *s = r->s;
+    const int root = fm_dist_rank(s->dist) == 0;
+    double scratch[FM_FLOCK_MEASURES];
+    fm_status st = root ? fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err) : FM_OK;
+    if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
+    double *out = root ? r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES : scratch;
+    st = fm_flock_measure_frame_shared(r->m, s, r->share.begin, out, err);
+    if (st == FM_OK && r->m->info.deforming && s->time >= r->m->path_time) { /* tracking lag */
+        double mean, max;
+        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share, s->dist),
+                                 fm_frame_share_first(&r->share, s->dist) + fm_frame_share_count(&r->share, s->dist), s->dist,
+                                 &mean, &max);
+        s->lag_sum += root ? mean : 0;
+        r->stats->tracking_frames++;
+    }
+    return st;
+}
+
+/* On P ranks with the cache written in parallel: each rank takes its share of the frame's agents,
+ * checks and encodes them, rank 0 appends the blocks; the measures are summed from the shares. */
+static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
+{
+    fm_flock_state *s = r->s;
+    if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
+    const int64_t first = fm_frame_share_first(&r->share, s->dist), end = first + fm_frame_share_count(&r->share, s->dist);
+    fm_status st = fm_flock_dist_share(s, r->share.begin, err);
+    if (st == FM_OK) {
+        fm_flock_frame_range(s, first, end, r->position, r->velocity, r->orientation, r->phase);
+        st = fm_frame_check_runaway_from(r->position + 3 * first, 3, first, end - first, r->m->scene_lo, r->m->scene_hi,
+                                         frame, FLOCK_FORCES, err);
+    }
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = r->position, [FM_ATTR_VELOCITY] = r->velocity,
+                                             [FM_ATTR_ORIENTATION] = r->orientation, [FM_ATTR_PHASE] = r->phase};
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
+        st = fm_frame_share_write(&r->share, s->dist, r->cache, by_kind, (uint32_t)frame, &s->slabs->totals.bytes_sent, err);
+    if (st == FM_OK && frame > 0) st = measure_shared(r, frame, err);
+    fm_flock_dist_release(s);
+    return st;
+}
+
 static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
 {
     flock_run *r = sim;
-    fm_status st = r->s->dist ? dist_frame(r, frame, err) : write_and_measure(r, frame, err);
+    fm_status st = r->share.on ? shared_frame(r, frame, err) : r->s->dist ? dist_frame(r, frame, err) : write_and_measure(r, frame, err);
     if (st == FM_OK && frame > 0 && r->c->progress) {
         fm_run_info info = fm_flock_get_info(r->s);
         r->c->progress(&info, frame, r->c->progress_user);
@@ -103,6 +149,30 @@ static fm_status flock_save(void *sim, const char *path, fm_error *err)
     const flock_run *r = sim;
     if (r->s->dist) return fm_flock_dist_checkpoint_save(path, r->m, r->s, r->stats, err);
     return fm_flock_checkpoint_save(path, r->m, r->s, r->stats, err);
+}
+
+/* On P ranks the cache is written in parallel when each rank's share is a run of whole FM_BLOCK
+ * blocks (pieces of a multiple of FM_BLOCK agents, as the default's): the measures sum blocks in
+ * block order. Otherwise rank 0 gathers every frame. */
+static fm_status start_share(flock_run *r, fm_error *err)
+{
+    fm_status st = fm_frame_share_start(&r->share, r->s->dist, r->cache, r->s->threads, r->c->resume, err);
+    if (st == FM_OK && r->share.on && r->share.share.enc.l.piece_agents % FM_BLOCK != 0) fm_frame_share_free(&r->share);
+    return st;
+}
+
+/* The end-state distances to the destinations: on P ranks writing in parallel, from the shares. */
+static void final_distance(flock_run *r, fm_flock_run_stats *stats)
+{
+    fm_flock_state *s = r->s;
+    fm_error ignored = {0};
+    if (!r->share.on) return fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
+    const int64_t first = fm_frame_share_first(&r->share, s->dist), end = first + fm_frame_share_count(&r->share, s->dist);
+    if (fm_flock_dist_share(s, r->share.begin, &ignored) == FM_OK)
+        fm_flock_distance_blocks(s, first, end, s->dist, &stats->final_mean_distance, &stats->final_max_distance);
+    else
+        stats->final_mean_distance = stats->final_max_distance = NAN;
+    fm_flock_dist_release(s);
 }
 
 void fm_flock_run_stats_free(fm_flock_run_stats *stats)
@@ -137,13 +207,14 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), s->lag_sum = 0;
     const size_t n = (size_t)s->n;
-    flock_run r = {m, s, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 4 * n),
-                   fm_alloc(n), cache, c, stats, 0};
+    flock_run r = {.m = m, .s = s, .position = fm_alloc(sizeof(float) * 3 * n), .velocity = fm_alloc(sizeof(float) * 3 * n),
+                   .orientation = fm_alloc(sizeof(float) * 4 * n), .phase = fm_alloc(n), .cache = cache, .c = c, .stats = stats};
     fm_status st = r.position && r.velocity && r.orientation && r.phase
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
     /* capacity 0: a resumed run's array holds exactly its frames so far */
     if (st == FM_OK) st = fm_frame_rows_room(&stats->measures, FM_MAX(stats->run.frames, 1), FM_FLOCK_MEASURES, &r.capacity, err);
+    if (st == FM_OK) st = start_share(&r, err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
                                     m->def.frame_limit, c, &stats->run, cache, s->dist};
@@ -152,7 +223,8 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
     stats->run.steps = s->step;
     stats->all_bound = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !flock_finished(&r);
-    fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
+    final_distance(&r, stats);
+    fm_frame_share_free(&r.share);
     stats->bound_fraction = (double)s->count[FM_PHASE_ARRIVED] / (double)s->n;
     stats->tracking_lag = stats->tracking_frames > 0 ? s->lag_sum / (double)stats->tracking_frames : NAN;
     if (stats->measures) summarise_measures(m, stats);

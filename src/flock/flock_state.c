@@ -145,14 +145,20 @@ void fm_flock_update_orientation(float *q, const float v[3])
 
 void fm_flock_frame(const fm_flock_state *s, float *position, float *velocity, float *orientation, uint8_t *phase)
 {
+    fm_flock_frame_range(s, 0, s->n, position, velocity, orientation, phase);
+}
+
+void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,
+                          float *orientation, uint8_t *phase)
+{
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++)
+    for (int64_t a = begin; a < end; a++)
         for (int k = 0; k < 3; k++) {
             if (position) position[3 * a + k] = s->p[k][a];
             if (velocity) velocity[3 * a + k] = s->v[k][a];
         }
-    if (orientation) memcpy(orientation, s->orient, sizeof(float) * 4 * (size_t)s->n);
-    if (phase) memcpy(phase, s->phase, (size_t)s->n);
+    if (orientation) memcpy(orientation + 4 * begin, s->orient + 4 * begin, sizeof(float) * 4 * (size_t)(end - begin));
+    if (phase) memcpy(phase + begin, s->phase + begin, (size_t)(end - begin));
 }
 
 void fm_flock_destinations(const fm_flock_state *s, float *out)
@@ -161,25 +167,46 @@ void fm_flock_destinations(const fm_flock_state *s, float *out)
         for (int k = 0; k < 3; k++) out[3 * a + k] = s->dest[k][a];
 }
 
-/* Per-block sums combined in block order, so the mean does not depend on the thread count. */
-void fm_flock_distance(const fm_flock_state *s, double *mean, double *max)
+/* Blocks [b0, b1): each one's sum and largest of the agents' distances to their destinations, in
+ * pairs. */
+static void distance_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, double *pairs)
 {
-    const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
-    double *sum = calloc((size_t)blocks, sizeof(double)), *big = calloc((size_t)blocks, sizeof(double));
-    if (!sum || !big) {
-        free(sum), free(big);
-        *mean = *max = NAN;
-        return;
-    }
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t b = 0; b < blocks; b++)
+    for (int64_t b = b0; b < b1; b++) {
+        double sum = 0, big = 0;
         for (int64_t a = b * FM_BLOCK; a < FM_MIN((b + 1) * FM_BLOCK, s->n); a++) {
             double d2 = 0;
             for (int k = 0; k < 3; k++) d2 += ((double)s->p[k][a] - s->dest[k][a]) * ((double)s->p[k][a] - s->dest[k][a]);
-            sum[b] += sqrt(d2), big[b] = fmax(big[b], sqrt(d2));
+            sum += sqrt(d2), big = fmax(big, sqrt(d2));
         }
-    *mean = 0, *max = 0;
-    for (int64_t b = 0; b < blocks; b++) *mean += sum[b], *max = fmax(*max, big[b]);
-    *mean /= (double)s->n;
-    free(sum), free(big);
+        pairs[2 * (b - b0)] = sum, pairs[2 * (b - b0) + 1] = big;
+    }
+}
+
+/* Per-block sums combined in block order, so the mean does not depend on the thread count. */
+void fm_flock_distance(const fm_flock_state *s, double *mean, double *max)
+{
+    fm_flock_distance_blocks(s, 0, s->n, NULL, mean, max);
+}
+
+/* On P ranks each rank sums the blocks of its share (whole FM_BLOCK blocks) and rank 0 combines
+ * every block in block order: the one process's figures. */
+void fm_flock_distance_blocks(const fm_flock_state *s, int64_t begin, int64_t end, const fm_dist *d, double *mean,
+                              double *max)
+{
+    const int64_t b0 = begin / FM_BLOCK, b1 = (end + FM_BLOCK - 1) / FM_BLOCK;
+    double *pairs = malloc(sizeof(double) * 2 * (size_t)FM_MAX(b1 - b0, 1));
+    void *all = NULL;
+    int64_t total = 0;
+    fm_status st = fm_dist_agree(d, pairs ? FM_OK : FM_ERR_MEMORY, NULL);
+    if (st == FM_OK) distance_blocks(s, b0, b1, pairs);
+    if (st == FM_OK) st = fm_dist_gather(d, pairs, b1 - b0, 2 * sizeof(double), &all, &total, NULL);
+    *mean = *max = NAN;
+    if (st == FM_OK && fm_dist_rank(d) == 0) {
+        const double *p = all;
+        *mean = 0, *max = 0;
+        for (int64_t b = 0; b < total; b++) *mean += p[2 * b], *max = fmax(*max, p[2 * b + 1]); /* block order */
+        *mean /= (double)s->n;
+    }
+    fm_free(all), free(pairs);
 }

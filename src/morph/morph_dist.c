@@ -15,6 +15,7 @@
  * Every FM_RESORT_INTERVAL steps the cuts move to the quantiles of the agents in flight, so each
  * rank gets the same share of the flock as it sweeps the scene. */
 #include "morph.h"
+#include "frame_share.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -283,18 +284,6 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     return FM_OK;
 }
 
-/* The rank whose share of the ids (begin[r] <= id < begin[r + 1], P + 1 bounds) holds `id`. */
-static int share_owner(const int64_t *begin, int ranks, int64_t id)
-{
-    int lo = 0, hi = ranks - 1;
-    while (lo < hi) {
-        const int mid = (lo + hi + 1) / 2;
-        if (begin[mid] <= id) lo = mid;
-        else hi = mid - 1;
-    }
-    return lo;
-}
-
 /* The other ranks' agents of this rank's share, in rank order (*recv), from every rank's store. */
 static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *verts, void **recv,
                                 int64_t *received, fm_error *err)
@@ -306,7 +295,7 @@ static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const f
     fm_status st = count && at && dest && send ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     st = fm_dist_agree(s->dist, st, err);
     for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
-        dest[a] = share_owner(begin, ranks, s->id[a]);
+        dest[a] = fm_frame_share_owner(begin, ranks, s->id[a]);
         count[dest[a]] += dest[a] != me; /* its own agents are in place already */
     }
     for (int r = 0; st == FM_OK && r < ranks; r++) at[r + 1] = at[r] + count[r];

@@ -68,6 +68,17 @@ void fm_frame_share_free(fm_frame_share *f)
     memset(f, 0, sizeof *f);
 }
 
+int fm_frame_share_owner(const int64_t *begin, int ranks, int64_t id)
+{
+    int lo = 0, hi = ranks - 1;
+    while (lo < hi) {
+        const int mid = (lo + hi + 1) / 2;
+        if (begin[mid] <= id) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
+}
+
 int64_t fm_frame_share_first(const fm_frame_share *f, const fm_dist *d) { return f->begin[fm_dist_rank(d)]; }
 
 int64_t fm_frame_share_count(const fm_frame_share *f, const fm_dist *d)

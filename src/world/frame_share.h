@@ -23,6 +23,8 @@ typedef struct fm_frame_share {
 fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, int threads, int resumed,
                                fm_error *err);
 void fm_frame_share_free(fm_frame_share *f);
+/* The rank whose share (begin[r] <= id < begin[r + 1], P + 1 bounds) holds `id`. */
+int fm_frame_share_owner(const int64_t *begin, int ranks, int64_t id);
 /* This rank's first agent and its count. */
 int64_t fm_frame_share_first(const fm_frame_share *f, const fm_dist *d);
 int64_t fm_frame_share_count(const fm_frame_share *f, const fm_dist *d);

@@ -128,10 +128,16 @@ class SameBytes(unittest.TestCase):
         bound agents)."""
         self.check_scene("examples/flock_sequence/scene.json", [(2, 1), (3, 1)])
 
+    def test_shape_flock_gathered(self):
+        """Pieces that are not whole blocks of 1024 agents (the flock measures' blocks): rank 0
+        gathers every frame, writes and measures it."""
+        self.check_scene(FLOCK_STRESS, [(2, 1), (3, 1)], pieces(1000))
+
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
-        handed on (migrations at least the agent count), and the boids read ghosts."""
-        every = self.check_scene(FLOCK_STRESS, [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)])
+        handed on (migrations at least the agent count), and the boids read ghosts. Pieces of 1024
+        agents: the ranks write the frames in parallel and sum the measures from their shares."""
+        every = self.check_scene(FLOCK_STRESS, [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1024))
         s = every[(4, 1)]["scale_out"]
         self.assertGreaterEqual(s["migrations"], every[(4, 1)]["agents"], s)
         self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
@@ -164,7 +170,7 @@ def frames_in(path):
 
 LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000") + pieces(4096)  # about 20 s on two cores
 FLOCK_STRESS = "tests/data/mpi/flock_stress.json"
-LONG_FLOCK_SETS = ("--set", "n=30000")  # about 15 s on two ranks
+LONG_FLOCK_SETS = ("--set", "n=30000") + pieces(4096)  # about 15 s on two ranks
 
 
 class Failure(unittest.TestCase):
