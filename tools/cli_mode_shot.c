@@ -118,6 +118,7 @@ static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_contro
                                           : fm_morph_dist_get_totals(fm_shot_state(r->shot, g));
         mine.migrated += t.migrated, mine.ghost_agent_steps += t.ghost_agent_steps, mine.bytes_sent += t.bytes_sent;
         mine.agent_steps += t.agent_steps, mine.max_rank_agent_steps += t.max_rank_agent_steps;
+        mine.busy_seconds += t.busy_seconds;
     }
     r->scale_out = cli_sum_totals(mine);
     return st;

@@ -23,6 +23,9 @@ typedef struct fm_dist_totals {
     int64_t bytes_sent;           /* by this rank: migration, halos, frames */
     int64_t agent_steps;          /* agents in flight, all ranks, summed over steps */
     int64_t max_rank_agent_steps; /* the busiest rank's agents in flight, summed over steps */
+    double busy_seconds;          /* this rank's own work in its steps (no exchange, no waiting); after
+                                     cli_sum_totals the sum over the ranks */
+    double busiest_seconds;       /* after cli_sum_totals: the largest rank's busy_seconds */
 } fm_dist_totals;
 
 typedef struct fm_slabs {
@@ -67,6 +70,7 @@ static inline int fm_slabs_in_halo(const fm_slabs *d, float x)
  * weighted (the shape flock counts a bound agent as a fraction of one in flight). */
 static inline void fm_slabs_add_busy(fm_slabs *d, double seconds, double agents)
 {
+    d->totals.busy_seconds += seconds;
     if (agents > 0 && seconds / agents < d->cost) d->cost = seconds / agents;
 }
 

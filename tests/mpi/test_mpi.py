@@ -142,6 +142,7 @@ class SameBytes(unittest.TestCase):
         self.assertGreaterEqual(s["migrations"], every[(4, 1)]["agents"], s)
         self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
         self.assertLess(s["load_imbalance"], 2.0, s)
+        self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)
 
 
 class Stress(unittest.TestCase):
@@ -159,6 +160,8 @@ class Stress(unittest.TestCase):
         self.assertGreaterEqual(s["migrations"], j["agents"], s)
         self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
         self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
+        self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)  # the busiest rank's work over the mean
+        self.assertLessEqual(s["busy_imbalance"], 4.0, s)
 
 
 def frames_in(path):
