@@ -12,7 +12,7 @@
  *     would see on one process, and sums their pushes in id order, so V_la is the same bits;
  *   - the rest of the step is per agent (fields, obstacles, moves), or global in id order (the
  *     hand-out, morph_step.c), or an integer or min reduction: the same for any P.
- * Every FM_RESORT_INTERVAL steps the cuts move to the quantiles of the agents in flight, so each
+ * Every step the cuts move to the quantiles of the agents in flight, so each
  * rank gets the same share of the flock as it sweeps the scene. */
 #include "morph.h"
 #include "frame_share.h"
@@ -203,7 +203,7 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     return st;
 }
 
-/* Every FM_RESORT_INTERVAL steps: the cuts to the quantiles of the agents in flight, each weighted
+/* Every step: the cuts to the quantiles of the agents in flight, each weighted
  * by its rank's measured cost per agent-step since the last cut (an agent near an obstacle or in a
  * dense part of the flock costs more), all ranks together; so the slabs follow the flock and the
  * cost (slabs.h). */

@@ -276,11 +276,14 @@ static void combine_counts(fm_morph_state *s, const block_counts *bc, int64_t bl
     s->min_clearance = fminf(s->min_clearance, clearance);
 }
 
-/* On P ranks, before the step proper: the cuts every FM_RESORT_INTERVAL steps, then the agents
- * that left the slab to their new owners. */
+/* On P ranks, before the step proper: the cuts, then the agents that left the slab to their new
+ * owners. The cuts follow the agents every step: the morph's flock sweeps along the slab axis, and
+ * cuts kept for 8 steps let it pile into the slabs ahead (2 ranks at 3·10^5: 105 000 against
+ * 195 000 agents before each re-cut at equal cost per agent; 16 ranks of 10^6 on 16 cores: the
+ * busiest rank's work 2.04× the mean). A cut costs a 32 KiB allreduce. */
 static fm_status distribute(const fm_morph_model *m, fm_morph_state *s)
 {
-    if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_dist_rebalance(s);
+    fm_morph_dist_rebalance(s);
     return fm_morph_dist_migrate(m, s, &s->dist_error);
 }
 
