@@ -273,28 +273,29 @@ fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
 }
 
 /* The cache written in parallel (frame_share.h): every rank sends its agents whose ids lie in
- * another rank's share there, and takes those of its own share into its arrays with their phases
- * (s->gathered keeps them, for fm_flock_dist_release). The share's agents are then complete here. */
+ * another rank's share there (count, then fill, as the migration packs), and takes those of its own
+ * share into its arrays with their phases (s->gathered keeps them, for fm_flock_dist_release). The
+ * share's agents are then complete here. */
 fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
 {
-    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
-    int64_t *count = calloc((size_t)ranks + 1, sizeof *count), *at = calloc((size_t)ranks + 1, sizeof *at), mine = 0;
-    for (int64_t a = 0; count && a < s->n; a++)
-        if (is_mine(s->phase[a]) && (a < begin[me] || a >= begin[me + 1])) count[fm_frame_share_owner(begin, ranks, a)]++, mine++;
-    frame_record *send = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(mine, 1));
-    fm_status st = count && at && send ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
-    st = fm_dist_agree(s->dist, st, err);
-    for (int r = 0; st == FM_OK && r < ranks; r++) at[r + 1] = at[r] + count[r];
+    fm_slabs *d = s->slabs;
+    const int64_t mine_begin = begin[d->rank], mine_end = begin[d->rank + 1];
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    for (int64_t a = 0; a < s->n; a++)
+        if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end)) d->count[fm_frame_share_owner(begin, d->ranks, a)]++;
+    int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
+    if (at) fm_slabs_offsets(d, at);
+    frame_record *out = at ? fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
+    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     for (int64_t a = 0; st == FM_OK && a < s->n; a++)
-        if (is_mine(s->phase[a]) && (a < begin[me] || a >= begin[me + 1]))
-            pack_frame(s, a, send + at[fm_frame_share_owner(begin, ranks, a)]++);
-    void *recv = NULL;
+        if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end))
+            pack_frame(s, a, out + at[fm_frame_share_owner(begin, d->ranks, a)]++);
+    void *in;
     int64_t received = 0;
-    if (st == FM_OK) st = fm_dist_exchange(s->dist, send, count, sizeof(frame_record), &recv, &received, err);
-    s->slabs->totals.bytes_sent += mine * (int64_t)sizeof(frame_record);
-    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_frame(s, (const frame_record *)recv + k);
-    s->gathered = recv, s->gathered_count = received, s->gathered_size = sizeof(frame_record);
-    free(count), free(at), fm_free(send);
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(frame_record), &in, &received, err);
+    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_frame(s, (const frame_record *)in + k);
+    s->gathered = in, s->gathered_count = st == FM_OK ? received : 0, s->gathered_size = sizeof(frame_record);
+    free(at), fm_free(out);
     return st;
 }
 

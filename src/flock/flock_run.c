@@ -101,9 +101,7 @@ static fm_status measure_shared(flock_run *r, int64_t frame, fm_error *err)
     st = fm_flock_measure_frame_shared(r->m, s, r->share.begin, out, err);
     if (st == FM_OK && r->m->info.deforming && s->time >= r->m->path_time) { /* tracking lag */
         double mean, max;
-        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share, s->dist),
-                                 fm_frame_share_first(&r->share, s->dist) + fm_frame_share_count(&r->share, s->dist), s->dist,
-                                 &mean, &max);
+        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share), fm_frame_share_end(&r->share), s->dist, &mean, &max);
         s->lag_sum += root ? mean : 0;
         r->stats->tracking_frames++;
     }
@@ -116,7 +114,7 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
 {
     fm_flock_state *s = r->s;
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
-    const int64_t first = fm_frame_share_first(&r->share, s->dist), end = first + fm_frame_share_count(&r->share, s->dist);
+    const int64_t first = fm_frame_share_first(&r->share), end = fm_frame_share_end(&r->share);
     fm_status st = fm_flock_dist_share(s, r->share.begin, err);
     if (st == FM_OK) {
         fm_flock_frame_range(s, first, end, r->position, r->velocity, r->orientation, r->phase);
@@ -167,9 +165,9 @@ static void final_distance(flock_run *r, fm_flock_run_stats *stats)
     fm_flock_state *s = r->s;
     fm_error ignored = {0};
     if (!r->share.on) return fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
-    const int64_t first = fm_frame_share_first(&r->share, s->dist), end = first + fm_frame_share_count(&r->share, s->dist);
     if (fm_flock_dist_share(s, r->share.begin, &ignored) == FM_OK)
-        fm_flock_distance_blocks(s, first, end, s->dist, &stats->final_mean_distance, &stats->final_max_distance);
+        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share), fm_frame_share_end(&r->share), s->dist,
+                                 &stats->final_mean_distance, &stats->final_max_distance);
     else
         stats->final_mean_distance = stats->final_max_distance = NAN;
     fm_flock_dist_release(s);

@@ -245,7 +245,7 @@ fm_status fm_cache_writer_add_blocks(fm_cache_writer *w, const uint64_t *sizes, 
     const uint64_t count = cache_table_bytes(&w->l) / 8;
     uint64_t packed = 0;
     for (uint64_t b = 0; b < count; b++) {
-        const uint64_t bound = ZSTD_compressBound(cache_block_bytes(&w->l, b / (uint64_t)w->l.attr_count, (int)(b % (uint64_t)w->l.attr_count)));
+        const uint64_t bound = w->enc.bound_at[b + 1] - w->enc.bound_at[b]; /* the writer's encoder holds every piece */
         if (sizes[b] > bound)
             return fm_fail(err, FM_ERR_INTERNAL, "%s: frame %u: block %llu of %llu bytes exceeds its bound %llu", w->out.path,
                            w->frames, (unsigned long long)b, (unsigned long long)sizes[b], (unsigned long long)bound);

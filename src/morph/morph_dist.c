@@ -284,32 +284,31 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     return FM_OK;
 }
 
-/* The other ranks' agents of this rank's share, in rank order (*recv), from every rank's store. */
+/* The other ranks' agents of this rank's share, in rank order (*recv), from every rank's store
+ * (count, then fill, as the migration packs). */
 static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *verts, void **recv,
                                 int64_t *received, fm_error *err)
 {
-    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
-    int64_t *count = calloc((size_t)ranks + 1, sizeof *count), *at = calloc((size_t)ranks + 1, sizeof *at);
-    int32_t *dest = fm_alloc(sizeof(int32_t) * (size_t)FM_MAX(s->active_end, 1));
-    frame_record *send = fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(s->active_end, 1));
-    fm_status st = count && at && dest && send ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
-    st = fm_dist_agree(s->dist, st, err);
-    for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
-        dest[a] = fm_frame_share_owner(begin, ranks, s->id[a]);
-        count[dest[a]] += dest[a] != me; /* its own agents are in place already */
+    fm_slabs *d = s->slabs;
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    for (int64_t a = 0; a < s->active_end; a++) {
+        const int r = fm_frame_share_owner(begin, d->ranks, s->id[a]);
+        d->count[r] += r != d->rank; /* its own agents are in place already */
     }
-    for (int r = 0; st == FM_OK && r < ranks; r++) at[r + 1] = at[r] + count[r];
+    int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
+    if (at) fm_slabs_offsets(d, at);
+    frame_record *out = at ? fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
+    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
-        if (dest[a] == me) continue;
-        frame_record *r = send + at[dest[a]]++;
-        r->id = s->id[a], r->phase = s->phase[a];
-        memset(r->pad, 0, sizeof r->pad);
-        memcpy(r->v, verts + 12 * (size_t)s->id[a], sizeof r->v);
+        const int r = fm_frame_share_owner(begin, d->ranks, s->id[a]);
+        if (r == d->rank) continue;
+        frame_record *f = out + at[r]++;
+        f->id = s->id[a], f->phase = s->phase[a];
+        memset(f->pad, 0, sizeof f->pad);
+        memcpy(f->v, verts + 12 * (size_t)s->id[a], sizeof f->v);
     }
-    if (st == FM_OK) st = fm_dist_exchange(s->dist, send, count, sizeof(frame_record), recv, received, err);
-    if (st == FM_OK)
-        for (int r = 0; r < ranks; r++) s->slabs->totals.bytes_sent += count[r] * (int64_t)sizeof(frame_record);
-    free(count), free(at), fm_free(dest), fm_free(send);
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(frame_record), recv, received, err);
+    free(at), fm_free(out);
     return st;
 }
 

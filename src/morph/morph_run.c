@@ -133,16 +133,30 @@ double fm_morph_vertex_clearance(const fm_morph_model *m, const float *verts, si
     return exact;
 }
 
-/* Frame k: the tet vertices (and phases), checked, written to the cache, with the inverted-tet count
- * and the vertices' clearance. */
+/* Frame k's tets first … end − 1 (verts by id) checked, with the inverted-tet count and the
+ * vertices' clearance. On P ranks (d), each rank's share: the counts summed, the clearance the
+ * least, the runaway message the lowest rank's (the first agent in id order, as on one process). */
+static fm_status check_frame(const fm_morph_model *m, const fm_dist *d, int64_t k, const float *verts, int64_t first,
+                             int64_t end, fm_morph_run_stats *stats, fm_error *err)
+{
+    const float *mine = verts + 12 * (size_t)first;
+    fm_status st = fm_frame_check_runaway_from(mine, 12, first, end - first, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
+    int64_t inverted = st == FM_OK ? fm_count_inverted_tets(mine, (size_t)(end - first)) : 0;
+    double nearest = st == FM_OK ? -fm_morph_vertex_clearance(m, mine, (size_t)(end - first)) : -INFINITY;
+    if ((st = fm_dist_agree(d, st, err)) != FM_OK) return st;
+    fm_dist_sum_i64(d, &inverted, 1);
+    fm_dist_max_f64(d, &nearest, 1); /* the least clearance: exact in any order */
+    stats->inverted_tet_frames += inverted;
+    stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, -nearest);
+    return FM_OK;
+}
+
+/* Frame k: the tet vertices (and phases), checked, written to the cache. */
 static fm_status check_and_write(const fm_morph_model *m, const fm_morph_state *s, int64_t k, const float *verts,
                                  const uint8_t *phases, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
-    fm_status st = fm_frame_check_runaway(verts, 12, s->n, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
-    if (st != FM_OK) return st;
-    stats->inverted_tet_frames += fm_count_inverted_tets(verts, (size_t)s->n);
-    stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, fm_morph_vertex_clearance(m, verts, (size_t)s->n));
-    return cache ? cache_frame(cache, verts, phases, err) : FM_OK;
+    fm_status st = check_frame(m, NULL, k, verts, 0, s->n, stats, err);
+    return st == FM_OK && cache ? cache_frame(cache, verts, phases, err) : st;
 }
 
 /* On P ranks: the frame gathered on rank 0, which checks and writes it; every rank returns the
@@ -160,25 +174,15 @@ static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int
 }
 
 /* On P ranks with the cache written in parallel: each rank checks and encodes its share of the
- * frame (the checks' counts summed, the clearance the least), rank 0 appends the blocks. The
- * runaway check's message is the lowest rank's: the first agent in id order, as on one process. */
+ * frame, rank 0 appends the blocks. */
 static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts,
                                    uint8_t *phases, fm_frame_share *share, fm_cache_writer *cache,
                                    fm_morph_run_stats *stats, fm_error *err)
 {
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
-    fm_status st = fm_morph_dist_frame_share(m, s, share->begin, verts, phases, err);
-    const int64_t first = fm_frame_share_first(share, s->dist), count = fm_frame_share_count(share, s->dist);
-    const float *mine = verts + 12 * (size_t)first;
-    if (st == FM_OK)
-        st = fm_frame_check_runaway_from(mine, 12, first, count, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
-    int64_t inverted = st == FM_OK ? fm_count_inverted_tets(mine, (size_t)count) : 0;
-    double nearest = st == FM_OK ? -fm_morph_vertex_clearance(m, mine, (size_t)count) : -INFINITY;
-    if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
-    fm_dist_sum_i64(s->dist, &inverted, 1);
-    fm_dist_max_f64(s->dist, &nearest, 1); /* the least clearance: exact in any order */
-    stats->inverted_tet_frames += inverted;
-    stats->min_vertex_clearance = fmin(stats->min_vertex_clearance, -nearest);
+    fm_status st = fm_morph_dist_frame_share(m, s, share->begin, verts, phases, err); /* agreed by every rank */
+    if (st == FM_OK) st = check_frame(m, s->dist, k, verts, fm_frame_share_first(share), fm_frame_share_end(share), stats, err);
+    if (st != FM_OK) return st;
     const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_TET_VERTICES] = verts, [FM_ATTR_PHASE] = phases};
     return fm_frame_share_write(share, s->dist, cache, by_kind, (uint32_t)k, &s->slabs->totals.bytes_sent, err);
 }

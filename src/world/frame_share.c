@@ -5,30 +5,31 @@
 #include <string.h>
 
 /* Rank 0 hands every rank its share of the resumed writer's last stored frame (the words delta
- * goes on from): attribute after attribute, as the share's encoder keeps them. */
+ * goes on from): attribute after attribute, as the share's encoder keeps them. A record is one
+ * agent's bytes of every attribute, so MPI's int counts reach 2^31 agents, not bytes. */
 static fm_status hand_out_prev(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, fm_error *err)
 {
     const cache_layout *l = &f->share.enc.l;
     const int ranks = fm_dist_size(d), root = fm_dist_rank(d) == 0;
+    size_t record = 0;
+    for (int i = 0; i < l->attr_count; i++) record += l->attrs[i]->bytes_per_agent;
     int64_t *count = calloc((size_t)ranks, sizeof *count);
-    unsigned char *send = NULL;
-    fm_status st = count ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory resuming the cache");
-    if (st == FM_OK && root) {
-        send = fm_alloc(FM_MAX(cache_frame_bytes(l), 1));
-        if (!send) st = fm_fail(err, FM_ERR_MEMORY, "out of memory resuming the cache");
-        size_t at = 0;
-        for (int r = 0; st == FM_OK && r < ranks; r++)
-            for (int i = 0; i < l->attr_count; i++) {
-                const size_t per = l->attrs[i]->bytes_per_agent, bytes = per * (size_t)(f->begin[r + 1] - f->begin[r]);
-                memcpy(send + at, fm_cache_writer_prev(cache, i) + per * (size_t)f->begin[r], bytes);
-                at += bytes, count[r] += (int64_t)bytes;
-            }
+    unsigned char *send = root ? fm_alloc(FM_MAX(cache_frame_bytes(l), 1)) : NULL;
+    fm_status st = count && (send || !root) ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory resuming the cache");
+    size_t at = 0;
+    for (int r = 0; st == FM_OK && root && r < ranks; r++) {
+        count[r] = f->begin[r + 1] - f->begin[r];
+        for (int i = 0; i < l->attr_count; i++) {
+            const size_t per = l->attrs[i]->bytes_per_agent, bytes = per * (size_t)count[r];
+            memcpy(send + at, fm_cache_writer_prev(cache, i) + per * (size_t)f->begin[r], bytes);
+            at += bytes;
+        }
     }
     st = fm_dist_agree(d, st, err);
     void *mine = NULL;
     int64_t got = 0;
-    if (st == FM_OK) st = fm_dist_exchange(d, send, count, 1, &mine, &got, err);
-    if (st == FM_OK && got > 0) memcpy(cache_encoder_prev(&f->share.enc, 0), mine, (size_t)got); /* the attributes follow one another */
+    if (st == FM_OK) st = fm_dist_exchange(d, send, count, record, &mine, &got, err);
+    if (st == FM_OK && got > 0) memcpy(cache_encoder_prev(&f->share.enc, 0), mine, record * (size_t)got); /* the attributes follow one another */
     fm_free(send), fm_free(mine), free(count);
     return st;
 }
@@ -40,16 +41,14 @@ fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_wri
     if (fm_dist_size(d) < 2) return FM_OK;
     unsigned char header[CACHE_MAX_HEADER] = {0};
     uint32_t header_bytes = 0;
-    int delta = 0;
     if (fm_dist_rank(d) == 0 && cache) {
         const cache_layout *l = fm_cache_writer_layout(cache);
         cache_header_encode(l, header);
-        header_bytes = l->header_bytes, delta = l->opts.delta;
+        header_bytes = l->header_bytes;
     }
     fm_dist_bcast(d, &header_bytes, sizeof header_bytes, 0);
     if (header_bytes == 0) return FM_OK;
     fm_dist_bcast(d, header, header_bytes, 0);
-    fm_dist_bcast(d, &delta, sizeof delta, 0);
     const int ranks = fm_dist_size(d);
     f->begin = malloc(sizeof *f->begin * ((size_t)ranks + 1));
     fm_status st = f->begin ? cache_share_init(&f->share, header, header_bytes, fm_dist_rank(d), ranks, threads, err)
@@ -57,7 +56,7 @@ fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_wri
     if ((st = fm_dist_agree(d, st, err)) != FM_OK) return fm_frame_share_free(f), st;
     for (int r = 0; r <= ranks; r++) f->begin[r] = (int64_t)cache_share_agent_begin(&f->share.enc.l, r, ranks);
     f->on = 1;
-    if (resumed && delta && (st = hand_out_prev(f, d, cache, err)) != FM_OK) fm_frame_share_free(f);
+    if (resumed && f->share.enc.l.opts.delta && (st = hand_out_prev(f, d, cache, err)) != FM_OK) fm_frame_share_free(f);
     return st;
 }
 
@@ -79,12 +78,9 @@ int fm_frame_share_owner(const int64_t *begin, int ranks, int64_t id)
     return lo;
 }
 
-int64_t fm_frame_share_first(const fm_frame_share *f, const fm_dist *d) { return f->begin[fm_dist_rank(d)]; }
+int64_t fm_frame_share_first(const fm_frame_share *f) { return (int64_t)f->share.enc.agent_begin; }
 
-int64_t fm_frame_share_count(const fm_frame_share *f, const fm_dist *d)
-{
-    return f->begin[fm_dist_rank(d) + 1] - f->begin[fm_dist_rank(d)];
-}
+int64_t fm_frame_share_end(const fm_frame_share *f) { return (int64_t)f->share.enc.agent_end; }
 
 fm_status fm_frame_share_write(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, const void *const *by_kind,
                                uint32_t k, int64_t *sent, fm_error *err)

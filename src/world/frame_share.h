@@ -25,9 +25,9 @@ fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_wri
 void fm_frame_share_free(fm_frame_share *f);
 /* The rank whose share (begin[r] <= id < begin[r + 1], P + 1 bounds) holds `id`. */
 int fm_frame_share_owner(const int64_t *begin, int ranks, int64_t id);
-/* This rank's first agent and its count. */
-int64_t fm_frame_share_first(const fm_frame_share *f, const fm_dist *d);
-int64_t fm_frame_share_count(const fm_frame_share *f, const fm_dist *d);
+/* This rank's share of the ids: first … end − 1 (its encoder's agents). */
+int64_t fm_frame_share_first(const fm_frame_share *f);
+int64_t fm_frame_share_end(const fm_frame_share *f);
 /* Frame k, the rank's share complete in id-indexed arrays (by_kind, as cache_share_encode takes
  * them): encoded here, appended by rank 0's writer. Every rank returns the same status; *sent
  * adds the bytes this rank sent. */
