@@ -59,6 +59,7 @@ typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
     long checkpoint_every; /* -1: by wall time (the default) */
+    long stop_after_frame; /* -1: none */
     double log_every;      /* seconds between the plain progress lines when stderr is not a terminal */
     char start_time[32];   /* UTC, ISO 8601, when the command started (cli_utc_now) */
     const char *sets[FM_MAX_OVERRIDES]; /* --set KEY=VALUE, in order */
@@ -146,6 +147,8 @@ int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def);
  * --resume and prints how to resume; returns 128 + the signal. */
 /* A stop of a run that keeps no checkpoint (a shot): the partial cache kept, 128 + the signal. */
 int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames);
+/* After a planned stop (--stop-after-frame): the partial cache kept, how to continue; returns 0. */
+int cli_report_stopped_as_asked(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
 int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
 /* After a failed run: with a checkpoint, keeps it and the partial cache and prints how to resume
  * once the cause is fixed; without, as cli_fail_keeping_partial_cache. Returns the exit status. */

@@ -483,6 +483,15 @@ int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int
     return 128 + cli_stop_signal;
 }
 
+int cli_report_stopped_as_asked(const cli_run_options *o, fm_cache_writer *cache, int64_t frames)
+{
+    fm_cache_writer_close_partial(cache);
+    fprintf(stderr, "flockmorph: stopped after frame %lld (--stop-after-frame); checkpoint written; continue with: ",
+            (long long)frames - 1);
+    print_resume_command(o);
+    return 0;
+}
+
 int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames)
 {
     fm_cache_writer_close_partial(cache);

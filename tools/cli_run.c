@@ -18,7 +18,7 @@
 
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
-    "                      [--set KEY=VALUE ...] [--wedge-file WEDGES.json [--wedge I]]\n"
+    "                      [--stop-after-frame F] [--set KEY=VALUE ...] [--wedge-file WEDGES.json [--wedge I]]\n"
     "\n"
     "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
     "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
@@ -36,6 +36,8 @@ static const char *const USAGE_RUN =
     "                        interrupted (default: every 60 s of wall time)\n"
     "  --resume              continue the run saved in OUTDIR/checkpoint.fmck (same scene;\n"
     "                        either mode)\n"
+    "  --stop-after-frame F  write frames up to F, save the checkpoint and exit 0 (a run split\n"
+    "                        into segments under a farm's time limit: the next one --resume's)\n"
     "  --set KEY=VALUE       change the scene: KEY dotted (mde.d_min, obstacles.meshes.0.scale),\n"
     "                        VALUE JSON (0.05, true, [1, 2, 3]) or else a string; checked as the\n"
     "                        file is. Repeatable; applied after the wedge's\n"
@@ -47,7 +49,7 @@ static const char *const USAGE_RUN =
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n"
     "\n"
-    "Under MPI, 'mpirun -np P flockmorph run ...' runs the tetra morph on P ranks of --threads N\n"
+    "Under MPI, 'mpirun -np P flockmorph run ...' runs either mode on P ranks of --threads N\n"
     "threads each, with the same cache bytes as one process (docs/scale-out.md).\n";
 
 /* --set KEY=VALUE: a key before the first '=' (what it names is the scene loader's to check). */
@@ -63,6 +65,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
 {
     memset(o, 0, sizeof *o);
     o->checkpoint_every = -1;
+    o->stop_after_frame = -1;
     o->log_every = 10;
     cli_utc_now(o->start_time, sizeof o->start_time);
     o->wedge = -1;
@@ -77,6 +80,9 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
         } else if (!strcmp(a, "--checkpoint-every") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 0, 2000000000L, &o->checkpoint_every))
                 return cli_usage_error(USAGE_RUN, "--checkpoint-every wants a whole number of frames >= 0, not '%s'", argv[i]);
+        } else if (!strcmp(a, "--stop-after-frame") && i + 1 < argc) {
+            if (cli_parse_int(argv[++i], 0, 2000000000L, &o->stop_after_frame))
+                return cli_usage_error(USAGE_RUN, "--stop-after-frame wants a frame number >= 0, not '%s'", argv[i]);
         } else if (!strcmp(a, "--set") && i + 1 < argc) {
             if (parse_set(argv[++i], o)) return cli_usage_error(USAGE_RUN, "--set wants KEY=VALUE (mde.d_min=0.05) and at most 64 of them, not '%s'", argv[i]);
         } else if (!strcmp(a, "--wedge-file") && i + 1 < argc) o->wedge_file = argv[++i];
@@ -154,6 +160,7 @@ static fm_run_control run_control(const cli_run_options *o, const cli_outputs *f
     c.checkpoint_every = cli_checkpoint_every(o);
     c.checkpoint_seconds = cli_checkpoint_seconds(o);
     c.stop = &cli_stop_signal;
+    c.stop_frames = o->stop_after_frame + 1; /* 0 without one */
     return c;
 }
 
@@ -180,8 +187,9 @@ static int open_run(const cli_mode *mode, void *run, const cli_run_options *o, c
 
 /* A rank but 0 after the run: the exit status rank 0 gives for the same outcome (the ranks agreed
  * on it), without the messages. */
-static int rank_exit_status(fm_status st)
+static int rank_exit_status(fm_status st, int planned)
 {
+    if (planned) return 0;
     if (st == FM_STOPPED) return 128 + (cli_stop_signal ? cli_stop_signal : SIGTERM);
     return (int)st;
 }
@@ -233,8 +241,10 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     fm_status st = mode->simulate(run, cache, &control, &err);
     cli_catch_stop_signals(0);
     if (progress.show == 1) fprintf(stderr, "\n");
-    if (!cli_is_root()) return rank_exit_status(st);
+    const int planned = st == FM_STOPPED && !cli_stop_signal; /* --stop-after-frame, not a signal */
+    if (!cli_is_root()) return rank_exit_status(st, planned);
     const fm_run_totals *t = common->totals;
+    if (planned) return cli_report_stopped_as_asked(o, cache, t->frames);
     if (st == FM_STOPPED && !mode->load_checkpoint) return cli_report_stopped_without_checkpoint(cache, t->frames);
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
@@ -283,9 +293,9 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST, FM_OUTPUT_OBSTACLES};
-    if (def->group_count > 0 && (o->resume || o->checkpoint_every >= 0))
+    if (def->group_count > 0 && (o->resume || o->checkpoint_every >= 0 || o->stop_after_frame >= 0))
         return cli_usage_error(USAGE_RUN, "a scene with groups keeps no checkpoint in this version: leave out %s",
-                               o->resume ? "--resume" : "--checkpoint-every");
+                               o->resume ? "--resume" : o->checkpoint_every >= 0 ? "--checkpoint-every" : "--stop-after-frame");
     int rc = cli_check_json_path("-o", o->outdir);
     if (!rc) rc = cli_make_outdir(o->outdir, outputs, 4);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */

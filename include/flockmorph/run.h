@@ -53,6 +53,9 @@ typedef struct fm_run_control {
                                         run checkpoints there (if it takes checkpoints) and returns
                                         FM_STOPPED (unless that frame already ends the run), every
                                         frame so far handed to the cache and the stats filled in */
+    int64_t stop_frames;             /* 0, or a planned stop: once this many frames are written (frame
+                                        0 included) the run stops as for the stop flag, unless it
+                                        ended first (a farm's job split into segments) */
 } fm_run_control;
 
 /* No checkpoints, no stop flag, a new run. */

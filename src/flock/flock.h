@@ -158,6 +158,10 @@ fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error 
 /* s->member: this rank's own agents in flight (its slab's), not the share's agents it received. */
 void fm_flock_dist_own_in_flight(fm_flock_state *s);
 void fm_flock_dist_release(fm_flock_state *s);
+/* Checkpoints on P ranks: each rank writes the agents of its share of the pieces, rank 0 the rest. */
+fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
+                                    const fm_flock_run_stats *stats, const fm_ckpt_part *parts, int part_count,
+                                    fm_error *err);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, fm_error *err);
 

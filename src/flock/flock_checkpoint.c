@@ -65,13 +65,21 @@ static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *
                            .run_stats = (void *)stats, .per_frame = (double **)&stats->measures,
                            .per_frame_width = FM_FLOCK_MEASURES, .def = &m->def, .model_hash = flock_model_hash(m),
                            .model_what = "the samples, the path (or the obstacles)", .check = check_state,
-                           .frames = stats->run.frames};
+                           .frames = stats->run.frames, .piece_agents = m->def.cache_piece_agents};
 }
 
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
                                    const fm_flock_run_stats *stats, fm_error *err)
 {
     const fm_ckpt_store c = flock_store(m, s, stats);
+    return fm_ckpt_save(path, &c, err);
+}
+
+/* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
+fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats,
+                                 const fm_ckpt_part *parts, int part_count, fm_error *err)
+{
+    const fm_ckpt_store c = fm_ckpt_on_ranks(flock_store(m, s, stats), s->dist, parts, part_count);
     return fm_ckpt_save(path, &c, err);
 }
 

@@ -1,5 +1,5 @@
-/* The shape flock on P ranks (docs/scale-out.md): slabs, migration, the boids' halo, the frame and
- * checkpoint gathers.
+/* The shape flock on P ranks (docs/scale-out.md): slabs, migration, the boids' halo, the frame's
+ * and the checkpoint's shares.
  *
  * Every rank keeps the one-process store (arrays indexed by agent id, as flock_state.c lays them
  * out) and computes only the agents whose position lies in its slab (slabs.h); an agent of another
@@ -16,8 +16,10 @@
  *     neighbours in the same order as on one process: the same bits;
  *   - the rest is per agent (leaders, fields, the Kalman filter, the moves), replicated (the path,
  *     the shared covariance, the target), or an integer sum (the counts).
- * At a frame (and a checkpoint) rank 0 receives every other rank's agents into its arrays, so the
- * frame, its measures and the checkpoint are one process's; then it marks them elsewhere again. */
+ * At a frame and a checkpoint each rank receives the agents of its share of the ids into its arrays
+ * (or, for a frame whose pieces are not whole blocks of measures, rank 0 receives every agent), so
+ * its share of the frame, the measures and the checkpoint is one process's; then it marks them
+ * elsewhere again. */
 #include "flock.h"
 #include "frame_share.h"
 
@@ -272,11 +274,13 @@ fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
     return gather(s, sizeof(frame_record), pack_frame, unpack_frame, err);
 }
 
-/* The cache written in parallel (frame_share.h): every rank sends its agents whose ids lie in
- * another rank's share there (count, then fill, as the migration packs), and takes those of its own
- * share into its arrays with their phases (s->gathered keeps them, for fm_flock_dist_release). The
- * share's agents are then complete here. */
-fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
+/* Every rank sends its agents whose ids lie in another rank's share (begin[r] … begin[r + 1] − 1)
+ * there, as records of `size` bytes (count, then fill, as the migration packs), and takes those of
+ * its own share into its arrays with their phases (s->gathered keeps them, for
+ * fm_flock_dist_release). The share's agents are then complete here. */
+static fm_status share(fm_flock_state *s, const int64_t *begin, size_t size,
+                       void (*put)(const fm_flock_state *, int64_t, void *), void (*take)(fm_flock_state *, const void *),
+                       fm_error *err)
 {
     fm_slabs *d = s->slabs;
     const int64_t mine_begin = begin[d->rank], mine_end = begin[d->rank + 1];
@@ -285,18 +289,24 @@ fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error 
         if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end)) d->count[fm_frame_share_owner(begin, d->ranks, a)]++;
     int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
     if (at) fm_slabs_offsets(d, at);
-    frame_record *out = at ? fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
+    char *out = at ? fm_alloc(size * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
     fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     for (int64_t a = 0; st == FM_OK && a < s->n; a++)
         if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end))
-            pack_frame(s, a, out + at[fm_frame_share_owner(begin, d->ranks, a)]++);
+            put(s, a, out + size * (size_t)at[fm_frame_share_owner(begin, d->ranks, a)]++);
     void *in;
     int64_t received = 0;
-    st = fm_slabs_send(d, s->dist, st, out, sizeof(frame_record), &in, &received, err);
-    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_frame(s, (const frame_record *)in + k);
-    s->gathered = in, s->gathered_count = st == FM_OK ? received : 0, s->gathered_size = sizeof(frame_record);
+    st = fm_slabs_send(d, s->dist, st, out, size, &in, &received, err);
+    for (int64_t k = 0; st == FM_OK && k < received; k++) take(s, (const char *)in + size * (size_t)k);
+    s->gathered = in, s->gathered_count = st == FM_OK ? received : 0, s->gathered_size = size;
     free(at), fm_free(out);
     return st;
+}
+
+/* The cache written in parallel (frame_share.h): this rank's share of the frame's agents. */
+fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
+{
+    return share(s, begin, sizeof(frame_record), pack_frame, unpack_frame, err);
 }
 
 void fm_flock_dist_own_in_flight(fm_flock_state *s)
@@ -320,18 +330,23 @@ void fm_flock_dist_release(fm_flock_state *s)
     s->grid_current = 0;
 }
 
-/* On P ranks: rank 0 writes the checkpoint of one process holding every rank's agents, so any P,
- * or one process, resumes it. */
+/* On P ranks: every rank takes the agents of its share of the pieces (fm_ckpt_share: the ids
+ * begin[r] … begin[r + 1] − 1) with all that a checkpoint saves of them, and writes them at their
+ * place in one process's file, rank 0 the rest; any P, or one process, resumes it, and the file is
+ * one process's, byte for byte. */
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, fm_error *err)
 {
-    fm_status st = gather(s, sizeof(agent_record), pack, unpack, err);
-    if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
-        const fm_dist *dist = s->dist;
-        s->dist = NULL; /* the store is one process's now */
-        st = fm_flock_checkpoint_save(path, m, s, stats, err);
-        s->dist = dist;
-    }
+    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
+    int64_t *begin = malloc(sizeof(int64_t) * ((size_t)ranks + 1));
+    fm_status st = fm_dist_agree(s->dist, begin ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory"), err);
+    if (st != FM_OK) return free(begin), st;
+    for (int r = 0; r < ranks; r++) begin[r] = fm_ckpt_share(s->n, m->def.cache_piece_agents, r, ranks).first;
+    begin[ranks] = s->n;
+    st = share(s, begin, sizeof(agent_record), pack, unpack, err);
+    const fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, me, ranks);
+    if (st == FM_OK) st = fm_flock_checkpoint_write(path, m, s, stats, &part, 1, err);
     fm_flock_dist_release(s);
+    free(begin);
     return fm_dist_agree(s->dist, st, err);
 }

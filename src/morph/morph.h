@@ -152,8 +152,11 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
 void fm_morph_dist_rebalance(fm_morph_state *s);
 void fm_morph_dist_record_load(fm_morph_state *s);
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds); /* the step's own work, for the balance */
-/* Checkpoints on P ranks: one file of one process's layout, written by rank 0 (any P resumes it);
- * after each rank loaded one, adopt keeps the rank's share. */
+/* Checkpoints on P ranks: one file of one process's layout, written by every rank at once (any P
+ * resumes it); after each rank loaded one, adopt keeps the rank's share. */
+fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s,
+                                    const fm_morph_run_stats *stats, const fm_ckpt_part *parts, int part_count,
+                                    fm_error *err);
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
                                         const fm_morph_run_stats *stats, fm_error *err);
 void fm_morph_dist_adopt(fm_morph_state *s);

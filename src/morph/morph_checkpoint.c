@@ -62,13 +62,21 @@ static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *
                            .per_frame = (double **)&stats->mde_fraction, .per_frame_width = 1, .def = &m->def,
                            .model_hash = model_hash(m),
                            .model_what = "the tets after TetGen and subdivision (or the obstacles)",
-                           .check = check_state, .frames = stats->run.frames};
+                           .check = check_state, .frames = stats->run.frames, .piece_agents = m->def.cache_piece_agents};
 }
 
 fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
                              fm_error *err)
 {
     const fm_ckpt_store c = tetra_store(m, s, stats);
+    return fm_ckpt_save(path, &c, err);
+}
+
+/* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
+fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
+                                 const fm_ckpt_part *parts, int part_count, fm_error *err)
+{
+    const fm_ckpt_store c = fm_ckpt_on_ranks(tetra_store(m, s, stats), s->dist, parts, part_count);
     return fm_ckpt_save(path, &c, err);
 }
 

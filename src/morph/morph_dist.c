@@ -337,47 +337,50 @@ fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, 
     return FM_OK;
 }
 
-/* The one-process store of the whole run on rank 0, from every rank's agents (in `all`): every
- * launched agent in [0, launched), in rank order, then the waiting ones in id order, as
- * fm_morph_state_create and the step leave them. */
-static void assemble_store(const fm_morph_model *m, fm_morph_state *s, const agent_record *all, int64_t total)
+/* The slots this rank's agents take in the one-process store of a checkpoint: launched agents
+ * [0, launched) in rank order, rank r's after the lower ranks' (*before of them). */
+static fm_status slots_before(const fm_morph_state *s, int64_t *before, fm_error *err)
 {
-    for (int64_t k = 0; k < total; k++) unpack_agent(m, s, all + k, k);
-    for (int64_t i = s->launched; i < s->n; i++) {
-        const agent_record r = rest_record(m, i, FM_PHASE_WAITING);
-        unpack_agent(m, s, &r, i);
+    const int32_t mine = (int32_t)s->active_end;
+    int32_t *counts = NULL;
+    int64_t ranks = 0, total = 0;
+    *before = 0;
+    fm_status st = fm_dist_allgather_i32(s->dist, &mine, 1, &counts, &ranks, err);
+    for (int64_t r = 0; st == FM_OK && r < ranks; r++) {
+        if (r < fm_dist_rank(s->dist)) *before += counts[r];
+        total += counts[r];
     }
-    s->active_begin = 0, s->active_end = s->launched;
+    fm_free(counts);
+    if (st == FM_OK && total != s->launched)
+        st = fm_fail(err, FM_ERR_INTERNAL, "checkpoint: the ranks hold %lld agents, %lld were launched", (long long)total,
+                     (long long)s->launched);
+    return fm_dist_agree(s->dist, st, err);
 }
 
-/* On P ranks: rank 0 writes the checkpoint of one process (morph_checkpoint.c) holding every
- * rank's agents, so any P, or one process, resumes it; rank 0's own store is put back after. */
+/* On P ranks: every rank writes its part of one process's checkpoint (morph_checkpoint.c) at once:
+ * its agents at the slots slots_before gives, and its share of the waiting agents [launched, n),
+ * in id order, built as rest records in the slots after its own (free at a frame boundary: the
+ * halo is rebuilt every step). Rank 0 writes the counters, with the active range one process has;
+ * any P, or one process, resumes the file. */
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
                                         const fm_morph_run_stats *stats, fm_error *err)
 {
     const int64_t mine = s->active_end, begin = s->active_begin;
-    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(mine, 1));
-    fm_status st = fm_dist_agree(s->dist, out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a checkpoint"), err);
-    void *all = NULL;
-    int64_t total = 0;
-    for (int64_t a = 0; st == FM_OK && a < mine; a++) pack_agent(s, a, out + a);
-    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, sizeof(agent_record), &all, &total, err);
-    if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
-        if (total != s->launched)
-            st = fm_fail(err, FM_ERR_INTERNAL, "checkpoint: the ranks hold %lld agents, %lld were launched",
-                         (long long)total, (long long)s->launched);
-        if (st == FM_OK) {
-            const fm_dist *dist = s->dist;
-            assemble_store(m, s, all, total);
-            s->dist = NULL; /* the store is one process's now */
-            st = fm_morph_checkpoint_save(path, m, s, stats, err);
-            s->dist = dist;
-            for (int64_t a = 0; a < mine; a++) unpack_agent(m, s, (const agent_record *)all + a, a); /* rank 0's first */
-            s->active_begin = begin, s->active_end = mine;
-        }
+    int64_t before = 0;
+    fm_status st = slots_before(s, &before, err);
+    if (st != FM_OK) return st;
+    const int me = fm_dist_rank(s->dist), ranks = fm_dist_size(s->dist);
+    const int64_t waiting = s->n - s->launched;
+    const int64_t from = s->launched + waiting * me / ranks, to = s->launched + waiting * (me + 1) / ranks;
+    for (int64_t i = from; i < to; i++) {
+        const agent_record r = rest_record(m, i, FM_PHASE_WAITING);
+        unpack_agent(m, s, &r, mine + (i - from));
     }
-    fm_free(out), fm_free(all);
-    return fm_dist_agree(s->dist, st, err);
+    const fm_ckpt_part parts[2] = {{before, mine, 0}, {from, to - from, mine}};
+    s->active_begin = 0, s->active_end = s->launched; /* one process's, for rank 0's counters */
+    st = fm_morph_checkpoint_write(path, m, s, stats, parts, 2, err);
+    s->active_begin = begin, s->active_end = mine;
+    return st;
 }
 
 /* After every rank loaded the same one-process checkpoint: the cuts at the quantiles of its

@@ -5,6 +5,7 @@
 #ifndef FM_CHECKPOINT_H
 #define FM_CHECKPOINT_H
 
+#include "dist.h"
 #include "obstacles.h"
 
 #include <stddef.h>
@@ -23,8 +24,14 @@ typedef struct fm_store_member {
 /* A scalar member of struct `type`. */
 #define FM_STORE_SCALAR(type, member) {#member, offsetof(type, member), sizeof(((type *)0)->member), 0}
 
+/* Agents first … first + count − 1 of the file, taken from element `at` of the store's arrays. */
+typedef struct fm_ckpt_part {
+    int64_t first, count, at;
+} fm_ckpt_part;
+
 /* What one mode's checkpoint holds besides its header: the run's statistics (the scalars of the
- * `stats` table, then frames - 1 doubles per frame, if any) and the store's members. */
+ * `stats` table, then frames - 1 doubles per frame, if any) and the store's members. On P ranks
+ * each rank writes the agents of its parts, rank 0 everything else (its statistics and scalars). */
 typedef struct fm_ckpt_store {
     const fm_store_member *members;
     int member_count;
@@ -40,10 +47,20 @@ typedef struct fm_ckpt_store {
     const char *model_what;       /* what differs when the model hash does not match, for the message */
     const char *(*check)(const void *state); /* after a load: NULL, or what is out of range */
     int64_t frames;               /* frames written, frame 0 included */
+    int64_t piece_agents;         /* agents per checksummed piece (output.piece_agents) */
+    const fm_dist *dist;          /* P ranks (every rank calls fm_ckpt_save), or NULL */
+    fm_ckpt_part parts[2];        /* this rank's agents; with part_count 0, all n from element 0 */
+    int part_count;
 } fm_ckpt_store;
 
-/* Writes c to `path` (as PATH.partial, fsync'ed, then renamed; the directory synced). */
+/* Writes c to `path` (as PATH.partial, fsync'ed, then renamed; the directory synced). Collective
+ * on c->dist's ranks: each writes its parts' bytes at their offsets (MPI-IO), rank 0 the rest. */
 fm_status fm_ckpt_save(const char *path, const fm_ckpt_store *c, fm_error *err);
+/* c written by P ranks: this rank's parts (at most 2). */
+fm_ckpt_store fm_ckpt_on_ranks(fm_ckpt_store c, const fm_dist *dist, const fm_ckpt_part *parts, int part_count);
+/* Rank `rank`'s share of n agents cut into pieces of `piece`: the pieces [J r / P, J (r + 1) / P)
+ * (as the cache's frames are shared), one part from element `first` of id-indexed arrays. */
+fm_ckpt_part fm_ckpt_share(int64_t n, int64_t piece, int rank, int ranks);
 /* Restores c's state and statistics (the state fresh from the mode's create) after the checks of
  * fm_ckpt_check, a check of the agent count and model hash, and c->check; *frames gets the frame
  * count the file states. */

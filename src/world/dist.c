@@ -2,9 +2,17 @@
 #define _POSIX_C_SOURCE 200809L /* setenv */
 #include "dist.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
+
+#ifdef FM_HAVE_MPI
+#include <mpi.h>
+#endif
 
 /* The P = 1 gather: a copy of this rank's records. */
 static fm_status copy_records(const void *mine, int64_t count, size_t size, void **all, int64_t *total, fm_error *err)
@@ -18,7 +26,6 @@ static fm_status copy_records(const void *mine, int64_t count, size_t size, void
 }
 
 #ifdef FM_HAVE_MPI
-#include <mpi.h>
 
 struct fm_dist {
     MPI_Comm comm;
@@ -259,3 +266,148 @@ fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *se
 }
 
 #endif
+
+/* ---------------------------------------------------------------- files every rank writes */
+
+struct fm_dist_file {
+    const fm_dist *d;
+    fm_output_file names; /* PATH and PATH.partial */
+    int fd;               /* one process: PATH.partial (pwrite) */
+    fm_status st;         /* this rank's first failed write, its message in `failure` */
+    fm_error failure;
+#ifdef FM_HAVE_MPI
+    MPI_File fh;          /* P ranks: MPI-IO */
+#endif
+};
+
+static int one_process(const fm_dist_file *f) { return fm_dist_size(f->d) == 1; }
+
+static fm_status posix_failed(const fm_dist_file *f, int e, fm_error *err)
+{
+    e = e ? e : EIO;
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", f->names.path, strerror(e), fm_write_hint(e));
+}
+
+#ifdef FM_HAVE_MPI
+static fm_status mpi_failed(const fm_dist_file *f, int code, fm_error *err)
+{
+    char text[MPI_MAX_ERROR_STRING] = "";
+    int len = 0, cls = 0;
+    MPI_Error_string(code, text, &len);
+    MPI_Error_class(code, &cls);
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': %s%s", f->names.path, text,
+                   cls == MPI_ERR_NO_SPACE ? fm_write_hint(ENOSPC) : "");
+}
+#endif
+
+static fm_status close_partial(fm_dist_file *f, fm_status st, fm_error *err);
+
+/* Opens PATH.partial on every rank, empty. */
+static fm_status open_partial(fm_dist_file *f, fm_error *err)
+{
+#ifdef FM_HAVE_MPI
+    if (!one_process(f)) {
+        int rc = MPI_File_open(f->d->comm, f->names.partial, MPI_MODE_CREATE | MPI_MODE_WRONLY, MPI_INFO_NULL, &f->fh);
+        if (rc == MPI_SUCCESS) rc = MPI_File_set_size(f->fh, 0); /* a stale PATH.partial may be longer */
+        return rc == MPI_SUCCESS ? FM_OK : mpi_failed(f, rc, err);
+    }
+#endif
+    errno = 0;
+    f->fd = open(f->names.partial, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    return f->fd >= 0 ? FM_OK : posix_failed(f, errno, err);
+}
+
+fm_dist_file *fm_dist_file_open(const fm_dist *d, const char *path, fm_error *err)
+{
+    fm_dist_file *f = calloc(1, sizeof *f);
+    fm_status st = f ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (f) f->d = d, f->fd = -1, st = fm_output_name(&f->names, path, err);
+    if (st == FM_OK) st = open_partial(f, err);
+    if (fm_dist_agree(d, st, err) == FM_OK) return f;
+    if (st == FM_OK) { /* another rank failed (the open is collective: in practice they fail alike) */
+        close_partial(f, FM_ERR_IO, NULL);
+        if (fm_dist_rank(d) == 0) remove(f->names.partial);
+    }
+    free(f);
+    return NULL;
+}
+
+static fm_status write_chunk(fm_dist_file *f, uint64_t offset, const char *p, size_t n, fm_error *err)
+{
+#ifdef FM_HAVE_MPI
+    if (!one_process(f)) {
+        MPI_Status status;
+        int got = 0, rc = MPI_File_write_at(f->fh, (MPI_Offset)offset, p, (int)n, MPI_BYTE, &status);
+        if (rc != MPI_SUCCESS) return mpi_failed(f, rc, err);
+        MPI_Get_count(&status, MPI_BYTE, &got);
+        return (size_t)got == n ? FM_OK : posix_failed(f, ENOSPC, err); /* a short write: the disk is full */
+    }
+#endif
+    while (n > 0) {
+        errno = 0;
+        ssize_t w = pwrite(f->fd, p, n, (off_t)offset);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) return posix_failed(f, w == 0 ? ENOSPC : errno, err);
+        p += w, n -= (size_t)w, offset += (uint64_t)w;
+    }
+    return FM_OK;
+}
+
+fm_status fm_dist_file_write_at(fm_dist_file *f, uint64_t offset, const void *bytes, size_t n, fm_error *err)
+{
+    const size_t most = (size_t)1 << 30; /* MPI counts are ints */
+    for (size_t done = 0; f->st == FM_OK && done < n; done += most) {
+        fm_status st = write_chunk(f, offset + done, (const char *)bytes + done, FM_MIN(most, n - done), &f->failure);
+        if (st != FM_OK) f->st = st;
+    }
+    if (f->st != FM_OK && err) *err = f->failure;
+    return f->st;
+}
+
+/* Syncs and closes this rank's handle (collective on P ranks). */
+static fm_status close_partial(fm_dist_file *f, fm_status st, fm_error *err)
+{
+#ifdef FM_HAVE_MPI
+    if (!one_process(f)) {
+        int rc = MPI_File_sync(f->fh), closed = MPI_File_close(&f->fh);
+        if (st == FM_OK && rc != MPI_SUCCESS) st = mpi_failed(f, rc, err);
+        if (st == FM_OK && closed != MPI_SUCCESS) st = mpi_failed(f, closed, err);
+        return st;
+    }
+#endif
+    errno = 0;
+    if (st == FM_OK && fsync(f->fd) != 0) st = posix_failed(f, errno, err);
+    if (close(f->fd) != 0 && st == FM_OK) st = posix_failed(f, errno, err);
+    return st;
+}
+
+/* After the rename, the directory entry itself must reach the disk for the file to survive a
+ * crash under its new name. */
+static void sync_directory(const char *path)
+{
+    char dir[FM_PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (slash == dir) dir[1] = 0; /* "/name": the root */
+    else if (slash) *slash = 0;
+    int fd = open(slash ? dir : ".", O_RDONLY);
+    if (fd >= 0) fsync(fd), close(fd);
+}
+
+fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err)
+{
+    const fm_dist *d = f->d;
+    if (st == FM_OK && f->st != FM_OK) {
+        st = f->st;
+        if (err) *err = f->failure;
+    }
+    st = fm_dist_agree(d, close_partial(f, st, err), err);
+    if (fm_dist_rank(d) == 0) {
+        errno = 0;
+        if (st == FM_OK && rename(f->names.partial, f->names.path) != 0) st = posix_failed(f, errno, err);
+        if (st == FM_OK) sync_directory(f->names.path);
+        else remove(f->names.partial);
+    }
+    free(f);
+    return fm_dist_agree(d, st, err);
+}

@@ -59,4 +59,17 @@ fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *se
 fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
                          fm_error *err);
 
+/* A file the ranks write at once, each its own byte ranges (checkpoints: docs/resume.md): written
+ * as PATH.partial with MPI-IO on P ranks (pwrite on one process) and renamed to PATH by rank 0
+ * once every rank's writes reached the disk, so a file under its final name is never partial. */
+typedef struct fm_dist_file fm_dist_file;
+/* Collective: creates (truncates) PATH.partial. NULL on every rank, with the same err, on failure. */
+fm_dist_file *fm_dist_file_open(const fm_dist *d, const char *path, fm_error *err);
+/* This rank alone: n bytes at `offset`. A failure is kept for fm_dist_file_commit (and returned). */
+fm_status fm_dist_file_write_at(fm_dist_file *f, uint64_t offset, const void *bytes, size_t n, fm_error *err);
+/* Collective: with every rank's `st` and writes FM_OK, syncs, closes and renames PATH.partial to
+ * PATH (the directory synced); otherwise removes PATH.partial. Every rank returns the same status
+ * and message. Frees f. */
+fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err);
+
 #endif

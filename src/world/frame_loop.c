@@ -64,7 +64,8 @@ fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err)
         times->frames = 1;
     }
     while (st == FM_OK && !loop->finished(loop->sim) && times->frames < loop->frame_limit) {
-        if (agreed(loop, c->stop && *c->stop)) {
+        const int planned = c->stop_frames > 0 && times->frames >= c->stop_frames; /* the same on every rank */
+        if (planned || agreed(loop, c->stop && *c->stop)) {
             st = checkpoint(loop, &clock, times, err); /* the cache flushed at least */
             return st == FM_OK ? FM_STOPPED : st;
         }

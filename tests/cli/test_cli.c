@@ -349,6 +349,9 @@ static void test_shot_run(void)
     snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
     ENSURE_EXIT(args, 1);
     ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --stop-after-frame 5", FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "leave out --stop-after-frame"), "'%s'", g_err);
     /* two wedges that change nothing else differ by their derived seed, in every group */
     char wedges[FM_PATH_MAX], one[FM_PATH_MAX], two[FM_PATH_MAX + 16], other[FM_PATH_MAX + 16];
     FILE *w = fopen(tmp_path(wedges, "shot_wedges.json"), "w");
@@ -593,6 +596,9 @@ static void test_run_progress_in_a_log(void)
     ENSURE_MSG(!strstr(g_err, "progress"), "--quiet: %s", g_err);
     snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);
     ENSURE_EXIT(args, 1);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --stop-after-frame -2", scene, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "--stop-after-frame wants a frame number >= 0, not '-2'"), "'%s'", g_err);
 }
 
 static void test_info(void)

@@ -568,6 +568,36 @@ static void interrupt_then_resume(const run_case *c, int sig, int status, double
     resume_and_compare(c, what);
 }
 
+/* A run split into segments (--stop-after-frame, as under a farm's time limit): each exits 0 at its
+ * frame with the checkpoint kept, saying how to continue; the last, a plain --resume, finishes with
+ * the uninterrupted run's cache and stats.json. A segment's frame past the run's end just ends it. */
+static void segments_then_resume(const run_case *c, const char *what)
+{
+    clear_outputs(c->out);
+    static const char *const segments[] = {"--stop-after-frame 3", "--resume --stop-after-frame 9",
+                                           "--resume --stop-after-frame 9"}; /* the third stops at once */
+    for (int k = 0; k < 3; k++) {
+        int rc = wait_status(start_scene(c->scene, c->out, segments[k]));
+        size_t len;
+        char log_path[FM_PATH_MAX + 8], said[64];
+        snprintf(log_path, sizeof log_path, "%s.log", c->out);
+        snprintf(said, sizeof said, "stopped after frame %d (--stop-after-frame)", k ? 9 : 3);
+        char *log = slurp(log_path, &len);
+        ENSURE_MSG(rc == 0 && log && strstr(log, said) && strstr(log, "checkpoint written; continue with: flockmorph run "),
+                   "%s, %s: exit %d: %s", what, segments[k], rc, log ? log : "");
+        free(log);
+        ENSURE_MSG(exists(in(c->out, "checkpoint.fmck")) && !exists(in(c->out, "frames.fmc")), "%s: %s", what, segments[k]);
+    }
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(in(c->out, "frames.fmc.partial"), &err);
+    ENSURE_MSG(r && fm_cache_frames(r) == 10, "%s: %s", what, r ? "not 10 frames" : err.message);
+    fm_cache_close(r);
+    ensure_prefix_of(in(c->out, "frames.fmc.partial"), in(c->dir, "ref.fmc"));
+    resume_and_compare(c, what);
+}
+
+static void test_segments_then_resume(void) { segments_then_resume(&g_tetra, "segments"); }
+
 static void test_kill9_then_resume(void) { kill9_then_resume(&g_tetra); }
 static void test_sigint_then_resume(void) { interrupt_then_resume(&g_tetra, SIGINT, 130, 0.6, "SIGINT"); }
 static void test_sigterm_then_resume(void) { interrupt_then_resume(&g_tetra, SIGTERM, 143, 0.3, "SIGTERM"); }
@@ -706,6 +736,7 @@ static void write_flock_scene(void)
     fclose(f);
 }
 
+static void test_flock_segments_then_resume(void) { segments_then_resume(&g_flock, "flock segments"); }
 static void test_flock_kill9_then_resume(void) { kill9_then_resume(&g_flock); }
 static void test_flock_sigint_then_resume(void) { interrupt_then_resume(&g_flock, SIGINT, 130, 0.6, "flock SIGINT"); }
 static void test_flock_sigterm_then_resume(void) { interrupt_then_resume(&g_flock, SIGTERM, 143, 0.3, "flock SIGTERM"); }
@@ -801,6 +832,7 @@ int main(void)
     fm_morph_model_destroy(g_model);
     reference_run(&g_tetra);
     RUN_TEST(test_kill9_then_resume);
+    RUN_TEST(test_segments_then_resume);
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);
@@ -808,6 +840,7 @@ int main(void)
     write_flock_scene();
     reference_run(&g_flock);
     RUN_TEST(test_flock_kill9_then_resume);
+    RUN_TEST(test_flock_segments_then_resume);
     RUN_TEST(test_flock_sigint_then_resume);
     RUN_TEST(test_flock_sigterm_then_resume);
     RUN_TEST(test_flock_refuses_tetra_checkpoint);

@@ -10,6 +10,10 @@
 - shots (castling's king then rook; a chain of groups each starting from the previous one's
   shape; flock_sequence's sphere then torus) give the plain run's bytes on P ranks;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes (both modes);
+- checkpoints written by every rank at once (MPI-IO) at a planned stop (--stop-after-frame): the
+  shape flock's holds the plain run's bytes (but for its timings) on 3 ranks; either mode's resumes
+  on another P with the uninterrupted plain run's bytes; a full disk during one stops every rank
+  with exit 3 and leaves no checkpoint;
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
 
@@ -22,6 +26,7 @@ import os
 import resource
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -174,6 +179,89 @@ def frames_in(path):
 LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000") + pieces(4096)  # about 20 s on two cores
 FLOCK_STRESS = "tests/data/mpi/flock_stress.json"
 LONG_FLOCK_SETS = ("--set", "n=30000") + pieces(4096)  # about 15 s on two ranks
+
+
+def checkpoint_header(path):
+    """The checkpoint's header (docs/resume.md): version, agents, frames, pieces, statistics bytes."""
+    with open(path, "rb") as f:
+        magic, version, _, _, _, agents, frames, _, pieces_, stats_bytes = struct.unpack("<8sII7Q", f.read(72))
+    assert magic == b"FMCHKPT\0", path
+    return {"version": version, "agents": agents, "frames": frames, "pieces": pieces_, "stats_bytes": stats_bytes}
+
+
+class Segments(unittest.TestCase):
+    """A run split at a planned stop (--stop-after-frame): every rank writes its agents' part of the
+    checkpoint at once (MPI-IO), rank 0 the rest; any P resumes it."""
+
+    def segment(self, scene, name, ranks, sets, stop=None, resume=False, fresh=True):
+        out = os.path.join(ARGS.tmp, "mpi_" + name)
+        if fresh:
+            shutil.rmtree(out, ignore_errors=True)
+        extra = sets + (("--stop-after-frame", str(stop)) if stop is not None else ()) + (("--resume",) if resume else ())
+        done = subprocess.run(command(scene, out, ranks, 1, extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, timeout=600, env=env())
+        self.assertEqual(done.returncode, 0, f"{name}: {done.stderr}")
+        return out
+
+    def across_ranks(self, scene, name, sets, stop, first, then):
+        """Stops on `first` ranks (None: no mpirun), resumes on `then`: the uninterrupted plain bytes."""
+        out = self.segment(scene, name, first, sets, stop)
+        self.assertTrue(os.path.exists(os.path.join(out, "checkpoint.fmck")))
+        self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), stop + 1)
+        self.segment(scene, name, then, sets, resume=True, fresh=False)
+        plain, whole = run(scene, name + "_whole", threads=2, extra=sets)
+        self.assertEqual(plain.returncode, 0, plain.stderr)
+        self.assertEqual(sha256(os.path.join(out, "frames.fmc")), sha256(os.path.join(whole, "frames.fmc")), name)
+        self.assertEqual(stats(out)["frames"], stats(whole)["frames"])
+        self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
+
+    def test_shape_flock_checkpoint_is_the_plain_runs(self):
+        """The flock's checkpoint is laid out by agent id: written by 3 ranks (each the agents of its
+        share of the 1024-agent pieces) it holds the plain run's bytes, but for the timings (the
+        first two doubles of the statistics) and so the trailer's checksum."""
+        sets = pieces(1024)
+        one = self.segment(FLOCK_STRESS, "ckpt_flock_plain", None, sets, 12)
+        three = self.segment(FLOCK_STRESS, "ckpt_flock_p3", 3, sets, 12)
+        with open(os.path.join(one, "checkpoint.fmck"), "rb") as f:
+            a = f.read()
+        with open(os.path.join(three, "checkpoint.fmck"), "rb") as f:
+            b = f.read()
+        h = checkpoint_header(os.path.join(three, "checkpoint.fmck"))
+        self.assertEqual((h["version"], h["frames"]), (4, 13))
+        self.assertEqual(h["pieces"], (h["agents"] + 1023) // 1024)
+        self.assertGreaterEqual(h["pieces"], 3)  # every rank wrote one at least
+        self.assertEqual(len(a), len(b))
+        self.assertEqual(a[:72], b[:72])
+        self.assertEqual(a[72 + 16:-8], b[72 + 16:-8])
+
+    def test_shape_flock_stopped_on_3_resumed_on_1(self):
+        self.across_ranks(FLOCK_STRESS, "seg_flock_3_1", pieces(1024), 12, 3, None)
+
+    def test_shape_flock_stopped_on_1_resumed_on_2(self):
+        self.across_ranks(FLOCK_STRESS, "seg_flock_1_2", pieces(1024), 12, None, 2)
+
+    def test_tetra_stopped_on_3_resumed_on_1(self):
+        """The tetra morph's checkpoint lists the launched agents rank by rank, then the waiting
+        ones in id order, each rank writing a share of those."""
+        self.across_ranks("examples/castling/rook.json", "seg_tetra_3_1", pieces(1000), 20, 3, None)
+
+    def test_tetra_stopped_on_1_resumed_on_2(self):
+        self.across_ranks("examples/castling/rook.json", "seg_tetra_1_2", pieces(1000), 20, None, 2)
+
+    def test_checkpoint_disk_full(self):
+        """Frame 0's cache fits under the 8 MiB limit, the checkpoint of 140 000 agents (10 MB) does
+        not: every rank stops with exit 3, no checkpoint (or .partial) is left, the frame is."""
+        limit = 8 << 20
+
+        def small_files():
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        sets = ("--set", "n=140000") + pieces(4096) + ("--stop-after-frame", "0")
+        done, out = run("examples/castling/rook.json", "ckpt_full", 2, extra=sets, timeout=300, preexec=small_files)
+        self.assertEqual(done.returncode, 3, done.stderr)
+        self.assertIn("checkpoint.fmck", done.stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
+        self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck.partial")))
+        self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), 1)
 
 
 class Failure(unittest.TestCase):
