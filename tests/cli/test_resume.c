@@ -598,6 +598,29 @@ static void segments_then_resume(const run_case *c, const char *what)
 
 static void test_segments_then_resume(void) { segments_then_resume(&g_tetra, "segments"); }
 
+/* examples/wedges/segment.sh, as a farm's chain of tasks runs it: frames up to 4, up to 11, then
+ * to an END past the run's end (it finishes), then once more (it does nothing): the finished cache
+ * is the uninterrupted run's. */
+static void test_segment_script(void)
+{
+    clear_outputs(OUT);
+    static const char *const ends[] = {"4", "11", "2000000000", "2000000000"};
+    for (int k = 0; k < 4; k++) {
+        char cmd[4 * FM_PATH_MAX];
+        snprintf(cmd, sizeof cmd, "FLOCKMORPH='%s' '%s/examples/wedges/segment.sh' '%s' '%s' %s --threads 1 --quiet "
+                 "> '%s.log' 2>&1", FM_CLI, FM_SOURCE_DIR, SCENE, OUT, ends[k], OUT);
+        int rc = system(cmd);
+        size_t len;
+        char *log = slurp(OUT ".log", &len);
+        ENSURE_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "segment to %s: exit %d: %s", ends[k], WEXITSTATUS(rc),
+                   log ? log : "");
+        if (k == 3) ENSURE_MSG(log && strstr(log, "holds a finished run: nothing to do"), "%s", log ? log : "");
+        free(log);
+        ENSURE_MSG(exists(OUT "/checkpoint.fmck") == (k < 2), "segment to %s: the checkpoint", ends[k]);
+    }
+    ENSURE(same_bytes(OUT "/frames.fmc", DIR_ "/ref.fmc"));
+}
+
 static void test_kill9_then_resume(void) { kill9_then_resume(&g_tetra); }
 static void test_sigint_then_resume(void) { interrupt_then_resume(&g_tetra, SIGINT, 130, 0.6, "SIGINT"); }
 static void test_sigterm_then_resume(void) { interrupt_then_resume(&g_tetra, SIGTERM, 143, 0.3, "SIGTERM"); }
@@ -833,6 +856,7 @@ int main(void)
     reference_run(&g_tetra);
     RUN_TEST(test_kill9_then_resume);
     RUN_TEST(test_segments_then_resume);
+    RUN_TEST(test_segment_script);
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);
