@@ -26,7 +26,9 @@ struct fm_morph_model {
     int64_t n;
     float *src_rel;          /* 12 per agent: rest vertices minus rest centroid */
     float *src_c[3];         /* rest centroid, SoA */
-    double *tgt;             /* 12 per slot: target tet vertices (ground truth) */
+    double *tgt;             /* 12 per slot: target tet vertices in double, kept after the build only
+                                for a shot's group that another group starts from (96 bytes an
+                                agent: the run reads tgt_f); NULL otherwise */
     float *tgt_f;            /* 12 per slot: the same in float, written once an agent arrives */
     float *tgt_c[3];         /* target tet centroids, SoA */
     float *key_q[3];         /* path key points Q_i, SoA */
@@ -48,10 +50,13 @@ struct fm_morph_model {
     int warning_count;
 };
 
-/* A group of a shot that starts from group `from`'s formed shape (morph_shot.c): its source tets
- * are from's target tets, slot j as source tet j, and its n is from's. */
-fm_morph_model *fm_morph_model_build_from_targets(const fm_scene_def *def, const fm_morph_model *from,
-                                                  fm_progress_fn progress, void *user, fm_error *err);
+/* A group of a shot (morph_shot.c). With `from`, it starts from that group's formed shape: its
+ * source tets are from's target tets (from->tgt, which from was built keeping), slot j as source
+ * tet j, and its n is from's. keep_targets: keep m->tgt for a later group that starts from this one
+ * (the shot frees it once every group is built: fm_morph_model_drop_targets). */
+fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                           fm_progress_fn progress, void *user, fm_error *err);
+void fm_morph_model_drop_targets(fm_morph_model *m);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts);
 int fm_morph_targets_taken_once(const fm_morph_state *s);

@@ -21,7 +21,7 @@ static uint64_t model_hash(const fm_morph_model *m)
     size_t n = (size_t)m->n, keys = (size_t)m->key_count;
     fm_hash_bytes(&m->n, sizeof m->n, h);
     fm_hash_bytes(m->src_rel, sizeof(float) * 12 * n, h);
-    fm_hash_bytes(m->tgt, sizeof(double) * 12 * n, h);
+    fm_hash_bytes(m->tgt_f, sizeof(float) * 12 * n, h);
     fm_hash_bytes(m->src_radius, sizeof(float) * n, h);
     for (int k = 0; k < 3; k++) {
         fm_hash_bytes(m->src_c[k], sizeof(float) * n, h), fm_hash_bytes(m->tgt_c[k], sizeof(float) * n, h);

@@ -6,7 +6,6 @@
 /* Bytes per agent of each array, as allocated by morph_model.c, morph_state.c, morph_run.c, the cache writer and grid.c. */
 static const double MODEL_PER_AGENT =
     sizeof(float) * (12 + 3 + 12 + 3 + 1) /* src_rel, src_c, tgt_f, tgt_c, src_radius */
-    + sizeof(double) * 12                  /* tgt */
     + sizeof(int64_t);                     /* src_index */
 static const double STATE_PER_AGENT =
     sizeof(float) * (3 + 3 + 3 + 2 + FM_MORPH_FLOATS + 3) /* p, v, p2, t2 and tf, morph, vla */
@@ -15,8 +14,9 @@ static const double STATE_PER_AGENT =
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
     + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */
     + (double)sizeof(block_counts) / FM_BLOCK;
-/* Preprocessing holds both tet sets in double (subdivided to n), the two orders and the model. */
-static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + 2 * sizeof(int64_t);
+/* Preprocessing holds both tet sets in double (subdivided to n), the two orders and the model with
+ * its double targets (tgt, dropped once it is built). */
+static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + 2 * sizeof(int64_t) + 12 * sizeof(double);
 fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
 {
     fm_memory_estimate e = {0};

@@ -82,6 +82,7 @@ static fm_status source_from_targets(const fm_scene_def *def, const fm_morph_mod
 {
     fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", mesh, err);
     if (st != FM_OK) return st;
+    if (!from->tgt) return fm_fail(err, FM_ERR_INTERNAL, "the group's source group was built without its targets");
     tets->v = malloc(sizeof(double) * 12 * (size_t)from->n);
     if (!tets->v) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld tets", (long long)from->n);
     memcpy(tets->v, from->tgt, sizeof(double) * 12 * (size_t)from->n);
@@ -446,8 +447,8 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     return FM_OK;
 }
 
-static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model *from, fm_progress_fn progress,
-                                   void *user, fm_error *err)
+static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                   fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
     if (def->group_count > 0 && def->group_index < 0) {
@@ -471,18 +472,25 @@ static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model
         fm_morph_model_destroy(m);
         return NULL;
     }
+    if (!keep_targets) fm_morph_model_drop_targets(m); /* the run reads tgt_f */
     return m;
 }
 
 fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
 {
-    return build_model(def, NULL, progress, user, err);
+    return build_model(def, NULL, 0, progress, user, err);
 }
 
-fm_morph_model *fm_morph_model_build_from_targets(const fm_scene_def *def, const fm_morph_model *from,
-                                                  fm_progress_fn progress, void *user, fm_error *err)
+fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                           fm_progress_fn progress, void *user, fm_error *err)
 {
-    return build_model(def, from, progress, user, err);
+    return build_model(def, from, keep_targets, progress, user, err);
+}
+
+void fm_morph_model_drop_targets(fm_morph_model *m)
+{
+    fm_free(m->tgt);
+    m->tgt = NULL;
 }
 
 void fm_morph_model_destroy(fm_morph_model *m)

@@ -35,10 +35,10 @@ double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state
             continue;
         }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
-        const double *t = m->tgt + 12 * s->target[a];
+        const float *t = m->tgt_f + 12 * s->target[a];
         const float *v = verts + 12 * (size_t)s->id[a];
         for (int i = 0; i < 4; i++)
-            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - t[3 * perm[i] + k]));
+            for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - (double)t[3 * perm[i] + k]));
     }
     fm_dist_max_f64(s->dist, &worst, 1);
     return worst;

@@ -68,19 +68,28 @@ static fm_status add_group_obstacles(fm_scene_def *def, int g, fm_error *err)
     return FM_OK;
 }
 
+/* Whether a later group starts from group g's formed shape (and so reads its double targets). */
+static int is_a_source(const fm_shot *s, int g)
+{
+    for (int h = g + 1; h < s->count; h++)
+        if (s->def[h].group.source_group == g) return 1;
+    return 0;
+}
+
 static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
         fm_status st = add_group_obstacles(s->def, g, err);
         if (st != FM_OK) return st;
         const int from = s->def[g].group.source_group;
-        s->model[g] = from < 0 ? fm_morph_model_build(&s->def[g], progress, user, err)
-                               : fm_morph_model_build_from_targets(&s->def[g], s->model[from], progress, user, err);
+        s->model[g] = fm_morph_model_build_group(&s->def[g], from < 0 ? NULL : s->model[from], is_a_source(s, g), progress,
+                                                 user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         if (s->model[g]->dt != s->model[0]->dt || s->model[g]->steps_per_frame != s->model[0]->steps_per_frame)
             return fm_fail(err, FM_ERR_INTERNAL, "group %d has another time step", g);
     }
+    for (int g = 0; g < s->count; g++) fm_morph_model_drop_targets(s->model[g]); /* every group is built */
     return FM_OK;
 }
 
