@@ -308,7 +308,14 @@ static fm_status open_partial(fm_dist_file *f, fm_error *err)
 #ifdef FM_HAVE_MPI
     if (!one_process(f)) {
         int rc = MPI_File_open(f->d->comm, f->names.partial, MPI_MODE_CREATE | MPI_MODE_WRONLY, MPI_INFO_NULL, &f->fh);
-        if (rc == MPI_SUCCESS) rc = MPI_File_set_size(f->fh, 0); /* a stale PATH.partial may be longer */
+        if (rc != MPI_SUCCESS) { /* MPI's error classes say less than errno ("bad file" for a directory) */
+            errno = 0;
+            int fd = open(f->names.partial, O_WRONLY | O_CREAT, 0666);
+            if (fd < 0) return posix_failed(f, errno, err);
+            close(fd);
+            return mpi_failed(f, rc, err);
+        }
+        rc = MPI_File_set_size(f->fh, 0); /* a stale PATH.partial may be longer */
         return rc == MPI_SUCCESS ? FM_OK : mpi_failed(f, rc, err);
     }
 #endif
@@ -324,10 +331,9 @@ fm_dist_file *fm_dist_file_open(const fm_dist *d, const char *path, fm_error *er
     if (f) f->d = d, f->fd = -1, st = fm_output_name(&f->names, path, err);
     if (st == FM_OK) st = open_partial(f, err);
     if (fm_dist_agree(d, st, err) == FM_OK) return f;
-    if (st == FM_OK) { /* another rank failed (the open is collective: in practice they fail alike) */
-        close_partial(f, FM_ERR_IO, NULL);
-        if (fm_dist_rank(d) == 0) remove(f->names.partial);
-    }
+    if (st == FM_OK) close_partial(f, FM_ERR_IO, NULL); /* another rank failed (the open is collective:
+                                                           in practice they fail alike) */
+    if (f && fm_dist_rank(d) == 0) unlink(f->names.partial); /* unlink: never a directory in the way */
     free(f);
     return NULL;
 }
@@ -406,7 +412,7 @@ fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err)
         errno = 0;
         if (st == FM_OK && rename(f->names.partial, f->names.path) != 0) st = posix_failed(f, errno, err);
         if (st == FM_OK) sync_directory(f->names.path);
-        else remove(f->names.partial);
+        else unlink(f->names.partial);
     }
     free(f);
     return fm_dist_agree(d, st, err);

@@ -13,7 +13,7 @@
 - checkpoints written by every rank at once (MPI-IO) at a planned stop (--stop-after-frame): the
   shape flock's holds the plain run's bytes (but for its timings) on 3 ranks; either mode's resumes
   on another P with the uninterrupted plain run's bytes; a full disk during one stops every rank
-  with exit 3 and leaves no checkpoint;
+  with exit 3 and leaves no checkpoint, and so does a directory where the checkpoint goes;
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
 
@@ -262,6 +262,21 @@ class Segments(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck.partial")))
         self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), 1)
+
+
+    def test_directory_where_the_checkpoint_goes(self):
+        """A directory named checkpoint.fmck.partial (not empty) where the ranks would write: every
+        rank stops with exit 3 and the errno text, and the directory is left as it was."""
+        out = os.path.join(ARGS.tmp, "mpi_ckpt_dir")
+        shutil.rmtree(out, ignore_errors=True)
+        os.makedirs(os.path.join(out, "checkpoint.fmck.partial"))
+        open(os.path.join(out, "checkpoint.fmck.partial", "keep"), "w").close()
+        done = subprocess.run(command("examples/castling/rook.json", out, 2, 1, ("--stop-after-frame", "2")),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=300, env=env())
+        self.assertEqual(done.returncode, 3, done.stderr)
+        self.assertIn("checkpoint.fmck': Is a directory", done.stderr)
+        self.assertTrue(os.path.exists(os.path.join(out, "checkpoint.fmck.partial", "keep")))
+        self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
 
 
 class Failure(unittest.TestCase):
