@@ -162,6 +162,7 @@ typedef struct cli_progress {
     const char *const *phase_labels; /* the mode's (cli_mode) */
     double first_fraction, first_time; /* at the first frame of this session (ETA of a resumed run) */
     int64_t first_frame;               /* -1 until then */
+    double frame_done;                 /* when the last frame was handed over (a checkpoint follows it) */
 } cli_progress;
 /* Preprocessing progress on stderr when *(int *)user (an fm_progress_fn). */
 void cli_prep_progress(const char *stage, double fraction, void *user);

@@ -141,8 +141,9 @@ static void format_progress(const cli_progress *p, const fm_run_info *info, int6
 static void frame_progress(const fm_run_info *info, int64_t frame, void *user)
 {
     cli_progress *p = user;
+    p->frame_done = cli_seconds();
     if (!p->show) return;
-    double now = cli_seconds(), fraction = run_fraction(p, info, frame);
+    double now = p->frame_done, fraction = run_fraction(p, info, frame);
     if (p->first_frame < 0) p->first_frame = frame, p->first_fraction = fraction, p->first_time = now;
     char line[512];
     if (p->show == 2 && now - p->last_log < p->log_every) return;
@@ -151,12 +152,25 @@ static void frame_progress(const fm_run_info *info, int64_t frame, void *user)
     else fprintf(stderr, "flockmorph: progress: %s\n", line), p->last_log = now;
 }
 
+/* A farm's log says when a checkpoint was written and what it cost (the cache's flush and the
+ * save: they follow the last frame's progress). */
+static fm_status checkpoint_logged(int64_t frames, void *user, fm_error *err)
+{
+    (void)err;
+    const cli_progress *p = user;
+    if (p->show == 2)
+        fprintf(stderr, "flockmorph: checkpoint at frame %lld written (%.2f s)\n", (long long)frames - 1,
+                cli_seconds() - p->frame_done);
+    return FM_OK;
+}
+
 static fm_run_control run_control(const cli_run_options *o, const cli_outputs *files, cli_progress *progress)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = frame_progress, c.progress_user = progress;
     c.resume = o->resume;
     c.checkpoint_path = files->checkpoint;
+    c.checkpoint = checkpoint_logged, c.checkpoint_user = progress;
     c.checkpoint_every = cli_checkpoint_every(o);
     c.checkpoint_seconds = cli_checkpoint_seconds(o);
     c.stop = &cli_stop_signal;

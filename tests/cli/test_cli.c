@@ -567,7 +567,7 @@ static void test_render_png_sequence(void)
 
 /* Progress when stderr is not a terminal (a farm's log): plain lines, every --log-every seconds
  * (0: every frame), with the frame, the limit, the percentage done and an ETA; one line at the
- * default interval for a run this short; none with --quiet. */
+ * default interval for a run this short, and a line at each checkpoint; none with --quiet. */
 static void test_run_progress_in_a_log(void)
 {
     char scene[FM_PATH_MAX], outdir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
@@ -591,9 +591,16 @@ static void test_run_progress_in_a_log(void)
     ENSURE_EXIT(args, 0);
     const char *first = strstr(g_err, "flockmorph: progress: frame 1 ");
     ENSURE_MSG(first && !strstr(first + 1, "flockmorph: progress:"), "default interval: %s", g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --checkpoint-every 2", scene, outdir);
     ENSURE_EXIT(args, 0);
-    ENSURE_MSG(!strstr(g_err, "progress"), "--quiet: %s", g_err);
+    double seconds = -1;
+    const char *ck = strstr(g_err, "flockmorph: checkpoint at frame 1 written ("); /* frames 0 and 1 written */
+    ENSURE_MSG(ck && sscanf(ck, "flockmorph: checkpoint at frame 1 written (%lf s)", &seconds) == 1 && seconds >= 0 &&
+               strstr(ck, "flockmorph: checkpoint at frame 3 written (") && !strstr(g_err, "checkpoint at frame 2 "),
+               "checkpoints in the log: %s", g_err);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet --checkpoint-every 2", scene, outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(!strstr(g_err, "progress") && !strstr(g_err, "checkpoint at"), "--quiet: %s", g_err);
     snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);
     ENSURE_EXIT(args, 1);
     snprintf(args, sizeof args, "run '%s' -o '%s' --stop-after-frame -2", scene, outdir);
