@@ -280,8 +280,6 @@ struct fm_dist_file {
 #endif
 };
 
-static int one_process(const fm_dist_file *f) { return fm_dist_size(f->d) == 1; }
-
 static fm_status posix_failed(const fm_dist_file *f, int e, fm_error *err)
 {
     e = e ? e : EIO;
@@ -289,6 +287,8 @@ static fm_status posix_failed(const fm_dist_file *f, int e, fm_error *err)
 }
 
 #ifdef FM_HAVE_MPI
+static int one_process(const fm_dist_file *f) { return fm_dist_size(f->d) == 1; }
+
 static fm_status mpi_failed(const fm_dist_file *f, int code, fm_error *err)
 {
     char text[MPI_MAX_ERROR_STRING] = "";
