@@ -142,6 +142,9 @@ static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
 }
 
 /* The loop's checkpoint (the cache already flushed): the state and the statistics so far. */
+/* Before a checkpoint on P ranks: every rank's blocks of the cache on disk. */
+static fm_status flock_sync(void *sim, fm_error *err) { return fm_frame_share_sync(&((flock_run *)sim)->share, err); }
+
 static fm_status flock_save(void *sim, const char *path, fm_error *err)
 {
     const flock_run *r = sim;
@@ -215,7 +218,7 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
     if (st == FM_OK) st = start_share(&r, err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
-                                    m->def.frame_limit, c, &stats->run, cache, s->dist};
+                                    m->def.frame_limit, c, &stats->run, cache, s->dist, flock_sync};
         st = fm_frame_loop_run(&loop, err);
     }
     stats->run.steps = s->step;

@@ -242,7 +242,7 @@ fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_r
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_loop r = {s, cache, &c};
     const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, s->dist};
+                                s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(s, stats);
     return st;

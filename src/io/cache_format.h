@@ -162,9 +162,9 @@ fm_status cache_encode_frame(cache_encoder *e, const void *const *data, uint32_t
 unsigned char *cache_encoder_prev(cache_encoder *e, int i);
 
 /* A rank's share of every frame of a cache written by P ranks (docs/scale-out.md): the pieces
- * [J r / P, J (r + 1) / P), which the rank encodes; rank 0's writer appends every rank's blocks, in
- * rank order, as one chunk (fm_cache_writer_add_blocks). Blocks do not depend on who encodes
- * them, so the file is the one process's. */
+ * [J r / P, J (r + 1) / P), which the rank encodes and writes at its place in the frame's chunk
+ * (fm_cache_writer_chunk_head). Blocks do not depend on who encodes them, so the file is the one
+ * process's. */
 typedef struct cache_share {
     cache_encoder enc;
     unsigned char *blocks; /* this frame's blocks, one after another */
@@ -184,9 +184,23 @@ void cache_share_free(cache_share *sh);
  * least) the share's agents; the id attribute comes from the share. */
 fm_status cache_share_encode(cache_share *sh, const void *const *by_kind, uint32_t k, fm_error *err);
 
-/* A frame whose blocks were encoded elsewhere (by P ranks' shares): sizes[b] for every block of
- * the chunk, the blocks one after another. Waits for the frames handed over before it. */
-fm_status fm_cache_writer_add_blocks(fm_cache_writer *w, const uint64_t *sizes, const void *blocks, fm_error *err);
+/* A frame whose blocks P ranks encoded and write themselves (frame_share.c): where its chunk goes
+ * and its head (header and size table), which rank 0 writes there; the ranks' blocks follow, rank
+ * after rank. */
+typedef struct cache_chunk_place {
+    uint64_t pos;              /* the chunk's first byte in the file */
+    const unsigned char *head; /* header and size table, head_bytes of them */
+    size_t head_bytes;
+    uint64_t chunk_bytes;      /* head and blocks */
+} cache_chunk_place;
+const char *fm_cache_writer_partial_path(const fm_cache_writer *w);
+/* sizes[b] for every block of the chunk; runs_crc and run_bytes: each rank's blocks' CRC-32 and
+ * length, in rank order (the chunk's CRC is combined from them). Waits for the frames handed over
+ * before it. */
+fm_status fm_cache_writer_chunk_head(fm_cache_writer *w, const uint64_t *sizes, const uint32_t *run_crc,
+                                     const uint64_t *run_bytes, int runs, cache_chunk_place *place, fm_error *err);
+/* Once every rank wrote its part: the chunk in the index, the stream after it. */
+fm_status fm_cache_writer_note_chunk(fm_cache_writer *w, const cache_chunk_place *place, fm_error *err);
 /* Delta: attribute i's stored words of every agent at the last frame (a resumed writer hands the
  * ranks their shares of it). */
 const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i);

@@ -9,6 +9,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cache_format.h"
 
+#include <zlib.h>
 #include <zstd.h>
 
 #include <errno.h>
@@ -234,31 +235,59 @@ fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const 
     return st;
 }
 
-fm_status fm_cache_writer_add_blocks(fm_cache_writer *w, const uint64_t *sizes, const void *blocks, fm_error *err)
+/* Each block within the bound the writer's encoder gives it (it holds every piece); their total. */
+static fm_status check_blocks(const fm_cache_writer *w, const uint64_t *sizes, uint64_t *packed, fm_error *err)
+{
+    *packed = 0;
+    for (uint64_t b = 0; b < cache_table_bytes(&w->l) / 8; b++) {
+        const uint64_t bound = w->enc.bound_at[b + 1] - w->enc.bound_at[b];
+        if (sizes[b] > bound)
+            return fm_fail(err, FM_ERR_INTERNAL, "%s: frame %u: block %llu of %llu bytes exceeds its bound %llu", w->out.path,
+                           w->frames, (unsigned long long)b, (unsigned long long)sizes[b], (unsigned long long)bound);
+        *packed += sizes[b];
+    }
+    return FM_OK;
+}
+
+const char *fm_cache_writer_partial_path(const fm_cache_writer *w) { return w->out.partial; }
+
+fm_status fm_cache_writer_chunk_head(fm_cache_writer *w, const uint64_t *sizes, const uint32_t *run_crc,
+                                     const uint64_t *run_bytes, int runs, cache_chunk_place *place, fm_error *err)
 {
     double t0 = fm_seconds();
     pthread_mutex_lock(&w->lock);
     fm_status st = wait_idle(w, err); /* the frames handed over before this one go first */
     pthread_mutex_unlock(&w->lock);
     w->wait_seconds += fm_seconds() - t0;
+    uint64_t packed = 0, runs_total = 0;
+    if (st == FM_OK) st = check_blocks(w, sizes, &packed, err);
+    if (st == FM_OK) st = grow_index(w, err);
     if (st != FM_OK) return st;
-    const uint64_t count = cache_table_bytes(&w->l) / 8;
-    uint64_t packed = 0;
-    for (uint64_t b = 0; b < count; b++) {
-        const uint64_t bound = w->enc.bound_at[b + 1] - w->enc.bound_at[b]; /* the writer's encoder holds every piece */
-        if (sizes[b] > bound)
-            return fm_fail(err, FM_ERR_INTERNAL, "%s: frame %u: block %llu of %llu bytes exceeds its bound %llu", w->out.path,
-                           w->frames, (unsigned long long)b, (unsigned long long)sizes[b], (unsigned long long)bound);
-        packed += sizes[b];
-    }
-    memcpy(w->block_sizes, sizes, sizeof *sizes * (size_t)count);
-    memcpy(w->chunk + CACHE_CHUNK_HEADER + 8 * count, blocks, (size_t)packed);
-    w->handed++;
-    st = append_chunk(w, packed, err); /* the worker is idle: the chunk buffer is free */
-    pthread_mutex_lock(&w->lock);
-    if (st != FM_OK && w->worker_status == FM_OK) w->worker_status = st, w->worker_err = *err;
-    pthread_mutex_unlock(&w->lock);
-    return st;
+    const uint64_t table = cache_table_bytes(&w->l);
+    const uint32_t k = w->frames;
+    for (uint64_t b = 0; b < table / 8; b++) put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * b, sizes[b]);
+    memcpy(w->chunk, "FRAM", 4);
+    put_u32(w->chunk + 4, k);
+    put_u32(w->chunk + 8, cache_is_key_frame(&w->l, k) ? CHUNK_KEY_FRAME : 0);
+    put_u64(w->chunk + 16, table + packed);
+    /* cache_chunk_crc's bytes: the header but its CRC, the table, then the ranks' runs in order */
+    uLong crc = cache_crc32(cache_crc32(0, w->chunk, 12), w->chunk + 16, 8 + (size_t)table);
+    for (int r = 0; r < runs; r++) crc = crc32_combine(crc, run_crc[r], (z_off_t)run_bytes[r]), runs_total += run_bytes[r];
+    if (runs_total != packed)
+        return fm_fail(err, FM_ERR_INTERNAL, "%s: frame %u: the ranks wrote %llu bytes of blocks, not %llu", w->out.path, k,
+                       (unsigned long long)runs_total, (unsigned long long)packed);
+    put_u32(w->chunk + 12, (uint32_t)crc);
+    *place = (cache_chunk_place){w->pos, w->chunk, CACHE_CHUNK_HEADER + (size_t)table, CACHE_CHUNK_HEADER + table + packed};
+    return FM_OK;
+}
+
+fm_status fm_cache_writer_note_chunk(fm_cache_writer *w, const cache_chunk_place *place, fm_error *err)
+{
+    const uint32_t k = w->frames;
+    w->offsets[k] = place->pos, w->sizes[k] = place->chunk_bytes;
+    w->pos = place->pos + place->chunk_bytes, w->frames++, w->handed++;
+    if (fseeko(w->out.f, (off_t)w->pos, SEEK_SET) == 0) return FM_OK; /* where the index will go */
+    return fm_fail(err, FM_ERR_IO, "%s: cannot seek: %s", w->out.partial, strerror(errno));
 }
 
 const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i) { return cache_encoder_prev(&w->enc, i); }

@@ -241,6 +241,7 @@ static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const
 }
 
 /* The tetra morph in the shared frame loop (frame_loop.h): its callbacks and what they carry. */
+static fm_status morph_sync(void *sim, fm_error *err);
 typedef struct morph_run {
     const fm_morph_model *m;
     fm_morph_state *s;
@@ -287,6 +288,9 @@ static fm_status morph_save(void *sim, const char *path, fm_error *err)
     return fm_morph_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 
+/* Before a checkpoint on P ranks: every rank's blocks of the cache on disk. */
+static fm_status morph_sync(void *sim, fm_error *err) { return fm_frame_share_sync(&((morph_run *)sim)->share, err); }
+
 fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, const fm_run_control *c,
                                   fm_morph_run_stats *stats, fm_error *err)
 {
@@ -301,7 +305,7 @@ fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm
     }
     if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
     const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
-                                m->def.frame_limit, c, &stats->run, cache, s->dist};
+                                m->def.frame_limit, c, &stats->run, cache, s->dist, morph_sync};
     fm_status st = fm_frame_share_start(&r.share, s->dist, cache, s->threads, c->resume, err);
     if (st == FM_OK) st = fm_frame_loop_run(&loop, err);
     finish_stats(m, s, r.verts, stats);

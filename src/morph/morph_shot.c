@@ -377,7 +377,7 @@ fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_run r = {s, cache, &c, FM_OK, {0}};
     const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, s->dist};
+                                s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
     fm_status st = fm_frame_loop_run(&loop, err);
     finish_stats(s, stats);
     return st;

@@ -302,12 +302,14 @@ static fm_status mpi_failed(const fm_dist_file *f, int code, fm_error *err)
 
 static fm_status close_partial(fm_dist_file *f, fm_status st, fm_error *err);
 
-/* Opens PATH.partial on every rank, empty. */
-static fm_status open_partial(fm_dist_file *f, fm_error *err)
+/* Opens PATH.partial on every rank, empty; or, attaching, the file at names.partial as it is. */
+static fm_status open_partial(fm_dist_file *f, int attach, fm_error *err)
 {
 #ifdef FM_HAVE_MPI
     if (!one_process(f)) {
-        int rc = MPI_File_open(f->d->comm, f->names.partial, MPI_MODE_CREATE | MPI_MODE_WRONLY, MPI_INFO_NULL, &f->fh);
+        int rc = MPI_File_open(f->d->comm, f->names.partial, attach ? MPI_MODE_WRONLY : MPI_MODE_CREATE | MPI_MODE_WRONLY,
+                               MPI_INFO_NULL, &f->fh);
+        if (rc == MPI_SUCCESS && attach) return FM_OK;
         if (rc != MPI_SUCCESS) { /* MPI's error classes say less than errno ("bad file" for a directory) */
             errno = 0;
             int fd = open(f->names.partial, O_WRONLY | O_CREAT, 0666);
@@ -320,7 +322,7 @@ static fm_status open_partial(fm_dist_file *f, fm_error *err)
     }
 #endif
     errno = 0;
-    f->fd = open(f->names.partial, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    f->fd = attach ? open(f->names.partial, O_WRONLY) : open(f->names.partial, O_WRONLY | O_CREAT | O_TRUNC, 0666);
     return f->fd >= 0 ? FM_OK : posix_failed(f, errno, err);
 }
 
@@ -329,7 +331,7 @@ fm_dist_file *fm_dist_file_open(const fm_dist *d, const char *path, fm_error *er
     fm_dist_file *f = calloc(1, sizeof *f);
     fm_status st = f ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (f) f->d = d, f->fd = -1, st = fm_output_name(&f->names, path, err);
-    if (st == FM_OK) st = open_partial(f, err);
+    if (st == FM_OK) st = open_partial(f, 0, err);
     if (fm_dist_agree(d, st, err) == FM_OK) return f;
     if (st == FM_OK) close_partial(f, FM_ERR_IO, NULL); /* another rank failed (the open is collective:
                                                            in practice they fail alike) */
@@ -416,4 +418,46 @@ fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err)
     }
     free(f);
     return fm_dist_agree(d, st, err);
+}
+
+fm_dist_file *fm_dist_file_attach(const fm_dist *d, const char *path, fm_error *err)
+{
+    fm_dist_file *f = calloc(1, sizeof *f);
+    fm_status st = f ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (f) {
+        f->d = d, f->fd = -1;
+        snprintf(f->names.path, sizeof f->names.path, "%s", path);
+        snprintf(f->names.partial, sizeof f->names.partial, "%s", path); /* written where it is */
+        st = open_partial(f, 1, err);
+    }
+    if (fm_dist_agree(d, st, err) == FM_OK) return f;
+    if (st == FM_OK) close_partial(f, FM_ERR_IO, NULL);
+    free(f);
+    return NULL;
+}
+
+fm_status fm_dist_file_sync(fm_dist_file *f, fm_error *err)
+{
+    fm_status st = f->st;
+    if (st != FM_OK && err) *err = f->failure;
+#ifdef FM_HAVE_MPI
+    if (!one_process(f)) {
+        int rc = MPI_File_sync(f->fh); /* collective: every rank calls it, whatever its status */
+        if (st == FM_OK && rc != MPI_SUCCESS) st = mpi_failed(f, rc, err);
+        return fm_dist_agree(f->d, st, err);
+    }
+#endif
+    errno = 0;
+    if (st == FM_OK && fsync(f->fd) != 0) st = posix_failed(f, errno, err);
+    return fm_dist_agree(f->d, st, err);
+}
+
+fm_status fm_dist_file_detach(fm_dist_file *f, fm_error *err)
+{
+    const fm_dist *d = f->d;
+    fm_status st = f->st;
+    if (st != FM_OK && err) *err = f->failure;
+    st = fm_dist_agree(d, close_partial(f, st, err), err);
+    free(f);
+    return st;
 }

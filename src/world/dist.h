@@ -71,5 +71,12 @@ fm_status fm_dist_file_write_at(fm_dist_file *f, uint64_t offset, const void *by
  * PATH (the directory synced); otherwise removes PATH.partial. Every rank returns the same status
  * and message. Frees f. */
 fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err);
+/* Collective: the existing file at `path` (rank 0's cache, which it created) opened by every rank
+ * for writes at offsets, nothing truncated or renamed. NULL on every rank, with err, on failure. */
+fm_dist_file *fm_dist_file_attach(const fm_dist *d, const char *path, fm_error *err);
+/* Collective: every rank's writes so far on disk (MPI_File_sync); any rank's failure, agreed. */
+fm_status fm_dist_file_sync(fm_dist_file *f, fm_error *err);
+/* Collective: closes an attached file (after a sync); frees f. */
+fm_status fm_dist_file_detach(fm_dist_file *f, fm_error *err);
 
 #endif

@@ -37,6 +37,7 @@ static fm_status checkpoint(const fm_frame_loop *loop, checkpoint_clock *clock, 
     const fm_run_control *c = loop->control;
     fm_status st = loop->cache ? fm_cache_writer_flush(loop->cache, err) : FM_OK;
     st = fm_dist_agree(loop->dist, st, err); /* on P ranks only rank 0 has the cache; the save is collective */
+    if (st == FM_OK && loop->sync) st = loop->sync(loop->sim, err); /* collective, agreed */
     if (st == FM_OK && c->checkpoint_path) st = loop->save(loop->sim, c->checkpoint_path, err);
     if (st == FM_OK && c->checkpoint) st = c->checkpoint(times->frames, c->checkpoint_user, err);
     clock->last_frames = times->frames, clock->last_time = fm_seconds();

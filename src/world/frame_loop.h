@@ -28,6 +28,8 @@ typedef struct fm_frame_loop {
     const fm_dist *dist;           /* on P ranks (NULL: one process): a stop or a checkpoint any rank
                                       wants is taken by all at the same frame (a signal, the wall
                                       clock reach each rank at its own time) */
+    fm_status (*sync)(void *sim, fm_error *err); /* may be NULL; on P ranks, after the cache's flush
+                                      before a checkpoint: the ranks' own writes to it on disk */
 } fm_frame_loop;
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
