@@ -245,34 +245,6 @@ void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds)
     fm_dist_sum_i64(s->dist, s->count, 4);
 }
 
-/* Rank 0 gets every rank's agents into its arrays with their phases, as records of `size` bytes
- * (s->gathered keeps them, for fm_flock_dist_release); the other ranks send theirs. */
-static fm_status gather(fm_flock_state *s, size_t size, void (*put)(const fm_flock_state *, int64_t, void *),
-                        void (*take)(fm_flock_state *, const void *), fm_error *err)
-{
-    const int root = fm_dist_rank(s->dist) == 0;
-    int64_t mine = 0;
-    for (int64_t a = 0; !root && a < s->n; a++) mine += is_mine(s->phase[a]);
-    char *out = fm_alloc(size * (size_t)FM_MAX(mine, 1));
-    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)mine);
-    st = fm_dist_agree(s->dist, st, err);
-    for (int64_t a = 0, k = 0; st == FM_OK && !root && a < s->n; a++)
-        if (is_mine(s->phase[a])) put(s, a, out + size * (size_t)k++);
-    void *all = NULL;
-    int64_t total = 0;
-    if (st == FM_OK) st = fm_dist_gather(s->dist, out, mine, size, &all, &total, err);
-    fm_free(out);
-    s->slabs->totals.bytes_sent += mine * (int64_t)size;
-    if (st == FM_OK && root)
-        for (int64_t k = 0; k < total; k++) take(s, (const char *)all + size * (size_t)k);
-    s->gathered = all, s->gathered_count = total, s->gathered_size = size;
-    return st;
-}
-
-fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
-{
-    return gather(s, sizeof(frame_record), pack_frame, unpack_frame, err);
-}
 
 /* Every rank sends its agents whose ids lie in another rank's share (begin[r] … begin[r + 1] − 1)
  * there, as records of `size` bytes (count, then fill, as the migration packs), and takes those of
@@ -300,6 +272,21 @@ static fm_status share(fm_flock_state *s, const int64_t *begin, size_t size,
     for (int64_t k = 0; st == FM_OK && k < received; k++) take(s, (const char *)in + size * (size_t)k);
     s->gathered = in, s->gathered_count = st == FM_OK ? received : 0, s->gathered_size = size;
     free(at), fm_free(out);
+    return st;
+}
+
+/* Rank 0 gets every agent (the frame gathered, where the pieces are not whole blocks of measures):
+ * a share of every id. */
+fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
+{
+    const int ranks = fm_dist_size(s->dist);
+    int64_t *begin = malloc(sizeof(int64_t) * ((size_t)ranks + 1));
+    fm_status st = fm_dist_agree(s->dist, begin ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory"), err);
+    if (st != FM_OK) return free(begin), st;
+    begin[0] = 0;
+    for (int r = 1; r <= ranks; r++) begin[r] = s->n;
+    st = share(s, begin, sizeof(frame_record), pack_frame, unpack_frame, err);
+    free(begin);
     return st;
 }
 

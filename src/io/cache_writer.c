@@ -160,21 +160,27 @@ static fm_status write_frame(fm_cache_writer *w, const unsigned char *frame, fm_
     return st == FM_OK ? append_chunk(w, packed, err) : st;
 }
 
+/* Chunk w->frames's head in w->chunk, all but its CRC: the header and the size table of blocks
+ * `sizes` (`packed` bytes in all). */
+static void put_chunk_head(fm_cache_writer *w, const uint64_t *sizes, uint64_t packed)
+{
+    const uint64_t table = cache_table_bytes(&w->l);
+    for (uint64_t b = 0; b < table / 8; b++) put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * b, sizes[b]);
+    memcpy(w->chunk, "FRAM", 4);
+    put_u32(w->chunk + 4, w->frames);
+    put_u32(w->chunk + 8, cache_is_key_frame(&w->l, w->frames) ? CHUNK_KEY_FRAME : 0);
+    put_u64(w->chunk + 16, table + packed);
+}
+
 /* Appends chunk w->frames: its blocks (`packed` bytes) already after the size table's place in
  * w->chunk, their sizes in w->block_sizes. */
 static fm_status append_chunk(fm_cache_writer *w, uint64_t packed, fm_error *err)
 {
-    const cache_layout *l = &w->l;
     const uint32_t k = w->frames;
-    const uint64_t table = cache_table_bytes(l);
     fm_status st = grow_index(w, err);
     if (st != FM_OK) return st;
-    for (uint64_t b = 0; b < table / 8; b++) put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * b, w->block_sizes[b]);
-    const size_t at = CACHE_CHUNK_HEADER + table + packed;
-    memcpy(w->chunk, "FRAM", 4);
-    put_u32(w->chunk + 4, k);
-    put_u32(w->chunk + 8, cache_is_key_frame(l, k) ? CHUNK_KEY_FRAME : 0);
-    put_u64(w->chunk + 16, at - CACHE_CHUNK_HEADER);
+    put_chunk_head(w, w->block_sizes, packed);
+    const size_t at = CACHE_CHUNK_HEADER + cache_table_bytes(&w->l) + packed;
     put_u32(w->chunk + 12, cache_chunk_crc(w->chunk, at - CACHE_CHUNK_HEADER));
     w->offsets[k] = w->pos, w->sizes[k] = at;
     if ((st = write_bytes(w, w->chunk, at, err)) == FM_OK) w->frames++;
@@ -265,11 +271,7 @@ fm_status fm_cache_writer_chunk_head(fm_cache_writer *w, const uint64_t *sizes, 
     if (st != FM_OK) return st;
     const uint64_t table = cache_table_bytes(&w->l);
     const uint32_t k = w->frames;
-    for (uint64_t b = 0; b < table / 8; b++) put_u64(w->chunk + CACHE_CHUNK_HEADER + 8 * b, sizes[b]);
-    memcpy(w->chunk, "FRAM", 4);
-    put_u32(w->chunk + 4, k);
-    put_u32(w->chunk + 8, cache_is_key_frame(&w->l, k) ? CHUNK_KEY_FRAME : 0);
-    put_u64(w->chunk + 16, table + packed);
+    put_chunk_head(w, sizes, packed);
     /* cache_chunk_crc's bytes: the header but its CRC, the table, then the ranks' runs in order */
     uLong crc = cache_crc32(cache_crc32(0, w->chunk, 12), w->chunk + 16, 8 + (size_t)table);
     for (int r = 0; r < runs; r++) crc = crc32_combine(crc, run_crc[r], (z_off_t)run_bytes[r]), runs_total += run_bytes[r];

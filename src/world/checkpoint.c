@@ -131,9 +131,8 @@ static uint64_t stats_bytes(const fm_ckpt_store *c)
     return bytes;
 }
 
-/* Where each member's bytes start in the file (every rank computes the same); returns where the
- * piece table starts. */
-static uint64_t member_offsets(const fm_ckpt_store *c, uint64_t *data_at)
+/* Where each member's bytes start in the file (every rank computes the same). */
+static void member_offsets(const fm_ckpt_store *c, uint64_t *data_at)
 {
     uint64_t at = HEADER_BYTES + stats_bytes(c);
     for (int i = 0; i < c->member_count; i++) {
@@ -142,7 +141,6 @@ static uint64_t member_offsets(const fm_ckpt_store *c, uint64_t *data_at)
         at += 4 + strlen(c->members[i].name) + 8;
         data_at[i] = at, at += bytes;
     }
-    return at;
 }
 
 fm_ckpt_store fm_ckpt_on_ranks(fm_ckpt_store c, const fm_dist *dist, const fm_ckpt_part *parts, int part_count)
