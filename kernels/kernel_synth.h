@@ -23,9 +23,16 @@ typedef struct fm_synth_view {
     const float *rest[12]; /* rest vertices relative to the centroid, SoA */
     const int32_t *id;     /* agent id: launched at id / launch_rate, written at out + 12 id */
     double time, launch_rate, shrink, shrink_time;
+    int by_slot;           /* 1: written at out + 12 a instead (a rank's own agents, P ranks) */
 } fm_synth_view;
 
-/* For agents a in [begin, end) with phase[a] == flying:
+/* Where agent a's tet goes in out: 12 floats at its id, or at its slot. */
+static inline size_t fm_synth_place(const fm_synth_view *s, int64_t a)
+{
+    return 12 * (size_t)(s->by_slot ? a : s->id[a]);
+}
+
+/* For agents a in [begin, end) with phase[a] == flying (at 12 a instead of 12 id[a] with by_slot):
  *     out[12 id[a] + 3 v + k] = (float)(p[k][a] + scale * rest[3 v + k][a]),
  * scale = fm_shrink_at(time - id[a] / launch_rate, ...), in double. Other agents' tets untouched. */
 void fm_kernel_flying_tets(const fm_synth_view *s, const uint8_t *phase, uint8_t flying, int64_t begin,
@@ -38,7 +45,7 @@ static inline void flying_tet(const fm_synth_view *s, int64_t a, float *out)
 {
     const int32_t i = s->id[a];
     const double scale = fm_shrink_at(s->time - (double)i / s->launch_rate, s->shrink, s->shrink_time);
-    float *o = out + 12 * (size_t)i;
+    float *o = out + fm_synth_place(s, a);
     for (int j = 0; j < 12; j++) o[j] = (float)((double)s->p[j % 3][a] + scale * (double)s->rest[j][a]);
 }
 

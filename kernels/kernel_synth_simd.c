@@ -1,6 +1,6 @@
 /* Phase 1's tets, SIMD: FM_WD agents at once in double (simd.h's dv lanes), fm_shrink_at and
  * flying_tet's operations in the same order, so the same bits; each agent's 12 floats are then
- * written together where its id says. Compiled three times (simd.h). */
+ * written together where its id (or slot) says. Compiled three times (simd.h). */
 #include "kernel_synth.h"
 
 /* fm_shrink_at for the agents a .. a + FM_WD - 1 */
@@ -21,7 +21,7 @@ static inline void tets_lanes(const fm_synth_view *s, int64_t a, float *out)
     for (int j = 0; j < 12; j++)
         dv_store_floats(t[j], dv_add(dv_from_floats(s->p[j % 3] + a), dv_mul(scale, dv_from_floats(s->rest[j] + a))));
     for (int l = 0; l < FM_WD; l++) {
-        float *o = out + 12 * (size_t)s->id[a + l];
+        float *o = out + fm_synth_place(s, a + l);
         for (int j = 0; j < 12; j++) o[j] = t[j][l];
     }
 }

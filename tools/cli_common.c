@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -586,17 +587,20 @@ fm_dist_totals cli_sum_totals(fm_dist_totals mine)
     mine.busiest_seconds = mine.busy_seconds;
     fm_dist_max_f64(cli_dist, &mine.busiest_seconds, 1);
     fm_dist_sum_f64(cli_dist, &mine.busy_seconds, 1); /* a timing: no result depends on its order */
+    struct rusage usage;
+    mine.peak_rss_bytes = getrusage(RUSAGE_SELF, &usage) == 0 ? (int64_t)usage.ru_maxrss * 1024 : 0; /* Linux: KiB */
+    fm_dist_max_i64(cli_dist, &mine.peak_rss_bytes, 1);
     return mine;
 }
 
 json_t *cli_scale_out_json(const fm_dist_totals *t)
 {
     double agent_steps = (double)FM_MAX(t->agent_steps, 1);
-    return json_pack("{sIsfsfsfsfsI}", "ranks", (json_int_t)fm_dist_size(cli_dist), "bytes_sent_per_agent_step",
+    return json_pack("{sIsfsfsfsfsIsI}", "ranks", (json_int_t)fm_dist_size(cli_dist), "bytes_sent_per_agent_step",
                      (double)t->bytes_sent / agent_steps, "halo_agents_per_agent_step",
                      (double)t->ghost_agent_steps / agent_steps, "load_imbalance",
                      t->agent_steps > 0 ? (double)t->max_rank_agent_steps * fm_dist_size(cli_dist) / (double)t->agent_steps : 1.0,
                      "busy_imbalance",
                      t->busy_seconds > 0 ? t->busiest_seconds * fm_dist_size(cli_dist) / t->busy_seconds : 1.0,
-                     "migrations", (json_int_t)t->migrated);
+                     "migrations", (json_int_t)t->migrated, "max_rank_peak_rss_bytes", (json_int_t)t->peak_rss_bytes);
 }

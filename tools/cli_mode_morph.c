@@ -140,9 +140,9 @@ static int build(void *run, const fm_scene_def *def, int *show)
 static fm_status create_state(void *run, int threads, fm_error *err)
 {
     morph_run *r = run;
-    r->state = fm_morph_state_create(r->model, threads, err);
-    if (!r->state) return err->status;
-    return fm_dist_size(cli_dist) > 1 ? fm_morph_state_distribute(r->model, r->state, cli_dist, err) : FM_OK;
+    r->state = fm_dist_size(cli_dist) > 1 ? fm_morph_state_create_distributed(r->model, threads, cli_dist, err)
+                                          : fm_morph_state_create(r->model, threads, err);
+    return r->state ? FM_OK : err->status;
 }
 
 /* Tet vertices, ids and phases. */

@@ -14,6 +14,7 @@
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
 #define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
 #include "cli.h"
+#include "memory.h"
 
 #include <omp.h>
 #include <signal.h>
@@ -61,6 +62,7 @@ static int start_ranks(int *argc, char ***argv)
     if (!fm_dist_launched()) return 0;
     fm_error err = {0};
     if (!(cli_dist = fm_dist_init(argc, argv, &err))) return cli_report(&err);
+    fm_memory_set_ranks(fm_dist_size(cli_dist), fm_dist_size_here(cli_dist)); /* a run's estimate is one rank's */
     if (fm_dist_rank(cli_dist) != 0 && !getenv("FM_RANK_OUTPUT")) {
         if (!freopen("/dev/null", "w", stdout) || !freopen("/dev/null", "w", stderr)) return FM_ERR_IO;
     }

@@ -121,8 +121,9 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
         st = fm_frame_check_runaway_from(r->position + 3 * first, 3, first, end - first, r->m->scene_lo, r->m->scene_hi,
                                          frame, FLOCK_FORCES, err);
     }
-    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = r->position, [FM_ATTR_VELOCITY] = r->velocity,
-                                             [FM_ATTR_ORIENTATION] = r->orientation, [FM_ATTR_PHASE] = r->phase};
+    const size_t at = (size_t)first; /* the share's first agent */
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = r->position + 3 * at, [FM_ATTR_VELOCITY] = r->velocity + 3 * at,
+                                             [FM_ATTR_ORIENTATION] = r->orientation + 4 * at, [FM_ATTR_PHASE] = r->phase + at};
     if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
         st = fm_frame_share_write(&r->share, s->dist, r->cache, by_kind, (uint32_t)frame, &s->slabs->totals.bytes_sent, err);
     if (st == FM_OK && frame > 0) st = measure_shared(r, frame, err);
@@ -159,6 +160,7 @@ static fm_status start_share(flock_run *r, fm_error *err)
 {
     fm_status st = fm_frame_share_start(&r->share, r->s->dist, r->cache, r->s->threads, r->c->resume, err);
     if (st == FM_OK && r->share.on && r->share.share.enc.l.piece_agents % FM_BLOCK != 0) fm_frame_share_free(&r->share);
+    fm_frame_share_commit(&r->share, r->cache);
     return st;
 }
 

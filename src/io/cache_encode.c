@@ -27,8 +27,8 @@ static size_t block_at(const cache_encoder *e, uint64_t b)
     return e->attr_at[i] + (size_t)(cache_piece_first(&e->l, j) - e->agent_begin) * e->l.attrs[i]->bytes_per_agent;
 }
 
-fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
-                             int threads, const char *path, fm_error *err)
+fm_status cache_encoder_init_bounds(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
+                                    int threads, const char *path, fm_error *err)
 {
     memset(e, 0, sizeof *e);
     e->l = *l;
@@ -37,42 +37,64 @@ fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t p
     e->agent_end = FM_MIN(cache_piece_first(l, piece_end), l->agents);
     e->threads = FM_MAX(threads, 1);
     snprintf(e->path, sizeof e->path, "%s", path);
-    size_t total = 0, largest = 0;
+    size_t total = 0;
     for (int i = 0; i < l->attr_count; i++) {
         e->attr_at[i] = total;
         total += (size_t)(e->agent_end - e->agent_begin) * l->attrs[i]->bytes_per_agent;
-        largest = FM_MAX(largest, cache_block_bytes(l, piece_begin, i)); /* the first piece is a full one */
     }
     const uint64_t blocks = cache_encoder_blocks(e);
-    e->stored = fm_alloc(FM_MAX(total, 1));
-    e->prev = l->opts.delta ? fm_alloc(FM_MAX(total, 1)) : NULL;
     e->bound_at = malloc(sizeof *e->bound_at * (size_t)(blocks + 1));
-    e->scratch = calloc((size_t)e->threads, sizeof *e->scratch);
-    e->cctx = calloc((size_t)e->threads, sizeof *e->cctx);
-    int ok = e->stored && (!l->opts.delta || e->prev) && e->bound_at && e->scratch && e->cctx;
-    for (int t = 0; ok && t < e->threads; t++) {
-        ok = (e->scratch[t] = fm_alloc(FM_MAX(largest, 1))) != NULL && (e->cctx[t] = ZSTD_createCCtx()) != NULL;
-        if (ok) ZSTD_CCtx_setParameter(e->cctx[t], ZSTD_c_compressionLevel, l->opts.compression_level);
-    }
-    if (!ok) {
-        cache_encoder_free(e);
-        return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the cache encoder of %llu agents", path,
-                       (unsigned long long)(e->agent_end - e->agent_begin));
-    }
+    if (!e->bound_at) return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the cache's block table", path);
     e->bound_at[0] = 0;
     for (uint64_t b = 0; b < blocks; b++)
         e->bound_at[b + 1] = e->bound_at[b] + ZSTD_compressBound(cache_block_bytes(l, block_piece(e, b), block_attr(e, b)));
     return FM_OK;
 }
 
+fm_status cache_encoder_alloc_buffers(cache_encoder *e, fm_error *err)
+{
+    const cache_layout *l = &e->l;
+    size_t total = 0, largest = 0;
+    for (int i = 0; i < l->attr_count; i++) {
+        total += (size_t)(e->agent_end - e->agent_begin) * l->attrs[i]->bytes_per_agent;
+        largest = FM_MAX(largest, cache_block_bytes(l, e->piece_begin, i)); /* the first piece is a full one */
+    }
+    e->stored = fm_alloc(FM_MAX(total, 1));
+    e->prev = l->opts.delta ? fm_alloc(FM_MAX(total, 1)) : NULL;
+    e->scratch = calloc((size_t)e->threads, sizeof *e->scratch);
+    e->cctx = calloc((size_t)e->threads, sizeof *e->cctx);
+    int ok = e->stored && (!l->opts.delta || e->prev) && e->scratch && e->cctx;
+    for (int t = 0; ok && t < e->threads; t++) {
+        ok = (e->scratch[t] = fm_alloc(FM_MAX(largest, 1))) != NULL && (e->cctx[t] = ZSTD_createCCtx()) != NULL;
+        if (ok) ZSTD_CCtx_setParameter(e->cctx[t], ZSTD_c_compressionLevel, l->opts.compression_level);
+    }
+    if (ok) return FM_OK;
+    cache_encoder_keep_bounds(e);
+    return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the cache encoder of %llu agents", e->path,
+                   (unsigned long long)(e->agent_end - e->agent_begin));
+}
+
+fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
+                             int threads, const char *path, fm_error *err)
+{
+    fm_status st = cache_encoder_init_bounds(e, l, piece_begin, piece_end, threads, path, err);
+    if (st == FM_OK) st = cache_encoder_alloc_buffers(e, err);
+    if (st != FM_OK) cache_encoder_free(e);
+    return st;
+}
+
+void cache_encoder_keep_bounds(cache_encoder *e)
+{
+    for (int t = 0; t < e->threads && e->scratch; t++) fm_free(e->scratch[t]);
+    for (int t = 0; t < e->threads && e->cctx; t++) ZSTD_freeCCtx(e->cctx[t]);
+    fm_free(e->stored), fm_free(e->prev), free(e->scratch), free(e->cctx);
+    e->stored = e->prev = NULL, e->scratch = NULL, e->cctx = NULL;
+}
+
 void cache_encoder_free(cache_encoder *e)
 {
-    for (int t = 0; t < e->threads; t++) {
-        if (e->scratch) fm_free(e->scratch[t]);
-        if (e->cctx) ZSTD_freeCCtx(e->cctx[t]);
-    }
-    fm_free(e->stored), fm_free(e->prev);
-    free(e->bound_at), free(e->scratch), free(e->cctx);
+    cache_encoder_keep_bounds(e);
+    free(e->bound_at);
     memset(e, 0, sizeof *e);
 }
 
@@ -209,8 +231,7 @@ fm_status cache_share_encode(cache_share *sh, const void *const *by_kind, uint32
         const unsigned char *all = kind == FM_ATTR_ID ? NULL : by_kind[kind];
         if (kind != FM_ATTR_ID && !all)
             return fm_fail(err, FM_ERR_INTERNAL, "a cache share was given no %s", l->attrs[i]->name);
-        data[i] = kind == FM_ATTR_ID ? (const void *)sh->ids
-                                     : all + (size_t)sh->enc.agent_begin * l->attrs[i]->bytes_per_agent;
+        data[i] = kind == FM_ATTR_ID ? (const void *)sh->ids : all;
     }
     return cache_encode_frame(&sh->enc, data, k, sh->blocks, sh->sizes, &sh->bytes, err);
 }

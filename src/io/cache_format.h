@@ -149,7 +149,14 @@ typedef struct cache_encoder {
 
 fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
                              int threads, const char *path, fm_error *err);
+/* cache_encoder_init in two parts: the range and its blocks' bounds, then the buffers and compressors
+ * (the writer makes them only once it encodes a frame: on P ranks it never does). */
+fm_status cache_encoder_init_bounds(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
+                                    int threads, const char *path, fm_error *err);
+fm_status cache_encoder_alloc_buffers(cache_encoder *e, fm_error *err);
 void cache_encoder_free(cache_encoder *e);
+/* Frees the encoder's buffers and compressors but keeps its blocks' bounds (bound_at). */
+void cache_encoder_keep_bounds(cache_encoder *e);
 /* Blocks of the range, and the bytes they can take compressed. */
 uint64_t cache_encoder_blocks(const cache_encoder *e);
 uint64_t cache_encoder_bound(const cache_encoder *e);
@@ -180,8 +187,8 @@ uint64_t cache_share_agent_begin(const cache_layout *l, int r, int ranks);
 fm_status cache_share_init(cache_share *sh, const unsigned char *header, uint32_t header_bytes, int rank, int ranks,
                            int threads, fm_error *err);
 void cache_share_free(cache_share *sh);
-/* Frame k: by_kind[FM_ATTR_x] (CACHE_ATTR_KINDS entries) points at agent 0 of an id-indexed array of attribute x holding (at
- * least) the share's agents; the id attribute comes from the share. */
+/* Frame k: by_kind[FM_ATTR_x] (CACHE_ATTR_KINDS entries) points at attribute x of the share's
+ * agents in id order, its first agent (agent_begin) first; the id attribute comes from the share. */
 fm_status cache_share_encode(cache_share *sh, const void *const *by_kind, uint32_t k, fm_error *err);
 
 /* A frame whose blocks P ranks encoded and write themselves (frame_share.c): where its chunk goes
@@ -204,6 +211,11 @@ fm_status fm_cache_writer_note_chunk(fm_cache_writer *w, const cache_chunk_place
 /* Delta: attribute i's stored words of every agent at the last frame (a resumed writer hands the
  * ranks their shares of it). */
 const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i);
+/* On P ranks, once the ranks have their shares: the ranks encode and write every frame, so the
+ * writer frees what encoding a frame takes (its hand-over slots and encoder's buffers, about 6
+ * frames' bytes, made on the first add_frame or a resume) and its ids, and keeps the chunk heads and
+ * the index. add_frame is refused from then on. */
+void fm_cache_writer_leave_frames_to_ranks(fm_cache_writer *w);
 
 /* The writer's layout (morph_run.c and flock_run.c hand over the attributes it asks for). */
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);

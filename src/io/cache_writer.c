@@ -38,7 +38,9 @@ struct fm_cache_writer {
     pthread_cond_t changed;
     /* A ring of frames handed over, attributes at attr_at. With two, the step loop hands frame k+1
      * over while k is being written instead of waiting for it (docs/performance.md#cache-writer). */
-    unsigned char *slot[CACHE_WRITER_SLOTS];
+    unsigned char *slot[CACHE_WRITER_SLOTS]; /* slot_bytes each, made with the first frame */
+    size_t slot_bytes;
+    int ranks_write;         /* P ranks encode and write the frames (leave_frames_to_ranks) */
     int next, queued;        /* the slot the worker takes next; frames handed over and not yet written */
     int stop;
     fm_status worker_status; /* the first failure, reported by the next call */
@@ -47,6 +49,20 @@ struct fm_cache_writer {
 };
 
 static void *worker_main(void *arg);
+
+/* The hand-over slots and the encoder's buffers, made when the first frame comes (or a resume
+ * takes over the last one): a writer whose frames the ranks write never needs them. */
+static fm_status frame_buffers(fm_cache_writer *w, fm_error *err)
+{
+    if (w->slot[0]) return FM_OK;
+    if (w->ranks_write) return fm_fail(err, FM_ERR_INTERNAL, "%s: the ranks write this cache's frames, not the writer", w->out.path);
+    int ok = 1;
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) ok &= (w->slot[s] = fm_alloc(w->slot_bytes)) != NULL;
+    if (ok && cache_encoder_alloc_buffers(&w->enc, err) == FM_OK) return FM_OK;
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) fm_free(w->slot[s]), w->slot[s] = NULL;
+    return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the frames of %llu agents", w->out.path,
+                   (unsigned long long)w->l.agents);
+}
 
 const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w) { return &w->l; }
 const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w) { return w->ids; }
@@ -73,17 +89,16 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, const char *path, fm
         w->attr_at[i] = total;
         total += align64(cache_attr_bytes(l, i));
     }
+    w->slot_bytes = total;
     pthread_mutex_init(&w->lock, NULL);
     pthread_cond_init(&w->changed, NULL);
-    int ok = 1;
-    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) ok &= (w->slot[s] = fm_alloc(total)) != NULL;
     w->chunk = malloc(CACHE_CHUNK_HEADER + cache_payload_bound(l));
     w->block_sizes = malloc(cache_table_bytes(l));
     int with_ids = cache_attr_index(l, FM_ATTR_ID) >= 0;
     if (with_ids && (w->ids = fm_alloc(sizeof(uint32_t) * (size_t)l->agents)) != NULL)
         for (uint64_t a = 0; a < l->agents; a++) w->ids[a] = (uint32_t)a;
-    if (!ok || !w->chunk || !w->block_sizes || (with_ids && !w->ids) ||
-        cache_encoder_init(&w->enc, l, 0, l->pieces, CACHE_ENCODER_THREADS, path, err) != FM_OK) {
+    if (!w->chunk || !w->block_sizes || (with_ids && !w->ids) ||
+        cache_encoder_init_bounds(&w->enc, l, 0, l->pieces, CACHE_ENCODER_THREADS, path, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for the cache of %llu agents", (unsigned long long)l->agents), NULL;
     }
@@ -225,6 +240,7 @@ static fm_status wait_idle(fm_cache_writer *w, fm_error *err) { return wait_queu
  * worker advances next and lowers queued together). */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err)
 {
+    if (frame_buffers(w, err) != FM_OK) return err->status;
     double t0 = fm_seconds();
     pthread_mutex_lock(&w->lock);
     fm_status st = wait_queue(w, CACHE_WRITER_SLOTS - 1, err);
@@ -293,6 +309,19 @@ fm_status fm_cache_writer_note_chunk(fm_cache_writer *w, const cache_chunk_place
 }
 
 const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i) { return cache_encoder_prev(&w->enc, i); }
+
+void fm_cache_writer_leave_frames_to_ranks(fm_cache_writer *w)
+{
+    pthread_mutex_lock(&w->lock);
+    wait_idle(w, NULL); /* nothing was handed over: the worker is idle */
+    pthread_mutex_unlock(&w->lock);
+    for (int s = 0; s < CACHE_WRITER_SLOTS; s++) fm_free(w->slot[s]), w->slot[s] = NULL;
+    fm_free(w->ids), w->ids = NULL;
+    cache_encoder_keep_bounds(&w->enc); /* chunk_head checks the ranks' blocks against the bounds */
+    w->ranks_write = 1;
+    unsigned char *head = realloc(w->chunk, CACHE_CHUNK_HEADER + cache_table_bytes(&w->l));
+    if (head) w->chunk = head; /* else the larger buffer stays */
+}
 
 fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_error *err)
 {
@@ -425,6 +454,7 @@ static fm_status take_over_prefix(fm_cache_writer *w, fm_cache_reader *r, uint32
         w->pos = cache_reader_chunk_end(r, k);
         w->frames = w->handed = k + 1;
     }
+    if (st == FM_OK && l->opts.delta && frames > 0) st = frame_buffers(w, err); /* prev takes the last frame */
     for (int i = 0; i < l->attr_count && st == FM_OK && l->opts.delta && frames > 0; i++) {
         const unsigned char *words;
         if ((st = cache_reader_stored(r, frames - 1, i, &words, err)) == FM_OK)

@@ -58,7 +58,8 @@ fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_mor
                                            fm_progress_fn progress, void *user, fm_error *err);
 void fm_morph_model_drop_targets(fm_morph_model *m);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
-double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts);
+/* verts: the store's tets by agent id, or (by_slot) in slot order. */
+double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot);
 int fm_morph_targets_taken_once(const fm_morph_state *s);
 
 
@@ -90,6 +91,8 @@ extern const char *const fm_stage_names[FM_STAGE_COUNT];
  * so the step only visits the active range: idle agents cost nothing. */
 struct fm_morph_state {
     int64_t n;
+    int64_t capacity;        /* slots the per-slot arrays hold: n on one process; on P ranks this
+                                rank's agents and halo, grown as they come (fm_morph_state_reserve) */
     int32_t *id;             /* agent id of each slot */
     int64_t active_begin, active_end;
     int64_t step;
@@ -112,7 +115,7 @@ struct fm_morph_state {
     uint8_t *entered;        /* scratch: entered the target sphere this step */
     void *sort_scratch;      /* scratch for the re-sort: 16 bytes per agent; the velocity stage
                                 borrows 8 of them for the obstacle kernels (morph_step.c) */
-    uint32_t *sort_keys;     /* scratch: 2 × n keys and 2 × n slots */
+    uint32_t *sort_keys;     /* scratch: 2 × capacity keys and 2 × capacity slots */
     int32_t *sort_slots;
     int64_t launched;        /* agents with id < launched have left the source */
     int64_t next_slot;       /* target slots handed out so far */
@@ -147,14 +150,17 @@ static inline int64_t fm_morph_slots(const fm_morph_state *s)
 void fm_morph_waiting_tet(const fm_morph_model *m, int64_t id, float out[12]);
 
 /* morph_dist.c: the tetra morph on P ranks (docs/scale-out.md). */
+/* morph_state.c: one rank's store on P ranks, as fm_morph_state_create then fm_morph_state_distribute
+ * make it, without the n slots in between (docs/limits.md: memory on P ranks). */
+fm_morph_state *fm_morph_state_create_distributed(const fm_morph_model *m, int threads, const fm_dist *dist, fm_error *err);
 /* Makes s (fresh from fm_morph_state_create) one rank's share of the run: slabs cut at the source's
  * quantiles, an empty store. */
 fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, const fm_dist *dist, fm_error *err);
 fm_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s);
-void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due);
+fm_status fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due, fm_error *err);
 fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_error *err);
 fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err);
-void fm_morph_dist_rebalance(fm_morph_state *s);
+void fm_morph_dist_rebalance(const fm_morph_model *m, fm_morph_state *s, int64_t due); /* before agents < due launch */
 void fm_morph_dist_record_load(fm_morph_state *s);
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds); /* the step's own work, for the balance */
 /* Checkpoints on P ranks: one file of one process's layout, written by every rank at once (any P
@@ -167,14 +173,22 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
 void fm_morph_dist_adopt(fm_morph_state *s);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
 /* The cache written by P ranks in parallel: this rank's share of the frame's ids, begin[rank] …
- * begin[rank + 1] − 1, complete in verts and phases (by id), from every rank's store. */
-fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *verts,
-                                    uint8_t *phases, fm_error *err);
+ * begin[rank + 1] − 1, complete in verts and phases (in id order from begin[rank]), from every
+ * rank's store; own (12 floats a store slot) gets the rank's own agents' tets in slot order. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *own,
+                                    float *verts, uint8_t *phases, fm_error *err);
 
 /* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state one rank's share
  * (fm_morph_state_distribute); its frames gathered on rank 0, which writes them. */
 fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
 
+/* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an
+ * allocation failure leaves the store as it was. */
+fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err);
+/* The store shrunk to its agents and some room (P ranks: after a rank kept its share). */
+void fm_morph_state_fit(fm_morph_state *s);
+/* morph_state.c: the tets of the store's agents in slot order (12 floats a slot of fm_morph_slots). */
+void fm_morph_tet_vertices_by_slot(const fm_morph_model *m, const fm_morph_state *s, float *out);
 /* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
 void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s);
 /* The rest vertices of slot a's tet relative to its centroid (12 floats). */
@@ -186,8 +200,6 @@ static inline void fm_morph_state_rest_tet(const fm_morph_state *s, int64_t a, f
 /* morph_resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
  * agent's id and state. */
 void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s);
-fm_status fm_morph_state_alloc_sort(fm_morph_state *s);
-void fm_morph_state_free_sort(fm_morph_state *s);
 
 /* Slots of scheduler block b of the active range. */
 static inline int64_t fm_active_blocks(const fm_morph_state *s)

@@ -52,6 +52,7 @@ fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, 
     initial_cuts(m, d);
     s->dist = dist, s->slabs = d;
     s->active_begin = s->active_end = 0; /* nothing launched: no slot holds an agent yet */
+    fm_morph_state_fit(s); /* the rank's store grows with its share (docs/scale-out.md, "Memory") */
     return FM_OK;
 }
 
@@ -74,14 +75,18 @@ static agent_record rest_record(const fm_morph_model *m, int64_t i, uint8_t phas
     return r;
 }
 
-void fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due)
+fm_status fm_morph_dist_launch(const fm_morph_model *m, fm_morph_state *s, int64_t due, fm_error *err)
 {
     const fm_slabs *d = s->slabs;
-    for (int64_t i = s->launched; i < due; i++) {
+    int64_t mine = 0;
+    for (int64_t i = s->launched; i < due; i++) mine += fm_slabs_owner(d, m->src_c[d->axis][i], 0) == d->rank;
+    fm_status st = fm_dist_agree(s->dist, fm_morph_state_reserve(s, s->active_end + mine, err), err);
+    for (int64_t i = s->launched; st == FM_OK && i < due; i++) {
         if (fm_slabs_owner(d, m->src_c[d->axis][i], 0) != d->rank) continue;
         const agent_record r = rest_record(m, i, FM_PHASE_FLYING);
         unpack_agent(m, s, &r, s->active_end++);
     }
+    return st;
 }
 
 static void pack_agent(const fm_morph_state *s, int64_t a, agent_record *r)
@@ -157,6 +162,7 @@ fm_status fm_morph_dist_migrate(const fm_morph_model *m, fm_morph_state *s, fm_e
     agent_record *out = pack_leaving(s, &leaving, err);
     void *in;
     fm_status st = fm_slabs_send(s->slabs, s->dist, out ? FM_OK : err->status, out, sizeof(agent_record), &in, &received, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, fm_morph_state_reserve(s, s->active_end + received, err), err);
     for (int64_t k = 0; st == FM_OK && k < received; k++) unpack_agent(m, s, (const agent_record *)in + k, s->active_end++);
     fm_free(out), fm_free(in);
     return st;
@@ -188,6 +194,7 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
     }
     void *in;
     st = fm_slabs_send(d, s->dist, st, out, sizeof(ghost_record), &in, &received, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, fm_morph_state_reserve(s, s->active_end + received, err), err);
     *ghosts = 0;
     if (st == FM_OK) {
         const ghost_record *g = in;
@@ -207,23 +214,35 @@ fm_status fm_morph_dist_ghosts(fm_morph_state *s, int64_t *ghosts, fm_error *err
  * by its rank's measured cost per agent-step since the last cut (an agent near an obstacle or in a
  * dense part of the flock costs more), all ranks together; so the slabs follow the flock and the
  * cost (slabs.h). */
-/* The cuts at the quantiles of the store's agents in flight, each weighing `weight`, summed over
- * the ranks when `dist` is set. Without memory the cuts stay: still correct, only less balanced. */
-static void cut_at_flight(fm_morph_state *s, double weight, const fm_dist *dist)
+/* The cuts at the quantiles of the agents in flight, each weighing its rank's `weight`, and of the
+ * agents [launched, due) about to launch, from the source (each rank counts a share of them), at
+ * the mean weight of an agent in flight: summed over the ranks when `dist` is set. Without memory
+ * the cuts stay: still correct, only less balanced. */
+static void cut_at_flight(const fm_morph_model *m, fm_morph_state *s, int64_t due, double weight, const fm_dist *dist)
 {
     fm_slabs *d = s->slabs;
-    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
-    if (!bins) return;
+    enum { WEIGHT, COUNT, FLIGHT, LAUNCH = FLIGHT + FM_SLAB_BINS, ALL = LAUNCH + FM_SLAB_BINS };
+    double *h = calloc(ALL, sizeof(double));
+    if (!h) return;
     const float *x = s->p[d->axis];
     for (int64_t a = s->active_begin; a < s->active_end; a++)
-        if (in_flight(s->phase[a])) bins[fm_slabs_bin(d, x[a])] += weight;
-    fm_slabs_cut(d, bins, dist);
-    free(bins);
+        if (in_flight(s->phase[a])) h[FLIGHT + fm_slabs_bin(d, x[a])] += weight, h[WEIGHT] += weight, h[COUNT]++;
+    const int64_t launching = due - s->launched, ranks = dist ? d->ranks : 1, me = dist ? d->rank : 0;
+    for (int64_t i = s->launched + launching * me / ranks; i < s->launched + launching * (me + 1) / ranks; i++)
+        h[LAUNCH + fm_slabs_bin(d, m->src_c[d->axis][i])]++;
+    fm_dist_sum_f64(dist, h, launching > 0 ? ALL : LAUNCH); /* every rank gets the same histograms: the same cuts */
+    const double mean = h[COUNT] > 0 ? h[WEIGHT] / h[COUNT] : 1;
+    for (int b = 0; b < FM_SLAB_BINS; b++) h[FLIGHT + b] += mean * h[LAUNCH + b];
+    fm_slabs_cut(d, h + FLIGHT, NULL);
+    free(h);
 }
 
-void fm_morph_dist_rebalance(fm_morph_state *s)
+/* With this step's launches in the histogram: without them, the cuts fall around the few agents in
+ * flight when a wave launches (rook at 10^6 agents launched at once: one rank took every agent and
+ * held 1.4× the other's memory until they migrated). */
+void fm_morph_dist_rebalance(const fm_morph_model *m, fm_morph_state *s, int64_t due)
 {
-    cut_at_flight(s, fm_slabs_take_weight(s->slabs), s->dist);
+    cut_at_flight(m, s, due, fm_slabs_take_weight(s->slabs), s->dist);
 }
 
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds)
@@ -284,28 +303,33 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     return FM_OK;
 }
 
-/* The other ranks' agents of this rank's share, in rank order (*recv), from every rank's store
- * (count, then fill, as the migration packs). */
-static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *verts, void **recv,
-                                int64_t *received, fm_error *err)
+/* The rank's own agents' tets (own, slot order) go to the ranks whose shares hold them: into this
+ * rank's share (verts and phases from id first) in place, to the others in rank order (*recv
+ * gets theirs for this rank; count, then fill, as the migration packs). */
+static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *own, float *verts, uint8_t *phases,
+                                void **recv, int64_t *received, fm_error *err)
 {
     fm_slabs *d = s->slabs;
+    const int64_t first = begin[d->rank];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
-    for (int64_t a = 0; a < s->active_end; a++) {
-        const int r = fm_frame_share_owner(begin, d->ranks, s->id[a]);
-        d->count[r] += r != d->rank; /* its own agents are in place already */
-    }
+    for (int64_t a = 0; a < s->active_end; a++) d->count[fm_frame_share_owner(begin, d->ranks, s->id[a])]++;
+    d->count[d->rank] = 0; /* its own share's are put in place */
     int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
     if (at) fm_slabs_offsets(d, at);
     frame_record *out = at ? fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
     fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
-        const int r = fm_frame_share_owner(begin, d->ranks, s->id[a]);
-        if (r == d->rank) continue;
+        const int64_t id = s->id[a];
+        const int r = fm_frame_share_owner(begin, d->ranks, id);
+        if (r == d->rank) {
+            memcpy(verts + 12 * (size_t)(id - first), own + 12 * (size_t)a, 12 * sizeof(float));
+            phases[id - first] = s->phase[a];
+            continue;
+        }
         frame_record *f = out + at[r]++;
-        f->id = s->id[a], f->phase = s->phase[a];
+        f->id = (int32_t)id, f->phase = s->phase[a];
         memset(f->pad, 0, sizeof f->pad);
-        memcpy(f->v, verts + 12 * (size_t)s->id[a], sizeof f->v);
+        memcpy(f->v, own + 12 * (size_t)a, sizeof f->v);
     }
     st = fm_slabs_send(d, s->dist, st, out, sizeof(frame_record), recv, received, err);
     free(at), fm_free(out);
@@ -313,39 +337,39 @@ static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const f
 }
 
 /* Every agent of this rank's share of the frame (ids begin[rank] … begin[rank + 1] − 1) in verts
- * and phases by id: its own from the store, the other ranks' sent here, the waiting ones from the
- * model. The other places of verts hold this rank's own agents, or nothing. */
-fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *verts,
-                                    uint8_t *phases, fm_error *err)
+ * and phases from its first id: its own from the store, the other ranks' sent here, the waiting
+ * ones from the model. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *own,
+                                    float *verts, uint8_t *phases, fm_error *err)
 {
-    fm_morph_tet_vertices(m, s, verts);
-    fm_morph_phases(s, phases);
+    const int me = fm_dist_rank(s->dist);
+    const int64_t first = begin[me];
+    fm_morph_tet_vertices_by_slot(m, s, own);
     void *recv = NULL;
     int64_t received = 0;
-    fm_status st = exchange_share(s, begin, verts, &recv, &received, err);
+    fm_status st = exchange_share(s, begin, own, verts, phases, &recv, &received, err);
     if (st != FM_OK) return fm_free(recv), st;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t k = 0; k < received; k++) { /* distinct ids: no two write one place */
         const frame_record *r = (const frame_record *)recv + k;
-        memcpy(verts + 12 * (size_t)r->id, r->v, sizeof r->v);
-        phases[r->id] = r->phase;
+        memcpy(verts + 12 * (size_t)(r->id - first), r->v, sizeof r->v);
+        phases[r->id - first] = r->phase;
     }
     fm_free(recv);
-    const int me = fm_dist_rank(s->dist);
-    for (int64_t i = FM_MAX(s->launched, begin[me]); i < begin[me + 1]; i++)
-        fm_morph_waiting_tet(m, i, verts + 12 * (size_t)i), phases[i] = FM_PHASE_WAITING;
+    for (int64_t i = FM_MAX(s->launched, first); i < begin[me + 1]; i++)
+        fm_morph_waiting_tet(m, i, verts + 12 * (size_t)(i - first)), phases[i - first] = FM_PHASE_WAITING;
     return FM_OK;
 }
 
 /* The slots this rank's agents take in the one-process store of a checkpoint: launched agents
  * [0, launched) in rank order, rank r's after the lower ranks' (*before of them). */
-static fm_status slots_before(const fm_morph_state *s, int64_t *before, fm_error *err)
+static fm_status slots_before(const fm_morph_state *s, fm_status st, int64_t *before, fm_error *err)
 {
     const int32_t mine = (int32_t)s->active_end;
     int32_t *counts = NULL;
     int64_t ranks = 0, total = 0;
     *before = 0;
-    fm_status st = fm_dist_allgather_i32(s->dist, &mine, 1, &counts, &ranks, err);
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK) st = fm_dist_allgather_i32(s->dist, &mine, 1, &counts, &ranks, err);
     for (int64_t r = 0; st == FM_OK && r < ranks; r++) {
         if (r < fm_dist_rank(s->dist)) *before += counts[r];
         total += counts[r];
@@ -366,12 +390,12 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
                                         const fm_morph_run_stats *stats, fm_error *err)
 {
     const int64_t mine = s->active_end, begin = s->active_begin;
-    int64_t before = 0;
-    fm_status st = slots_before(s, &before, err);
-    if (st != FM_OK) return st;
     const int me = fm_dist_rank(s->dist), ranks = fm_dist_size(s->dist);
     const int64_t waiting = s->n - s->launched;
     const int64_t from = s->launched + waiting * me / ranks, to = s->launched + waiting * (me + 1) / ranks;
+    int64_t before = 0;
+    fm_status st = slots_before(s, fm_morph_state_reserve(s, mine + to - from, err), &before, err);
+    if (st != FM_OK) return st;
     for (int64_t i = from; i < to; i++) {
         const agent_record r = rest_record(m, i, FM_PHASE_WAITING);
         unpack_agent(m, s, &r, mine + (i - from));
@@ -388,7 +412,7 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
 void fm_morph_dist_adopt(fm_morph_state *s)
 {
     fm_slabs *d = s->slabs;
-    cut_at_flight(s, 1, NULL); /* every rank holds the whole store: no sum over the ranks */
+    cut_at_flight(NULL, s, s->launched, 1, NULL); /* every rank holds the whole store: no sum over the ranks */
     const float *x = s->p[d->axis];
     int64_t kept = 0, arrived = 0;
     for (int64_t a = 0; a < s->active_end; a++) { /* arrivals before the last re-sort stay first */
@@ -398,4 +422,5 @@ void fm_morph_dist_adopt(fm_morph_state *s)
         arrived += a < s->active_begin;
     }
     s->active_begin = arrived, s->active_end = kept;
+    fm_morph_state_fit(s); /* the whole store was loaded: the rank keeps room for its share */
 }

@@ -3,6 +3,8 @@
 #include "memory.h"
 #include "morph.h"
 
+#include <math.h>
+
 /* Bytes per agent of each array, as allocated by morph_model.c, morph_state.c, morph_run.c, the cache writer and grid.c. */
 static const double MODEL_PER_AGENT =
     sizeof(float) * (12 + 3 + 12 + 3 + 1) /* src_rel, src_c, tgt_f, tgt_c, src_radius */
@@ -14,19 +16,31 @@ static const double STATE_PER_AGENT =
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
     + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */
     + (double)sizeof(block_counts) / FM_BLOCK;
-/* Preprocessing holds both tet sets in double (subdivided to n), the two orders and the model with
- * its double targets (tgt, dropped once it is built). */
-static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + 2 * sizeof(int64_t) + 12 * sizeof(double);
+/* The preparation's peak (morph_model.c), as the source half of the model is stored: both tet sets
+ * in double (subdivided to n), D1 and its sort keys, and that half (src_rel, src_c, src_index). The
+ * target half comes after the source tets are freed, without the double targets (a shot's group
+ * keeps them: 96 more, not counted). */
+static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + sizeof(int64_t) + 16 + sizeof(float) * (12 + 3) + sizeof(int64_t);
+
+/* On P ranks a rank holds its slab's agents, the busiest rank at most about 1.2 n / P (measured
+ * load_imbalance 1.01-1.18), in a store with a quarter more room (fm_morph_state_reserve). */
+static const double HELD_PER_SHARE = 1.5;
+/* ... and the frame: its own agents' tets in slot order (held), and its share n / P of the cache's
+ * frame (tets and phases) with its encoder's stored words, previous words (delta) and blocks. */
+static const double OWN_TETS = sizeof(float) * 12, SHARE_FRAME = 4 * (sizeof(float) * 12 + 1);
+
 fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
 {
     fm_memory_estimate e = {0};
-    double agents = (double)n;
-    e.model = MODEL_PER_AGENT;
-    e.state = STATE_PER_AGENT;
-    e.frames = fm_memory_frames_per_agent(def, 12 * sizeof(float) + 1, 12 * sizeof(float)); /* tet vertices, phase */
-    e.grid = def->d_min > 0 && n > 0 ? fm_memory_grid_bytes(n) / agents : 0;
+    const double ranks = fm_memory_ranks(), held = ranks > 1 ? HELD_PER_SHARE / ranks : 1;
+    const int64_t mine = (int64_t)ceil((double)n * held); /* the agents a rank's store holds */
+    e.model = MODEL_PER_AGENT; /* every rank builds the whole model */
+    e.state = STATE_PER_AGENT * held;
+    e.frames = ranks > 1 ? OWN_TETS * held + SHARE_FRAME / ranks
+                         : fm_memory_frames_per_agent(def, 12 * sizeof(float) + 1, 12 * sizeof(float)); /* tet vertices, phase */
+    e.grid = def->d_min > 0 && n > 0 ? fm_memory_grid_bytes(mine) / (double)n : 0;
     e.fixed = fm_memory_fixed_bytes(def);
-    e.preprocess_per_agent = PREP_PER_AGENT + MODEL_PER_AGENT;
+    e.preprocess_per_agent = PREP_PER_AGENT;
     fm_memory_total(&e, n);
     return e;
 }

@@ -22,6 +22,7 @@ typedef struct prep_scratch {
     int64_t *d1, *d2;
     fm_mesh *obstacles;  /* obstacle meshes, placed (def.obstacle_count) */
     const fm_morph_model *from; /* a shot's group from another's formed shape: its target tets are the source */
+    int keep_targets;           /* keep the model's target tets in double (m->tgt) for a later group */
 } prep_scratch;
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
@@ -165,45 +166,53 @@ static fm_status warn_if_shapes_overlap(fm_morph_model *m, const prep_scratch *s
     return FM_OK;
 }
 
-static fm_status alloc_model_arrays(fm_morph_model *m, fm_error *err)
+/* The source half of the model: each agent's source tet in launch order (D1, FM eq 4), as centroid
+ * + centroid-relative vertices. Then the subdivided source tets and D1 are freed, so the
+ * preparation holds one tet set in double beside the model, not two (docs/limits.md). */
+static fm_status store_sources(fm_morph_model *m, prep_scratch *s, fm_error *err)
 {
-    size_t n = (size_t)m->n;
+    const size_t n = (size_t)m->n;
+    s->d1 = malloc(sizeof(int64_t) * n);
     m->src_rel = fm_alloc(sizeof(float) * 12 * n);
-    m->tgt = fm_alloc(sizeof(double) * 12 * n);
-    m->tgt_f = fm_alloc(sizeof(float) * 12 * n);
     m->src_index = fm_alloc(sizeof(int64_t) * n);
-    int ok = m->src_rel && m->tgt && m->tgt_f && m->src_index;
-    for (int k = 0; k < 3; k++) {
-        m->src_c[k] = fm_alloc(sizeof(float) * n);
-        m->tgt_c[k] = fm_alloc(sizeof(float) * n);
-        ok = ok && m->src_c[k] && m->tgt_c[k];
-    }
-    return ok ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
-}
-
-/* Stores source tets in launch order, as centroid + centroid-relative vertices. */
-static void store_sources(fm_morph_model *m, const fm_tets *src, const int64_t *d1)
-{
-    for (int64_t a = 0; a < m->n; a++) {
-        m->src_index[a] = d1[a];
-        const double *t = src->v + 12 * d1[a];
+    int ok = s->d1 && m->src_rel && m->src_index;
+    for (int k = 0; k < 3; k++) ok = ok && (m->src_c[k] = fm_alloc(sizeof(float) * n)) != NULL;
+    if (!ok) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+    fm_status st = fm_order_d1(&s->src, &s->path, s->d1, err);
+    for (int64_t a = 0; st == FM_OK && a < m->n; a++) {
+        m->src_index[a] = s->d1[a];
+        const double *t = s->src.v + 12 * s->d1[a];
         double c[3];
         fm_tet_centroid(t, c);
         for (int k = 0; k < 3; k++) m->src_c[k][a] = (float)c[k];
         for (int i = 0; i < 12; i++) m->src_rel[12 * a + i] = (float)(t[i] - c[i % 3]);
     }
+    fm_tets_free(&s->src), free(s->d1), s->d1 = NULL;
+    return st;
 }
 
-static void store_targets(fm_morph_model *m, const fm_tets *dst, const int64_t *d2)
+/* The target half: target slot k is the tet with the k-th smallest D2 (FM eq 4), in float, with
+ * its centroid; in double too (tgt) for a shot's group that another starts from. */
+static fm_status store_targets(fm_morph_model *m, prep_scratch *s, fm_error *err)
 {
-    for (int64_t s = 0; s < m->n; s++) {
-        const double *t = dst->v + 12 * d2[s];
+    const size_t n = (size_t)m->n;
+    s->d2 = malloc(sizeof(int64_t) * n);
+    m->tgt_f = fm_alloc(sizeof(float) * 12 * n);
+    m->tgt = s->keep_targets ? fm_alloc(sizeof(double) * 12 * n) : NULL;
+    int ok = s->d2 && m->tgt_f && (m->tgt || !s->keep_targets);
+    for (int k = 0; k < 3; k++) ok = ok && (m->tgt_c[k] = fm_alloc(sizeof(float) * n)) != NULL;
+    if (!ok) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
+    fm_status st = fm_order_d2(&s->dst, &s->path, s->d2, err);
+    for (int64_t k = 0; st == FM_OK && k < m->n; k++) {
+        const double *t = s->dst.v + 12 * s->d2[k];
         double c[3];
         fm_tet_centroid(t, c);
-        memcpy(m->tgt + 12 * s, t, 12 * sizeof(double));
-        for (int i = 0; i < 12; i++) m->tgt_f[12 * s + i] = (float)t[i];
-        for (int k = 0; k < 3; k++) m->tgt_c[k][s] = (float)c[k];
+        if (m->tgt) memcpy(m->tgt + 12 * k, t, 12 * sizeof(double));
+        for (int i = 0; i < 12; i++) m->tgt_f[12 * k + i] = (float)t[i];
+        for (int j = 0; j < 3; j++) m->tgt_c[j][k] = (float)c[j];
     }
+    fm_tets_free(&s->dst), free(s->d2), s->d2 = NULL;
+    return st;
 }
 
 static fm_status store_path(fm_morph_model *m, const fm_path *path, fm_error *err)
@@ -424,14 +433,7 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
     m->info.key_points = s->path.count;
-    s->d1 = malloc(sizeof(int64_t) * (size_t)m->n);
-    s->d2 = malloc(sizeof(int64_t) * (size_t)m->n);
-    if (!s->d1 || !s->d2) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)m->n);
-    if ((st = fm_order_d1(&s->src, &s->path, s->d1, err)) != FM_OK) return st;
-    if ((st = fm_order_d2(&s->dst, &s->path, s->d2, err)) != FM_OK) return st;
-    if ((st = alloc_model_arrays(m, err)) != FM_OK) return st;
-    store_sources(m, &s->src, s->d1);
-    store_targets(m, &s->dst, s->d2);
+    if ((st = store_sources(m, s, err)) != FM_OK || (st = store_targets(m, s, err)) != FM_OK) return st;
     if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
     if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
     scene_bounds(m, s);
@@ -465,14 +467,13 @@ static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model
     m->def = *def;
     prep_scratch scratch;
     memset(&scratch, 0, sizeof scratch);
-    scratch.from = from;
+    scratch.from = from, scratch.keep_targets = keep_targets; /* else no tgt: the run reads tgt_f */
     fm_status st = build(m, &scratch, progress, user, err);
     free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
         fm_morph_model_destroy(m);
         return NULL;
     }
-    if (!keep_targets) fm_morph_model_drop_targets(m); /* the run reads tgt_f */
     return m;
 }
 

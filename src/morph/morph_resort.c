@@ -59,8 +59,8 @@ static void compute_keys(const fm_morph_model *m, const fm_morph_state *s, uint3
  * the two halves of s->sort_slots). */
 static const int32_t *radix_sort(fm_morph_state *s, int64_t count)
 {
-    uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->n;
-    int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->n;
+    uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->capacity;
+    int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->capacity;
     for (int64_t a = 0; a < count; a++) slot[a] = (int32_t)a;
     static_assert(3 * RADIX_BITS >= 3 * MORTON_BITS + 1, "three passes cover the key");
     for (int shift = 0; shift < 3 * RADIX_BITS; shift += RADIX_BITS) {
@@ -122,19 +122,4 @@ void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)
     int64_t arrived = 0;
     while (arrived < count && s->phase[arrived] == FM_PHASE_ARRIVED) arrived++;
     s->active_begin = arrived;
-}
-
-fm_status fm_morph_state_alloc_sort(fm_morph_state *s)
-{
-    size_t n = (size_t)s->n;
-    s->sort_scratch = fm_alloc(16 * n);
-    s->sort_keys = fm_alloc(2 * sizeof(uint32_t) * n);
-    s->sort_slots = fm_alloc(2 * sizeof(int32_t) * n);
-    return s->sort_scratch && s->sort_keys && s->sort_slots ? FM_OK : FM_ERR_MEMORY;
-}
-
-void fm_morph_state_free_sort(fm_morph_state *s)
-{
-    fm_free(s->sort_scratch), fm_free(s->sort_keys), fm_free(s->sort_slots);
-    s->sort_scratch = NULL, s->sort_keys = NULL, s->sort_slots = NULL;
 }

@@ -26,7 +26,7 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 }
 
 /* Largest distance between an agent's vertex and its target tet's matching vertex. */
-double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts)
+double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot)
 {
     double worst = s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
     for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
@@ -36,7 +36,7 @@ double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state
         }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         const float *t = m->tgt_f + 12 * s->target[a];
-        const float *v = verts + 12 * (size_t)s->id[a];
+        const float *v = verts + 12 * (size_t)(by_slot ? a : s->id[a]);
         for (int i = 0; i < 4; i++)
             for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - (double)t[3 * perm[i] + k]));
     }
@@ -133,13 +133,13 @@ double fm_morph_vertex_clearance(const fm_morph_model *m, const float *verts, si
     return exact;
 }
 
-/* Frame k's tets first … end − 1 (verts by id) checked, with the inverted-tet count and the
- * vertices' clearance. On P ranks (d), each rank's share: the counts summed, the clearance the
- * least, the runaway message the lowest rank's (the first agent in id order, as on one process). */
-static fm_status check_frame(const fm_morph_model *m, const fm_dist *d, int64_t k, const float *verts, int64_t first,
+/* Frame k's tets of agents first … end − 1 (mine, first's first) checked, with the inverted-tet
+ * count and the vertices' clearance. On P ranks (d), each rank's share: the counts summed, the
+ * clearance the least, the runaway message the lowest rank's (the first agent in id order, as on
+ * one process). */
+static fm_status check_frame(const fm_morph_model *m, const fm_dist *d, int64_t k, const float *mine, int64_t first,
                              int64_t end, fm_morph_run_stats *stats, fm_error *err)
 {
-    const float *mine = verts + 12 * (size_t)first;
     fm_status st = fm_frame_check_runaway_from(mine, 12, first, end - first, m->scene_lo, m->scene_hi, k, MORPH_SPEEDS, err);
     int64_t inverted = st == FM_OK ? fm_count_inverted_tets(mine, (size_t)(end - first)) : 0;
     double nearest = st == FM_OK ? -fm_morph_vertex_clearance(m, mine, (size_t)(end - first)) : -INFINITY;
@@ -159,6 +159,26 @@ static fm_status check_and_write(const fm_morph_model *m, const fm_morph_state *
     return st == FM_OK && cache ? cache_frame(cache, verts, phases, err) : st;
 }
 
+/* The frame's buffers: on one process, or with the frame gathered on rank 0, every agent's tet and
+ * phase by id; with the cache written by P ranks, the rank's share of them (from its first id) and
+ * its own agents' tets in slot order (own), so that a rank holds about n / P of each. */
+typedef struct frame_buffers {
+    float *verts;
+    uint8_t *phases;
+    float *own;
+    int64_t own_capacity; /* slots own holds */
+} frame_buffers;
+
+/* own as large as the store (which grows as the rank's agents come). */
+static fm_status own_room(frame_buffers *f, const fm_morph_state *s, fm_error *err)
+{
+    if (fm_morph_slots(s) <= f->own_capacity) return FM_OK;
+    fm_free(f->own);
+    f->own = fm_alloc(sizeof(float) * 12 * (size_t)s->capacity);
+    f->own_capacity = f->own ? s->capacity : 0;
+    return f->own ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the tets of %lld agents", (long long)s->capacity);
+}
+
 /* On P ranks: the frame gathered on rank 0, which checks and writes it; every rank returns the
  * outcome (a failed step's, else rank 0's). */
 static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
@@ -175,12 +195,14 @@ static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int
 
 /* On P ranks with the cache written in parallel: each rank checks and encodes its share of the
  * frame, rank 0 appends the blocks. */
-static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts,
-                                   uint8_t *phases, fm_frame_share *share, fm_cache_writer *cache,
-                                   fm_morph_run_stats *stats, fm_error *err)
+static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, frame_buffers *f,
+                                   fm_frame_share *share, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
-    fm_status st = fm_morph_dist_frame_share(m, s, share->begin, verts, phases, err); /* agreed by every rank */
+    fm_status st = fm_dist_agree(s->dist, own_room(f, s, err), err);
+    float *verts = f->verts;
+    uint8_t *phases = f->phases;
+    if (st == FM_OK) st = fm_morph_dist_frame_share(m, s, share->begin, f->own, verts, phases, err); /* agreed by every rank */
     if (st == FM_OK) st = check_frame(m, s->dist, k, verts, fm_frame_share_first(share), fm_frame_share_end(share), stats, err);
     if (st != FM_OK) return st;
     const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_TET_VERTICES] = verts, [FM_ATTR_PHASE] = phases};
@@ -188,14 +210,14 @@ static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, i
 }
 
 /* Frame k: the tet vertices and phases, checked, written to the cache, with the inverted-tet count. */
-static fm_status emit_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
+static fm_status emit_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, frame_buffers *f,
                             fm_frame_share *share, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
-    if (share->on) return emit_shared_frame(m, s, k, verts, phases, share, cache, stats, err);
-    if (s->dist) return emit_dist_frame(m, s, k, verts, phases, cache, stats, err);
-    fm_morph_tet_vertices(m, s, verts);
-    fm_morph_phases(s, phases);
-    return check_and_write(m, s, k, verts, phases, cache, stats, err);
+    if (share->on) return emit_shared_frame(m, s, k, f, share, cache, stats, err);
+    if (s->dist) return emit_dist_frame(m, s, k, f->verts, f->phases, cache, stats, err);
+    fm_morph_tet_vertices(m, s, f->verts);
+    fm_morph_phases(s, f->phases);
+    return check_and_write(m, s, k, f->verts, f->phases, cache, stats, err);
 }
 
 void fm_morph_run_stats_free(fm_morph_run_stats *stats)
@@ -227,13 +249,14 @@ static double mde_mean(const fm_morph_run_stats *stats)
     return frames ? sum / (double)frames : 0.0;
 }
 
-/* The end-state checks and totals of stats.json. */
-static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const float *verts, fm_morph_run_stats *stats)
+/* The end-state checks and totals of stats.json, from the last frame's tets of the store's agents. */
+static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const frame_buffers *f, int shared,
+                         fm_morph_run_stats *stats)
 {
     stats->run.steps = s->step;
     stats->all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;
     stats->stopped_at_frame_limit = !stats->all_arrived;
-    stats->final_max_vertex_error = fm_morph_final_vertex_error(m, s, verts);
+    stats->final_max_vertex_error = fm_morph_final_vertex_error(m, s, shared ? f->own : f->verts, shared);
     stats->target_tets_filled_once = fm_morph_targets_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
     stats->mde_fraction_mean = mde_mean(stats);
@@ -248,8 +271,7 @@ typedef struct morph_run {
     fm_cache_writer *cache;
     const fm_run_control *c;
     fm_morph_run_stats *stats;
-    float *verts;
-    uint8_t *phases;
+    frame_buffers frame;
     int64_t flying_before, mde_before, capacity; /* the MDE counters at the last frame, mde_fraction's room */
     fm_frame_share share;                        /* on P ranks: this rank's share of every frame */
 } morph_run;
@@ -270,7 +292,7 @@ static int morph_finished(const void *sim)
 static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 {
     morph_run *r = sim;
-    fm_status st = emit_frame(r->m, r->s, k, r->verts, r->phases, &r->share, r->cache, r->stats, err);
+    fm_status st = emit_frame(r->m, r->s, k, &r->frame, &r->share, r->cache, r->stats, err);
     if (st != FM_OK || k == 0) return st;
     st = record_mde(r->s, k, &r->flying_before, &r->mde_before, r->stats, &r->capacity, err);
     if (st == FM_OK && r->c->progress) {
@@ -291,26 +313,39 @@ static fm_status morph_save(void *sim, const char *path, fm_error *err)
 /* Before a checkpoint on P ranks: every rank's blocks of the cache on disk. */
 static fm_status morph_sync(void *sim, fm_error *err) { return fm_frame_share_sync(&((morph_run *)sim)->share, err); }
 
+/* The frame's buffers (frame_buffers); a resumed run's hold its last frame, should it be complete. */
+static fm_status alloc_frame(morph_run *r, fm_error *err)
+{
+    const fm_morph_state *s = r->s;
+    const int64_t agents = r->share.on ? fm_frame_share_end(&r->share) - fm_frame_share_first(&r->share) : s->n;
+    frame_buffers *f = &r->frame;
+    f->verts = fm_alloc(sizeof(float) * 12 * (size_t)agents), f->phases = fm_alloc((size_t)agents);
+    if (!f->verts || !f->phases) return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)agents);
+    if (r->share.on && own_room(f, s, err) != FM_OK) return err->status;
+    if (r->c->resume && r->share.on) fm_morph_tet_vertices_by_slot(r->m, s, f->own);
+    else if (r->c->resume) fm_morph_tet_vertices(r->m, s, f->verts);
+    return FM_OK;
+}
+
 fm_status fm_morph_run_controlled(const fm_morph_model *m, fm_morph_state *s, fm_cache_writer *cache, const fm_run_control *c,
                                   fm_morph_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), stats->min_vertex_clearance = INFINITY;
     morph_run r = {.m = m, .s = s, .cache = cache, .c = c, .stats = stats,
-                   .verts = fm_alloc(sizeof(float) * 12 * (size_t)s->n), .phases = fm_alloc((size_t)s->n),
                    .flying_before = s->flying_agent_steps, .mde_before = s->mde_agent_steps};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
-    if (!r.verts || !r.phases || fm_frame_rows_room(&stats->mde_fraction, FM_MAX(stats->run.frames, 1), 1, &r.capacity, err) != FM_OK) {
-        fm_free(r.verts), fm_free(r.phases), fm_morph_run_stats_free(stats);
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    fm_status st = fm_frame_rows_room(&stats->mde_fraction, FM_MAX(stats->run.frames, 1), 1, &r.capacity, err);
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK) st = fm_frame_share_start(&r.share, s->dist, cache, s->threads, c->resume, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, alloc_frame(&r, err), err);
+    if (st == FM_OK) {
+        fm_frame_share_commit(&r.share, cache);
+        const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
+                                    m->def.frame_limit, c, &stats->run, cache, s->dist, morph_sync};
+        st = fm_frame_loop_run(&loop, err);
+        finish_stats(m, s, &r.frame, r.share.on, stats);
     }
-    if (c->resume) fm_morph_tet_vertices(m, s, r.verts); /* the last frame, should the run be complete */
-    const fm_frame_loop loop = {&r, morph_step, morph_finished, morph_frame, morph_save, m->steps_per_frame,
-                                m->def.frame_limit, c, &stats->run, cache, s->dist, morph_sync};
-    fm_status st = fm_frame_share_start(&r.share, s->dist, cache, s->threads, c->resume, err);
-    if (st == FM_OK) st = fm_frame_loop_run(&loop, err);
-    finish_stats(m, s, r.verts, stats);
     fm_frame_share_free(&r.share);
-    fm_free(r.verts), fm_free(r.phases);
+    fm_free(r.frame.verts), fm_free(r.frame.phases), fm_free(r.frame.own);
     return st;
 }
 

@@ -354,7 +354,7 @@ static void finish_stats(fm_shot *s, fm_shot_stats *stats)
         fm_morph_tet_vertices(s->model[g], s->state[g], s->scratch);
         gs->agents = s->model[g]->n;
         gs->all_arrived = s->arrived[g];
-        gs->final_max_vertex_error = fm_morph_final_vertex_error(s->model[g], s->state[g], s->scratch);
+        gs->final_max_vertex_error = fm_morph_final_vertex_error(s->model[g], s->state[g], s->scratch, 0);
         gs->target_tets_filled_once = fm_morph_targets_taken_once(s->state[g]);
         gs->start_time = s->start_step[g] < 0 ? NAN : (double)s->start_step[g] * s->dt;
         gs->arrival_time = s->arrival_step[g] < 0 ? NAN : (double)s->arrival_step[g] * s->dt;

@@ -31,31 +31,86 @@ const fm_store_member fm_morph_state_members[] = {
 };
 const int fm_morph_state_member_count = (int)(sizeof fm_morph_state_members / sizeof fm_morph_state_members[0]);
 
-static int alloc_arrays(fm_morph_state *s)
+/* Every per-slot array of the store, with its bytes per slot: allocated, resized and freed together
+ * (a new array is one line here). */
+typedef struct slot_array {
+    size_t offset; /* of the array's pointer in fm_morph_state */
+    size_t bytes;  /* per slot */
+} slot_array;
+#define SLOTS(member, bytes) {offsetof(fm_morph_state, member), bytes}
+static const slot_array SLOT_ARRAYS[] = {
+    SLOTS(p[0], 4), SLOTS(p[1], 4), SLOTS(p[2], 4), SLOTS(v[0], 4), SLOTS(v[1], 4), SLOTS(v[2], 4),
+    SLOTS(p2[0], 4), SLOTS(p2[1], 4), SLOTS(p2[2], 4),
+    SLOTS(rest_rel[0], 4), SLOTS(rest_rel[1], 4), SLOTS(rest_rel[2], 4), SLOTS(rest_rel[3], 4),
+    SLOTS(rest_rel[4], 4), SLOTS(rest_rel[5], 4), SLOTS(rest_rel[6], 4), SLOTS(rest_rel[7], 4),
+    SLOTS(rest_rel[8], 4), SLOTS(rest_rel[9], 4), SLOTS(rest_rel[10], 4), SLOTS(rest_rel[11], 4),
+    SLOTS(rest_radius, 4), SLOTS(id, 4), SLOTS(phase, 1), SLOTS(target, 8), SLOTS(t2, 4), SLOTS(tf, 4),
+    SLOTS(morph, 4 * FM_MORPH_FLOATS), SLOTS(perm, 1), SLOTS(morph_safe, 1), SLOTS(entered, 1),
+    SLOTS(member, 1), SLOTS(mde_needed, 1), SLOTS(vla[0], 4), SLOTS(vla[1], 4), SLOTS(vla[2], 4),
+    SLOTS(sort_scratch, 16), SLOTS(sort_keys, 2 * sizeof(uint32_t)), SLOTS(sort_slots, 2 * sizeof(int32_t)),
+};
+enum { SLOT_ARRAY_COUNT = sizeof SLOT_ARRAYS / sizeof SLOT_ARRAYS[0] };
+
+static void **slot_array_at(fm_morph_state *s, int i) { return (void **)((char *)s + SLOT_ARRAYS[i].offset); }
+
+/* Every per-slot array at `capacity` slots, the first `keep` (<= capacity) slots copied over. One
+ * array at a time, so a resize needs one array's bytes more, not the store's. On failure the arrays
+ * done so far are resized: every array still holds min(old, new capacity) slots, which the store
+ * then says it has. */
+static fm_status resize_arrays(fm_morph_state *s, int64_t capacity, int64_t keep)
 {
-    size_t n = (size_t)s->n;
-    int ok = 1;
-    for (int k = 0; k < 3; k++) {
-        ok &= (s->p[k] = fm_alloc(sizeof(float) * n)) != NULL;
-        ok &= (s->v[k] = fm_alloc(sizeof(float) * n)) != NULL;
-        ok &= (s->p2[k] = fm_alloc(sizeof(float) * n)) != NULL;
+    const int64_t least = FM_MIN(s->capacity, capacity);
+    block_counts *blocks = fm_alloc(sizeof(block_counts) * ((size_t)capacity / FM_BLOCK + 1));
+    if (!blocks) return s->capacity = least, FM_ERR_MEMORY;
+    fm_free(s->blocks), s->blocks = blocks;
+    for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
+        void **a = slot_array_at(s, i), *fresh = fm_alloc(SLOT_ARRAYS[i].bytes * (size_t)FM_MAX(capacity, 1));
+        if (!fresh) return s->capacity = least, FM_ERR_MEMORY;
+        if (*a && keep > 0) memcpy(fresh, *a, SLOT_ARRAYS[i].bytes * (size_t)keep);
+        fm_free(*a), *a = fresh;
     }
-    for (int j = 0; j < 12; j++) ok &= (s->rest_rel[j] = fm_alloc(sizeof(float) * n)) != NULL;
-    ok &= (s->rest_radius = fm_alloc(sizeof(float) * n)) != NULL;
-    ok &= (s->id = fm_alloc(sizeof(int32_t) * n)) != NULL;
-    ok &= (s->phase = fm_alloc(n)) != NULL;
-    ok &= (s->target = fm_alloc(sizeof(int64_t) * n)) != NULL;
-    ok &= (s->t2 = fm_alloc(sizeof(float) * n)) != NULL;
-    ok &= (s->tf = fm_alloc(sizeof(float) * n)) != NULL;
-    ok &= (s->morph = fm_alloc(sizeof(float) * FM_MORPH_FLOATS * n)) != NULL;
-    ok &= (s->perm = fm_alloc(n)) != NULL;
-    ok &= (s->morph_safe = fm_alloc(n)) != NULL;
-    ok &= (s->entered = fm_alloc(n)) != NULL;
-    ok &= (s->blocks = fm_alloc(sizeof(block_counts) * (n / FM_BLOCK + 1))) != NULL;
-    ok &= (s->member = fm_alloc(n)) != NULL;
-    ok &= (s->mde_needed = fm_alloc(n)) != NULL;
-    for (int k = 0; k < 3; k++) ok &= (s->vla[k] = fm_alloc(sizeof(float) * n)) != NULL;
-    return ok && fm_morph_state_alloc_sort(s) == FM_OK;
+    s->capacity = capacity;
+    return FM_OK;
+}
+
+static void free_arrays(fm_morph_state *s)
+{
+    for (int i = 0; i < SLOT_ARRAY_COUNT; i++) fm_free(*slot_array_at(s, i)), *slot_array_at(s, i) = NULL;
+    fm_free(s->blocks), s->blocks = NULL;
+}
+
+/* The MDE grid lists up to capacity agents (a rank's own and its halo's). */
+static fm_status size_grid(fm_morph_state *s, int64_t capacity, fm_error *err)
+{
+    if (s->grid_ready) fm_grid_free(&s->grid);
+    fm_status st = fm_grid_init(&s->grid, capacity, err);
+    s->grid_ready = st == FM_OK;
+    /* The store is Morton-sorted and MDE sums by id, not in the grid's order: rows by position
+     * keep the walk's lookups near each other in memory and change no result. */
+    s->grid.linear_rows = 1;
+    return st;
+}
+
+/* Resizes the store to `capacity` slots, keeping its agents (and the grid with it). */
+static fm_status resize_store(fm_morph_state *s, int64_t capacity, fm_error *err)
+{
+    if (resize_arrays(s, capacity, FM_MIN(fm_morph_slots(s), capacity)) != FM_OK)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a store of %lld agents (this process holds %lld)",
+                       (long long)capacity, (long long)fm_morph_slots(s));
+    return s->grid_ready ? size_grid(s, capacity, err) : FM_OK;
+}
+
+fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err)
+{
+    if (slots <= s->capacity) return FM_OK;
+    /* a quarter more than asked: a rank's store grows as its slab fills, at amortised cost */
+    return resize_store(s, FM_MIN(s->n, slots + slots / 4 + 1024), err);
+}
+
+void fm_morph_state_fit(fm_morph_state *s)
+{
+    const int64_t fit = FM_MIN(s->n, fm_morph_slots(s) + fm_morph_slots(s) / 4 + 1024);
+    if (fit < s->capacity) resize_store(s, fit, NULL); /* without memory the store stays as large as it was */
 }
 
 /* The parts of the store only some scenes need: style fields and the MDE grid. */
@@ -67,18 +122,11 @@ static fm_status create_velocity_model(const fm_morph_model *m, fm_morph_state *
                                      m->scene_lo, m->scene_hi, err);
         if (!s->fields) return err ? err->status : FM_ERR_INPUT;
     }
-    if (def->d_min > 0) {
-        fm_status st = fm_grid_init(&s->grid, s->n, err);
-        s->grid_ready = st == FM_OK;
-        /* The store is Morton-sorted and MDE sums by id, not in the grid's order: rows by position
-         * keep the walk's lookups near each other in memory and change no result. */
-        s->grid.linear_rows = 1;
-        return st;
-    }
-    return FM_OK;
+    return def->d_min > 0 ? size_grid(s, s->capacity, err) : FM_OK;
 }
 
-fm_morph_state *fm_morph_state_create(const fm_morph_model *m, int threads, fm_error *err)
+/* A store of `capacity` slots holding no agent yet, every agent waiting. */
+static fm_morph_state *create_empty(const fm_morph_model *m, int threads, int64_t capacity, fm_error *err)
 {
     fm_morph_state *s = calloc(1, sizeof *s);
     if (!s) {
@@ -92,34 +140,41 @@ fm_morph_state *fm_morph_state_create(const fm_morph_model *m, int threads, fm_e
         return NULL;
     }
     s->threads = fm_threads(threads);
-    if (!alloc_arrays(s)) {
+    if (resize_arrays(s, capacity, 0) != FM_OK) {
         fm_morph_state_destroy(s);
-        fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
+        fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)capacity);
         return NULL;
     }
     if (create_velocity_model(m, s, err) != FM_OK) {
         fm_morph_state_destroy(s);
         return NULL;
     }
+    s->count[FM_PHASE_WAITING] = s->n;
+    s->min_clearance = INFINITY;
+    return s;
+}
+
+fm_morph_state *fm_morph_state_create(const fm_morph_model *m, int threads, fm_error *err)
+{
+    fm_morph_state *s = create_empty(m, threads, m->n, err);
+    if (!s) return NULL;
     for (int k = 0; k < 3; k++) memcpy(s->p[k], m->src_c[k], sizeof(float) * (size_t)s->n);
     for (int64_t a = 0; a < s->n; a++) s->target[a] = -1, s->id[a] = (int32_t)a;
     fm_morph_state_fill_rest(m, s);
-    s->count[FM_PHASE_WAITING] = s->n;
-    s->min_clearance = INFINITY;
+    return s;
+}
+
+fm_morph_state *fm_morph_state_create_distributed(const fm_morph_model *m, int threads, const fm_dist *dist, fm_error *err)
+{
+    fm_morph_state *s = create_empty(m, threads, FM_MIN(m->n, 1024), err); /* it grows with the rank's agents */
+    if (s && fm_morph_state_distribute(m, s, dist, err) != FM_OK) fm_morph_state_destroy(s), s = NULL;
     return s;
 }
 
 void fm_morph_state_destroy(fm_morph_state *s)
 {
     if (!s) return;
-    for (int k = 0; k < 3; k++) fm_free(s->p[k]), fm_free(s->v[k]), fm_free(s->p2[k]);
-    for (int j = 0; j < 12; j++) fm_free(s->rest_rel[j]);
-    fm_free(s->rest_radius);
-    fm_free(s->id), fm_free(s->phase), fm_free(s->target), fm_free(s->t2), fm_free(s->tf);
-    fm_free(s->morph), fm_free(s->perm), fm_free(s->morph_safe), fm_free(s->entered);
-    fm_free(s->blocks), fm_free(s->member), fm_free(s->mde_needed);
-    for (int k = 0; k < 3; k++) fm_free(s->vla[k]);
-    fm_morph_state_free_sort(s);
+    free_arrays(s);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     fm_slabs_free(s->slabs);
@@ -225,11 +280,11 @@ void fm_morph_waiting_tet(const fm_morph_model *m, int64_t id, float out[12])
     place_tet(c, 1.0, NULL, m->src_rel + 12 * id, out);
 }
 
-/* Slot order in, id order out: each tet is written where its agent id says. */
-void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out)
+/* The store's tets, written at 12 id (by_slot 0) or at 12 slot (by_slot 1). */
+static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_slot, float *out)
 {
     fm_synth_view flying = {{s->p[0], s->p[1], s->p[2]}, {0}, s->id, s->time, m->launch_rate, m->def.shrink,
-                            m->def.shrink_time};
+                            m->def.shrink_time, by_slot};
     for (int j = 0; j < 12; j++) flying.rest[j] = s->rest_rel[j];
     const int64_t slots = fm_morph_slots(s), blocks = (slots + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
@@ -237,6 +292,11 @@ void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, flo
         int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, slots);
         fm_kernel_flying_tets(&flying, s->phase, FM_PHASE_FLYING, begin, end, out);
         for (int64_t a = begin; a < end; a++)
-            if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + 12 * (size_t)s->id[a]);
+            if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + fm_synth_place(&flying, a));
     }
 }
+
+/* Slot order in, id order out: each tet is written where its agent id says. */
+void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out) { store_tets(m, s, 0, out); }
+
+void fm_morph_tet_vertices_by_slot(const fm_morph_model *m, const fm_morph_state *s, float *out) { store_tets(m, s, 1, out); }

@@ -30,15 +30,23 @@ _Static_assert((int)FM_KERNEL_FLYING == (int)FM_PHASE_FLYING, "kernel phase FLYI
 _Static_assert((int)FM_KERNEL_HOMING == (int)FM_PHASE_HOMING, "kernel phase HOMING");
 _Static_assert((int)FM_KERNEL_ARRIVED == (int)FM_PHASE_ARRIVED, "kernel phase ARRIVED");
 
-/* Waiting agents are the slots from active_end on, in id order: launching moves the boundary. */
-static void launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
+/* The agents launched once this step's launch is done: agent id i launches at i / rate. */
+static int64_t due_agents(const fm_morph_model *m, const fm_morph_state *s)
 {
-    int64_t due = (int64_t)floor(m->launch_rate * s->time) + 1; /* agent id i launches at i / rate */
-    if (due > s->n) due = s->n;
-    if (due <= s->launched) return;
+    const int64_t due = (int64_t)floor(m->launch_rate * s->time) + 1;
+    return FM_MAX(FM_MIN(due, s->n), s->launched);
+}
+
+/* Waiting agents are the slots from active_end on, in id order: launching moves the boundary (on P
+ * ranks each rank takes its share: a failure to make room for it is every rank's). */
+static fm_status launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
+{
+    const int64_t due = due_agents(m, s);
+    if (due <= s->launched) return FM_OK;
     int64_t count = due - s->launched;
     if (s->dist) {
-        fm_morph_dist_launch(m, s, due); /* this rank's share of them */
+        fm_status st = fm_morph_dist_launch(m, s, due, &s->dist_error);
+        if (st != FM_OK) return st;
     } else {
         for (int64_t a = s->active_end; a < s->active_end + count; a++) s->phase[a] = FM_PHASE_FLYING;
         s->active_end += count;
@@ -46,6 +54,7 @@ static void launch_due_agents(const fm_morph_model *m, fm_morph_state *s)
     s->count[FM_PHASE_WAITING] -= count;
     s->count[FM_PHASE_FLYING] += count;
     s->launched = due;
+    return FM_OK;
 }
 
 /* Exact signed distance for the avoidance kernel (Embree through fm_obstacles_closest). */
@@ -90,7 +99,7 @@ static void build_neighbour_grid(const fm_morph_model *m, fm_morph_state *s, int
 static fm_obstacle_scratch obstacle_scratch(const fm_morph_state *s)
 {
     float *d_grid = s->sort_scratch;
-    return (fm_obstacle_scratch){d_grid, d_grid + s->n};
+    return (fm_obstacle_scratch){d_grid, d_grid + s->capacity};
 }
 
 static fm_radius_view radius_view(const fm_morph_model *m, const fm_morph_state *s)
@@ -206,7 +215,7 @@ static int by_id(const void *x, const void *y)
 static fm_status hand_out_targets(const fm_morph_model *m, fm_morph_state *s, const block_counts *bc, int64_t blocks,
                                   double t_end)
 {
-    uint64_t *key = (uint64_t *)s->sort_keys; /* 2n uint32: room for n keys */
+    uint64_t *key = (uint64_t *)s->sort_keys; /* 2 uint32 a slot: room for a key a slot */
     const int64_t count = entries_by_id(s, bc, blocks, key);
     if (!s->dist) {
         for (int64_t k = 0; k < count; k++) take_target(m, s, (int64_t)(key[k] & 0xffffffffu), s->next_slot + k, t_end);
@@ -283,25 +292,25 @@ static void combine_counts(fm_morph_state *s, const block_counts *bc, int64_t bl
  * busiest rank's work 2.04× the mean). A cut costs a 32 KiB allreduce. */
 static fm_status distribute(const fm_morph_model *m, fm_morph_state *s)
 {
-    fm_morph_dist_rebalance(s);
+    fm_morph_dist_rebalance(m, s, due_agents(m, s));
     return fm_morph_dist_migrate(m, s, &s->dist_error);
 }
 
 void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
-    block_counts *bc = s->blocks;
     if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
     double t = fm_seconds();
     if (s->dist && (s->dist_status = distribute(m, s)) != FM_OK) return;
     if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_state_resort(m, s);
     lap(s, FM_STAGE_RESORT, &t);
-    launch_due_agents(m, s);
+    if ((s->dist_status = launch_due_agents(m, s)) != FM_OK) return;
     const int64_t blocks = fm_active_blocks(s);
     int64_t ghosts = 0;
     if (s->dist && m->def.d_min > 0 && (s->dist_status = fm_morph_dist_ghosts(s, &ghosts, &s->dist_error)) != FM_OK)
         return;
     lap(s, FM_STAGE_LAUNCH, &t);
+    block_counts *bc = s->blocks; /* P ranks: after the store made room for this step's agents */
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
     lap(s, FM_STAGE_FIELDS, &t);
     const double busy_from = t;

@@ -30,6 +30,7 @@ static fm_status copy_records(const void *mine, int64_t count, size_t size, void
 struct fm_dist {
     MPI_Comm comm;
     int rank, size;
+    int size_here; /* ranks on this machine (MPI_COMM_TYPE_SHARED) */
 };
 
 int fm_dist_launched(void)
@@ -61,6 +62,12 @@ fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
     d->comm = MPI_COMM_WORLD;
     MPI_Comm_rank(d->comm, &d->rank);
     MPI_Comm_size(d->comm, &d->size);
+    MPI_Comm here;
+    d->size_here = 1;
+    if (MPI_Comm_split_type(d->comm, MPI_COMM_TYPE_SHARED, d->rank, MPI_INFO_NULL, &here) == MPI_SUCCESS) {
+        MPI_Comm_size(here, &d->size_here);
+        MPI_Comm_free(&here);
+    }
     return d;
 }
 
@@ -79,6 +86,7 @@ void fm_dist_abort(const fm_dist *d, int code)
 
 int fm_dist_rank(const fm_dist *d) { return d ? d->rank : 0; }
 int fm_dist_size(const fm_dist *d) { return d ? d->size : 1; }
+int fm_dist_size_here(const fm_dist *d) { return d ? d->size_here : 1; }
 
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count)
 {
@@ -238,6 +246,7 @@ void fm_dist_finalize(fm_dist *d) { (void)d; }
 void fm_dist_abort(const fm_dist *d, int code) { (void)d, exit(code); }
 int fm_dist_rank(const fm_dist *d) { return (void)d, 0; }
 int fm_dist_size(const fm_dist *d) { return (void)d, 1; }
+int fm_dist_size_here(const fm_dist *d) { return (void)d, 1; }
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_f64(const fm_dist *d, double *v, int count) { (void)d, (void)v, (void)count; }

@@ -28,6 +28,7 @@ void fm_dist_abort(const fm_dist *d, int code);
 
 int fm_dist_rank(const fm_dist *d); /* 0 for NULL */
 int fm_dist_size(const fm_dist *d); /* 1 for NULL */
+int fm_dist_size_here(const fm_dist *d); /* the ranks on this machine, sharing its memory; 1 for NULL */
 
 /* Element-wise sums, maxima and minima over the ranks, in place (integers: exact for any P;
  * the float min and max are exact too). */

@@ -72,6 +72,11 @@ fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_wri
     return st;
 }
 
+void fm_frame_share_commit(const fm_frame_share *f, fm_cache_writer *cache)
+{
+    if (f->on && cache) fm_cache_writer_leave_frames_to_ranks(cache); /* cache: rank 0's */
+}
+
 void fm_frame_share_free(fm_frame_share *f)
 {
     if (f->file) fm_dist_file_detach(f->file, NULL); /* a failed write was reported when it happened */

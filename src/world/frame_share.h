@@ -25,6 +25,9 @@ typedef struct fm_frame_share {
  * resumed run's ranks get their shares of the writer's last frame (delta goes on from it). */
 fm_status fm_frame_share_start(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, int threads, int resumed,
                                fm_error *err);
+/* Once the run keeps the share on: rank 0's writer frees its frame buffers, which the ranks' encoders
+ * replace (fm_cache_writer_leave_frames_to_ranks). */
+void fm_frame_share_commit(const fm_frame_share *f, fm_cache_writer *cache);
 /* Collective (the file's handle is closed): every rank, after the run, before rank 0 finishes the
  * cache. */
 void fm_frame_share_free(fm_frame_share *f);
@@ -35,8 +38,8 @@ int fm_frame_share_owner(const int64_t *begin, int ranks, int64_t id);
 /* This rank's share of the ids: first … end − 1 (its encoder's agents). */
 int64_t fm_frame_share_first(const fm_frame_share *f);
 int64_t fm_frame_share_end(const fm_frame_share *f);
-/* Frame k, the rank's share complete in id-indexed arrays (by_kind, as cache_share_encode takes
- * them): encoded and written here, the chunk's head by rank 0. Every rank returns the same status;
+/* Frame k, the rank's share complete in arrays in id order from its first agent (by_kind, as
+ * cache_share_encode takes them): encoded and written here, the chunk's head by rank 0. Every rank returns the same status;
  * *sent adds the bytes this rank sent. */
 fm_status fm_frame_share_write(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, const void *const *by_kind,
                                uint32_t k, int64_t *sent, fm_error *err);

@@ -67,8 +67,18 @@ double fm_memory_fixed_bytes(const fm_scene_def *def)
     return FIXED_BYTES + field_grid_bytes(def) + distance_grid_bytes(def);
 }
 
+static int run_ranks = 1, run_ranks_here = 1;
+
+void fm_memory_set_ranks(int ranks, int ranks_here)
+{
+    run_ranks = ranks > 1 ? ranks : 1, run_ranks_here = ranks_here > 1 ? ranks_here : 1;
+}
+
+int fm_memory_ranks(void) { return run_ranks; }
+
 void fm_memory_total(fm_memory_estimate *e, int64_t n)
 {
+    e->ranks_here = run_ranks_here;
     e->per_agent = e->model + e->state + e->frames + e->grid;
     e->run = e->per_agent * (double)n + e->fixed;
     e->preprocess = e->preprocess_per_agent * (double)n + e->fixed;
@@ -84,12 +94,13 @@ double fm_physical_memory(void)
 int fm_memory_fits(const fm_memory_estimate *e)
 {
     double physical = fm_physical_memory();
-    return physical <= 0 || e->total <= physical;
+    return physical <= 0 || e->total * e->ranks_here <= physical;
 }
 
 double fm_memory_agents_that_fit(const fm_memory_estimate *e)
 {
-    double fits = (fm_physical_memory() - e->fixed) / (e->total == e->run ? e->per_agent : e->preprocess_per_agent);
+    const double mine = fm_physical_memory() / FM_MAX(e->ranks_here, 1); /* this process's part of the machine */
+    double fits = (mine - e->fixed) / (e->total == e->run ? e->per_agent : e->preprocess_per_agent);
     return fits > 0 ? fits : 0;
 }
 
@@ -112,10 +123,12 @@ fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_ne
     double physical = fm_physical_memory(), gib = 1024.0 * 1024.0 * 1024.0;
     if (fm_memory_fits(&e)) return FM_OK;
     double fits = fm_memory_agents_that_fit(&e);
+    char ranks[96] = "";
+    if (e.ranks_here > 1) snprintf(ranks, sizeof ranks, " on each of the %d ranks on this machine", e.ranks_here);
     return fm_fail(err, FM_ERR_INPUT,
-                   "%s: %lld agents need about %.1f GiB (%.0f bytes per agent: model %.0f, agent store %.0f, frame "
+                   "%s: %lld agents need about %.1f GiB%s (%.0f bytes per agent: model %.0f, agent store %.0f, frame "
                    "buffers %.0f, neighbour grid %.0f; plus %.0f MiB that do not grow with n), more than this "
                    "machine's %.1f GiB of physical memory; at most about %.3g agents fit (docs/limits.md)",
-                   where, (long long)n, e.total / gib, e.per_agent, e.model, e.state, e.frames, e.grid,
+                   where, (long long)n, e.total / gib, ranks, e.per_agent, e.model, e.state, e.frames, e.grid,
                    e.fixed / (1024.0 * 1024.0), physical / gib, fits);
 }

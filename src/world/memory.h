@@ -17,7 +17,9 @@ typedef struct fm_memory_estimate {
     double run;                        /* per_agent * n + fixed */
     double preprocess_per_agent;       /* bytes per agent at the preparation's peak */
     double preprocess;                 /* preprocess_per_agent * n + fixed */
-    double total;                      /* the larger of run and preprocess */
+    double total;                      /* the larger of run and preprocess: one process's */
+    int ranks_here;                    /* processes of the run on this machine (fm_memory_set_ranks), each
+                                          needing total */
 } fm_memory_estimate;
 
 /* A mode's estimate and its neighbour grid, for fm_memory_check. */
@@ -34,10 +36,16 @@ double fm_memory_frames_per_agent(const fm_scene_def *def, double frame, double 
 double fm_memory_grid_bytes(int64_t n);
 /* Bytes that do not grow with n: the libraries, a baked field grid, the distance grids. */
 double fm_memory_fixed_bytes(const fm_scene_def *def);
-/* Fills per_agent, run, preprocess and total from the parts. */
+/* The run's MPI ranks, and those on this machine (set once, before the model is built, by a run on
+ * P ranks): an estimate is then one rank's (a mode counts its share of n), and the ranks on a
+ * machine share its memory. 1 and 1 by default. */
+void fm_memory_set_ranks(int ranks, int ranks_here);
+int fm_memory_ranks(void);
+/* Fills per_agent, run, preprocess, total and ranks_here from the parts. */
 void fm_memory_total(fm_memory_estimate *e, int64_t n);
 double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
-/* Whether the estimate fits the physical memory (or that is unknown), and how many agents would. */
+/* Whether the estimate (times the ranks on this machine) fits the physical memory (or that is
+ * unknown), and how many agents would. */
 int fm_memory_fits(const fm_memory_estimate *e);
 double fm_memory_agents_that_fit(const fm_memory_estimate *e);
 

@@ -26,6 +26,7 @@ typedef struct fm_dist_totals {
     double busy_seconds;          /* this rank's own work in its steps (no exchange, no waiting); after
                                      cli_sum_totals the sum over the ranks */
     double busiest_seconds;       /* after cli_sum_totals: the largest rank's busy_seconds */
+    int64_t peak_rss_bytes;       /* after cli_sum_totals: the largest rank's peak resident memory so far */
 } fm_dist_totals;
 
 typedef struct fm_slabs {

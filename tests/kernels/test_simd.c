@@ -182,21 +182,29 @@ static void test_flying_tets_match_reference(void)
         int32_t t = id[a];
         id[a] = id[b], id[b] = t;
     }
-    for (int shrink_time = 0; shrink_time < 2; shrink_time++) {
-        fm_synth_view v = {{p0[0], p0[1], p0[2]}, {0}, id, 0.37, 1500.0, 0.4, shrink_time ? 0.25 : 0};
-        for (int j = 0; j < 12; j++) v.rest[j] = rest[j];
-        for (int i = 0; i < 12 * N; i++) want[i] = (float)i; /* untouched tets must stay so */
-        const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
-        fm_kernel_flying_tets_ref(&v, phase, FM_KERNEL_FLYING, 2, N - 3, want);
-        for (int level = FM_SIMD_SSE2; level <= (int)best; level++) {
-            fm_simd_set_level((fm_simd)level);
-            for (int i = 0; i < 12 * N; i++) got[i] = (float)i;
-            fm_kernel_flying_tets(&v, phase, FM_KERNEL_FLYING, 2, N - 3, got);
-            ENSURE_MSG(memcmp(want, got, sizeof want) == 0, "%s: phase-1 tets differ from the scalar reference (shrink time %d)",
-                       fm_simd_name((fm_simd)level), shrink_time);
+    static float by_id[12 * N];
+    for (int shrink_time = 0; shrink_time < 2; shrink_time++)
+        for (int by_slot = 0; by_slot < 2; by_slot++) { /* at 12 id[a], then at 12 a (a rank's own agents) */
+            fm_synth_view v = {{p0[0], p0[1], p0[2]}, {0}, id, 0.37, 1500.0, 0.4, shrink_time ? 0.25 : 0, by_slot};
+            for (int j = 0; j < 12; j++) v.rest[j] = rest[j];
+            for (int i = 0; i < 12 * N; i++) want[i] = (float)i; /* untouched tets must stay so */
+            const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+            fm_kernel_flying_tets_ref(&v, phase, FM_KERNEL_FLYING, 2, N - 3, want);
+            for (int level = FM_SIMD_SSE2; level <= (int)best; level++) {
+                fm_simd_set_level((fm_simd)level);
+                for (int i = 0; i < 12 * N; i++) got[i] = (float)i;
+                fm_kernel_flying_tets(&v, phase, FM_KERNEL_FLYING, 2, N - 3, got);
+                ENSURE_MSG(memcmp(want, got, sizeof want) == 0,
+                           "%s: phase-1 tets differ from the scalar reference (shrink time %d, by slot %d)",
+                           fm_simd_name((fm_simd)level), shrink_time, by_slot);
+            }
+            fm_simd_set_level(best);
+            if (!by_slot) memcpy(by_id, want, sizeof by_id);
+            for (int a = 2; by_slot && a < N - 3; a++) /* the same tet, at the slot instead of the id */
+                if (phase[a] == FM_KERNEL_FLYING)
+                    ENSURE_MSG(memcmp(want + 12 * a, by_id + 12 * id[a], 12 * sizeof(float)) == 0,
+                               "slot %d: its tet by slot is not its tet by id", a);
         }
-        fm_simd_set_level(best);
-    }
 }
 
 /* The level can be forced down and never above what the CPU has. */

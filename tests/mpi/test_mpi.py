@@ -14,6 +14,7 @@
   shape flock's holds the plain run's bytes (but for its timings) on 3 ranks; either mode's resumes
   on another P with the uninterrupted plain run's bytes; a full disk during one stops every rank
   with exit 3 and leaves no checkpoint, and so does a directory where the checkpoint goes;
+- memory: on 4 ranks the largest rank peaks well below the one process (measured from outside);
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
 
@@ -167,6 +168,42 @@ class Stress(unittest.TestCase):
         self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
         self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)  # the busiest rank's work over the mean
         self.assertLessEqual(s["busy_imbalance"], 4.0, s)
+
+
+def peak_rss(cmd):
+    """The largest resident memory, in bytes, of any process `cmd` starts (under mpirun: the largest
+    rank), measured from outside the engine: a child Python runs it and reads RUSAGE_CHILDREN, which
+    takes the peak of every process it and its children waited for. Returns (completed, bytes)."""
+    probe = ("import resource, subprocess, sys\n"
+             "r = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)\n"
+             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024)\n"
+             "sys.stderr.write(r.stderr)\n"
+             "sys.exit(r.returncode)\n")
+    done = subprocess.run([sys.executable, "-c", probe, *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, timeout=600, env=env())
+    return done, int(done.stdout.strip() or 0)
+
+
+class Memory(unittest.TestCase):
+    def test_a_rank_holds_its_share(self):
+        """castling's rook at 3·10^5 agents, all launched at once: each of 4 ranks holds its slab's
+        agents and its share of the frame, so the largest rank peaks well below the one process
+        (docs/limits.md, "On P ranks"), measured from outside; the same bytes; and stats.json's
+        max_rank_peak_rss_bytes is that peak."""
+        sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
+        scene, one, four = "examples/castling/rook.json", os.path.join(ARGS.tmp, "mem1"), os.path.join(ARGS.tmp, "mem4")
+        for out in (one, four):
+            shutil.rmtree(out, ignore_errors=True)
+        done, alone = peak_rss(command(scene, one, None, 1, sets))
+        self.assertEqual(done.returncode, 0, done.stderr)
+        done, ranks = peak_rss(command(scene, four, 4, 1, sets))
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertEqual(sha256(os.path.join(four, "frames.fmc")), sha256(os.path.join(one, "frames.fmc")))
+        self.assertLess(ranks, 0.8 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
+        with open(os.path.join(four, "stats.json")) as f:
+            reported = json.load(f)["scale_out"]["max_rank_peak_rss_bytes"]
+        self.assertGreater(reported, 0.9 * ranks)  # mpirun's own peak is far below a rank's
+        self.assertLessEqual(reported, ranks)
 
 
 def frames_in(path):
