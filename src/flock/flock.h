@@ -140,7 +140,8 @@ fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err);
 fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err);
 void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds);
 fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err);
-/* flock_state.c: agents begin … end − 1 of a frame (fm_flock_frame's arrays, by id); the mean and
+/* flock_state.c: agents begin … end − 1 of a frame (fm_flock_frame's arrays, in id order from
+ * agent begin at index 0); the mean and
  * largest distance to the destinations over the blocks of [begin, end) (whole FM_BLOCK blocks),
  * on P ranks (d) every rank's share summed on rank 0 in block order (NaN elsewhere). */
 void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,

@@ -117,13 +117,12 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
     const int64_t first = fm_frame_share_first(&r->share), end = fm_frame_share_end(&r->share);
     fm_status st = fm_flock_dist_share(s, r->share.begin, err);
     if (st == FM_OK) {
-        fm_flock_frame_range(s, first, end, r->position, r->velocity, r->orientation, r->phase);
-        st = fm_frame_check_runaway_from(r->position + 3 * first, 3, first, end - first, r->m->scene_lo, r->m->scene_hi,
+        fm_flock_frame_range(s, first, end, r->position, r->velocity, r->orientation, r->phase); /* the share's */
+        st = fm_frame_check_runaway_from(r->position, 3, first, end - first, r->m->scene_lo, r->m->scene_hi,
                                          frame, FLOCK_FORCES, err);
     }
-    const size_t at = (size_t)first; /* the share's first agent */
-    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = r->position + 3 * at, [FM_ATTR_VELOCITY] = r->velocity + 3 * at,
-                                             [FM_ATTR_ORIENTATION] = r->orientation + 4 * at, [FM_ATTR_PHASE] = r->phase + at};
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = r->position, [FM_ATTR_VELOCITY] = r->velocity,
+                                             [FM_ATTR_ORIENTATION] = r->orientation, [FM_ATTR_PHASE] = r->phase};
     if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
         st = fm_frame_share_write(&r->share, s->dist, r->cache, by_kind, (uint32_t)frame, &s->slabs->totals.bytes_sent, err);
     if (st == FM_OK && frame > 0) st = measure_shared(r, frame, err);
@@ -162,6 +161,16 @@ static fm_status start_share(flock_run *r, fm_error *err)
     if (st == FM_OK && r->share.on && r->share.share.enc.l.piece_agents % FM_BLOCK != 0) fm_frame_share_free(&r->share);
     fm_frame_share_commit(&r->share, r->cache);
     return st;
+}
+
+/* The frame's arrays: every agent's, or with the cache written by P ranks the rank's share's. */
+static fm_status alloc_frame(flock_run *r, fm_error *err)
+{
+    const size_t n = (size_t)(r->share.on ? fm_frame_share_end(&r->share) - fm_frame_share_first(&r->share) : r->s->n);
+    r->position = fm_alloc(sizeof(float) * 3 * n), r->velocity = fm_alloc(sizeof(float) * 3 * n);
+    r->orientation = fm_alloc(sizeof(float) * 4 * n), r->phase = fm_alloc(n);
+    if (r->position && r->velocity && r->orientation && r->phase) return FM_OK;
+    return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)n);
 }
 
 /* The end-state distances to the destinations: on P ranks writing in parallel, from the shares. */
@@ -209,15 +218,11 @@ fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm
                                   const fm_run_control *c, fm_flock_run_stats *stats, fm_error *err)
 {
     if (!c->resume) memset(stats, 0, sizeof *stats), s->lag_sum = 0;
-    const size_t n = (size_t)s->n;
-    flock_run r = {.m = m, .s = s, .position = fm_alloc(sizeof(float) * 3 * n), .velocity = fm_alloc(sizeof(float) * 3 * n),
-                   .orientation = fm_alloc(sizeof(float) * 4 * n), .phase = fm_alloc(n), .cache = cache, .c = c, .stats = stats};
-    fm_status st = r.position && r.velocity && r.orientation && r.phase
-                       ? FM_OK
-                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->n);
+    flock_run r = {.m = m, .s = s, .cache = cache, .c = c, .stats = stats};
     /* capacity 0: a resumed run's array holds exactly its frames so far */
-    if (st == FM_OK) st = fm_frame_rows_room(&stats->measures, FM_MAX(stats->run.frames, 1), FM_FLOCK_MEASURES, &r.capacity, err);
-    if (st == FM_OK) st = start_share(&r, err);
+    fm_status st = fm_frame_rows_room(&stats->measures, FM_MAX(stats->run.frames, 1), FM_FLOCK_MEASURES, &r.capacity, err);
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK) st = start_share(&r, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, alloc_frame(&r, err), err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, flock_step, flock_finished, flock_frame, flock_save, m->steps_per_frame,
                                     m->def.frame_limit, c, &stats->run, cache, s->dist, flock_sync};

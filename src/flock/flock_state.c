@@ -154,11 +154,11 @@ void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, f
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = begin; a < end; a++)
         for (int k = 0; k < 3; k++) {
-            if (position) position[3 * a + k] = s->p[k][a];
-            if (velocity) velocity[3 * a + k] = s->v[k][a];
+            if (position) position[3 * (a - begin) + k] = s->p[k][a];
+            if (velocity) velocity[3 * (a - begin) + k] = s->v[k][a];
         }
-    if (orientation) memcpy(orientation + 4 * begin, s->orient + 4 * begin, sizeof(float) * 4 * (size_t)(end - begin));
-    if (phase) memcpy(phase + begin, s->phase + begin, (size_t)(end - begin));
+    if (orientation) memcpy(orientation, s->orient + 4 * begin, sizeof(float) * 4 * (size_t)(end - begin));
+    if (phase) memcpy(phase, s->phase + begin, (size_t)(end - begin));
 }
 
 void fm_flock_destinations(const fm_flock_state *s, float *out)

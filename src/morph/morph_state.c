@@ -79,16 +79,19 @@ static void free_arrays(fm_morph_state *s)
     fm_free(s->blocks), s->blocks = NULL;
 }
 
-/* The MDE grid lists up to capacity agents (a rank's own and its halo's). */
+/* The MDE grid for up to capacity agents (a rank's own and its halo's): made before the old one is
+ * freed, so a failure leaves the old one (large enough after a shrink; a failed growth stops the run). */
 static fm_status size_grid(fm_morph_state *s, int64_t capacity, fm_error *err)
 {
+    fm_grid fresh;
+    fm_status st = fm_grid_init(&fresh, capacity, err);
+    if (st != FM_OK) return st;
     if (s->grid_ready) fm_grid_free(&s->grid);
-    fm_status st = fm_grid_init(&s->grid, capacity, err);
-    s->grid_ready = st == FM_OK;
+    s->grid = fresh, s->grid_ready = 1;
     /* The store is Morton-sorted and MDE sums by id, not in the grid's order: rows by position
      * keep the walk's lookups near each other in memory and change no result. */
     s->grid.linear_rows = 1;
-    return st;
+    return FM_OK;
 }
 
 /* Resizes the store to `capacity` slots, keeping its agents (and the grid with it). */
