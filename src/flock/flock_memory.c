@@ -18,6 +18,8 @@ static const double FLOCK_OWN_KALMAN_PER_AGENT = sizeof(double) * 3 + sizeof(flo
 static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
 /* The frame: position, velocity (3 floats), orientation (4) and phase (1 byte). */
 static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST_ATTR = sizeof(float) * 4;
+/* On P ranks: an agent of a frame's exchange by share (flock_dist.c's frame record). */
+static const double FLOCK_SHARE_RECORD = 60;
 
 /* The peak of preprocessing, while the target is sampled: the model, the agent-sample match
  * (int64) and the source's samples (point, barycentrics, triangle), plus the sampler's own arrays
@@ -48,7 +50,13 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     e.model = FLOCK_MODEL_PER_AGENT;
     e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +
               (def->flock.kalman_r_over != FM_KALMAN_R_FIXED ? FLOCK_OWN_KALMAN_PER_AGENT : 0);
-    e.frames = fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
+    /* On P ranks the store and model are whole on every rank (flock_dist.c), the frame is the rank's
+     * share n / P (frame_share.h): its arrays, its encoder's stored and previous words and blocks
+     * (the frame with ids), and the exchange of the share's agents (a record sent and one received).
+     * Rank 0's writer makes no frame buffers. */
+    const double ranks = fm_memory_ranks();
+    e.frames = ranks > 1 ? (FLOCK_FRAME + 3 * (FLOCK_FRAME + sizeof(uint32_t)) + 2 * FLOCK_SHARE_RECORD) / ranks
+                         : fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
     /* the boids' neighbour grid, always, with its copy of the velocities (grid.h) */
     e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float) : 0;
     e.fixed = fm_memory_fixed_bytes(def);

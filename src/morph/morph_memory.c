@@ -25,9 +25,10 @@ static const double PREP_PER_AGENT = 2 * 12 * sizeof(double) + sizeof(int64_t) +
 /* On P ranks a rank holds its slab's agents, the busiest rank at most about 1.2 n / P (measured
  * load_imbalance 1.01-1.18), in a store with a quarter more room (fm_morph_state_reserve). */
 static const double HELD_PER_SHARE = 1.5;
-/* ... and the frame: its own agents' tets in slot order (held), and its share n / P of the cache's
- * frame (tets and phases) with its encoder's stored words, previous words (delta) and blocks. */
-static const double OWN_TETS = sizeof(float) * 12, SHARE_FRAME = 4 * (sizeof(float) * 12 + 1);
+/* ... and the frame: its own agents' tets in slot order (held) with the exchange that hands them to
+ * the shares (a 56-byte record sent and one received), and its share n / P of the cache's frame
+ * (tets and phases) with its encoder's stored words, previous words (delta) and blocks. */
+static const double OWN_TETS = sizeof(float) * 12 + 2 * 56, SHARE_FRAME = 4 * (sizeof(float) * 12 + 1);
 
 fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
 {
