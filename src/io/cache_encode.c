@@ -51,16 +51,30 @@ fm_status cache_encoder_init_bounds(cache_encoder *e, const cache_layout *l, uin
     return FM_OK;
 }
 
+/* The range's words of every attribute (stored and prev hold that many bytes). */
+static size_t range_bytes(const cache_encoder *e)
+{
+    size_t total = 0;
+    for (int i = 0; i < e->l.attr_count; i++) total += (size_t)(e->agent_end - e->agent_begin) * e->l.attrs[i]->bytes_per_agent;
+    return total;
+}
+
+fm_status cache_encoder_alloc_prev(cache_encoder *e, fm_error *err)
+{
+    if (e->prev || !e->l.opts.delta) return FM_OK;
+    if ((e->prev = fm_alloc(FM_MAX(range_bytes(e), 1)))) return FM_OK;
+    return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the previous frame of %llu agents", e->path,
+                   (unsigned long long)(e->agent_end - e->agent_begin));
+}
+
 fm_status cache_encoder_alloc_buffers(cache_encoder *e, fm_error *err)
 {
     const cache_layout *l = &e->l;
-    size_t total = 0, largest = 0;
-    for (int i = 0; i < l->attr_count; i++) {
-        total += (size_t)(e->agent_end - e->agent_begin) * l->attrs[i]->bytes_per_agent;
+    size_t total = range_bytes(e), largest = 0;
+    for (int i = 0; i < l->attr_count; i++)
         largest = FM_MAX(largest, cache_block_bytes(l, e->piece_begin, i)); /* the first piece is a full one */
-    }
+    if (cache_encoder_alloc_prev(e, err) != FM_OK) return err->status; /* a resumed writer's may be there */
     e->stored = fm_alloc(FM_MAX(total, 1));
-    e->prev = l->opts.delta ? fm_alloc(FM_MAX(total, 1)) : NULL;
     e->scratch = calloc((size_t)e->threads, sizeof *e->scratch);
     e->cctx = calloc((size_t)e->threads, sizeof *e->cctx);
     int ok = e->stored && (!l->opts.delta || e->prev) && e->scratch && e->cctx;

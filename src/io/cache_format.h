@@ -154,6 +154,8 @@ fm_status cache_encoder_init(cache_encoder *e, const cache_layout *l, uint64_t p
 fm_status cache_encoder_init_bounds(cache_encoder *e, const cache_layout *l, uint64_t piece_begin, uint64_t piece_end,
                                     int threads, const char *path, fm_error *err);
 fm_status cache_encoder_alloc_buffers(cache_encoder *e, fm_error *err);
+/* Delta: prev alone (a resumed writer takes the last stored frame into it); alloc_buffers keeps it. */
+fm_status cache_encoder_alloc_prev(cache_encoder *e, fm_error *err);
 void cache_encoder_free(cache_encoder *e);
 /* Frees the encoder's buffers and compressors but keeps its blocks' bounds (bound_at). */
 void cache_encoder_keep_bounds(cache_encoder *e);

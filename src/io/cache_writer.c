@@ -454,7 +454,7 @@ static fm_status take_over_prefix(fm_cache_writer *w, fm_cache_reader *r, uint32
         w->pos = cache_reader_chunk_end(r, k);
         w->frames = w->handed = k + 1;
     }
-    if (st == FM_OK && l->opts.delta && frames > 0) st = frame_buffers(w, err); /* prev takes the last frame */
+    if (st == FM_OK && l->opts.delta && frames > 0) st = cache_encoder_alloc_prev(&w->enc, err); /* the last frame's words */
     for (int i = 0; i < l->attr_count && st == FM_OK && l->opts.delta && frames > 0; i++) {
         const unsigned char *words;
         if ((st = cache_reader_stored(r, frames - 1, i, &words, err)) == FM_OK)

@@ -185,6 +185,9 @@ fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
 /* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an
  * allocation failure leaves the store as it was. */
 fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err);
+/* Room for all n agents in the store's arrays but not the MDE grid (P ranks: every rank loads the
+ * whole checkpoint, then keeps its share; the next reserve, before the grid is built, sizes it). */
+fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err);
 /* The store shrunk to its agents and some room (P ranks: after a rank kept its share). */
 void fm_morph_state_fit(fm_morph_state *s);
 /* morph_state.c: the tets of the store's agents in slot order (12 floats a slot of fm_morph_slots). */

@@ -83,7 +83,7 @@ fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, c
 fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    fm_status st = fm_morph_state_reserve(s, s->n, err); /* P ranks: every rank reads the whole store */
+    fm_status st = fm_morph_state_hold_all(s, err); /* P ranks: every rank reads the whole store */
     fm_ckpt_store c = tetra_store(m, s, stats);
     if (st == FM_OK) st = fm_ckpt_load(path, &c, &stats->run.frames, err);
     if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */

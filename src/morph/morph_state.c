@@ -105,9 +105,17 @@ static fm_status resize_store(fm_morph_state *s, int64_t capacity, fm_error *err
 
 fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err)
 {
-    if (slots <= s->capacity) return FM_OK;
+    if (slots <= s->capacity) /* a loaded checkpoint's store may have outgrown the grid */
+        return s->grid_ready && s->grid.capacity < s->capacity ? size_grid(s, s->capacity, err) : FM_OK;
     /* a quarter more than asked: a rank's store grows as its slab fills, at amortised cost */
     return resize_store(s, FM_MIN(s->n, slots + slots / 4 + 1024), err);
+}
+
+fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err)
+{
+    if (s->capacity >= s->n) return FM_OK;
+    if (resize_arrays(s, s->n, fm_morph_slots(s)) == FM_OK) return FM_OK;
+    return fm_fail(err, FM_ERR_MEMORY, "out of memory for a store of %lld agents", (long long)s->n);
 }
 
 void fm_morph_state_fit(fm_morph_state *s)

@@ -5,32 +5,26 @@
 #include <string.h>
 
 /* Rank 0 hands every rank its share of the resumed writer's last stored frame (the words delta
- * goes on from): attribute after attribute, as the share's encoder keeps them. A record is one
- * agent's bytes of every attribute, so MPI's int counts reach 2^31 agents, not bytes. */
+ * goes on from), an attribute at a time straight from the writer's words (its shares are ranges of
+ * them), into the share's encoder. A record is one agent's bytes of the attribute, so MPI's int
+ * counts reach 2^31 agents, not bytes. */
 static fm_status hand_out_prev(fm_frame_share *f, const fm_dist *d, fm_cache_writer *cache, fm_error *err)
 {
-    const cache_layout *l = &f->share.enc.l;
+    cache_encoder *e = &f->share.enc;
     const int ranks = fm_dist_size(d), root = fm_dist_rank(d) == 0;
-    size_t record = 0;
-    for (int i = 0; i < l->attr_count; i++) record += l->attrs[i]->bytes_per_agent;
     int64_t *count = calloc((size_t)ranks, sizeof *count);
-    unsigned char *send = root ? fm_alloc(FM_MAX(cache_frame_bytes(l), 1)) : NULL;
-    fm_status st = count && (send || !root) ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory resuming the cache");
-    size_t at = 0;
-    for (int r = 0; st == FM_OK && root && r < ranks; r++) {
-        count[r] = f->begin[r + 1] - f->begin[r];
-        for (int i = 0; i < l->attr_count; i++) {
-            const size_t per = l->attrs[i]->bytes_per_agent, bytes = per * (size_t)count[r];
-            memcpy(send + at, fm_cache_writer_prev(cache, i) + per * (size_t)f->begin[r], bytes);
-            at += bytes;
-        }
-    }
+    fm_status st = count ? cache_encoder_alloc_prev(e, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory resuming the cache");
+    for (int r = 0; root && count && r < ranks; r++) count[r] = f->begin[r + 1] - f->begin[r];
     st = fm_dist_agree(d, st, err);
-    void *mine = NULL;
-    int64_t got = 0;
-    if (st == FM_OK) st = fm_dist_exchange(d, send, count, record, &mine, &got, err);
-    if (st == FM_OK && got > 0) memcpy(cache_encoder_prev(&f->share.enc, 0), mine, record * (size_t)got); /* the attributes follow one another */
-    fm_free(send), fm_free(mine), free(count);
+    for (int i = 0; st == FM_OK && i < e->l.attr_count; i++) {
+        const size_t per = e->l.attrs[i]->bytes_per_agent;
+        void *mine = NULL;
+        int64_t got = 0;
+        st = fm_dist_exchange(d, root ? fm_cache_writer_prev(cache, i) : NULL, count, per, &mine, &got, err);
+        if (st == FM_OK && got > 0) memcpy(cache_encoder_prev(e, i), mine, per * (size_t)got);
+        fm_free(mine);
+    }
+    free(count);
     return st;
 }
 
