@@ -36,6 +36,7 @@ so = b.get("scale_out", {})
 print(f"round {r}: 1x{p} simulate {sa:.2f} s output {oa:.2f} s | {p}x1 simulate {sb:.2f} s output {ob:.2f} s | "
       f"(1x{p})/({p}x1) simulate {sa / sb:.3f} total {(sa + oa) / (sb + ob):.3f} | caches {same} | "
       f"bytes/agent-step {so.get('bytes_sent_per_agent_step', 0):.1f} halo/agent-step {so.get('halo_agents_per_agent_step', 0):.4f} "
-      f"imbalance {so.get('load_imbalance', 0):.3f} busy {so.get('busy_imbalance', 0):.3f} migrations {so.get('migrations', 0)}")
+      f"imbalance {so.get('load_imbalance', 0):.3f} busy {so.get('busy_imbalance', 0):.3f} migrations {so.get('migrations', 0)} "
+      f"largest rank's peak {so.get('max_rank_peak_rss_bytes', 0) / 2**20:.0f} MiB")
 PY
 done

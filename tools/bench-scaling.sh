@@ -63,7 +63,7 @@ say "flockmorph strong scaling, $(date -u +%Y-%m-%dT%H:%M:%SZ): $cpu, nproc $(np
 say "tetra: examples/castling/rook.json, n=$tetra_n, launch_rate=1e9, mde.d_min=0.0063, $tetra_steps steps, 2 a frame (time_step=1/48)"
 say "flock: examples/flock_suzanne_torus/scene.json, n=${flock_n:-(chosen below)}, shape_flock.sampling=random, ${flock_steps:-(chosen below)} steps, 2 a frame (time_step=1/48)"
 say "runs: $runs (PxT: P ranks of T threads; P>1 as mpirun --bind-to none -np P; 1xT without mpirun; /one: the cache in one piece, output.piece_agents=2^30, so rank 0 encodes every frame alone); modes: $modes; budget ${budget} s"
-say "wall: the run's wall seconds (start-up and preprocessing included); pre/sim/out: stats.json preprocess/simulate/output_seconds; bytes, halo: per agent-step; imb: load_imbalance (agents in flight), busy: busy_imbalance (the ranks' own work in their steps); migr: migrations"
+say "wall: the run's wall seconds (start-up and preprocessing included); pre/sim/out: stats.json preprocess/simulate/output_seconds; bytes, halo: per agent-step; imb: load_imbalance (agents in flight), busy: busy_imbalance (the ranks' own work in their steps); migr: migrations; peak: the largest rank's peak resident MiB (P>1)"
 # A small job on 2 ranks first: does mpirun work, and may vader copy with CMA (a container may
 # forbid process_vm_readv)? Else without single copy.
 copy=""
@@ -78,7 +78,7 @@ done
 rm -rf "$work/probe"
 [ -n "$copy" ] || { say "bench-scaling: mpirun does not work here; nothing measured"; exit 1; }
 say "probe: mpirun -np 2 works, btl_vader_single_copy_mechanism=$copy, shared memory in ${OMPI_MCA_btl_vader_backing_directory:-/dev/shm}; $((SECONDS - start)) s so far"
-hdr=$(printf '%-5s %-5s %7s %7s %7s %7s %8s %7s %5s %5s %9s  %s' mode PxT wall pre sim out bytes halo imb busy migr cache)
+hdr=$(printf '%-5s %-5s %7s %7s %7s %7s %8s %7s %5s %5s %9s %6s  %s' mode PxT wall pre sim out bytes halo imb busy migr peak cache)
 say "$hdr"
 
 records=()
@@ -89,7 +89,7 @@ write_json() {
 }
 write_json
 
-# stats.json (pretty-printed, a key a line) to "pre sim out bytes halo imb migr" (- where absent).
+# stats.json (pretty-printed, a key a line) to "pre sim out bytes halo imb busy migr peak" (- where absent).
 stats_fields() {
   awk '
     /^  "scale_out": \{/ { so = 1; next }
@@ -97,10 +97,10 @@ stats_fields() {
     { line = $0; sub(/,[ \t]*$/, "", line) }
     !so && match(line, /^  "(preprocess_seconds|simulate_seconds|output_seconds)": /) {
       k = line; sub(/^  "/, "", k); sub(/".*/, "", k); v = line; sub(/^[^:]*: /, "", v); f[k] = v }
-    so && match(line, /^    "(bytes_sent_per_agent_step|halo_agents_per_agent_step|load_imbalance|busy_imbalance|migrations)": /) {
+    so && match(line, /^    "(bytes_sent_per_agent_step|halo_agents_per_agent_step|load_imbalance|busy_imbalance|migrations|max_rank_peak_rss_bytes)": /) {
       k = line; sub(/^    "/, "", k); sub(/".*/, "", k); v = line; sub(/^[^:]*: /, "", v); f[k] = v }
     END {
-      n = split("preprocess_seconds simulate_seconds output_seconds bytes_sent_per_agent_step halo_agents_per_agent_step load_imbalance busy_imbalance migrations", keys, " ")
+      n = split("preprocess_seconds simulate_seconds output_seconds bytes_sent_per_agent_step halo_agents_per_agent_step load_imbalance busy_imbalance migrations max_rank_peak_rss_bytes", keys, " ")
       for (i = 1; i <= n; i++) printf "%s%s", (keys[i] in f ? f[keys[i]] : "-"), (i < n ? " " : "\n")
     }' "$1"
 }
@@ -181,7 +181,8 @@ for mode in $modes; do
     wall=$(LC_ALL=C awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a }')
     if [ "$rc" = 0 ] && [ -f "$work/run/stats.json" ]; then status=ok; else status="failed (exit $rc)"; fi
     [ "$rc" = 124 ] || [ "$rc" = 137 ] && status="timeout (${limit} s)"
-    read -r pre sim out bytes halo imb busy migr < <( [ -f "$work/run/stats.json" ] && stats_fields "$work/run/stats.json" || echo "- - - - - - - -")
+    read -r pre sim out bytes halo imb busy migr peak < <( [ -f "$work/run/stats.json" ] && stats_fields "$work/run/stats.json" || echo "- - - - - - - - -")
+    peak_mib=-; [ "$peak" != - ] && peak_mib=$(LC_ALL=C awk -v b="$peak" 'BEGIN { printf "%.0f", b / 1048576 }')
     cache=none
     if [ "$status" = ok ] && [ -f "$work/run/frames.fmc" ]; then
       if [ -n "$variant" ]; then cache="$variant piece"
@@ -189,13 +190,13 @@ for mode in $modes; do
       elif cmp -s "$ref" "$work/run/frames.fmc"; then cache=identical
       else cache=DIFFERENT; fi
     fi
-    line=$(printf '%-5s %-5s %7s %7s %7s %7s %8s %7s %5s %5s %9s  %s' "$mode" "$run" "$wall" \
+    line=$(printf '%-5s %-5s %7s %7s %7s %7s %8s %7s %5s %5s %9s %6s  %s' "$mode" "$run" "$wall" \
       "$(fmt "$pre" %.2f)" "$(fmt "$sim" %.2f)" "$(fmt "$out" %.2f)" "$(fmt "$bytes" %.1f)" \
-      "$(fmt "$halo" %.4f)" "$(fmt "$imb" %.3f)" "$(fmt "$busy" %.3f)" "$migr" "$cache")
+      "$(fmt "$halo" %.4f)" "$(fmt "$imb" %.3f)" "$(fmt "$busy" %.3f)" "$migr" "$peak_mib" "$cache")
     [ "$status" = ok ] || line="$line  $status"
     say "$line"
     if [ "$status" != ok ]; then tail -n 5 "$work/log" | sed 's/^/    | /' | tee -a "$txt"; fi
-    records+=("{\"mode\": \"$mode\", \"ranks\": $p, \"threads\": $t, \"variant\": \"$variant\", \"n\": $n, \"steps\": $steps, \"status\": \"$status\", \"wall_seconds\": $wall, \"estimated_seconds\": $est, \"preprocess_seconds\": $(num "$pre"), \"simulate_seconds\": $(num "$sim"), \"output_seconds\": $(num "$out"), \"scale_out\": {\"bytes_sent_per_agent_step\": $(num "$bytes"), \"halo_agents_per_agent_step\": $(num "$halo"), \"load_imbalance\": $(num "$imb"), \"busy_imbalance\": $(num "$busy"), \"migrations\": $(num "$migr")}, \"cache\": \"$cache\"}")
+    records+=("{\"mode\": \"$mode\", \"ranks\": $p, \"threads\": $t, \"variant\": \"$variant\", \"n\": $n, \"steps\": $steps, \"status\": \"$status\", \"wall_seconds\": $wall, \"estimated_seconds\": $est, \"preprocess_seconds\": $(num "$pre"), \"simulate_seconds\": $(num "$sim"), \"output_seconds\": $(num "$out"), \"scale_out\": {\"bytes_sent_per_agent_step\": $(num "$bytes"), \"halo_agents_per_agent_step\": $(num "$halo"), \"load_imbalance\": $(num "$imb"), \"busy_imbalance\": $(num "$busy"), \"migrations\": $(num "$migr"), \"max_rank_peak_rss_bytes\": $(num "$peak")}, \"cache\": \"$cache\"}")
     write_json
     rm -rf "$work/run"
     # The mode's runs so far calibrate the estimates of the rest to this machine.
