@@ -103,12 +103,15 @@ static fm_status resize_store(fm_morph_state *s, int64_t capacity, fm_error *err
     return s->grid_ready ? size_grid(s, capacity, err) : FM_OK;
 }
 
+/* Slots for `slots` agents and a quarter more (and 1024): a rank's store grows and shrinks with its
+ * slab at amortised cost. */
+static int64_t with_room(const fm_morph_state *s, int64_t slots) { return FM_MIN(s->n, slots + slots / 4 + 1024); }
+
 fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err)
 {
     if (slots <= s->capacity) /* a loaded checkpoint's store may have outgrown the grid */
         return s->grid_ready && s->grid.capacity < s->capacity ? size_grid(s, s->capacity, err) : FM_OK;
-    /* a quarter more than asked: a rank's store grows as its slab fills, at amortised cost */
-    return resize_store(s, FM_MIN(s->n, slots + slots / 4 + 1024), err);
+    return resize_store(s, with_room(s, slots), err);
 }
 
 fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err)
@@ -120,7 +123,7 @@ fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err)
 
 void fm_morph_state_fit(fm_morph_state *s)
 {
-    const int64_t fit = FM_MIN(s->n, fm_morph_slots(s) + fm_morph_slots(s) / 4 + 1024);
+    const int64_t fit = with_room(s, fm_morph_slots(s));
     if (fit < s->capacity) resize_store(s, fit, NULL); /* without memory the store stays as large as it was */
 }
 
