@@ -155,7 +155,7 @@ void fm_shot_set_threads(fm_shot *shot, int threads); /* <= 0: OpenMP's default;
 int fm_shot_groups(const fm_shot *shot);
 int64_t fm_shot_rows(const fm_shot *shot);   /* agents in the cache: the n of each group from a mesh */
 const fm_morph_model *fm_shot_model(const fm_shot *shot, int g);
-const fm_morph_state *fm_shot_state(const fm_shot *shot, int g);
+const fm_morph_state *fm_shot_state(const fm_shot *shot, int g); /* NULL until fm_shot_run (on P ranks fm_shot_distribute) makes it */
 
 typedef struct fm_shot_group_stats {
     int64_t agents;

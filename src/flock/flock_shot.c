@@ -7,6 +7,7 @@
 #include "flock.h"
 #include "fm_math.h"
 #include "frame_loop.h"
+#include "frame_share.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -22,9 +23,10 @@ struct fm_flock_shot {
     int64_t start_step[FM_MAX_GROUPS], done_step[FM_MAX_GROUPS], step;
     double dt, scene_lo[3], scene_hi[3];
     int32_t steps_per_frame, frame_limit;
-    float *position, *velocity, *orientation;
+    float *position, *velocity, *orientation; /* a frame: every row, or on P ranks the rank's share */
     uint8_t *phase, *group;
-    const fm_dist *dist; /* on P ranks (NULL: one process); rank 0 alone writes the frames */
+    const fm_dist *dist; /* on P ranks (NULL: one process) */
+    fm_frame_share share; /* on P ranks with a cache: each rank encodes its share of the rows */
 };
 
 /* Whether group g can ever be done: a static target whose agents bind. */
@@ -61,9 +63,10 @@ static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *u
     return FM_OK;
 }
 
+/* The frame's arrays: every row, or with the cache written by P ranks the rank's share of them. */
 static fm_status alloc_frame(fm_flock_shot *s, fm_error *err)
 {
-    const size_t n = (size_t)s->rows;
+    const size_t n = (size_t)(s->share.on ? fm_frame_share_end(&s->share) - fm_frame_share_first(&s->share) : s->rows);
     s->position = fm_alloc(sizeof(float) * 3 * n), s->velocity = fm_alloc(sizeof(float) * 3 * n);
     s->orientation = fm_alloc(sizeof(float) * 4 * n), s->phase = fm_alloc(n), s->group = fm_alloc(n);
     if (!s->position || !s->velocity || !s->orientation || !s->phase || !s->group)
@@ -94,7 +97,6 @@ fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progr
     s->count = count;
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
     fm_status st = build_groups(s, progress, user, err);
-    if (st == FM_OK) st = alloc_frame(s, err);
     if (st != FM_OK) return fm_flock_shot_destroy(s), NULL;
     set_clock(s, defs);
     return s;
@@ -152,6 +154,8 @@ static int all_done(const fm_flock_shot *s)
     return 1;
 }
 
+static const char *const SHOT_FORCES = "each group's shape_flock speeds, forces and weights";
+
 /* Group g's agents into its rows (on P ranks gathered on rank 0 first: collective). */
 static fm_status group_frame(fm_flock_shot *s, int g, fm_error *err)
 {
@@ -165,6 +169,8 @@ static fm_status group_frame(fm_flock_shot *s, int g, fm_error *err)
     return st;
 }
 
+/* Frame k on one process, or gathered on rank 0 (no cache to write in parallel), which checks and
+ * writes it. */
 static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
@@ -172,8 +178,7 @@ static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k
         if (st != FM_OK) return st; /* the ranks agreed on it */
     }
     if (fm_dist_rank(s->dist) != 0) return FM_OK;
-    fm_status st = fm_frame_check_runaway(s->position, 3, s->rows, s->scene_lo, s->scene_hi, k,
-                                          "each group's shape_flock speeds, forces and weights", err);
+    fm_status st = fm_frame_check_runaway(s->position, 3, s->rows, s->scene_lo, s->scene_hi, k, SHOT_FORCES, err);
     if (st != FM_OK || !cache) return st;
     const cache_layout *l = fm_cache_writer_layout(cache);
     const void *data[CACHE_MAX_ATTRS];
@@ -184,6 +189,46 @@ static fm_status write_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k
                 : a == FM_ATTR_GROUP ? (const void *)s->group : (const void *)fm_cache_writer_ids(cache);
     }
     return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+/* With the cache written by P ranks: group g's agents whose rows (row0 + id) lie in this rank's
+ * share, sent here by the ranks that compute them, into the share's arrays (collective). */
+static fm_status share_group(fm_flock_shot *s, int g, fm_error *err)
+{
+    const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
+    const int64_t n = s->model[g]->n, row0 = s->row0[g], first = fm_frame_share_first(&s->share);
+    int64_t *begin = malloc(sizeof *begin * ((size_t)ranks + 1)); /* the shares of the group's ids */
+    fm_status st = fm_dist_agree(s->dist, begin ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory"), err);
+    if (st != FM_OK) return free(begin), st;
+    for (int r = 0; r <= ranks; r++) begin[r] = FM_MIN(FM_MAX(s->share.begin[r] - row0, 0), n);
+    st = fm_flock_dist_share(s->state[g], begin, err);
+    if (st == FM_OK && begin[me] < begin[me + 1]) {
+        const size_t at = (size_t)(row0 + begin[me] - first);
+        fm_flock_frame_range(s->state[g], begin[me], begin[me + 1], s->position + 3 * at, s->velocity + 3 * at,
+                             s->orientation + 4 * at, s->phase + at);
+        memset(s->group + at, g, (size_t)(begin[me + 1] - begin[me]));
+    }
+    fm_flock_dist_release(s->state[g]);
+    free(begin);
+    return st;
+}
+
+/* Frame k with the cache written by P ranks: each rank fills, checks and encodes its share of the
+ * rows; rank 0 appends the blocks (frame_share.h). */
+static fm_status write_shared_frame(fm_flock_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+{
+    fm_status st = FM_OK;
+    for (int g = 0; g < s->count && st == FM_OK; g++)
+        if (s->writes[g]) st = share_group(s, g, err); /* agreed by every rank */
+    if (st != FM_OK) return st;
+    const int64_t first = fm_frame_share_first(&s->share), end = fm_frame_share_end(&s->share);
+    st = fm_frame_check_runaway_from(s->position, 3, first, end - first, s->scene_lo, s->scene_hi, k, SHOT_FORCES, err);
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_POSITION] = s->position, [FM_ATTR_VELOCITY] = s->velocity,
+                                             [FM_ATTR_ORIENTATION] = s->orientation, [FM_ATTR_PHASE] = s->phase,
+                                             [FM_ATTR_GROUP] = s->group};
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
+        st = fm_frame_share_write(&s->share, s->dist, cache, by_kind, (uint32_t)k, &s->state[0]->slabs->totals.bytes_sent, err);
+    return st;
 }
 
 typedef struct shot_loop {
@@ -200,7 +245,8 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
     shot_loop *r = sim;
     for (int g = 0; g < r->s->count; g++) /* an exchange that failed, which every rank knows */
         if (r->s->state[g]->dist_status != FM_OK) return *err = r->s->state[g]->dist_error, err->status = r->s->state[g]->dist_status;
-    fm_status st = fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
+    fm_status st = r->s->share.on ? write_shared_frame(r->s, r->cache, k, err)
+                                  : fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
     const int64_t *counts[FM_MAX_GROUPS];
     for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
     if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
@@ -241,9 +287,14 @@ fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_r
     fm_run_control c = *control;
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_loop r = {s, cache, &c};
-    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
-    fm_status st = fm_frame_loop_run(&loop, err);
+    fm_status st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, 0, err);
+    if (st == FM_OK) fm_frame_share_commit(&s->share, cache), st = fm_dist_agree(s->dist, alloc_frame(s, err), err);
+    if (st == FM_OK) {
+        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint,
+                                    s->steps_per_frame, s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
+        st = fm_frame_loop_run(&loop, err);
+    }
+    fm_frame_share_free(&s->share);
     finish_stats(s, stats);
     return st;
 }

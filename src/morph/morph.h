@@ -58,7 +58,7 @@ fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_mor
                                            fm_progress_fn progress, void *user, fm_error *err);
 void fm_morph_model_drop_targets(fm_morph_model *m);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
-/* verts: the store's tets by agent id, or (by_slot) in slot order. */
+/* verts: the store's tets by agent id, or (by_slot) in slot order; NULL (no room for them) gives infinity. */
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot);
 int fm_morph_targets_taken_once(const fm_morph_state *s);
 
@@ -172,14 +172,26 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
                                         const fm_morph_run_stats *stats, fm_error *err);
 void fm_morph_dist_adopt(fm_morph_state *s);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
-/* The cache written by P ranks in parallel: this rank's share of the frame's ids, begin[rank] …
- * begin[rank + 1] − 1, complete in verts and phases (in id order from begin[rank]), from every
- * rank's store; own (12 floats a store slot) gets the rank's own agents' tets in slot order. */
-fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *own,
-                                    float *verts, uint8_t *phases, fm_error *err);
+/* Where a state's agents go in a frame of rows (a shot's, morph_shot.c): agent i is row row0 + i
+ * in its own vertex order, or (row set) row row[i] with its vertices in the even permutation
+ * perm[i] (fm_even_permutations); the frame's rows of the state get `group` in groups. */
+typedef struct fm_morph_rows {
+    int64_t row0;
+    const int64_t *row;
+    const uint8_t *perm;
+    uint8_t group;
+    uint8_t *groups; /* from the share's first row, as verts and phases */
+} fm_morph_rows;
+/* The cache written by P ranks in parallel: this rank's share of the frame's rows, begin[rank] …
+ * begin[rank + 1] − 1, complete in verts and phases (in row order from begin[rank]), from every
+ * rank's store; the rows are the ids (rows NULL) or a shot's rows. own (12 floats a store slot)
+ * gets the rank's own agents' tets in slot order. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin,
+                                    const fm_morph_rows *rows, float *own, float *verts, uint8_t *phases, fm_error *err);
 
-/* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state one rank's share
- * (fm_morph_state_distribute); its frames gathered on rank 0, which writes them. */
+/* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state made as the rank's
+ * share (fm_morph_state_create_distributed), before the run; each rank encodes its share of the
+ * frames' rows. */
 fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
 
 /* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an
@@ -192,6 +204,9 @@ fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err);
 void fm_morph_state_fit(fm_morph_state *s);
 /* morph_state.c: the tets of the store's agents in slot order (12 floats a slot of fm_morph_slots). */
 void fm_morph_tet_vertices_by_slot(const fm_morph_model *m, const fm_morph_state *s, float *out);
+/* *own (fm_alloc'd, *capacity slots of 12 floats) as large as the store, which grows as the rank's
+ * agents come: for fm_morph_tet_vertices_by_slot. */
+fm_status fm_morph_own_room(const fm_morph_state *s, float **own, int64_t *capacity, fm_error *err);
 /* morph_state.c: rest_rel and rest_radius from the model by id[] (after creation and a checkpoint load). */
 void fm_morph_state_fill_rest(const fm_morph_model *m, fm_morph_state *s);
 /* The rest vertices of slot a's tet relative to its centroid (12 floats). */

@@ -59,7 +59,7 @@ fm_status fm_morph_state_distribute(const fm_morph_model *m, fm_morph_state *s, 
 fm_dist_totals fm_morph_dist_get_totals(const fm_morph_state *s)
 {
     fm_dist_totals t = {0};
-    return s->slabs ? s->slabs->totals : t;
+    return s && s->slabs ? s->slabs->totals : t; /* s: NULL for a shot's group that was never made */
 }
 
 /* Stage 1 on P ranks: agents id in [launched, due) leave the source; each rank takes those whose
@@ -303,61 +303,103 @@ fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float 
     return FM_OK;
 }
 
-/* The rank's own agents' tets (own, slot order) go to the ranks whose shares hold them: into this
- * rank's share (verts and phases from id first) in place, to the others in rank order (*recv
- * gets theirs for this rank; count, then fill, as the migration packs). */
-static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const float *own, float *verts, uint8_t *phases,
-                                void **recv, int64_t *received, fm_error *err)
+/* Agent id's row (its place in the frame) under the row map: the id itself without one. */
+static int64_t row_of(const fm_morph_rows *rows, int64_t id)
+{
+    return !rows ? id : rows->row ? rows->row[id] : rows->row0 + id;
+}
+
+/* Agent id's tet (its own vertex order) in its row's vertex order. */
+static void row_tet(const fm_morph_rows *rows, int64_t id, const float tet[12], float out[12])
+{
+    const uint8_t *perm = fm_even_permutations[rows && rows->perm ? rows->perm[id] : 0];
+    for (int v = 0; v < 4; v++) memcpy(out + 3 * v, tet + 3 * perm[v], 3 * sizeof(float));
+}
+
+/* Row r of the share (r counted from its first row): its tet (in the row's vertex order), phase
+ * and, under a row map, group. */
+static void put_row(const fm_morph_rows *rows, int64_t r, const float tet[12], uint8_t phase, float *verts,
+                    uint8_t *phases)
+{
+    memcpy(verts + 12 * (size_t)r, tet, 12 * sizeof(float));
+    phases[r] = phase;
+    if (rows) rows->groups[r] = rows->group;
+}
+
+/* The rank's own agents' tets (own, slot order) go to the ranks whose shares hold their rows: into
+ * this rank's share (verts and phases from its first row) in place, to the others in rank order
+ * (*recv gets theirs for this rank; count, then fill, as the migration packs). */
+static fm_status exchange_share(fm_morph_state *s, const int64_t *begin, const fm_morph_rows *rows, const float *own,
+                                float *verts, uint8_t *phases, void **recv, int64_t *received, fm_error *err)
 {
     fm_slabs *d = s->slabs;
     const int64_t first = begin[d->rank];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
-    for (int64_t a = 0; a < s->active_end; a++) d->count[fm_frame_share_owner(begin, d->ranks, s->id[a])]++;
+    for (int64_t a = 0; a < s->active_end; a++) d->count[fm_frame_share_owner(begin, d->ranks, row_of(rows, s->id[a]))]++;
     d->count[d->rank] = 0; /* its own share's are put in place */
     int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
     if (at) fm_slabs_offsets(d, at);
     frame_record *out = at ? fm_alloc(sizeof(frame_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
     fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
     for (int64_t a = 0; st == FM_OK && a < s->active_end; a++) {
-        const int64_t id = s->id[a];
-        const int r = fm_frame_share_owner(begin, d->ranks, id);
+        const int64_t id = s->id[a], row = row_of(rows, id);
+        const int r = fm_frame_share_owner(begin, d->ranks, row);
+        float tet[12];
+        row_tet(rows, id, own + 12 * (size_t)a, tet);
         if (r == d->rank) {
-            memcpy(verts + 12 * (size_t)(id - first), own + 12 * (size_t)a, 12 * sizeof(float));
-            phases[id - first] = s->phase[a];
+            put_row(rows, row - first, tet, s->phase[a], verts, phases);
             continue;
         }
         frame_record *f = out + at[r]++;
-        f->id = (int32_t)id, f->phase = s->phase[a];
+        f->id = (int32_t)row, f->phase = s->phase[a];
         memset(f->pad, 0, sizeof f->pad);
-        memcpy(f->v, own + 12 * (size_t)a, sizeof f->v);
+        memcpy(f->v, tet, sizeof f->v);
     }
     st = fm_slabs_send(d, s->dist, st, out, sizeof(frame_record), recv, received, err);
     free(at), fm_free(out);
     return st;
 }
 
-/* Every agent of this rank's share of the frame (ids begin[rank] … begin[rank + 1] − 1) in verts
- * and phases from its first id: its own from the store, the other ranks' sent here, the waiting
- * ones from the model. */
-fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin, float *own,
-                                    float *verts, uint8_t *phases, fm_error *err)
+/* The agents still waiting at the source whose rows lie in this rank's share (first … end − 1):
+ * their tets at rest, from the model. */
+static void put_waiting(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_rows *rows, int64_t first,
+                        int64_t end, float *verts, uint8_t *phases)
+{
+    int64_t i = s->launched, stop = m->n; /* under a row map of a group's rows in any order: every one */
+    if (!rows || !rows->row) {
+        const int64_t row0 = rows ? rows->row0 : 0; /* rows row0 + id */
+        i = FM_MAX(i, first - row0), stop = FM_MIN(stop, end - row0);
+    }
+    for (; i < stop; i++) {
+        const int64_t row = row_of(rows, i);
+        if (row < first || row >= end) continue;
+        float rest[12], tet[12];
+        fm_morph_waiting_tet(m, i, rest);
+        row_tet(rows, i, rest, tet);
+        put_row(rows, row - first, tet, FM_PHASE_WAITING, verts, phases);
+    }
+}
+
+/* Every agent whose row lies in this rank's share of the frame (rows begin[rank] … begin[rank + 1]
+ * − 1) in verts and phases from its first row: its own from the store, the other ranks' sent here,
+ * the waiting ones from the model. */
+fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, const int64_t *begin,
+                                    const fm_morph_rows *rows, float *own, float *verts, uint8_t *phases, fm_error *err)
 {
     const int me = fm_dist_rank(s->dist);
     const int64_t first = begin[me];
     fm_morph_tet_vertices_by_slot(m, s, own);
     void *recv = NULL;
     int64_t received = 0;
-    fm_status st = exchange_share(s, begin, own, verts, phases, &recv, &received, err);
+    fm_status st = exchange_share(s, begin, rows, own, verts, phases, &recv, &received, err);
     if (st != FM_OK) return fm_free(recv), st;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t k = 0; k < received; k++) { /* distinct ids: no two write one place */
+    for (int64_t k = 0; k < received; k++) { /* distinct rows: no two write one place */
         const frame_record *r = (const frame_record *)recv + k;
-        memcpy(verts + 12 * (size_t)(r->id - first), r->v, sizeof r->v);
-        phases[r->id - first] = r->phase;
+        put_row(rows, r->id - first, r->v, r->phase, verts, phases);
     }
     fm_free(recv);
-    for (int64_t i = FM_MAX(s->launched, first); i < begin[me + 1]; i++)
-        fm_morph_waiting_tet(m, i, verts + 12 * (size_t)(i - first)), phases[i - first] = FM_PHASE_WAITING;
+    put_waiting(m, s, rows, first, begin[me + 1], verts, phases);
     return FM_OK;
 }
 

@@ -28,7 +28,7 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
 /* Largest distance between an agent's vertex and its target tet's matching vertex. */
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot)
 {
-    double worst = s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
+    double worst = !verts || s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
     for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
         if (s->target[a] < 0) {
             worst = INFINITY; /* not arrived: the loop ends */
@@ -169,16 +169,6 @@ typedef struct frame_buffers {
     int64_t own_capacity; /* slots own holds */
 } frame_buffers;
 
-/* own as large as the store (which grows as the rank's agents come). */
-static fm_status own_room(frame_buffers *f, const fm_morph_state *s, fm_error *err)
-{
-    if (fm_morph_slots(s) <= f->own_capacity) return FM_OK;
-    fm_free(f->own);
-    f->own = fm_alloc(sizeof(float) * 12 * (size_t)s->capacity);
-    f->own_capacity = f->own ? s->capacity : 0;
-    return f->own ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the tets of %lld agents", (long long)s->capacity);
-}
-
 /* On P ranks: the frame gathered on rank 0, which checks and writes it; every rank returns the
  * outcome (a failed step's, else rank 0's). */
 static fm_status emit_dist_frame(const fm_morph_model *m, fm_morph_state *s, int64_t k, float *verts, uint8_t *phases,
@@ -199,10 +189,10 @@ static fm_status emit_shared_frame(const fm_morph_model *m, fm_morph_state *s, i
                                    fm_frame_share *share, fm_cache_writer *cache, fm_morph_run_stats *stats, fm_error *err)
 {
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
-    fm_status st = fm_dist_agree(s->dist, own_room(f, s, err), err);
+    fm_status st = fm_dist_agree(s->dist, fm_morph_own_room(s, &f->own, &f->own_capacity, err), err);
     float *verts = f->verts;
     uint8_t *phases = f->phases;
-    if (st == FM_OK) st = fm_morph_dist_frame_share(m, s, share->begin, f->own, verts, phases, err); /* agreed by every rank */
+    if (st == FM_OK) st = fm_morph_dist_frame_share(m, s, share->begin, NULL, f->own, verts, phases, err); /* agreed by every rank */
     if (st == FM_OK) st = check_frame(m, s->dist, k, verts, fm_frame_share_first(share), fm_frame_share_end(share), stats, err);
     if (st != FM_OK) return st;
     const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_TET_VERTICES] = verts, [FM_ATTR_PHASE] = phases};
@@ -321,7 +311,7 @@ static fm_status alloc_frame(morph_run *r, fm_error *err)
     frame_buffers *f = &r->frame;
     f->verts = fm_alloc(sizeof(float) * 12 * (size_t)agents), f->phases = fm_alloc((size_t)agents);
     if (!f->verts || !f->phases) return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)agents);
-    if (r->share.on && own_room(f, s, err) != FM_OK) return err->status;
+    if (r->share.on && fm_morph_own_room(s, &f->own, &f->own_capacity, err) != FM_OK) return err->status;
     if (r->c->resume && r->share.on) fm_morph_tet_vertices_by_slot(r->m, s, f->own);
     else if (r->c->resume) fm_morph_tet_vertices(r->m, s, f->verts);
     return FM_OK;

@@ -13,6 +13,7 @@
 #include "morph.h"
 #include "fm_math.h"
 #include "frame_loop.h"
+#include "frame_share.h"
 #include "cache_format.h"
 
 #include <math.h>
@@ -31,13 +32,17 @@ struct fm_shot {
     uint8_t *perm[FM_MAX_GROUPS]; /* ... and the even permutation from its vertex order to the row's */
     int started[FM_MAX_GROUPS], arrived[FM_MAX_GROUPS], writes[FM_MAX_GROUPS];
     int64_t start_step[FM_MAX_GROUPS], arrival_step[FM_MAX_GROUPS], step;
+    int threads;                  /* the states' (made by fm_shot_distribute on P ranks, else by the run) */
     double dt;
     double scene_lo[3], scene_hi[3]; /* the union of the groups' scene bounds (runaway check) */
     int32_t steps_per_frame, frame_limit;
-    float *verts, *scratch;       /* a frame (rows x 12), one group's tets */
+    float *verts, *scratch;       /* a frame (rows x 12, or on P ranks the rank's share), one group's tets */
     uint8_t *phases, *groups, *scratch_phases;
     fm_shot_stats *stats;
-    const fm_dist *dist;          /* on P ranks (NULL: one process); rank 0 alone writes the frames */
+    const fm_dist *dist;          /* on P ranks (NULL: one process) */
+    fm_frame_share share;         /* on P ranks with a cache: each rank encodes its share of the rows */
+    float *own;                   /* ... and a group's own agents' tets in slot order */
+    int64_t own_capacity;
 };
 
 /* Whether group a starts only after group b has arrived (through any chain of `after`). */
@@ -86,6 +91,7 @@ static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, f
                                                  user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
+        s->writes[g] = from < 0;
         if (s->model[g]->dt != s->model[0]->dt || s->model[g]->steps_per_frame != s->model[0]->steps_per_frame)
             return fm_fail(err, FM_ERR_INTERNAL, "group %d has another time step", g);
     }
@@ -93,20 +99,31 @@ static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, f
     return FM_OK;
 }
 
-static fm_status alloc_frame(fm_shot *s, int threads, fm_error *err)
+/* Every group's state: on one process each holds all its agents; on P ranks (dist) each starts
+ * with the rank's share of them and grows as agents come. */
+static fm_status create_states(fm_shot *s, const fm_dist *dist, fm_error *err)
 {
-    int64_t most = 0;
     for (int g = 0; g < s->count; g++) {
-        if (!(s->state[g] = fm_morph_state_create(s->model[g], threads, err))) return err->status;
-        most = FM_MAX(most, s->model[g]->n);
-        s->writes[g] = s->def[g].group.source_group < 0;
+        s->state[g] = dist ? fm_morph_state_create_distributed(s->model[g], s->threads, dist, err)
+                           : fm_morph_state_create(s->model[g], s->threads, err);
+        if (!s->state[g]) return err->status;
     }
-    s->verts = fm_alloc(sizeof(float) * 12 * (size_t)s->rows);
+    return FM_OK;
+}
+
+/* The frame's buffers: every row and a group's tets, or with the cache written by P ranks the
+ * rank's share of the rows (scratch then gathers one group's rows of it). */
+static fm_status alloc_frame(fm_shot *s, fm_error *err)
+{
+    int64_t rows = s->rows, most = 0;
+    for (int g = 0; g < s->count; g++) most = FM_MAX(most, s->model[g]->n);
+    if (s->share.on) rows = most = fm_frame_share_end(&s->share) - fm_frame_share_first(&s->share);
+    s->verts = fm_alloc(sizeof(float) * 12 * (size_t)rows);
     s->scratch = fm_alloc(sizeof(float) * 12 * (size_t)most);
-    s->phases = fm_alloc((size_t)s->rows), s->groups = fm_alloc((size_t)s->rows);
+    s->phases = fm_alloc((size_t)rows), s->groups = fm_alloc((size_t)rows);
     s->scratch_phases = fm_alloc((size_t)most);
     if (!s->verts || !s->scratch || !s->phases || !s->groups || !s->scratch_phases)
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)s->rows);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)rows);
     return FM_OK;
 }
 
@@ -121,8 +138,8 @@ fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_prog
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     s->count = count;
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
+    s->threads = threads;
     fm_status st = build_models(s, progress, user, err);
-    if (st == FM_OK) st = alloc_frame(s, threads, err);
     if (st != FM_OK) return fm_shot_destroy(s), NULL;
     s->dt = s->model[0]->dt, s->steps_per_frame = s->model[0]->steps_per_frame;
     s->frame_limit = defs[0].frame_limit;
@@ -142,12 +159,15 @@ void fm_shot_destroy(fm_shot *s)
         fm_free(s->row[g]), fm_free(s->perm[g]);
     }
     fm_free(s->verts), fm_free(s->scratch), fm_free(s->phases), fm_free(s->groups), fm_free(s->scratch_phases);
+    fm_free(s->own);
     free(s);
 }
 
 void fm_shot_set_threads(fm_shot *s, int threads)
 {
-    for (int g = 0; g < s->count; g++) s->state[g]->threads = fm_threads(threads);
+    s->threads = threads;
+    for (int g = 0; g < s->count; g++)
+        if (s->state[g]) s->state[g]->threads = fm_threads(threads);
 }
 
 int fm_shot_groups(const fm_shot *s) { return s->count; }
@@ -157,17 +177,13 @@ const fm_morph_state *fm_shot_state(const fm_shot *s, int g) { return s->state[g
 
 fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err)
 {
-    for (int g = 0; g < s->count; g++) {
-        fm_status st = fm_morph_state_distribute(s->model[g], s->state[g], dist, err);
-        if (st != FM_OK) return st;
-    }
+    if (s->state[0]) return fm_fail(err, FM_ERR_USAGE, "fm_shot_distribute: the shot has run already");
     s->dist = dist;
-    return FM_OK;
+    return create_states(s, dist, err);
 }
 
 /* Which agent of a state holds each target slot, and with which vertex order: on P ranks every
- * rank's agents, gathered on rank 0 (the only rank that writes frames, and so needs them; the
- * others get 0 and nothing). */
+ * rank's agents, gathered on every rank (each puts its agents' tets into their rows). */
 typedef struct slot_holder {
     int64_t target;
     int32_t id;
@@ -183,7 +199,7 @@ static fm_status gather_slot_holders(const fm_morph_state *from, slot_holder **a
     st = fm_dist_agree(from->dist, st, err);
     *all = NULL, *total = 0;
     if (st == FM_OK && !from->dist) *all = mine, *total = slots, mine = NULL;
-    else if (st == FM_OK) st = fm_dist_gather(from->dist, mine, slots, sizeof(slot_holder), (void **)all, total, err);
+    else if (st == FM_OK) st = fm_dist_allgather(from->dist, mine, slots, sizeof(slot_holder), (void **)all, total, err);
     fm_free(mine);
     return st;
 }
@@ -197,14 +213,16 @@ static fm_status take_over_rows(fm_shot *s, int g, fm_error *err)
     int64_t held;
     fm_status st = gather_slot_holders(s->state[a], &holders, &held, err);
     s->writes[a] = 0, s->writes[g] = 1;
-    if (st != FM_OK || fm_dist_rank(s->dist) != 0) return fm_free(holders), st;
+    if (st != FM_OK) return fm_free(holders), st;
     const fm_morph_model *m = s->model[g];
     int64_t n = m->n, *agent_of_slot = fm_alloc(sizeof(int64_t) * (size_t)n);
     uint8_t *perm_of_slot = fm_alloc((size_t)n);
     s->row[g] = fm_alloc(sizeof(int64_t) * (size_t)n), s->perm[g] = fm_alloc((size_t)n);
-    if (!agent_of_slot || !perm_of_slot || !s->row[g] || !s->perm[g]) {
+    st = agent_of_slot && perm_of_slot && s->row[g] && s->perm[g]
+             ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)n);
+    if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) {
         fm_free(agent_of_slot), fm_free(perm_of_slot), fm_free(holders);
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents", (long long)n);
+        return st;
     }
     for (int64_t k = 0; k < held; k++)
         agent_of_slot[holders[k].target] = holders[k].id, perm_of_slot[holders[k].target] = holders[k].perm;
@@ -267,13 +285,17 @@ static void scatter_group(fm_shot *s, int g)
     }
 }
 
-/* The frame's per-group measures: its vertices' clearance from its obstacles while it writes. */
-static void measure_group(fm_shot *s, int g)
+/* The frame's per-group measures while it writes: its vertices' clearance from its obstacles and
+ * its inverted tets, from `count` of its tets (with d, the rank's: the least and the sum over the
+ * ranks, exact in any order). */
+static void measure_group(fm_shot *s, int g, const float *tets, int64_t count, const fm_dist *d)
 {
     fm_shot_group_stats *gs = &s->stats->group[g];
-    double c = fm_morph_vertex_clearance(s->model[g], s->scratch, (size_t)s->model[g]->n);
-    gs->min_vertex_clearance = fmin(gs->min_vertex_clearance, c);
-    gs->inverted_tet_frames += fm_count_inverted_tets(s->scratch, (size_t)s->model[g]->n);
+    double nearest = -fm_morph_vertex_clearance(s->model[g], tets, (size_t)count);
+    int64_t inverted = fm_count_inverted_tets(tets, (size_t)count);
+    fm_dist_max_f64(d, &nearest, 1), fm_dist_sum_i64(d, &inverted, 1);
+    gs->min_vertex_clearance = fmin(gs->min_vertex_clearance, -nearest);
+    gs->inverted_tet_frames += inverted;
 }
 
 /* Group g's frame in s->scratch (tets by agent id) and s->scratch_phases: on P ranks gathered on
@@ -286,18 +308,20 @@ static fm_status group_frame(fm_shot *s, int g, fm_error *err)
     return FM_OK;
 }
 
-/* Frame k: every group that writes, into its rows; checked and written (on P ranks by rank 0). */
+static const char *const SHOT_SPEEDS = "each group's speed0, omega1, style and obstacles";
+
+/* Frame k: every group that writes, into its rows; checked and written (on P ranks gathered on rank
+ * 0, which checks and writes it: without a cache to write in parallel). */
 static fm_status write_frame(fm_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
 {
     const int root = fm_dist_rank(s->dist) == 0;
     for (int g = 0; g < s->count; g++) {
         fm_status st = s->writes[g] ? group_frame(s, g, err) : FM_OK;
         if (st != FM_OK) return st; /* the ranks agreed on it */
-        if (s->writes[g] && root) scatter_group(s, g), measure_group(s, g);
+        if (s->writes[g] && root) scatter_group(s, g), measure_group(s, g, s->scratch, s->model[g]->n, NULL);
     }
     if (!root) return FM_OK;
-    fm_status st = fm_frame_check_runaway(s->verts, 12, s->rows, s->scene_lo, s->scene_hi, k,
-                                          "each group's speed0, omega1, style and obstacles", err);
+    fm_status st = fm_frame_check_runaway(s->verts, 12, s->rows, s->scene_lo, s->scene_hi, k, SHOT_SPEEDS, err);
     if (st != FM_OK || !cache) return st;
     const cache_layout *l = fm_cache_writer_layout(cache);
     const void *data[CACHE_MAX_ATTRS];
@@ -307,6 +331,46 @@ static fm_status write_frame(fm_shot *s, fm_cache_writer *cache, int64_t k, fm_e
                   : a == FM_ATTR_GROUP      ? (const void *)s->groups : (const void *)fm_cache_writer_ids(cache);
     }
     return fm_cache_writer_add_frame_attrs(cache, data, err);
+}
+
+/* With the cache written by P ranks: the tets of group g whose rows lie in this rank's share, put
+ * there by the ranks that hold them (collective). */
+static fm_status share_group(fm_shot *s, int g, fm_error *err)
+{
+    fm_morph_state *st_g = s->state[g];
+    fm_status st = fm_dist_agree(s->dist, fm_morph_own_room(st_g, &s->own, &s->own_capacity, err), err);
+    const fm_morph_rows rows = {s->row0[g], s->row[g], s->perm[g], (uint8_t)g, s->groups};
+    if (st == FM_OK) st = fm_morph_dist_frame_share(s->model[g], st_g, s->share.begin, &rows, s->own, s->verts, s->phases, err);
+    return st; /* agreed by every rank */
+}
+
+/* Group g's rows of the rank's share (every group's written), together in scratch, measured. */
+static void measure_shared_group(fm_shot *s, int g)
+{
+    const int64_t share = fm_frame_share_end(&s->share) - fm_frame_share_first(&s->share);
+    int64_t count = 0;
+    for (int64_t r = 0; r < share; r++)
+        if (s->groups[r] == g) memcpy(s->scratch + 12 * count++, s->verts + 12 * r, 12 * sizeof(float));
+    measure_group(s, g, s->scratch, count, s->dist);
+}
+
+/* Frame k with the cache written by P ranks: each rank fills, checks and encodes its share of the
+ * rows; rank 0 appends the blocks (frame_share.h). */
+static fm_status write_shared_frame(fm_shot *s, fm_cache_writer *cache, int64_t k, fm_error *err)
+{
+    fm_status st = FM_OK;
+    for (int g = 0; g < s->count && st == FM_OK; g++)
+        if (s->writes[g]) st = share_group(s, g, err);
+    if (st != FM_OK) return st;
+    for (int g = 0; g < s->count; g++)
+        if (s->writes[g]) measure_shared_group(s, g);
+    const int64_t first = fm_frame_share_first(&s->share), end = fm_frame_share_end(&s->share);
+    st = fm_frame_check_runaway_from(s->verts, 12, first, end - first, s->scene_lo, s->scene_hi, k, SHOT_SPEEDS, err);
+    const void *by_kind[CACHE_ATTR_KINDS] = {[FM_ATTR_TET_VERTICES] = s->verts, [FM_ATTR_PHASE] = s->phases,
+                                             [FM_ATTR_GROUP] = s->groups};
+    if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
+        st = fm_frame_share_write(&s->share, s->dist, cache, by_kind, (uint32_t)k, &s->state[0]->slabs->totals.bytes_sent, err);
+    return st;
 }
 
 /* The shot in the shared frame loop (frame_loop.h). */
@@ -336,11 +400,24 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
     if (r->step_status != FM_OK) return *err = r->step_error, r->step_status;
     for (int g = 0; g < r->s->count; g++) /* an exchange that failed, which every rank knows */
         if (r->s->state[g]->dist_status != FM_OK) return *err = r->s->state[g]->dist_error, err->status = r->s->state[g]->dist_status;
-    fm_status st = fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
+    fm_status st = r->s->share.on ? write_shared_frame(r->s, r->cache, k, err)
+                                  : fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
     const int64_t *counts[FM_MAX_GROUPS];
     for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
     if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
     return st;
+}
+
+/* Group g's largest distance of a vertex from its target's: from its tets by id in scratch (every
+ * agent), or with the cache written by P ranks from the rank's own agents' tets in slot order. */
+static double final_vertex_error(fm_shot *s, int g)
+{
+    fm_error ignored = {0};
+    if (!s->share.on) return fm_morph_tet_vertices(s->model[g], s->state[g], s->scratch),
+                             fm_morph_final_vertex_error(s->model[g], s->state[g], s->scratch, 0);
+    const int room = fm_morph_own_room(s->state[g], &s->own, &s->own_capacity, &ignored) == FM_OK;
+    if (room) fm_morph_tet_vertices_by_slot(s->model[g], s->state[g], s->own);
+    return fm_morph_final_vertex_error(s->model[g], s->state[g], room ? s->own : NULL, 1); /* collective */
 }
 
 /* Each group's end-state checks. */
@@ -351,10 +428,9 @@ static void finish_stats(fm_shot *s, fm_shot_stats *stats)
     stats->rows = s->rows;
     for (int g = 0; g < s->count; g++) {
         fm_shot_group_stats *gs = &stats->group[g];
-        fm_morph_tet_vertices(s->model[g], s->state[g], s->scratch);
         gs->agents = s->model[g]->n;
         gs->all_arrived = s->arrived[g];
-        gs->final_max_vertex_error = fm_morph_final_vertex_error(s->model[g], s->state[g], s->scratch, 0);
+        gs->final_max_vertex_error = final_vertex_error(s, g);
         gs->target_tets_filled_once = fm_morph_targets_taken_once(s->state[g]);
         gs->start_time = s->start_step[g] < 0 ? NAN : (double)s->start_step[g] * s->dt;
         gs->arrival_time = s->arrival_step[g] < 0 ? NAN : (double)s->arrival_step[g] * s->dt;
@@ -376,9 +452,18 @@ fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *
     fm_run_control c = *control;
     c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
     shot_run r = {s, cache, &c, FM_OK, {0}};
-    const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint, s->steps_per_frame,
-                                s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
-    fm_status st = fm_frame_loop_run(&loop, err);
-    finish_stats(s, stats);
+    fm_status st = s->state[0] ? FM_OK : create_states(s, NULL, err); /* one process */
+    if (st != FM_OK) return st;
+    st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, 0, err);
+    if (st == FM_OK && s->share.on && s->rows > INT32_MAX) fm_frame_share_free(&s->share); /* rows in int32 records */
+    if (st == FM_OK) fm_frame_share_commit(&s->share, cache), st = fm_dist_agree(s->dist, alloc_frame(s, err), err);
+    const int ready = st == FM_OK; /* the frame's buffers, on every rank */
+    if (ready) {
+        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint,
+                                    s->steps_per_frame, s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
+        st = fm_frame_loop_run(&loop, err);
+    }
+    if (ready) finish_stats(s, stats);
+    fm_frame_share_free(&s->share);
     return st;
 }

@@ -314,3 +314,12 @@ static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_
 void fm_morph_tet_vertices(const fm_morph_model *m, const fm_morph_state *s, float *out) { store_tets(m, s, 0, out); }
 
 void fm_morph_tet_vertices_by_slot(const fm_morph_model *m, const fm_morph_state *s, float *out) { store_tets(m, s, 1, out); }
+
+fm_status fm_morph_own_room(const fm_morph_state *s, float **own, int64_t *capacity, fm_error *err)
+{
+    if (fm_morph_slots(s) <= *capacity) return FM_OK;
+    fm_free(*own);
+    *own = fm_alloc(sizeof(float) * 12 * (size_t)s->capacity);
+    *capacity = *own ? s->capacity : 0;
+    return *own ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the tets of %lld agents", (long long)s->capacity);
+}

@@ -158,19 +158,24 @@ static fm_status too_many(fm_error *err, int64_t count)
                    (long long)count);
 }
 
-fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
-                                fm_error *err)
+fm_status fm_dist_allgather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                            fm_error *err)
 {
-    if (!d || d->size == 1) return fm_dist_gather(NULL, mine, count, sizeof(int32_t), (void **)all, total, err);
-    int *counts = calloc((size_t)d->size, 2 * sizeof(int)), *displ = counts + d->size, c = (int)count;
+    if (!d || d->size == 1) return fm_dist_gather(NULL, mine, count, size, all, total, err);
+    int *counts = calloc((size_t)d->size, 2 * sizeof(int)), *displ = counts + d->size, c = (int)FM_MIN(count, INT_MAX);
     if (!counts) return fm_fail(err, FM_ERR_MEMORY, "out of memory");
     MPI_Allgather(&c, 1, MPI_INT, counts, 1, MPI_INT, d->comm);
     *total = displacements(counts, d->size, displ);
     fm_status st = *total < 0 || count > INT_MAX ? too_many(err, FM_MAX(*total, count)) : FM_OK;
-    *all = st == FM_OK && *total > 0 ? fm_alloc(sizeof(int32_t) * (size_t)*total) : NULL;
-    if (st == FM_OK && *total > 0 && !*all) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld ids", (long long)*total);
+    *all = st == FM_OK && *total > 0 ? fm_alloc(size * (size_t)*total) : NULL;
+    if (st == FM_OK && *total > 0 && !*all) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld records", (long long)*total);
+    MPI_Datatype type;
+    const int typed = st == FM_OK && record_type(size, &type);
+    if (st == FM_OK && !typed) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
     st = fm_dist_agree(d, st, err);
-    if (st == FM_OK && *total > 0) MPI_Allgatherv(mine, c, MPI_INT32_T, *all, counts, displ, MPI_INT32_T, d->comm);
+    if (st == FM_OK && *total > 0) MPI_Allgatherv(mine, c, type, *all, counts, displ, type, d->comm);
+    if (typed) MPI_Type_free(&type);
+    if (st != FM_OK) fm_free(*all), *all = NULL, *total = 0;
     free(counts);
     return st;
 }
@@ -262,10 +267,10 @@ fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size
     return copy_records(mine, count, size, all, total, err);
 }
 
-fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
-                                fm_error *err)
+fm_status fm_dist_allgather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                            fm_error *err)
 {
-    return fm_dist_gather(d, mine, count, sizeof(int32_t), (void **)all, total, err);
+    return fm_dist_gather(d, mine, count, size, all, total, err);
 }
 
 fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *send_count, size_t size, void **recv,

@@ -44,10 +44,15 @@ void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root);
  * print what another rank met. Returns that status (FM_OK when every rank had FM_OK). */
 fm_status fm_dist_agree(const fm_dist *d, fm_status st, fm_error *err);
 
-/* Every rank's `count` int32 values, concatenated in rank order, in *all (fm_alloc'd; NULL when
- * the total is 0) with the total in *total. */
-fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all, int64_t *total,
-                                fm_error *err);
+/* Every rank's `count` records of `size` bytes, concatenated in rank order, in *all (fm_alloc'd;
+ * NULL when the total is 0) with the total in *total, on every rank. */
+fm_status fm_dist_allgather(const fm_dist *d, const void *mine, int64_t count, size_t size, void **all, int64_t *total,
+                            fm_error *err);
+static inline fm_status fm_dist_allgather_i32(const fm_dist *d, const int32_t *mine, int64_t count, int32_t **all,
+                                              int64_t *total, fm_error *err)
+{
+    return fm_dist_allgather(d, mine, count, sizeof(int32_t), (void **)all, total, err);
+}
 
 /* Personalised all-to-all of records of `size` bytes: send holds send_count[r] records for rank r,
  * rank after rank. *recv (fm_alloc'd, NULL when empty) gets every rank's records for this one, in
