@@ -140,15 +140,13 @@ double cli_checkpoint_seconds(const cli_run_options *o);
 /* A new run (not --resume): warns if an interrupted run's checkpoint is in the way, and removes it
  * with the previous run's cache, stats.json and obstacles.ply. */
 void cli_start_over(const cli_outputs *out);
-void cli_remove_checkpoint(const cli_outputs *out); /* and its .partial */
+void cli_remove_checkpoint(const cli_outputs *out); /* and its .partial, and a shot's groups' files */
 /* --resume: the checkpoint checked against the scene (fm_checkpoint_check), before preprocessing. */
 int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def);
-/* After a stop (FM_STOPPED: the checkpoint is written): keeps the cache's frames as .partial for
- * --resume and prints how to resume; returns 128 + the signal. */
-/* A stop of a run that keeps no checkpoint (a shot): the partial cache kept, 128 + the signal. */
-int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames);
 /* After a planned stop (--stop-after-frame): the partial cache kept, how to continue; returns 0. */
 int cli_report_stopped_as_asked(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
+/* After a stop (FM_STOPPED: the checkpoint is written): keeps the cache's frames as .partial for
+ * --resume and prints how to resume; returns 128 + the signal. */
 int cli_report_interrupted(const cli_run_options *o, fm_cache_writer *cache, int64_t frames);
 /* After a failed run: with a checkpoint, keeps it and the partial cache and prints how to resume
  * once the cause is fixed; without, as cli_fail_keeping_partial_cache. Returns the exit status. */
@@ -219,6 +217,9 @@ extern const cli_mode cli_mode_morph, cli_mode_flock, cli_mode_shot, cli_mode_fl
 /* The run's overrides, which the shot mode reads each group with, and the seed the file gave and the
  * run's (a wedge's derived one), which the groups that keep the file's take (cli_mode_shot.c). */
 void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t file_seed, uint64_t run_seed);
+/* A shot's checkpoint against its first group's scene (with the run's overrides and seed), before the
+ * model build: 0, or the reported exit status. */
+int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

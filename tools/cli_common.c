@@ -3,6 +3,7 @@
 #include "cli.h"
 #include "cache_format.h"
 #include "scene_internal.h"
+#include "shot_checkpoint.h"
 
 #include <omp.h>
 
@@ -429,6 +430,7 @@ void cli_remove_checkpoint(const cli_outputs *out)
     char partial[sizeof out->checkpoint + 16];
     snprintf(partial, sizeof partial, "%s.partial", out->checkpoint); /* left if killed while writing one */
     remove(out->checkpoint), remove(partial);
+    fm_shot_ckpt_remove_groups(out->checkpoint); /* a shot's groups' files beside it */
 }
 
 void cli_start_over(const cli_outputs *out)
@@ -446,6 +448,7 @@ int cli_check_checkpoint(const cli_run_options *o, const fm_scene_def *def)
     cli_outputs out;
     fm_error err = {0};
     cli_run_outputs(o, def, &out);
+    if (def->group_count > 0) return cli_check_shot_checkpoint(out.checkpoint, def);
     return fm_checkpoint_check(out.checkpoint, def, &err) == FM_OK ? 0 : cli_report(&err);
 }
 
@@ -491,14 +494,6 @@ int cli_report_stopped_as_asked(const cli_run_options *o, fm_cache_writer *cache
             (long long)frames - 1);
     print_resume_command(o);
     return 0;
-}
-
-int cli_report_stopped_without_checkpoint(fm_cache_writer *cache, int64_t frames)
-{
-    fm_cache_writer_close_partial(cache);
-    fprintf(stderr, "flockmorph: interrupted at frame %lld; a scene with groups keeps no checkpoint in this version, "
-            "so it cannot resume: the frames so far are in the .partial cache\n", (long long)frames - 1);
-    return 128 + cli_stop_signal;
 }
 
 int cli_report_failed(const cli_run_options *o, const cli_outputs *out, fm_cache_writer *cache, const fm_error *err)

@@ -35,16 +35,32 @@ void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t fi
     g_overrides = set, g_override_count = count, g_file_seed = file_seed, g_run_seed = run_seed;
 }
 
+/* Group g's scene, with the run's overrides and seed. */
+static fm_status load_group(const fm_scene_def *def, int g, fm_scene_def *out, fm_error *err)
+{
+    fm_status st = fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, out, err);
+    if (st == FM_OK && out->seed == g_file_seed) out->seed = g_run_seed; /* a group with its own seed keeps it */
+    return st;
+}
+
 static int load_groups(shot_run *r, const fm_scene_def *def)
 {
     fm_error err = {0};
     r->count = def->group_count;
-    for (int g = 0; g < r->count; g++) {
-        if (fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, &r->defs[g], &err) != FM_OK)
-            return cli_report(&err);
-        if (r->defs[g].seed == g_file_seed) r->defs[g].seed = g_run_seed; /* a group with its own seed keeps it */
-    }
+    for (int g = 0; g < r->count; g++)
+        if (load_group(def, g, &r->defs[g], &err) != FM_OK) return cli_report(&err);
     return 0;
+}
+
+int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def)
+{
+    fm_error err = {0};
+    fm_scene_def first;
+    fm_status st = load_group(def, 0, &first, &err);
+    if (st == FM_OK)
+        st = def->mode == FM_MODE_SHAPE_FLOCK ? fm_flock_shot_checkpoint_check(path, &first, &err)
+                                              : fm_shot_checkpoint_check(path, &first, &err);
+    return st == FM_OK ? 0 : cli_report(&err);
 }
 
 static int build_morphs(shot_run *r, int *show)
@@ -105,6 +121,14 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
                                            FM_ATTR_PHASE, FM_ATTR_GROUP};
     return r->flock ? fm_cache_writer_create_attrs(path, (uint64_t)r->common.agents, def->frame_rate, points, 6, &options, err)
                     : fm_cache_writer_create_attrs(path, (uint64_t)r->common.agents, def->frame_rate, tets, 4, &options, err);
+}
+
+/* Every rank reads the shot's file and its groups' (each rank then keeps its share). */
+static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
+{
+    shot_run *r = run;
+    return r->flock ? fm_flock_shot_checkpoint_load(r->flock_shot, path, &r->flock_stats, err)
+                    : fm_shot_checkpoint_load(r->shot, path, &r->stats, err);
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)
@@ -216,6 +240,7 @@ static void close_run(void *run)
 
 /* No load_checkpoint: a shot keeps no checkpoint in this version (cli_run.c refuses --resume). */
 const cli_mode cli_mode_shot = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(shot_run), build,
-                                create_state, create_cache, NULL, simulate, write_stats, summary, close_run};
+                                create_state, create_cache, load_checkpoint, simulate, write_stats, summary, close_run};
 const cli_mode cli_mode_flock_shot = {"shape_flock", {NULL, "flying", "arriving", "bound"}, sizeof(shot_run), build,
-                                      create_state, create_cache, NULL, simulate, write_stats, summary, close_run};
+                                      create_state, create_cache, load_checkpoint, simulate, write_stats, summary,
+                                      close_run};

@@ -259,7 +259,6 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     if (!cli_is_root()) return rank_exit_status(st, planned);
     const fm_run_totals *t = common->totals;
     if (planned) return cli_report_stopped_as_asked(o, cache, t->frames);
-    if (st == FM_STOPPED && !mode->load_checkpoint) return cli_report_stopped_without_checkpoint(cache, t->frames);
     if (st == FM_STOPPED) return cli_report_interrupted(o, cache, t->frames);
     if (st != FM_OK) cli_locate_quantum(def, &err);
     if (st != FM_OK) return cli_report_failed(o, &files, cache, &err);
@@ -307,9 +306,6 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
 static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     const char *outputs[] = {def->cache_name, FM_OUTPUT_STATS, FM_OUTPUT_MANIFEST, FM_OUTPUT_OBSTACLES};
-    if (def->group_count > 0 && (o->resume || o->checkpoint_every >= 0 || o->stop_after_frame >= 0))
-        return cli_usage_error(USAGE_RUN, "a scene with groups keeps no checkpoint in this version: leave out %s",
-                               o->resume ? "--resume" : o->checkpoint_every >= 0 ? "--checkpoint-every" : "--stop-after-frame");
     int rc = cli_check_json_path("-o", o->outdir);
     if (!rc) rc = cli_make_outdir(o->outdir, outputs, 4);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */

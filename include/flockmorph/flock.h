@@ -142,8 +142,7 @@ fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *model
  * (fm_scene_load_group 0 .. count-1) on one clock, written to one cache with a `group` attribute. A
  * group from a mesh adds its n agents; a group whose source is another's formed shape ("source":
  * {"group": A}) takes over A's agents (the same rows), starting where A bound them, once A has bound
- * them all and `start` seconds later. A's target must be static and bind. One process, no
- * checkpoints in this version. */
+ * them all and `start` seconds later. A's target must be static and bind. */
 typedef struct fm_flock_shot fm_flock_shot;
 
 fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progress_fn progress, void *user,
@@ -172,10 +171,15 @@ typedef struct fm_flock_shot_stats {
 
 /* Steps until every group has bound its agents or the frame limit, writing every frame to `cache`
  * (may be NULL; created with FM_ATTR_POSITION and any of FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION,
- * FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP). control's stop flag and progress are honoured, its
- * checkpoints not. */
+ * FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP). control's stop flag, progress, checkpoints and resume
+ * are honoured as fm_shot_run's (the groups' states beside the checkpoint, docs/resume.md "Shots"). */
 fm_status fm_flock_shot_run(fm_flock_shot *shot, fm_cache_writer *cache, const fm_run_control *control,
                             fm_flock_shot_stats *stats, fm_error *err);
+/* Restores a shot saved by fm_flock_shot_run (built from the same scene) and its statistics so far. */
+fm_status fm_flock_shot_checkpoint_load(fm_flock_shot *shot, const char *path, fm_flock_shot_stats *stats,
+                                        fm_error *err);
+/* fm_checkpoint_check for a shape-flock shot's file, against its first group's scene. */
+fm_status fm_flock_shot_checkpoint_check(const char *path, const fm_scene_def *group0, fm_error *err);
 
 #ifdef __cplusplus
 }

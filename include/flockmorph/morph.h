@@ -180,9 +180,16 @@ typedef struct fm_shot_stats {
 
 /* Steps until every group has arrived or the frame limit, writing every frame to `cache` (may be
  * NULL; created with FM_ATTR_TET_VERTICES and any of FM_ATTR_ID, FM_ATTR_PHASE, FM_ATTR_GROUP).
- * control's stop flag and progress are honoured, its checkpoints not. */
+ * control's stop flag, progress, checkpoints and resume are honoured as fm_morph_run_controlled's:
+ * the checkpoint is control->checkpoint_path and, beside it, each group's state at the frames it
+ * counts (PATH.f<F>.g<G>; docs/resume.md "Shots"). A resumed run (control->resume) continues the
+ * shot and the stats fm_shot_checkpoint_load restored. */
 fm_status fm_shot_run(fm_shot *shot, fm_cache_writer *cache, const fm_run_control *control, fm_shot_stats *stats,
                       fm_error *err);
+/* Restores a shot saved by fm_shot_run (built from the same scene) and its statistics so far. */
+fm_status fm_shot_checkpoint_load(fm_shot *shot, const char *path, fm_shot_stats *stats, fm_error *err);
+/* fm_checkpoint_check for a shot's file, against its first group's scene (fm_scene_load_group 0). */
+fm_status fm_shot_checkpoint_check(const char *path, const fm_scene_def *group0, fm_error *err);
 
 /* Number of tets (n × 12 floats) with signed volume <= 0. */
 int64_t fm_count_inverted_tets(const float *verts, size_t n);

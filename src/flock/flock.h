@@ -161,10 +161,16 @@ void fm_flock_dist_own_in_flight(fm_flock_state *s);
 void fm_flock_dist_release(fm_flock_state *s);
 /* Checkpoints on P ranks: each rank writes the agents of its share of the pieces, rank 0 the rest. */
 fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
-                                    const fm_flock_run_stats *stats, const fm_ckpt_part *parts, int part_count,
-                                    fm_error *err);
+                                    const fm_flock_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
+                                    int part_count, fm_error *err);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
-                                        const fm_flock_run_stats *stats, fm_error *err);
+                                        const fm_flock_run_stats *stats, int64_t frames, fm_error *err);
+/* A shot's group (flock_shot.c): the state alone, without statistics, at `frames` frames (on P
+ * ranks collective, as fm_flock_dist_checkpoint_save); its load, on P ranks then adopt. */
+fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t frames,
+                                         fm_error *err);
+fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,
+                                         fm_error *err);
 
 /* flock_shot.c: a shot on P ranks: every group's state one rank's share; each writing group
  * gathered on rank 0 at a frame. */

@@ -57,29 +57,33 @@ static const char *check_state(const void *state)
     return NULL;
 }
 
-static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats)
+/* The flock's store and statistics at `frames` frames; a shot's group has no statistics of its own
+ * (stats NULL: the shot's file holds them). */
+static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats,
+                                 int64_t frames)
 {
     return (fm_ckpt_store){.members = fm_flock_state_members, .member_count = fm_flock_state_member_count,
-                           .state = (void *)s, .n = s->n, .stats = FLOCK_RUN_STATS,
-                           .stats_count = (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]),
-                           .run_stats = (void *)stats, .per_frame = (double **)&stats->measures,
+                           .state = (void *)s, .n = s->n, .stats = stats ? FLOCK_RUN_STATS : NULL,
+                           .stats_count = stats ? (int)(sizeof FLOCK_RUN_STATS / sizeof FLOCK_RUN_STATS[0]) : 0,
+                           .run_stats = (void *)stats, .per_frame = stats ? (double **)&stats->measures : NULL,
                            .per_frame_width = FM_FLOCK_MEASURES, .def = &m->def, .model_hash = flock_model_hash(m),
                            .model_what = "the samples, the path (or the obstacles)", .check = check_state,
-                           .frames = stats->run.frames, .piece_agents = m->def.cache_piece_agents};
+                           .frames = frames, .piece_agents = m->def.cache_piece_agents};
 }
 
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
                                    const fm_flock_run_stats *stats, fm_error *err)
 {
-    const fm_ckpt_store c = flock_store(m, s, stats);
+    const fm_ckpt_store c = flock_store(m, s, stats, stats->run.frames);
     return fm_ckpt_save(path, &c, err);
 }
 
 /* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
-fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s, const fm_flock_run_stats *stats,
-                                 const fm_ckpt_part *parts, int part_count, fm_error *err)
+fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
+                                    const fm_flock_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
+                                    int part_count, fm_error *err)
 {
-    const fm_ckpt_store c = fm_ckpt_on_ranks(flock_store(m, s, stats), s->dist, parts, part_count);
+    const fm_ckpt_store c = fm_ckpt_on_ranks(flock_store(m, s, stats, frames), s->dist, parts, part_count);
     return fm_ckpt_save(path, &c, err);
 }
 
@@ -87,9 +91,24 @@ fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm
                                    fm_flock_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    fm_ckpt_store c = flock_store(m, s, stats);
+    fm_ckpt_store c = flock_store(m, s, stats, 0);
     fm_status st = fm_ckpt_load(path, &c, &stats->run.frames, err);
     if (st != FM_OK) fm_flock_run_stats_free(stats);
     return st;
+}
+
+fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t frames,
+                                         fm_error *err)
+{
+    if (s->dist) return fm_flock_dist_checkpoint_save(path, m, s, NULL, frames, err);
+    const fm_ckpt_store c = flock_store(m, s, NULL, frames);
+    return fm_ckpt_save(path, &c, err);
+}
+
+fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,
+                                         fm_error *err)
+{
+    fm_ckpt_store c = flock_store(m, s, NULL, 0);
+    return fm_ckpt_load(path, &c, frames, err);
 }
 

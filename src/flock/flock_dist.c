@@ -322,7 +322,7 @@ void fm_flock_dist_release(fm_flock_state *s)
  * place in one process's file, rank 0 the rest; any P, or one process, resumes it, and the file is
  * one process's, byte for byte. */
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
-                                        const fm_flock_run_stats *stats, fm_error *err)
+                                        const fm_flock_run_stats *stats, int64_t frames, fm_error *err)
 {
     const int ranks = fm_dist_size(s->dist), me = fm_dist_rank(s->dist);
     int64_t *begin = malloc(sizeof(int64_t) * ((size_t)ranks + 1));
@@ -332,7 +332,7 @@ fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *
     begin[ranks] = s->n;
     st = share(s, begin, sizeof(agent_record), pack, unpack, err);
     const fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, me, ranks);
-    if (st == FM_OK) st = fm_flock_checkpoint_write(path, m, s, stats, &part, 1, err);
+    if (st == FM_OK) st = fm_flock_checkpoint_write(path, m, s, stats, frames, &part, 1, err);
     fm_flock_dist_release(s);
     free(begin);
     return fm_dist_agree(s->dist, st, err);

@@ -148,7 +148,7 @@ static fm_status flock_sync(void *sim, fm_error *err) { return fm_frame_share_sy
 static fm_status flock_save(void *sim, const char *path, fm_error *err)
 {
     const flock_run *r = sim;
-    if (r->s->dist) return fm_flock_dist_checkpoint_save(path, r->m, r->s, r->stats, err);
+    if (r->s->dist) return fm_flock_dist_checkpoint_save(path, r->m, r->s, r->stats, r->stats->run.frames, err);
     return fm_flock_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 

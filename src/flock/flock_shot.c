@@ -8,6 +8,7 @@
 #include "fm_math.h"
 #include "frame_loop.h"
 #include "frame_share.h"
+#include "shot_checkpoint.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -27,6 +28,8 @@ struct fm_flock_shot {
     uint8_t *phase, *group;
     const fm_dist *dist; /* on P ranks (NULL: one process) */
     fm_frame_share share; /* on P ranks with a cache: each rank encodes its share of the rows */
+    int64_t saved_frames; /* the frames of the last checkpoint written or loaded (0: none) */
+    fm_flock_shot_stats *stats;
 };
 
 /* Whether group g can ever be done: a static target whose agents bind. */
@@ -231,6 +234,62 @@ static fm_status write_shared_frame(fm_flock_shot *s, fm_cache_writer *cache, in
     return st;
 }
 
+/* The shot's checkpoint (shot_checkpoint.h): its clock and timings, and each group's state. */
+static const fm_store_member SHOT_MEMBERS[] = {
+    FM_STORE_SCALAR(fm_flock_shot, step),   FM_STORE_SCALAR(fm_flock_shot, started),    FM_STORE_SCALAR(fm_flock_shot, done),
+    FM_STORE_SCALAR(fm_flock_shot, writes), FM_STORE_SCALAR(fm_flock_shot, start_step), FM_STORE_SCALAR(fm_flock_shot, done_step),
+};
+static const fm_store_member SHOT_STATS[] = { /* the groups' statistics are the end state's */
+    FM_STORE_SCALAR(fm_flock_shot_stats, run.simulate_seconds), FM_STORE_SCALAR(fm_flock_shot_stats, run.output_seconds),
+};
+
+static const char *check_shot(const void *state)
+{
+    const fm_flock_shot *s = state;
+    return fm_shot_ckpt_check_clock(s->count, s->step, s->started, s->done, s->writes, s->start_step, s->done_step);
+}
+
+static fm_status save_group(void *shot, int g, const char *path, int64_t frames, fm_error *err)
+{
+    fm_flock_shot *s = shot;
+    return fm_flock_group_checkpoint_save(path, s->model[g], s->state[g], frames, err);
+}
+
+static fm_status load_group(void *shot, int g, const char *path, int64_t *frames, fm_error *err)
+{
+    fm_flock_shot *s = shot;
+    return fm_flock_group_checkpoint_load(path, s->model[g], s->state[g], frames, err);
+}
+
+static fm_shot_ckpt shot_checkpoint(fm_flock_shot *s, fm_flock_shot_stats *stats)
+{
+    int64_t agents[FM_MAX_GROUPS];
+    for (int g = 0; g < s->count; g++) agents[g] = s->model[g]->n;
+    const fm_ckpt_store shot = {
+        .members = SHOT_MEMBERS, .member_count = (int)(sizeof SHOT_MEMBERS / sizeof SHOT_MEMBERS[0]), .state = s,
+        .stats = SHOT_STATS, .stats_count = (int)(sizeof SHOT_STATS / sizeof SHOT_STATS[0]), .run_stats = stats,
+        .def = &s->def[0], .model_hash = fm_shot_ckpt_groups_hash(s->def, agents, s->count),
+        .model_what = "the groups' scenes (their parameters or agent counts)", .check = check_shot, .frames = stats->run.frames,
+        .dist = s->dist};
+    return (fm_shot_ckpt){shot, s->count, s, save_group, load_group};
+}
+
+fm_status fm_flock_shot_checkpoint_check(const char *path, const fm_scene_def *def0, fm_error *err)
+{
+    return fm_ckpt_check(path, def0, SHOT_MEMBERS, (int)(sizeof SHOT_MEMBERS / sizeof SHOT_MEMBERS[0]), err);
+}
+
+fm_status fm_flock_shot_checkpoint_load(fm_flock_shot *s, const char *path, fm_flock_shot_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    fm_shot_ckpt c = shot_checkpoint(s, stats);
+    fm_status st = fm_dist_agree(s->dist, fm_shot_ckpt_load(path, &c, &stats->run.frames, err), err);
+    if (st != FM_OK) return st;
+    s->saved_frames = stats->run.frames;
+    for (int g = 0; g < s->count && s->dist; g++) fm_flock_dist_adopt(s->state[g]); /* this rank's share */
+    return FM_OK;
+}
+
 typedef struct shot_loop {
     fm_flock_shot *s;
     fm_cache_writer *cache;
@@ -238,6 +297,17 @@ typedef struct shot_loop {
 } shot_loop;
 
 static void loop_step(void *sim) { shot_step(((shot_loop *)sim)->s); }
+
+/* The loop's checkpoint (the cache flushed, the ranks' blocks on disk): the groups' files, then the
+ * shot's. */
+static fm_status loop_save(void *sim, const char *path, fm_error *err)
+{
+    fm_flock_shot *s = ((shot_loop *)sim)->s;
+    const fm_shot_ckpt c = shot_checkpoint(s, s->stats);
+    return fm_shot_ckpt_save(path, &c, &s->saved_frames, err);
+}
+
+static fm_status loop_sync(void *sim, fm_error *err) { return fm_frame_share_sync(&((shot_loop *)sim)->s->share, err); }
 static int loop_finished(const void *sim) { return all_done(((const shot_loop *)sim)->s); }
 
 static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
@@ -283,15 +353,14 @@ static void finish_stats(fm_flock_shot *s, fm_flock_shot_stats *stats)
 fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_run_control *control,
                             fm_flock_shot_stats *stats, fm_error *err)
 {
-    memset(stats, 0, sizeof *stats);
-    fm_run_control c = *control;
-    c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
-    shot_loop r = {s, cache, &c};
-    fm_status st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, 0, err);
+    if (!control->resume) memset(stats, 0, sizeof *stats); /* else fm_flock_shot_checkpoint_load restored them */
+    s->stats = stats;
+    shot_loop r = {s, cache, control};
+    fm_status st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, control->resume, err);
     if (st == FM_OK) fm_frame_share_commit(&s->share, cache), st = fm_dist_agree(s->dist, alloc_frame(s, err), err);
     if (st == FM_OK) {
-        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint,
-                                    s->steps_per_frame, s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
+        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, loop_save, s->steps_per_frame,
+                                    s->frame_limit, control, &stats->run, cache, s->dist, loop_sync};
         st = fm_frame_loop_run(&loop, err);
     }
     fm_frame_share_free(&s->share);

@@ -166,10 +166,16 @@ void fm_morph_dist_add_busy(fm_morph_state *s, double seconds); /* the step's ow
 /* Checkpoints on P ranks: one file of one process's layout, written by every rank at once (any P
  * resumes it); after each rank loaded one, adopt keeps the rank's share. */
 fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s,
-                                    const fm_morph_run_stats *stats, const fm_ckpt_part *parts, int part_count,
-                                    fm_error *err);
+                                    const fm_morph_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
+                                    int part_count, fm_error *err);
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
-                                        const fm_morph_run_stats *stats, fm_error *err);
+                                        const fm_morph_run_stats *stats, int64_t frames, fm_error *err);
+/* A shot's group (morph_shot.c): the state alone, without statistics, at `frames` frames (on P
+ * ranks collective, as fm_morph_dist_checkpoint_save); its load, on P ranks then adopt. */
+fm_status fm_morph_group_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t frames,
+                                         fm_error *err);
+fm_status fm_morph_group_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t *frames,
+                                         fm_error *err);
 void fm_morph_dist_adopt(fm_morph_state *s);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
 /* Where a state's agents go in a frame of rows (a shot's, morph_shot.c): agent i is row row0 + i

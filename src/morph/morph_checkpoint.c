@@ -53,41 +53,66 @@ static const char *check_state(const void *state)
     return NULL;
 }
 
-/* The tetra morph's store and statistics (per-frame MDE fractions included). */
-static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats)
+/* The tetra morph's store and statistics (per-frame MDE fractions included) at `frames` frames;
+ * a shot's group has no statistics of its own (stats NULL: the shot's file holds them). */
+static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
+                                 int64_t frames)
 {
     return (fm_ckpt_store){.members = fm_morph_state_members, .member_count = fm_morph_state_member_count,
-                           .state = (void *)s, .n = s->n, .stats = RUN_STATS,
-                           .stats_count = (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]), .run_stats = (void *)stats,
-                           .per_frame = (double **)&stats->mde_fraction, .per_frame_width = 1, .def = &m->def,
-                           .model_hash = model_hash(m),
+                           .state = (void *)s, .n = s->n, .stats = stats ? RUN_STATS : NULL,
+                           .stats_count = stats ? (int)(sizeof RUN_STATS / sizeof RUN_STATS[0]) : 0,
+                           .run_stats = (void *)stats, .per_frame = stats ? (double **)&stats->mde_fraction : NULL,
+                           .per_frame_width = 1, .def = &m->def, .model_hash = model_hash(m),
                            .model_what = "the tets after TetGen and subdivision (or the obstacles)",
-                           .check = check_state, .frames = stats->run.frames, .piece_agents = m->def.cache_piece_agents};
+                           .check = check_state, .frames = frames, .piece_agents = m->def.cache_piece_agents};
 }
 
 fm_status fm_morph_checkpoint_save(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
                              fm_error *err)
 {
-    const fm_ckpt_store c = tetra_store(m, s, stats);
+    const fm_ckpt_store c = tetra_store(m, s, stats, stats->run.frames);
     return fm_ckpt_save(path, &c, err);
 }
 
 /* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
-fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
-                                 const fm_ckpt_part *parts, int part_count, fm_error *err)
+fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s,
+                                    const fm_morph_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
+                                    int part_count, fm_error *err)
 {
-    const fm_ckpt_store c = fm_ckpt_on_ranks(tetra_store(m, s, stats), s->dist, parts, part_count);
+    const fm_ckpt_store c = fm_ckpt_on_ranks(tetra_store(m, s, stats, frames), s->dist, parts, part_count);
     return fm_ckpt_save(path, &c, err);
+}
+
+/* Every rank reads the whole store (on P ranks the next reserve or adopt makes it the rank's). */
+static fm_status load_store(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats,
+                            int64_t *frames, fm_error *err)
+{
+    fm_status st = fm_morph_state_hold_all(s, err);
+    fm_ckpt_store c = tetra_store(m, s, stats, 0);
+    if (st == FM_OK) st = fm_ckpt_load(path, &c, frames, err);
+    if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
+    return st;
 }
 
 fm_status fm_morph_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    fm_status st = fm_morph_state_hold_all(s, err); /* P ranks: every rank reads the whole store */
-    fm_ckpt_store c = tetra_store(m, s, stats);
-    if (st == FM_OK) st = fm_ckpt_load(path, &c, &stats->run.frames, err);
-    if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
+    fm_status st = load_store(path, m, s, stats, &stats->run.frames, err);
     if (st != FM_OK) fm_morph_run_stats_free(stats);
     return st;
+}
+
+fm_status fm_morph_group_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t frames,
+                                         fm_error *err)
+{
+    if (s->dist) return fm_morph_dist_checkpoint_save(path, m, s, NULL, frames, err);
+    const fm_ckpt_store c = tetra_store(m, s, NULL, frames);
+    return fm_ckpt_save(path, &c, err);
+}
+
+fm_status fm_morph_group_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t *frames,
+                                         fm_error *err)
+{
+    return load_store(path, m, s, NULL, frames, err);
 }
 

@@ -429,7 +429,7 @@ static fm_status slots_before(const fm_morph_state *s, fm_status st, int64_t *be
  * halo is rebuilt every step). Rank 0 writes the counters, with the active range one process has;
  * any P, or one process, resumes the file. */
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
-                                        const fm_morph_run_stats *stats, fm_error *err)
+                                        const fm_morph_run_stats *stats, int64_t frames, fm_error *err)
 {
     const int64_t mine = s->active_end, begin = s->active_begin;
     const int me = fm_dist_rank(s->dist), ranks = fm_dist_size(s->dist);
@@ -444,7 +444,7 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
     }
     const fm_ckpt_part parts[2] = {{before, mine, 0}, {from, to - from, mine}};
     s->active_begin = 0, s->active_end = s->launched; /* one process's, for rank 0's counters */
-    st = fm_morph_checkpoint_write(path, m, s, stats, parts, 2, err);
+    st = fm_morph_checkpoint_write(path, m, s, stats, frames, parts, 2, err);
     s->active_begin = begin, s->active_end = mine;
     return st;
 }

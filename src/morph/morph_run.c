@@ -296,7 +296,7 @@ static fm_status morph_frame(void *sim, int64_t k, fm_error *err)
 static fm_status morph_save(void *sim, const char *path, fm_error *err)
 {
     morph_run *r = sim;
-    if (r->s->dist) return fm_morph_dist_checkpoint_save(path, r->m, r->s, r->stats, err);
+    if (r->s->dist) return fm_morph_dist_checkpoint_save(path, r->m, r->s, r->stats, r->stats->run.frames, err);
     return fm_morph_checkpoint_save(path, r->m, r->s, r->stats, err);
 }
 

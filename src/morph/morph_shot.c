@@ -14,6 +14,7 @@
 #include "fm_math.h"
 #include "frame_loop.h"
 #include "frame_share.h"
+#include "shot_checkpoint.h"
 #include "cache_format.h"
 
 #include <math.h>
@@ -23,7 +24,8 @@
 
 struct fm_shot {
     int count;
-    fm_scene_def def[FM_MAX_GROUPS];
+    fm_scene_def def[FM_MAX_GROUPS]; /* each group's, with the shapes of the groups it avoids as obstacles */
+    fm_scene_def first;           /* group 0's as loaded (its checkpoint's scene: fm_shot_checkpoint_check) */
     fm_morph_model *model[FM_MAX_GROUPS];
     fm_morph_state *state[FM_MAX_GROUPS];
     int64_t rows;
@@ -33,6 +35,7 @@ struct fm_shot {
     int started[FM_MAX_GROUPS], arrived[FM_MAX_GROUPS], writes[FM_MAX_GROUPS];
     int64_t start_step[FM_MAX_GROUPS], arrival_step[FM_MAX_GROUPS], step;
     int threads;                  /* the states' (made by fm_shot_distribute on P ranks, else by the run) */
+    int64_t saved_frames;         /* the frames of the last checkpoint written or loaded (0: none) */
     double dt;
     double scene_lo[3], scene_hi[3]; /* the union of the groups' scene bounds (runaway check) */
     int32_t steps_per_frame, frame_limit;
@@ -138,6 +141,7 @@ fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_prog
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     s->count = count;
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
+    s->first = defs[0];
     s->threads = threads;
     fm_status st = build_models(s, progress, user, err);
     if (st != FM_OK) return fm_shot_destroy(s), NULL;
@@ -373,6 +377,66 @@ static fm_status write_shared_frame(fm_shot *s, fm_cache_writer *cache, int64_t 
     return st;
 }
 
+/* The shot's checkpoint (shot_checkpoint.h): its clock and statistics, and each group's state. */
+static const fm_store_member SHOT_MEMBERS[] = {
+    FM_STORE_SCALAR(fm_shot, step),  FM_STORE_SCALAR(fm_shot, started),    FM_STORE_SCALAR(fm_shot, arrived),
+    FM_STORE_SCALAR(fm_shot, writes), FM_STORE_SCALAR(fm_shot, start_step), FM_STORE_SCALAR(fm_shot, arrival_step),
+};
+static const fm_store_member SHOT_STATS[] = { /* the groups' measures so far (the rest is the end state's) */
+    FM_STORE_SCALAR(fm_shot_stats, run.simulate_seconds), FM_STORE_SCALAR(fm_shot_stats, run.output_seconds),
+    FM_STORE_SCALAR(fm_shot_stats, group),
+};
+
+static const char *check_shot(const void *state)
+{
+    const fm_shot *s = state;
+    return fm_shot_ckpt_check_clock(s->count, s->step, s->started, s->arrived, s->writes, s->start_step, s->arrival_step);
+}
+
+static fm_status save_group(void *shot, int g, const char *path, int64_t frames, fm_error *err)
+{
+    fm_shot *s = shot;
+    return fm_morph_group_checkpoint_save(path, s->model[g], s->state[g], frames, err);
+}
+
+static fm_status load_group(void *shot, int g, const char *path, int64_t *frames, fm_error *err)
+{
+    fm_shot *s = shot;
+    return fm_morph_group_checkpoint_load(path, s->model[g], s->state[g], frames, err);
+}
+
+static fm_shot_ckpt shot_checkpoint(fm_shot *s, fm_shot_stats *stats)
+{
+    int64_t agents[FM_MAX_GROUPS];
+    for (int g = 0; g < s->count; g++) agents[g] = s->model[g]->n;
+    const fm_ckpt_store shot = {
+        .members = SHOT_MEMBERS, .member_count = (int)(sizeof SHOT_MEMBERS / sizeof SHOT_MEMBERS[0]), .state = s,
+        .stats = SHOT_STATS, .stats_count = (int)(sizeof SHOT_STATS / sizeof SHOT_STATS[0]), .run_stats = stats,
+        .def = &s->first, .model_hash = fm_shot_ckpt_groups_hash(s->def, agents, s->count),
+        .model_what = "the groups' scenes (their parameters or agent counts)", .check = check_shot, .frames = stats->run.frames,
+        .dist = s->dist};
+    return (fm_shot_ckpt){shot, s->count, s, save_group, load_group};
+}
+
+fm_status fm_shot_checkpoint_check(const char *path, const fm_scene_def *def0, fm_error *err)
+{
+    return fm_ckpt_check(path, def0, SHOT_MEMBERS, (int)(sizeof SHOT_MEMBERS / sizeof SHOT_MEMBERS[0]), err);
+}
+
+fm_status fm_shot_checkpoint_load(fm_shot *s, const char *path, fm_shot_stats *stats, fm_error *err)
+{
+    memset(stats, 0, sizeof *stats);
+    fm_status st = s->state[0] ? FM_OK : create_states(s, NULL, err); /* one process: the run has not made them */
+    fm_shot_ckpt c = shot_checkpoint(s, stats);
+    if (st == FM_OK) st = fm_shot_ckpt_load(path, &c, &stats->run.frames, err);
+    if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st; /* before the collectives below */
+    s->saved_frames = stats->run.frames;
+    for (int g = 0; g < s->count && s->dist; g++) fm_morph_dist_adopt(s->state[g]); /* this rank's share */
+    for (int g = 0; g < s->count && st == FM_OK; g++) /* the rows of the groups that took over others', in order */
+        if (s->started[g] && s->def[g].group.source_group >= 0) st = take_over_rows(s, g, err);
+    return st;
+}
+
 /* The shot in the shared frame loop (frame_loop.h). */
 typedef struct shot_run {
     fm_shot *s;
@@ -408,6 +472,17 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
     return st;
 }
 
+/* The loop's checkpoint (the cache flushed, the ranks' blocks on disk): the groups' files, then the
+ * shot's. */
+static fm_status loop_save(void *sim, const char *path, fm_error *err)
+{
+    shot_run *r = sim;
+    const fm_shot_ckpt c = shot_checkpoint(r->s, r->s->stats);
+    return fm_shot_ckpt_save(path, &c, &r->s->saved_frames, err);
+}
+
+static fm_status loop_sync(void *sim, fm_error *err) { return fm_frame_share_sync(&((shot_run *)sim)->s->share, err); }
+
 /* Group g's largest distance of a vertex from its target's: from its tets by id in scratch (every
  * agent), or with the cache written by P ranks from the rank's own agents' tets in slot order. */
 static double final_vertex_error(fm_shot *s, int g)
@@ -423,6 +498,7 @@ static double final_vertex_error(fm_shot *s, int g)
 /* Each group's end-state checks. */
 static void finish_stats(fm_shot *s, fm_shot_stats *stats)
 {
+    stats->inverted_tet_frames = 0, stats->min_vertex_clearance = INFINITY;
     stats->all_arrived = all_arrived(s);
     stats->run.steps = s->step;
     stats->rows = s->rows;
@@ -445,22 +521,21 @@ static void finish_stats(fm_shot *s, fm_shot_stats *stats)
 fm_status fm_shot_run(fm_shot *s, fm_cache_writer *cache, const fm_run_control *control, fm_shot_stats *stats,
                       fm_error *err)
 {
-    memset(stats, 0, sizeof *stats);
-    stats->min_vertex_clearance = INFINITY;
-    for (int g = 0; g < s->count; g++) stats->group[g].min_vertex_clearance = INFINITY;
+    if (!control->resume) { /* else fm_shot_checkpoint_load restored them */
+        memset(stats, 0, sizeof *stats);
+        for (int g = 0; g < s->count; g++) stats->group[g].min_vertex_clearance = INFINITY;
+    }
     s->stats = stats;
-    fm_run_control c = *control;
-    c.checkpoint_path = NULL, c.checkpoint = NULL, c.resume = 0; /* a shot keeps no checkpoint yet */
-    shot_run r = {s, cache, &c, FM_OK, {0}};
+    shot_run r = {s, cache, control, FM_OK, {0}};
     fm_status st = s->state[0] ? FM_OK : create_states(s, NULL, err); /* one process */
     if (st != FM_OK) return st;
-    st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, 0, err);
+    st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, control->resume, err);
     if (st == FM_OK && s->share.on && s->rows > INT32_MAX) fm_frame_share_free(&s->share); /* rows in int32 records */
     if (st == FM_OK) fm_frame_share_commit(&s->share, cache), st = fm_dist_agree(s->dist, alloc_frame(s, err), err);
     const int ready = st == FM_OK; /* the frame's buffers, on every rank */
     if (ready) {
-        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, fm_frame_loop_no_checkpoint,
-                                    s->steps_per_frame, s->frame_limit, &c, &stats->run, cache, s->dist, NULL};
+        const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, loop_save, s->steps_per_frame,
+                                    s->frame_limit, control, &stats->run, cache, s->dist, loop_sync};
         st = fm_frame_loop_run(&loop, err);
     }
     if (ready) finish_stats(s, stats);

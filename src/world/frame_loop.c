@@ -127,12 +127,6 @@ fm_status fm_frame_rows_room(double **rows, int64_t count, int width, int64_t *c
     return FM_OK;
 }
 
-fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err)
-{
-    (void)sim;
-    return fm_fail(err, FM_ERR_USAGE, "%s: a shot (a scene with groups) keeps no checkpoint in this version", path);
-}
-
 int64_t fm_frame_loop_group_start(const fm_group_def *group, const int64_t *done_step, double dt)
 {
     const int64_t from = group->after < 0 ? 0 : done_step[group->after];

@@ -34,10 +34,8 @@ typedef struct fm_frame_loop {
 
 fm_status fm_frame_loop_run(const fm_frame_loop *loop, fm_error *err);
 
-/* For the shots (morph_shot.c, flock_shot.c), which keep no checkpoint in this version: the loop's
- * save, a usage error naming the path; and the progress of frame k, the phase counts summed over
+/* For the shots (morph_shot.c, flock_shot.c): the progress of frame k, the phase counts summed over
  * the groups that write rows (writes[g]; counts[g] their fm_phase counts). */
-fm_status fm_frame_loop_no_checkpoint(void *sim, const char *path, fm_error *err);
 /* The step at which a shot's group may start: `start` seconds (rounded up to whole steps of dt)
  * after step 0, or after the step its `after` group was done (done_step[after]; -1 while it is
  * not, and then so is the result). */

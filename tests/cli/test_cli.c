@@ -324,9 +324,37 @@ static void test_stats_provenance(void)
     check_stats_keys_documented(stats, "## Shape flock");
 }
 
+static int file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+/* A shot stopped after frame `stop` (--stop-after-frame) and resumed: the cache of the run in
+ * `whole` byte for byte, the same frame count, and no checkpoint file left, the groups' included. */
+static void check_shot_resumes(const char *scene, const char *name, int stop, const char *whole)
+{
+    char outdir[FM_PATH_MAX], args[3 * FM_PATH_MAX], got[FM_PATH_MAX + 16], want[FM_PATH_MAX + 16], group[FM_PATH_MAX + 48];
+    tmp_path(outdir, name);
+    snprintf(args, sizeof args, "run '%s/%s' -o '%s' --quiet --stop-after-frame %d", FM_SOURCE_DIR, scene, outdir, stop);
+    ENSURE_EXIT(args, 0);
+    snprintf(group, sizeof group, "%s/checkpoint.fmck.f%d.g1", outdir, stop + 1);
+    ENSURE_MSG(file_exists(group), "%s: no checkpoint of group 1 after a stop at frame %d", name, stop);
+    snprintf(args, sizeof args, "run '%s/%s' -o '%s' --quiet --resume --threads 1", FM_SOURCE_DIR, scene, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(got, sizeof got, "%s/frames.fmc", outdir);
+    snprintf(want, sizeof want, "%s/frames.fmc", whole);
+    ENSURE_MSG(same_file(got, want), "%s: stopped after frame %d and resumed, the cache differs from the whole run's",
+               name, stop);
+    ENSURE_MSG(!file_exists(group), "%s: %s left after the run finished", name, group);
+    snprintf(group, sizeof group, "%s/checkpoint.fmck", outdir);
+    ENSURE(!file_exists(group));
+}
+
 /* Shots (examples/castling, two tetra-morph groups; examples/flock_sequence, two shape-flock groups):
- * their stats.json keys documented both ways; what a shot does not do yet (checkpoints, resume)
- * refused before anything runs. */
+ * their stats.json keys documented both ways; a shot stopped and resumed (before and after its
+ * second group started) gives the whole run's cache; a resume with another group's parameters is
+ * refused. */
 static void test_shot_run(void)
 {
     char outdir[FM_PATH_MAX], stats[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
@@ -343,15 +371,18 @@ static void test_shot_run(void)
     ENSURE_MSG(strstr(g_out, "2 groups: sphere bound, torus bound") != NULL, "'%s'", g_out);
     snprintf(stats, sizeof stats, "%s/stats.json", outdir);
     check_stats_keys_documented(stats, "## Shape-flock shot");
-    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --resume", FM_SOURCE_DIR, outdir);
-    ENSURE_EXIT(args, 1);
-    ENSURE_MSG(strstr(g_err, "a scene with groups keeps no checkpoint in this version: leave out --resume"), "'%s'", g_err);
-    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --checkpoint-every 5", FM_SOURCE_DIR, outdir);
-    ENSURE_EXIT(args, 1);
-    ENSURE_MSG(strstr(g_err, "leave out --checkpoint-every"), "'%s'", g_err);
-    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --stop-after-frame 5", FM_SOURCE_DIR, outdir);
-    ENSURE_EXIT(args, 1);
-    ENSURE_MSG(strstr(g_err, "leave out --stop-after-frame"), "'%s'", g_err);
+    char whole[FM_PATH_MAX];
+    check_shot_resumes("examples/castling/scene.json", "shot_resume_early", 20, tmp_path(whole, "shot_out"));
+    check_shot_resumes("examples/castling/scene.json", "shot_resume_late", 250, whole); /* the rook flies */
+    check_shot_resumes("examples/flock_sequence/scene.json", "flock_shot_resume", 200, outdir); /* the torus flies */
+    tmp_path(outdir, "shot_resume_other");
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --quiet --stop-after-frame 20",
+             FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(args, sizeof args, "run '%s/examples/castling/scene.json' -o '%s' --quiet --resume --set groups.1.speed0=7",
+             FM_SOURCE_DIR, outdir);
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "checkpoint.fmck: written for a different model: the groups' scenes"), "'%s'", g_err);
     /* two wedges that change nothing else differ by their derived seed, in every group */
     char wedges[FM_PATH_MAX], one[FM_PATH_MAX], two[FM_PATH_MAX + 16], other[FM_PATH_MAX + 16];
     FILE *w = fopen(tmp_path(wedges, "shot_wedges.json"), "w");
@@ -369,12 +400,6 @@ static void test_shot_run(void)
              outdir);
     ENSURE_EXIT(args, 2);
     ENSURE_MSG(strstr(g_err, "--set groups.1.speed0=-6: speed0: -6 is out of range"), "'%s'", g_err);
-}
-
-static int file_exists(const char *path)
-{
-    struct stat st;
-    return stat(path, &st) == 0;
 }
 
 /* A scene with an obstacle writes OUTDIR/obstacles.ply, which reads back as the obstacle placed in

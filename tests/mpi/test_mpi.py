@@ -314,6 +314,26 @@ class Segments(unittest.TestCase):
     def test_tetra_stopped_on_1_resumed_on_2(self):
         self.across_ranks("examples/castling/rook.json", "seg_tetra_1_2", pieces(1000), 20, None, 2)
 
+    def shot_across_ranks(self, scene, name, stop, first, then):
+        """A shot: the group files beside the checkpoint after the stop, none left at the end."""
+        self.across_ranks(scene, name, pieces(1000), stop, first, then)
+        out = os.path.join(ARGS.tmp, "mpi_" + name)
+        self.assertEqual([f for f in os.listdir(out) if f.startswith("checkpoint")], [], name)
+
+    def test_tetra_shot_stopped_on_3_resumed_on_2(self):
+        """A shot's checkpoint is the shot's file (its clock, its groups' measures) and every group's
+        store, each written by every rank at once. Stopped after group b took over a's rows: on
+        resume every rank learns the rows again from a's agents of every rank."""
+        self.shot_across_ranks("tests/data/mpi/shot_chain.json", "seg_shot_3_2", 150, 3, 2)
+
+    def test_tetra_shot_stopped_on_1_resumed_on_3(self):
+        """Stopped after c took over b's rows, which b took over from a's."""
+        self.shot_across_ranks("tests/data/mpi/shot_chain.json", "seg_shot_1_3", 200, None, 3)
+
+    def test_shape_flock_shot_stopped_on_2_resumed_on_1(self):
+        """flock_sequence stopped while the torus flies (it took over the sphere's bound agents)."""
+        self.shot_across_ranks("examples/flock_sequence/scene.json", "seg_flock_shot_2_1", 200, 2, None)
+
     def test_checkpoint_disk_full(self):
         """Frame 0's cache fits under the 8 MiB limit, the checkpoint of 140 000 agents (10 MB) does
         not: every rank stops with exit 3, no checkpoint (or .partial) is left, the frame is."""
