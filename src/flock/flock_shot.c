@@ -49,8 +49,21 @@ static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *er
                    def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms" : "lets its agents float");
 }
 
+/* The groups together in memory (fm_memory_check_shot): a group from another's shape has its n. */
+static fm_status check_memory(const fm_flock_shot *s, fm_error *err)
+{
+    int64_t agents[FM_MAX_GROUPS] = {0};
+    for (int g = 0; g < s->count; g++) {
+        const int from = s->def[g].group.source_group;
+        agents[g] = from >= 0 ? agents[from] : s->def[g].n;
+    }
+    return fm_memory_check_shot(s->def, agents, s->count, fm_flock_memory_estimate, err);
+}
+
 static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *user, fm_error *err)
 {
+    fm_status checked = check_memory(s, err); /* before any group is sampled */
+    if (checked != FM_OK) return checked;
     for (int g = 0; g < s->count; g++) {
         const int from = s->def[g].group.source_group;
         fm_status st = check_source_group(s->def, g, err);

@@ -84,10 +84,23 @@ static int is_a_source(const fm_shot *s, int g)
     return 0;
 }
 
+/* The groups together in memory (fm_memory_check_shot), with the agents known so far: a built
+ * group's, else its scene's n or its source group's. */
+static fm_status check_memory(const fm_shot *s, fm_error *err)
+{
+    int64_t agents[FM_MAX_GROUPS] = {0};
+    for (int g = 0; g < s->count; g++) {
+        const int from = s->def[g].group.source_group;
+        agents[g] = s->model[g] ? s->model[g]->n : from >= 0 ? agents[from] : s->def[g].n;
+    }
+    return fm_memory_check_shot(s->def, agents, s->count, fm_morph_memory_estimate, err);
+}
+
 static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
-        fm_status st = add_group_obstacles(s->def, g, err);
+        fm_status st = check_memory(s, err); /* before TetGen, and again with each group's tet count */
+        if (st == FM_OK) st = add_group_obstacles(s->def, g, err);
         if (st != FM_OK) return st;
         const int from = s->def[g].group.source_group;
         s->model[g] = fm_morph_model_build_group(&s->def[g], from < 0 ? NULL : s->model[from], is_a_source(s, g), progress,
@@ -99,7 +112,7 @@ static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, f
             return fm_fail(err, FM_ERR_INTERNAL, "group %d has another time step", g);
     }
     for (int g = 0; g < s->count; g++) fm_morph_model_drop_targets(s->model[g]); /* every group is built */
-    return FM_OK;
+    return check_memory(s, err);
 }
 
 /* Every group's state: on one process each holds all its agents; on P ranks (dist) each starts

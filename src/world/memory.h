@@ -53,4 +53,14 @@ double fm_memory_agents_that_fit(const fm_memory_estimate *e);
  * the neighbour grid's capacity if n exceeds it. */
 fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_need *need, fm_error *err);
 
+/* A shot's groups together (morph_shot.c, flock_shot.c): built one after another, then stepped side
+ * by side, so the run holds every group's model, store and grid, one frame of the shot's rows (the
+ * groups from a mesh) and every group's grids (the libraries once), and the preparation of group g
+ * the models before it. agents[g]: group g's agents, 0 while not known (a tetra group with n 0
+ * before TetGen: left out); estimate: the mode's (fm_morph_memory_estimate, fm_flock_memory_estimate).
+ * FM_ERR_INPUT naming the groups and the machine's memory if they do not fit together. */
+typedef fm_memory_estimate (*fm_memory_estimate_fn)(const fm_scene_def *def, int64_t n);
+fm_status fm_memory_check_shot(const fm_scene_def *defs, const int64_t *agents, int count, fm_memory_estimate_fn estimate,
+                               fm_error *err);
+
 #endif

@@ -759,6 +759,37 @@ static void test_flock_n_too_large_for_memory(void)
     expect_n_too_large("flock_n_large.json", FM_MODE_SHAPE_FLOCK, FLOCK);
 }
 
+/* A shot whose groups each fit the machine but not together is refused before any is built, naming
+ * the groups (fm_memory_check_shot); `mode_member` selects the mode. */
+static void expect_shot_too_large(const char *name, fm_mode mode, const char *mode_member)
+{
+    fm_scene_def def = fm_default_scene_def();
+    def.mode = mode;
+    double physical = fm_physical_memory(), per_agent = fm_memory_estimate_for(&def, 1000).per_agent;
+    long long n = (long long)(0.7 * physical / per_agent); /* one group fits, two side by side do not */
+    if (physical <= 0 || n > 1000000000) {
+        printf("  (skipped: this machine's memory fits the largest n a scene accepts)\n");
+        return;
+    }
+    char oct[FM_PATH_MAX], expected[64];
+    write_octahedron(tmp_path(oct, "octahedron.obj"));
+    snprintf(g_scene_text, sizeof g_scene_text,
+             "{\n  \"n\": %lld%s,\n  \"groups\": [\n"
+             "    {\"name\": \"a\", \"source\": {\"mesh\": \"" OCTAHEDRON "\", " LEFT "}, "
+             "\"target\": {\"mesh\": \"" OCTAHEDRON "\", " RIGHT "}},\n"
+             "    {\"name\": \"b\", \"after\": \"a\", \"source\": {\"mesh\": \"" OCTAHEDRON "\", " RIGHT "}, "
+             "\"target\": {\"mesh\": \"" OCTAHEDRON "\", " LEFT "}}\n  ]\n}\n", n, mode_member);
+    write_text(tmp_path(g_scene, name), g_scene_text);
+    snprintf(expected, sizeof expected, "the shot's 2 groups (a %.3g, b %.3g agents)", (double)n, (double)n);
+    EXPECT_RUN(g_scene, 2, expected, "together", "physical memory", "lower the groups' n");
+}
+
+static void test_shot_too_large_for_memory(void) { expect_shot_too_large("shot_large.json", FM_MODE_TETRA_MORPH, ""); }
+static void test_flock_shot_too_large_for_memory(void)
+{
+    expect_shot_too_large("flock_shot_large.json", FM_MODE_SHAPE_FLOCK, FLOCK);
+}
+
 /* ---------------------------------------------------------------- the path and obstacles */
 
 static void test_path_too_short(void)
@@ -1369,6 +1400,8 @@ int main(void)
     RUN_TEST(test_flock_memory_estimate_matches_allocations);
     RUN_TEST(test_n_too_large_for_memory);
     RUN_TEST(test_flock_n_too_large_for_memory);
+    RUN_TEST(test_shot_too_large_for_memory);
+    RUN_TEST(test_flock_shot_too_large_for_memory);
     RUN_TEST(test_path_too_short);
     RUN_TEST(test_path_end_inside_obstacle);
     RUN_TEST(test_obstacle_overlaps_source_or_target);
