@@ -16,7 +16,7 @@ static const double FLOCK_STATE_PER_AGENT = sizeof(float) * (9 * 3 + 4 + 2) + 2 
 static const double FLOCK_OWN_KALMAN_PER_AGENT = sizeof(double) * 3 + sizeof(float);
 /* A deforming target's destinations, evaluated each step (3 floats). */
 static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
-/* The frame: position, velocity (3 floats), orientation (4) and phase (1 byte). */
+/* The frame: position, velocity (3 floats), orientation (4: the largest attribute) and phase (1 byte). */
 static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST_ATTR = sizeof(float) * 4;
 /* On P ranks: an agent of a frame's exchange by share (flock_dist.c's frame record). */
 static const double FLOCK_SHARE_RECORD = 60;
@@ -56,10 +56,10 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
      * Rank 0's writer makes no frame buffers. */
     const double ranks = fm_memory_ranks();
     e.frames = ranks > 1 ? (FLOCK_FRAME + 3 * (FLOCK_FRAME + sizeof(uint32_t)) + 2 * FLOCK_SHARE_RECORD) / ranks
-                         : fm_memory_frames_per_agent(def, FLOCK_FRAME, FLOCK_LARGEST_ATTR);
+                         : fm_memory_frames_per_agent(def, FLOCK_FRAME);
     /* the boids' neighbour grid, always, with its copy of the velocities (grid.h) */
     e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float) : 0;
-    e.fixed = fm_memory_fixed_bytes(def);
+    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR);
     e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
     fm_memory_total(&e, n);
     return e;

@@ -226,6 +226,9 @@ const cache_layout *fm_cache_writer_layout(const fm_cache_writer *w);
 const uint32_t *fm_cache_writer_ids(const fm_cache_writer *w);
 /* Seconds add_frame has waited for the writer so far (bench_cache): 0 when it keeps up. */
 double fm_cache_writer_wait_seconds(const fm_cache_writer *w);
+/* What zstd's compression contexts hold now, their working memory included (ZSTD_sizeof_CCtx):
+ * fixed, not per agent (tests/cli/test_bad_input.c leaves it out of the per-agent comparison). */
+size_t fm_cache_writer_zstd_bytes(const fm_cache_writer *w);
 
 /* For resume: the reader's layout, the end of chunk k, a chunk's check, and attribute i's stored
  * words (after quantisation and shuffle, with deltas undone) at frame k. */

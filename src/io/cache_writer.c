@@ -310,6 +310,13 @@ fm_status fm_cache_writer_note_chunk(fm_cache_writer *w, const cache_chunk_place
 
 const unsigned char *fm_cache_writer_prev(fm_cache_writer *w, int i) { return cache_encoder_prev(&w->enc, i); }
 
+size_t fm_cache_writer_zstd_bytes(const fm_cache_writer *w)
+{
+    size_t bytes = 0;
+    for (int t = 0; w->enc.cctx && t < w->enc.threads; t++) bytes += ZSTD_sizeof_CCtx(w->enc.cctx[t]);
+    return bytes;
+}
+
 void fm_cache_writer_leave_frames_to_ranks(fm_cache_writer *w)
 {
     pthread_mutex_lock(&w->lock);

@@ -38,9 +38,9 @@ fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
     e.model = MODEL_PER_AGENT; /* every rank builds the whole model */
     e.state = STATE_PER_AGENT * held;
     e.frames = ranks > 1 ? OWN_TETS * held + SHARE_FRAME / ranks
-                         : fm_memory_frames_per_agent(def, 12 * sizeof(float) + 1, 12 * sizeof(float)); /* tet vertices, phase */
+                         : fm_memory_frames_per_agent(def, 12 * sizeof(float) + 1); /* tet vertices, phase */
     e.grid = def->d_min > 0 && n > 0 ? fm_memory_grid_bytes(mine) / (double)n : 0;
-    e.fixed = fm_memory_fixed_bytes(def);
+    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, 12 * sizeof(float));
     e.preprocess_per_agent = PREP_PER_AGENT;
     fm_memory_total(&e, n);
     return e;

@@ -13,16 +13,21 @@
 #include <stdio.h>
 #include <unistd.h>
 
-/* A frame of `frame` bytes per agent whose largest attribute takes `largest`: the run's own buffers
- * (morph_run.c, flock_run.c). The cache writer's frame also holds the ids (4 B, which the writer hands over
- * itself): its two hand-over slots, the previous frame when delta is on (cache_writer.c), its
- * quantise and filter buffers (the largest attribute) and the chunk (zstd's output bound: 1/256 more
- * than its input). */
-double fm_memory_frames_per_agent(const fm_scene_def *def, double frame, double largest)
+/* A frame of `frame` bytes per agent: the run's own buffers (morph_run.c, flock_run.c). The cache
+ * writer's frame also holds the ids (4 B, which the writer hands over itself): its two hand-over
+ * slots, the previous frame's words when delta is on and the frame's stored words (cache_encode.c),
+ * the chunk (zstd's output bound: 1/256 more than its input) and the ids. */
+double fm_memory_frames_per_agent(const fm_scene_def *def, double frame)
 {
     const double cached = frame + sizeof(uint32_t);
-    return frame + cached * (CACHE_WRITER_SLOTS + (def->cache_delta ? 1 : 0)) + 2 * largest + cached * (1 + 1.0 / 256) +
+    return frame + cached * (CACHE_WRITER_SLOTS + (def->cache_delta ? 1 : 0) + 1) + cached * (1 + 1.0 / 256) +
            sizeof(uint32_t);
+}
+
+double fm_memory_encoder_scratch_bytes(const fm_scene_def *def, int64_t n, double largest)
+{
+    const int64_t piece = def->cache_piece_agents > 0 ? def->cache_piece_agents : n;
+    return CACHE_ENCODER_THREADS * (double)(n < piece ? n : piece) * largest;
 }
 
 /* Not proportional to n: the libraries (TetGen, OpenVDB, Embree, zstd's two workers), measured on

@@ -29,9 +29,11 @@ typedef struct fm_memory_need {
     const char *grid_hint; /* appended to the grid's refusal (" or turn MDE off ..."); may be NULL */
 } fm_memory_need;
 
-/* Per agent: a frame of `frame` bytes whose largest attribute takes `largest`, in the run's
- * buffers, the cache writer's and zstd's output. */
-double fm_memory_frames_per_agent(const fm_scene_def *def, double frame, double largest);
+/* Per agent: a frame of `frame` bytes in the run's buffers, the cache writer's and zstd's output. */
+double fm_memory_frames_per_agent(const fm_scene_def *def, double frame);
+/* The cache encoder's scratch, which does not grow with n past a piece: a block of the largest
+ * attribute (`largest` bytes an agent) for each of its threads. */
+double fm_memory_encoder_scratch_bytes(const fm_scene_def *def, int64_t n, double largest);
 /* The neighbour grid (grid.c) for n agents, in bytes. */
 double fm_memory_grid_bytes(int64_t n);
 /* Bytes that do not grow with n: the libraries, a baked field grid, the distance grids. */
