@@ -238,7 +238,7 @@ static void close_run(void *run)
     json_decref(r->warnings);
 }
 
-/* No load_checkpoint: a shot keeps no checkpoint in this version (cli_run.c refuses --resume). */
+/* The shot keeps checkpoints: its own file and one per group (docs/resume.md "Shots"). */
 const cli_mode cli_mode_shot = {"tetra_morph", {"waiting", "flying", "homing", "arrived"}, sizeof(shot_run), build,
                                 create_state, create_cache, load_checkpoint, simulate, write_stats, summary, close_run};
 const cli_mode cli_mode_flock_shot = {"shape_flock", {NULL, "flying", "arriving", "bound"}, sizeof(shot_run), build,

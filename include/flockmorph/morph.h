@@ -145,7 +145,7 @@ double fm_morph_vertex_clearance(const fm_morph_model *model, const float *verts
  * shot or after its `after` group has arrived; a group whose source is another's formed shape takes
  * over that group's agents (their cache rows) and flies on from where they stand; a group's
  * `avoid` list makes those groups' shapes obstacles to it (their target if it flies after them,
- * their source if before). One process, no checkpoints in this version. */
+ * their source if before). Checkpoints and resume as fm_morph_run_controlled's (fm_shot_run). */
 typedef struct fm_shot fm_shot;
 
 fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_progress_fn progress, void *user,
