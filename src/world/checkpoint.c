@@ -261,7 +261,7 @@ static int by_first(const void *a, const void *b)
 /* Rank 0: every rank's piece records sorted, checked to tile the agents, and put as the table. */
 static fm_status put_pieces(sink *k, const fm_ckpt_store *c, uint64_t *rec, int64_t count, size_t words, fm_error *err)
 {
-    qsort(rec, (size_t)count, sizeof(uint64_t) * words, by_first);
+    if (count > 0) qsort(rec, (size_t)count, sizeof(uint64_t) * words, by_first); /* a shot's file has none (rec NULL) */
     uint64_t end = 0;
     for (int64_t p = 0; p < count; p++) {
         const uint64_t *r = rec + words * (size_t)p;
