@@ -40,11 +40,17 @@ static void size_table(fm_grid *g, int64_t agents)
 
 fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err)
 {
+    return fm_grid_init_table(g, capacity, 0, err);
+}
+
+fm_status fm_grid_init_table(fm_grid *g, int64_t capacity, int64_t table_agents, fm_error *err)
+{
     grid_zero(g);
-    if (capacity < 0 || capacity > FM_GRID_MAX_CAPACITY)
-        return fm_fail(err, FM_ERR_INPUT, "grid capacity %lld out of range [0, %lld]", (long long)capacity,
+    if (capacity < 0 || capacity > FM_GRID_MAX_CAPACITY || table_agents < 0 || table_agents > FM_GRID_MAX_CAPACITY)
+        return fm_fail(err, FM_ERR_INPUT, "grid capacity %lld out of range [0, %lld]", (long long)FM_MAX(capacity, table_agents),
                        (long long)FM_GRID_MAX_CAPACITY);
-    size_table(g, capacity);
+    g->table_agents = table_agents;
+    size_table(g, FM_MAX(capacity, table_agents));
     const int64_t table = (int64_t)g->mask + 1;
     g->capacity = capacity;
     size_t cap = (size_t)(capacity > 0 ? capacity : 1);
@@ -120,7 +126,7 @@ void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *cons
     g->cell = cell;
     g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
     if (threads < 1) threads = 1;
-    size_table(g, n);
+    size_table(g, g->table_agents > 0 ? g->table_agents : n);
 
     const int32_t coarse = g->coarse;
     const int log2_fine = g->log2_fine;

@@ -49,6 +49,7 @@ typedef struct fm_grid {
     int64_t count;         /* agents listed by the last build */
     uint32_t mask;         /* table size - 1 */
     int log2_table;        /* table size = 1 << log2_table, 6 .. 31 */
+    int64_t table_agents;  /* > 0: every build's table is the one for this many agents (fm_grid_init_table) */
     int linear_rows;       /* rows by position, not hashed (set after fm_grid_init; see fm_grid_row) */
     int shift_y, shift_z;  /* linear rows: row(cy, cz) = cy << shift_y + cz << shift_z (mod the table) */
     float cell;            /* cell edge of the last build (as requested) */
@@ -71,6 +72,10 @@ typedef struct fm_grid {
 
 fm_status fm_grid_init(fm_grid *g, int64_t capacity, fm_error *err); /* all allocation is here */
 void fm_grid_free(fm_grid *g);                                       /* g may be zeroed or freed */
+/* The same, with every build's table the one for table_agents agents, whatever it lists: a rank
+ * listing its share of n agents gets the cells' slots, so the order of a walk over the 27 cells, of
+ * one process listing all n (grid.h's walks merge cells that share a slot). */
+fm_status fm_grid_init_table(fm_grid *g, int64_t capacity, int64_t table_agents, fm_error *err);
 /* Makes the builds keep velocities (vel) too: 28 more bytes per agent of capacity. */
 fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err);
 

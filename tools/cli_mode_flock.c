@@ -106,9 +106,9 @@ static int build(void *run, const fm_scene_def *def, int *show)
 static fm_status create_state(void *run, int threads, fm_error *err)
 {
     flock_run *r = run;
-    r->state = fm_flock_state_create(r->model, threads, err);
-    if (!r->state) return err->status;
-    return fm_dist_size(cli_dist) > 1 ? fm_flock_state_distribute(r->model, r->state, cli_dist, err) : FM_OK;
+    r->state = fm_dist_size(cli_dist) > 1 ? fm_flock_state_create_distributed(r->model, threads, cli_dist, err)
+                                          : fm_flock_state_create(r->model, threads, err);
+    return r->state ? FM_OK : err->status;
 }
 
 /* Position, velocity, orientation, id and phase (fm_flock_cache_create). */
@@ -122,9 +122,7 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
 {
     flock_run *r = run;
-    fm_status st = fm_flock_checkpoint_load(path, r->model, r->state, &r->rs, err);
-    if (st == FM_OK && fm_dist_size(cli_dist) > 1) fm_flock_dist_adopt(r->state); /* this rank's share */
-    return st;
+    return fm_flock_checkpoint_load(path, r->model, r->state, &r->rs, err); /* on P ranks each keeps its slab's */
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)

@@ -73,11 +73,25 @@ typedef struct flock_block {
     int64_t count[4];  /* agents per fm_phase after the step */
 } flock_block;
 
+/* Each agent's parameters drawn by the model, by slot (flock_state.c): on one process the model's
+ * own arrays (a slot is an agent id); on P ranks copies for this rank's slots, which move with their
+ * agents, so the step and the kernels read them as they read the store. */
+typedef struct fm_flock_params {
+    float *radius[FM_BOIDS_RULES], *cos_half[FM_BOIDS_RULES], *weight[FM_BOIDS_RULES];
+    float *max_speed, *max_force, *max_accel;
+    float *start[3]; /* C1: the source sample */
+} fm_flock_params;
+
 struct fm_flock_state {
-    int64_t n;
+    int64_t n;                     /* agents of the run */
+    int64_t slots;                 /* entries of the per-slot arrays in use: n on one process */
+    int64_t cap;                   /* entries the per-slot arrays hold */
+    int64_t first;                 /* a share's view (flock_dist.c): the id of slot 0; else 0 */
+    int32_t *id;                   /* on P ranks each slot's agent, increasing; NULL: slot a is agent first + a */
     int64_t step;
     double time;
     int threads;
+    int own_kalman, deforming;     /* which optional arrays the store has (kalman_p and r_scale; eval) */
     float *p[3], *v[3];
     float *orient;                 /* 4 per agent: w x y z */
     uint8_t *phase;                /* fm_phase: FLYING forces, HOMING stepped approach, ARRIVED bound */
@@ -91,6 +105,7 @@ struct fm_flock_state {
     double *mesh_v;                /* deforming: the target's vertices at the current time */
     float *eval;                   /* deforming: destinations, 3 per agent (fm_samples_eval) */
     uint8_t *member;               /* every agent is listed in the grid */
+    fm_flock_params prm;
     fm_kalman kalman;              /* the covariance and gain, shared by all agents (flock_kalman.h) */
     double *kalman_p;              /* R over the run: each agent's own covariance, 3 per agent; else NULL */
     float *r_scale;                /* R over the run: scratch, the agent's factor of R this step */
@@ -101,19 +116,35 @@ struct fm_flock_state {
     flock_block *blocks;
     int64_t count[4];
     double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */
-    /* On P ranks (flock_dist.c; NULL on one process): this rank computes the agents of its slab;
-     * the others have phase FM_FLOCK_ELSEWHERE here. */
+    /* On P ranks (flock_dist.c; NULL on one process): the slots hold this rank's agents (those of
+     * its slab) and, during a step, the ghosts of its halo (phase FM_FLOCK_ELSEWHERE), all by id. */
     const fm_dist *dist;
     fm_slabs *slabs;
     fm_status dist_status;         /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
-    void *gathered;                /* rank 0 during a frame: the records received (fm_flock_dist_gather) */
-    int64_t gathered_count;
-    size_t gathered_size;          /* bytes a record */
+    void *scratch;                 /* the slots' moves: one array's worth (cap entries of the largest) */
+    struct fm_flock_state *view;   /* a frame's or a checkpoint's share of the ids, complete (flock_dist.c) */
 };
 
-/* On P ranks, the phase of an agent another rank computes: no stage of the step handles it. */
+/* On P ranks, the phase of a ghost, an agent another rank computes: no stage of the step handles it. */
 #define FM_FLOCK_ELSEWHERE 0xFF
+
+/* The agent in slot a. */
+static inline int64_t fm_flock_id(const fm_flock_state *s, int64_t a) { return s->id ? s->id[a] : s->first + a; }
+
+/* flock_state.c: the store without its agents, for `slots` agents (dist: a rank's, with ids and
+ * parameters by slot, which the caller fills); room for `slots` (a quarter more, at most n); the
+ * slots moved (new slot k from old slot from[k], or -1: written by the caller); a share's view
+ * (flock_dist.c); agent id's parameters into slot `slot`; a deforming target's destination of agent
+ * id at the time of s->mesh_v. */
+fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const fm_dist *dist, int64_t slots,
+                                     fm_error *err);
+fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err);
+void fm_flock_state_move_slots(fm_flock_state *s, const int64_t *from, int64_t slots);
+fm_flock_state *fm_flock_state_view(fm_flock_state *s, int64_t first, int64_t count, int grid, fm_error *err);
+void fm_flock_state_start(const fm_flock_model *m, fm_flock_state *s); /* the agents of the slots at rest */
+void fm_flock_params_copy(const fm_flock_model *m, fm_flock_params *prm, int64_t slot, int64_t id);
+void fm_flock_destination_of(const fm_flock_model *m, const fm_flock_state *s, int64_t id, float out[3]);
 
 /* flock_state.c: the members a checkpoint saves (checkpoint.h), in file order. */
 extern const fm_store_member fm_flock_state_members[];
@@ -129,17 +160,21 @@ void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def,
 fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n);
 fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
-/* flock_dist.c: the shape flock on P ranks (docs/scale-out.md). distribute makes s (fresh from
- * fm_flock_state_create) one rank's share; adopt does the same after every rank loaded the same
- * checkpoint. Per step: migrate before mark_flock, ghosts after it, after_step at the end. At a
- * frame: gather (rank 0 then holds every agent), release after the frame. */
-fm_status fm_flock_state_distribute(const fm_flock_model *m, fm_flock_state *s, const fm_dist *dist, fm_error *err);
-void fm_flock_dist_adopt(fm_flock_state *s);
+/* flock_dist.c: the shape flock on P ranks (docs/scale-out.md). create_distributed makes one rank's
+ * store (its slab's agents at rest); adopt makes it the slab's agents of `all` (every agent, as a
+ * checkpoint restored them). Per step: migrate, then ghosts, before the grid build; after_step at
+ * the end. At a frame: gather (rank 0's view then holds every agent) or share (each rank's view its
+ * share of the ids), release after the frame. */
+fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int threads, const fm_dist *dist,
+                                                  fm_error *err);
+fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *all, fm_error *err);
 fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s);
-fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err);
-fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err);
+fm_status fm_flock_dist_migrate(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
+fm_status fm_flock_dist_ghosts(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
 void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds);
-fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err);
+fm_flock_state *fm_flock_dist_gather(fm_flock_state *s, int grid, fm_error *err);
+fm_flock_state *fm_flock_dist_blocks(fm_flock_state *s, fm_error *err); /* whole FM_BLOCK blocks a rank */
+int64_t fm_flock_slot_of(const fm_flock_state *s, int64_t id); /* −1: not here */
 /* flock_state.c: agents begin … end − 1 of a frame (fm_flock_frame's arrays, in id order from
  * agent begin at index 0); the mean and
  * largest distance to the destinations over the blocks of [begin, end) (whole FM_BLOCK blocks),
@@ -148,25 +183,30 @@ void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, f
                           float *orientation, uint8_t *phase);
 void fm_flock_distance_blocks(const fm_flock_state *s, int64_t begin, int64_t end, const fm_dist *d, double *mean,
                               double *max);
-/* flock_measures.c: fm_flock_measure_frame on P ranks from their shares (ids begin[r] … begin[r + 1]
- * − 1, runs of whole FM_BLOCK blocks, complete on their ranks: fm_flock_dist_share); out on rank 0. */
-fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, const int64_t *begin,
+/* flock_measures.c: fm_flock_measure_frame on P ranks from their shares (each rank's view from
+ * fm_flock_dist_share: runs of whole FM_BLOCK blocks); out on rank 0. */
+fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, fm_flock_state *view,
                                         double out[FM_FLOCK_MEASURES], fm_error *err);
 
 /* The cache written in parallel: this rank's share of the ids (begin[rank] … begin[rank + 1] − 1)
- * complete in its arrays, from every rank; release after the frame. */
-fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err);
-/* s->member: this rank's own agents in flight (its slab's), not the share's agents it received. */
+ * complete in its view (returned; NULL on failure, which every rank agrees), from every rank;
+ * release after the frame. */
+fm_flock_state *fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err);
+/* s->member: this rank's own agents in flight (its slab's), not the ghosts. */
 void fm_flock_dist_own_in_flight(fm_flock_state *s);
 void fm_flock_dist_release(fm_flock_state *s);
 /* Checkpoints on P ranks: each rank writes the agents of its share of the pieces, rank 0 the rest. */
 fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
-                                    const fm_flock_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
-                                    int part_count, fm_error *err);
+                                    const fm_dist *dist, const fm_flock_run_stats *stats, int64_t frames,
+                                    const fm_ckpt_part *parts, int part_count, fm_error *err);
+/* On P ranks: the whole file read into a view of every agent by load(all, arg), this rank's slab's
+ * agents kept. */
+fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model *m,
+                                        fm_status (*load)(fm_flock_state *all, void *arg), void *arg, fm_error *err);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, int64_t frames, fm_error *err);
 /* A shot's group (flock_shot.c): the state alone, without statistics, at `frames` frames (on P
- * ranks collective, as fm_flock_dist_checkpoint_save); its load, on P ranks then adopt. */
+ * ranks collective, as fm_flock_dist_checkpoint_save); its load (on P ranks each rank keeps its slab's). */
 fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t frames,
                                          fm_error *err);
 fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,

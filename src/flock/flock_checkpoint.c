@@ -48,7 +48,7 @@ static const char *check_state(const void *state)
 {
     const fm_flock_state *s = state;
     int64_t count[4] = {0, 0, 0, 0};
-    for (int64_t a = 0; a < s->n; a++) {
+    for (int64_t a = 0; a < s->slots; a++) {
         if (s->phase[a] > FM_PHASE_ARRIVED) return "agent values out of range";
         count[s->phase[a]]++;
     }
@@ -80,19 +80,41 @@ fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, co
 
 /* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
 fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
-                                    const fm_flock_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
-                                    int part_count, fm_error *err)
+                                    const fm_dist *dist, const fm_flock_run_stats *stats, int64_t frames,
+                                    const fm_ckpt_part *parts, int part_count, fm_error *err)
 {
-    const fm_ckpt_store c = fm_ckpt_on_ranks(flock_store(m, s, stats, frames), s->dist, parts, part_count);
+    const fm_ckpt_store c = fm_ckpt_on_ranks(flock_store(m, s, stats, frames), dist, parts, part_count);
     return fm_ckpt_save(path, &c, err);
+}
+
+/* What a load reads into a store: the file, the model, and the statistics or the frames. */
+typedef struct flock_load {
+    const char *path;
+    const fm_flock_model *m;
+    fm_flock_run_stats *stats; /* NULL: a shot's group */
+    int64_t *frames;
+    fm_error *err;
+} flock_load;
+
+static fm_status load_into(fm_flock_state *s, void *arg)
+{
+    const flock_load *l = arg;
+    fm_ckpt_store c = flock_store(l->m, s, l->stats, 0);
+    return fm_ckpt_load(l->path, &c, l->stats ? &l->stats->run.frames : l->frames, l->err);
+}
+
+/* On P ranks every rank reads the file and keeps its slab's agents (flock_dist.c). */
+static fm_status load(fm_flock_state *s, flock_load *l)
+{
+    return s->dist ? fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->err) : load_into(s, l);
 }
 
 fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                    fm_flock_run_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
-    fm_ckpt_store c = flock_store(m, s, stats, 0);
-    fm_status st = fm_ckpt_load(path, &c, &stats->run.frames, err);
+    flock_load l = {path, m, stats, NULL, err};
+    fm_status st = load(s, &l);
     if (st != FM_OK) fm_flock_run_stats_free(stats);
     return st;
 }
@@ -108,7 +130,7 @@ fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model 
 fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,
                                          fm_error *err)
 {
-    fm_ckpt_store c = flock_store(m, s, NULL, 0);
-    return fm_ckpt_load(path, &c, frames, err);
+    flock_load l = {path, m, NULL, frames, err};
+    return load(s, &l);
 }
 

@@ -1,25 +1,25 @@
 /* The shape flock on P ranks (docs/scale-out.md): slabs, migration, the boids' halo, the frame's
  * and the checkpoint's shares.
  *
- * Every rank keeps the one-process store (arrays indexed by agent id, as flock_state.c lays them
- * out) and computes only the agents whose position lies in its slab (slabs.h); an agent of another
- * rank has the rank-local phase FM_FLOCK_ELSEWHERE there, which every stage of the step skips, as
- * it skips a phase it does not handle. Every step:
+ * A rank's store holds the agents whose position lies in its slab (slabs.h), in slots kept in
+ * increasing id order (id[slot]), with their parameters by slot (fm_flock_params), so the step reads
+ * them as one process reads its agents; it grows with the slab (fm_flock_state_reserve). Every step:
  *   - migration: an agent that left the slab moves, with all that carries it from one step to the
- *     next (position, velocity, orientation, phase, bind time, leader, own Kalman covariance), to
- *     the owner of its new place; the destinations are computed by every rank for every agent, so
- *     they need not move;
+ *     next (position, velocity, orientation, phase, bind time, destination, leader, own Kalman
+ *     covariance), to the owner of its new place, which merges it into its slots by id;
  *   - halo: the agents in flight within the largest perception radius of another slab go there as
- *     ghosts (id, position, velocity: what the boids read of a neighbour), written in place and
- *     listed in the neighbour grid. The grid lists agents by cell, then by id, and the boids walk
- *     it in that order; with every neighbour within the radius present, each agent sums the same
- *     neighbours in the same order as on one process: the same bits;
+ *     ghosts (id, position, velocity: what the boids read of a neighbour), merged into the slots by
+ *     id with the rank-local phase FM_FLOCK_ELSEWHERE, which every stage of the step skips, and
+ *     listed in the neighbour grid. The grid lists agents by cell, then by slot, so by id, and its
+ *     table is the one process's (fm_grid_init_table): with every neighbour within the radius
+ *     present, each agent sums the same neighbours in the same order as on one process: the same
+ *     bits. The next migration drops the ghosts;
  *   - the rest is per agent (leaders, fields, the Kalman filter, the moves), replicated (the path,
  *     the shared covariance, the target), or an integer sum (the counts).
- * At a frame and a checkpoint each rank receives the agents of its share of the ids into its arrays
- * (or, for a frame whose pieces are not whole blocks of measures, rank 0 receives every agent), so
- * its share of the frame, the measures and the checkpoint is one process's; then it marks them
- * elsewhere again. */
+ * At a frame and a checkpoint each rank receives the agents of its share of the ids into a view
+ * (fm_flock_state_view: arrays for those ids alone), so its share of the frame, the measures and the
+ * checkpoint is one process's. Where the frame's pieces are not whole blocks of measures, rank 0's
+ * share is every agent. */
 #include "flock.h"
 #include "frame_share.h"
 
@@ -33,24 +33,24 @@ enum { RECUT_INTERVAL = 8 }; /* steps between two cuts */
  * fields): its weight in the balance. */
 static const double ARRIVED_WEIGHT = 0.1;
 
-/* What every record to another rank starts with: rank 0 finds the agents it received by it. */
+/* What every record to another rank starts with: the receiver places the agent by it. */
 typedef struct record_head {
     int32_t id;
     uint8_t phase, pad[3];
 } record_head;
 
-/* An agent that changes rank, or goes to rank 0 for a checkpoint: all that carries it to the next
- * step (88 bytes). */
+/* An agent that changes rank, or goes to a checkpoint's share: all that carries it to the next step
+ * (100 bytes). */
 typedef struct agent_record {
     record_head h;
-    float p[3], v[3], orient[4], leader[3], t_bind;
+    float p[3], v[3], orient[4], dest[3], leader[3], t_bind;
     double kalman_p[3];
 } agent_record;
 
-/* An agent in a frame on rank 0: what the frame and its measures read (60 bytes). */
+/* An agent of a frame's share: what the frame and its measures read (72 bytes). */
 typedef struct frame_record {
     record_head h;
-    float p[3], v[3], orient[4], leader[3];
+    float p[3], v[3], orient[4], dest[3], leader[3];
 } frame_record;
 
 /* A neighbour of another rank, for this step's boids. */
@@ -68,16 +68,17 @@ static void pack_frame(const fm_flock_state *s, int64_t a, void *out)
 {
     frame_record *r = out;
     memset(r, 0, sizeof *r);
-    for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->leader[k] = s->leader[k][a];
+    for (int k = 0; k < 3; k++)
+        r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->dest[k] = s->dest[k][a], r->leader[k] = s->leader[k][a];
     memcpy(r->orient, s->orient + 4 * a, sizeof r->orient);
-    r->h.id = (int32_t)a, r->h.phase = s->phase[a];
+    r->h.id = (int32_t)fm_flock_id(s, a), r->h.phase = s->phase[a];
 }
 
-static void unpack_frame(fm_flock_state *s, const void *in)
+static void unpack_frame(fm_flock_state *s, int64_t a, const void *in)
 {
     const frame_record *r = in;
-    const int64_t a = r->h.id;
-    for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->leader[k][a] = r->leader[k];
+    for (int k = 0; k < 3; k++)
+        s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->dest[k][a] = r->dest[k], s->leader[k][a] = r->leader[k];
     memcpy(s->orient + 4 * a, r->orient, sizeof r->orient);
     s->phase[a] = r->h.phase;
 }
@@ -86,71 +87,164 @@ static void pack(const fm_flock_state *s, int64_t a, void *out)
 {
     agent_record *r = out;
     memset(r, 0, sizeof *r);
-    for (int k = 0; k < 3; k++) r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->leader[k] = s->leader[k][a];
+    for (int k = 0; k < 3; k++)
+        r->p[k] = s->p[k][a], r->v[k] = s->v[k][a], r->dest[k] = s->dest[k][a], r->leader[k] = s->leader[k][a];
     if (s->kalman_p) memcpy(r->kalman_p, s->kalman_p + 3 * a, sizeof r->kalman_p);
     memcpy(r->orient, s->orient + 4 * a, sizeof r->orient);
-    r->t_bind = s->t_bind[a], r->h.id = (int32_t)a, r->h.phase = s->phase[a];
+    r->t_bind = s->t_bind[a], r->h.id = (int32_t)fm_flock_id(s, a), r->h.phase = s->phase[a];
 }
 
-static void unpack(fm_flock_state *s, const void *in)
+static void unpack(fm_flock_state *s, int64_t a, const void *in)
 {
     const agent_record *r = in;
-    const int64_t a = r->h.id;
-    for (int k = 0; k < 3; k++) s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->leader[k][a] = r->leader[k];
+    for (int k = 0; k < 3; k++)
+        s->p[k][a] = r->p[k], s->v[k][a] = r->v[k], s->dest[k][a] = r->dest[k], s->leader[k][a] = r->leader[k];
     if (s->kalman_p) memcpy(s->kalman_p + 3 * a, r->kalman_p, sizeof r->kalman_p);
     memcpy(s->orient + 4 * a, r->orient, sizeof r->orient);
     s->t_bind[a] = r->t_bind, s->phase[a] = r->h.phase;
 }
 
-/* The cuts at the quantiles of the agents this rank computes (every agent when all is set: every
- * rank then holds the same store and needs no sum), each weighted by its phase times `weight`. */
-static void cut_at_agents(fm_flock_state *s, double weight, int all)
+/* Bins of the positions x[id] (weight[id], or 1 for every id when weight is NULL) of n agents every
+ * rank holds alike: the cuts at their quantiles, without a sum over the ranks. */
+static void cut_at_all(fm_slabs *d, const float *x, const uint8_t *phase, int64_t n)
 {
-    fm_slabs *d = s->slabs;
     double *bins = calloc(FM_SLAB_BINS, sizeof(double));
     if (!bins) return; /* the cuts stay: still correct, only less balanced */
-    const float *x = s->p[d->axis];
-    for (int64_t a = 0; a < s->n; a++)
-        if (all || is_mine(s->phase[a])) bins[fm_slabs_bin(d, x[a])] += weight * agent_weight(s->phase[a]);
-    fm_slabs_cut(d, bins, all ? NULL : s->dist);
+    for (int64_t a = 0; a < n; a++) bins[fm_slabs_bin(d, x[a])] += phase ? agent_weight(phase[a]) : 1.0;
+    fm_slabs_cut(d, bins, NULL);
     free(bins);
 }
 
-/* Every rank holds every agent (a fresh state, or a loaded checkpoint): the cuts at their
- * quantiles, and the agents of other slabs marked elsewhere. */
-static void keep_my_slab(fm_flock_state *s)
+/* The cuts at the quantiles of every rank's agents, each weighted by its phase times `weight`. */
+static void cut_at_agents(fm_flock_state *s, double weight)
 {
-    cut_at_agents(s, 1, 1);
-    const fm_slabs *d = s->slabs;
-    for (int64_t a = 0; a < s->n; a++)
-        if (fm_slabs_owner(d, s->p[d->axis][a], 0) != d->rank) s->phase[a] = FM_FLOCK_ELSEWHERE;
+    fm_slabs *d = s->slabs;
+    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
+    if (!bins) return;
+    const float *x = s->p[d->axis];
+    for (int64_t a = 0; a < s->slots; a++)
+        if (is_mine(s->phase[a])) bins[fm_slabs_bin(d, x[a])] += weight * agent_weight(s->phase[a]);
+    fm_slabs_cut(d, bins, s->dist);
+    free(bins);
 }
 
-fm_status fm_flock_state_distribute(const fm_flock_model *m, fm_flock_state *s, const fm_dist *dist, fm_error *err)
+/* Of n agents at x[id] (alike on every rank), those of this rank's slab: how many. */
+static int64_t count_mine(const fm_slabs *d, const float *x, int64_t n)
 {
-    s->slabs = fm_slabs_create(dist, m->scene_lo, m->scene_hi, m->max_radius, err);
-    if (!s->slabs) return err->status;
-    s->dist = dist;
-    keep_my_slab(s);
-    return FM_OK;
+    int64_t mine = 0;
+    for (int64_t a = 0; a < n; a++) mine += fm_slabs_owner(d, x[a], 0) == d->rank;
+    return mine;
 }
 
-void fm_flock_dist_adopt(fm_flock_state *s) { keep_my_slab(s); }
+/* A rank's store for the agents of its slab at x[id] (every rank's alike): their ids in the slots,
+ * with their parameters. */
+static fm_flock_state *store_for_slab(const fm_flock_model *m, int threads, const fm_dist *dist, fm_slabs *d,
+                                      const float *x, fm_error *err)
+{
+    const int64_t mine = count_mine(d, x, m->n);
+    fm_flock_state *s = fm_flock_state_alloc(m, threads, dist, FM_MIN(m->n, mine + mine / 4 + 1024), err);
+    if (!s) return fm_slabs_free(d), NULL;
+    s->slabs = d, s->slots = 0;
+    for (int64_t id = 0; id < m->n; id++)
+        if (fm_slabs_owner(d, x[id], 0) == d->rank) s->id[s->slots] = (int32_t)id, fm_flock_params_copy(m, &s->prm, s->slots, id), s->slots++;
+    return s;
+}
+
+fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int threads, const fm_dist *dist,
+                                                  fm_error *err)
+{
+    fm_slabs *d = fm_slabs_create(dist, m->scene_lo, m->scene_hi, m->max_radius, err);
+    if (!d) return NULL;
+    cut_at_all(d, m->start[d->axis], NULL, m->n); /* every agent starts on its source sample, in flight */
+    fm_flock_state *s = store_for_slab(m, threads, dist, d, m->start[d->axis], err);
+    if (s) fm_flock_state_start(m, s);
+    return s;
+}
+
+/* Every agent of the run in `all` (a loaded checkpoint, alike on every rank): the cuts at their
+ * quantiles, and this rank's store the agents of its slab. */
+fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *all, fm_error *err)
+{
+    fm_slabs *d = s->slabs;
+    cut_at_all(d, all->p[d->axis], all->phase, all->slots);
+    const int64_t mine = count_mine(d, all->p[d->axis], all->slots);
+    s->slots = 0;
+    fm_status st = fm_flock_state_reserve(s, mine, err);
+    for (int64_t id = 0; st == FM_OK && id < all->slots; id++) {
+        if (fm_slabs_owner(d, all->p[d->axis][id], 0) != d->rank) continue;
+        agent_record r;
+        pack(all, id, &r);
+        unpack(s, s->slots, &r);
+        s->id[s->slots] = (int32_t)id, fm_flock_params_copy(m, &s->prm, s->slots, id), s->slots++;
+    }
+    s->step = all->step, s->time = all->time, s->kalman = all->kalman, s->lag_sum = all->lag_sum;
+    memcpy(s->count, all->count, sizeof s->count);
+    return fm_dist_agree(s->dist, st, err);
+}
 
 fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s)
 {
     fm_dist_totals t = {0};
-    return s->slabs ? s->slabs->totals : t;
+    return s && s->slabs ? s->slabs->totals : t;
 }
 
-/* The records of this rank's agents that `go` sends elsewhere, grouped by rank (d->count). */
+/* An incoming agent's id and its place among the records. */
+typedef struct incoming {
+    int32_t id;
+    int32_t k;
+} incoming;
+
+static int by_id(const void *a, const void *b)
+{
+    const int32_t x = ((const incoming *)a)->id, y = ((const incoming *)b)->id;
+    return (x > y) - (x < y);
+}
+
+/* The slots rebuilt: those with keep(phase) in their order, merged by id with `count` records of
+ * `size` bytes (their id at offset id_at), which `take` writes into their new slots; each gets its id
+ * and, for an agent of this rank (own), its parameters. */
+static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*keep)(uint8_t), const void *records,
+                             int64_t count, size_t size, size_t id_at, int own,
+                             void (*take)(fm_flock_state *, int64_t, const void *), fm_error *err)
+{
+    int64_t kept = 0;
+    for (int64_t a = 0; a < s->slots; a++) kept += keep(s->phase[a]);
+    if (kept == s->slots && count == 0) return FM_OK;
+    incoming *in = malloc(sizeof(incoming) * (size_t)FM_MAX(count, 1));
+    int64_t *from = malloc(sizeof(int64_t) * (size_t)FM_MAX(kept + count, 1)), *place = malloc(sizeof(int64_t) * (size_t)FM_MAX(count, 1));
+    fm_status st = in && from && place ? fm_flock_state_reserve(s, kept + count, err)
+                                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents' slots", (long long)(kept + count));
+    if (st != FM_OK) return free(in), free(from), free(place), st;
+    for (int64_t k = 0; k < count; k++) {
+        memcpy(&in[k].id, (const char *)records + size * (size_t)k + id_at, sizeof(int32_t));
+        in[k].k = (int32_t)k;
+    }
+    qsort(in, (size_t)count, sizeof *in, by_id);
+    int64_t a = 0, j = 0, slots = 0;
+    for (;;) { /* the merge by id: kept slot a, or incoming j (sorted) */
+        while (a < s->slots && !keep(s->phase[a])) a++;
+        if (a >= s->slots && j >= count) break;
+        if (a < s->slots && (j >= count || s->id[a] < in[j].id)) from[slots++] = a++;
+        else place[j++] = slots, from[slots++] = -1;
+    }
+    fm_flock_state_move_slots(s, from, slots);
+    for (j = 0; j < count; j++) {
+        take(s, place[j], (const char *)records + size * (size_t)in[j].k);
+        s->id[place[j]] = in[j].id;
+        if (own) fm_flock_params_copy(m, &s->prm, place[j], in[j].id);
+    }
+    free(in), free(from), free(place);
+    return FM_OK;
+}
+
+/* The records of this rank's agents that leave its slab, grouped by rank (d->count). */
 static agent_record *pack_leaving(fm_flock_state *s, int64_t *leaving, fm_error *err)
 {
     fm_slabs *d = s->slabs;
     const float *x = s->p[d->axis];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
     *leaving = 0;
-    for (int64_t a = 0; a < s->n; a++) {
+    for (int64_t a = 0; a < s->slots; a++) {
         if (!is_mine(s->phase[a])) continue;
         const int r = fm_slabs_owner(d, x[a], d->rank);
         if (r != d->rank) d->count[r]++, (*leaving)++;
@@ -162,48 +256,54 @@ static agent_record *pack_leaving(fm_flock_state *s, int64_t *leaving, fm_error 
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating agents", (long long)*leaving), NULL;
     }
     fm_slabs_offsets(d, at);
-    for (int64_t a = 0; a < s->n && *leaving > 0; a++) {
+    for (int64_t a = 0; a < s->slots && *leaving > 0; a++) {
         if (!is_mine(s->phase[a])) continue;
         const int r = fm_slabs_owner(d, x[a], d->rank);
         if (r == d->rank) continue;
         pack(s, a, out + at[r]++);
-        s->phase[a] = FM_FLOCK_ELSEWHERE;
+        s->phase[a] = FM_FLOCK_ELSEWHERE; /* dropped from the slots below, with the last step's ghosts */
     }
     free(at);
     d->totals.migrated += *leaving;
     return out;
 }
 
-static fm_status migrate(fm_flock_state *s, fm_error *err)
+/* Before the grid build: the cuts (every RECUT_INTERVAL steps) and the migration; the last step's
+ * ghosts leave the slots. */
+fm_status fm_flock_dist_migrate(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
 {
+    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(s->slabs));
     int64_t leaving = 0, received = 0;
     agent_record *out = pack_leaving(s, &leaving, err);
-    void *in;
+    void *in = NULL;
     fm_status st = fm_slabs_send(s->slabs, s->dist, out ? FM_OK : err->status, out, sizeof(agent_record), &in, &received, err);
-    for (int64_t k = 0; st == FM_OK && k < received; k++) unpack(s, (const agent_record *)in + k);
+    if (st == FM_OK)
+        st = merge_slots(m, s, is_mine, in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack, err);
     fm_free(out), fm_free(in);
-    return st;
-}
-
-/* Before the grid build: the cuts (every RECUT_INTERVAL steps) and the migration. */
-fm_status fm_flock_dist_migrate(fm_flock_state *s, fm_error *err)
-{
-    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(s->slabs), 0);
-    return migrate(s, err);
+    return fm_dist_agree(s->dist, st, err);
 }
 
 /* Whether this rank's agent a goes to rank r as a ghost. */
 static int ghost_for(const fm_slabs *d, int r, float x) { return r != d->rank && fm_slabs_near(d, r, x); }
 
-/* This step's ghosts: the other ranks' agents in flight within the halo of this slab, written in
- * place (position, velocity) and made members of the grid (after mark_flock). */
-fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err)
+static void take_ghost(fm_flock_state *s, int64_t a, const void *in)
+{
+    const ghost_record *g = in;
+    for (int c = 0; c < 3; c++) s->p[c][a] = g->p[c], s->v[c][a] = g->v[c];
+    s->phase[a] = FM_FLOCK_ELSEWHERE;
+}
+
+static int keep_all(uint8_t phase) { return (void)phase, 1; }
+
+/* This step's ghosts (after the migration): the other ranks' agents in flight within the halo of
+ * this slab, merged into the slots (position, velocity, id). */
+fm_status fm_flock_dist_ghosts(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
 {
     fm_slabs *d = s->slabs;
     const float *x = s->p[d->axis];
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
     int64_t sending = 0, received = 0;
-    for (int64_t a = 0; a < s->n; a++) /* count, then fill */
+    for (int64_t a = 0; a < s->slots; a++) /* count, then fill */
         if (in_flight(s->phase[a]) && fm_slabs_in_halo(d, x[a]))
             for (int r = 0; r < d->ranks; r++) d->count[r] += ghost_for(d, r, x[a]);
     for (int r = 0; r < d->ranks; r++) sending += d->count[r];
@@ -212,27 +312,21 @@ fm_status fm_flock_dist_ghosts(fm_flock_state *s, fm_error *err)
     fm_status st = out && at ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld halo agents", (long long)sending);
     if (st == FM_OK) {
         fm_slabs_offsets(d, at);
-        for (int64_t a = 0; a < s->n; a++) {
+        for (int64_t a = 0; a < s->slots; a++) {
             if (!in_flight(s->phase[a]) || !fm_slabs_in_halo(d, x[a])) continue;
             for (int r = 0; r < d->ranks; r++)
                 if (ghost_for(d, r, x[a]))
                     out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, {s->v[0][a], s->v[1][a], s->v[2][a]},
-                                                  (int32_t)a};
+                                                  s->id[a]};
         }
     }
-    void *in;
+    void *in = NULL;
     st = fm_slabs_send(d, s->dist, st, out, sizeof(ghost_record), &in, &received, err);
-    if (st == FM_OK) {
-        const ghost_record *g = in;
-        for (int64_t k = 0; k < received; k++) {
-            const int64_t a = g[k].id;
-            for (int c = 0; c < 3; c++) s->p[c][a] = g[k].p[c], s->v[c][a] = g[k].v[c];
-            s->member[a] = 1;
-        }
-        d->totals.ghost_agent_steps += received;
-    }
+    if (st == FM_OK)
+        st = merge_slots(m, s, keep_all, in, received, sizeof(ghost_record), offsetof(ghost_record, id), 0, take_ghost, err);
+    if (st == FM_OK) d->totals.ghost_agent_steps += received;
     fm_free(out), fm_free(in), free(at);
-    return st;
+    return fm_dist_agree(s->dist, st, err);
 }
 
 /* After the step: the counts over all ranks, the load, and the time its work took for the balance. */
@@ -245,82 +339,105 @@ void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds)
     fm_dist_sum_i64(s->dist, s->count, 4);
 }
 
-
 /* Every rank sends its agents whose ids lie in another rank's share (begin[r] … begin[r + 1] − 1)
- * there, as records of `size` bytes (count, then fill, as the migration packs), and takes those of
- * its own share into its arrays with their phases (s->gathered keeps them, for
- * fm_flock_dist_release). The share's agents are then complete here. */
-static fm_status share(fm_flock_state *s, const int64_t *begin, size_t size,
-                       void (*put)(const fm_flock_state *, int64_t, void *), void (*take)(fm_flock_state *, const void *),
-                       fm_error *err)
+ * there, as records of `size` bytes (count, then fill, as the migration packs), and puts those of its
+ * own share into its view (with a grid where `grid`), with the run's counters: the share's agents
+ * are then complete there. Returns the view, or NULL (every rank agrees). */
+static fm_flock_state *share(fm_flock_state *s, const int64_t *begin, int grid, size_t size,
+                             void (*put)(const fm_flock_state *, int64_t, void *),
+                             void (*take)(fm_flock_state *, int64_t, const void *), fm_error *err)
 {
     fm_slabs *d = s->slabs;
-    const int64_t mine_begin = begin[d->rank], mine_end = begin[d->rank + 1];
+    const int64_t first = begin[d->rank], end = begin[d->rank + 1];
+    fm_flock_state *view = fm_flock_state_view(s, first, end - first, grid, err);
     memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
-    for (int64_t a = 0; a < s->n; a++)
-        if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end)) d->count[fm_frame_share_owner(begin, d->ranks, a)]++;
+    for (int64_t a = 0; a < s->slots; a++)
+        if (is_mine(s->phase[a])) d->count[fm_frame_share_owner(begin, d->ranks, s->id[a])]++;
+    d->count[d->rank] = 0; /* those of this rank's share go straight into its view */
     int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
     if (at) fm_slabs_offsets(d, at);
-    char *out = at ? fm_alloc(size * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
-    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange");
-    for (int64_t a = 0; st == FM_OK && a < s->n; a++)
-        if (is_mine(s->phase[a]) && (a < mine_begin || a >= mine_end))
-            put(s, a, out + size * (size_t)at[fm_frame_share_owner(begin, d->ranks, a)]++);
-    void *in;
+    char *out = at ? fm_alloc(size * (size_t)FM_MAX(at[d->ranks], 1) + size) : NULL; /* and one for this rank */
+    fm_status st = view && out ? FM_OK : view ? fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's exchange") : err->status;
+    for (int64_t a = 0; st == FM_OK && a < s->slots; a++) {
+        if (!is_mine(s->phase[a])) continue;
+        const int r = fm_frame_share_owner(begin, d->ranks, s->id[a]);
+        char *rec = out + size * (size_t)(r == d->rank ? at[d->ranks] : at[r]++);
+        put(s, a, rec);
+        if (r == d->rank) take(view, s->id[a] - first, rec);
+    }
+    void *in = NULL;
     int64_t received = 0;
     st = fm_slabs_send(d, s->dist, st, out, size, &in, &received, err);
-    for (int64_t k = 0; st == FM_OK && k < received; k++) take(s, (const char *)in + size * (size_t)k);
-    s->gathered = in, s->gathered_count = st == FM_OK ? received : 0, s->gathered_size = size;
-    free(at), fm_free(out);
-    return st;
+    for (int64_t k = 0; st == FM_OK && k < received; k++) {
+        const char *rec = (const char *)in + size * (size_t)k;
+        take(view, ((const record_head *)rec)->id - first, rec);
+    }
+    if (st == FM_OK) {
+        view->step = s->step, view->time = s->time, view->kalman = s->kalman, view->lag_sum = s->lag_sum;
+        memcpy(view->count, s->count, sizeof view->count);
+    }
+    free(at), fm_free(out), fm_free(in);
+    return st == FM_OK ? view : NULL;
 }
 
-/* Rank 0 gets every agent (the frame gathered, where the pieces are not whole blocks of measures):
- * a share of every id. */
-fm_status fm_flock_dist_gather(fm_flock_state *s, fm_error *err)
+/* Shares of the ids: every id on rank 0 (all), or runs of whole FM_BLOCK blocks, as even as they go. */
+static fm_flock_state *share_by(fm_flock_state *s, int all, int grid, fm_error *err)
 {
     const int ranks = fm_dist_size(s->dist);
     int64_t *begin = malloc(sizeof(int64_t) * ((size_t)ranks + 1));
     fm_status st = fm_dist_agree(s->dist, begin ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory"), err);
-    if (st != FM_OK) return free(begin), st;
-    begin[0] = 0;
-    for (int r = 1; r <= ranks; r++) begin[r] = s->n;
-    st = share(s, begin, sizeof(frame_record), pack_frame, unpack_frame, err);
+    if (st != FM_OK) return free(begin), NULL;
+    const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
+    for (int r = 0; r <= ranks; r++) begin[r] = all ? (r > 0 ? s->n : 0) : FM_MIN(FM_BLOCK * (blocks * r / ranks), s->n);
+    fm_flock_state *view = share(s, begin, grid, sizeof(frame_record), pack_frame, unpack_frame, err);
     free(begin);
-    return st;
+    return view;
 }
 
-/* The cache written in parallel (frame_share.h): this rank's share of the frame's agents. */
-fm_status fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
+/* Rank 0 gets every agent (the frame gathered, where the pieces are not whole blocks of measures):
+ * a share of every id, with a grid for the measures where `grid`. */
+fm_flock_state *fm_flock_dist_gather(fm_flock_state *s, int grid, fm_error *err)
 {
-    return share(s, begin, sizeof(frame_record), pack_frame, unpack_frame, err);
+    return share_by(s, 1, grid && fm_dist_rank(s->dist) == 0, err);
+}
+
+/* Each rank a run of whole FM_BLOCK blocks: for block sums without a frame (a shot group's end-state
+ * distances, fm_flock_distance_blocks). */
+fm_flock_state *fm_flock_dist_blocks(fm_flock_state *s, fm_error *err) { return share_by(s, 0, 0, err); }
+
+/* The cache written in parallel (frame_share.h): this rank's share of the frame's agents. */
+fm_flock_state *fm_flock_dist_share(fm_flock_state *s, const int64_t *begin, fm_error *err)
+{
+    return share(s, begin, 0, sizeof(frame_record), pack_frame, unpack_frame, err);
 }
 
 void fm_flock_dist_own_in_flight(fm_flock_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++) s->member[a] = is_mine(s->phase[a]) && s->phase[a] != FM_PHASE_ARRIVED;
-    for (int64_t k = 0; k < s->gathered_count; k++)
-        s->member[((const record_head *)((const char *)s->gathered + s->gathered_size * (size_t)k))->id] = 0;
+    for (int64_t a = 0; a < s->slots; a++) s->member[a] = is_mine(s->phase[a]) && s->phase[a] != FM_PHASE_ARRIVED;
 }
 
-/* Rank 0 after the frame: the agents it received are elsewhere again; the measures' grid is not
- * the one this rank's next step builds (that lists its own agents and the ghosts). */
-void fm_flock_dist_release(fm_flock_state *s)
+/* After a frame's measures: their grid is not the one this rank's next step builds (that lists its
+ * own agents and the ghosts). */
+void fm_flock_dist_release(fm_flock_state *s) { s->grid_current = 0; }
+
+/* The slot of agent id here, or −1 (slots by increasing id). */
+int64_t fm_flock_slot_of(const fm_flock_state *s, int64_t id)
 {
-    for (int64_t k = 0; k < s->gathered_count; k++) {
-        const record_head *h = (const record_head *)((const char *)s->gathered + s->gathered_size * (size_t)k);
-        s->phase[h->id] = FM_FLOCK_ELSEWHERE;
+    if (!s->id) return id >= s->first && id < s->first + s->slots ? id - s->first : -1;
+    int64_t lo = 0, hi = s->slots;
+    while (lo < hi) {
+        const int64_t mid = lo + (hi - lo) / 2;
+        if (s->id[mid] < id) lo = mid + 1;
+        else hi = mid;
     }
-    fm_free(s->gathered);
-    s->gathered = NULL, s->gathered_count = 0;
-    s->grid_current = 0;
+    return lo < s->slots && s->id[lo] == id ? lo : -1;
 }
 
 /* On P ranks: every rank takes the agents of its share of the pieces (fm_ckpt_share: the ids
- * begin[r] … begin[r + 1] − 1) with all that a checkpoint saves of them, and writes them at their
- * place in one process's file, rank 0 the rest; any P, or one process, resumes it, and the file is
- * one process's, byte for byte. */
+ * begin[r] … begin[r + 1] − 1) into its view with all that a checkpoint saves of them, and writes
+ * them at their place in one process's file, rank 0 the rest; any P, or one process, resumes it, and
+ * the file is one process's, byte for byte. */
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, int64_t frames, fm_error *err)
 {
@@ -330,10 +447,21 @@ fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *
     if (st != FM_OK) return free(begin), st;
     for (int r = 0; r < ranks; r++) begin[r] = fm_ckpt_share(s->n, m->def.cache_piece_agents, r, ranks).first;
     begin[ranks] = s->n;
-    st = share(s, begin, sizeof(agent_record), pack, unpack, err);
-    const fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, me, ranks);
-    if (st == FM_OK) st = fm_flock_checkpoint_write(path, m, s, stats, frames, &part, 1, err);
-    fm_flock_dist_release(s);
+    fm_flock_state *view = share(s, begin, 0, sizeof(agent_record), pack, unpack, err);
+    fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, me, ranks);
+    part.at = 0; /* the view's element 0 is the share's first agent */
+    st = view ? fm_flock_checkpoint_write(path, m, view, s->dist, stats, frames, &part, 1, err) : err->status;
     free(begin);
     return fm_dist_agree(s->dist, st, err);
+}
+
+/* On P ranks: every rank reads the whole file into a view of every agent and keeps its slab's. */
+fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model *m,
+                                        fm_status (*load)(fm_flock_state *all, void *arg), void *arg, fm_error *err)
+{
+    fm_flock_state *all = fm_flock_state_view(s, 0, s->n, 0, err);
+    fm_status st = fm_dist_agree(s->dist, all ? load(all, arg) : err->status, err);
+    if (st == FM_OK) st = fm_flock_dist_adopt(m, s, all, err);
+    fm_flock_state_destroy(s->view), s->view = NULL; /* n agents: not kept */
+    return st;
 }

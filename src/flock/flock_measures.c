@@ -54,20 +54,21 @@ typedef struct nn_query {
  * s->member holds its own agents in flight, each rank answers every query from them, and the least
  * squared distance over the ranks is the one process's: the same grid query over all the agents. */
 static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const fm_dist *d, const nn_query *query,
-                      int64_t count, double *nn, double *best)
+                      int64_t count, double *nn, double *best, int64_t *self)
 {
     float cell = m->max_radius > 0 ? m->max_radius : 1.0f;
     int64_t pending = count;
-    for (int64_t q = 0; q < count; q++) nn[q] = NAN;
+    for (int64_t q = 0; q < count; q++) nn[q] = NAN, self[q] = fm_flock_slot_of(s, query[q].id); /* −1: not here */
     int passes = 0;
     for (; pending > 0 && passes <= 16; passes++, cell *= 4) {
-        fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n, cell,
+        fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->slots, cell,
                              s->threads);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
         for (int64_t q = 0; q < count; q++) {
             double d2;
             best[q] = -INFINITY; /* negated: the ranks take the largest */
-            if (isnan(nn[q])) best[q] = fm_grid_nearest(&s->grid, query[q].x, NULL, query[q].id, -1, &d2) >= 0 ? -d2 : -INFINITY;
+            if (isnan(nn[q]))
+                best[q] = fm_grid_nearest(&s->grid, query[q].x, NULL, self[q], -1, &d2) >= 0 ? -d2 : -INFINITY;
         }
         fm_dist_max_f64(d, best, (int)count);
         pending = 0;
@@ -107,7 +108,7 @@ static void mark_blocks(fm_flock_state *s, int64_t b0, int64_t b1, measure_block
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t i = b0; i < b1; i++)
-        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->n); a++) {
+        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->slots); a++) {
             s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
             b[i - b0].in_flight += s->member[a];
         }
@@ -125,10 +126,10 @@ static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t i = b0; i < b1; i++) {
         int64_t rank = first[i - b0];
-        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->n); a++) {
+        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->slots); a++) {
             measure_agent(s, a, &b[i - b0]);
             if (s->member[a] && rank % stride == 0)
-                query[rank / stride - first_query] = (nn_query){(int32_t)a, {s->p[0][a], s->p[1][a], s->p[2][a]}};
+                query[rank / stride - first_query] = (nn_query){(int32_t)fm_flock_id(s, a), {s->p[0][a], s->p[1][a], s->p[2][a]}};
             rank += s->member[a];
         }
     }
@@ -138,22 +139,24 @@ static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int
 
 void fm_flock_measure_frame(const fm_flock_model *m, fm_flock_state *s, double out[FM_FLOCK_MEASURES])
 {
-    const int64_t n = s->n, blocks = (n + FM_BLOCK - 1) / FM_BLOCK;
+    const int64_t n = s->n, blocks = (s->slots + FM_BLOCK - 1) / FM_BLOCK;
     measure_block *b = calloc((size_t)(blocks > 0 ? blocks : 1), sizeof *b);
     nn_query *query = malloc(sizeof(nn_query) * NN_QUERIES);
     double *nn = malloc(sizeof(double) * 2 * NN_QUERIES);
+    int64_t *self = malloc(sizeof(int64_t) * NN_QUERIES);
     for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
-    if (b && query && nn) {
+    if (b && query && nn && self) {
         mark_blocks(s, 0, blocks, b);
         int64_t total = 0;
         for (int64_t i = 0; i < blocks; i++) total += b[i].in_flight;
         const int64_t stride = total > NN_QUERIES ? (total + NN_QUERIES - 1) / NN_QUERIES : 1;
         if (sum_blocks(s, 0, blocks, 0, stride, b, query, 0) == FM_OK) {
             combine(b, blocks, n, out);
-            if (total >= 2) out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, NULL, query, (total + stride - 1) / stride, nn, nn + NN_QUERIES);
+            if (total >= 2)
+                out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, NULL, query, (total + stride - 1) / stride, nn, nn + NN_QUERIES, self);
         }
     }
-    free(b), free(query), free(nn);
+    free(b), free(query), free(nn), free(self);
 }
 
 /* The agents in flight on every rank's share, in rank order (so in id order), summed on all. */
@@ -170,36 +173,36 @@ static int64_t in_flight_before(const fm_dist *d, int64_t mine, int64_t *total)
     return before;
 }
 
-fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, const int64_t *begin,
+fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, fm_flock_state *view,
                                         double out[FM_FLOCK_MEASURES], fm_error *err)
 {
     const fm_dist *d = s->dist;
-    const int me = fm_dist_rank(d);
-    const int64_t b0 = begin[me] / FM_BLOCK, b1 = (begin[me + 1] + FM_BLOCK - 1) / FM_BLOCK, blocks = b1 - b0;
+    const int64_t blocks = (view->slots + FM_BLOCK - 1) / FM_BLOCK; /* the view starts on a block */
     measure_block *b = calloc((size_t)FM_MAX(blocks, 1), sizeof *b);
     nn_query *mine = malloc(sizeof(nn_query) * NN_QUERIES);
     double *nn = malloc(sizeof(double) * 2 * NN_QUERIES);
-    fm_status st = b && mine && nn ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the flock measures");
-    if ((st = fm_dist_agree(d, st, err)) != FM_OK) return free(b), free(mine), free(nn), st;
-    mark_blocks(s, b0, b1, b);
+    int64_t *self = malloc(sizeof(int64_t) * NN_QUERIES);
+    fm_status st = b && mine && nn && self ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for the flock measures");
+    if ((st = fm_dist_agree(d, st, err)) != FM_OK) return free(b), free(mine), free(nn), free(self), st;
+    mark_blocks(view, 0, blocks, b);
     int64_t flying = 0, total;
     for (int64_t i = 0; i < blocks; i++) flying += b[i].in_flight;
     const int64_t before = in_flight_before(d, flying, &total);
     const int64_t stride = total > NN_QUERIES ? (total + NN_QUERIES - 1) / NN_QUERIES : 1;
     const int64_t q0 = (before + stride - 1) / stride, q1 = (before + flying + stride - 1) / stride; /* this rank's queries */
-    st = fm_dist_agree(d, total < 0 ? FM_ERR_MEMORY : sum_blocks(s, b0, b1, before, stride, b, mine, q0), err);
+    st = fm_dist_agree(d, total < 0 ? FM_ERR_MEMORY : sum_blocks(view, 0, blocks, before, stride, b, mine, q0), err);
     void *all = NULL;
     int32_t *queries = NULL;
     int64_t count = 0, words = 0;
     if (st == FM_OK) st = fm_dist_gather(d, b, blocks, sizeof *b, &all, &count, err);
     for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
-    if (st == FM_OK && me == 0) combine(all, count, s->n, out);
+    if (st == FM_OK && fm_dist_rank(d) == 0) combine(all, count, s->n, out);
     if (st == FM_OK && total >= 2)
         st = fm_dist_allgather_i32(d, (const int32_t *)mine, 4 * (q1 - q0), &queries, &words, err);
     if (st == FM_OK && total >= 2) {
-        fm_flock_dist_own_in_flight(s); /* s->member: this rank's own agents in flight, not its share's */
-        out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, d, (const nn_query *)queries, words / 4, nn, nn + NN_QUERIES);
+        fm_flock_dist_own_in_flight(s); /* s->member: this rank's own agents in flight, not the ghosts */
+        out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, d, (const nn_query *)queries, words / 4, nn, nn + NN_QUERIES, self);
     }
-    fm_free(all), fm_free(queries), free(b), free(mine), free(nn);
+    fm_free(all), fm_free(queries), free(b), free(mine), free(nn), free(self);
     return st;
 }

@@ -19,7 +19,16 @@ static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
 /* The frame: position, velocity (3 floats), orientation (4: the largest attribute) and phase (1 byte). */
 static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST_ATTR = sizeof(float) * 4;
 /* On P ranks: an agent of a frame's exchange by share (flock_dist.c's frame record). */
-static const double FLOCK_SHARE_RECORD = 60;
+static const double FLOCK_SHARE_RECORD = 72;
+/* On P ranks a rank holds its slab's agents and its halo's ghosts, the busiest rank about 1.2 n / P,
+ * in a store with a quarter more room (fm_flock_state_reserve), as the tetra morph's. Each slot also
+ * has its agent's id, its parameters (the model's 15 floats: 3 rules x radius, angle, weight; max
+ * speed, force and acceleration; the source sample) and the slots' moves' scratch (24 bytes). */
+static const double HELD_PER_SHARE = 1.5;
+static const double FLOCK_SLOT_EXTRA = sizeof(int32_t) + sizeof(float) * (3 * FM_BOIDS_RULES + 3 + 3) + 24;
+/* The view of a frame's share: position, velocity, destination, leader, orientation, phase, in-flight
+ * flag (and a checkpoint's: the bind time, the own Kalman covariance). */
+static const double FLOCK_VIEW = sizeof(float) * (4 * 3 + 4) + 2;
 
 /* The peak of preprocessing, while the target is sampled: the model, the agent-sample match
  * (int64) and the source's samples (point, barycentrics, triangle), plus the sampler's own arrays
@@ -47,18 +56,23 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
 {
     fm_memory_estimate e = {0};
     double agents = (double)n;
-    e.model = FLOCK_MODEL_PER_AGENT;
-    e.state = FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +
-              (def->flock.kalman_r_over != FM_KALMAN_R_FIXED ? FLOCK_OWN_KALMAN_PER_AGENT : 0);
-    /* On P ranks the store and model are whole on every rank (flock_dist.c), the frame is the rank's
-     * share n / P (frame_share.h): its arrays, its encoder's stored and previous words and blocks
-     * (the frame with ids), and the exchange of the share's agents (a record sent and one received).
-     * Rank 0's writer makes no frame buffers. */
-    const double ranks = fm_memory_ranks();
-    e.frames = ranks > 1 ? (FLOCK_FRAME + 3 * (FLOCK_FRAME + sizeof(uint32_t)) + 2 * FLOCK_SHARE_RECORD) / ranks
+    const double ranks = fm_memory_ranks(), held = ranks > 1 ? HELD_PER_SHARE / ranks : 1;
+    const int own_kalman = def->flock.kalman_r_over != FM_KALMAN_R_FIXED;
+    e.model = FLOCK_MODEL_PER_AGENT; /* every rank builds the whole model */
+    e.state = (FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +
+               (own_kalman ? FLOCK_OWN_KALMAN_PER_AGENT : 0) + (ranks > 1 ? FLOCK_SLOT_EXTRA : 0)) * held;
+    /* On P ranks the frame is the rank's share n / P (frame_share.h): its arrays and view, its
+     * encoder's stored and previous words and blocks (the frame with ids), and the exchange of the
+     * share's agents (a record sent and one received). Rank 0's writer makes no frame buffers. */
+    e.frames = ranks > 1 ? (FLOCK_FRAME + FLOCK_VIEW + (own_kalman ? sizeof(double) * 3 : 0) +
+                            3 * (FLOCK_FRAME + sizeof(uint32_t)) + 2 * FLOCK_SHARE_RECORD) / ranks
                          : fm_memory_frames_per_agent(def, FLOCK_FRAME);
-    /* the boids' neighbour grid, always, with its copy of the velocities (grid.h) */
-    e.grid = n > 0 ? fm_memory_grid_bytes(n) / agents + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float) : 0;
+    /* The boids' neighbour grid, always, with its copy of the velocities (grid.h); on P ranks for the
+     * rank's slots, its table the one process's (fm_grid_init_table). */
+    const double listed = sizeof(fm_grid_quad) / 4.0 + sizeof(uint32_t) + sizeof(fm_grid_rec) + sizeof(uint32_t);
+    const double table = fm_memory_grid_bytes(n) - agents * listed; /* as fm_memory_grid_bytes counts */
+    const double per_slot = listed + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float);
+    e.grid = n > 0 ? (table + per_slot * ceil(agents * held)) / agents : 0;
     e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR);
     e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
     fm_memory_total(&e, n);

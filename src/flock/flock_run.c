@@ -52,11 +52,12 @@ static int flock_finished(const void *sim)
 static const char *const FLOCK_FORCES = "shape_flock.mass, max_speed and max_force, the boids weights, the fuzzy "
                                         "weights, damping and external_gain, speed0, time.time_step";
 
-/* Frame k on one process, or on rank 0 holding every agent: checked, written, measured. */
-static fm_status write_and_measure(flock_run *r, int64_t frame, fm_error *err)
+/* Frame k on one process (s: the store), or on rank 0 holding every agent (s: its view): checked,
+ * written, measured. */
+static fm_status write_and_measure(flock_run *r, fm_flock_state *s, int64_t frame, fm_error *err)
 {
-    fm_flock_frame(r->s, r->position, r->velocity, r->orientation, r->phase);
-    fm_status st = fm_frame_check_runaway(r->position, 3, r->s->n, r->m->scene_lo, r->m->scene_hi, frame, FLOCK_FORCES, err);
+    fm_flock_frame(s, r->position, r->velocity, r->orientation, r->phase);
+    fm_status st = fm_frame_check_runaway(r->position, 3, s->n, r->m->scene_lo, r->m->scene_hi, frame, FLOCK_FORCES, err);
     if (st != FM_OK) return st;
     if (r->cache) {
         const void *data[FLOCK_ATTR_COUNT] = {r->position, r->velocity, r->orientation, fm_cache_writer_ids(r->cache),
@@ -66,10 +67,10 @@ static fm_status write_and_measure(flock_run *r, int64_t frame, fm_error *err)
     if (st != FM_OK || frame == 0) return st; /* frame 0 is the rest state: no step made it, nothing to measure */
     st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
     if (st != FM_OK) return st;
-    fm_flock_measure_frame(r->m, r->s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
+    fm_flock_measure_frame(r->m, s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
     if (r->m->info.deforming && r->s->time >= r->m->path_time) { /* tracking lag */
         double mean, max;
-        fm_flock_distance(r->s, &mean, &max);
+        fm_flock_distance(s, &mean, &max);
         r->s->lag_sum += mean;
         r->stats->tracking_frames++;
     }
@@ -82,15 +83,16 @@ static fm_status dist_frame(flock_run *r, int64_t frame, fm_error *err)
 {
     fm_flock_state *s = r->s;
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
-    fm_status st = fm_flock_dist_gather(s, err);
-    if (st == FM_OK && fm_dist_rank(s->dist) == 0) st = write_and_measure(r, frame, err);
+    fm_flock_state *view = fm_flock_dist_gather(s, 1, err);
+    fm_status st = view ? FM_OK : err->status;
+    if (st == FM_OK && fm_dist_rank(s->dist) == 0) st = write_and_measure(r, view, frame, err);
     fm_flock_dist_release(s);
     return fm_dist_agree(s->dist, st, err);
 }
 
 /* On P ranks with the cache written in parallel: frame k's measures from the ranks' shares (on rank
  * 0, which keeps the rows), and the tracking lag. */
-static fm_status measure_shared(flock_run *r, int64_t frame, fm_error *err)
+static fm_status measure_shared(flock_run *r, fm_flock_state *view, int64_t frame, fm_error *err)
 {
     fm_flock_state *s = r->s;
     const int root = fm_dist_rank(s->dist) == 0;
@@ -98,10 +100,10 @@ static fm_status measure_shared(flock_run *r, int64_t frame, fm_error *err)
     fm_status st = root ? fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err) : FM_OK;
     if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
     double *out = root ? r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES : scratch;
-    st = fm_flock_measure_frame_shared(r->m, s, r->share.begin, out, err);
+    st = fm_flock_measure_frame_shared(r->m, s, view, out, err);
     if (st == FM_OK && r->m->info.deforming && s->time >= r->m->path_time) { /* tracking lag */
         double mean, max;
-        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share), fm_frame_share_end(&r->share), s->dist, &mean, &max);
+        fm_flock_distance_blocks(view, 0, view->slots, s->dist, &mean, &max);
         s->lag_sum += root ? mean : 0;
         r->stats->tracking_frames++;
     }
@@ -115,9 +117,10 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
     fm_flock_state *s = r->s;
     if (s->dist_status != FM_OK) return *err = s->dist_error, err->status = s->dist_status;
     const int64_t first = fm_frame_share_first(&r->share), end = fm_frame_share_end(&r->share);
-    fm_status st = fm_flock_dist_share(s, r->share.begin, err);
+    fm_flock_state *view = fm_flock_dist_share(s, r->share.begin, err);
+    fm_status st = view ? FM_OK : err->status;
     if (st == FM_OK) {
-        fm_flock_frame_range(s, first, end, r->position, r->velocity, r->orientation, r->phase); /* the share's */
+        fm_flock_frame_range(view, 0, view->slots, r->position, r->velocity, r->orientation, r->phase); /* the share's */
         st = fm_frame_check_runaway_from(r->position, 3, first, end - first, r->m->scene_lo, r->m->scene_hi,
                                          frame, FLOCK_FORCES, err);
     }
@@ -125,7 +128,7 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
                                              [FM_ATTR_ORIENTATION] = r->orientation, [FM_ATTR_PHASE] = r->phase};
     if ((st = fm_dist_agree(s->dist, st, err)) == FM_OK)
         st = fm_frame_share_write(&r->share, s->dist, r->cache, by_kind, (uint32_t)frame, &s->slabs->totals.bytes_sent, err);
-    if (st == FM_OK && frame > 0) st = measure_shared(r, frame, err);
+    if (st == FM_OK && frame > 0) st = measure_shared(r, view, frame, err);
     fm_flock_dist_release(s);
     return st;
 }
@@ -133,7 +136,9 @@ static fm_status shared_frame(flock_run *r, int64_t frame, fm_error *err)
 static fm_status flock_frame(void *sim, int64_t frame, fm_error *err)
 {
     flock_run *r = sim;
-    fm_status st = r->share.on ? shared_frame(r, frame, err) : r->s->dist ? dist_frame(r, frame, err) : write_and_measure(r, frame, err);
+    fm_status st = r->share.on ? shared_frame(r, frame, err)
+                 : r->s->dist  ? dist_frame(r, frame, err)
+                               : write_and_measure(r, r->s, frame, err);
     if (st == FM_OK && frame > 0 && r->c->progress) {
         fm_run_info info = fm_flock_get_info(r->s);
         r->c->progress(&info, frame, r->c->progress_user);
@@ -173,17 +178,16 @@ static fm_status alloc_frame(flock_run *r, fm_error *err)
     return fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame of %lld agents", (long long)n);
 }
 
-/* The end-state distances to the destinations: on P ranks writing in parallel, from the shares. */
+/* The end-state distances to the destinations: on P ranks summed from the ranks' blocks
+ * (collective). */
 static void final_distance(flock_run *r, fm_flock_run_stats *stats)
 {
     fm_flock_state *s = r->s;
     fm_error ignored = {0};
-    if (!r->share.on) return fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
-    if (fm_flock_dist_share(s, r->share.begin, &ignored) == FM_OK)
-        fm_flock_distance_blocks(s, fm_frame_share_first(&r->share), fm_frame_share_end(&r->share), s->dist,
-                                 &stats->final_mean_distance, &stats->final_max_distance);
-    else
-        stats->final_mean_distance = stats->final_max_distance = NAN;
+    if (!s->dist) return fm_flock_distance(s, &stats->final_mean_distance, &stats->final_max_distance);
+    const fm_flock_state *view = fm_flock_dist_blocks(s, &ignored);
+    stats->final_mean_distance = stats->final_max_distance = NAN;
+    if (view) fm_flock_distance_blocks(view, 0, view->slots, s->dist, &stats->final_mean_distance, &stats->final_max_distance);
     fm_flock_dist_release(s);
 }
 

@@ -27,6 +27,7 @@ struct fm_flock_shot {
     float *position, *velocity, *orientation; /* a frame: every row, or on P ranks the rank's share */
     uint8_t *phase, *group;
     const fm_dist *dist; /* on P ranks (NULL: one process) */
+    int threads;         /* the groups' stores', made when the shot starts (make_states) */
     fm_frame_share share; /* on P ranks with a cache: each rank encodes its share of the rows */
     int64_t saved_frames; /* the frames of the last checkpoint written or loaded (0: none) */
     fm_flock_shot_stats *stats;
@@ -74,7 +75,18 @@ static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *u
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         else s->row0[g] = s->row0[from];
         s->writes[g] = from < 0;
-        if (!(s->state[g] = fm_flock_state_create(s->model[g], 0, err))) return err->status;
+    }
+    return FM_OK;
+}
+
+/* The groups' stores, once: on one process every agent's, on P ranks each rank's slab's. */
+static fm_status make_states(fm_flock_shot *s, fm_error *err)
+{
+    for (int g = 0; g < s->count; g++) {
+        if (s->state[g]) continue;
+        s->state[g] = s->dist ? fm_flock_state_create_distributed(s->model[g], s->threads, s->dist, err)
+                              : fm_flock_state_create(s->model[g], s->threads, err);
+        if (fm_dist_agree(s->dist, s->state[g] ? FM_OK : err->status, err) != FM_OK) return err->status;
     }
     return FM_OK;
 }
@@ -128,17 +140,15 @@ void fm_flock_shot_destroy(fm_flock_shot *s)
 
 void fm_flock_shot_set_threads(fm_flock_shot *s, int threads)
 {
-    for (int g = 0; g < s->count; g++) s->state[g]->threads = fm_threads(threads);
+    s->threads = threads;
+    for (int g = 0; g < s->count; g++)
+        if (s->state[g]) s->state[g]->threads = fm_threads(threads);
 }
 
 fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_error *err)
 {
-    for (int g = 0; g < s->count; g++) {
-        fm_status st = fm_flock_state_distribute(s->model[g], s->state[g], dist, err);
-        if (st != FM_OK) return st;
-    }
     s->dist = dist;
-    return FM_OK;
+    return make_states(s, err);
 }
 
 const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g) { return s->state[g]; }
@@ -175,10 +185,11 @@ static const char *const SHOT_FORCES = "each group's shape_flock speeds, forces 
 /* Group g's agents into its rows (on P ranks gathered on rank 0 first: collective). */
 static fm_status group_frame(fm_flock_shot *s, int g, fm_error *err)
 {
-    fm_status st = s->dist ? fm_flock_dist_gather(s->state[g], err) : FM_OK;
+    fm_flock_state *all = s->dist ? fm_flock_dist_gather(s->state[g], 0, err) : s->state[g];
+    fm_status st = all ? FM_OK : err->status;
     if (st == FM_OK && fm_dist_rank(s->dist) == 0) {
         const size_t r = (size_t)s->row0[g];
-        fm_flock_frame(s->state[g], s->position + 3 * r, s->velocity + 3 * r, s->orientation + 4 * r, s->phase + r);
+        fm_flock_frame(all, s->position + 3 * r, s->velocity + 3 * r, s->orientation + 4 * r, s->phase + r);
         memset(s->group + r, g, (size_t)s->model[g]->n);
     }
     if (s->dist) fm_flock_dist_release(s->state[g]);
@@ -217,11 +228,12 @@ static fm_status share_group(fm_flock_shot *s, int g, fm_error *err)
     fm_status st = fm_dist_agree(s->dist, begin ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory"), err);
     if (st != FM_OK) return free(begin), st;
     for (int r = 0; r <= ranks; r++) begin[r] = FM_MIN(FM_MAX(s->share.begin[r] - row0, 0), n);
-    st = fm_flock_dist_share(s->state[g], begin, err);
+    const fm_flock_state *view = fm_flock_dist_share(s->state[g], begin, err);
+    st = view ? FM_OK : err->status;
     if (st == FM_OK && begin[me] < begin[me + 1]) {
         const size_t at = (size_t)(row0 + begin[me] - first);
-        fm_flock_frame_range(s->state[g], begin[me], begin[me + 1], s->position + 3 * at, s->velocity + 3 * at,
-                             s->orientation + 4 * at, s->phase + at);
+        fm_flock_frame_range(view, 0, view->slots, s->position + 3 * at, s->velocity + 3 * at, s->orientation + 4 * at,
+                             s->phase + at);
         memset(s->group + at, g, (size_t)(begin[me + 1] - begin[me]));
     }
     fm_flock_dist_release(s->state[g]);
@@ -295,11 +307,12 @@ fm_status fm_flock_shot_checkpoint_check(const char *path, const fm_scene_def *d
 fm_status fm_flock_shot_checkpoint_load(fm_flock_shot *s, const char *path, fm_flock_shot_stats *stats, fm_error *err)
 {
     memset(stats, 0, sizeof *stats);
+    fm_status st = make_states(s, err);
+    if (st != FM_OK) return st;
     fm_shot_ckpt c = shot_checkpoint(s, stats);
-    fm_status st = fm_dist_agree(s->dist, fm_shot_ckpt_load(path, &c, &stats->run.frames, err), err);
+    st = fm_dist_agree(s->dist, fm_shot_ckpt_load(path, &c, &stats->run.frames, err), err); /* each rank its slabs' */
     if (st != FM_OK) return st;
     s->saved_frames = stats->run.frames;
-    for (int g = 0; g < s->count && s->dist; g++) fm_flock_dist_adopt(s->state[g]); /* this rank's share */
     return FM_OK;
 }
 
@@ -336,12 +349,12 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
     return st;
 }
 
-/* Group g's distances to its destinations (on P ranks from its store gathered on rank 0: collective). */
+/* Group g's distances to its destinations (on P ranks summed from the ranks' blocks: collective). */
 static void group_distance(fm_flock_shot *s, int g, double *mean, double *max)
 {
     fm_error err = {0};
-    fm_status st = s->dist ? fm_flock_dist_gather(s->state[g], &err) : FM_OK;
-    if (st == FM_OK) fm_flock_distance(s->state[g], mean, max);
+    fm_flock_state *mine = s->dist ? fm_flock_dist_blocks(s->state[g], &err) : s->state[g];
+    if (mine) fm_flock_distance_blocks(mine, 0, mine->slots, s->dist, mean, max);
     else *mean = *max = NAN;
     if (s->dist) fm_flock_dist_release(s->state[g]);
 }
@@ -369,7 +382,9 @@ fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_r
     if (!control->resume) memset(stats, 0, sizeof *stats); /* else fm_flock_shot_checkpoint_load restored them */
     s->stats = stats;
     shot_loop r = {s, cache, control};
-    fm_status st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, control->resume, err);
+    fm_status st = make_states(s, err);
+    if (st != FM_OK) return st;
+    st = fm_frame_share_start(&s->share, s->dist, cache, s->state[0]->threads, control->resume, err);
     if (st == FM_OK) fm_frame_share_commit(&s->share, cache), st = fm_dist_agree(s->dist, alloc_frame(s, err), err);
     if (st == FM_OK) {
         const fm_frame_loop loop = {&r, loop_step, loop_finished, loop_frame, loop_save, s->steps_per_frame,

@@ -31,60 +31,158 @@ const fm_store_member fm_flock_state_members[] = {
 #undef SCALAR
 const int fm_flock_state_member_count = (int)(sizeof fm_flock_state_members / sizeof fm_flock_state_members[0]);
 
-static int alloc_arrays(fm_flock_state *s, int deforming, int64_t nv, int own_kalman)
+/* Every per-slot array, with its bytes a slot, whether it carries the agent from one step to the
+ * next (moved with it when a rank's slots are rebuilt; the others are each step's scratch) and
+ * which stores have it: allocated, resized and freed together (a new array is one line here). */
+enum { IN_ALL, IN_STEPPED, IN_OWN_KALMAN, IN_STEPPED_OWN_KALMAN, IN_DEFORMING, IN_RANKS };
+typedef struct slot_array {
+    size_t offset; /* of the array's pointer in fm_flock_state */
+    size_t bytes;  /* per slot */
+    int carried, in;
+} slot_array;
+#define SLOTS(member, bytes, carried, in) {offsetof(fm_flock_state, member), bytes, carried, in}
+#define XYZ(member, carried, in) SLOTS(member[0], 4, carried, in), SLOTS(member[1], 4, carried, in), SLOTS(member[2], 4, carried, in)
+static const slot_array SLOT_ARRAYS[] = {
+    XYZ(p, 1, IN_ALL), XYZ(v, 1, IN_ALL), XYZ(dest, 1, IN_ALL), XYZ(leader, 1, IN_ALL),
+    SLOTS(orient, 16, 1, IN_ALL), SLOTS(phase, 1, 1, IN_ALL), SLOTS(t_bind, 4, 1, IN_ALL),
+    SLOTS(kalman_p, 24, 1, IN_OWN_KALMAN), SLOTS(member, 1, 0, IN_ALL),
+    XYZ(dest_v, 0, IN_STEPPED), XYZ(leader_v, 0, IN_STEPPED), XYZ(acc, 0, IN_STEPPED), XYZ(steer, 0, IN_STEPPED),
+    XYZ(ext, 0, IN_STEPPED), SLOTS(w_homing, 4, 0, IN_STEPPED), SLOTS(r_scale, 4, 0, IN_STEPPED_OWN_KALMAN),
+    SLOTS(eval, 12, 0, IN_DEFORMING), SLOTS(id, 4, 1, IN_RANKS),
+    XYZ(prm.radius, 1, IN_RANKS), XYZ(prm.cos_half, 1, IN_RANKS), XYZ(prm.weight, 1, IN_RANKS),
+    SLOTS(prm.max_speed, 4, 1, IN_RANKS), SLOTS(prm.max_force, 4, 1, IN_RANKS), SLOTS(prm.max_accel, 4, 1, IN_RANKS),
+    XYZ(prm.start, 1, IN_RANKS),
+};
+#undef SLOTS
+#undef XYZ
+enum { SLOT_ARRAY_COUNT = sizeof SLOT_ARRAYS / sizeof SLOT_ARRAYS[0], SLOT_BYTES_MAX = 24 };
+
+static void **slot_array_at(fm_flock_state *s, int i) { return (void **)((char *)s + SLOT_ARRAYS[i].offset); }
+
+/* Whether store s has array i. A share's view (flock_dist.c) has only what a frame, its measures and
+ * a checkpoint read. */
+static int has_array(const fm_flock_state *s, int view, int i)
 {
-    size_t n = (size_t)s->n;
-    int ok = (s->orient = fm_alloc(sizeof(float) * 4 * n)) && (s->phase = fm_alloc(n)) &&
-             (s->t_bind = fm_alloc(sizeof(float) * n)) && (s->w_homing = fm_alloc(sizeof(float) * n)) &&
-             (s->member = fm_alloc(n)) && (s->blocks = fm_alloc(sizeof(flock_block) * (n / FM_BLOCK + 1)));
-    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->steer, s->ext};
-    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
-        for (int k = 0; k < 3; k++) ok = ok && (arrays[i][k] = fm_alloc(sizeof(float) * n));
-    if (own_kalman) ok = ok && (s->kalman_p = fm_alloc(sizeof(double) * 3 * n)) && (s->r_scale = fm_alloc(sizeof(float) * n));
-    if (ok && s->kalman_p) memset(s->kalman_p, 0, sizeof(double) * 3 * n); /* P starts at 0 */
-    if (deforming) ok = ok && (s->mesh_v = fm_alloc(sizeof(double) * 3 * (size_t)nv)) && (s->eval = fm_alloc(sizeof(float) * 3 * n));
-    return ok;
+    switch (SLOT_ARRAYS[i].in) {
+    case IN_ALL: return 1;
+    case IN_STEPPED: return !view;
+    case IN_OWN_KALMAN: return s->own_kalman;
+    case IN_STEPPED_OWN_KALMAN: return !view && s->own_kalman;
+    case IN_DEFORMING: return !view && s->deforming;
+    default: return !view && s->dist != NULL;
+    }
 }
 
-/* Agents start at rest on their source samples, facing their destinations. */
-static void initial_state(const fm_flock_model *m, fm_flock_state *s)
+/* Every array of s at `capacity` slots, the first `keep` copied over, one array at a time (a resize
+ * needs one array's bytes more, not the store's). On failure every array still holds min(old, new
+ * capacity) slots, which the store then says it has. */
+static fm_status resize_arrays(fm_flock_state *s, int view, int64_t capacity, int64_t keep)
 {
-    for (int64_t a = 0; a < s->n; a++) {
-        float toward[3];
-        for (int k = 0; k < 3; k++) {
-            s->p[k][a] = s->leader[k][a] = m->start[k][a];
-            s->dest[k][a] = m->dest0[k][a];
-            toward[k] = m->dest0[k][a] - m->start[k][a];
-        }
-        s->orient[4 * a] = 1;
-        fm_flock_update_orientation(s->orient + 4 * a, toward);
-        s->phase[a] = FM_PHASE_FLYING;
-        s->member[a] = 1;
+    const int64_t least = FM_MIN(s->cap, capacity);
+    if (!view) {
+        flock_block *blocks = fm_alloc(sizeof(flock_block) * ((size_t)capacity / FM_BLOCK + 1));
+        if (!blocks) return s->cap = least, FM_ERR_MEMORY;
+        fm_free(s->blocks), s->blocks = blocks;
+    }
+    if (s->dist && !view) {
+        void *scratch = fm_alloc(SLOT_BYTES_MAX * (size_t)FM_MAX(capacity, 1));
+        if (!scratch) return s->cap = least, FM_ERR_MEMORY;
+        fm_free(s->scratch), s->scratch = scratch;
+    }
+    for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
+        if (!has_array(s, view, i)) continue;
+        void **a = slot_array_at(s, i), *fresh = fm_alloc(SLOT_ARRAYS[i].bytes * (size_t)FM_MAX(capacity, 1));
+        if (!fresh) return s->cap = least, FM_ERR_MEMORY;
+        if (*a && keep > 0) memcpy(fresh, *a, SLOT_ARRAYS[i].bytes * (size_t)keep);
+        fm_free(*a), *a = fresh;
+    }
+    s->cap = capacity;
+    return FM_OK;
+}
+
+/* On one process the model's parameters are the slots' (a slot is an agent). */
+static void params_of_model(const fm_flock_model *m, fm_flock_params *prm)
+{
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        prm->radius[r] = m->radius[r], prm->cos_half[r] = m->cos_half[r], prm->weight[r] = m->weight[r];
+    for (int k = 0; k < 3; k++) prm->start[k] = m->start[k];
+    prm->max_speed = m->max_speed, prm->max_force = m->max_force, prm->max_accel = m->max_accel;
+}
+
+void fm_flock_params_copy(const fm_flock_model *m, fm_flock_params *prm, int64_t slot, int64_t id)
+{
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        prm->radius[r][slot] = m->radius[r][id], prm->cos_half[r][slot] = m->cos_half[r][id],
+        prm->weight[r][slot] = m->weight[r][id];
+    for (int k = 0; k < 3; k++) prm->start[k][slot] = m->start[k][id];
+    prm->max_speed[slot] = m->max_speed[id], prm->max_force[slot] = m->max_force[id];
+    prm->max_accel[slot] = m->max_accel[id];
+}
+
+/* Agent `id` in slot a, at rest on its source sample, facing its destination (dest: where its
+ * destination is at time 0). */
+static void initial_agent(const fm_flock_model *m, fm_flock_state *s, int64_t a, int64_t id, const float dest[3])
+{
+    float toward[3];
+    for (int k = 0; k < 3; k++) {
+        s->p[k][a] = s->leader[k][a] = m->start[k][id];
+        s->dest[k][a] = dest[k];
+        toward[k] = m->dest0[k][id] - m->start[k][id];
+    }
+    s->orient[4 * a] = 1;
+    fm_flock_update_orientation(s->orient + 4 * a, toward);
+    s->phase[a] = FM_PHASE_FLYING;
+    s->member[a] = 1;
+}
+
+/* A deforming target's destination of agent `id` at the time of s->mesh_v (as fm_samples_eval). */
+void fm_flock_destination_of(const fm_flock_model *m, const fm_flock_state *s, int64_t id, float out[3])
+{
+    const fm_samples *d = &m->target.dest;
+    const int32_t *f = m->target.mesh.tri + 3 * (int64_t)d->tri[id];
+    const float *b = d->bary + 3 * id;
+    for (int k = 0; k < 3; k++)
+        out[k] = (float)((double)b[0] * s->mesh_v[3 * (int64_t)f[0] + k] + (double)b[1] * s->mesh_v[3 * (int64_t)f[1] + k] +
+                         (double)b[2] * s->mesh_v[3 * (int64_t)f[2] + k]);
+}
+
+/* Agents start at rest on their source samples, facing their destinations: slots [0, s->slots),
+ * agent id(a) each (every agent on one process). */
+void fm_flock_state_start(const fm_flock_model *m, fm_flock_state *s)
+{
+    if (s->mesh_v) fm_flock_target_vertices(&m->target, &m->def.flock, 0, s->mesh_v); /* a deforming target at t = 0 */
+    for (int64_t a = 0; a < s->slots; a++) {
+        const int64_t id = fm_flock_id(s, a);
+        float dest[3] = {m->dest0[0][id], m->dest0[1][id], m->dest0[2][id]};
+        if (s->mesh_v) fm_flock_destination_of(m, s, id, dest);
+        initial_agent(m, s, a, id, dest);
     }
     s->count[FM_PHASE_FLYING] = s->n;
-    if (!s->mesh_v) return;
-    fm_flock_target_vertices(&m->target, &m->def.flock, 0, s->mesh_v); /* a deforming target at t = 0 */
-    fm_samples_eval(&m->target.dest, s->mesh_v, m->target.mesh.tri, s->eval);
-    for (int64_t a = 0; a < s->n; a++)
-        for (int k = 0; k < 3; k++) s->dest[k][a] = s->eval[3 * a + k];
 }
 
-fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_error *err)
+/* The store without its agents: slots for `slots` agents (ids: on P ranks filled by the caller),
+ * the fields, the grid (its table one process's for n agents on P ranks: grid.h). */
+fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const fm_dist *dist, int64_t slots,
+                                     fm_error *err)
 {
     fm_flock_state *s = calloc(1, sizeof *s);
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
-    s->n = m->n;
-    s->threads = fm_threads(threads);
     const fm_scene_def *def = &m->def;
-    fm_status st = alloc_arrays(s, m->info.deforming, m->target.mesh.nv, def->flock.kalman_r_over != FM_KALMAN_R_FIXED)
+    s->n = m->n, s->slots = slots, s->dist = dist;
+    s->threads = fm_threads(threads);
+    s->own_kalman = def->flock.kalman_r_over != FM_KALMAN_R_FIXED, s->deforming = m->info.deforming;
+    fm_status st = resize_arrays(s, 0, slots, 0) == FM_OK
                        ? FM_OK
-                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)m->n);
+                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)slots);
+    if (!dist) params_of_model(m, &s->prm);
+    if (st == FM_OK && s->deforming && !(s->mesh_v = fm_alloc(sizeof(double) * 3 * (size_t)m->target.mesh.nv)))
+        st = fm_fail(err, FM_ERR_MEMORY, "out of memory for the target's vertices");
     if (st == FM_OK && def->field_count > 0) {
         s->fields = fm_fields_create(def->fields, def->field_count, def->seed, m->fields.baked ? def->field_grid : NULL,
                                      m->scene_lo, m->scene_hi, err);
         if (!s->fields) st = err ? err->status : FM_ERR_INPUT;
     }
-    if (st == FM_OK) st = fm_grid_init(&s->grid, s->n, err);
+    if (st == FM_OK) st = fm_grid_init_table(&s->grid, s->cap, dist ? s->n : 0, err);
     if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err); /* the boids read neighbours' velocities */
     s->grid_ready = st == FM_OK;
     if (st != FM_OK) {
@@ -92,21 +190,84 @@ fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_e
         return NULL;
     }
     fm_kalman_init(&s->kalman, m->dt, def->flock.kalman_q, def->flock.kalman_r_position, def->flock.kalman_r_velocity);
-    initial_state(m, s);
     return s;
+}
+
+fm_flock_state *fm_flock_state_create(const fm_flock_model *m, int threads, fm_error *err)
+{
+    fm_flock_state *s = fm_flock_state_alloc(m, threads, NULL, m->n, err);
+    if (s) fm_flock_state_start(m, s);
+    return s;
+}
+
+/* Slots for `slots` agents and a quarter more (and 1024), at most n: a rank's store grows with its
+ * slab at amortised cost. */
+static int64_t with_room(const fm_flock_state *s, int64_t slots) { return FM_MIN(s->n, slots + slots / 4 + 1024); }
+
+fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err)
+{
+    if (slots <= s->cap) return FM_OK;
+    const int64_t capacity = with_room(s, slots);
+    if (resize_arrays(s, 0, capacity, s->slots) != FM_OK)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a store of %lld agents (this process holds %lld)",
+                       (long long)capacity, (long long)s->slots);
+    fm_grid fresh;
+    fm_status st = fm_grid_init_table(&fresh, capacity, s->dist ? s->n : 0, err);
+    if (st == FM_OK && (st = fm_grid_init_velocities(&fresh, err)) != FM_OK) fm_grid_free(&fresh);
+    if (st != FM_OK) return st;
+    if (s->grid_ready) fm_grid_free(&s->grid);
+    s->grid = fresh, s->grid_ready = 1;
+    return FM_OK;
+}
+
+/* The slots rebuilt (P ranks): new slot k holds old slot from[k] (>= 0), or for from[k] = -1 nothing
+ * yet (the caller writes it); `slots` of them. Only the carried arrays move. */
+void fm_flock_state_move_slots(fm_flock_state *s, const int64_t *from, int64_t slots)
+{
+    for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
+        if (!SLOT_ARRAYS[i].carried || !has_array(s, 0, i)) continue;
+        const size_t bytes = SLOT_ARRAYS[i].bytes;
+        char *a = *slot_array_at(s, i), *t = s->scratch;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+        for (int64_t k = 0; k < slots; k++)
+            if (from[k] >= 0) memcpy(t + bytes * (size_t)k, a + bytes * (size_t)from[k], bytes);
+        memcpy(a, t, bytes * (size_t)slots);
+    }
+    s->slots = slots;
+}
+
+/* A share's view (flock_dist.c): ids first … first + count − 1, the arrays a frame, its measures and
+ * a checkpoint read; with a grid where asked (rank 0 measuring a gathered frame as one process
+ * does). Kept in s->view between frames, remade when the share changes. */
+fm_flock_state *fm_flock_state_view(fm_flock_state *s, int64_t first, int64_t count, int grid, fm_error *err)
+{
+    fm_flock_state *v = s->view;
+    if (v && v->first == first && v->slots == count && v->grid_ready == grid) return v;
+    fm_flock_state_destroy(v);
+    s->view = v = calloc(1, sizeof *v);
+    if (!v) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    v->n = s->n, v->first = first, v->slots = count, v->threads = s->threads;
+    v->own_kalman = s->own_kalman, v->deforming = s->deforming;
+    fm_status st = resize_arrays(v, 1, count, 0);
+    if (st != FM_OK) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for a frame's share of %lld agents", (long long)count);
+    if (st == FM_OK && grid && (st = fm_grid_init(&v->grid, count, err)) == FM_OK)
+        v->grid_ready = 1, st = fm_grid_init_velocities(&v->grid, err);
+    if (st != FM_OK) return fm_flock_state_destroy(v), s->view = NULL;
+    return v;
 }
 
 void fm_flock_state_destroy(fm_flock_state *s)
 {
     if (!s) return;
-    float **arrays[] = {s->p, s->v, s->dest, s->dest_v, s->leader, s->leader_v, s->acc, s->steer, s->ext};
-    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++)
-        for (int k = 0; k < 3; k++) fm_free(arrays[i][k]);
-    fm_free(s->orient), fm_free(s->phase), fm_free(s->t_bind), fm_free(s->w_homing), fm_free(s->member);
-    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->eval), fm_free(s->kalman_p), fm_free(s->r_scale);
+    for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
+        if (!s->dist && SLOT_ARRAYS[i].in == IN_RANKS) continue; /* the model's own, on one process */
+        fm_free(*slot_array_at(s, i));
+    }
+    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->scratch);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
-    fm_slabs_free(s->slabs), fm_free(s->gathered);
+    fm_slabs_free(s->slabs);
+    fm_flock_state_destroy(s->view);
     free(s);
 }
 
@@ -145,7 +306,7 @@ void fm_flock_update_orientation(float *q, const float v[3])
 
 void fm_flock_frame(const fm_flock_state *s, float *position, float *velocity, float *orientation, uint8_t *phase)
 {
-    fm_flock_frame_range(s, 0, s->n, position, velocity, orientation, phase);
+    fm_flock_frame_range(s, 0, s->slots, position, velocity, orientation, phase);
 }
 
 void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,
@@ -163,7 +324,7 @@ void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, f
 
 void fm_flock_destinations(const fm_flock_state *s, float *out)
 {
-    for (int64_t a = 0; a < s->n; a++)
+    for (int64_t a = 0; a < s->slots; a++)
         for (int k = 0; k < 3; k++) out[3 * a + k] = s->dest[k][a];
 }
 
@@ -174,7 +335,7 @@ static void distance_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, dou
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = b0; b < b1; b++) {
         double sum = 0, big = 0;
-        for (int64_t a = b * FM_BLOCK; a < FM_MIN((b + 1) * FM_BLOCK, s->n); a++) {
+        for (int64_t a = b * FM_BLOCK; a < FM_MIN((b + 1) * FM_BLOCK, s->slots); a++) {
             double d2 = 0;
             for (int k = 0; k < 3; k++) d2 += ((double)s->p[k][a] - s->dest[k][a]) * ((double)s->p[k][a] - s->dest[k][a]);
             sum += sqrt(d2), big = fmax(big, sqrt(d2));
@@ -186,11 +347,11 @@ static void distance_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, dou
 /* Per-block sums combined in block order, so the mean does not depend on the thread count. */
 void fm_flock_distance(const fm_flock_state *s, double *mean, double *max)
 {
-    fm_flock_distance_blocks(s, 0, s->n, NULL, mean, max);
+    fm_flock_distance_blocks(s, 0, s->slots, NULL, mean, max);
 }
 
-/* On P ranks each rank sums the blocks of its share (whole FM_BLOCK blocks) and rank 0 combines
- * every block in block order: the one process's figures. */
+/* On P ranks each rank sums the blocks of its share's view (flock_dist.c: whole FM_BLOCK blocks) and
+ * rank 0 combines every block in block order: the one process's figures. */
 void fm_flock_distance_blocks(const fm_flock_state *s, int64_t begin, int64_t end, const fm_dist *d, double *mean,
                               double *max)
 {

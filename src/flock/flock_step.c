@@ -32,19 +32,23 @@
 
 static const double TWO_PI = 6.283185307179586;
 
-/* Stage 1: destinations at time t (deforming targets only; a static target keeps dest0). */
+/* Stage 1: destinations at time t (deforming targets only; a static target keeps dest0). On P ranks
+ * those of this rank's agents, by id. */
 static void update_destinations(const fm_flock_model *m, fm_flock_state *s, double t)
 {
     fm_flock_target_vertices(&m->target, &m->def.flock, t, s->mesh_v);
-    fm_samples_eval(&m->target.dest, s->mesh_v, m->target.mesh.tri, s->eval);
+    if (!s->id) fm_samples_eval(&m->target.dest, s->mesh_v, m->target.mesh.tri, s->eval);
     const float inv_dt = (float)(1.0 / m->dt);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++)
+    for (int64_t a = 0; a < s->slots; a++) {
+        if (s->phase[a] == FM_FLOCK_ELSEWHERE) continue;
+        if (s->id) fm_flock_destination_of(m, s, s->id[a], s->eval + 3 * a);
         for (int k = 0; k < 3; k++) {
             float now = s->eval[3 * a + k];
             s->dest_v[k][a] = (now - s->dest[k][a]) * inv_dt;
             s->dest[k][a] = now;
         }
+    }
 }
 
 /* Stage 2 for one block: the leader at path fraction u (r = R(u)), and its velocity by difference. */
@@ -57,7 +61,7 @@ static void leaders_block(const fm_flock_model *m, fm_flock_state *s, const doub
         if (u >= 1) {
             for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
         } else {
-            const double c1[3] = {m->start[0][a], m->start[1][a], m->start[2][a]};
+            const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
             const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
             fm_path_map(r, m->o1, m->o2, c1, c2, u, z);
         }
@@ -82,7 +86,7 @@ static void add_obstacle_push(const fm_flock_model *m, fm_flock_state *s, int64_
     float g[3], k_a = (float)m->def.k_a;
     float d = fm_sdf_sample(&sdf, s->p[0][a], s->p[1][a], s->p[2][a], g);
     if (!(d < k_a)) return;
-    float push = m->max_force[a] / (float)m->def.flock.mass * fminf(1.0f, 1.0f - d / k_a);
+    float push = s->prm.max_force[a] / (float)m->def.flock.mass * fminf(1.0f, 1.0f - d / k_a);
     for (int k = 0; k < 3; k++) acc[k] += push * g[k];
 }
 
@@ -109,7 +113,7 @@ static float r_scale(const fm_flock_model *m, const fm_flock_state *s, int64_t a
 static void other_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
 {
     const fm_flock_def *f = &m->def.flock;
-    const float d = distance_to_destination(s, a), max_accel = m->max_accel[a], inv_mass = (float)(1.0 / f->mass);
+    const float d = distance_to_destination(s, a), max_accel = s->prm.max_accel[a], inv_mass = (float)(1.0 / f->mass);
     const float w_steer = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_STEERING], d);
     const float w_damp = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_DAMPING], d);
     const float w_ext = fm_fuzzy_eval(&m->fuzzy[FM_FUZZY_EXTERNAL], d);
@@ -131,11 +135,11 @@ static void other_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
 
 /* Homing h first, the boids with what is left of MaxForce (Reynolds's prioritised allocation): an
  * agent far from its leader, whose h reaches MaxForce, is not held there by its neighbours. */
-static void combine_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
+static void combine_forces(fm_flock_state *s, int64_t a)
 {
     const float h[3] = {s->ext[0][a], s->ext[1][a], s->ext[2][a]};
     float b[3] = {s->steer[0][a], s->steer[1][a], s->steer[2][a]};
-    const float budget = fmaxf(0.0f, m->max_accel[a] - sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]));
+    const float budget = fmaxf(0.0f, s->prm.max_accel[a] - sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]));
     truncate3(b, budget);
     for (int k = 0; k < 3; k++) s->acc[k][a] += h[k] + b[k] - s->steer[k][a];
 }
@@ -144,11 +148,11 @@ static void combine_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a
  * order (fm_kernel_boids_listed: the same bits as by agent, without meeting every neighbourhood
  * cold). Every agent under forces is listed; each writes only its own entries, so the chunks may go
  * to the threads in any order. */
-static void boids_pass(const fm_flock_model *m, fm_flock_state *s)
+static void boids_pass(fm_flock_state *s)
 {
-    const fm_boids_view boids = {{m->radius[0], m->radius[1], m->radius[2]},
-                                 {m->cos_half[0], m->cos_half[1], m->cos_half[2]},
-                                 {m->weight[0], m->weight[1], m->weight[2]}, m->max_speed, m->max_force};
+    const fm_flock_params *q = &s->prm;
+    const fm_boids_view boids = {{q->radius[0], q->radius[1], q->radius[2]}, {q->cos_half[0], q->cos_half[1], q->cos_half[2]},
+                                 {q->weight[0], q->weight[1], q->weight[2]}, q->max_speed, q->max_force};
     const int64_t entries = s->grid.count, chunks = (entries + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
     for (int64_t c = 0; c < chunks; c++)
@@ -170,9 +174,9 @@ static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t beg
      * updates with the leader */
     const fm_kalman_agents own = {s->kalman_p, s->r_scale};
     fm_kalman_homing(&s->kalman, s->kalman_p ? &own : NULL, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
-                     (const float *const *)s->leader_v, s->w_homing, m->max_accel, (const float *const *)s->acc, s->ext);
+                     (const float *const *)s->leader_v, s->w_homing, s->prm.max_accel, (const float *const *)s->acc, s->ext);
     for (int64_t a = begin; a < end; a++)
-        if (s->phase[a] == FM_PHASE_FLYING) combine_forces(m, s, a);
+        if (s->phase[a] == FM_PHASE_FLYING) combine_forces(s, a);
 }
 
 /* Under forces, the paper's kinematics (eq 9 assumes them): for a constant a over the step,
@@ -184,7 +188,7 @@ static uint8_t move_flying(const fm_flock_model *m, fm_flock_state *s, int64_t a
 {
     float v1[3];
     for (int k = 0; k < 3; k++) v1[k] = s->v[k][a] + s->acc[k][a] * dt;
-    truncate3(v1, m->max_speed[a]);
+    truncate3(v1, s->prm.max_speed[a]);
     for (int k = 0; k < 3; k++) {
         s->p[k][a] += 0.5f * (s->v[k][a] + v1[k]) * dt;
         s->v[k][a] = v1[k];
@@ -236,11 +240,11 @@ static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t 
     float dir[3] = {to[0] / dist, to[1] / dist, to[2] / dist}, h[3];
     for (int k = 0; k < 3; k++) h[k] = speed > 0 ? rel[k] / speed : dir[k];
     turn_toward(h, dir, (float)(f->turn_rate_deg * 3.14159265358979323846 / 180) * dt);
-    float pace = fminf(m->max_speed[a], dist / (float)f->arrival_time);
+    float pace = fminf(s->prm.max_speed[a], dist / (float)f->arrival_time);
     pace *= fmaxf(0.0f, h[0] * dir[0] + h[1] * dir[1] + h[2] * dir[2]);
     if (pace * dt >= dist) return bind(s, a, dt), FM_PHASE_ARRIVED;
     float v[3] = {s->dest_v[0][a] + pace * h[0], s->dest_v[1][a] + pace * h[1], s->dest_v[2][a] + pace * h[2]};
-    truncate3(v, m->max_speed[a]); /* a destination faster than MaxSpeed is not caught up with */
+    truncate3(v, s->prm.max_speed[a]); /* a destination faster than MaxSpeed is not caught up with */
     for (int k = 0; k < 3; k++) {
         s->v[k][a] = v[k];
         s->p[k][a] += v[k] * dt;
@@ -258,7 +262,7 @@ static void move_bound(const fm_flock_model *m, fm_flock_state *s, int64_t a, fl
         static const double freq[3] = {1.0, 1.31, 0.77};
         double tau = s->time + dt - s->t_bind[a], ramp = 1 - exp(-tau / f->float_period);
         for (int k = 0; k < 3; k++) {
-            double phase = TWO_PI * fm_random_unit(m->def.seed, 100 + (uint64_t)k, (uint64_t)a);
+            double phase = TWO_PI * fm_random_unit(m->def.seed, 100 + (uint64_t)k, (uint64_t)fm_flock_id(s, a));
             offset[k] = (float)(f->float_amplitude * ramp * sin(TWO_PI * freq[k] * tau / f->float_period + phase));
         }
     }
@@ -289,50 +293,55 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
 
 /* The neighbour grid lists the agents still on their way: a bound agent is part of the shape, not
  * of the flock, and one that arrives late must not be held off its destination by the separation
- * from those already there. On P ranks, this rank's and (fm_flock_dist_ghosts, after this) the
- * ghosts. */
+ * from those already there. On P ranks, this rank's and the ghosts (phase FM_FLOCK_ELSEWHERE, which
+ * only ghosts have in the step). */
 static void mark_flock(fm_flock_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = 0; a < s->n; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING || s->phase[a] == FM_PHASE_HOMING;
+    for (int64_t a = 0; a < s->slots; a++)
+        s->member[a] = s->phase[a] == FM_PHASE_FLYING || s->phase[a] == FM_PHASE_HOMING || s->phase[a] == FM_FLOCK_ELSEWHERE;
 }
 
-/* The neighbour grid of this step: the agents on their way, on P ranks with the ghosts (after
- * the migration, which changes which agents are this rank's). */
-static fm_status build_grid(const fm_flock_model *m, fm_flock_state *s)
+/* The neighbour grid of this step: the agents on their way, on P ranks with the ghosts. */
+static void build_grid(const fm_flock_model *m, fm_flock_state *s)
 {
-    fm_status st = s->dist ? fm_flock_dist_migrate(s, &s->dist_error) : FM_OK;
-    if (st != FM_OK || s->grid_current) return st; /* else the frame's measures built this very grid (flock_measures.c) */
+    if (s->grid_current) return; /* the frame's measures built this very grid (flock_measures.c) */
     mark_flock(s);
-    if (s->dist && (st = fm_flock_dist_ghosts(s, &s->dist_error)) != FM_OK) return st;
-    fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->n,
+    fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->slots,
                          m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
-    return FM_OK;
+}
+
+/* On P ranks, first: the migration and the ghosts (positions are those the step starts from). */
+static fm_status exchange(const fm_flock_model *m, fm_flock_state *s)
+{
+    fm_status st = fm_flock_dist_migrate(m, s, &s->dist_error);
+    return st == FM_OK ? fm_flock_dist_ghosts(m, s, &s->dist_error) : st;
 }
 
 void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 {
     if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
+    if (s->dist && (s->dist_status = exchange(m, s)) != FM_OK) return;
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
-    const int64_t blocks = (s->n + FM_BLOCK - 1) / FM_BLOCK;
     if (m->info.deforming) update_destinations(m, s, t_end);
     double u = m->path_time > 0 ? fmin(t_end / m->path_time, 1.0) : 1.0, r[3] = {0, 0, 0};
     if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
     fm_kalman_advance(&s->kalman);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
-    if ((s->dist_status = build_grid(m, s)) != FM_OK) return;
+    build_grid(m, s);
     s->grid_current = 0;
     const double busy_from = s->dist ? fm_seconds() : 0;
-    boids_pass(m, s);
+    const int64_t blocks = (s->slots + FM_BLOCK - 1) / FM_BLOCK; /* after the migration */
+    boids_pass(s);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
-        const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->n);
+        const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->slots);
         leaders_block(m, s, r, u, begin, end);
         forces_block(m, s, begin, end);
     }
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++)
-        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->n), &s->blocks[b]);
+        move_block(m, s, b * FM_BLOCK, FM_MIN((b + 1) * FM_BLOCK, s->slots), &s->blocks[b]);
     memset(s->count, 0, sizeof s->count);
     for (int64_t b = 0; b < blocks; b++) /* combine in block order */
         for (int i = 0; i < 4; i++) s->count[i] += s->blocks[b].count[i];

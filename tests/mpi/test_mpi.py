@@ -226,13 +226,23 @@ class Memory(unittest.TestCase):
         alone, ranks = self.largest_rank("examples/castling/scene.json", "shotmem", sets)
         self.assertLess(ranks, 0.7 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
-    def test_a_flock_shot_rank_holds_no_whole_frame(self):
-        """flock_sequence at 2·10^5 agents: the flock's store is whole on every rank, but no rank
-        holds a whole frame or the cache writer's frame buffers, so none peaks above the one process
-        (0.89 of it measured; rank 0 peaked at 1.13 of it when it assembled and wrote every frame)."""
+    def test_a_flock_rank_holds_its_slab(self):
+        """flock_suzanne_torus at 3·10^5 agents (random sampling, whose preparation is small): each
+        of 4 ranks holds its slab's agents and its halo in its store and grid, and its share of the
+        frame, so the largest rank peaks well below the one process (0.68 of it measured; 0.83 when
+        every rank held the whole store; the rest is mostly the preparation and the libraries)."""
+        sets = ("--set", "n=300000", "--set", "shape_flock.sampling=random", "--set", "time.frame_limit=4") + pieces(16384)
+        alone, ranks = self.largest_rank("examples/flock_suzanne_torus/scene.json", "flockmem", sets)
+        self.assertLess(ranks, 0.75 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
+
+    def test_a_flock_shot_rank_holds_its_slab(self):
+        """flock_sequence at 2·10^5 agents: each group's store is the rank's slab's and no rank
+        holds a whole frame or the cache writer's frame buffers, so the largest rank peaks below the
+        one process (0.69 of it measured; 0.90 when every rank held every group's whole store;
+        rank 0 peaked at 1.13 of it when it also assembled and wrote every frame)."""
         sets = ("--set", "n=200000", "--set", "time.frame_limit=4") + pieces(16384)
         alone, ranks = self.largest_rank("examples/flock_sequence/scene.json", "flockshotmem", sets)
-        self.assertLess(ranks, alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
+        self.assertLess(ranks, 0.8 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
 
 def frames_in(path):
