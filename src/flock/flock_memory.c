@@ -26,9 +26,9 @@ static const double FLOCK_SHARE_RECORD = 72;
  * speed, force and acceleration; the source sample) and the slots' moves' scratch (24 bytes). */
 static const double HELD_PER_SHARE = 1.5;
 static const double FLOCK_SLOT_EXTRA = sizeof(int32_t) + sizeof(float) * (3 * FM_BOIDS_RULES + 3 + 3) + 24;
-/* The view of a frame's share: position, velocity, destination, leader, orientation, phase, in-flight
- * flag (and a checkpoint's: the bind time, the own Kalman covariance). */
-static const double FLOCK_VIEW = sizeof(float) * (4 * 3 + 4) + 2;
+/* The view of a frame's or a checkpoint's share (fm_flock_state_view): position, velocity,
+ * destination, leader, orientation, bind time, phase, in-flight flag (and the own Kalman covariance). */
+static const double FLOCK_VIEW = sizeof(float) * (4 * 3 + 4 + 1) + 2;
 
 /* The peak of preprocessing, while the target is sampled: the model, the agent-sample match
  * (int64) and the source's samples (point, barycentrics, triangle), plus the sampler's own arrays
