@@ -2,6 +2,7 @@
 #define _POSIX_C_SOURCE 200809L /* setenv */
 #include "dist.h"
 
+#include <assert.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -115,6 +116,7 @@ void fm_dist_min_f32(const fm_dist *d, float *v, int count)
 
 void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root)
 {
+    assert(bytes <= INT_MAX); /* a value or a path: MPI counts are int */
     if (d && d->size > 1) MPI_Bcast(data, (int)bytes, MPI_BYTE, root, d->comm);
 }
 
@@ -199,12 +201,12 @@ fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *se
     *recv = st == FM_OK && *recv_count > 0 ? fm_alloc(size * (size_t)*recv_count) : NULL;
     if (st == FM_OK && *recv_count > 0 && !*recv) st = fm_fail(err, FM_ERR_MEMORY, "out of memory for a halo exchange");
     MPI_Datatype type;
-    if (st == FM_OK && !record_type(size, &type)) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
+    const int typed = st == FM_OK && record_type(size, &type);
+    if (st == FM_OK && !typed) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
     st = fm_dist_agree(d, st, err);
-    if (st == FM_OK) {
-        MPI_Alltoallv(send, sc, sd, type, *recv, rc, rd, type, d->comm);
-        MPI_Type_free(&type);
-    }
+    if (st == FM_OK) MPI_Alltoallv(send, sc, sd, type, *recv, rc, rd, type, d->comm);
+    if (typed) MPI_Type_free(&type); /* also when another rank failed */
+    if (st != FM_OK) fm_free(*recv), *recv = NULL, *recv_count = 0;
     free(sc);
     return st;
 }
@@ -226,14 +228,12 @@ fm_status fm_dist_gather(const fm_dist *d, const void *mine, int64_t count, size
         *total = st == FM_OK ? n : 0;
     }
     MPI_Datatype type;
-    if (st == FM_OK && !record_type(size, &type)) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
+    const int typed = st == FM_OK && record_type(size, &type);
+    if (st == FM_OK && !typed) st = fm_fail(err, FM_ERR_INTERNAL, "MPI_Type_contiguous failed");
     st = fm_dist_agree(d, st, err);
-    if (st == FM_OK) {
-        MPI_Gatherv(mine, c, type, *all, counts, displ, type, 0, d->comm);
-        MPI_Type_free(&type);
-    } else if (root) {
-        fm_free(*all), *all = NULL, *total = 0;
-    }
+    if (st == FM_OK) MPI_Gatherv(mine, c, type, *all, counts, displ, type, 0, d->comm);
+    else if (root) fm_free(*all), *all = NULL, *total = 0;
+    if (typed) MPI_Type_free(&type); /* also when another rank failed */
     free(counts);
     return st;
 }

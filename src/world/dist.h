@@ -37,7 +37,7 @@ void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count);
 void fm_dist_max_f64(const fm_dist *d, double *v, int count);
 void fm_dist_sum_f64(const fm_dist *d, double *v, int count); /* in MPI's order: for what no result depends on */
 void fm_dist_min_f32(const fm_dist *d, float *v, int count);
-void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root);
+void fm_dist_bcast(const fm_dist *d, void *data, size_t bytes, int root); /* a value or a path (< 2 GiB) */
 
 /* The ranks agree on one outcome: the worst status (the largest fm_status) and, with it, err's
  * message from the lowest rank that had it, so every rank returns the same status and rank 0 can
