@@ -161,13 +161,13 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n);
 fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *err);
 
 /* flock_dist.c: the shape flock on P ranks (docs/scale-out.md). create_distributed makes one rank's
- * store (its slab's agents at rest); adopt makes it the slab's agents of `all` (every agent, as a
- * checkpoint restored them). Per step: migrate, then ghosts, before the grid build; after_step at
+ * store (its slab's agents at rest); adopt makes it the slab's agents of every rank's view (each a
+ * share of the agents, as a checkpoint restored them: collective). Per step: migrate, then ghosts, before the grid build; after_step at
  * the end. At a frame: gather (rank 0's view then holds every agent) or share (each rank's view its
  * share of the ids), release after the frame. */
 fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int threads, const fm_dist *dist,
                                                   fm_error *err);
-fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *all, fm_error *err);
+fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *view, fm_error *err);
 fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s);
 fm_status fm_flock_dist_migrate(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
 fm_status fm_flock_dist_ghosts(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
@@ -199,10 +199,11 @@ void fm_flock_dist_release(fm_flock_state *s);
 fm_status fm_flock_checkpoint_write(const char *path, const fm_flock_model *m, const fm_flock_state *s,
                                     const fm_dist *dist, const fm_flock_run_stats *stats, int64_t frames,
                                     const fm_ckpt_part *parts, int part_count, fm_error *err);
-/* On P ranks: the whole file read into a view of every agent by load(all, arg), this rank's slab's
- * agents kept. */
+/* On P ranks: each rank's share of the pieces read into its view by load(view, part, arg) (the whole
+ * file checked), then every agent to the rank whose slab holds it. */
 fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model *m,
-                                        fm_status (*load)(fm_flock_state *all, void *arg), void *arg, fm_error *err);
+                                        fm_status (*load)(fm_flock_state *view, const fm_ckpt_part *part, void *arg),
+                                        void *arg, const char *path, fm_error *err);
 fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *m, fm_flock_state *s,
                                         const fm_flock_run_stats *stats, int64_t frames, fm_error *err);
 /* A shot's group (flock_shot.c): the state alone, without statistics, at `frames` frames (on P

@@ -43,7 +43,8 @@ static uint64_t flock_model_hash(const fm_flock_model *m)
     return fm_hash_end(h);
 }
 
-/* The shape flock's restored values: phases in range and counted, a step and time that fit. */
+/* The shape flock's restored values: phases in range and counted (a share of the agents, on P ranks,
+ * is counted by fm_flock_dist_checkpoint_load over every rank's), a step and time that fit. */
 static const char *check_state(const void *state)
 {
     const fm_flock_state *s = state;
@@ -52,7 +53,7 @@ static const char *check_state(const void *state)
         if (s->phase[a] > FM_PHASE_ARRIVED) return "agent values out of range";
         count[s->phase[a]]++;
     }
-    if (memcmp(count, s->count, sizeof count) != 0 || s->step < 0 || !(s->time >= 0))
+    if ((s->slots == s->n && memcmp(count, s->count, sizeof count) != 0) || s->step < 0 || !(s->time >= 0))
         return "counters inconsistent with the agents";
     return NULL;
 }
@@ -96,17 +97,20 @@ typedef struct flock_load {
     fm_error *err;
 } flock_load;
 
-static fm_status load_into(fm_flock_state *s, void *arg)
+/* The file into s, or with a part (P ranks) that share of the agents into s, a share's view. */
+static fm_status load_into(fm_flock_state *s, const fm_ckpt_part *part, void *arg)
 {
     const flock_load *l = arg;
     fm_ckpt_store c = flock_store(l->m, s, l->stats, 0);
+    if (part) c.parts[0] = *part, c.part_count = 1;
     return fm_ckpt_load(l->path, &c, l->stats ? &l->stats->run.frames : l->frames, l->err);
 }
 
-/* On P ranks every rank reads the file and keeps its slab's agents (flock_dist.c). */
+/* On P ranks every rank reads its share of the agents and they go to their slabs' ranks
+ * (flock_dist.c). */
 static fm_status load(fm_flock_state *s, flock_load *l)
 {
-    return s->dist ? fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->err) : load_into(s, l);
+    return s->dist ? fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->path, l->err) : load_into(s, NULL, l);
 }
 
 fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s,

@@ -161,27 +161,6 @@ fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int t
     return s;
 }
 
-/* Every agent of the run in `all` (a loaded checkpoint, alike on every rank): the cuts at their
- * quantiles, and this rank's store the agents of its slab. */
-fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *all, fm_error *err)
-{
-    fm_slabs *d = s->slabs;
-    cut_at_all(d, all->p[d->axis], all->phase, all->slots);
-    const int64_t mine = count_mine(d, all->p[d->axis], all->slots);
-    s->slots = 0;
-    fm_status st = fm_flock_state_reserve(s, mine, err);
-    for (int64_t id = 0; st == FM_OK && id < all->slots; id++) {
-        if (fm_slabs_owner(d, all->p[d->axis][id], 0) != d->rank) continue;
-        agent_record r;
-        pack(all, id, &r);
-        unpack(s, s->slots, &r);
-        s->id[s->slots] = (int32_t)id, fm_flock_params_copy(m, &s->prm, s->slots, id), s->slots++;
-    }
-    s->step = all->step, s->time = all->time, s->kalman = all->kalman, s->lag_sum = all->lag_sum;
-    memcpy(s->count, all->count, sizeof s->count);
-    return fm_dist_agree(s->dist, st, err);
-}
-
 fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s)
 {
     fm_dist_totals t = {0};
@@ -455,13 +434,63 @@ fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *
     return fm_dist_agree(s->dist, st, err);
 }
 
-/* On P ranks: every rank reads the whole file into a view of every agent and keeps its slab's. */
-fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model *m,
-                                        fm_status (*load)(fm_flock_state *all, void *arg), void *arg, fm_error *err)
+/* The agents of every rank's view (a share of the ids, as a checkpoint restored them): the cuts at
+ * their quantiles, and each to the rank whose slab holds it, merged into its slots (collective). The
+ * hand-over is no step's traffic: the totals stay. */
+fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *view, fm_error *err)
 {
-    fm_flock_state *all = fm_flock_state_view(s, 0, s->n, 0, err);
-    fm_status st = fm_dist_agree(s->dist, all ? load(all, arg) : err->status, err);
-    if (st == FM_OK) st = fm_flock_dist_adopt(m, s, all, err);
-    fm_flock_state_destroy(s->view), s->view = NULL; /* n agents: not kept */
+    fm_slabs *d = s->slabs;
+    const fm_dist_totals totals = d->totals;
+    double *bins = calloc(FM_SLAB_BINS, sizeof(double));
+    if (bins) {
+        for (int64_t a = 0; a < view->slots; a++) bins[fm_slabs_bin(d, view->p[d->axis][a])] += agent_weight(view->phase[a]);
+        fm_slabs_cut(d, bins, s->dist); /* summed over the ranks */
+        free(bins);
+    }
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    for (int64_t a = 0; a < view->slots; a++) d->count[fm_slabs_owner(d, view->p[d->axis][a], d->rank)]++;
+    int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
+    if (at) fm_slabs_offsets(d, at);
+    agent_record *out = at ? fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(at[d->ranks], 1)) : NULL;
+    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld resumed agents", (long long)view->slots);
+    for (int64_t a = 0; st == FM_OK && a < view->slots; a++)
+        pack(view, a, out + at[fm_slabs_owner(d, view->p[d->axis][a], d->rank)]++);
+    void *in = NULL;
+    int64_t received = 0;
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(agent_record), &in, &received, err);
+    s->slots = 0; /* the fresh store's agents give way to the restored ones */
+    if (st == FM_OK)
+        st = merge_slots(m, s, keep_all, in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack, err);
+    s->step = view->step, s->time = view->time, s->kalman = view->kalman, s->lag_sum = view->lag_sum;
+    memcpy(s->count, view->count, sizeof s->count);
+    d->totals = totals;
+    free(at), fm_free(out), fm_free(in);
+    return fm_dist_agree(s->dist, st, err);
+}
+
+/* The restored phases of every rank's share against the counters (check_state counts a share's
+ * phases only where it holds every agent). */
+static fm_status check_counts(const fm_flock_state *view, const fm_dist *dist, const char *path, fm_error *err)
+{
+    int64_t count[4] = {0, 0, 0, 0};
+    for (int64_t a = 0; a < view->slots; a++) count[view->phase[a]]++; /* in range: check_state */
+    fm_dist_sum_i64(dist, count, 4);
+    if (memcmp(count, view->count, sizeof count) == 0) return FM_OK;
+    return fm_fail(err, FM_ERR_INPUT, "%s: damaged checkpoint (counters inconsistent with the agents); it cannot be "
+                   "used: run again without --resume", path);
+}
+
+/* On P ranks: every rank reads the file, keeping its share of the pieces (fm_ckpt_share, as the
+ * ranks wrote it) in its view, and the agents go to their slabs' ranks. */
+fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model *m,
+                                        fm_status (*load)(fm_flock_state *view, const fm_ckpt_part *part, void *arg),
+                                        void *arg, const char *path, fm_error *err)
+{
+    fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, fm_dist_rank(s->dist), fm_dist_size(s->dist));
+    part.at = 0; /* the view's element 0 is the share's first agent */
+    fm_flock_state *view = fm_flock_state_view(s, part.first, part.count, 0, err);
+    fm_status st = fm_dist_agree(s->dist, view ? load(view, &part, arg) : err->status, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, check_counts(view, s->dist, path, err), err);
+    if (st == FM_OK) st = fm_flock_dist_adopt(m, s, view, err);
     return st;
 }

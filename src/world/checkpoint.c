@@ -457,14 +457,23 @@ static fm_status read_heading(const source *src, const header *h, const fm_store
     return strcmp(name, mb->name) == 0 && fits ? FM_OK : damaged(src, "unexpected member");
 }
 
-/* A per-agent array, piece by piece against the table's j-th hashes, into `data` (or skipped). */
+/* A per-agent array, piece by piece against the table's j-th hashes, into `data` (or skipped). With
+ * a part (a rank's share on P ranks) only agents part->first … part->first + part->count − 1 go to
+ * data, from its element part->at; every piece is read and checked all the same. */
 static fm_status read_array(const source *src, const header *h, const uint64_t *table, size_t words, int j, size_t elem,
-                            uint64_t bytes, char *data)
+                            uint64_t bytes, char *data, const fm_ckpt_part *part)
 {
     fm_status st = FM_OK;
     for (uint64_t p = 0, first = 0; st == FM_OK && p < h->pieces; p++) {
         const uint64_t end = table[words * p], n = bytes ? elem * (end - first) : 0;
-        st = get_piece(src, data ? data + elem * first : NULL, n, table[words * p + 1 + (size_t)j]);
+        const uint64_t lo = part ? FM_MAX(first, (uint64_t)part->first) : first;
+        const uint64_t hi = part ? FM_MIN(end, (uint64_t)(part->first + part->count)) : end;
+        char *to = data && n && lo < hi ? data + elem * (lo - (part ? (uint64_t)(part->first - part->at) : 0)) : NULL;
+        char *whole = to && (lo != first || hi != end) ? malloc(n) : NULL; /* a piece the part cuts */
+        if (to && (lo != first || hi != end) && !whole) return fm_fail(src->err, FM_ERR_MEMORY, "out of memory");
+        st = get_piece(src, whole ? whole : to, n, table[words * p + 1 + (size_t)j]);
+        if (st == FM_OK && whole) memcpy(to, whole + elem * (lo - first), elem * (hi - lo));
+        free(whole);
         first = end;
     }
     return st;
@@ -478,7 +487,8 @@ static fm_status read_members(const source *src, const header *h, const fm_store
         uint64_t bytes, ignored;
         fm_status st = read_heading(src, h, mb, c, &bytes);
         char *data = c ? member_data(c->state, c->n, mb, &ignored) : NULL;
-        if (st == FM_OK && mb->per_agent) st = read_array(src, h, table, words, j++, mb->bytes, bytes, data);
+        const fm_ckpt_part *part = c && c->part_count > 0 ? &c->parts[0] : NULL;
+        if (st == FM_OK && mb->per_agent) st = read_array(src, h, table, words, j++, mb->bytes, bytes, data, part);
         else if (st == FM_OK) st = get(src, data, bytes);
         if (st != FM_OK) return st;
     }

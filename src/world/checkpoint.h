@@ -63,7 +63,8 @@ fm_ckpt_store fm_ckpt_on_ranks(fm_ckpt_store c, const fm_dist *dist, const fm_ck
 fm_ckpt_part fm_ckpt_share(int64_t n, int64_t piece, int rank, int ranks);
 /* Restores c's state and statistics (the state fresh from the mode's create) after the checks of
  * fm_ckpt_check, a check of the agent count and model hash, and c->check; *frames gets the frame
- * count the file states. */
+ * count the file states. With c->part_count 1 only the agents of c->parts[0] are kept (from its
+ * element `at`): a rank's share; the whole file is read and checked all the same. */
 fm_status fm_ckpt_load(const char *path, fm_ckpt_store *c, int64_t *frames, fm_error *err);
 /* Readable, undamaged (checksum), this version, the same scene parameters, the same member table. */
 fm_status fm_ckpt_check(const char *path, const fm_scene_def *def, const fm_store_member *members, int count,
