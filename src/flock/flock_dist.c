@@ -434,11 +434,12 @@ fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *
     return fm_dist_agree(s->dist, st, err);
 }
 
-/* The agents of every rank's view (a share of the ids, as a checkpoint restored them): the cuts at
- * their quantiles, and each to the rank whose slab holds it, merged into its slots (collective). The
- * hand-over is no step's traffic: the totals stay. */
-fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const fm_flock_state *view, fm_error *err)
+/* The agents of every rank's view (s->view: a share of the ids, as a checkpoint restored them): the
+ * cuts at their quantiles, and each to the rank whose slab holds it, merged into its slots
+ * (collective); the view is freed once packed. The hand-over is no step's traffic: the totals stay. */
+fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
 {
+    fm_flock_state *view = s->view;
     fm_slabs *d = s->slabs;
     const fm_dist_totals totals = d->totals;
     double *bins = calloc(FM_SLAB_BINS, sizeof(double));
@@ -455,14 +456,15 @@ fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, const 
     fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld resumed agents", (long long)view->slots);
     for (int64_t a = 0; st == FM_OK && a < view->slots; a++)
         pack(view, a, out + at[fm_slabs_owner(d, view->p[d->axis][a], d->rank)]++);
+    s->step = view->step, s->time = view->time, s->kalman = view->kalman, s->lag_sum = view->lag_sum;
+    memcpy(s->count, view->count, sizeof s->count);
+    fm_flock_state_destroy(view), s->view = NULL; /* its agents are in the records */
     void *in = NULL;
     int64_t received = 0;
     st = fm_slabs_send(d, s->dist, st, out, sizeof(agent_record), &in, &received, err);
     s->slots = 0; /* the fresh store's agents give way to the restored ones */
     if (st == FM_OK)
         st = merge_slots(m, s, keep_all, in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack, err);
-    s->step = view->step, s->time = view->time, s->kalman = view->kalman, s->lag_sum = view->lag_sum;
-    memcpy(s->count, view->count, sizeof s->count);
     d->totals = totals;
     free(at), fm_free(out), fm_free(in);
     return fm_dist_agree(s->dist, st, err);
@@ -491,6 +493,6 @@ fm_status fm_flock_dist_checkpoint_load(fm_flock_state *s, const fm_flock_model 
     fm_flock_state *view = fm_flock_state_view(s, part.first, part.count, 0, err);
     fm_status st = fm_dist_agree(s->dist, view ? load(view, &part, arg) : err->status, err);
     if (st == FM_OK) st = fm_dist_agree(s->dist, check_counts(view, s->dist, path, err), err);
-    if (st == FM_OK) st = fm_flock_dist_adopt(m, s, view, err);
+    if (st == FM_OK) st = fm_flock_dist_adopt(m, s, err);
     return st;
 }
