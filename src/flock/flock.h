@@ -1,7 +1,7 @@
 /* The shape-constrained flock (SCF): the internal layout of fm_flock_model and fm_flock_state.
  *
- * It shares the machinery of the wings below (docs/architecture.md): SoA arrays from fm_alloc indexed by agent id, FM_BLOCK
- * blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
+ * It shares the machinery of the wings below (docs/architecture.md): SoA arrays from fm_alloc indexed by slot (on
+ * one process the agent id; on P ranks a rank's agents in id order, flock_dist.c), FM_BLOCK blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
  * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
  * fm_morph_state: docs/architecture.md, "What the two modes share". */
