@@ -104,13 +104,13 @@ static void unpack(fm_flock_state *s, int64_t a, const void *in)
     s->t_bind[a] = r->t_bind, s->phase[a] = r->h.phase;
 }
 
-/* Bins of the positions x[id] (weight[id], or 1 for every id when weight is NULL) of n agents every
- * rank holds alike: the cuts at their quantiles, without a sum over the ranks. */
-static void cut_at_all(fm_slabs *d, const float *x, const uint8_t *phase, int64_t n)
+/* The cuts at the quantiles of n agents in flight at x[id], which every rank holds alike (no sum
+ * over the ranks). */
+static void cut_at_all(fm_slabs *d, const float *x, int64_t n)
 {
     double *bins = calloc(FM_SLAB_BINS, sizeof(double));
     if (!bins) return; /* the cuts stay: still correct, only less balanced */
-    for (int64_t a = 0; a < n; a++) bins[fm_slabs_bin(d, x[a])] += phase ? agent_weight(phase[a]) : 1.0;
+    for (int64_t a = 0; a < n; a++) bins[fm_slabs_bin(d, x[a])] += 1.0;
     fm_slabs_cut(d, bins, NULL);
     free(bins);
 }
@@ -145,8 +145,11 @@ static fm_flock_state *store_for_slab(const fm_flock_model *m, int threads, cons
     fm_flock_state *s = fm_flock_state_alloc(m, threads, dist, FM_MIN(m->n, mine + mine / 4 + 1024), err);
     if (!s) return fm_slabs_free(d), NULL;
     s->slabs = d, s->slots = 0;
-    for (int64_t id = 0; id < m->n; id++)
-        if (fm_slabs_owner(d, x[id], 0) == d->rank) s->id[s->slots] = (int32_t)id, fm_flock_params_copy(m, &s->prm, s->slots, id), s->slots++;
+    for (int64_t id = 0; id < m->n; id++) {
+        if (fm_slabs_owner(d, x[id], 0) != d->rank) continue;
+        s->id[s->slots] = (int32_t)id;
+        fm_flock_params_copy(m, &s->prm, s->slots++, id);
+    }
     return s;
 }
 
@@ -155,7 +158,7 @@ fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int t
 {
     fm_slabs *d = fm_slabs_create(dist, m->scene_lo, m->scene_hi, m->max_radius, err);
     if (!d) return NULL;
-    cut_at_all(d, m->start[d->axis], NULL, m->n); /* every agent starts on its source sample, in flight */
+    cut_at_all(d, m->start[d->axis], m->n); /* every agent starts on its source sample, in flight */
     fm_flock_state *s = store_for_slab(m, threads, dist, d, m->start[d->axis], err);
     if (s) fm_flock_state_start(m, s);
     return s;
