@@ -123,6 +123,9 @@ struct fm_flock_state {
     fm_status dist_status;         /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
     void *scratch;                 /* the slots' moves: one array's worth (cap entries of the largest) */
+    int32_t *move_from;            /* the slots' moves: each new slot's old one (flock_dist.c merge_slots) */
+    void *merge_buf;               /* merge_slots' incoming agents, kept between steps */
+    size_t merge_bytes;
     struct fm_flock_state *view;   /* a frame's or a checkpoint's share of the ids, complete (flock_dist.c) */
 };
 
@@ -140,7 +143,7 @@ static inline int64_t fm_flock_id(const fm_flock_state *s, int64_t a) { return s
 fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const fm_dist *dist, int64_t slots,
                                      fm_error *err);
 fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err);
-void fm_flock_state_move_slots(fm_flock_state *s, const int64_t *from, int64_t slots);
+void fm_flock_state_move_slots(fm_flock_state *s, const int32_t *from, int64_t slots);
 fm_flock_state *fm_flock_state_view(fm_flock_state *s, int64_t first, int64_t count, int grid, fm_error *err);
 void fm_flock_state_start(const fm_flock_model *m, fm_flock_state *s); /* the agents of the slots at rest */
 void fm_flock_params_copy(const fm_flock_model *m, fm_flock_params *prm, int64_t slot, int64_t id);

@@ -170,11 +170,24 @@ fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s)
     return s && s->slabs ? s->slabs->totals : t;
 }
 
-/* An incoming agent's id and its place among the records. */
+/* An incoming agent: its id, its place among the records, its new slot. */
 typedef struct incoming {
-    int32_t id;
-    int32_t k;
+    int32_t id, k;
+    int64_t slot;
 } incoming;
+
+/* s->merge_buf for `count` incoming agents: kept between steps (grown by half), so the step makes no
+ * allocation that the C library would keep in its heap. */
+static incoming *incoming_room(fm_flock_state *s, int64_t count)
+{
+    const size_t bytes = sizeof(incoming) * (size_t)FM_MAX(count, 1);
+    if (bytes > s->merge_bytes) {
+        void *more = realloc(s->merge_buf, bytes + bytes / 2);
+        if (!more) return NULL;
+        s->merge_buf = more, s->merge_bytes = bytes + bytes / 2;
+    }
+    return s->merge_buf;
+}
 
 static int by_id(const void *a, const void *b)
 {
@@ -192,11 +205,11 @@ static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*k
     int64_t kept = 0;
     for (int64_t a = 0; a < s->slots; a++) kept += keep(s->phase[a]);
     if (kept == s->slots && count == 0) return FM_OK;
-    incoming *in = malloc(sizeof(incoming) * (size_t)FM_MAX(count, 1));
-    int64_t *from = malloc(sizeof(int64_t) * (size_t)FM_MAX(kept + count, 1)), *place = malloc(sizeof(int64_t) * (size_t)FM_MAX(count, 1));
-    fm_status st = in && from && place ? fm_flock_state_reserve(s, kept + count, err)
-                                       : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld agents' slots", (long long)(kept + count));
-    if (st != FM_OK) return free(in), free(from), free(place), st;
+    incoming *in = incoming_room(s, count);
+    fm_status st = in ? fm_flock_state_reserve(s, kept + count, err)
+                      : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld incoming agents", (long long)count);
+    if (st != FM_OK) return st;
+    int32_t *from = s->move_from; /* a slot array: room for kept + count after the reserve */
     for (int64_t k = 0; k < count; k++) {
         memcpy(&in[k].id, (const char *)records + size * (size_t)k + id_at, sizeof(int32_t));
         in[k].k = (int32_t)k;
@@ -206,16 +219,15 @@ static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*k
     for (;;) { /* the merge by id: kept slot a, or incoming j (sorted) */
         while (a < s->slots && !keep(s->phase[a])) a++;
         if (a >= s->slots && j >= count) break;
-        if (a < s->slots && (j >= count || s->id[a] < in[j].id)) from[slots++] = a++;
-        else place[j++] = slots, from[slots++] = -1;
+        if (a < s->slots && (j >= count || s->id[a] < in[j].id)) from[slots++] = (int32_t)a++;
+        else in[j++].slot = slots, from[slots++] = -1;
     }
     fm_flock_state_move_slots(s, from, slots);
     for (j = 0; j < count; j++) {
-        take(s, place[j], (const char *)records + size * (size_t)in[j].k);
-        s->id[place[j]] = in[j].id;
-        if (own) fm_flock_params_copy(m, &s->prm, place[j], in[j].id);
+        take(s, in[j].slot, (const char *)records + size * (size_t)in[j].k);
+        s->id[in[j].slot] = in[j].id;
+        if (own) fm_flock_params_copy(m, &s->prm, in[j].slot, in[j].id);
     }
-    free(in), free(from), free(place);
     return FM_OK;
 }
 

@@ -20,12 +20,14 @@ static const double FLOCK_DEFORM_PER_AGENT = sizeof(float) * 3;
 static const double FLOCK_FRAME = sizeof(float) * (3 + 3 + 4) + 1, FLOCK_LARGEST_ATTR = sizeof(float) * 4;
 /* On P ranks: an agent of a frame's exchange by share (flock_dist.c's frame record). */
 static const double FLOCK_SHARE_RECORD = 72;
-/* On P ranks a rank holds its slab's agents and its halo's ghosts, the busiest rank about 1.2 n / P,
- * in a store with a quarter more room (fm_flock_state_reserve), as the tetra morph's. Each slot also
- * has its agent's id, its parameters (the model's 15 floats: 3 rules x radius, angle, weight; max
- * speed, force and acceleration; the source sample) and the slots' moves' scratch (24 bytes). */
-static const double HELD_PER_SHARE = 1.5;
-static const double FLOCK_SLOT_EXTRA = sizeof(int32_t) + sizeof(float) * (3 * FM_BOIDS_RULES + 3 + 3) + 24;
+/* On P ranks a rank holds its slab's agents and its halo's ghosts in a store with a quarter more
+ * room (fm_flock_state_reserve). The cuts balance the work, not the agents: a rank of 2 held up to
+ * 1.28 n / P (flock_suzanne_torus at 10^6 agents, 60 steps), so 1.7 n / P slots. Each slot also has
+ * its agent's id, its parameters (the model's 15 floats: 3 rules x radius, angle, weight; max speed,
+ * force and acceleration; the source sample) and the slots' moves' scratch (24 bytes and the old
+ * slot, 4). */
+static const double HELD_PER_SHARE = 1.7;
+static const double FLOCK_SLOT_EXTRA = 2 * sizeof(int32_t) + sizeof(float) * (3 * FM_BOIDS_RULES + 3 + 3) + 24;
 /* The view of a frame's or a checkpoint's share (fm_flock_state_view): position, velocity,
  * destination, leader, orientation, bind time, phase, in-flight flag (and the own Kalman covariance). */
 static const double FLOCK_VIEW = sizeof(float) * (4 * 3 + 4 + 1) + 2;

@@ -48,7 +48,7 @@ static const slot_array SLOT_ARRAYS[] = {
     SLOTS(kalman_p, 24, 1, IN_OWN_KALMAN), SLOTS(member, 1, 0, IN_ALL),
     XYZ(dest_v, 0, IN_STEPPED), XYZ(leader_v, 0, IN_STEPPED), XYZ(acc, 0, IN_STEPPED), XYZ(steer, 0, IN_STEPPED),
     XYZ(ext, 0, IN_STEPPED), SLOTS(w_homing, 4, 0, IN_STEPPED), SLOTS(r_scale, 4, 0, IN_STEPPED_OWN_KALMAN),
-    SLOTS(eval, 12, 0, IN_DEFORMING), SLOTS(id, 4, 1, IN_RANKS),
+    SLOTS(eval, 12, 0, IN_DEFORMING), SLOTS(id, 4, 1, IN_RANKS), SLOTS(move_from, 4, 0, IN_RANKS),
     XYZ(prm.radius, 1, IN_RANKS), XYZ(prm.cos_half, 1, IN_RANKS), XYZ(prm.weight, 1, IN_RANKS),
     SLOTS(prm.max_speed, 4, 1, IN_RANKS), SLOTS(prm.max_force, 4, 1, IN_RANKS), SLOTS(prm.max_accel, 4, 1, IN_RANKS),
     XYZ(prm.start, 1, IN_RANKS),
@@ -211,18 +211,19 @@ fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err
     if (resize_arrays(s, 0, capacity, s->slots) != FM_OK)
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for a store of %lld agents (this process holds %lld)",
                        (long long)capacity, (long long)s->slots);
-    fm_grid fresh;
-    fm_status st = fm_grid_init_table(&fresh, capacity, s->dist ? s->n : 0, err);
-    if (st == FM_OK && (st = fm_grid_init_velocities(&fresh, err)) != FM_OK) fm_grid_free(&fresh);
-    if (st != FM_OK) return st;
-    if (s->grid_ready) fm_grid_free(&s->grid);
-    s->grid = fresh, s->grid_ready = 1;
-    return FM_OK;
+    /* The grid is rebuilt every step: the old one goes first, so the two are never held together (a
+     * failure stops the run, every rank agreeing: flock_dist.c). */
+    if (s->grid_ready) fm_grid_free(&s->grid), s->grid_ready = 0;
+    fm_status st = fm_grid_init_table(&s->grid, capacity, s->dist ? s->n : 0, err);
+    if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err);
+    if (st != FM_OK) fm_grid_free(&s->grid);
+    s->grid_ready = st == FM_OK;
+    return st;
 }
 
 /* The slots rebuilt (P ranks): new slot k holds old slot from[k] (>= 0), or for from[k] = -1 nothing
  * yet (the caller writes it); `slots` of them. Only the carried arrays move. */
-void fm_flock_state_move_slots(fm_flock_state *s, const int64_t *from, int64_t slots)
+void fm_flock_state_move_slots(fm_flock_state *s, const int32_t *from, int64_t slots)
 {
     for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
         if (!SLOT_ARRAYS[i].carried || !has_array(s, 0, i)) continue;
@@ -263,7 +264,7 @@ void fm_flock_state_destroy(fm_flock_state *s)
         if (!s->dist && SLOT_ARRAYS[i].in == IN_RANKS) continue; /* the model's own, on one process */
         fm_free(*slot_array_at(s, i));
     }
-    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->scratch);
+    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->scratch), free(s->merge_buf);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     fm_slabs_free(s->slabs);
