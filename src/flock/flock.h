@@ -165,15 +165,15 @@ fm_status fm_flock_memory_check(const fm_scene_def *def, int64_t n, fm_error *er
 
 /* flock_dist.c: the shape flock on P ranks (docs/scale-out.md). create_distributed makes one rank's
  * store (its slab's agents at rest); adopt makes it the slab's agents of every rank's s->view (each a
- * share of the agents, as a checkpoint restored them: collective), and frees the view. Per step: migrate, then ghosts, before the grid build; after_step at
+ * share of the agents, as a checkpoint restored them: collective), and frees the view. Per step: exchange (the migration and the
+ * ghosts) before the grid build; after_step at
  * the end. At a frame: gather (rank 0's view then holds every agent) or share (each rank's view its
  * share of the ids), release after the frame. */
 fm_flock_state *fm_flock_state_create_distributed(const fm_flock_model *m, int threads, const fm_dist *dist,
                                                   fm_error *err);
 fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
 fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s);
-fm_status fm_flock_dist_migrate(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
-fm_status fm_flock_dist_ghosts(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
+fm_status fm_flock_dist_exchange(const fm_flock_model *m, fm_flock_state *s, fm_error *err);
 void fm_flock_dist_after_step(fm_flock_state *s, double busy_seconds);
 fm_flock_state *fm_flock_dist_gather(fm_flock_state *s, int grid, fm_error *err);
 fm_flock_state *fm_flock_dist_blocks(fm_flock_state *s, fm_error *err); /* whole FM_BLOCK blocks a rank */

@@ -170,10 +170,22 @@ fm_dist_totals fm_flock_dist_get_totals(const fm_flock_state *s)
     return s && s->slabs ? s->slabs->totals : t;
 }
 
-/* An incoming agent: its id, its place among the records, its new slot. */
+/* Records another rank sent, of one kind: `count` of `size` bytes, the id at offset id_at; take()
+ * writes one into its slot, which gets its parameters where `own` (an agent of this rank, not a
+ * ghost). */
+typedef struct arrivals {
+    const void *records;
+    int64_t count;
+    size_t size, id_at;
+    int own;
+    void (*take)(fm_flock_state *, int64_t, const void *);
+} arrivals;
+
+/* An incoming agent: its id, its kind (arrivals) and place among their records, its new slot. */
 typedef struct incoming {
     int32_t id, k;
     int64_t slot;
+    int kind;
 } incoming;
 
 /* s->merge_buf for `count` incoming agents: kept between steps (grown by half), so the step makes no
@@ -195,26 +207,36 @@ static int by_id(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The slots rebuilt: those with keep(phase) in their order, merged by id with `count` records of
- * `size` bytes (their id at offset id_at), which `take` writes into their new slots; each gets its id
- * and, for an agent of this rank (own), its parameters. */
-static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*keep)(uint8_t), const void *records,
-                             int64_t count, size_t size, size_t id_at, int own,
-                             void (*take)(fm_flock_state *, int64_t, const void *), fm_error *err)
+/* The incoming agents of every kind (their ids are distinct), sorted by id; their number. */
+static int64_t list_incoming(incoming *in, const arrivals *kinds, int kind_count)
 {
-    int64_t kept = 0;
-    for (int64_t a = 0; a < s->slots; a++) kept += keep(s->phase[a]);
-    if (kept == s->slots && count == 0) return FM_OK;
-    incoming *in = incoming_room(s, count);
-    fm_status st = in ? fm_flock_state_reserve(s, kept + count, err)
-                      : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld incoming agents", (long long)count);
-    if (st != FM_OK) return st;
-    int32_t *from = s->move_from; /* a slot array: room for kept + count after the reserve */
-    for (int64_t k = 0; k < count; k++) {
-        memcpy(&in[k].id, (const char *)records + size * (size_t)k + id_at, sizeof(int32_t));
-        in[k].k = (int32_t)k;
-    }
+    int64_t count = 0;
+    for (int c = 0; c < kind_count; c++)
+        for (int64_t k = 0; k < kinds[c].count; k++, count++) {
+            memcpy(&in[count].id, (const char *)kinds[c].records + kinds[c].size * (size_t)k + kinds[c].id_at,
+                   sizeof(int32_t));
+            in[count].k = (int32_t)k, in[count].kind = c;
+        }
     qsort(in, (size_t)count, sizeof *in, by_id);
+    return count;
+}
+
+/* The slots rebuilt, once: those with keep(phase) in their order, merged by id with the arrivals of
+ * each kind, which their take() writes into their new slots; each gets its id and, for an agent of
+ * this rank (own), its parameters. */
+static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*keep)(uint8_t), const arrivals *kinds,
+                             int kind_count, fm_error *err)
+{
+    int64_t kept = 0, arriving = 0;
+    for (int64_t a = 0; a < s->slots; a++) kept += keep(s->phase[a]);
+    for (int c = 0; c < kind_count; c++) arriving += kinds[c].count;
+    if (kept == s->slots && arriving == 0) return FM_OK;
+    incoming *in = incoming_room(s, arriving);
+    fm_status st = in ? fm_flock_state_reserve(s, kept + arriving, err)
+                      : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld incoming agents", (long long)arriving);
+    if (st != FM_OK) return st;
+    const int64_t count = list_incoming(in, kinds, kind_count);
+    int32_t *from = s->move_from; /* a slot array: room for kept + count after the reserve */
     int64_t a = 0, j = 0, slots = 0;
     for (;;) { /* the merge by id: kept slot a, or incoming j (sorted) */
         while (a < s->slots && !keep(s->phase[a])) a++;
@@ -224,61 +246,49 @@ static fm_status merge_slots(const fm_flock_model *m, fm_flock_state *s, int (*k
     }
     fm_flock_state_move_slots(s, from, slots);
     for (j = 0; j < count; j++) {
-        take(s, in[j].slot, (const char *)records + size * (size_t)in[j].k);
+        const arrivals *c = &kinds[in[j].kind];
+        c->take(s, in[j].slot, (const char *)c->records + c->size * (size_t)in[j].k);
         s->id[in[j].slot] = in[j].id;
-        if (own) fm_flock_params_copy(m, &s->prm, in[j].slot, in[j].id);
+        if (c->own) fm_flock_params_copy(m, &s->prm, in[j].slot, in[j].id);
     }
     return FM_OK;
 }
 
-/* The records of this rank's agents that leave its slab, grouped by rank (d->count). */
-static agent_record *pack_leaving(fm_flock_state *s, int64_t *leaving, fm_error *err)
-{
-    fm_slabs *d = s->slabs;
-    const float *x = s->p[d->axis];
-    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
-    *leaving = 0;
-    for (int64_t a = 0; a < s->slots; a++) {
-        if (!is_mine(s->phase[a])) continue;
-        const int r = fm_slabs_owner(d, x[a], d->rank);
-        if (r != d->rank) d->count[r]++, (*leaving)++;
-    }
-    agent_record *out = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(*leaving, 1));
-    int64_t *at = malloc(sizeof(int64_t) * (size_t)(d->ranks + 1));
-    if (!out || !at) {
-        fm_free(out), free(at);
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating agents", (long long)*leaving), NULL;
-    }
-    fm_slabs_offsets(d, at);
-    for (int64_t a = 0; a < s->slots && *leaving > 0; a++) {
-        if (!is_mine(s->phase[a])) continue;
-        const int r = fm_slabs_owner(d, x[a], d->rank);
-        if (r == d->rank) continue;
-        pack(s, a, out + at[r]++);
-        s->phase[a] = FM_FLOCK_ELSEWHERE; /* dropped from the slots below, with the last step's ghosts */
-    }
-    free(at);
-    d->totals.migrated += *leaving;
-    return out;
-}
+/* During the exchange, the phase of a slot the merge drops: last step's ghosts, and agents that left
+ * for a slab whose halo this one is not in (one that is stays here, as a ghost). */
+enum { DROPPED = 0xFE };
+static int kept_in_slots(uint8_t phase) { return phase != DROPPED; }
+static int keep_all(uint8_t phase) { return (void)phase, 1; }
 
-/* Before the grid build: the cuts (every RECUT_INTERVAL steps) and the migration; the last step's
- * ghosts leave the slots. */
-fm_status fm_flock_dist_migrate(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
-{
-    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(s->slabs));
-    int64_t leaving = 0, received = 0;
-    agent_record *out = pack_leaving(s, &leaving, err);
-    void *in = NULL;
-    fm_status st = fm_slabs_send(s->slabs, s->dist, out ? FM_OK : err->status, out, sizeof(agent_record), &in, &received, err);
-    if (st == FM_OK)
-        st = merge_slots(m, s, is_mine, in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack, err);
-    fm_free(out), fm_free(in);
-    return fm_dist_agree(s->dist, st, err);
-}
+/* The step's records to send, grouped by rank: per rank, first how many, then the next one's place
+ * (ranks + 1: the sum last); the ghost counts kept for their send (fm_slabs_send reads d->count). */
+typedef struct exchange_out {
+    int64_t *migrants, *ghosts, *ghost_count;
+    agent_record *agent;
+    ghost_record *ghost;
+    int64_t kept_ghosts; /* agents that left but stay here as ghosts */
+} exchange_out;
 
-/* Whether this rank's agent a goes to rank r as a ghost. */
-static int ghost_for(const fm_slabs *d, int r, float x) { return r != d->rank && fm_slabs_near(d, r, x); }
+/* Where this rank's agent a goes this step: to the owner of its slab (`owner`), and as a ghost to every
+ * other slab whose halo holds it, if in flight (the halo as its owner sees it: every rank's ghosts
+ * are its owner's, whether it moved or not). Counts them, or with pack_them packs them; says whether
+ * it stays here as a ghost. */
+static int route_agent(const fm_slabs *d, const fm_flock_state *s, int64_t a, int owner, exchange_out *o, int pack_them)
+{
+    const float x = s->p[d->axis][a];
+    if (owner != d->rank) pack_them ? pack(s, a, o->agent + o->migrants[owner]++) : (void)o->migrants[owner]++;
+    if (!in_flight(s->phase[a]) || (owner == d->rank && !fm_slabs_in_halo(d, x))) return 0;
+    int ghost_here = 0;
+    for (int r = 0; r < d->ranks; r++) {
+        if (r == owner || !fm_slabs_near(d, r, x)) continue;
+        if (r == d->rank) ghost_here = 1; /* it left, and this slab's halo still holds it */
+        else if (!pack_them) o->ghosts[r]++;
+        else
+            o->ghost[o->ghosts[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]},
+                                                      {s->v[0][a], s->v[1][a], s->v[2][a]}, s->id[a]};
+    }
+    return ghost_here;
+}
 
 static void take_ghost(fm_flock_state *s, int64_t a, const void *in)
 {
@@ -287,39 +297,80 @@ static void take_ghost(fm_flock_state *s, int64_t a, const void *in)
     s->phase[a] = FM_FLOCK_ELSEWHERE;
 }
 
-static int keep_all(uint8_t phase) { return (void)phase, 1; }
+/* Counts per rank (ranks + 1 each, the sums last) into offsets: the first record of each rank. */
+static void offsets_of(int64_t *count, int ranks)
+{
+    int64_t at = 0;
+    for (int r = 0; r < ranks; r++) {
+        const int64_t c = count[r];
+        count[r] = at, at += c;
+    }
+    count[ranks] = at;
+}
 
-/* This step's ghosts (after the migration): the other ranks' agents in flight within the halo of
- * this slab, merged into the slots (position, velocity, id). */
-fm_status fm_flock_dist_ghosts(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
+/* The step's records (o): every agent of this rank routed (route_agent), counted, then packed; last
+ * step's ghosts, and the agents that left for good, marked DROPPED for the merge; d->count the
+ * migrants per rank. */
+static fm_status pack_exchange(fm_flock_state *s, exchange_out *o, fm_error *err)
 {
     fm_slabs *d = s->slabs;
-    const float *x = s->p[d->axis];
-    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
-    int64_t sending = 0, received = 0;
-    for (int64_t a = 0; a < s->slots; a++) /* count, then fill */
-        if (in_flight(s->phase[a]) && fm_slabs_in_halo(d, x[a]))
-            for (int r = 0; r < d->ranks; r++) d->count[r] += ghost_for(d, r, x[a]);
-    for (int r = 0; r < d->ranks; r++) sending += d->count[r];
-    ghost_record *out = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(sending, 1));
-    int64_t *at = malloc(sizeof(int64_t) * (size_t)(d->ranks + 1));
-    fm_status st = out && at ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld halo agents", (long long)sending);
-    if (st == FM_OK) {
-        fm_slabs_offsets(d, at);
-        for (int64_t a = 0; a < s->slots; a++) {
-            if (!in_flight(s->phase[a]) || !fm_slabs_in_halo(d, x[a])) continue;
-            for (int r = 0; r < d->ranks; r++)
-                if (ghost_for(d, r, x[a]))
-                    out[at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]}, {s->v[0][a], s->v[1][a], s->v[2][a]},
-                                                  s->id[a]};
-        }
+    const int ranks = d->ranks;
+    memset(o->migrants, 0, sizeof(int64_t) * ((size_t)ranks + 1));
+    memset(o->ghosts, 0, sizeof(int64_t) * ((size_t)ranks + 1));
+    for (int64_t a = 0; a < s->slots; a++) {
+        if (s->phase[a] == FM_FLOCK_ELSEWHERE) s->phase[a] = DROPPED; /* last step's ghost */
+        else route_agent(d, s, a, fm_slabs_owner(d, s->p[d->axis][a], d->rank), o, 0);
     }
-    void *in = NULL;
-    st = fm_slabs_send(d, s->dist, st, out, sizeof(ghost_record), &in, &received, err);
-    if (st == FM_OK)
-        st = merge_slots(m, s, keep_all, in, received, sizeof(ghost_record), offsetof(ghost_record, id), 0, take_ghost, err);
-    if (st == FM_OK) d->totals.ghost_agent_steps += received;
-    fm_free(out), fm_free(in), free(at);
+    memcpy(d->count, o->migrants, sizeof(int64_t) * (size_t)ranks);
+    memcpy(o->ghost_count, o->ghosts, sizeof(int64_t) * (size_t)ranks);
+    offsets_of(o->migrants, ranks), offsets_of(o->ghosts, ranks);
+    const int64_t leaving = o->migrants[ranks];
+    o->agent = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(leaving, 1));
+    o->ghost = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(o->ghosts[ranks], 1));
+    if (!o->agent || !o->ghost)
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating and %lld halo agents", (long long)leaving,
+                       (long long)o->ghosts[ranks]);
+    for (int64_t a = 0; a < s->slots; a++) {
+        if (s->phase[a] == DROPPED) continue;
+        const int owner = fm_slabs_owner(d, s->p[d->axis][a], d->rank);
+        const int ghost_here = route_agent(d, s, a, owner, o, 1);
+        if (owner == d->rank) continue;
+        s->phase[a] = ghost_here ? FM_FLOCK_ELSEWHERE : DROPPED;
+        o->kept_ghosts += ghost_here;
+    }
+    d->totals.migrated += leaving;
+    return FM_OK;
+}
+
+/* On P ranks, before the grid build: the cuts (every RECUT_INTERVAL steps), then the migration and
+ * the halo in one pass and one merge of the slots. Each agent that left its slab goes, with all
+ * that carries it, to its new owner; every agent in flight goes as a ghost to each other slab whose
+ * halo holds it, chosen for its new owner, so the ghosts are those the owners after the migration
+ * would send. The merge keeps the agents that stay and those that left but are ghosts here, drops
+ * last step's ghosts, and takes the arrivals and the new ghosts. */
+fm_status fm_flock_dist_exchange(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
+{
+    fm_slabs *d = s->slabs;
+    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(d));
+    const size_t per_rank = (size_t)d->ranks + 1;
+    int64_t *counts = malloc(sizeof(int64_t) * 3 * per_rank);
+    exchange_out o = {0};
+    if (counts) o.migrants = counts, o.ghosts = counts + per_rank, o.ghost_count = counts + 2 * per_rank;
+    fm_status st = counts ? pack_exchange(s, &o, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    void *agents_in = NULL, *ghosts_in = NULL;
+    int64_t migrants = 0, ghosts = 0;
+    st = fm_slabs_send(d, s->dist, st, o.agent, sizeof(agent_record), &agents_in, &migrants, err);
+    if (st == FM_OK) {
+        memcpy(d->count, o.ghost_count, sizeof(int64_t) * (size_t)d->ranks);
+        st = fm_slabs_send(d, s->dist, st, o.ghost, sizeof(ghost_record), &ghosts_in, &ghosts, err);
+    }
+    const arrivals kinds[2] = {
+        {agents_in, migrants, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack},
+        {ghosts_in, ghosts, sizeof(ghost_record), offsetof(ghost_record, id), 0, take_ghost},
+    };
+    if (st == FM_OK) st = merge_slots(m, s, kept_in_slots, kinds, 2, err);
+    if (st == FM_OK) d->totals.ghost_agent_steps += ghosts + o.kept_ghosts;
+    fm_free(o.agent), fm_free(o.ghost), fm_free(agents_in), fm_free(ghosts_in), free(counts);
     return fm_dist_agree(s->dist, st, err);
 }
 
@@ -478,8 +529,8 @@ fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, fm_err
     int64_t received = 0;
     st = fm_slabs_send(d, s->dist, st, out, sizeof(agent_record), &in, &received, err);
     s->slots = 0; /* the fresh store's agents give way to the restored ones */
-    if (st == FM_OK)
-        st = merge_slots(m, s, keep_all, in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack, err);
+    const arrivals restored = {in, received, sizeof(agent_record), offsetof(agent_record, h.id), 1, unpack};
+    if (st == FM_OK) st = merge_slots(m, s, keep_all, &restored, 1, err);
     d->totals = totals;
     free(at), fm_free(out), fm_free(in);
     return fm_dist_agree(s->dist, st, err);

@@ -223,16 +223,43 @@ fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err
 
 /* The slots rebuilt (P ranks): new slot k holds old slot from[k] (>= 0), or for from[k] = -1 nothing
  * yet (the caller writes it); `slots` of them. Only the carried arrays move. */
+/* A slot's element of each size the arrays have: the gather below copies it as one value (a memcpy of
+ * a size known only at run time is a call per slot). */
+typedef struct { uint32_t w[4]; } bytes16;
+typedef struct { uint64_t w[3]; } bytes24;
+#define GATHER(type, to, a, from, slots, threads)                                                      \
+    do {                                                                                               \
+        type *restrict to_ = (type *)(to);                                                            \
+        const type *restrict a_ = (const type *)(a);                                                  \
+        _Pragma("omp parallel for num_threads(threads) schedule(static)")                              \
+        for (int64_t k = 0; k < (slots); k++)                                                          \
+            if ((from)[k] >= 0) to_[k] = a_[(from)[k]];                                                \
+    } while (0)
+
+/* to[k] = a[from[k]] for from[k] >= 0, for `slots` slots of `bytes` each. */
+static void gather_slots(void *to, const void *a, size_t bytes, const int32_t *from, int64_t slots, int threads)
+{
+    switch (bytes) {
+    case 1: GATHER(uint8_t, to, a, from, slots, threads); break;
+    case 4: GATHER(uint32_t, to, a, from, slots, threads); break;
+    case 16: GATHER(bytes16, to, a, from, slots, threads); break;
+    case 24: GATHER(bytes24, to, a, from, slots, threads); break;
+    default: /* a size with no case of its own: correct, only slower */
+#pragma omp parallel for num_threads(threads) schedule(static)
+        for (int64_t k = 0; k < slots; k++)
+            if (from[k] >= 0) memcpy((char *)to + bytes * (size_t)k, (const char *)a + bytes * (size_t)from[k], bytes);
+    }
+}
+#undef GATHER
+
 void fm_flock_state_move_slots(fm_flock_state *s, const int32_t *from, int64_t slots)
 {
     for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
         if (!SLOT_ARRAYS[i].carried || !has_array(s, 0, i)) continue;
         const size_t bytes = SLOT_ARRAYS[i].bytes;
-        char *a = *slot_array_at(s, i), *t = s->scratch;
-#pragma omp parallel for num_threads(s->threads) schedule(static)
-        for (int64_t k = 0; k < slots; k++)
-            if (from[k] >= 0) memcpy(t + bytes * (size_t)k, a + bytes * (size_t)from[k], bytes);
-        memcpy(a, t, bytes * (size_t)slots);
+        char *a = *slot_array_at(s, i);
+        gather_slots(s->scratch, a, bytes, from, slots, s->threads);
+        memcpy(a, s->scratch, bytes * (size_t)slots);
     }
     s->slots = slots;
 }

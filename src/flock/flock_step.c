@@ -311,17 +311,10 @@ static void build_grid(const fm_flock_model *m, fm_flock_state *s)
                          m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
 }
 
-/* On P ranks, first: the migration and the ghosts (positions are those the step starts from). */
-static fm_status exchange(const fm_flock_model *m, fm_flock_state *s)
-{
-    fm_status st = fm_flock_dist_migrate(m, s, &s->dist_error);
-    return st == FM_OK ? fm_flock_dist_ghosts(m, s, &s->dist_error) : st;
-}
-
 void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 {
     if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
-    if (s->dist && (s->dist_status = exchange(m, s)) != FM_OK) return;
+    if (s->dist && (s->dist_status = fm_flock_dist_exchange(m, s, &s->dist_error)) != FM_OK) return;
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     if (m->info.deforming) update_destinations(m, s, t_end);
     double u = m->path_time > 0 ? fmin(t_end / m->path_time, 1.0) : 1.0, r[3] = {0, 0, 0};
