@@ -260,32 +260,32 @@ enum { DROPPED = 0xFE };
 static int kept_in_slots(uint8_t phase) { return phase != DROPPED; }
 static int keep_all(uint8_t phase) { return (void)phase, 1; }
 
-/* The step's records to send, grouped by rank: per rank, first how many, then the next one's place
- * (ranks + 1: the sum last); the ghost counts kept for their send (fm_slabs_send reads d->count). */
+/* The step's records to send, grouped by rank. */
 typedef struct exchange_out {
-    int64_t *migrants, *ghosts, *ghost_count;
-    agent_record *agent;
+    int64_t *ghost_count;  /* per rank (the migrants' are d->count, which fm_slabs_send reads) */
+    int64_t *migrant_at, *ghost_at; /* per rank, the next record's place (ranks + 1: the sum last) */
+    agent_record *agent;   /* NULL while counting */
     ghost_record *ghost;
-    int64_t kept_ghosts; /* agents that left but stay here as ghosts */
+    int64_t kept_ghosts;   /* agents that left but stay here as ghosts */
 } exchange_out;
 
 /* Where this rank's agent a goes this step: to the owner of its slab (`owner`), and as a ghost to every
  * other slab whose halo holds it, if in flight (the halo as its owner sees it: every rank's ghosts
- * are its owner's, whether it moved or not). Counts them, or with pack_them packs them; says whether
- * it stays here as a ghost. */
-static int route_agent(const fm_slabs *d, const fm_flock_state *s, int64_t a, int owner, exchange_out *o, int pack_them)
+ * are its owner's, whether it moved or not). Counts them (o->agent NULL) or packs them; says
+ * whether it stays here as a ghost. */
+static int route_agent(fm_slabs *d, const fm_flock_state *s, int64_t a, int owner, exchange_out *o)
 {
     const float x = s->p[d->axis][a];
-    if (owner != d->rank) pack_them ? pack(s, a, o->agent + o->migrants[owner]++) : (void)o->migrants[owner]++;
+    if (owner != d->rank) o->agent ? pack(s, a, o->agent + o->migrant_at[owner]++) : (void)d->count[owner]++;
     if (!in_flight(s->phase[a]) || (owner == d->rank && !fm_slabs_in_halo(d, x))) return 0;
     int ghost_here = 0;
     for (int r = 0; r < d->ranks; r++) {
         if (r == owner || !fm_slabs_near(d, r, x)) continue;
         if (r == d->rank) ghost_here = 1; /* it left, and this slab's halo still holds it */
-        else if (!pack_them) o->ghosts[r]++;
+        else if (!o->agent) o->ghost_count[r]++;
         else
-            o->ghost[o->ghosts[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]},
-                                                      {s->v[0][a], s->v[1][a], s->v[2][a]}, s->id[a]};
+            o->ghost[o->ghost_at[r]++] = (ghost_record){{s->p[0][a], s->p[1][a], s->p[2][a]},
+                                                        {s->v[0][a], s->v[1][a], s->v[2][a]}, s->id[a]};
     }
     return ghost_here;
 }
@@ -297,43 +297,29 @@ static void take_ghost(fm_flock_state *s, int64_t a, const void *in)
     s->phase[a] = FM_FLOCK_ELSEWHERE;
 }
 
-/* Counts per rank (ranks + 1 each, the sums last) into offsets: the first record of each rank. */
-static void offsets_of(int64_t *count, int ranks)
-{
-    int64_t at = 0;
-    for (int r = 0; r < ranks; r++) {
-        const int64_t c = count[r];
-        count[r] = at, at += c;
-    }
-    count[ranks] = at;
-}
-
 /* The step's records (o): every agent of this rank routed (route_agent), counted, then packed; last
- * step's ghosts, and the agents that left for good, marked DROPPED for the merge; d->count the
- * migrants per rank. */
+ * step's ghosts, and the agents that left for good, marked DROPPED for the merge. */
 static fm_status pack_exchange(fm_flock_state *s, exchange_out *o, fm_error *err)
 {
     fm_slabs *d = s->slabs;
     const int ranks = d->ranks;
-    memset(o->migrants, 0, sizeof(int64_t) * ((size_t)ranks + 1));
-    memset(o->ghosts, 0, sizeof(int64_t) * ((size_t)ranks + 1));
+    memset(d->count, 0, sizeof(int64_t) * (size_t)ranks);
+    memset(o->ghost_count, 0, sizeof(int64_t) * (size_t)ranks);
     for (int64_t a = 0; a < s->slots; a++) {
         if (s->phase[a] == FM_FLOCK_ELSEWHERE) s->phase[a] = DROPPED; /* last step's ghost */
-        else route_agent(d, s, a, fm_slabs_owner(d, s->p[d->axis][a], d->rank), o, 0);
+        else route_agent(d, s, a, fm_slabs_owner(d, s->p[d->axis][a], d->rank), o);
     }
-    memcpy(d->count, o->migrants, sizeof(int64_t) * (size_t)ranks);
-    memcpy(o->ghost_count, o->ghosts, sizeof(int64_t) * (size_t)ranks);
-    offsets_of(o->migrants, ranks), offsets_of(o->ghosts, ranks);
-    const int64_t leaving = o->migrants[ranks];
+    fm_slabs_offsets(d, o->migrant_at), fm_offsets(o->ghost_count, ranks, o->ghost_at);
+    const int64_t leaving = o->migrant_at[ranks], ghosts = o->ghost_at[ranks];
     o->agent = fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(leaving, 1));
-    o->ghost = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(o->ghosts[ranks], 1));
+    o->ghost = fm_alloc(sizeof(ghost_record) * (size_t)FM_MAX(ghosts, 1));
     if (!o->agent || !o->ghost)
         return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld migrating and %lld halo agents", (long long)leaving,
-                       (long long)o->ghosts[ranks]);
+                       (long long)ghosts);
     for (int64_t a = 0; a < s->slots; a++) {
         if (s->phase[a] == DROPPED) continue;
         const int owner = fm_slabs_owner(d, s->p[d->axis][a], d->rank);
-        const int ghost_here = route_agent(d, s, a, owner, o, 1);
+        const int ghost_here = route_agent(d, s, a, owner, o);
         if (owner == d->rank) continue;
         s->phase[a] = ghost_here ? FM_FLOCK_ELSEWHERE : DROPPED;
         o->kept_ghosts += ghost_here;
@@ -355,7 +341,7 @@ fm_status fm_flock_dist_exchange(const fm_flock_model *m, fm_flock_state *s, fm_
     const size_t per_rank = (size_t)d->ranks + 1;
     int64_t *counts = malloc(sizeof(int64_t) * 3 * per_rank);
     exchange_out o = {0};
-    if (counts) o.migrants = counts, o.ghosts = counts + per_rank, o.ghost_count = counts + 2 * per_rank;
+    if (counts) o.ghost_count = counts, o.migrant_at = counts + per_rank, o.ghost_at = counts + 2 * per_rank;
     fm_status st = counts ? pack_exchange(s, &o, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     void *agents_in = NULL, *ghosts_in = NULL;
     int64_t migrants = 0, ghosts = 0;

@@ -76,11 +76,13 @@ double fm_slabs_take_weight(fm_slabs *d)
     return w;
 }
 
-void fm_slabs_offsets(const fm_slabs *d, int64_t *at)
+void fm_offsets(const int64_t *count, int ranks, int64_t *at)
 {
     at[0] = 0;
-    for (int r = 0; r < d->ranks; r++) at[r + 1] = at[r] + d->count[r];
+    for (int r = 0; r < ranks; r++) at[r + 1] = at[r] + count[r];
 }
+
+void fm_slabs_offsets(const fm_slabs *d, int64_t *at) { fm_offsets(d->count, d->ranks, at); }
 
 void fm_slabs_record_load(fm_slabs *d, const fm_dist *dist, int64_t mine)
 {

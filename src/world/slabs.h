@@ -78,7 +78,9 @@ static inline void fm_slabs_add_busy(fm_slabs *d, double seconds, double agents)
 /* The weight of an agent at the next cut (the measured cost, or 1 before any), and the cost reset. */
 double fm_slabs_take_weight(fm_slabs *d);
 
-/* The offsets at which each rank's records start in a send buffer, from d->count (ranks + 1). */
+/* The offsets at which each rank's records start in a send buffer (ranks + 1: the sum last), from
+ * the records per rank: count, or d->count. */
+void fm_offsets(const int64_t *count, int ranks, int64_t *at);
 void fm_slabs_offsets(const fm_slabs *d, int64_t *at);
 
 /* The ranks agree on `packed` (this rank's status after packing out), then each rank gets the
