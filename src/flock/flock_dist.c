@@ -27,7 +27,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { RECUT_INTERVAL = 8 }; /* steps between two cuts */
+/* Steps between two updates of a rank's weight in the cuts: the least per-agent time of its steps
+ * since the last update. One step's time is noisy (a rank that shares a core, or waits on the cache
+ * writer, looks slow), and cuts that followed it would jitter and pile agents onto a rank; the cuts
+ * themselves follow the flock every step. */
+enum { WEIGHT_INTERVAL = 8 };
 
 /* An arrived agent's share of a step's work against one in flight (no boids, no Kalman filter, no
  * fields): its weight in the balance. */
@@ -328,7 +332,8 @@ static fm_status pack_exchange(fm_flock_state *s, exchange_out *o, fm_error *err
     return FM_OK;
 }
 
-/* On P ranks, before the grid build: the cuts (every RECUT_INTERVAL steps), then the migration and
+/* On P ranks, before the grid build: the cuts (every step: they follow the flock, as the morph's do,
+ * and the agents cross them less often than cuts that jump every few steps), then the migration and
  * the halo in one pass and one merge of the slots. Each agent that left its slab goes, with all
  * that carries it, to its new owner; every agent in flight goes as a ghost to each other slab whose
  * halo holds it, chosen for its new owner, so the ghosts are those the owners after the migration
@@ -337,7 +342,8 @@ static fm_status pack_exchange(fm_flock_state *s, exchange_out *o, fm_error *err
 fm_status fm_flock_dist_exchange(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
 {
     fm_slabs *d = s->slabs;
-    if (s->step % RECUT_INTERVAL == 0) cut_at_agents(s, fm_slabs_take_weight(d));
+    if (s->step % WEIGHT_INTERVAL == 0) d->weight = fm_slabs_take_weight(d);
+    cut_at_agents(s, d->weight);
     const size_t per_rank = (size_t)d->ranks + 1;
     int64_t *counts = malloc(sizeof(int64_t) * 3 * per_rank);
     exchange_out o = {0};

@@ -23,7 +23,7 @@ fm_slabs *fm_slabs_create(const fm_dist *dist, const double lo[3], const double 
     d->lo = lo[d->axis], d->hi = hi[d->axis];
     if (!(d->hi > d->lo)) d->hi = d->lo + 1;
     for (int r = 0; r <= ranks; r++) d->cut[r] = r == 0 ? -INFINITY : r == ranks ? INFINITY : d->lo;
-    d->cost = INFINITY;
+    d->cost = INFINITY, d->weight = 1;
     d->halo = (float)(radius * (1 + 1e-4)) + 1e-6f * (float)fmax(fabs(d->lo), fabs(d->hi));
     return d;
 }

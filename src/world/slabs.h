@@ -38,6 +38,8 @@ typedef struct fm_slabs {
     double cost;     /* since the last cut, the least time per agent a step of this rank took: the next
                         cut's weight. The least, since a step that shared the core (rank 0's cache
                         writer, the machine's other jobs) says nothing about the work */
+    double weight;   /* the weight of this rank's agents in the cuts, where the mode holds it between
+                        takes (fm_slabs_take_weight) */
     fm_dist_totals totals;
 } fm_slabs;
 
