@@ -27,12 +27,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Steps between two updates of a rank's weight in the cuts: the least per-agent time of its steps
- * since the last update. One step's time is noisy (a rank that shares a core, or waits on the cache
- * writer, looks slow), and cuts that followed it would jitter and pile agents onto a rank; the cuts
- * themselves follow the flock every step. */
-enum { WEIGHT_INTERVAL = 8 };
-
 /* An arrived agent's share of a step's work against one in flight (no boids, no Kalman filter, no
  * fields): its weight in the balance. */
 static const double ARRIVED_WEIGHT = 0.1;
@@ -342,8 +336,7 @@ static fm_status pack_exchange(fm_flock_state *s, exchange_out *o, fm_error *err
 fm_status fm_flock_dist_exchange(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
 {
     fm_slabs *d = s->slabs;
-    if (s->step % WEIGHT_INTERVAL == 0) d->weight = fm_slabs_take_weight(d);
-    cut_at_agents(s, d->weight);
+    cut_at_agents(s, fm_slabs_weight(d, s->step));
     const size_t per_rank = (size_t)d->ranks + 1;
     int64_t *counts = malloc(sizeof(int64_t) * 3 * per_rank);
     exchange_out o = {0};

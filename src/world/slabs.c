@@ -76,6 +76,12 @@ double fm_slabs_take_weight(fm_slabs *d)
     return w;
 }
 
+double fm_slabs_weight(fm_slabs *d, int64_t step)
+{
+    if (step % FM_WEIGHT_INTERVAL == 0) d->weight = fm_slabs_take_weight(d);
+    return d->weight;
+}
+
 void fm_offsets(const int64_t *count, int ranks, int64_t *at)
 {
     at[0] = 0;

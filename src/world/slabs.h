@@ -38,8 +38,7 @@ typedef struct fm_slabs {
     double cost;     /* since the last cut, the least time per agent a step of this rank took: the next
                         cut's weight. The least, since a step that shared the core (rank 0's cache
                         writer, the machine's other jobs) says nothing about the work */
-    double weight;   /* the weight of this rank's agents in the cuts, where the mode holds it between
-                        takes (fm_slabs_take_weight) */
+    double weight;   /* the weight of this rank's agents in the cuts, held between takes (fm_slabs_weight) */
     fm_dist_totals totals;
 } fm_slabs;
 
@@ -79,6 +78,13 @@ static inline void fm_slabs_add_busy(fm_slabs *d, double seconds, double agents)
 
 /* The weight of an agent at the next cut (the measured cost, or 1 before any), and the cost reset. */
 double fm_slabs_take_weight(fm_slabs *d);
+
+/* The weight of this rank's agents in step `step`'s cuts: taken (fm_slabs_take_weight) every
+ * FM_WEIGHT_INTERVAL steps and held between. One step's time is noisy (a rank that shares a core, or
+ * waits on the cache writer, looks slow), and cuts that followed it would jitter and pile agents onto
+ * a rank; the cuts themselves follow the agents every step. */
+enum { FM_WEIGHT_INTERVAL = 8 };
+double fm_slabs_weight(fm_slabs *d, int64_t step);
 
 /* The offsets at which each rank's records start in a send buffer (ranks + 1: the sum last), from
  * the records per rank: count, or d->count. */
