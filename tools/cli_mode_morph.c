@@ -157,9 +157,7 @@ static fm_cache_writer *create_cache(void *run, const fm_scene_def *def, const c
 static fm_status load_checkpoint(void *run, const char *path, fm_error *err)
 {
     morph_run *r = run;
-    fm_status st = fm_morph_checkpoint_load(path, r->model, r->state, &r->rs, err);
-    if (st == FM_OK && fm_dist_size(cli_dist) > 1) fm_morph_dist_adopt(r->state); /* this rank's share */
-    return st;
+    return fm_morph_checkpoint_load(path, r->model, r->state, &r->rs, err); /* on P ranks each keeps its slab's */
 }
 
 static fm_status simulate(void *run, fm_cache_writer *cache, const fm_run_control *control, fm_error *err)

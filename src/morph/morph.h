@@ -164,19 +164,20 @@ void fm_morph_dist_rebalance(const fm_morph_model *m, fm_morph_state *s, int64_t
 void fm_morph_dist_record_load(fm_morph_state *s);
 void fm_morph_dist_add_busy(fm_morph_state *s, double seconds); /* the step's own work, for the balance */
 /* Checkpoints on P ranks: one file of one process's layout, written by every rank at once (any P
- * resumes it); after each rank loaded one, adopt keeps the rank's share. */
+ * resumes it); each rank loads its share of the file's slots (fm_ckpt_share), and adopt sends every
+ * launched agent of it to the rank whose slab holds it (collective). */
 fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, const fm_morph_state *s,
                                     const fm_morph_run_stats *stats, int64_t frames, const fm_ckpt_part *parts,
                                     int part_count, fm_error *err);
 fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s,
                                         const fm_morph_run_stats *stats, int64_t frames, fm_error *err);
 /* A shot's group (morph_shot.c): the state alone, without statistics, at `frames` frames (on P
- * ranks collective, as fm_morph_dist_checkpoint_save); its load, on P ranks then adopt. */
+ * ranks collective, as fm_morph_dist_checkpoint_save); its load, on P ranks each rank's slab's agents. */
 fm_status fm_morph_group_checkpoint_save(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t frames,
                                          fm_error *err);
 fm_status fm_morph_group_checkpoint_load(const char *path, const fm_morph_model *m, fm_morph_state *s, int64_t *frames,
                                          fm_error *err);
-void fm_morph_dist_adopt(fm_morph_state *s);
+fm_status fm_morph_dist_adopt(const fm_morph_model *m, fm_morph_state *s, int64_t first, int64_t count, fm_error *err);
 fm_status fm_morph_dist_frame(const fm_morph_model *m, fm_morph_state *s, float *verts, uint8_t *phases, fm_error *err);
 /* Where a state's agents go in a frame of rows (a shot's, morph_shot.c): agent i is row row0 + i
  * in its own vertex order, or (row set) row row[i] with its vertices in the even permutation
@@ -203,9 +204,6 @@ fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
 /* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an
  * allocation failure leaves the store as it was. */
 fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err);
-/* Room for all n agents in the store's arrays but not the MDE grid (P ranks: every rank loads the
- * whole checkpoint, then keeps its share; the next reserve, before the grid is built, sizes it). */
-fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err);
 /* The store shrunk to its agents and some room (P ranks: after a rank kept its share). */
 void fm_morph_state_fit(fm_morph_state *s);
 /* morph_state.c: the tets of the store's agents in slot order (12 floats a slot of fm_morph_slots). */

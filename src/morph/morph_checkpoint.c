@@ -35,23 +35,40 @@ static uint64_t model_hash(const fm_morph_model *m)
     return fm_hash_end(h);
 }
 
-/* The restored values that index arrays must be in range (a checksum proves the file is as
- * written, not that the writer was sound). */
-static const char *check_state(const void *state)
+/* The restored values of slots [0, count) that index arrays must be in range (a checksum proves the
+ * file is as written, not that the writer was sound), their phases counted into count_out. */
+static const char *check_agents(const fm_morph_state *s, int64_t count, int64_t count_out[4])
 {
-    const fm_morph_state *s = state;
-    int64_t n = s->n, count[4] = {0, 0, 0, 0};
-    for (int64_t a = 0; a < n; a++) {
+    const int64_t n = s->n;
+    for (int64_t a = 0; a < count; a++) {
         if (s->phase[a] > FM_PHASE_ARRIVED || s->perm[a] >= 12 || s->target[a] < -1 || s->target[a] >= n ||
             s->id[a] < 0 || s->id[a] >= n)
             return "agent values out of range";
-        count[s->phase[a]]++;
+        count_out[s->phase[a]]++;
     }
-    if (memcmp(count, s->count, sizeof count) != 0 || s->launched < 0 || s->launched > n || s->next_slot < 0 ||
-        s->next_slot > n || s->step < 0)
+    return NULL;
+}
+
+/* The counters against every agent's phase (count: summed over the ranks' shares on P ranks). */
+static const char *check_counters(const fm_morph_state *s, const int64_t count[4])
+{
+    if (memcmp(count, s->count, sizeof s->count) != 0 || s->launched < 0 || s->launched > s->n || s->next_slot < 0 ||
+        s->next_slot > s->n || s->step < 0 || s->active_begin < 0 || s->active_begin > s->active_end ||
+        s->active_end > s->launched)
         return "counters inconsistent with the agents";
     return NULL;
 }
+
+static const char *check_state(const void *state)
+{
+    const fm_morph_state *s = state;
+    int64_t count[4] = {0, 0, 0, 0};
+    const char *bad = check_agents(s, s->n, count);
+    return bad ? bad : check_counters(s, count);
+}
+
+/* A share's load checks what needs no other rank; load_share the rest. */
+static const char *check_nothing(const void *state) { return (void)state, NULL; }
 
 /* The tetra morph's store and statistics (per-frame MDE fractions included) at `frames` frames;
  * a shot's group has no statistics of its own (stats NULL: the shot's file holds them). */
@@ -83,13 +100,39 @@ fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, c
     return fm_ckpt_save(path, &c, err);
 }
 
-/* Every rank reads the whole store (on P ranks the next reserve or adopt makes it the rank's). */
+static fm_status damaged(const char *path, const char *what, fm_error *err)
+{
+    return fm_fail(err, FM_ERR_INPUT, "%s: damaged checkpoint (%s); it cannot be used: run again without --resume", path,
+                   what);
+}
+
+/* On P ranks: every rank reads the file, keeping its share of the slots (fm_ckpt_share, as the ranks
+ * wrote them) in slots [0, share); the phases are counted over every rank's share, and the launched
+ * agents go to the ranks whose slabs hold them (fm_morph_dist_adopt). */
+static fm_status load_share(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats,
+                            int64_t *frames, fm_error *err)
+{
+    fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, fm_dist_rank(s->dist), fm_dist_size(s->dist));
+    part.at = 0; /* the share's first slot to slot 0 */
+    fm_ckpt_store c = tetra_store(m, s, stats, 0);
+    c.parts[0] = part, c.part_count = 1, c.check = check_nothing;
+    fm_status st = fm_morph_state_reserve(s, part.count, err);
+    if (st == FM_OK) st = fm_ckpt_load(path, &c, frames, err);
+    int64_t count[4] = {0, 0, 0, 0};
+    const char *bad = st == FM_OK ? check_agents(s, part.count, count) : NULL;
+    if ((st = fm_dist_agree(s->dist, bad ? damaged(path, bad, err) : st, err)) != FM_OK) return st;
+    fm_dist_sum_i64(s->dist, count, 4); /* every rank then knows the same */
+    if ((bad = check_counters(s, count))) return damaged(path, bad, err);
+    return fm_morph_dist_adopt(m, s, part.first, part.count, err);
+}
+
+/* The file into the store: on one process all of it; on P ranks this rank's slab's agents. */
 static fm_status load_store(const char *path, const fm_morph_model *m, fm_morph_state *s, fm_morph_run_stats *stats,
                             int64_t *frames, fm_error *err)
 {
-    fm_status st = fm_morph_state_hold_all(s, err);
+    if (s->dist) return load_share(path, m, s, stats, frames, err);
     fm_ckpt_store c = tetra_store(m, s, stats, 0);
-    if (st == FM_OK) st = fm_ckpt_load(path, &c, frames, err);
+    fm_status st = fm_ckpt_load(path, &c, frames, err);
     if (st == FM_OK) fm_morph_state_fill_rest(m, s); /* derived from id[], which check_state vouched for */
     return st;
 }

@@ -26,7 +26,8 @@ typedef struct agent_record {
     float p[3], v[3], p2[3], t2, tf, morph[FM_MORPH_FLOATS];
     int64_t target;
     int32_t id;
-    uint8_t phase, perm, morph_safe, pad;
+    uint8_t phase, perm, morph_safe;
+    uint8_t settled; /* a resumed agent that arrived before the last re-sort (fm_morph_dist_adopt) */
 } agent_record;
 
 /* A neighbour of another rank, for this step's MDE walk. */
@@ -449,20 +450,45 @@ fm_status fm_morph_dist_checkpoint_save(const char *path, const fm_morph_model *
     return st;
 }
 
-/* After every rank loaded the same one-process checkpoint: the cuts at the quantiles of its
- * agents in flight (every rank counts the same), and each rank keeps the agents in its slab. */
-void fm_morph_dist_adopt(fm_morph_state *s)
+/* After every rank loaded its share of a checkpoint's slots, [first, first + count) of the file, into
+ * slots [0, count) (morph_checkpoint.c): the cuts at the quantiles of the agents in flight over every
+ * rank's share, and each launched agent to the rank whose slab holds it (a waiting one is no rank's:
+ * it launches from the model). The records come in rank order, each rank's in slot order, so the
+ * receiver keeps the file's order, the agents that arrived before the last re-sort first (the file's
+ * [0, active_begin)). The hand-over is no step's traffic: the totals stay. */
+fm_status fm_morph_dist_adopt(const fm_morph_model *m, fm_morph_state *s, int64_t first, int64_t count, fm_error *err)
 {
     fm_slabs *d = s->slabs;
-    cut_at_flight(NULL, s, s->launched, 1, NULL); /* every rank holds the whole store: no sum over the ranks */
+    const fm_dist_totals totals = d->totals;
+    const int64_t mine = FM_MAX(0, FM_MIN(s->launched - first, count));
+    const int64_t early = FM_MAX(0, FM_MIN(s->active_begin - first, mine));
+    s->active_begin = 0, s->active_end = mine;
+    cut_at_flight(NULL, s, s->launched, 1, s->dist); /* weight 1: no step was timed yet */
     const float *x = s->p[d->axis];
-    int64_t kept = 0, arrived = 0;
-    for (int64_t a = 0; a < s->active_end; a++) { /* arrivals before the last re-sort stay first */
-        if (fm_slabs_owner(d, x[a], 0) != d->rank) continue;
-        if (kept != a) move_slot(s, a, kept);
-        kept++;
-        arrived += a < s->active_begin;
+    memset(d->count, 0, sizeof(int64_t) * (size_t)d->ranks);
+    for (int64_t a = 0; a < mine; a++) d->count[fm_slabs_owner(d, x[a], 0)]++;
+    int64_t *at = malloc(sizeof(int64_t) * ((size_t)d->ranks + 1));
+    if (at) fm_slabs_offsets(d, at);
+    agent_record *out = at ? fm_alloc(sizeof(agent_record) * (size_t)FM_MAX(mine, 1)) : NULL;
+    fm_status st = out ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld resumed agents", (long long)mine);
+    for (int64_t a = 0; st == FM_OK && a < mine; a++) {
+        agent_record *r = out + at[fm_slabs_owner(d, x[a], 0)]++;
+        pack_agent(s, a, r);
+        r->settled = a < early;
     }
-    s->active_begin = arrived, s->active_end = kept;
-    fm_morph_state_fit(s); /* the whole store was loaded: the rank keeps room for its share */
+    void *in = NULL;
+    int64_t received = 0;
+    st = fm_slabs_send(d, s->dist, st, out, sizeof(agent_record), &in, &received, err);
+    if (st == FM_OK) st = fm_dist_agree(s->dist, fm_morph_state_reserve(s, received, err), err);
+    int64_t settled = 0, a = 0;
+    for (int64_t k = 0; st == FM_OK && k < received; k++) settled += ((const agent_record *)in)[k].settled;
+    for (int64_t k = 0; st == FM_OK && k < received; k++) { /* the settled first, each kind in its order */
+        const agent_record *r = (const agent_record *)in + k;
+        unpack_agent(m, s, r, r->settled ? a++ : settled + k - a);
+    }
+    s->active_begin = settled, s->active_end = st == FM_OK ? received : 0;
+    fm_morph_state_fit(s); /* the share was loaded: the rank keeps room for its slab's agents */
+    d->totals = totals;
+    free(at), fm_free(out), fm_free(in);
+    return st;
 }

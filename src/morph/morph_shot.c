@@ -444,7 +444,6 @@ fm_status fm_shot_checkpoint_load(fm_shot *s, const char *path, fm_shot_stats *s
     if (st == FM_OK) st = fm_shot_ckpt_load(path, &c, &stats->run.frames, err);
     if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st; /* before the collectives below */
     s->saved_frames = stats->run.frames;
-    for (int g = 0; g < s->count && s->dist; g++) fm_morph_dist_adopt(s->state[g]); /* this rank's share */
     for (int g = 0; g < s->count && st == FM_OK; g++) /* the rows of the groups that took over others', in order */
         if (s->started[g] && s->def[g].group.source_group >= 0) st = take_over_rows(s, g, err);
     return st;

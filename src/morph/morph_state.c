@@ -114,13 +114,6 @@ fm_status fm_morph_state_reserve(fm_morph_state *s, int64_t slots, fm_error *err
     return resize_store(s, with_room(s, slots), err);
 }
 
-fm_status fm_morph_state_hold_all(fm_morph_state *s, fm_error *err)
-{
-    if (s->capacity >= s->n) return FM_OK;
-    if (resize_arrays(s, s->n, fm_morph_slots(s)) == FM_OK) return FM_OK;
-    return fm_fail(err, FM_ERR_MEMORY, "out of memory for a store of %lld agents", (long long)s->n);
-}
-
 void fm_morph_state_fit(fm_morph_state *s)
 {
     const int64_t fit = with_room(s, fm_morph_slots(s));

@@ -324,6 +324,12 @@ class Segments(unittest.TestCase):
     def test_tetra_stopped_on_1_resumed_on_2(self):
         self.across_ranks("examples/castling/rook.json", "seg_tetra_1_2", pieces(1000), 20, None, 2)
 
+    def test_tetra_with_arrivals_stopped_on_1_resumed_on_3(self):
+        """Stopped once agents arrived (the one process's file holds them first, before the last
+        re-sort: rank 0's share of the slots all of them, rank 2's some): each rank reads its share
+        and the launched agents go to their slabs' ranks; the plain run's bytes."""
+        self.across_ranks("examples/castling/rook.json", "seg_tetra_arrived_1_3", pieces(1000), 160, None, 3)
+
     def shot_across_ranks(self, scene, name, stop, first, then):
         """A shot: the group files beside the checkpoint after the stop, none left at the end."""
         self.across_ranks(scene, name, pieces(1000), stop, first, then)
