@@ -529,8 +529,7 @@ static fm_status check_counts(const fm_flock_state *view, const fm_dist *dist, c
     for (int64_t a = 0; a < view->slots; a++) count[view->phase[a]]++; /* in range: check_state */
     fm_dist_sum_i64(dist, count, 4);
     if (memcmp(count, view->count, sizeof count) == 0) return FM_OK;
-    return fm_fail(err, FM_ERR_INPUT, "%s: damaged checkpoint (counters inconsistent with the agents); it cannot be "
-                   "used: run again without --resume", path);
+    return fm_ckpt_damaged(path, "counters inconsistent with the agents", err);
 }
 
 /* On P ranks: every rank reads the file, keeping its share of the pieces (fm_ckpt_share, as the

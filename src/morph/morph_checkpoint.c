@@ -67,9 +67,6 @@ static const char *check_state(const void *state)
     return bad ? bad : check_counters(s, count);
 }
 
-/* A share's load checks what needs no other rank; load_share the rest. */
-static const char *check_nothing(const void *state) { return (void)state, NULL; }
-
 /* The tetra morph's store and statistics (per-frame MDE fractions included) at `frames` frames;
  * a shot's group has no statistics of its own (stats NULL: the shot's file holds them). */
 static fm_ckpt_store tetra_store(const fm_morph_model *m, const fm_morph_state *s, const fm_morph_run_stats *stats,
@@ -100,12 +97,6 @@ fm_status fm_morph_checkpoint_write(const char *path, const fm_morph_model *m, c
     return fm_ckpt_save(path, &c, err);
 }
 
-static fm_status damaged(const char *path, const char *what, fm_error *err)
-{
-    return fm_fail(err, FM_ERR_INPUT, "%s: damaged checkpoint (%s); it cannot be used: run again without --resume", path,
-                   what);
-}
-
 /* On P ranks: every rank reads the file, keeping its share of the slots (fm_ckpt_share, as the ranks
  * wrote them) in slots [0, share); the phases are counted over every rank's share, and the launched
  * agents go to the ranks whose slabs hold them (fm_morph_dist_adopt). */
@@ -115,14 +106,14 @@ static fm_status load_share(const char *path, const fm_morph_model *m, fm_morph_
     fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, fm_dist_rank(s->dist), fm_dist_size(s->dist));
     part.at = 0; /* the share's first slot to slot 0 */
     fm_ckpt_store c = tetra_store(m, s, stats, 0);
-    c.parts[0] = part, c.part_count = 1, c.check = check_nothing;
+    c.parts[0] = part, c.part_count = 1, c.check = NULL; /* the share's check is below: it needs every rank */
     fm_status st = fm_morph_state_reserve(s, part.count, err);
     if (st == FM_OK) st = fm_ckpt_load(path, &c, frames, err);
     int64_t count[4] = {0, 0, 0, 0};
     const char *bad = st == FM_OK ? check_agents(s, part.count, count) : NULL;
-    if ((st = fm_dist_agree(s->dist, bad ? damaged(path, bad, err) : st, err)) != FM_OK) return st;
+    if ((st = fm_dist_agree(s->dist, bad ? fm_ckpt_damaged(path, bad, err) : st, err)) != FM_OK) return st;
     fm_dist_sum_i64(s->dist, count, 4); /* every rank then knows the same */
-    if ((bad = check_counters(s, count))) return damaged(path, bad, err);
+    if ((bad = check_counters(s, count))) return fm_ckpt_damaged(path, bad, err);
     return fm_morph_dist_adopt(m, s, part.first, part.count, err);
 }
 

@@ -329,11 +329,13 @@ typedef struct source {
 
 enum { SCRATCH_BYTES = 1 << 20 };
 
-static fm_status damaged(const source *src, const char *what)
+fm_status fm_ckpt_damaged(const char *path, const char *what, fm_error *err)
 {
-    return fm_fail(src->err, FM_ERR_INPUT, "%s: damaged checkpoint (%s); it cannot be used: run again without --resume",
-                   src->path, what);
+    return fm_fail(err, FM_ERR_INPUT, "%s: damaged checkpoint (%s); it cannot be used: run again without --resume", path,
+                   what);
 }
+
+static fm_status damaged(const source *src, const char *what) { return fm_ckpt_damaged(src->path, what, src->err); }
 
 /* n bytes into buf (the scratch when NULL: then n is at most SCRATCH_BYTES), hashed into `hash`. */
 static fm_status read_into(const source *src, void *buf, size_t n, XXH3_state_t *hash)
@@ -563,7 +565,7 @@ fm_status fm_ckpt_load(const char *path, fm_ckpt_store *c, int64_t *frames, fm_e
     source src = {NULL, path, err, 0, NULL, NULL};
     header h = {0};
     fm_status st = read_checkpoint(&src, &h, c->def, c->members, c->member_count, c);
-    const char *bad = st == FM_OK ? c->check(c->state) : NULL;
+    const char *bad = st == FM_OK && c->check ? c->check(c->state) : NULL;
     if (bad) st = damaged(&src, bad);
     close_source(&src);
     *frames = (int64_t)h.frames;

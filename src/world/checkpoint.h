@@ -45,7 +45,7 @@ typedef struct fm_ckpt_store {
     const fm_scene_def *def;
     uint64_t model_hash;          /* of every model array the step reads (fm_hash_*) */
     const char *model_what;       /* what differs when the model hash does not match, for the message */
-    const char *(*check)(const void *state); /* after a load: NULL, or what is out of range */
+    const char *(*check)(const void *state); /* after a load: NULL, or what is out of range (none: NULL) */
     int64_t frames;               /* frames written, frame 0 included */
     int64_t piece_agents;         /* agents per checksummed piece (output.piece_agents) */
     const fm_dist *dist;          /* P ranks (every rank calls fm_ckpt_save), or NULL */
@@ -66,6 +66,9 @@ fm_ckpt_part fm_ckpt_share(int64_t n, int64_t piece, int rank, int ranks);
  * count the file states. With c->part_count 1 only the agents of c->parts[0] are kept (from its
  * element `at`): a rank's share; the whole file is read and checked all the same. */
 fm_status fm_ckpt_load(const char *path, fm_ckpt_store *c, int64_t *frames, fm_error *err);
+/* The refusal of a damaged checkpoint, `what` saying what is wrong (exit 2): for the modes' checks
+ * that need every rank's share. */
+fm_status fm_ckpt_damaged(const char *path, const char *what, fm_error *err);
 /* Readable, undamaged (checksum), this version, the same scene parameters, the same member table. */
 fm_status fm_ckpt_check(const char *path, const fm_scene_def *def, const fm_store_member *members, int count,
                         fm_error *err);
