@@ -48,7 +48,16 @@ struct fm_morph_model {
     double launch_rate;
     char warnings[FM_MODEL_MAX_WARNINGS][1024]; /* accepted but unusual input (fm_morph_model_warning) */
     int warning_count;
+    fm_dist_shared *shared;  /* on P ranks (fm_morph_model_build_shared): the segment the machine's
+                                ranks share, which holds the arrays above; NULL: each its own */
 };
+
+/* On P ranks: the first rank of each machine builds the model (TetGen, the preparation's peak) and
+ * puts its arrays (132 bytes an agent) in memory that the machine's ranks share; the others copy
+ * its scalars and build only their distance grids. Collective, as is fm_morph_model_destroy of
+ * such a model (docs/scale-out.md). A failure on any rank is every rank's (the same err). */
+fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
+                                            void *user, fm_error *err);
 
 /* A group of a shot (morph_shot.c). With `from`, it starts from that group's formed shape: its
  * source tets are from's target tets (from->tgt, which from was built keeping), slot j as source

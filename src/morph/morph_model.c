@@ -290,19 +290,19 @@ static void scene_bounds(fm_morph_model *m, const prep_scratch *s)
 
 /* Loads the obstacle meshes and refuses obstacles that overlap the source or target, or that hold
  * an end of the path: the tets would start or finish inside them (FM §5.3 assumes free space). */
-static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, fm_error *err)
+static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, int check_paths, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     s->obstacles = calloc((size_t)def->obstacle_count, sizeof *s->obstacles);
     if (!s->obstacles) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles");
     double cs[3], ct[3];
-    total_volume(&s->src, cs), total_volume(&s->dst, ct); /* subdivision keeps the centroids */
+    if (check_paths) total_volume(&s->src, cs), total_volume(&s->dst, ct); /* subdivision keeps the centroids */
     fm_status st = FM_OK;
     for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
         char key[48];
         snprintf(key, sizeof key, "obstacles.meshes[%d]", i);
         st = fm_obstacle_mesh_load(def, i, &s->src_mesh, &s->dst_mesh, &s->obstacles[i], err);
-        if (st == FM_OK) st = check_path_ends(def, &s->obstacles[i], key, cs, ct, err);
+        if (st == FM_OK && check_paths) st = check_path_ends(def, &s->obstacles[i], key, cs, ct, err);
     }
     return st;
 }
@@ -411,7 +411,7 @@ static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_
     m->info.source_tetgen_quality = tet_quality(m, &s->src);
     m->info.target_tetgen_quality = tet_quality(m, &s->dst);
     if ((st = warn_if_shapes_overlap(m, s, err)) != FM_OK) return st;
-    if (def->obstacle_count > 0 && (st = load_obstacles(m, s, err)) != FM_OK) return st;
+    if (def->obstacle_count > 0 && (st = load_obstacles(m, s, 1, err)) != FM_OK) return st;
     return choose_n(m, &s->src, &s->dst, err);
 }
 
@@ -494,15 +494,118 @@ void fm_morph_model_drop_targets(fm_morph_model *m)
     m->tgt = NULL;
 }
 
+/* ---------------------------------------------------------------- one model per machine */
+
+/* The model's arrays (all but a shot's tgt), by address and size: what a machine's ranks share. */
+enum { MODEL_ARRAYS = 16 };
+static int model_arrays(fm_morph_model *m, void **p[MODEL_ARRAYS], size_t bytes[MODEL_ARRAYS])
+{
+    const size_t n = (size_t)m->n, keys = (size_t)m->key_count;
+    int c = 0;
+    p[c] = (void **)&m->src_rel, bytes[c++] = sizeof(float) * 12 * n;
+    p[c] = (void **)&m->tgt_f, bytes[c++] = sizeof(float) * 12 * n;
+    p[c] = (void **)&m->src_index, bytes[c++] = sizeof(int64_t) * n;
+    p[c] = (void **)&m->src_radius, bytes[c++] = sizeof(float) * n;
+    for (int k = 0; k < 3; k++) {
+        p[c] = (void **)&m->src_c[k], bytes[c++] = sizeof(float) * n;
+        p[c] = (void **)&m->tgt_c[k], bytes[c++] = sizeof(float) * n;
+        p[c] = (void **)&m->key_q[k], bytes[c++] = sizeof(float) * keys;
+        p[c] = (void **)&m->key_f[k], bytes[c++] = sizeof(float) * keys;
+    }
+    return c;
+}
+
+static size_t round_up_64(size_t bytes) { return (bytes + 63) & ~(size_t)63; }
+
+static size_t model_array_bytes(fm_morph_model *m)
+{
+    void **p[MODEL_ARRAYS];
+    size_t bytes[MODEL_ARRAYS], total = 0;
+    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) total += round_up_64(bytes[i]);
+    return total;
+}
+
+/* Points the model's arrays into the machine's segment; the rank that built them (`built`) copies
+ * them there first and frees its own. */
+static void place_arrays(fm_morph_model *m, char *base, int built)
+{
+    void **p[MODEL_ARRAYS];
+    size_t bytes[MODEL_ARRAYS], offset = 0;
+    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) {
+        void *to = base + offset;
+        if (built && bytes[i] > 0) memcpy(to, *p[i], bytes[i]);
+        if (built) fm_free(*p[i]);
+        *p[i] = to;
+        offset += round_up_64(bytes[i]);
+    }
+}
+
+/* The parts every rank builds for itself: the distance grids, objects of their libraries, from the
+ * placed meshes (the machine's first rank checked them when it built the model). */
+static fm_status build_grids(fm_morph_model *m, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    prep_scratch s;
+    memset(&s, 0, sizeof s);
+    fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", &s.src_mesh, err);
+    if (st == FM_OK) st = fm_scene_mesh_load(def, &def->target, "target.mesh", &s.dst_mesh, err);
+    if (st == FM_OK && def->obstacle_count > 0) st = load_obstacles(m, &s, 0, err);
+    if (st == FM_OK && def->obstacle_count > 0) st = build_obstacles(m, &s, m->max_radius, err);
+    if (st == FM_OK && def->phase_switch == FM_SWITCH_DISTANCE) st = build_target_sdf(m, &s.dst_mesh, err);
+    free_scratch(&s, def->obstacle_count);
+    return st;
+}
+
+/* A machine's other ranks: the first rank's model, its scalars copied and its arrays not yet
+ * placed (NULL), with this rank's own scene. */
+static void take_scalars(fm_morph_model *m, const fm_scene_def *def)
+{
+    void **p[MODEL_ARRAYS];
+    size_t bytes[MODEL_ARRAYS];
+    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) *p[i] = NULL;
+    m->def = *def;
+    m->tgt = NULL, m->obstacles = m->target_sdf = NULL, m->shared = NULL;
+}
+
+fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
+                                            void *user, fm_error *err)
+{
+    const int first = fm_dist_first_here(dist);
+    fm_morph_model *m = first ? fm_morph_model_build(def, progress, user, err) : calloc(1, sizeof *m);
+    fm_status st = m ? FM_OK : !first ? fm_fail(err, FM_ERR_MEMORY, "out of memory") : err ? err->status : FM_ERR_INTERNAL;
+    if (fm_dist_agree(dist, st, err) != FM_OK) {
+        fm_morph_model_destroy(m);
+        return NULL;
+    }
+    fm_dist_bcast_here(dist, m, sizeof *m);
+    if (!first) take_scalars(m, def);
+    void *base = NULL;
+    fm_dist_shared *shared = fm_dist_shared_create(dist, model_array_bytes(m), &base, err);
+    if (!shared) {
+        fm_morph_model_destroy(m);
+        return NULL;
+    }
+    place_arrays(m, base, first);
+    m->shared = shared;
+    if (fm_dist_agree(dist, first ? FM_OK : build_grids(m, err), err) == FM_OK) return m;
+    fm_morph_model_destroy(m);
+    return NULL;
+}
+
 void fm_morph_model_destroy(fm_morph_model *m)
 {
     if (!m) return;
-    fm_free(m->src_rel), fm_free(m->tgt), fm_free(m->tgt_f), fm_free(m->src_radius), fm_free(m->src_index);
     fm_obstacles_destroy(m->obstacles); /* NULL-safe */
     fm_obstacles_destroy(m->target_sdf);
-    for (int k = 0; k < 3; k++) {
-        fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
-        fm_free(m->key_q[k]), fm_free(m->key_f[k]);
+    fm_free(m->tgt);
+    if (m->shared) {
+        fm_dist_shared_free(m->shared); /* the arrays */
+    } else {
+        fm_free(m->src_rel), fm_free(m->tgt_f), fm_free(m->src_radius), fm_free(m->src_index);
+        for (int k = 0; k < 3; k++) {
+            fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
+            fm_free(m->key_q[k]), fm_free(m->key_f[k]);
+        }
     }
     free(m);
 }

@@ -31,7 +31,8 @@ static fm_status copy_records(const void *mine, int64_t count, size_t size, void
 struct fm_dist {
     MPI_Comm comm;
     int rank, size;
-    int size_here; /* ranks on this machine (MPI_COMM_TYPE_SHARED) */
+    MPI_Comm here;            /* the ranks on this machine (MPI_COMM_TYPE_SHARED); MPI_COMM_NULL if unknown */
+    int rank_here, size_here; /* this rank among them, and their count */
 };
 
 int fm_dist_launched(void)
@@ -42,6 +43,8 @@ int fm_dist_launched(void)
         if (getenv(vars[i])) return 1;
     return 0;
 }
+
+static void split_machines(fm_dist *d);
 
 fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
 {
@@ -63,18 +66,29 @@ fm_dist *fm_dist_init(int *argc, char ***argv, fm_error *err)
     d->comm = MPI_COMM_WORLD;
     MPI_Comm_rank(d->comm, &d->rank);
     MPI_Comm_size(d->comm, &d->size);
-    MPI_Comm here;
-    d->size_here = 1;
-    if (MPI_Comm_split_type(d->comm, MPI_COMM_TYPE_SHARED, d->rank, MPI_INFO_NULL, &here) == MPI_SUCCESS) {
-        MPI_Comm_size(here, &d->size_here);
-        MPI_Comm_free(&here);
-    }
+    split_machines(d);
     return d;
+}
+
+/* The ranks that share a machine's memory. FM_TEST_RANKS_PER_MACHINE=k makes ranks r / k one
+ * "machine" instead, so that one machine's tests run what several machines do (a first rank on
+ * each, building and sharing its own copy of the model). */
+static void split_machines(fm_dist *d)
+{
+    d->here = MPI_COMM_NULL, d->rank_here = 0, d->size_here = 1;
+    const char *test = getenv("FM_TEST_RANKS_PER_MACHINE");
+    const int k = test ? atoi(test) : 0;
+    int ok = k > 0 ? MPI_Comm_split(d->comm, d->rank / k, d->rank, &d->here)
+                   : MPI_Comm_split_type(d->comm, MPI_COMM_TYPE_SHARED, d->rank, MPI_INFO_NULL, &d->here);
+    if (ok != MPI_SUCCESS) return; /* every rank its own machine: nothing is shared */
+    MPI_Comm_rank(d->here, &d->rank_here);
+    MPI_Comm_size(d->here, &d->size_here);
 }
 
 void fm_dist_finalize(fm_dist *d)
 {
     if (!d) return;
+    if (d->here != MPI_COMM_NULL) MPI_Comm_free(&d->here);
     free(d);
     MPI_Finalize();
 }
@@ -88,6 +102,13 @@ void fm_dist_abort(const fm_dist *d, int code)
 int fm_dist_rank(const fm_dist *d) { return d ? d->rank : 0; }
 int fm_dist_size(const fm_dist *d) { return d ? d->size : 1; }
 int fm_dist_size_here(const fm_dist *d) { return d ? d->size_here : 1; }
+int fm_dist_first_here(const fm_dist *d) { return d ? d->rank_here == 0 : 1; }
+
+void fm_dist_bcast_here(const fm_dist *d, void *data, size_t bytes)
+{
+    assert(bytes <= INT_MAX);
+    if (d && d->size_here > 1) MPI_Bcast(data, (int)bytes, MPI_BYTE, 0, d->here);
+}
 
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count)
 {
@@ -252,6 +273,8 @@ void fm_dist_abort(const fm_dist *d, int code) { (void)d, exit(code); }
 int fm_dist_rank(const fm_dist *d) { return (void)d, 0; }
 int fm_dist_size(const fm_dist *d) { return (void)d, 1; }
 int fm_dist_size_here(const fm_dist *d) { return (void)d, 1; }
+int fm_dist_first_here(const fm_dist *d) { return (void)d, 1; }
+void fm_dist_bcast_here(const fm_dist *d, void *data, size_t bytes) { (void)d, (void)data, (void)bytes; }
 void fm_dist_sum_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_i64(const fm_dist *d, int64_t *v, int count) { (void)d, (void)v, (void)count; }
 void fm_dist_max_f64(const fm_dist *d, double *v, int count) { (void)d, (void)v, (void)count; }
@@ -280,6 +303,61 @@ fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *se
 }
 
 #endif
+
+/* ---------------------------------------------------------------- memory a machine's ranks share */
+
+struct fm_dist_shared {
+    void *alone;    /* the only rank on its machine: a plain allocation */
+#ifdef FM_HAVE_MPI
+    MPI_Win win;    /* several: MPI_Win_allocate_shared's window over the machine's ranks */
+    int windowed;
+#endif
+};
+
+/* The machine's segment: the first rank's `bytes` (64 more, to align), every rank's address of it. */
+static fm_status allocate_shared(const fm_dist *d, fm_dist_shared *s, size_t bytes, void **base, fm_error *err)
+{
+#ifdef FM_HAVE_MPI
+    if (d && d->size_here > 1) {
+        const MPI_Aint mine = fm_dist_first_here(d) ? (MPI_Aint)bytes + 64 : 0;
+        MPI_Aint size = 0;
+        int unit = 0;
+        MPI_Comm_set_errhandler(d->here, MPI_ERRORS_RETURN);
+        s->windowed = MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, d->here, base, &s->win) == MPI_SUCCESS;
+        const int found = s->windowed && MPI_Win_shared_query(s->win, 0, &size, &unit, base) == MPI_SUCCESS;
+        MPI_Comm_set_errhandler(d->here, MPI_ERRORS_ARE_FATAL);
+        if (found) return FM_OK;
+        return fm_fail(err, FM_ERR_MEMORY, "cannot make %.3g MB of memory shared by the %d ranks on this machine "
+                       "(MPI_Win_allocate_shared)", (double)bytes / 1e6, d->size_here);
+    }
+#endif
+    if ((s->alone = *base = fm_alloc(bytes + 64))) return FM_OK;
+    return fm_fail(err, FM_ERR_MEMORY, "out of memory for %.3g MB", (double)bytes / 1e6);
+}
+
+fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **base, fm_error *err)
+{
+    *base = NULL;
+    fm_dist_shared *s = calloc(1, sizeof *s);
+    fm_status st = s ? allocate_shared(d, s, bytes, base, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (fm_dist_agree(d, st, err) == FM_OK) {
+        *base = (void *)(((uintptr_t)*base + 63) & ~(uintptr_t)63);
+        return s;
+    }
+    fm_dist_shared_free(s);
+    *base = NULL;
+    return NULL;
+}
+
+void fm_dist_shared_free(fm_dist_shared *s)
+{
+    if (!s) return;
+#ifdef FM_HAVE_MPI
+    if (s->windowed) MPI_Win_free(&s->win);
+#endif
+    fm_free(s->alone);
+    free(s);
+}
 
 /* ---------------------------------------------------------------- files every rank writes */
 

@@ -29,6 +29,20 @@ void fm_dist_abort(const fm_dist *d, int code);
 int fm_dist_rank(const fm_dist *d); /* 0 for NULL */
 int fm_dist_size(const fm_dist *d); /* 1 for NULL */
 int fm_dist_size_here(const fm_dist *d); /* the ranks on this machine, sharing its memory; 1 for NULL */
+int fm_dist_first_here(const fm_dist *d); /* 1 on the first rank of each machine (and for NULL) */
+/* Collective over this machine's ranks: the first one's `bytes` at `data` to the others (< 2 GiB). */
+void fm_dist_bcast_here(const fm_dist *d, void *data, size_t bytes);
+
+/* Memory the ranks on one machine share (MPI_Win_allocate_shared): read-only data that the
+ * machine's first rank fills once instead of every rank holding its own copy (the model,
+ * docs/scale-out.md). Collective over every rank: one segment per machine of the `bytes` its first
+ * rank asks for (the others' `bytes` is ignored), its address, 64-byte aligned, in *base on each of
+ * the machine's ranks. A rank alone on its machine (or NULL) gets a plain allocation. NULL on every
+ * rank, with the same err, when any machine's failed. */
+typedef struct fm_dist_shared fm_dist_shared;
+fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **base, fm_error *err);
+/* Collective over the machine's ranks (MPI_Win_free): every one frees its handle, in the same order. */
+void fm_dist_shared_free(fm_dist_shared *s);
 
 /* Element-wise sums, maxima and minima over the ranks, in place (integers: exact for any P;
  * the float min and max are exact too). */

@@ -84,11 +84,14 @@ int fm_memory_ranks(void) { return run_ranks; }
 
 void fm_memory_total(fm_memory_estimate *e, int64_t n)
 {
-    e->ranks_here = run_ranks_here;
+    const double ranks = e->ranks_here = run_ranks_here;
+    const double preparations = e->preparations_here = e->shared > 0 ? 1 : run_ranks_here;
     e->per_agent = e->model + e->state + e->frames + e->grid;
     e->run = e->per_agent * (double)n + e->fixed;
     e->preprocess = e->preprocess_per_agent * (double)n + e->fixed;
-    e->total = e->run > e->preprocess ? e->run : e->preprocess;
+    const double running = e->shared * (double)n + ranks * e->run;
+    const double preparing = preparations * e->preprocess + (ranks - preparations) * e->fixed; /* the others wait */
+    e->total = running > preparing ? running : preparing;
 }
 
 double fm_physical_memory(void)
@@ -100,13 +103,14 @@ double fm_physical_memory(void)
 int fm_memory_fits(const fm_memory_estimate *e)
 {
     double physical = fm_physical_memory();
-    return physical <= 0 || e->total * e->ranks_here <= physical;
+    return physical <= 0 || e->total <= physical;
 }
 
 double fm_memory_agents_that_fit(const fm_memory_estimate *e)
 {
-    const double mine = fm_physical_memory() / FM_MAX(e->ranks_here, 1); /* this process's part of the machine */
-    double fits = (mine - e->fixed) / (e->total == e->run ? e->per_agent : e->preprocess_per_agent);
+    const double ranks = FM_MAX(e->ranks_here, 1), preparations = FM_MAX(e->preparations_here, 1);
+    const double room = fm_physical_memory() - ranks * e->fixed;
+    double fits = fmin(room / (e->shared + ranks * e->per_agent), room / (preparations * e->preprocess_per_agent));
     return fits > 0 ? fits : 0;
 }
 
@@ -129,8 +133,15 @@ fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_ne
     double physical = fm_physical_memory(), gib = 1024.0 * 1024.0 * 1024.0;
     if (fm_memory_fits(&e)) return FM_OK;
     double fits = fm_memory_agents_that_fit(&e);
+    if (e.shared > 0)
+        return fm_fail(err, FM_ERR_INPUT,
+                       "%s: %lld agents need about %.1f GiB on this machine's %d ranks (bytes per agent: the model %.0f, "
+                       "once; and on each rank agent store %.0f, frame buffers %.0f, neighbour grid %.0f, plus %.0f MiB "
+                       "that do not grow with n), more than its %.1f GiB of physical memory; at most about %.3g agents "
+                       "fit (docs/limits.md)", where, (long long)n, e.total / gib, e.ranks_here, e.shared, e.state, e.frames,
+                       e.grid, e.fixed / (1024.0 * 1024.0), physical / gib, fits);
     char ranks[96] = "";
-    if (e.ranks_here > 1) snprintf(ranks, sizeof ranks, " on each of the %d ranks on this machine", e.ranks_here);
+    if (e.ranks_here > 1) snprintf(ranks, sizeof ranks, " on this machine's %d ranks, each", e.ranks_here);
     return fm_fail(err, FM_ERR_INPUT,
                    "%s: %lld agents need about %.1f GiB%s (%.0f bytes per agent: model %.0f, agent store %.0f, frame "
                    "buffers %.0f, neighbour grid %.0f; plus %.0f MiB that do not grow with n), more than this "

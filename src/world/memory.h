@@ -12,14 +12,18 @@
 typedef struct fm_memory_estimate {
     double model, state, frames, grid; /* bytes per agent while stepping: model, agent store, frame
                                           buffers (run, cache writer, zstd output), neighbour grid */
-    double per_agent;                  /* their sum */
+    double per_agent;                  /* their sum: one process's (one rank's) */
+    double shared;                     /* bytes per agent a machine holds once, whatever its ranks: the
+                                          model on P ranks (fm_morph_model_build_shared); 0 otherwise */
     double fixed;                      /* bytes that do not grow with n: libraries, field and distance grids */
-    double run;                        /* per_agent * n + fixed */
+    double run;                        /* per_agent * n + fixed: one rank's */
     double preprocess_per_agent;       /* bytes per agent at the preparation's peak */
     double preprocess;                 /* preprocess_per_agent * n + fixed */
-    double total;                      /* the larger of run and preprocess: one process's */
-    int ranks_here;                    /* processes of the run on this machine (fm_memory_set_ranks), each
-                                          needing total */
+    int ranks_here;                    /* processes of the run on this machine (fm_memory_set_ranks) */
+    int preparations_here;             /* of them, those that prepare the model: 1 when it is shared */
+    double total;                      /* what this machine needs: the larger of its ranks' runs with the
+                                          shared model (shared * n + ranks_here * run) and its preparations
+                                          with the other ranks idle */
 } fm_memory_estimate;
 
 /* A mode's estimate and its neighbour grid, for fm_memory_check. */
@@ -43,11 +47,11 @@ double fm_memory_fixed_bytes(const fm_scene_def *def);
  * machine share its memory. 1 and 1 by default. */
 void fm_memory_set_ranks(int ranks, int ranks_here);
 int fm_memory_ranks(void);
-/* Fills per_agent, run, preprocess, total and ranks_here from the parts. */
+/* Fills per_agent, run, preprocess, ranks_here, preparations_here and total from the parts. */
 void fm_memory_total(fm_memory_estimate *e, int64_t n);
 double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
-/* Whether the estimate (times the ranks on this machine) fits the physical memory (or that is
- * unknown), and how many agents would. */
+/* Whether the machine's total fits its physical memory (or that is unknown), and how many agents
+ * would. */
 int fm_memory_fits(const fm_memory_estimate *e);
 double fm_memory_agents_that_fit(const fm_memory_estimate *e);
 

@@ -14,7 +14,9 @@
   shape flock's holds the plain run's bytes (but for its timings) on 3 ranks; either mode's resumes
   on another P with the uninterrupted plain run's bytes; a full disk during one stops every rank
   with exit 3 and leaves no checkpoint, and so does a directory where the checkpoint goes;
-- memory: on 4 ranks the largest rank peaks well below the one process (measured from outside);
+- memory: on 4 ranks the largest rank peaks well below the one process, and the 4 ranks of one
+  machine together (their summed Pss: one model, prepared by the machine's first rank) well below
+  four processes (measured from outside); ranks counted as two machines give the same bytes;
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
   cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
 
@@ -50,18 +52,21 @@ def env():
     return e
 
 
-def command(scene, out, ranks=None, threads=1, extra=()):
+def command(scene, out, ranks=None, threads=1, extra=(), machine_ranks=None):
+    """machine_ranks=k: every k ranks count as one machine (FM_TEST_RANKS_PER_MACHINE), each with its
+    own first rank that builds the model the machine's ranks share."""
     cmd = [ARGS.cli, "run", os.path.join(ARGS.source, scene), "-o", out, "--quiet", "--threads", str(threads),
            *extra]
     if ranks is not None:
-        cmd = [ARGS.mpiexec, "--oversubscribe", "-np", str(ranks)] + cmd
+        machines = ["-x", f"FM_TEST_RANKS_PER_MACHINE={machine_ranks}"] if machine_ranks else []
+        cmd = [ARGS.mpiexec, "--oversubscribe", "-np", str(ranks), *machines] + cmd
     return cmd
 
 
-def run(scene, name, ranks=None, threads=1, extra=(), timeout=600, preexec=None):
+def run(scene, name, ranks=None, threads=1, extra=(), timeout=600, preexec=None, machine_ranks=None):
     out = os.path.join(ARGS.tmp, "mpi_" + name)
     shutil.rmtree(out, ignore_errors=True)
-    done = subprocess.run(command(scene, out, ranks, threads, extra), stdout=subprocess.PIPE,
+    done = subprocess.run(command(scene, out, ranks, threads, extra, machine_ranks), stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, text=True, timeout=timeout, env=env(), preexec_fn=preexec)
     return done, out
 
@@ -84,14 +89,14 @@ def pieces(agents):
 
 
 class SameBytes(unittest.TestCase):
-    def check_scene(self, scene, runs, extra=()):
+    def check_scene(self, scene, runs, extra=(), machine_ranks=None):
         """Returns each run's stats.json, by (ranks, threads)."""
         plain, out = run(scene, "plain", threads=2, extra=extra)
         self.assertEqual(plain.returncode, 0, plain.stderr)
         want, want_stats = sha256(os.path.join(out, "frames.fmc")), stats(out)
         every = {}
         for ranks, threads in runs:
-            done, got = run(scene, f"p{ranks}t{threads}", ranks, threads, extra)
+            done, got = run(scene, f"p{ranks}t{threads}", ranks, threads, extra, machine_ranks=machine_ranks)
             self.assertEqual(done.returncode, 0, f"{scene} on {ranks} ranks: {done.stderr}")
             self.assertEqual(sha256(os.path.join(got, "frames.fmc")), want,
                              f"{scene}: the cache of {ranks} ranks x {threads} threads differs from the plain run's")
@@ -107,6 +112,11 @@ class SameBytes(unittest.TestCase):
     def test_castling(self):
         """9038 agents in pieces of 1000: every rank encodes its share of each frame."""
         self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1000))
+
+    def test_castling_on_two_machines(self):
+        """Ranks 0-1 and 2-3 as two machines: each machine's first rank builds the model and its
+        ranks share it (docs/scale-out.md, "One model a machine")."""
+        self.check_scene("examples/castling/rook.json", [(4, 1), (3, 1)], pieces(1000), machine_ranks=2)
 
     def test_castling_one_piece(self):
         """The default pieces (65536 agents): rank 0 encodes the one piece, the other shares are empty."""
@@ -190,14 +200,37 @@ def peak_rss(cmd):
     return done, int(done.stdout.strip() or 0)
 
 
+def machine_peak(cmd):
+    """The most memory the flockmorph processes that `cmd` starts use together, in bytes, measured
+    from outside the engine by tools/machine-memory.py: the peak of their summed proportional set
+    sizes (Pss counts a page that several ranks map once, split among them). Returns (completed,
+    bytes)."""
+    tool = os.path.join(ARGS.source, "tools", "machine-memory.py")
+    done = subprocess.run([sys.executable, tool, *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          timeout=600, env=env())
+    peak = [word.split("=")[1] for word in done.stdout.split() if word.startswith("sum_pss_peak_MiB=")]
+    return done, int(peak[0]) * 2**20 if peak else 0
+
+
 class Memory(unittest.TestCase):
+    def test_a_machine_holds_one_model(self):
+        """castling's rook at 3·10^5 agents on 4 ranks of one machine: only the machine's first rank
+        prepares the model (TetGen, the preparation's peak of 284 bytes an agent) and the 4 ranks
+        share its arrays (132 bytes an agent), so the machine's memory (the ranks' summed Pss)
+        peaks well below four processes' worth. It measured 1.54 times the one process (1.99 when
+        every rank built its own model); the bytes are the plain run's."""
+        sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
+        alone, machine = self.one_and_four("examples/castling/rook.json", "pss", sets, machine_peak)
+        self.assertLess(machine, 1.75 * alone,
+                        f"4 ranks together {machine / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
+
     def test_a_rank_holds_its_share(self):
         """castling's rook at 3·10^5 agents, all launched at once: each of 4 ranks holds its slab's
         agents and its share of the frame, so the largest rank peaks well below the one process
         (docs/limits.md, "On P ranks"), measured from outside; the same bytes; and stats.json's
         max_rank_peak_rss_bytes is that peak."""
         sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, ranks = self.largest_rank("examples/castling/rook.json", "mem", sets)
+        alone, ranks = self.one_and_four("examples/castling/rook.json", "mem", sets)
         four = os.path.join(ARGS.tmp, "mem4")
         self.assertLess(ranks, 0.8 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
         with open(os.path.join(four, "stats.json")) as f:
@@ -205,14 +238,15 @@ class Memory(unittest.TestCase):
         self.assertGreater(reported, 0.9 * ranks)  # mpirun's own peak is far below a rank's
         self.assertLessEqual(reported, ranks)
 
-    def largest_rank(self, scene, name, sets):
-        """(one process's peak, the largest of 4 ranks' peak), the caches checked to be the same."""
+    def one_and_four(self, scene, name, sets, measure=peak_rss):
+        """(one process's peak, 4 ranks' peak) as `measure` takes them (peak_rss: the largest rank's;
+        machine_peak: the ranks' together), the caches checked to be the same."""
         one, four = os.path.join(ARGS.tmp, name + "1"), os.path.join(ARGS.tmp, name + "4")
         for out in (one, four):
             shutil.rmtree(out, ignore_errors=True)
-        done, alone = peak_rss(command(scene, one, None, 1, sets))
+        done, alone = measure(command(scene, one, None, 1, sets))
         self.assertEqual(done.returncode, 0, done.stderr)
-        done, ranks = peak_rss(command(scene, four, 4, 1, sets))
+        done, ranks = measure(command(scene, four, 4, 1, sets))
         self.assertEqual(done.returncode, 0, done.stderr)
         self.assertEqual(sha256(os.path.join(four, "frames.fmc")), sha256(os.path.join(one, "frames.fmc")))
         return alone, ranks
@@ -223,7 +257,7 @@ class Memory(unittest.TestCase):
         peaks well below the one process (it measured 0.57 of it; 0.86 when every group's store was
         made whole and rank 0 assembled and wrote every frame)."""
         sets = ("--set", "n=150000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, ranks = self.largest_rank("examples/castling/scene.json", "shotmem", sets)
+        alone, ranks = self.one_and_four("examples/castling/scene.json", "shotmem", sets)
         self.assertLess(ranks, 0.7 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
     def test_a_flock_rank_holds_its_slab(self):
@@ -232,7 +266,7 @@ class Memory(unittest.TestCase):
         frame, so the largest rank peaks well below the one process (0.68 of it measured; 0.83 when
         every rank held the whole store; the rest is mostly the preparation and the libraries)."""
         sets = ("--set", "n=300000", "--set", "shape_flock.sampling=random", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, ranks = self.largest_rank("examples/flock_suzanne_torus/scene.json", "flockmem", sets)
+        alone, ranks = self.one_and_four("examples/flock_suzanne_torus/scene.json", "flockmem", sets)
         self.assertLess(ranks, 0.75 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
     def test_a_flock_shot_rank_holds_its_slab(self):
@@ -241,7 +275,7 @@ class Memory(unittest.TestCase):
         one process (0.69 of it measured; 0.90 when every rank held every group's whole store;
         rank 0 peaked at 1.13 of it when it also assembled and wrote every frame)."""
         sets = ("--set", "n=200000", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, ranks = self.largest_rank("examples/flock_sequence/scene.json", "flockshotmem", sets)
+        alone, ranks = self.one_and_four("examples/flock_sequence/scene.json", "flockshotmem", sets)
         self.assertLess(ranks, 0.8 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
 
@@ -382,6 +416,31 @@ class Segments(unittest.TestCase):
 
 
 class Failure(unittest.TestCase):
+    def test_bad_input_only_the_first_rank_meets(self):
+        """n below TetGen's tet count is found while the model is built, which only each machine's
+        first rank does (ranks 0 and 2 of two "machines"): every rank stops with exit 2 and the one
+        message, nothing hangs waiting for the model."""
+        done, out = run("examples/castling/rook.json", "bad_n", 3, extra=("--set", "n=10"), timeout=120,
+                        machine_ranks=2)
+        self.assertEqual(done.returncode, 2, done.stderr)
+        self.assertEqual(done.stderr.count("flockmorph: error:"), 1, done.stderr)
+        self.assertIn("n: 10 is smaller than the 9038 tets TetGen made", done.stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
+    def test_too_many_agents_for_the_machine(self):
+        """An n the machine cannot hold on 4 ranks is refused before TetGen, counting the model once
+        for the machine: exit 2 and one message that says so (tests/world/test_memory.c checks the
+        machine's estimate and the agents it says fit)."""
+        physical = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        n = int(1.2 * physical / 800)  # 4 ranks need over 900 bytes an agent of n (one model of 132, four shares)
+        if n > 5 * 10**8:  # past MDE's grid, which is refused first
+            self.skipTest("this machine holds the largest n castling's MDE grid takes")
+        done, _ = run("examples/castling/rook.json", "huge", 4, extra=("--set", f"n={n}"), timeout=120)
+        self.assertEqual(done.returncode, 2, done.stderr)
+        self.assertEqual(done.stderr.count("flockmorph: error:"), 1, done.stderr)
+        self.assertIn("on this machine's 4 ranks (bytes per agent: the model 132, once;", done.stderr)
+        self.assertIn("physical memory", done.stderr)
+
     def test_disk_full_on_rank_0(self):
         self.check_disk_full("examples/castling/rook.json", "full2", 8 << 20)  # castling's cache: about 45 MiB
 
