@@ -9,6 +9,7 @@
 #define FM_FLOCK_H
 
 #include "checkpoint.h"
+#include "dist.h"
 #include "fields.h"
 #include "flock_bspline.h"
 #include "flock_fuzzy.h"
@@ -61,7 +62,17 @@ struct fm_flock_model {
     fm_obstacles *obstacles;       /* NULL without obstacles */
     double scene_lo[3], scene_hi[3]; /* source, target and path, padded: the style-field grid spans them */
     const fm_flock_model *from;    /* during the build only: a shot's group starting from this one's shape */
+    fm_dist_shared *shared;        /* on P ranks (fm_flock_model_build_shared): the segment the machine's
+                                      ranks share, which holds the arrays of n above; NULL: each its own */
 };
+
+/* On P ranks: the first rank of each machine builds the model (the sampling, the preparation's
+ * peak) and puts its arrays of n (100 bytes an agent) in memory the machine's ranks share; the
+ * others copy its scalars and build the target's deformation, the path and the obstacles' grid.
+ * Collective, as is fm_flock_model_destroy of such a model (docs/scale-out.md). A failure on any
+ * rank is every rank's (the same err). */
+fm_flock_model *fm_flock_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
+                                            void *user, fm_error *err);
 
 /* A group of a shot that starts from the shape `from` formed (flock_shot.c): its agents are from's,
  * starting on from's destinations (a static target that binds). */

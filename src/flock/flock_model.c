@@ -224,14 +224,28 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progr
     return st;
 }
 
+static fm_status load_source(const fm_scene_def *def, fm_mesh *source, fm_error *err)
+{
+    fm_status st = fm_name_key(fm_mesh_load(def->source.path, source, err), "source.mesh", err);
+    if (st == FM_OK) fm_mesh_place(source, &def->source);
+    return st == FM_OK ? fm_scene_name_key(def, fm_mesh_check_extent(source, def->source.path, err), "source.mesh", err)
+                       : st;
+}
+
+/* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
+static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_error *err)
+{
+    if (m->def.obstacle_count == 0) return FM_OK;
+    m->obstacles = fm_obstacles_from_scene(&m->def, m->def.k_a, source, &m->target.mesh, err);
+    return m->obstacles ? FM_OK : err ? err->status : FM_ERR_INPUT;
+}
+
 static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
     fm_status st = fm_flock_target_build(&m->target, def, err);
-    if (st == FM_OK) st = fm_name_key(fm_mesh_load(def->source.path, &source, err), "source.mesh", err);
-    if (st == FM_OK) fm_mesh_place(&source, &def->source);
-    if (st == FM_OK) st = fm_scene_name_key(def, fm_mesh_check_extent(&source, def->source.path, err), "source.mesh", err);
+    if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
     if (st == FM_OK) st = build_path(m, err);
@@ -242,10 +256,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
         set_info(m);
         st = plan_fields(m, err);
     }
-    /* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
-    if (st == FM_OK && def->obstacle_count > 0 &&
-        !(m->obstacles = fm_obstacles_from_scene(def, def->k_a, &source, &m->target.mesh, err)))
-        st = err ? err->status : FM_ERR_INPUT;
+    if (st == FM_OK) st = build_obstacles(m, &source, err);
     fm_mesh_free(&source);
     if (progress && st == FM_OK) progress("ready", 1.0, user);
     return st;
@@ -293,9 +304,81 @@ fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const f
     return build_model(def, from, progress, user, err);
 }
 
+/* ---------------------------------------------------------------- one model a machine */
+
+/* The model's arrays of n (100 bytes an agent), by address and size: what a machine's ranks share. */
+enum { MODEL_ARRAYS = 21 }; /* <= FM_DIST_MAX_ARRAYS */
+static int model_arrays(void *model, void **p[], size_t bytes[])
+{
+    fm_flock_model *m = model;
+    const size_t f = sizeof(float) * (size_t)m->n;
+    int c = 0;
+    p[c] = (void **)&m->max_speed, bytes[c++] = f;
+    p[c] = (void **)&m->max_force, bytes[c++] = f;
+    p[c] = (void **)&m->max_accel, bytes[c++] = f;
+    for (int k = 0; k < 3; k++) {
+        p[c] = (void **)&m->start[k], bytes[c++] = f;
+        p[c] = (void **)&m->dest0[k], bytes[c++] = f;
+        p[c] = (void **)&m->radius[k], bytes[c++] = f;
+        p[c] = (void **)&m->cos_half[k], bytes[c++] = f;
+        p[c] = (void **)&m->weight[k], bytes[c++] = f;
+    }
+    p[c] = (void **)&m->target.dest.p, bytes[c++] = 3 * f;
+    p[c] = (void **)&m->target.dest.bary, bytes[c++] = 3 * f;
+    p[c] = (void **)&m->target.dest.tri, bytes[c++] = sizeof(int32_t) * (size_t)m->n;
+    return c;
+}
+
+/* A machine's other ranks: the first rank's model as broadcast, with this rank's own scene and
+ * none of the first rank's objects (its arrays come from fm_dist_share_arrays). */
+static void take_scalars(void *model, const fm_scene_def *def)
+{
+    fm_flock_model *m = model;
+    m->def = *def;
+    const fm_samples dest = m->target.dest;
+    memset(&m->target, 0, sizeof m->target), memset(&m->path, 0, sizeof m->path);
+    m->target.dest = dest;
+    m->obstacles = NULL, m->from = NULL, m->shared = NULL;
+}
+
+/* The parts every rank builds for itself, from the scene as the first rank did: the target's mesh
+ * and deformation (not the destinations on it, which are shared), the path and the obstacles' grid. */
+static fm_status build_replicated(void *model, fm_error *err)
+{
+    fm_flock_model *m = model;
+    const fm_samples dest = m->target.dest;
+    fm_status st = fm_flock_target_build(&m->target, &m->def, err);
+    m->target.dest = dest;
+    fm_mesh source = {0};
+    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
+    if (st == FM_OK) st = build_obstacles(m, &source, err);
+    fm_mesh_free(&source);
+    return st;
+}
+
+static void *build_one(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    return fm_flock_model_build(def, progress, user, err);
+}
+
+static void destroy_one(void *m) { fm_flock_model_destroy(m); }
+
+fm_flock_model *fm_flock_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
+                                            void *user, fm_error *err)
+{
+    static const fm_dist_model_ops ops = {sizeof(fm_flock_model), offsetof(fm_flock_model, shared), build_one, take_scalars,
+                                          model_arrays, build_replicated, destroy_one};
+    return fm_dist_build_shared(dist, &ops, def, progress, user, err);
+}
+
 void fm_flock_model_destroy(fm_flock_model *m)
 {
     if (!m) return;
+    void **p[MODEL_ARRAYS];
+    size_t bytes[MODEL_ARRAYS];
+    for (int i = 0, count = m->shared ? model_arrays(m, p, bytes) : 0; i < count; i++) *p[i] = NULL; /* the segment's */
+    fm_dist_shared_free(m->shared);
     fm_flock_target_free(&m->target);
     fm_bspline_free(&m->path);
     fm_obstacles_destroy(m->obstacles);

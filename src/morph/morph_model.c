@@ -497,9 +497,10 @@ void fm_morph_model_drop_targets(fm_morph_model *m)
 /* ---------------------------------------------------------------- one model per machine */
 
 /* The model's arrays (all but a shot's tgt), by address and size: what a machine's ranks share. */
-enum { MODEL_ARRAYS = 16 };
-static int model_arrays(fm_morph_model *m, void **p[MODEL_ARRAYS], size_t bytes[MODEL_ARRAYS])
+enum { MODEL_ARRAYS = 16 }; /* <= FM_DIST_MAX_ARRAYS */
+static int model_arrays(void *model, void **p[], size_t bytes[])
 {
+    fm_morph_model *m = model;
     const size_t n = (size_t)m->n, keys = (size_t)m->key_count;
     int c = 0;
     p[c] = (void **)&m->src_rel, bytes[c++] = sizeof(float) * 12 * n;
@@ -515,35 +516,11 @@ static int model_arrays(fm_morph_model *m, void **p[MODEL_ARRAYS], size_t bytes[
     return c;
 }
 
-static size_t round_up_64(size_t bytes) { return (bytes + 63) & ~(size_t)63; }
-
-static size_t model_array_bytes(fm_morph_model *m)
-{
-    void **p[MODEL_ARRAYS];
-    size_t bytes[MODEL_ARRAYS], total = 0;
-    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) total += round_up_64(bytes[i]);
-    return total;
-}
-
-/* Points the model's arrays into the machine's segment; the rank that built them (`built`) copies
- * them there first and frees its own. */
-static void place_arrays(fm_morph_model *m, char *base, int built)
-{
-    void **p[MODEL_ARRAYS];
-    size_t bytes[MODEL_ARRAYS], offset = 0;
-    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) {
-        void *to = base + offset;
-        if (built && bytes[i] > 0) memcpy(to, *p[i], bytes[i]);
-        if (built) fm_free(*p[i]);
-        *p[i] = to;
-        offset += round_up_64(bytes[i]);
-    }
-}
-
 /* The parts every rank builds for itself: the distance grids, objects of their libraries, from the
  * placed meshes (the machine's first rank checked them when it built the model). */
-static fm_status build_grids(fm_morph_model *m, fm_error *err)
+static fm_status build_replicated(void *model, fm_error *err)
 {
+    fm_morph_model *m = model;
     const fm_scene_def *def = &m->def;
     prep_scratch s;
     memset(&s, 0, sizeof s);
@@ -556,40 +533,28 @@ static fm_status build_grids(fm_morph_model *m, fm_error *err)
     return st;
 }
 
-/* A machine's other ranks: the first rank's model, its scalars copied and its arrays not yet
- * placed (NULL), with this rank's own scene. */
-static void take_scalars(fm_morph_model *m, const fm_scene_def *def)
+/* A machine's other ranks: the first rank's model as broadcast, with this rank's own scene and
+ * none of the first rank's objects (its arrays come from fm_dist_share_arrays). */
+static void take_scalars(void *model, const fm_scene_def *def)
 {
-    void **p[MODEL_ARRAYS];
-    size_t bytes[MODEL_ARRAYS];
-    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) *p[i] = NULL;
+    fm_morph_model *m = model;
     m->def = *def;
     m->tgt = NULL, m->obstacles = m->target_sdf = NULL, m->shared = NULL;
 }
 
+static void *build_one(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+{
+    return fm_morph_model_build(def, progress, user, err);
+}
+
+static void destroy_one(void *m) { fm_morph_model_destroy(m); }
+
 fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err)
 {
-    const int first = fm_dist_first_here(dist);
-    fm_morph_model *m = first ? fm_morph_model_build(def, progress, user, err) : calloc(1, sizeof *m);
-    fm_status st = m ? FM_OK : !first ? fm_fail(err, FM_ERR_MEMORY, "out of memory") : err ? err->status : FM_ERR_INTERNAL;
-    if (fm_dist_agree(dist, st, err) != FM_OK) {
-        fm_morph_model_destroy(m);
-        return NULL;
-    }
-    fm_dist_bcast_here(dist, m, sizeof *m);
-    if (!first) take_scalars(m, def);
-    void *base = NULL;
-    fm_dist_shared *shared = fm_dist_shared_create(dist, model_array_bytes(m), &base, err);
-    if (!shared) {
-        fm_morph_model_destroy(m);
-        return NULL;
-    }
-    place_arrays(m, base, first);
-    m->shared = shared;
-    if (fm_dist_agree(dist, first ? FM_OK : build_grids(m, err), err) == FM_OK) return m;
-    fm_morph_model_destroy(m);
-    return NULL;
+    static const fm_dist_model_ops ops = {sizeof(fm_morph_model), offsetof(fm_morph_model, shared), build_one, take_scalars,
+                                          model_arrays, build_replicated, destroy_one};
+    return fm_dist_build_shared(dist, &ops, def, progress, user, err);
 }
 
 void fm_morph_model_destroy(fm_morph_model *m)
@@ -598,15 +563,12 @@ void fm_morph_model_destroy(fm_morph_model *m)
     fm_obstacles_destroy(m->obstacles); /* NULL-safe */
     fm_obstacles_destroy(m->target_sdf);
     fm_free(m->tgt);
-    if (m->shared) {
-        fm_dist_shared_free(m->shared); /* the arrays */
-    } else {
-        fm_free(m->src_rel), fm_free(m->tgt_f), fm_free(m->src_radius), fm_free(m->src_index);
-        for (int k = 0; k < 3; k++) {
-            fm_free(m->src_c[k]), fm_free(m->tgt_c[k]);
-            fm_free(m->key_q[k]), fm_free(m->key_f[k]);
-        }
+    void **p[MODEL_ARRAYS];
+    size_t bytes[MODEL_ARRAYS];
+    for (int i = 0, count = model_arrays(m, p, bytes); i < count; i++) {
+        if (!m->shared) fm_free(*p[i]); /* else the segment's */
     }
+    fm_dist_shared_free(m->shared);
     free(m);
 }
 

@@ -349,6 +349,50 @@ fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **bas
     return NULL;
 }
 
+static size_t round_up_64(size_t bytes) { return (bytes + 63) & ~(size_t)63; }
+
+fm_dist_shared *fm_dist_share_arrays(const fm_dist *d, void **const *p, const size_t *bytes, int count, fm_error *err)
+{
+    const int built = fm_dist_first_here(d);
+    size_t total = 0;
+    for (int i = 0; i < count; i++) {
+        if (!built) *p[i] = NULL; /* the first rank's addresses, meaningless here */
+        total += round_up_64(bytes[i]);
+    }
+    char *base = NULL;
+    fm_dist_shared *s = fm_dist_shared_create(d, total, (void **)&base, err);
+    for (size_t i = 0, offset = 0; s && i < (size_t)count; offset += round_up_64(bytes[i++])) {
+        if (built && bytes[i] > 0) memcpy(base + offset, *p[i], bytes[i]);
+        if (built) fm_free(*p[i]);
+        *p[i] = base + offset;
+    }
+    return s;
+}
+
+void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
+                           fm_progress_fn progress, void *user, fm_error *err)
+{
+    const int first = fm_dist_first_here(d);
+    void *m = first ? ops->build(def, progress, user, err) : calloc(1, ops->size);
+    fm_status st = m ? FM_OK : !first ? fm_fail(err, FM_ERR_MEMORY, "out of memory") : err ? err->status : FM_ERR_INTERNAL;
+    if (fm_dist_agree(d, st, err) != FM_OK) {
+        if (m) ops->destroy(m);
+        return NULL;
+    }
+    fm_dist_bcast_here(d, m, ops->size);
+    if (!first) ops->take_scalars(m, def);
+    void **p[FM_DIST_MAX_ARRAYS];
+    size_t bytes[FM_DIST_MAX_ARRAYS];
+    fm_dist_shared **shared = (fm_dist_shared **)((char *)m + ops->shared_offset);
+    if (!(*shared = fm_dist_share_arrays(d, p, bytes, ops->arrays(m, p, bytes), err))) {
+        ops->destroy(m);
+        return NULL;
+    }
+    if (fm_dist_agree(d, first ? FM_OK : ops->build_replicated(m, err), err) == FM_OK) return m;
+    ops->destroy(m);
+    return NULL;
+}
+
 void fm_dist_shared_free(fm_dist_shared *s)
 {
     if (!s) return;

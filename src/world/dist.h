@@ -41,6 +41,32 @@ void fm_dist_bcast_here(const fm_dist *d, void *data, size_t bytes);
  * rank, with the same err, when any machine's failed. */
 typedef struct fm_dist_shared fm_dist_shared;
 fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **base, fm_error *err);
+/* A model's `count` arrays, at *p[i] of bytes[i] each, put in one segment the machine's ranks share:
+ * the machine's first rank copies its arrays in and frees them (fm_free); every rank's *p[i] then
+ * points into the segment (each 64-byte aligned). Collective as fm_dist_shared_create. On failure
+ * (NULL on every rank) the first rank keeps its own arrays and the others' *p[i] are NULL. */
+fm_dist_shared *fm_dist_share_arrays(const fm_dist *d, void **const *p, const size_t *bytes, int count, fm_error *err);
+/* A mode's model built once a machine (fm_dist_build_shared): its struct, how to build it, and its
+ * parts. */
+enum { FM_DIST_MAX_ARRAYS = 32 };
+typedef struct fm_dist_model_ops {
+    size_t size;          /* of the model's struct, broadcast whole to the machine's other ranks */
+    size_t shared_offset; /* of its fm_dist_shared * member, the segment */
+    void *(*build)(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err); /* one process's */
+    /* on the other ranks, over the broadcast struct: their own scene, the first rank's objects
+     * (pointers other than the arrays) cleared */
+    void (*take_scalars)(void *model, const fm_scene_def *def);
+    int (*arrays)(void *model, void **p[FM_DIST_MAX_ARRAYS], size_t bytes[FM_DIST_MAX_ARRAYS]); /* of n: shared */
+    fm_status (*build_replicated)(void *model, fm_error *err); /* the other ranks: their own objects */
+    void (*destroy)(void *model);
+} fm_dist_model_ops;
+/* On P ranks: the first rank of each machine builds the model (the preparation's peak: TetGen, the
+ * sampling) and puts its arrays of n in the machine's segment (fm_dist_share_arrays); the others
+ * take its scalars and build only what each rank holds for itself (distance grids, paths). Collective;
+ * a failure on any rank is every rank's (the same err), and the model's destroy is then collective
+ * too (it frees the segment). docs/scale-out.md, "One model a machine". */
+void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
+                           fm_progress_fn progress, void *user, fm_error *err);
 /* Collective over the machine's ranks (MPI_Win_free): every one frees its handle, in the same order. */
 void fm_dist_shared_free(fm_dist_shared *s);
 

@@ -1,7 +1,7 @@
-/* The memory estimate of a machine (src/world/memory.c, docs/limits.md): on P ranks the tetra
- * morph's model is once per machine (fm_morph_model_build_shared), so a machine of 4 ranks needs
- * less than 4 one-rank machines' worth; the agents it says fit are the largest n it accepts; a
- * shot's groups, which every rank builds, keep a model on each rank. */
+/* The memory estimate of a machine (src/world/memory.c, docs/limits.md): on P ranks either mode's
+ * model is once per machine (fm_morph_model_build_shared, fm_flock_model_build_shared), so a
+ * machine of 4 ranks needs less than 4 one-rank machines' worth; the agents it says fit are the
+ * largest n it accepts; a shot's groups, which every rank builds, keep a model on each rank. */
 #include "memory.h"
 #include "modes.h"
 #include "flockmorph/scene.h"
@@ -10,11 +10,11 @@
 #include <math.h>
 #include <stdio.h>
 
-static fm_scene_def tetra(int group_index)
+static fm_scene_def scene(fm_mode mode, int group_index)
 {
     fm_scene_def def = fm_default_scene_def();
-    def.mode = FM_MODE_TETRA_MORPH;
-    def.d_min = 0.01; /* with MDE's grid */
+    def.mode = mode;
+    def.d_min = 0.01; /* the tetra morph with MDE's grid */
     def.group_index = group_index;
     return def;
 }
@@ -35,14 +35,10 @@ static void check_fit_edge(const fm_scene_def *def)
     ENSURE_MSG(!fm_memory_fits(&above), "%.4g agents (1.01 of %.4g) need %.4g bytes", 1.01 * fits, fits, above.total);
 }
 
-static void test_a_machine_shares_its_model(void)
+static void check_mode(fm_mode mode)
 {
-    if (fm_physical_memory() <= 0) {
-        printf("  (skipped: physical memory unknown)\n");
-        return;
-    }
     const int64_t n = 10000000;
-    const fm_scene_def plain = tetra(-1), group = tetra(0);
+    const fm_scene_def plain = scene(mode, -1), group = scene(mode, 0);
     fm_memory_set_ranks(4, 1); /* 4 machines of one rank: each holds a model and prepares one */
     const fm_memory_estimate alone = fm_memory_estimate_for(&plain, n);
     ENSURE(alone.shared > 0 && alone.model == 0 && alone.preparations_here == 1);
@@ -63,6 +59,16 @@ static void test_a_machine_shares_its_model(void)
     ENSURE_NEAR(shot.total, 4 * fmax(shot.run, shot.preprocess), 1e-6 * shot.total);
     check_fit_edge(&group);
     fm_memory_set_ranks(1, 1);
+}
+
+static void test_a_machine_shares_its_model(void)
+{
+    if (fm_physical_memory() <= 0) {
+        printf("  (skipped: physical memory unknown)\n");
+        return;
+    }
+    check_mode(FM_MODE_TETRA_MORPH);
+    check_mode(FM_MODE_SHAPE_FLOCK);
 }
 
 int main(void)
