@@ -68,9 +68,9 @@ struct fm_flock_model {
 
 /* On P ranks: the first rank of each machine builds the model (the sampling, the preparation's
  * peak) and puts its arrays of n (100 bytes an agent) in memory the machine's ranks share; the
- * others copy its scalars and build the target's deformation, the path and the obstacles' grid.
- * Collective, as is fm_flock_model_destroy of such a model (docs/scale-out.md). A failure on any
- * rank is every rank's (the same err). */
+ * others copy its scalars and build the target's deformation, the path and the obstacles' grid
+ * (fm_dist_build_shared: without shared memory each builds its own). Collective (docs/scale-out.md);
+ * a failure on any rank is every rank's. */
 fm_flock_model *fm_flock_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err);
 

@@ -54,8 +54,8 @@ struct fm_morph_model {
 
 /* On P ranks: the first rank of each machine builds the model (TetGen, the preparation's peak) and
  * puts its arrays (132 bytes an agent) in memory that the machine's ranks share; the others copy
- * its scalars and build only their distance grids. Collective, as is fm_morph_model_destroy of
- * such a model (docs/scale-out.md). A failure on any rank is every rank's (the same err). */
+ * its scalars and build only their distance grids (fm_dist_build_shared: without shared memory
+ * each builds its own). Collective (docs/scale-out.md); a failure on any rank is every rank's. */
 fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err);
 

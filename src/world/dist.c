@@ -6,6 +6,8 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -307,29 +309,67 @@ fm_status fm_dist_exchange(const fm_dist *d, const void *send, const int64_t *se
 /* ---------------------------------------------------------------- memory a machine's ranks share */
 
 struct fm_dist_shared {
-    void *alone;    /* the only rank on its machine: a plain allocation */
-#ifdef FM_HAVE_MPI
-    MPI_Win win;    /* several: MPI_Win_allocate_shared's window over the machine's ranks */
-    int windowed;
-#endif
+    void *alone;  /* the only rank on its machine: a plain allocation */
+    void *map;    /* several: the machine's segment, mapped (read-only but on its first rank) */
+    size_t bytes; /* of the mapping */
 };
+
+#ifdef FM_HAVE_MPI
+/* A segment of POSIX shared memory (/dev/shm), named for this process: its pages reserved now
+ * (posix_fallocate), so that a full /dev/shm or a file-size limit (ulimit -f) fails here and not as
+ * SIGBUS on a first touch. 0 or an errno. */
+static int create_segment(char name[48], size_t bytes)
+{
+    static int made;
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && bytes > limit.rlim_cur) return EFBIG;
+    snprintf(name, 48, "/flockmorph.%ld.%d", (long)getpid(), ++made);
+    int fd = shm_open(name, O_CREAT | O_EXCL | O_RDWR, 0600);
+    if (fd < 0) return errno;
+    int e = posix_fallocate(fd, 0, (off_t)bytes);
+    close(fd);
+    if (e) shm_unlink(name);
+    return e;
+}
+
+static int map_segment(const char *name, size_t bytes, int writable, void **map)
+{
+    int fd = shm_open(name, writable ? O_RDWR : O_RDONLY, 0);
+    if (fd < 0) return errno;
+    *map = mmap(NULL, bytes, writable ? PROT_READ | PROT_WRITE : PROT_READ, MAP_SHARED, fd, 0);
+    int e = *map == MAP_FAILED ? errno : 0;
+    close(fd);
+    if (e) *map = NULL;
+    return e;
+}
+
+/* The machine's first rank makes the segment, every rank of the machine maps it, and once all
+ * have, its name is removed: the memory lives while a rank maps it, and nothing outlives the job. */
+static fm_status share_segment(const fm_dist *d, fm_dist_shared *s, size_t bytes, void **base, fm_error *err)
+{
+    struct { int e; char name[48]; } made = {0, ""};
+    const int first = fm_dist_first_here(d);
+    if (first) made.e = create_segment(made.name, bytes);
+    fm_dist_bcast_here(d, &made, sizeof made);
+    int e = made.e ? made.e : map_segment(made.name, bytes, first, &s->map), worst = 0;
+    MPI_Allreduce(&e, &worst, 1, MPI_INT, MPI_MAX, d->here);
+    if (first && !made.e) shm_unlink(made.name);
+    if (!worst) {
+        s->bytes = bytes, *base = s->map;
+        return FM_OK;
+    }
+    if (s->map) munmap(s->map, bytes), s->map = NULL;
+    return fm_fail(err, FM_ERR_MEMORY, "cannot make %.3g MB of memory that the %d ranks on this machine share "
+                   "(POSIX shared memory, /dev/shm): %s%s", (double)bytes / 1e6, d->size_here, strerror(worst),
+                   worst == EFBIG ? " (the file-size limit, ulimit -f)" : worst == ENOSPC ? " (/dev/shm is full or small)" : "");
+}
+#endif
 
 /* The machine's segment: the first rank's `bytes` (64 more, to align), every rank's address of it. */
 static fm_status allocate_shared(const fm_dist *d, fm_dist_shared *s, size_t bytes, void **base, fm_error *err)
 {
 #ifdef FM_HAVE_MPI
-    if (d && d->size_here > 1) {
-        const MPI_Aint mine = fm_dist_first_here(d) ? (MPI_Aint)bytes + 64 : 0;
-        MPI_Aint size = 0;
-        int unit = 0;
-        MPI_Comm_set_errhandler(d->here, MPI_ERRORS_RETURN);
-        s->windowed = MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, d->here, base, &s->win) == MPI_SUCCESS;
-        const int found = s->windowed && MPI_Win_shared_query(s->win, 0, &size, &unit, base) == MPI_SUCCESS;
-        MPI_Comm_set_errhandler(d->here, MPI_ERRORS_ARE_FATAL);
-        if (found) return FM_OK;
-        return fm_fail(err, FM_ERR_MEMORY, "cannot make %.3g MB of memory shared by the %d ranks on this machine "
-                       "(MPI_Win_allocate_shared)", (double)bytes / 1e6, d->size_here);
-    }
+    if (d && d->size_here > 1) return share_segment(d, s, bytes + 64, base, err);
 #endif
     if ((s->alone = *base = fm_alloc(bytes + 64))) return FM_OK;
     return fm_fail(err, FM_ERR_MEMORY, "out of memory for %.3g MB", (double)bytes / 1e6);
@@ -369,6 +409,20 @@ fm_dist_shared *fm_dist_share_arrays(const fm_dist *d, void **const *p, const si
     return s;
 }
 
+/* No segment (a full /dev/shm, a file-size limit): each of the other ranks builds its own model, as
+ * every rank did before models were shared; the first ranks keep theirs. Rank 0 says so. */
+static fm_status build_unshared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, void **m,
+                                fm_error *err)
+{
+    if (fm_dist_rank(d) == 0)
+        fprintf(stderr, "flockmorph: warning: %s; every rank builds its own model instead (docs/scale-out.md)\n",
+                err ? err->message : "cannot share the model");
+    if (fm_dist_first_here(d)) return FM_OK;
+    ops->destroy(*m);
+    *m = ops->build(def, NULL, NULL, err);
+    return *m ? FM_OK : err ? err->status : FM_ERR_INTERNAL;
+}
+
 void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
                            fm_progress_fn progress, void *user, fm_error *err)
 {
@@ -384,21 +438,19 @@ void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const
     void **p[FM_DIST_MAX_ARRAYS];
     size_t bytes[FM_DIST_MAX_ARRAYS];
     fm_dist_shared **shared = (fm_dist_shared **)((char *)m + ops->shared_offset);
-    if (!(*shared = fm_dist_share_arrays(d, p, bytes, ops->arrays(m, p, bytes), err))) {
-        ops->destroy(m);
-        return NULL;
-    }
-    if (fm_dist_agree(d, first ? FM_OK : ops->build_replicated(m, err), err) == FM_OK) return m;
-    ops->destroy(m);
+    if ((*shared = fm_dist_share_arrays(d, p, bytes, ops->arrays(m, p, bytes), err)))
+        st = first ? FM_OK : ops->build_replicated(m, err);
+    else
+        st = build_unshared(d, ops, def, &m, err);
+    if (fm_dist_agree(d, st, err) == FM_OK) return m;
+    if (m) ops->destroy(m);
     return NULL;
 }
 
 void fm_dist_shared_free(fm_dist_shared *s)
 {
     if (!s) return;
-#ifdef FM_HAVE_MPI
-    if (s->windowed) MPI_Win_free(&s->win);
-#endif
+    if (s->map) munmap(s->map, s->bytes);
     fm_free(s->alone);
     free(s);
 }

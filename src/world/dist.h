@@ -33,12 +33,13 @@ int fm_dist_first_here(const fm_dist *d); /* 1 on the first rank of each machine
 /* Collective over this machine's ranks: the first one's `bytes` at `data` to the others (< 2 GiB). */
 void fm_dist_bcast_here(const fm_dist *d, void *data, size_t bytes);
 
-/* Memory the ranks on one machine share (MPI_Win_allocate_shared): read-only data that the
+/* Memory the ranks on one machine share (POSIX shared memory, /dev/shm): read-only data that the
  * machine's first rank fills once instead of every rank holding its own copy (the model,
  * docs/scale-out.md). Collective over every rank: one segment per machine of the `bytes` its first
  * rank asks for (the others' `bytes` is ignored), its address, 64-byte aligned, in *base on each of
- * the machine's ranks. A rank alone on its machine (or NULL) gets a plain allocation. NULL on every
- * rank, with the same err, when any machine's failed. */
+ * the machine's ranks (mapped read-only but on the first). A rank alone on its machine (or NULL)
+ * gets a plain allocation. NULL on every rank, with the same err, when any machine's failed (a full
+ * /dev/shm, a file-size limit). */
 typedef struct fm_dist_shared fm_dist_shared;
 fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **base, fm_error *err);
 /* A model's `count` arrays, at *p[i] of bytes[i] each, put in one segment the machine's ranks share:
@@ -62,12 +63,12 @@ typedef struct fm_dist_model_ops {
 } fm_dist_model_ops;
 /* On P ranks: the first rank of each machine builds the model (the preparation's peak: TetGen, the
  * sampling) and puts its arrays of n in the machine's segment (fm_dist_share_arrays); the others
- * take its scalars and build only what each rank holds for itself (distance grids, paths). Collective;
- * a failure on any rank is every rank's (the same err), and the model's destroy is then collective
- * too (it frees the segment). docs/scale-out.md, "One model a machine". */
+ * take its scalars and build only what each rank holds for itself (distance grids, paths). Where no
+ * segment can be made, every rank builds its own model (rank 0 warns on stderr). Collective; a
+ * failure on any rank is every rank's (the same err). docs/scale-out.md, "One model a machine". */
 void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
                            fm_progress_fn progress, void *user, fm_error *err);
-/* Collective over the machine's ranks (MPI_Win_free): every one frees its handle, in the same order. */
+/* This rank's mapping (the memory goes once every rank of the machine unmapped it); NULL-safe. */
 void fm_dist_shared_free(fm_dist_shared *s);
 
 /* Element-wise sums, maxima and minima over the ranks, in place (integers: exact for any P;

@@ -403,7 +403,10 @@ class Segments(unittest.TestCase):
 
     def test_checkpoint_disk_full(self):
         """Frame 0's cache fits under the 8 MiB limit, the checkpoint of 140 000 agents (10 MB) does
-        not: every rank stops with exit 3, no checkpoint (or .partial) is left, the frame is."""
+        not: every rank stops with exit 3, no checkpoint (or .partial) is left, the frame is. The
+        model's shared memory (18.5 MB) does not fit under the limit either: the ranks say so and
+        each builds its own model instead (until 2026-12-05 the ranks hung in
+        MPI_Win_allocate_shared here)."""
         limit = 8 << 20
 
         def small_files():
@@ -412,6 +415,7 @@ class Segments(unittest.TestCase):
         done, out = run("examples/castling/rook.json", "ckpt_full", 2, extra=sets, timeout=300, preexec=small_files)
         self.assertEqual(done.returncode, 3, done.stderr)
         self.assertIn("checkpoint.fmck", done.stderr)
+        self.assertIn("the file-size limit, ulimit -f); every rank builds its own model instead", done.stderr)
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck.partial")))
         self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), 1)
