@@ -73,6 +73,10 @@ struct fm_flock_model {
  * a failure on any rank is every rank's. */
 fm_flock_model *fm_flock_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err);
+/* A shot's group from `from`'s formed shape (fm_flock_model_build_from_shape), the same way. */
+fm_flock_model *fm_flock_model_build_from_shape_shared(const fm_scene_def *def, const fm_flock_model *from,
+                                                       const fm_dist *dist, fm_progress_fn progress, void *user,
+                                                       fm_error *err);
 
 /* A group of a shot that starts from the shape `from` formed (flock_shot.c): its agents are from's,
  * starting on from's destinations (a static target that binds). */
@@ -229,6 +233,10 @@ fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model 
 
 /* flock_shot.c: a shot on P ranks: every group's state one rank's share; each writing group
  * gathered on rank 0 at a frame. */
+/* fm_flock_shot_build on P ranks: every group's model one a machine (fm_flock_model_build_shared);
+ * collective. dist NULL: fm_flock_shot_build. */
+fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const fm_dist *dist, fm_progress_fn progress,
+                                      void *user, fm_error *err);
 fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_error *err);
 const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g);
 

@@ -60,9 +60,8 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     double agents = (double)n;
     const double ranks = fm_memory_ranks(), held = ranks > 1 ? HELD_PER_SHARE / ranks : 1;
     const int own_kalman = def->flock.kalman_r_over != FM_KALMAN_R_FIXED;
-    /* on P ranks a machine holds one model, its first rank's (fm_flock_model_build_shared); a shot's
-     * groups each rank builds */
-    const int shared = ranks > 1 && def->group_index < 0;
+    /* on P ranks a machine holds one model, its first rank's (fm_flock_model_build_shared) */
+    const int shared = ranks > 1;
     e.model = shared ? 0 : FLOCK_MODEL_PER_AGENT;
     e.shared = shared ? FLOCK_MODEL_PER_AGENT : 0;
     e.state = (FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +

@@ -357,19 +357,29 @@ static fm_status build_replicated(void *model, fm_error *err)
     return st;
 }
 
-static void *build_one(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+/* context: a shot's group's source group, whose formed shape it starts from; NULL otherwise */
+static void *build_one(const fm_scene_def *def, const void *context, fm_progress_fn progress, void *user, fm_error *err)
 {
-    return fm_flock_model_build(def, progress, user, err);
+    return context ? fm_flock_model_build_from_shape(def, context, progress, user, err)
+                   : fm_flock_model_build(def, progress, user, err);
 }
 
 static void destroy_one(void *m) { fm_flock_model_destroy(m); }
 
+static const fm_dist_model_ops SHARED_OPS = {sizeof(fm_flock_model), offsetof(fm_flock_model, shared), build_one,
+                                             take_scalars, model_arrays, build_replicated, destroy_one};
+
 fm_flock_model *fm_flock_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err)
 {
-    static const fm_dist_model_ops ops = {sizeof(fm_flock_model), offsetof(fm_flock_model, shared), build_one, take_scalars,
-                                          model_arrays, build_replicated, destroy_one};
-    return fm_dist_build_shared(dist, &ops, def, progress, user, err);
+    return fm_dist_build_shared(dist, &SHARED_OPS, def, NULL, progress, user, err);
+}
+
+fm_flock_model *fm_flock_model_build_from_shape_shared(const fm_scene_def *def, const fm_flock_model *from,
+                                                       const fm_dist *dist, fm_progress_fn progress, void *user,
+                                                       fm_error *err)
+{
+    return fm_dist_build_shared(dist, &SHARED_OPS, def, from, progress, user, err);
 }
 
 void fm_flock_model_destroy(fm_flock_model *m)

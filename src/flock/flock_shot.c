@@ -61,7 +61,8 @@ static fm_status check_memory(const fm_flock_shot *s, fm_error *err)
     return fm_memory_check_shot(s->def, agents, s->count, fm_flock_memory_estimate, err);
 }
 
-static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *user, fm_error *err)
+/* dist: on P ranks, one model a machine (fm_flock_model_build_shared); NULL: this process's */
+static fm_status build_groups(fm_flock_shot *s, const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
 {
     fm_status checked = check_memory(s, err); /* before any group is sampled */
     if (checked != FM_OK) return checked;
@@ -69,8 +70,13 @@ static fm_status build_groups(fm_flock_shot *s, fm_progress_fn progress, void *u
         const int from = s->def[g].group.source_group;
         fm_status st = check_source_group(s->def, g, err);
         if (st != FM_OK) return st;
-        s->model[g] = from < 0 ? fm_flock_model_build(&s->def[g], progress, user, err)
-                               : fm_flock_model_build_from_shape(&s->def[g], s->model[from], progress, user, err);
+        const fm_scene_def *def = &s->def[g];
+        if (dist)
+            s->model[g] = from < 0 ? fm_flock_model_build_shared(def, dist, progress, user, err)
+                                   : fm_flock_model_build_from_shape_shared(def, s->model[from], dist, progress, user, err);
+        else
+            s->model[g] = from < 0 ? fm_flock_model_build(def, progress, user, err)
+                                   : fm_flock_model_build_from_shape(def, s->model[from], progress, user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         else s->row0[g] = s->row0[from];
@@ -116,6 +122,12 @@ static void set_clock(fm_flock_shot *s, const fm_scene_def *defs)
 fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progress_fn progress, void *user,
                                    fm_error *err)
 {
+    return fm_flock_shot_build_on(defs, count, NULL, progress, user, err);
+}
+
+fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const fm_dist *dist, fm_progress_fn progress,
+                                      void *user, fm_error *err)
+{
     if (count < 1 || count > FM_MAX_GROUPS) {
         fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
         return NULL;
@@ -124,7 +136,7 @@ fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progr
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     s->count = count;
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
-    fm_status st = build_groups(s, progress, user, err);
+    fm_status st = build_groups(s, dist, progress, user, err);
     if (st != FM_OK) return fm_flock_shot_destroy(s), NULL;
     set_clock(s, defs);
     return s;

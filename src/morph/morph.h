@@ -65,6 +65,10 @@ fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_di
  * (the shot frees it once every group is built: fm_morph_model_drop_targets). */
 fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
                                            fm_progress_fn progress, void *user, fm_error *err);
+/* The same on P ranks, one model a machine (fm_morph_model_build_shared): only the first rank of a
+ * machine holds tgt (it builds the groups). */
+fm_morph_model *fm_morph_model_build_group_shared(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                                  const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err);
 void fm_morph_model_drop_targets(fm_morph_model *m);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
 /* verts: the store's tets by agent id, or (by_slot) in slot order; NULL (no room for them) gives infinity. */
@@ -208,6 +212,10 @@ fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, 
 /* morph_shot.c: a shot on P ranks (docs/scale-out.md): every group's state made as the rank's
  * share (fm_morph_state_create_distributed), before the run; each rank encodes its share of the
  * frames' rows. */
+/* fm_shot_build on P ranks: every group's model one a machine (fm_morph_model_build_group_shared);
+ * collective. dist NULL: fm_shot_build. */
+fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_progress_fn progress,
+                          void *user, fm_error *err);
 fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
 
 /* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an

@@ -35,9 +35,8 @@ fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
     fm_memory_estimate e = {0};
     const double ranks = fm_memory_ranks(), held = ranks > 1 ? HELD_PER_SHARE / ranks : 1;
     const int64_t mine = (int64_t)ceil((double)n * held); /* the agents a rank's store holds */
-    /* on P ranks a machine holds one model, its first rank's (fm_morph_model_build_shared); a shot's
-     * groups each rank builds */
-    const int shared = ranks > 1 && def->group_index < 0;
+    /* on P ranks a machine holds one model, its first rank's (fm_morph_model_build_shared) */
+    const int shared = ranks > 1;
     e.model = shared ? 0 : MODEL_PER_AGENT;
     e.shared = shared ? MODEL_PER_AGENT : 0;
     e.state = STATE_PER_AGENT * held;

@@ -542,19 +542,34 @@ static void take_scalars(void *model, const fm_scene_def *def)
     m->tgt = NULL, m->obstacles = m->target_sdf = NULL, m->shared = NULL;
 }
 
-static void *build_one(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
+/* A shot's group: the group it starts from and whether to keep its target tets in double. */
+typedef struct group_of_shot {
+    const fm_morph_model *from;
+    int keep_targets;
+} group_of_shot;
+
+static void *build_one(const fm_scene_def *def, const void *context, fm_progress_fn progress, void *user, fm_error *err)
 {
-    return fm_morph_model_build(def, progress, user, err);
+    const group_of_shot *g = context;
+    return g ? build_model(def, g->from, g->keep_targets, progress, user, err) : fm_morph_model_build(def, progress, user, err);
 }
 
 static void destroy_one(void *m) { fm_morph_model_destroy(m); }
 
+static const fm_dist_model_ops SHARED_OPS = {sizeof(fm_morph_model), offsetof(fm_morph_model, shared), build_one,
+                                             take_scalars, model_arrays, build_replicated, destroy_one};
+
 fm_morph_model *fm_morph_model_build_shared(const fm_scene_def *def, const fm_dist *dist, fm_progress_fn progress,
                                             void *user, fm_error *err)
 {
-    static const fm_dist_model_ops ops = {sizeof(fm_morph_model), offsetof(fm_morph_model, shared), build_one, take_scalars,
-                                          model_arrays, build_replicated, destroy_one};
-    return fm_dist_build_shared(dist, &ops, def, progress, user, err);
+    return fm_dist_build_shared(dist, &SHARED_OPS, def, NULL, progress, user, err);
+}
+
+fm_morph_model *fm_morph_model_build_group_shared(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                                  const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
+{
+    const group_of_shot group = {from, keep_targets};
+    return fm_dist_build_shared(dist, &SHARED_OPS, def, &group, progress, user, err);
 }
 
 void fm_morph_model_destroy(fm_morph_model *m)

@@ -96,15 +96,17 @@ static fm_status check_memory(const fm_shot *s, fm_error *err)
     return fm_memory_check_shot(s->def, agents, s->count, fm_morph_memory_estimate, err);
 }
 
-static fm_status build_models(fm_shot *s, fm_progress_fn progress, void *user, fm_error *err)
+/* dist: on P ranks, one model a machine (fm_morph_model_build_group_shared); NULL: this process's */
+static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
         fm_status st = check_memory(s, err); /* before TetGen, and again with each group's tet count */
         if (st == FM_OK) st = add_group_obstacles(s->def, g, err);
         if (st != FM_OK) return st;
         const int from = s->def[g].group.source_group;
-        s->model[g] = fm_morph_model_build_group(&s->def[g], from < 0 ? NULL : s->model[from], is_a_source(s, g), progress,
-                                                 user, err);
+        const fm_morph_model *source = from < 0 ? NULL : s->model[from];
+        s->model[g] = dist ? fm_morph_model_build_group_shared(&s->def[g], source, is_a_source(s, g), dist, progress, user, err)
+                           : fm_morph_model_build_group(&s->def[g], source, is_a_source(s, g), progress, user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         s->writes[g] = from < 0;
@@ -146,6 +148,12 @@ static fm_status alloc_frame(fm_shot *s, fm_error *err)
 fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_progress_fn progress, void *user,
                        fm_error *err)
 {
+    return fm_shot_build_on(defs, count, threads, NULL, progress, user, err);
+}
+
+fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_progress_fn progress,
+                          void *user, fm_error *err)
+{
     if (count < 1 || count > FM_MAX_GROUPS) {
         fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
         return NULL;
@@ -156,7 +164,7 @@ fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_prog
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
     s->first = defs[0];
     s->threads = threads;
-    fm_status st = build_models(s, progress, user, err);
+    fm_status st = build_models(s, dist, progress, user, err);
     if (st != FM_OK) return fm_shot_destroy(s), NULL;
     s->dt = s->model[0]->dt, s->steps_per_frame = s->model[0]->steps_per_frame;
     s->frame_limit = defs[0].frame_limit;

@@ -378,8 +378,12 @@ static fm_status allocate_shared(const fm_dist *d, fm_dist_shared *s, size_t byt
 fm_dist_shared *fm_dist_shared_create(const fm_dist *d, size_t bytes, void **base, fm_error *err)
 {
     *base = NULL;
-    fm_dist_shared *s = calloc(1, sizeof *s);
-    fm_status st = s ? allocate_shared(d, s, bytes, base, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    fm_dist_shared made = {0}, *s = NULL;
+    fm_status st = allocate_shared(d, &made, bytes, base, err); /* every rank, in step: it is collective */
+    if (st == FM_OK && !(s = malloc(sizeof *s))) st = fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (s) *s = made;
+    else if (made.map) munmap(made.map, made.bytes);
+    else fm_free(made.alone);
     if (fm_dist_agree(d, st, err) == FM_OK) {
         *base = (void *)(((uintptr_t)*base + 63) & ~(uintptr_t)63);
         return s;
@@ -411,23 +415,23 @@ fm_dist_shared *fm_dist_share_arrays(const fm_dist *d, void **const *p, const si
 
 /* No segment (a full /dev/shm, a file-size limit): each of the other ranks builds its own model, as
  * every rank did before models were shared; the first ranks keep theirs. Rank 0 says so. */
-static fm_status build_unshared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, void **m,
-                                fm_error *err)
+static fm_status build_unshared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
+                                const void *context, void **m, fm_error *err)
 {
     if (fm_dist_rank(d) == 0)
         fprintf(stderr, "flockmorph: warning: %s; every rank builds its own model instead (docs/scale-out.md)\n",
                 err ? err->message : "cannot share the model");
     if (fm_dist_first_here(d)) return FM_OK;
     ops->destroy(*m);
-    *m = ops->build(def, NULL, NULL, err);
+    *m = ops->build(def, context, NULL, NULL, err);
     return *m ? FM_OK : err ? err->status : FM_ERR_INTERNAL;
 }
 
-void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
+void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, const void *context,
                            fm_progress_fn progress, void *user, fm_error *err)
 {
     const int first = fm_dist_first_here(d);
-    void *m = first ? ops->build(def, progress, user, err) : calloc(1, ops->size);
+    void *m = first ? ops->build(def, context, progress, user, err) : calloc(1, ops->size);
     fm_status st = m ? FM_OK : !first ? fm_fail(err, FM_ERR_MEMORY, "out of memory") : err ? err->status : FM_ERR_INTERNAL;
     if (fm_dist_agree(d, st, err) != FM_OK) {
         if (m) ops->destroy(m);
@@ -441,7 +445,7 @@ void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const
     if ((*shared = fm_dist_share_arrays(d, p, bytes, ops->arrays(m, p, bytes), err)))
         st = first ? FM_OK : ops->build_replicated(m, err);
     else
-        st = build_unshared(d, ops, def, &m, err);
+        st = build_unshared(d, ops, def, context, &m, err);
     if (fm_dist_agree(d, st, err) == FM_OK) return m;
     if (m) ops->destroy(m);
     return NULL;

@@ -53,7 +53,9 @@ enum { FM_DIST_MAX_ARRAYS = 32 };
 typedef struct fm_dist_model_ops {
     size_t size;          /* of the model's struct, broadcast whole to the machine's other ranks */
     size_t shared_offset; /* of its fm_dist_shared * member, the segment */
-    void *(*build)(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err); /* one process's */
+    /* one process's; context: what fm_dist_build_shared was given (a shot's group: the group it
+     * starts from) */
+    void *(*build)(const fm_scene_def *def, const void *context, fm_progress_fn progress, void *user, fm_error *err);
     /* on the other ranks, over the broadcast struct: their own scene, the first rank's objects
      * (pointers other than the arrays) cleared */
     void (*take_scalars)(void *model, const fm_scene_def *def);
@@ -66,7 +68,7 @@ typedef struct fm_dist_model_ops {
  * take its scalars and build only what each rank holds for itself (distance grids, paths). Where no
  * segment can be made, every rank builds its own model (rank 0 warns on stderr). Collective; a
  * failure on any rank is every rank's (the same err). docs/scale-out.md, "One model a machine". */
-void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def,
+void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, const void *context,
                            fm_progress_fn progress, void *user, fm_error *err);
 /* This rank's mapping (the memory goes once every rank of the machine unmapped it); NULL-safe. */
 void fm_dist_shared_free(fm_dist_shared *s);

@@ -162,27 +162,31 @@ static void list_groups(const fm_scene_def *defs, const int64_t *agents, int cou
 fm_status fm_memory_check_shot(const fm_scene_def *defs, const int64_t *agents, int count, fm_memory_estimate_fn estimate,
                                fm_error *err)
 {
-    double models = 0, stores = 0, frame = 0, fixed = FIXED_BYTES, preparation = 0, rows = 0;
+    double models = 0, shared = 0, stores = 0, frame = 0, fixed = FIXED_BYTES, preparation = 0, rows = 0;
     int here = 1;
     for (int g = 0; g < count; g++) {
         if (agents[g] <= 0) continue;
         const fm_memory_estimate e = estimate(&defs[g], agents[g]);
         const double n = (double)agents[g];
-        preparation = fmax(preparation, models + e.preprocess_per_agent * n);
-        models += e.model * n, stores += (e.state + e.grid) * n;
+        preparation = fmax(preparation, models + shared + e.preprocess_per_agent * n); /* beside the groups before */
+        models += e.model * n, shared += e.shared * n, stores += (e.state + e.grid) * n;
         frame = fmax(frame, e.frames), fixed += e.fixed - FIXED_BYTES, here = e.ranks_here;
         if (defs[g].group.source_group < 0) rows += n;
     }
-    const double run = models + stores + frame * rows, total = fmax(run, preparation) + fixed;
-    const double physical = fm_physical_memory(), gib = 1024.0 * 1024.0 * 1024.0;
-    if (physical <= 0 || total * here <= physical) return FM_OK;
+    /* a machine: one copy of the shared models, each rank's own part; one rank prepares when shared */
+    const int preparations = shared > 0 ? 1 : here;
+    const double run = models + stores + frame * rows, running = shared + here * (run + fixed);
+    const double preparing = preparations * (preparation + fixed) + (here - preparations) * (fixed + models);
+    const double total = fmax(running, preparing), physical = fm_physical_memory(), gib = 1024.0 * 1024.0 * 1024.0;
+    if (physical <= 0 || total <= physical) return FM_OK;
     char groups[512], ranks[96] = "";
     list_groups(defs, agents, count, groups, sizeof groups);
-    if (here > 1) snprintf(ranks, sizeof ranks, " on each of the %d ranks on this machine", here);
+    if (here > 1) snprintf(ranks, sizeof ranks, " on this machine's %d ranks", here);
     return fm_fail(err, FM_ERR_INPUT,
-                   "%s: the shot's %d groups (%s agents) need about %.1f GiB together%s (models %.1f GiB, agent stores "
-                   "and grids %.1f GiB, a frame of %.3g rows %.1f GiB, preparation peak %.1f GiB; plus %.0f MiB that do "
-                   "not grow with n), more than this machine's %.1f GiB of physical memory: lower the groups' n "
-                   "(docs/limits.md)", defs[0].scene_path, count, groups, total / gib, ranks, models / gib, stores / gib,
-                   rows, frame * rows / gib, preparation / gib, fixed / (1024.0 * 1024.0), physical / gib);
+                   "%s: the shot's %d groups (%s agents) need about %.1f GiB together%s (models %.1f GiB%s, agent "
+                   "stores and grids %.1f GiB, a frame of %.3g rows %.1f GiB, preparation peak %.1f GiB; plus %.0f MiB "
+                   "that do not grow with n), more than this machine's %.1f GiB of physical memory: lower the groups' "
+                   "n (docs/limits.md)", defs[0].scene_path, count, groups, total / gib, ranks, (models + shared) / gib,
+                   shared > 0 ? " once" : here > 1 ? " on each rank" : "", stores / gib, rows, frame * rows / gib,
+                   preparation / gib, fixed / (1024.0 * 1024.0), physical / gib);
 }

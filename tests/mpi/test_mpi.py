@@ -150,12 +150,15 @@ class SameBytes(unittest.TestCase):
         model on the rank of their row."""
         self.check_scene("tests/data/mpi/shot_chain.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1000))
         self.check_scene("tests/data/mpi/shot_chain.json", [(3, 1)])
+        # two "machines": each first rank builds every group, b from a's target tets, which only it keeps
+        self.check_scene("tests/data/mpi/shot_chain.json", [(4, 1)], pieces(1000), machine_ranks=2)
 
     def test_shape_flock_shot(self):
         """A sphere that becomes a torus (flock_sequence: the torus group takes over the sphere's
         bound agents, the same rows), the ranks encoding their shares of the rows."""
         self.check_scene("examples/flock_sequence/scene.json", [(2, 1), (3, 1)], pieces(1000))
         self.check_scene("examples/flock_sequence/scene.json", [(2, 1)])
+        self.check_scene("examples/flock_sequence/scene.json", [(3, 1)], pieces(1000), machine_ranks=2)
 
     def test_shape_flock_gathered(self):
         """Pieces that are not whole blocks of 1024 agents (the flock measures' blocks): rank 0
