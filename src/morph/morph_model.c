@@ -83,6 +83,10 @@ static fm_status source_from_targets(const fm_scene_def *def, const fm_morph_mod
 {
     fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", mesh, err);
     if (st != FM_OK) return st;
+    if (!from->tgt && from->shared) /* a machine's other rank: fm_dist_build_shared fell back to a model each */
+        return fm_fail(err, FM_ERR_MEMORY, "%s: cannot build this group on every rank without shared memory: the group "
+                       "it starts from is shared, and only each machine's first rank keeps its target tets (see the "
+                       "warning before: free /dev/shm or raise ulimit -f)", def->group.name);
     if (!from->tgt) return fm_fail(err, FM_ERR_INTERNAL, "the group's source group was built without its targets");
     tets->v = malloc(sizeof(double) * 12 * (size_t)from->n);
     if (!tets->v) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld tets", (long long)from->n);

@@ -370,6 +370,8 @@ static fm_status allocate_shared(const fm_dist *d, fm_dist_shared *s, size_t byt
 {
 #ifdef FM_HAVE_MPI
     if (d && d->size_here > 1) return share_segment(d, s, bytes + 64, base, err);
+#else
+    (void)d; /* one process: no other rank */
 #endif
     if ((s->alone = *base = fm_alloc(bytes + 64))) return FM_OK;
     return fm_fail(err, FM_ERR_MEMORY, "out of memory for %.3g MB", (double)bytes / 1e6);
