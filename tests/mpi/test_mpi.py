@@ -116,8 +116,10 @@ class SameBytes(unittest.TestCase):
 
     def test_castling_on_two_machines(self):
         """Ranks 0-1 and 2-3 as two machines: each machine's first rank builds the model and its
-        ranks share it (docs/scale-out.md, "One model a machine")."""
+        ranks share it (docs/scale-out.md, "One model a machine"); and every rank its own machine,
+        each building and holding its model alone."""
         self.check_scene("examples/castling/rook.json", [(4, 1), (3, 1)], pieces(1000), machine_ranks=2)
+        self.check_scene("examples/castling/rook.json", [(3, 1)], pieces(1000), machine_ranks=1)
 
     def test_shape_flock_on_two_machines(self):
         """The shape flock's model shared per machine (its destinations on the deforming target, the
