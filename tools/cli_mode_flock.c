@@ -93,8 +93,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
 {
     flock_run *r = run;
     fm_error err = {0};
-    r->model = fm_dist_size(cli_dist) > 1 ? fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err)
-                                          : fm_flock_model_build(def, cli_prep_progress, show, &err);
+    r->model = fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);

@@ -129,8 +129,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     morph_run *r = run;
     fm_error err = {0};
     r->warnings = json_array();
-    r->model = fm_dist_size(cli_dist) > 1 ? fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err)
-                                          : fm_morph_model_build(def, cli_prep_progress, show, &err);
+    r->model = fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};

@@ -66,8 +66,7 @@ int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def)
 static int build_morphs(shot_run *r, int *show)
 {
     fm_error err = {0};
-    const fm_dist *dist = fm_dist_size(cli_dist) > 1 ? cli_dist : NULL; /* every group's model one a machine */
-    r->shot = fm_shot_build_on(r->defs, r->count, 0, dist, cli_prep_progress, show, &err);
+    r->shot = fm_shot_build_on(r->defs, r->count, 0, cli_dist, cli_prep_progress, show, &err); /* one model a machine */
     if (!r->shot) return cli_report(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_morph_model *m = fm_shot_model(r->shot, g);
@@ -81,8 +80,7 @@ static int build_morphs(shot_run *r, int *show)
 static int build_flocks(shot_run *r, int *show)
 {
     fm_error err = {0};
-    const fm_dist *dist = fm_dist_size(cli_dist) > 1 ? cli_dist : NULL; /* every group's model one a machine */
-    r->flock_shot = fm_flock_shot_build_on(r->defs, r->count, dist, cli_prep_progress, show, &err);
+    r->flock_shot = fm_flock_shot_build_on(r->defs, r->count, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (!r->flock_shot) return cli_report(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_flock_model *m = fm_flock_shot_model(r->flock_shot, g);

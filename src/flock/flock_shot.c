@@ -71,12 +71,8 @@ static fm_status build_groups(fm_flock_shot *s, const fm_dist *dist, fm_progress
         fm_status st = check_source_group(s->def, g, err);
         if (st != FM_OK) return st;
         const fm_scene_def *def = &s->def[g];
-        if (dist)
-            s->model[g] = from < 0 ? fm_flock_model_build_shared(def, dist, progress, user, err)
-                                   : fm_flock_model_build_from_shape_shared(def, s->model[from], dist, progress, user, err);
-        else
-            s->model[g] = from < 0 ? fm_flock_model_build(def, progress, user, err)
-                                   : fm_flock_model_build_from_shape(def, s->model[from], progress, user, err);
+        s->model[g] = from < 0 ? fm_flock_model_build_shared(def, dist, progress, user, err)
+                               : fm_flock_model_build_from_shape_shared(def, s->model[from], dist, progress, user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         else s->row0[g] = s->row0[from];

@@ -526,6 +526,7 @@ static fm_status build_replicated(void *model, fm_error *err)
 {
     fm_morph_model *m = model;
     const fm_scene_def *def = &m->def;
+    if (def->obstacle_count == 0 && def->phase_switch != FM_SWITCH_DISTANCE) return FM_OK; /* no grid to build */
     prep_scratch s;
     memset(&s, 0, sizeof s);
     fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", &s.src_mesh, err);

@@ -96,7 +96,7 @@ static fm_status check_memory(const fm_shot *s, fm_error *err)
     return fm_memory_check_shot(s->def, agents, s->count, fm_morph_memory_estimate, err);
 }
 
-/* dist: on P ranks, one model a machine (fm_morph_model_build_group_shared); NULL: this process's */
+/* dist: on P ranks, one model a machine (fm_morph_model_build_group_shared); NULL: this process's own */
 static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
@@ -105,8 +105,7 @@ static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_progress_fn pr
         if (st != FM_OK) return st;
         const int from = s->def[g].group.source_group;
         const fm_morph_model *source = from < 0 ? NULL : s->model[from];
-        s->model[g] = dist ? fm_morph_model_build_group_shared(&s->def[g], source, is_a_source(s, g), dist, progress, user, err)
-                           : fm_morph_model_build_group(&s->def[g], source, is_a_source(s, g), progress, user, err);
+        s->model[g] = fm_morph_model_build_group_shared(&s->def[g], source, is_a_source(s, g), dist, progress, user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         s->writes[g] = from < 0;

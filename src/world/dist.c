@@ -432,9 +432,11 @@ static fm_status build_unshared(const fm_dist *d, const fm_dist_model_ops *ops, 
 void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, const void *context,
                            fm_progress_fn progress, void *user, fm_error *err)
 {
+    if (fm_dist_size(d) == 1) return ops->build(def, context, progress, user, err); /* one process: its own */
     const int first = fm_dist_first_here(d);
     void *m = first ? ops->build(def, context, progress, user, err) : calloc(1, ops->size);
-    fm_status st = m ? FM_OK : !first ? fm_fail(err, FM_ERR_MEMORY, "out of memory") : err ? err->status : FM_ERR_INTERNAL;
+    fm_status st = FM_OK;
+    if (!m) st = first ? (err ? err->status : FM_ERR_INTERNAL) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (fm_dist_agree(d, st, err) != FM_OK) {
         if (m) ops->destroy(m);
         return NULL;

@@ -67,7 +67,8 @@ typedef struct fm_dist_model_ops {
  * sampling) and puts its arrays of n in the machine's segment (fm_dist_share_arrays); the others
  * take its scalars and build only what each rank holds for itself (distance grids, paths). Where no
  * segment can be made, every rank builds its own model (rank 0 warns on stderr). Collective; a
- * failure on any rank is every rank's (the same err). docs/scale-out.md, "One model a machine". */
+ * failure on any rank is every rank's (the same err). One process (d NULL or P = 1): ops->build.
+ * docs/scale-out.md, "One model a machine". */
 void *fm_dist_build_shared(const fm_dist *d, const fm_dist_model_ops *ops, const fm_scene_def *def, const void *context,
                            fm_progress_fn progress, void *user, fm_error *err);
 /* This rank's mapping (the memory goes once every rank of the machine unmapped it); NULL-safe. */
