@@ -4,18 +4,24 @@
  * agent range, no allocation, each agent writes only its own entries, so any split of the range
  * across threads gives the same bits.
  *
- * Agent a perceives b for a rule when |x_b - x_a| < r (the rule's radius) and b lies inside the
- * rule's cone: the angle between a's velocity and x_b - x_a is at most half the rule's angle (an
- * agent at rest, or an angle of 360 degrees, sees all round). Over the perceived neighbours, each
- * rule asks for a change of velocity (per second, as Reynolds's steering "desired - velocity"):
- *   separation  S r_s * mean (x_a - x_b) / |x_a - x_b|^2   (away, nearer neighbours harder: S
- *                                                         from one at the radius)
- *   cohesion    S * mean (x_b - x_a) / r_c                (toward their centre, S at the radius)
- *   alignment   mean v_b - v_a                            (their velocity)
- * for a rule with at least one neighbour (else 0). The rules are relative to the neighbours, so a
- * flock that moves as one, evenly spaced, feels none of them: they shape the flock without
- * dragging it (Reynolds's MaxSpeed * unit(direction) - v per rule would brake a flock that flies
- * slower than MaxSpeed, and, always of size ~MaxSpeed, hit MaxForce so that the weights stop
+ * Every rule weighs a neighbour b smoothly, so that nothing kicks an agent when a neighbour enters or
+ * leaves its radius or its view cone (issue 37: hard edges made the rules a source of noise):
+ *   distance  k(rho) = (1 - rho^2)^2, rho = |x_b - x_a| / r (the rule's radius): 1 beside the agent,
+ *             0 with a zero slope at the radius;
+ *   bearing   g = smoothstep over the cosine c between a's velocity and x_b - x_a, from 0 at
+ *             cos_half - FM_BOIDS_CONE_BAND to 1 at cos_half + FM_BOIDS_CONE_BAND (an agent at rest,
+ *             or an angle of 360 degrees, sees all round: g = 1);
+ * and w = g k. Over the neighbours each rule asks for a change of velocity (per second, as
+ * Reynolds's steering "desired - velocity"), with W = max(1/4, sum w) (a weighted mean where there are
+ * neighbours enough, fading to 0 with the last one instead of jumping):
+ *   separation  S sum g s(rho) (x_a - x_b) / |x_a - x_b|,  s(rho) = (1 - rho)^2 (1 + 2 rho)
+ *               (away, nearer and more neighbours harder; S per neighbour beside the agent)
+ *   cohesion    S sum w (x_b - x_a) / (W r_c)            (toward their centre, S at the radius)
+ *   alignment   sum w (v_b - v_a) / W                    (their velocity)
+ * where S is the agent's MaxSpeed. The rules are relative to the neighbours, so a flock that moves as
+ * one, evenly spaced, feels no alignment and balanced separation and cohesion: they shape the flock
+ * without dragging it (Reynolds's MaxSpeed * unit(direction) - v per rule would brake a flock that
+ * flies slower than MaxSpeed, and, always of size ~MaxSpeed, hit MaxForce so that the weights stop
  * mattering). The steering force is
  *   F = sum over rules of weight * steer, truncated to |F| <= MaxForce. */
 #ifndef FM_KERNEL_BOIDS_H
@@ -36,38 +42,48 @@ typedef struct fm_boids_view {
     const float *max_speed, *max_force;
 } fm_boids_view;
 
-/* The perception test, shared by the kernel and its reference so both pick the same neighbours:
- * d2 = |x_b - x_a|^2 (float, dx*dx + dy*dy + dz*dz), hd = v_a . (x_b - x_a), hlen_dist =
- * |v_a| sqrtf(d2). */
-static inline int fm_boids_sees(float d2, float hd, float hlen_dist, float hlen, float r2, float cos_half)
+/* Half the width, in cosine, of the band over which a rule's view cone fades out. */
+#define FM_BOIDS_CONE_BAND 0.15f
+
+/* W = max(FM_BOIDS_WEIGHT_FLOOR, sum w): below it a rule fades with its neighbours' weight. */
+#define FM_BOIDS_WEIGHT_FLOOR 0.25
+
+/* The bearing weight g of a neighbour at hd = v_a . (x_b - x_a), hlen_dist = |v_a| |x_b - x_a|. */
+static inline float fm_boids_bearing(float hd, float hlen_dist, float hlen, float cos_half)
 {
-    if (!(d2 < r2) || d2 == 0) return 0;
-    return cos_half <= -1.0f || hlen == 0 || hd >= cos_half * hlen_dist;
+    if (cos_half <= -1.0f || hlen == 0) return 1.0f;
+    const float t = (hd / hlen_dist - (cos_half - FM_BOIDS_CONE_BAND)) * (0.5f / FM_BOIDS_CONE_BAND);
+    if (t <= 0) return 0.0f;
+    if (t >= 1) return 1.0f;
+    return t * t * (3 - 2 * t);
 }
 
 /* Sums over one agent's perceived neighbours (double, so the order they come in barely matters). */
 typedef struct fm_boids_sums {
-    double rule[FM_BOIDS_RULES][3]; /* separation sum, cohesion offset sum, alignment velocity sum */
-    int32_t count[FM_BOIDS_RULES];
+    double rule[FM_BOIDS_RULES][3]; /* separation push, weighted cohesion offsets, weighted velocities */
+    double weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
 } fm_boids_sums;
 
-/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules that perceive it. */
+/* Adds neighbour b (offset d, d2 = |d|^2 > 0, velocity vb) to the rules; inv_r2 holds 1 / r^2 of each
+ * rule (0 for a rule of radius 0). */
 static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const float h[3],
-                                float hlen, const float r2[3], const float cos_half[3])
+                                float hlen, const float inv_r2[3], const float cos_half[3])
 {
-    const float hd = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], hlen_dist = hlen * sqrtf(d2);
-    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_SEPARATION], cos_half[FM_BOIDS_SEPARATION])) {
-        const double inv_d2 = 1.0 / d2;
-        for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_SEPARATION][k] -= d[k] * inv_d2;
-        s->count[FM_BOIDS_SEPARATION]++;
-    }
-    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_COHESION], cos_half[FM_BOIDS_COHESION])) {
-        for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_COHESION][k] += d[k];
-        s->count[FM_BOIDS_COHESION]++;
-    }
-    if (fm_boids_sees(d2, hd, hlen_dist, hlen, r2[FM_BOIDS_ALIGNMENT], cos_half[FM_BOIDS_ALIGNMENT])) {
-        for (int k = 0; k < 3; k++) s->rule[FM_BOIDS_ALIGNMENT][k] += vb[k];
-        s->count[FM_BOIDS_ALIGNMENT]++;
+    if (d2 == 0) return;
+    const float dist = sqrtf(d2), hd = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], hlen_dist = hlen * dist;
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        const float rho2 = d2 * inv_r2[r];
+        if (inv_r2[r] == 0 || !(rho2 < 1)) continue;
+        const float g = fm_boids_bearing(hd, hlen_dist, hlen, cos_half[r]);
+        if (g == 0) continue;
+        if (r == FM_BOIDS_SEPARATION) {
+            const double rho = sqrt((double)rho2), push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) / dist;
+            for (int k = 0; k < 3; k++) s->rule[r][k] -= push * d[k];
+            continue;
+        }
+        const double w = (double)g * (1 - rho2) * (1 - rho2);
+        for (int k = 0; k < 3; k++) s->rule[r][k] += w * (r == FM_BOIDS_COHESION ? d[k] : vb[k]);
+        s->weight[r] += w;
     }
 }
 

@@ -18,10 +18,10 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
     static const char *const deform[] = {"none", "wave", "pulse", "sequence"}, *const arrival[] = {"bind", "float"};
     static const char *const r_over[] = {"none", "distance", "leader_speed"};
     const fm_flock_def *f = &def->flock;
-    json_t *j = json_pack("{sssssssfsfsfsfsssfsfsisisfsf}", "sampling", sampling[f->sampling], "match", match[f->match],
+    json_t *j = json_pack("{sssssssfsfsfsfsssfsfsfsisisfsf}", "sampling", sampling[f->sampling], "match", match[f->match],
                      "deform", deform[f->deform], "kalman_q", f->kalman_q, "kalman_r_position", f->kalman_r_position,
                      "kalman_r_velocity", f->kalman_r_velocity, "arrival_radius", f->arrival_radius, "arrival_mode",
-                     arrival[f->arrival_mode], "path_length", mi->path_length, "path_time", mi->path_time, "fields",
+                     arrival[f->arrival_mode], "path_length", mi->path_length, "path_time", mi->path_time, "leaders_end", mi->leaders_end, "fields",
                      def->field_count, "obstacles", def->obstacle_count, "max_perception_radius", mi->max_radius, "mass",
                      f->mass);
     json_object_set_new(j, "kalman_r_scale_over", json_string(r_over[f->kalman_r_over]));

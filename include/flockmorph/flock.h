@@ -29,7 +29,8 @@ typedef struct fm_flock_model_info {
     double source_center[3];   /* O1: the mean of the source samples */
     double target_center[3];   /* O2: the mean of the target samples (at time 0) */
     double path_length;        /* of the B-spline from O1 to O2 */
-    double path_time;          /* seconds the leaders take along their paths */
+    double path_time;          /* seconds each leader takes along its path, eased in and out */
+    double leaders_end;        /* seconds until the last leader arrives: path_time + shape_flock.ease.spread */
     double time_step;
     int32_t steps_per_frame;
     double max_radius;         /* the largest perception radius: the neighbour grid's cell */
@@ -105,7 +106,7 @@ typedef struct fm_flock_run_stats {
     double final_max_distance;
     double bound_fraction;          /* agents in FM_PHASE_ARRIVED at the last frame */
     double tracking_lag;            /* deforming target: mean distance to the moving destination over
-                                       the frames after path_time; NaN for a static target */
+                                       the frames after leaders_end; NaN for a static target */
     int64_t tracking_frames;        /* frames that mean is taken over */
     double *measures;               /* per frame after frame 0, FM_FLOCK_MEASURES each: row k - 1 is
                                        frame k's (malloc'ed; fm_flock_run_stats_free) */

@@ -153,6 +153,8 @@ typedef struct fm_flock_def {
     double damping;              /* c of the damping force -m c (v - v_destination), 1/s */
     double external_gain;        /* acceleration per unit of style-field velocity, 1/s */
     double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */
+    double ease_in, ease_out;    /* seconds a leader takes to speed up from rest, and to slow to rest */
+    double ease_spread;          /* seconds between the first leaders' start and the last's, front first */
     double arrival_radius;       /* stepped steering within this distance of the destination; 0 = off */
     double arrival_time;         /* time constant of the stepped approach, s */
     double turn_rate_deg;        /* largest turn of the stepped approach, degrees/s */

@@ -49,7 +49,10 @@ struct fm_flock_model {
     fm_flock_target target;
     fm_bspline path;               /* R from O1 to O2, by arc length */
     double o1[3], o2[3];
-    double path_time;
+    double path_time;              /* each leader's time along its path, eased in and out */
+    double ease_in, ease_out;      /* the ramps, as fractions of path_time (their sum <= 1) */
+    double ease_spread;            /* seconds from the first leaders' start to the last's */
+    double ease_axis[3], ease_lo, ease_inv_range; /* delay = spread (1 - (axis . C1 - lo) inv_range) */
     /* per-agent parameters, drawn from the scene's ranges */
     float *radius[FM_BOIDS_RULES], *cos_half[FM_BOIDS_RULES], *weight[FM_BOIDS_RULES];
     float *max_speed, *max_force;
@@ -65,6 +68,13 @@ struct fm_flock_model {
     fm_dist_shared *shared;        /* on P ranks (fm_flock_model_build_shared): the segment the machine's
                                       ranks share, which holds the arrays of n above; NULL: each its own */
 };
+
+/* Agent a's path fraction at time t: its leader's arc-length fraction along R~, eased in and out and
+ * delayed by its place in the source (flock_model.c set_ease). 1 from the leader's arrival on. */
+double fm_flock_leader_fraction(const fm_flock_model *m, const float *const start[3], int64_t a, double t);
+
+/* When the last leader reaches its destination: path_time + ease_spread (0 without a path). */
+double fm_flock_leaders_end(const fm_flock_model *m);
 
 /* On P ranks: the first rank of each machine builds the model (the sampling, the preparation's
  * peak) and puts its arrays of n (100 bytes an agent) in memory the machine's ranks share; the

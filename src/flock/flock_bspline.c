@@ -98,13 +98,20 @@ fm_status fm_bspline_build(const double *points, int32_t count, fm_bspline *out,
         fm_bspline_free(out);
         return fm_fail(err, FM_ERR_INPUT, "the path has zero length: its start, end and control points coincide");
     }
+    out->arc = malloc(sizeof(double) * 6 * (FM_BSPLINE_ARC_SAMPLES + 1));
+    if (!out->arc) {
+        fm_bspline_free(out);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the path");
+    }
+    for (int32_t j = 0; j <= FM_BSPLINE_ARC_SAMPLES; j++)
+        fm_bspline_eval_arc(out, (double)j / FM_BSPLINE_ARC_SAMPLES, out->arc + 6 * j, out->arc + 6 * j + 3);
     return FM_OK;
 }
 
 void fm_bspline_free(fm_bspline *b)
 {
-    free(b->ctrl), free(b->table_s);
-    b->ctrl = b->table_s = NULL;
+    free(b->ctrl), free(b->table_s), free(b->arc);
+    b->ctrl = b->table_s = b->arc = NULL;
     b->count = b->table = 0;
 }
 
@@ -136,6 +143,17 @@ void fm_bspline_eval_arc(const fm_bspline *b, double s, double p[3], double d[3]
     if (!d) return;
     double speed = sqrt(du[0] * du[0] + du[1] * du[1] + du[2] * du[2]);
     for (int k = 0; k < 3; k++) d[k] = speed > 0 ? du[k] / speed * b->length : 0; /* dR/ds = length * unit tangent */
+}
+
+void fm_bspline_eval_table(const fm_bspline *b, double s, double p[3])
+{
+    const double x = (s < 0 ? 0 : s > 1 ? 1 : s) * FM_BSPLINE_ARC_SAMPLES;
+    int32_t j = (int32_t)x;
+    if (j >= FM_BSPLINE_ARC_SAMPLES) j = FM_BSPLINE_ARC_SAMPLES - 1;
+    const double t = x - j, t2 = t * t, t3 = t2 * t, h = 1.0 / FM_BSPLINE_ARC_SAMPLES; /* s per step */
+    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + t, h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+    const double *a = b->arc + 6 * j, *c = a + 6;
+    for (int k = 0; k < 3; k++) p[k] = h00 * a[k] + h10 * h * a[3 + k] + h01 * c[k] + h11 * h * c[3 + k];
 }
 
 void fm_path_map(const double r[3], const double o1[3], const double o2[3], const double c1[3],

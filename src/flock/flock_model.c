@@ -110,7 +110,9 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
     for (int32_t i = 1; i < count; i++) distinct |= memcmp(pts, pts + 3 * i, sizeof m->o1) != 0;
     fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
     free(pts);
-    m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 : 0;
+    /* speed0 is the leaders' cruise: the ramps of set_ease take half their length more */
+    const double ramps = 0.5 * (def->flock.ease_in + def->flock.ease_out);
+    m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 + ramps : 0;
     return fm_name_key(st, "path.points", err);
 }
 
@@ -183,6 +185,63 @@ static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
     return st;
 }
 
+/* The leaders' timing (issue 37: leaders at constant arc-length speed stopped the whole flock dead at
+ * once). Each leader speeds up from rest over ease_in, cruises, and slows to rest over ease_out,
+ * with raised-cosine ramps of its speed (so its acceleration is continuous), in path_time; and
+ * starts after a delay that grows from 0 at the front of the source (along the path's first
+ * direction) to ease_spread at its back, so neighbours keep nearly the same timing (they start
+ * together and stay neighbours) while the flock streams out of the source and arrivals spread over
+ * ease_spread instead of one common stop. Ramps longer than the path time share it. */
+static void set_ease(fm_flock_model *m)
+{
+    const fm_flock_def *f = &m->def.flock;
+    m->ease_in = m->ease_out = m->ease_spread = 0, m->ease_lo = 0, m->ease_inv_range = 0;
+    memset(m->ease_axis, 0, sizeof m->ease_axis);
+    if (!(m->path_time > 0)) return;
+    const double ramps = f->ease_in + f->ease_out, fit = ramps > m->path_time ? m->path_time / ramps : 1.0;
+    m->ease_in = f->ease_in * fit / m->path_time, m->ease_out = f->ease_out * fit / m->path_time;
+    m->ease_spread = f->ease_spread;
+    double p[3], d[3], len = 0;
+    fm_bspline_eval_arc(&m->path, 0, p, d);
+    for (int k = 0; k < 3; k++) len += d[k] * d[k];
+    if (!(len > 0) || m->ease_spread == 0) return;
+    for (int k = 0; k < 3; k++) m->ease_axis[k] = d[k] / sqrt(len);
+    double lo = INFINITY, hi = -INFINITY;
+    for (int64_t a = 0; a < m->n; a++) {
+        const double x = m->ease_axis[0] * m->start[0][a] + m->ease_axis[1] * m->start[1][a] + m->ease_axis[2] * m->start[2][a];
+        lo = fmin(lo, x), hi = fmax(hi, x);
+    }
+    m->ease_lo = lo, m->ease_inv_range = hi > lo ? 1.0 / (hi - lo) : 0.0;
+}
+
+/* The eased fraction of the path at normalised time x in [0, 1] (see set_ease): the integral of a
+ * speed that rises as (1 - cos) over [0, e_in], is flat, and falls as (1 - cos) over [1 - e_out, 1]. */
+static double eased(double x, double e_in, double e_out)
+{
+    static const double PI = 3.14159265358979323846;
+    const double top = 1.0 / (1.0 - 0.5 * (e_in + e_out)); /* the cruise speed, so that the whole is 1 */
+    if (x <= 0) return 0;
+    if (x >= 1) return 1;
+    if (x < e_in) return top * (0.5 * x - e_in / (2 * PI) * sin(PI * x / e_in));
+    const double y = 1 - x;
+    if (y < e_out) return 1 - top * (0.5 * y - e_out / (2 * PI) * sin(PI * y / e_out));
+    return top * (0.5 * e_in + x - e_in);
+}
+
+double fm_flock_leader_fraction(const fm_flock_model *m, const float *const start[3], int64_t a, double t)
+{
+    if (!(m->path_time > 0)) return 1.0;
+    double delay = 0;
+    if (m->ease_inv_range > 0) {
+        const double x = m->ease_axis[0] * start[0][a] + m->ease_axis[1] * start[1][a] + m->ease_axis[2] * start[2][a];
+        const double back = 1 - (x - m->ease_lo) * m->ease_inv_range;
+        delay = m->ease_spread * (back < 0 ? 0 : back > 1 ? 1 : back);
+    }
+    return eased((t - delay) / m->path_time, m->ease_in, m->ease_out);
+}
+
+double fm_flock_leaders_end(const fm_flock_model *m) { return m->path_time > 0 ? m->path_time + m->ease_spread : 0; }
+
 static void set_info(fm_flock_model *m)
 {
     const fm_scene_def *def = &m->def;
@@ -195,6 +254,7 @@ static void set_info(fm_flock_model *m)
     memcpy(i->target_center, m->o2, sizeof m->o2);
     i->path_length = m->path.length;
     i->path_time = m->path_time;
+    i->leaders_end = fm_flock_leaders_end(m);
     i->time_step = m->dt;
     i->steps_per_frame = m->steps_per_frame;
     i->max_radius = m->max_radius;
@@ -249,6 +309,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
     if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) set_ease(m);
     if (st == FM_OK) st = init_fuzzy(m, err);
     if (st == FM_OK) {
         draw_parameters(m);

@@ -68,7 +68,7 @@ static fm_status write_and_measure(flock_run *r, fm_flock_state *s, int64_t fram
     st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
     if (st != FM_OK) return st;
     fm_flock_measure_frame(r->m, s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
-    if (r->m->info.deforming && r->s->time >= r->m->path_time) { /* tracking lag */
+    if (r->m->info.deforming && r->s->time >= fm_flock_leaders_end(r->m)) { /* tracking lag */
         double mean, max;
         fm_flock_distance(s, &mean, &max);
         r->s->lag_sum += mean;
@@ -101,7 +101,7 @@ static fm_status measure_shared(flock_run *r, fm_flock_state *view, int64_t fram
     if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
     double *out = root ? r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES : scratch;
     st = fm_flock_measure_frame_shared(r->m, s, view, out, err);
-    if (st == FM_OK && r->m->info.deforming && s->time >= r->m->path_time) { /* tracking lag */
+    if (st == FM_OK && r->m->info.deforming && s->time >= fm_flock_leaders_end(r->m)) { /* tracking lag */
         double mean, max;
         fm_flock_distance_blocks(view, 0, view->slots, s->dist, &mean, &max);
         s->lag_sum += root ? mean : 0;
@@ -212,7 +212,7 @@ static void summarise_measures(const fm_flock_model *m, fm_flock_run_stats *stat
         stats->measures_mean[i] = count > 0 ? sum / (double)count : NAN;
         stats->measures_mid_flight[i] = NAN;
     }
-    const int64_t mid = (int64_t)llround(0.5 * m->path_time * m->def.frame_rate);
+    const int64_t mid = (int64_t)llround(0.5 * fm_flock_leaders_end(m) * m->def.frame_rate);
     if (rows > 0 && mid >= 1)
         for (int i = 0; i < FM_FLOCK_MEASURES; i++)
             stats->measures_mid_flight[i] = stats->measures[(FM_MIN(mid, rows) - 1) * FM_FLOCK_MEASURES + i];

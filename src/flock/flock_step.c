@@ -4,8 +4,8 @@
  * The pipeline, from t to t + dt:
  *   1. target     a deforming target's vertices at t + dt; each destination follows its triangle
  *                 (barycentric coordinates), its velocity by difference
- *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at s = (t + dt) / path
- *                 time, which ends on the destination; R is evaluated once for all agents
+ *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at its own eased, delayed
+ *                 arc-length fraction (fm_flock_leader_fraction), which ends on the destination
  *   3. prepare    the Kalman covariance and gain (shared; with R over the run each agent's own
  *                 is advanced in stage 4); the style-field grid; the neighbour grid
  *                 over the agents not bound (counting sort, cell = the largest perception radius)
@@ -51,18 +51,22 @@ static void update_destinations(const fm_flock_model *m, fm_flock_state *s, doub
     }
 }
 
-/* Stage 2 for one block: the leader at path fraction u (r = R(u)), and its velocity by difference. */
-static void leaders_block(const fm_flock_model *m, fm_flock_state *s, const double r[3], double u, int64_t begin, int64_t end)
+/* Stage 2 for one block: each agent's leader at time t, on its own eased path fraction u
+ * (fm_flock_leader_fraction; r = R(u)), and its velocity by difference. */
+static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, int64_t begin, int64_t end)
 {
     const double inv_dt = 1.0 / m->dt;
     for (int64_t a = begin; a < end; a++) {
         if (s->phase[a] == FM_FLOCK_ELSEWHERE) continue; /* another rank's (flock_dist.c) */
+        const double u = fm_flock_leader_fraction(m, (const float *const *)s->prm.start, a, t);
         double z[3];
         if (u >= 1) {
             for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
         } else {
+            double r[3];
             const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
             const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
+            fm_bspline_eval_table(&m->path, u, r);
             fm_path_map(r, m->o1, m->o2, c1, c2, u, z);
         }
         for (int k = 0; k < 3; k++) {
@@ -317,8 +321,6 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     if (s->dist && (s->dist_status = fm_flock_dist_exchange(m, s, &s->dist_error)) != FM_OK) return;
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     if (m->info.deforming) update_destinations(m, s, t_end);
-    double u = m->path_time > 0 ? fmin(t_end / m->path_time, 1.0) : 1.0, r[3] = {0, 0, 0};
-    if (u < 1) fm_bspline_eval_arc(&m->path, u, r, NULL);
     fm_kalman_advance(&s->kalman);
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);
     build_grid(m, s);
@@ -329,7 +331,7 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->slots);
-        leaders_block(m, s, r, u, begin, end);
+        leaders_block(m, s, t_end, begin, end);
         forces_block(m, s, begin, end);
     }
 #pragma omp parallel for num_threads(s->threads) schedule(static)

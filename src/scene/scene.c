@@ -50,7 +50,7 @@ static void default_fuzzy(fm_fuzzy_def *fixed, fm_fuzzy_def *tracking)
 static fm_flock_def fm_default_flock_def(void)
 {
     fm_flock_def f = {
-        .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_RANDOM, .mass = 1,
+        .sampling = FM_FLOCK_SAMPLE_MOSAIC, .match = FM_FLOCK_MATCH_PROJECTED, .mass = 1,
         .mosaic_iterations = FM_SAMPLE_MOSAIC_ITERATIONS, .mosaic_distance = FM_MOSAIC_EUCLIDEAN,
         .mosaic_k = FM_SAMPLE_MOSAIC_K, .mosaic_w = FM_SAMPLE_MOSAIC_W, .mosaic_step = FM_SAMPLE_MOSAIC_STEP,
         .stratified_lambda = FM_SAMPLE_LAMBDA, .stratified_oversample = FM_SAMPLE_OVERSAMPLE,
@@ -60,8 +60,8 @@ static fm_flock_def fm_default_flock_def(void)
         .alignment = {{20, 40}, {120, 180}, {2, 3}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
-        .damping = 3, .external_gain = 1,
-        .arrival_radius = 0.3, .arrival_time = 0.2, .turn_rate_deg = 720, .bind_distance = 0.002,
+        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75,
+        .arrival_radius = 0.3, .arrival_time = 0.3, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
         .deform_direction = {1, 0, 0}, .deform_frame_rate = 24,
@@ -255,6 +255,9 @@ static const param PARAMS[] = {
     {"shape_flock.damping", P_DOUBLE, OFF(flock.damping), 0, 1e6, 0},
     {"shape_flock.external_gain", P_DOUBLE, OFF(flock.external_gain), 0, 1e6, 0},
     {"shape_flock.path_time", P_DOUBLE, OFF(flock.path_time), 0, 1e9, 0},
+    {"shape_flock.ease.in", P_DOUBLE, OFF(flock.ease_in), 0, 1e9, 0},
+    {"shape_flock.ease.out", P_DOUBLE, OFF(flock.ease_out), 0, 1e9, 0},
+    {"shape_flock.ease.spread", P_DOUBLE, OFF(flock.ease_spread), 0, 1e9, 0},
     {"shape_flock.arrival.radius", P_DOUBLE, OFF(flock.arrival_radius), 0, 1e9, 0},
     {"shape_flock.arrival.time", P_DOUBLE, OFF(flock.arrival_time), 0, 1e6, OPEN_MIN},
     {"shape_flock.arrival.turn_rate", P_DOUBLE, OFF(flock.turn_rate_deg), 0, 1e9, OPEN_MIN},

@@ -1,13 +1,15 @@
 /* The shape flock measured as a flock, independently of the engine's own report (issue 13), on
- * examples/flock_cylinder_sphere (SCF Figure 9), from positions and velocities alone:
+ * examples/flock_cylinder_sphere (SCF Figure 9) with random matching, from positions and velocities
+ * alone:
  *   - boids on against off: at mid-flight the RMS difference of the positions is at least the
  *     median nearest-neighbour spacing (the rules move agents by more than their spacing);
  *   - Figure 7: the three rules' weights x 4 spread the flock, the mean nearest-neighbour distance at
- *     mid-flight grows by at least 20 %;
+ *     mid-flight grows by at least 5 % (20 % with the hard-edged rules before issue 37);
  *   - alignment: the local polarisation (the norm of the mean unit velocity over an agent's
- *     neighbours) is clearly higher with alignment on than off;
+ *     neighbours) is higher with alignment on than off;
  *   - separation: fewer close pairs with separation on than off;
- *   - every agent still binds exactly on its destination, within 15 % of the steps it took before.
+ *   - every agent still binds exactly on its destination, within 15 % of the steps it took before
+ *     (plus the 2.5 s the eased leaders and the slower stepped approach of issue 37 take).
  * The speed bound is checked from a cache through the public reader (include/flockmorph/cache.h). */
 #include "flockmorph/flockmorph.h"
 #include "example_helpers.h"
@@ -16,7 +18,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-static fm_scene_def example_def(void) { return load_example("flock_cylinder_sphere"); }
+/* The example with random matching: each agent crosses the flock on its own eq-12 path, so the rules
+ * have work to do everywhere, and these tests say that each rule does its part. With the default
+ * neighbourhood-preserving matching the flock's look is measured from the cache instead
+ * (tests/flock/test_flock_look.sh, tools/flock-look.py). */
+static fm_scene_def example_def(void)
+{
+    fm_scene_def def = load_example("flock_cylinder_sphere");
+    def.flock.match = FM_FLOCK_MATCH_RANDOM;
+    return def;
+}
 
 static double dist2(const float *a, const float *b)
 {
@@ -142,7 +153,11 @@ static void test_default_run_binds_in_time(void)
            (long long)base.steps, frames, base.max_distance, base_median_nn, base_mean_nn);
     ENSURE_MSG(base.steps > 0, "not every agent binds within the frame limit");
     ENSURE_MSG(base.max_distance == 0, "a bound agent is %g from its destination", base.max_distance);
-    ENSURE_MSG(base.steps <= 348 * 1.15, "the flock takes %lld steps to bind (348 before issue 13)", (long long)base.steps);
+    /* 348 steps before issue 13, within 15 %; issue 37's eased leaders take 2 s more by design (half of
+     * ease.in + ease.out, and ease.spread: 96 steps of 1/48 s) and the stepped approach's time
+     * constant 0.3 s instead of 0.2 (0.1 ln(0.3 / 0.002) s, 24 steps) */
+    ENSURE_MSG(base.steps <= (348 + 96 + 24) * 1.15, "the flock takes %lld steps to bind (348 before issue 13, 468 "
+               "with issue 37's eased leaders)", (long long)base.steps);
 }
 
 /* The rules move the flock: with the three weights 0 the mid-flight positions are elsewhere, by
@@ -167,7 +182,9 @@ static void test_stronger_rules_spread_the_flock(void)
     double *nn = nn_distances(&strong), mean = mean_of(nn, strong.n);
     printf("  boids x4: mid-flight mean nn %.4f against %.4f (+%.0f %%), bound after %lld steps\n", mean, base_mean_nn,
            100 * (mean / base_mean_nn - 1), (long long)strong.steps);
-    ENSURE_MSG(mean >= 1.2 * base_mean_nn, "x4 weights: mean nn %g against %g", mean, base_mean_nn);
+    /* +20 % and more with the hard-edged rules before issue 37; the smooth kernels weigh the neighbours
+     * near a rule's radius less, and x4 now spreads by 8-9 % (and stays smooth: test_flock_look.sh) */
+    ENSURE_MSG(mean >= 1.05 * base_mean_nn, "x4 weights: mean nn %g against %g", mean, base_mean_nn);
     ENSURE_MSG(strong.steps > 0 && strong.max_distance == 0, "x4 weights: not every agent binds exactly");
     free(nn);
     snapshot_free(&strong);
@@ -181,7 +198,9 @@ static void test_alignment_aligns_neighbours(void)
     const double radius = 2 * base_median_nn;
     double on_p = local_polarisation(&base, radius), off_p = local_polarisation(&off, radius);
     printf("  local polarisation within %.3f: alignment on %.4f, off %.4f\n", radius, on_p, off_p);
-    ENSURE_MSG(1 - on_p <= 0.6 * (1 - off_p), "alignment: polarisation %g on against %g off", on_p, off_p);
+    /* the eased leaders already fly together: alignment takes a third of what is left (0.015 -> 0.010);
+     * before issue 37, with leaders that started at full speed, at least 40 % */
+    ENSURE_MSG(1 - on_p <= 0.8 * (1 - off_p), "alignment: polarisation %g on against %g off", on_p, off_p);
     snapshot_free(&off);
 }
 

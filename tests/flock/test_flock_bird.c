@@ -5,10 +5,10 @@
  * docs/scene.md). Each agent's distance to the surface is the distance to its closest point on the
  * triangles (Ericson, tests/helpers/inside_test.h), exact through a bucket grid with a brute-force
  * fallback.
- *   - Over the frames stats.json's tracking_lag covers (t > path_time), the mean closest-point
+ *   - Over the frames stats.json's tracking_lag covers (t > leaders_end, the last leader's arrival), the mean closest-point
  *     distance is at most tracking_lag: an agent's destination is one point of the surface, so its
  *     distance to the destination is at least its distance to the surface.
- *   - Once the flock has settled (one wingbeat after path_time), the mean distance is below half the
+ *   - Once the flock has settled (one wingbeat after leaders_end), the mean distance is below half the
  *     agents' spacing on the surface, sqrt(area / n): the flock is a sheet thinner than its spacing,
  *     so it reads as the surface.
  *   - It tracks the wings: at the settled frames where the wings are far from the rest shape (the
@@ -255,7 +255,7 @@ static json_t *run_example(void)
     return stats;
 }
 
-/* What the frames give: means over the tracking frames (t > path_time) and the settled ones. */
+/* What the frames give: means over the tracking frames (t > leaders_end, the last leader's arrival) and the settled ones. */
 typedef struct tracking {
     double lag_sum, settled_sum, far_sum, far_rest_sum;
     int lag_frames, settled_frames, far_frames;
@@ -337,7 +337,7 @@ static void test_the_flock_tracks_the_flapping_bird(void)
         free_sequence(seq, &s);
         return;
     }
-    double path_time = json_number_value(json_object_get(json_object_get(stats, "shape_flock"), "path_time"));
+    double path_time = json_number_value(json_object_get(json_object_get(stats, "shape_flock"), "leaders_end"));
     double spacing = sqrt(mesh_area(&seq[0]) / (double)json_integer_value(json_object_get(stats, "agents")));
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(OUT "/frames.fmc", &err);
