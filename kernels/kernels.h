@@ -54,18 +54,27 @@ int64_t fm_kernel_integrate_flying_ref(float *const p[3], const float *const v[3
 
 /* Phase 2 (FM eq 9): straight flight at speed0 from p2 to the target centroid, evaluated in closed
  * form at `time` so no error accumulates; agents whose flight time tf has passed arrive. Returns
- * how many arrived in this call. */
+ * how many arrived in this call.
+ * The switch blend (issue 38, beyond the paper): over the first T_b = min(blend, tf) seconds the
+ * velocity turns from the phase-1 velocity V_1 to V_e with a smoothstep weight, then the agent flies
+ * straight at V_e = (P_X' - P_X - T_b V_1 / 2) / (tf - T_b / 2), which lands it on its target at
+ * t2 + tf as eq 9 does (|V_e| is speed0 to within O(T_b / tf)); heading and speed are continuous.
+ * Then v[] must hold V_1 (the velocity of the switch step) all through phase 2 and is left as it
+ * is. blend = 0 is the paper's hard switch, and v[] is V_2. */
 int64_t fm_kernel_homing(float *const p[3], float *const v[3], uint8_t *phase,
                          const int64_t *target, const float *const tgt_c[3],
                          const float *const p2[3], const float *t2, const float *tf,
-                         int64_t begin, int64_t end, double time);
+                         int64_t begin, int64_t end, double time, double blend);
 
 /* Phase 2 with obstacle avoidance (beyond the paper, §8): the straight flight of eq 9 becomes a
  * steered one. Velocity: speed0 toward the target centroid (the avoidance kernel may then bend it);
- * move: x += v dt, arriving when the target is within one step. Returns arrivals. */
+ * move: x += v dt, arriving when the target is within one step. Returns arrivals.
+ * The switch blend: until t2 + blend, the aim replaces only the share dt / (time left of the blend)
+ * of the last step's velocity v[], so v turns from V_1 to the aim linearly over the blend. `time`
+ * is the step's start. */
 void fm_kernel_homing_aim(const float *const p[3], float *const v[3], const uint8_t *phase,
-                          const int64_t *target, const float *const tgt_c[3], int64_t begin,
-                          int64_t end, float speed0);
+                          const int64_t *target, const float *const tgt_c[3], const float *t2,
+                          int64_t begin, int64_t end, float speed0, double time, float dt, double blend);
 int64_t fm_kernel_homing_steered(float *const p[3], const float *const v[3], uint8_t *phase,
                                  const int64_t *target, const float *const tgt_c[3], int64_t begin,
                                  int64_t end, float dt);

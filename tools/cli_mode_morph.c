@@ -34,12 +34,13 @@ static json_t *velocity_json(const fm_scene_def *def, const fm_morph_model_info 
         json_array_append_new(fields, o);
     }
     json_t *grid = def->field_grid[0] > 0 ? json_pack("[iii]", def->field_grid[0], def->field_grid[1], def->field_grid[2]) : json_null();
-    return json_pack("{sfsfsosososisfsfsbsfsfsfsfss}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
+    return json_pack("{sfsfsosososisfsfsbsfsfsfsfsssf}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
                      "field_grid", grid, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"),
                      "obstacles", def->obstacle_count, "k_a", def->k_a, "obstacle_voxel", def->obstacle_voxel,
                      "avoid_in_phase2", def->avoid_in_phase2 != 0, "d_min", def->d_min, "mde_speed", def->mde_speed,
                      "path_width", def->path_width, "path_attraction", def->path_attraction,
-                     "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere");
+                     "phase_switch", def->phase_switch == FM_SWITCH_DISTANCE ? "distance" : "sphere",
+                     "phase2_blend_time", def->blend_time);
 }
 
 /* One entry per frame, index k for frame k: frame 0 is the rest state, which no step made (null);

@@ -236,6 +236,8 @@ typedef struct fm_scene_def {
     /* phase switch */
     fm_phase_switch phase_switch;
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
+    double blend_time;          /* beyond the paper (issue 38): seconds over which the phase-1 velocity
+                                   blends into eq 9's V_2 after the switch; 0 = the hard switch */
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
     int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */

@@ -116,7 +116,9 @@ struct fm_morph_state {
                                 fm_morph_state_fill_rest, moved by the re-sort): the step and the synthesis
                                 read it in store order instead of gathering it by id */
     float *rest_radius;      /* the same for src_radius (R_X at rest) */
-    float *v[3];             /* velocity of the last step */
+    float *v[3];             /* velocity of the last step; in phase 2 with the switch blend
+                                (phase2.blend_time > 0, not steered), the velocity it entered phase 2
+                                with (V_1), from which the closed form is evaluated (kernels.h) */
     uint8_t *phase;          /* fm_phase */
     int64_t *target;         /* target slot, -1 before phase 2 */
     float *t2;               /* time the agent entered phase 2 */

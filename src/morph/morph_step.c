@@ -9,7 +9,8 @@
  *                   (eqs 5-6); the look-ahead test and V_oa (eqs 7-8); plus V_la from MDE (§5.4).
  *                   Phase 2 with avoidance on: aimed at the target, then eqs 7-8.
  *   4. move         phase 1 integrates and tests the phase switch; phase 2 flies its straight
- *                   line in closed form (eq 9), or integrates when steered; arrivals
+ *                   line in closed form (eq 9), after a closed-form blend from the phase-1
+ *                   velocity (phase2.blend_time, issue 38), or integrates when steered; arrivals
  *   5. hand-out     agents that entered phase 2 take the next target tet in D2 order, in
  *                   agent-id order (serial)
  *   6. morph setup  each new phase-2 agent gets its correspondence and A = RS (§6)
@@ -139,7 +140,8 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
         bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt, sc);
     }
     if (steer_phase2) {
-        fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, begin, end, (float)def->speed0);
+        fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, s->t2, begin, end,
+                             (float)def->speed0, s->time, dt, def->blend_time);
         fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt, sc);
     }
     bc->flying = 0;
@@ -164,7 +166,7 @@ static void move_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin
         bc->arrived = fm_kernel_homing_steered(s->p, v, s->phase, s->target, tgt_c, begin, end, (float)m->dt);
     else
         bc->arrived = fm_kernel_homing(s->p, s->v, s->phase, s->target, tgt_c, (const float *const *)s->p2,
-                                       s->t2, s->tf, begin, end, t_end);
+                                       s->t2, s->tf, begin, end, t_end, m->def.blend_time);
 }
 
 /* Slot a takes target slot `slot` and enters phase 2 at t_end. */

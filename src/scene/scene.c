@@ -86,6 +86,7 @@ fm_scene_def fm_default_scene_def(void)
     d.shrink = 0.5;
     d.shrink_time = 0.25;
     d.morph_fraction = 0.75;
+    d.blend_time = 0.25; /* issue 38: 6 frames at 24 fps turn the switch's kink into a curve */
     d.seed = 1;
     d.group_index = -1;
     d.group.after = d.group.source_group = -1;
@@ -218,6 +219,7 @@ static const param PARAMS[] = {
     {"path.attraction", P_DOUBLE, OFF(path_attraction), 0, 1e6, 0},
     {"phase2.switch", P_SWITCH, OFF(phase_switch), 0, 0, 0},
     {"phase2.switch_distance", P_DOUBLE, OFF(switch_distance), -1e9, 1e9, 0},
+    {"phase2.blend_time", P_DOUBLE, OFF(blend_time), 0, 1e6, 0},
     {"shape_flock.sampling", P_ENUM, OFF(flock.sampling), 0, 0, 0}, /* before the two groups below */
     {"shape_flock.mosaic.iterations", P_INT32, OFF(flock.mosaic_iterations), 0, 1e5, 0},
     {"shape_flock.mosaic.distance", P_ENUM, OFF(flock.mosaic_distance), 0, 0, 0},

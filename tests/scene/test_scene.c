@@ -187,7 +187,8 @@ static void test_velocity_model_keys(void)
         "{" MESHES ", \"style\": {\"omega2\": 0.3, \"grid\": [8, 9, 10], \"fields\": ["
         "{\"type\": \"wind\", \"speed\": 2, \"turbulence\": 0.5}, {\"type\": \"vortex\", \"strength\": -1}]},"
         " \"obstacles\": {\"meshes\": [{\"mesh\": \"k.obj\", \"scale\": 2}], \"k_a\": 0.5, \"in_phase2\": true},"
-        " \"mde\": {\"d_min\": 0.1}, \"path\": {\"width\": 3}, \"phase2\": {\"switch\": \"distance\", \"switch_distance\": 0.2}}",
+        " \"mde\": {\"d_min\": 0.1}, \"path\": {\"width\": 3}, \"phase2\": {\"switch\": \"distance\", \"switch_distance\": 0.2,"
+        " \"blend_time\": 0.5}}",
         &def, &err);
     ENSURE_MSG(st == FM_OK, "%s", err.message);
     ENSURE(def.omega2 == 0.3 && def.field_grid[0] == 8 && def.field_grid[2] == 10 && def.field_count == 2);
@@ -196,7 +197,8 @@ static void test_velocity_model_keys(void)
     ENSURE(def.fields[1].kind == FM_FIELD_VORTEX && def.fields[1].strength == -1 && def.fields[1].axis[1] == 1);
     ENSURE(def.obstacle_count == 1 && def.obstacles[0].scale == 2 && strstr(def.obstacles[0].path, "k.obj"));
     ENSURE(def.k_a == 0.5 && def.avoid_in_phase2 == 1 && def.d_min == 0.1 && def.path_width == 3);
-    ENSURE(def.phase_switch == FM_SWITCH_DISTANCE && def.switch_distance == 0.2);
+    ENSURE(def.phase_switch == FM_SWITCH_DISTANCE && def.switch_distance == 0.2 && def.blend_time == 0.5);
+    ENSURE(fm_default_scene_def().blend_time == 0.25); /* issue 38: the switch blend is on by default */
     expect_error_at("field_key.json", "{" MESHES ",\n \"style\": {\"fields\": [{\"type\": \"curl_noise\", @\"speed\": 1}]}}",
                     "style.fields[0].speed: does not apply");
     expect_error_at("field_type.json", "{" MESHES ",\n \"style\": {\"fields\": [{\"type\": @\"breeze\"}]}}", "\"wind\"");
@@ -278,6 +280,8 @@ static void test_out_of_range(void)
     expect_error_at("range_fraction1.json", "{" MESHES ", \"morph\": {\"morph_fraction\": @1.0}}", "morph.morph_fraction");
     expect_error_at("range_rotate.json", "{\"source\": {\"mesh\": \"a.obj\", \"rotate_deg\": [0, @4000, 0]}, "
                     "\"target\": {\"mesh\": \"b.obj\"}}", "source.rotate_deg");
+    expect_error_at("range_blend.json", "{" MESHES ", \"phase2\": {\"blend_time\": @-0.1}}",
+                    "phase2.blend_time: -0.1 is out of range");
     expect_error_at("range_seed.json", "{" MESHES ", \"seed\": @-1}", "seed");
     expect_error_at("range_cache.json", "{" MESHES ", \"output\": {\"cache\": @\"../x.fmc\"}}", "output.cache");
 }
