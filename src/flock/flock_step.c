@@ -257,7 +257,7 @@ static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t 
 }
 
 /* Bound: on the destination; floating: around it, a smooth per-agent Lissajous offset that grows
- * from 0 at binding to float_amplitude. */
+ * from 0 at binding to float_amplitude; at most MaxSpeed either way. */
 static void move_bound(const fm_flock_model *m, fm_flock_state *s, int64_t a, float dt)
 {
     const fm_flock_def *f = &m->def.flock;
@@ -270,10 +270,15 @@ static void move_bound(const fm_flock_model *m, fm_flock_state *s, int64_t a, fl
             offset[k] = (float)(f->float_amplitude * ramp * sin(TWO_PI * freq[k] * tau / f->float_period + phase));
         }
     }
+    float step[3], len2 = 0;
+    for (int k = 0; k < 3; k++) step[k] = s->dest[k][a] + offset[k] - s->p[k][a], len2 += step[k] * step[k];
+    /* MaxSpeed holds for bound agents too: on a destination faster than it, the agent trails behind
+     * (still bound) and closes up as soon as the destination slows */
+    const float most = s->prm.max_speed[a] * dt;
+    const float scale = len2 > most * most ? most / sqrtf(len2) : 1.0f;
     for (int k = 0; k < 3; k++) {
-        float x = s->dest[k][a] + offset[k];
-        s->v[k][a] = (x - s->p[k][a]) / dt;
-        s->p[k][a] = x;
+        s->v[k][a] = step[k] * scale / dt;
+        s->p[k][a] += step[k] * scale;
     }
 }
 
