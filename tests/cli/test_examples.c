@@ -188,8 +188,9 @@ static void flock_measures_match_the_cache(const json_t *stats, const char *name
     ENSURE_MSG(r != NULL, "%s", err.message);
     if (!r) return;
     const uint32_t frames = fm_cache_frames(r);
-    const double path_time = json_number_value(json_object_get(json_object_get(stats, "shape_flock"), "path_time"));
-    const uint32_t mid = (uint32_t)llround(0.5 * path_time * 24), checked[3] = {mid, (uint32_t)(1.6 * mid), frames - 25};
+    /* mid-flight: half the time until the last leader arrives */
+    const double leaders_end = json_number_value(json_object_get(json_object_get(stats, "shape_flock"), "leaders_end"));
+    const uint32_t mid = (uint32_t)llround(0.5 * leaders_end * 24), checked[3] = {mid, (uint32_t)(1.6 * mid), frames - 25};
     static const char *const names[4] = {"polarisation", "speed", "nn_distance", "in_flight"};
     for (int i = 0; i < 3; i++) {
         double want[4];

@@ -188,14 +188,16 @@ static void test_neighbours_outside_the_radius_are_ignored(void)
 }
 
 /* Separation steers away, cohesion toward, alignment to the neighbour's velocity (kernel_boids.h):
- * v = (1, 0, 0), MaxSpeed S = 10, the neighbour at distance 1 inside radius 2 with velocity (0, 3, 0). */
+ * v = (1, 0, 0), MaxSpeed S = 10, the neighbour at distance 1 inside radius 2 (rho = 1/2, w = 9/16 above
+ * the floor 1/4, so cohesion and alignment are the plain offset and velocity difference) with
+ * velocity (0, 3, 0). */
 static void test_each_rule_steers_its_way(void)
 {
     const float other[3] = {0.6f, 0.8f, 0};
     float out[3];
-    force_on_0(other, FM_BOIDS_SEPARATION, 2, 360, out); /* S r (x_a - x_b) / |d|^2 */
-    ENSURE_NEAR(out[0], -12, 1e-5);
-    ENSURE_NEAR(out[1], -16, 1e-5);
+    force_on_0(other, FM_BOIDS_SEPARATION, 2, 360, out); /* S s(1/2) (x_a - x_b) / |d|, s(1/2) = 1/4 * 2 */
+    ENSURE_NEAR(out[0], -3, 1e-5);
+    ENSURE_NEAR(out[1], -4, 1e-5);
     ENSURE_NEAR(out[2], 0, 1e-6);
     force_on_0(other, FM_BOIDS_COHESION, 2, 360, out); /* S (x_b - x_a) / r */
     ENSURE_NEAR(out[0], 3, 1e-5);
@@ -203,6 +205,30 @@ static void test_each_rule_steers_its_way(void)
     force_on_0(other, FM_BOIDS_ALIGNMENT, 2, 360, out); /* v_b - v_a */
     ENSURE_NEAR(out[0], -1, 1e-5);
     ENSURE_NEAR(out[1], 3, 1e-5);
+}
+
+/* Issue 37: no rule kicks. Walked in 40 small steps into a rule's radius (distance 2.2 to 1.8 of
+ * radius 2) and into its view cone (120 degrees: bearings with cosines 0.25 to 0.75 across cos_half
+ * 1/2), a neighbour changes the force by less than a quarter of its full size per step, where the
+ * hard-edged rules jumped by all of it at once; outside it adds nothing. */
+static void test_rules_fade_at_the_edges(void)
+{
+    float out[3];
+    for (int rule = 0; rule < 3; rule++) {
+        const float mid[3] = {0.6f, 0.8f, 0}, full = force_on_0(mid, rule, 2, 360, out);
+        float jump_r = 0, jump_c = 0, last_r = 0, last_c = 0;
+        for (int i = 0; i <= 40; i++) {
+            const float d = 2.2f - 0.01f * (float)i, at[3] = {0.6f * d, 0.8f * d, 0};
+            const float c = 0.25f + 0.0125f * (float)i, side[3] = {c, sqrtf(1 - c * c), 0};
+            const float fr = force_on_0(at, rule, 2, 360, out), fc = force_on_0(side, rule, 2, 120, out);
+            if (i == 0) ENSURE_MSG(fr == 0 && fc == 0, "rule %d: a neighbour outside is felt (%g, %g)", rule, fr, fc);
+            if (i > 0) jump_r = fmaxf(jump_r, fabsf(fr - last_r)), jump_c = fmaxf(jump_c, fabsf(fc - last_c));
+            last_r = fr, last_c = fc;
+        }
+        ENSURE_MSG(last_r > 0 && last_c > 0.5f * full, "rule %d: the walk ends at %g, %g of %g", rule, last_r, last_c, full);
+        ENSURE_MSG(jump_r < 0.25f * full && jump_c < 0.25f * full, "rule %d: steps of %g (radius) and %g (cone) against %g",
+                   rule, jump_r, jump_c, full);
+    }
 }
 
 /* A flock that moves as one, evenly spaced, feels no rule: an agent in the middle of a cubic
@@ -244,6 +270,7 @@ int main(void)
     RUN_TEST(test_neighbours_outside_the_angle_are_ignored);
     RUN_TEST(test_neighbours_outside_the_radius_are_ignored);
     RUN_TEST(test_each_rule_steers_its_way);
+    RUN_TEST(test_rules_fade_at_the_edges);
     RUN_TEST(test_uniform_flock_feels_nothing);
     RUN_TEST(test_max_force_bounds_the_steering);
     return test_result();
