@@ -48,11 +48,11 @@ typedef struct fm_boids_view {
 /* W = max(FM_BOIDS_WEIGHT_FLOOR, sum w): below it a rule fades with its neighbours' weight. */
 #define FM_BOIDS_WEIGHT_FLOOR 0.25
 
-/* The bearing weight g of a neighbour at hd = v_a . (x_b - x_a), hlen_dist = |v_a| |x_b - x_a|. */
-static inline float fm_boids_bearing(float hd, float hlen_dist, float hlen, float cos_half)
+/* The bearing weight g of a neighbour whose direction makes cosine c with a's velocity. */
+static inline float fm_boids_bearing(float c, float cos_half)
 {
-    if (cos_half <= -1.0f || hlen == 0) return 1.0f;
-    const float t = (hd / hlen_dist - (cos_half - FM_BOIDS_CONE_BAND)) * (0.5f / FM_BOIDS_CONE_BAND);
+    if (cos_half <= -1.0f) return 1.0f;
+    const float t = (c - (cos_half - FM_BOIDS_CONE_BAND)) * (0.5f / FM_BOIDS_CONE_BAND);
     if (t <= 0) return 0.0f;
     if (t >= 1) return 1.0f;
     return t * t * (3 - 2 * t);
@@ -64,24 +64,27 @@ typedef struct fm_boids_sums {
     double weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
 } fm_boids_sums;
 
-/* Adds neighbour b (offset d, d2 = |d|^2 > 0, velocity vb) to the rules; inv_r2 holds 1 / r^2 of each
- * rule (0 for a rule of radius 0). */
+/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules, for an agent heading h (|h| =
+ * hlen; 0: at rest, it sees all round); inv_r holds 1 / r of each rule (0 for a rule of radius 0,
+ * which sees no one). The weights in float, the sums in double. */
 static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const float h[3],
-                                float hlen, const float inv_r2[3], const float cos_half[3])
+                                float hlen, const float inv_r[3], const float cos_half[3])
 {
     if (d2 == 0) return;
-    const float dist = sqrtf(d2), hd = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], hlen_dist = hlen * dist;
+    const float dist = sqrtf(d2), inv_dist = 1.0f / dist;
+    const float c = hlen > 0 ? (h[0] * d[0] + h[1] * d[1] + h[2] * d[2]) * inv_dist / hlen : 1.0f;
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const float rho2 = d2 * inv_r2[r];
-        if (inv_r2[r] == 0 || !(rho2 < 1)) continue;
-        const float g = fm_boids_bearing(hd, hlen_dist, hlen, cos_half[r]);
+        const float rho = dist * inv_r[r];
+        if (inv_r[r] == 0 || !(rho < 1)) continue;
+        const float g = hlen > 0 ? fm_boids_bearing(c, cos_half[r]) : 1.0f;
         if (g == 0) continue;
         if (r == FM_BOIDS_SEPARATION) {
-            const double rho = sqrt((double)rho2), push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) / dist;
+            const double push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) * inv_dist;
             for (int k = 0; k < 3; k++) s->rule[r][k] -= push * d[k];
             continue;
         }
-        const double w = (double)g * (1 - rho2) * (1 - rho2);
+        const float q = 1 - rho * rho;
+        const double w = g * q * q;
         for (int k = 0; k < 3; k++) s->rule[r][k] += w * (r == FM_BOIDS_COHESION ? d[k] : vb[k]);
         s->weight[r] += w;
     }

@@ -155,6 +155,8 @@ typedef struct fm_flock_def {
     double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */
     double ease_in, ease_out;    /* seconds a leader takes to speed up from rest, and to slow to rest */
     double ease_spread;          /* seconds between the first leaders' start and the last's, front first */
+    double reform;               /* the last fraction of the path over which the formation turns from the
+                                    source's layout into the target's; 0 = eq 11, over the whole path */
     double arrival_radius;       /* stepped steering within this distance of the destination; 0 = off */
     double arrival_time;         /* time constant of the stepped approach, s */
     double turn_rate_deg;        /* largest turn of the stepped approach, degrees/s */

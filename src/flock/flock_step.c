@@ -67,7 +67,7 @@ static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, 
             const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
             const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
             fm_bspline_eval_table(&m->path, u, r);
-            fm_path_map(r, m->o1, m->o2, c1, c2, u, z);
+            fm_path_map_reform(r, m->o1, m->o2, c1, c2, u, m->def.flock.reform, z);
         }
         for (int k = 0; k < 3; k++) {
             s->leader_v[k][a] = (float)((z[k] - s->leader[k][a]) * inv_dt);

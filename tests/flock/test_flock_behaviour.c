@@ -18,14 +18,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The example with random matching: each agent crosses the flock on its own eq-12 path, so the rules
- * have work to do everywhere, and these tests say that each rule does its part. With the default
+/* The example with random matching and eq 11's formation blend over the whole path: each agent
+ * crosses the flock on its own eq-12 path, so the rules have work to do everywhere, and these tests say that each rule does its part. With the default
  * neighbourhood-preserving matching the flock's look is measured from the cache instead
  * (tests/flock/test_flock_look.sh, tools/flock-look.py). */
 static fm_scene_def example_def(void)
 {
     fm_scene_def def = load_example("flock_cylinder_sphere");
     def.flock.match = FM_FLOCK_MATCH_RANDOM;
+    def.flock.reform = 0; /* eq 11's blend over the whole path: the paths cross all along */
     return def;
 }
 
