@@ -81,6 +81,10 @@ static json_t *quality_json(const fm_morph_tet_quality *agents, const fm_morph_t
     json_object_set_new(q, "share_above", json_real(agents->share_above));
     json_object_set_new(q, "tetgen_max_ratio", json_real(tetgen->max_ratio));
     json_object_set_new(q, "tetgen_share_above", json_real(tetgen->share_above));
+    json_object_set_new(q, "share_above_4", json_real(agents->share_above_4));
+    json_object_set_new(q, "median_ratio", json_real(agents->median_ratio));
+    json_object_set_new(q, "tetgen_share_above_4", json_real(tetgen->share_above_4));
+    json_object_set_new(q, "tetgen_median_ratio", json_real(tetgen->median_ratio));
     return q;
 }
 
@@ -99,6 +103,8 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
+    json_object_set_new(j, "source_refined_tets", json_integer(mi->source_refined_tets));
+    json_object_set_new(j, "target_refined_tets", json_integer(mi->target_refined_tets));
     json_object_set_new(j, "source_quality", quality_json(&mi->source_quality, &mi->source_tetgen_quality));
     json_object_set_new(j, "target_quality", quality_json(&mi->target_quality, &mi->target_tetgen_quality));
     json_object_set_new(j, "launch_rate", json_real(mi->launch_rate));

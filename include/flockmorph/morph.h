@@ -27,12 +27,18 @@ typedef struct fm_morph_tet_quality {
     double bound;               /* the scene's tetgen.quality, the bound asked of TetGen */
     double max_ratio;           /* the largest ratio */
     double share_above;         /* fraction of the tets whose ratio exceeds the bound */
+    double share_above_4;       /* fraction of the tets whose ratio exceeds 4.0 (issue 38's hard limit) */
+    double median_ratio;        /* the (lower) median ratio */
 } fm_morph_tet_quality;
 
 typedef struct fm_morph_model_info {
     int64_t agents;             /* n */
     int64_t source_tets;        /* n1: TetGen's count before subdivision */
     int64_t target_tets;        /* n2 */
+    int64_t source_refined_tets; /* TetGen's count under the volume bound chosen for about n tets, before the
+                                    longest-edge splits (tetgen.subdivision "bisect"); source_tets when
+                                    TetGen did not run again */
+    int64_t target_refined_tets;
     double source_volume;       /* total volume of the source tets after subdivision */
     double target_volume;
     double source_centroid[3];  /* C_S */

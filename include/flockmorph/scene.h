@@ -76,6 +76,13 @@ typedef enum fm_phase_switch {
     FM_SWITCH_DISTANCE = 1  /* beyond the paper (§8): the target's own signed distance < switch_distance */
 } fm_phase_switch;
 
+/* How both shapes reach n tets (FM §4). */
+typedef enum fm_subdivision {
+    FM_SUBDIVIDE_BISECT = 0, /* issue 38: TetGen again under a volume bound for about n tets, then the
+                                largest split at the midpoint of the longest edge (docs/limits.md) */
+    FM_SUBDIVIDE_PAPER = 1   /* FM eqs 1-2: 1-to-4 centroid splits, then 1-to-3 and 1-to-2 */
+} fm_subdivision;
+
 /* Which system a scene runs: the tetra flock morph (FM) or the shape-constrained flock (SCF). */
 typedef enum fm_mode { FM_MODE_TETRA_MORPH = 0, FM_MODE_SHAPE_FLOCK = 1 } fm_mode;
 
@@ -202,6 +209,7 @@ typedef struct fm_scene_def {
     int64_t n;                  /* agents = tets after subdivision; 0 = max(n1, n2) (FM §4) */
     double tet_quality;         /* TetGen radius-edge bound (-q), default 2.0 */
     double tet_max_volume;      /* TetGen volume bound (-a), 0 = none */
+    int tet_subdivision;        /* fm_subdivision: how a shape with fewer than n tets gets n */
     double speed0;              /* base speed, units per second (FM eq 3) */
     double omega1;              /* weight of the global velocity in V_grn (FM eq 6) */
     double frame_rate;          /* frames per second of animation time */

@@ -88,16 +88,22 @@ void fm_tets_free(fm_tets *tets);
 double fm_tet_signed_volume(const double *tet);
 void fm_tet_centroid(const double *tet, double c[3]);
 fm_status fm_subdivide_to(fm_tets *tets, int64_t n, fm_error *err);
+/* Exactly n tets by splitting the largest tet at the midpoint of its longest edge, one at a time
+ * (issue 38; the engine's default, fm_subdivide_to is the paper's scheme). */
+fm_status fm_bisect_to(fm_tets *tets, int64_t n, fm_error *err);
 /* The individual schemes, exposed for tests: write 4, 3 or 2 tets to out. */
 void fm_split_1to4(const double *tet, double *out);
 void fm_split_1to3(const double *tet, double *out);
 void fm_split_1to2(const double *tet, double *out);
 
-/* tet_quality.c: one pass over the tets, serial (0.06 s per 10^6 tets on one core of a 2-vCPU Xeon). */
+/* tet_quality.c: one pass over the tets and a selection for the median, serial (0.06 s per 10^6
+ * tets for the pass on one core of a 2-vCPU Xeon). */
 typedef struct fm_tet_quality {
-    double bound;      /* the radius-edge bound asked of TetGen (-q) */
-    double max_ratio;  /* the largest radius-edge ratio; 0 for no tets */
-    int64_t above;     /* tets whose ratio exceeds the bound */
+    double bound;        /* the radius-edge bound asked of TetGen (-q) */
+    double max_ratio;    /* the largest radius-edge ratio; 0 for no tets */
+    int64_t above;       /* tets whose ratio exceeds the bound */
+    int64_t above_4;     /* tets whose ratio exceeds 4.0 (issue 38's hard limit) */
+    double median_ratio; /* the lower median; NaN for no tets (or no memory for the selection) */
     int64_t count;
 } fm_tet_quality;
 fm_tet_quality fm_tets_quality(const fm_tets *tets, double bound);

@@ -1,4 +1,5 @@
-/* Subdivision of a tet set to exactly n tets (FM §4, eqs 1-2).
+/* Subdivision of a tet set to exactly n tets (FM §4, eqs 1-2), and the engine's default since issue
+ * 38: longest-edge bisection of the largest tets (fm_bisect_to).
  *
  * As DESIGN.md reads Figure 3: 1-to-4 puts a new vertex at the centroid, 1-to-3 at the centroid of
  * the largest face, 1-to-2 at the midpoint of the longest edge. Each child replaces one vertex of
@@ -132,6 +133,72 @@ fm_status fm_subdivide_to(fm_tets *tets, int64_t n, fm_error *err)
     free(keys);
     free(tets->v);
     tets->v = out;
+    tets->n = n;
+    return FM_OK;
+}
+
+/* ---------------------------------------------------------------- longest-edge bisection */
+
+/* A max-heap of tets by volume, ties to the lower index: the order of splits, and so the tets,
+ * depend on nothing but the input. */
+static int heap_before(const volume_key *x, const volume_key *y)
+{
+    return x->volume > y->volume || (x->volume == y->volume && x->index < y->index);
+}
+
+static void heap_push(volume_key *h, int64_t *size, volume_key k)
+{
+    int64_t i = (*size)++;
+    while (i > 0 && heap_before(&k, &h[(i - 1) / 2])) h[i] = h[(i - 1) / 2], i = (i - 1) / 2;
+    h[i] = k;
+}
+
+static volume_key heap_pop(volume_key *h, int64_t *size)
+{
+    volume_key top = h[0], last = h[--*size];
+    int64_t i = 0;
+    for (;;) {
+        int64_t c = 2 * i + 1;
+        if (c >= *size) break;
+        if (c + 1 < *size && heap_before(&h[c + 1], &h[c])) c++;
+        if (!heap_before(&h[c], &last)) break;
+        h[i] = h[c], i = c;
+    }
+    if (*size > 0) h[i] = last;
+    return top;
+}
+
+/* Tets are agents, so the split need not conform: a tet cut at the midpoint of its longest edge
+ * (fm_split_1to2) is two tets of half its volume that keep its orientation and, unlike the 1-to-4
+ * centroid split, its shape class (the children of a good tet stay near it; the centroid split
+ * makes four caps). The largest tet is split first, a child again when it is still the largest. */
+fm_status fm_bisect_to(fm_tets *tets, int64_t n, fm_error *err)
+{
+    if (n < tets->n)
+        return fm_fail(err, FM_ERR_INPUT, "n = %lld is smaller than the %lld tets TetGen made",
+                       (long long)n, (long long)tets->n);
+    if (n == tets->n) return FM_OK;
+    if (tets->n == 0) return fm_fail(err, FM_ERR_INPUT, "no tets to subdivide to %lld", (long long)n);
+    volume_key *heap = calloc((size_t)n, sizeof *heap);
+    double *v = realloc(tets->v, sizeof(double) * 12 * (size_t)n);
+    if (!heap || !v) {
+        free(heap);
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory subdividing to %lld tets", (long long)n);
+    }
+    tets->v = v;
+    int64_t size = 0, m = tets->n;
+    for (int64_t i = 0; i < m; i++) heap_push(heap, &size, (volume_key){fm_tet_signed_volume(v + 12 * i), i});
+    while (m < n) {
+        volume_key k = heap_pop(heap, &size);
+        double two[24];
+        fm_split_1to2(v + 12 * k.index, two);
+        memcpy(v + 12 * k.index, two, 12 * sizeof(double));
+        memcpy(v + 12 * m, two + 12, 12 * sizeof(double));
+        heap_push(heap, &size, (volume_key){fm_tet_signed_volume(v + 12 * k.index), k.index});
+        heap_push(heap, &size, (volume_key){fm_tet_signed_volume(v + 12 * m), m});
+        m++;
+    }
+    free(heap);
     tets->n = n;
     return FM_OK;
 }

@@ -129,10 +129,12 @@ static const char *const DISTANCE_NAMES[] = {"euclidean", "manhattan", NULL};
 static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
 static const char *const R_OVER_NAMES[] = {"none", "distance", "leader_speed", NULL};
 static const char *const DEFORM_NAMES[] = {"none", "wave", "pulse", "sequence", NULL};
+static const char *const SUBDIVISION_NAMES[] = {"bisect", "paper", NULL};
 static const struct { const char *key; const char *const *names; } ENUM_NAMES[] = {
     {"mode", MODE_NAMES}, {"shape_flock.sampling", SAMPLING_NAMES}, {"shape_flock.match", MATCH_NAMES},
     {"shape_flock.arrival.mode", ARRIVAL_NAMES}, {"shape_flock.deform.type", DEFORM_NAMES},
     {"shape_flock.mosaic.distance", DISTANCE_NAMES}, {"shape_flock.kalman.r_scale.over", R_OVER_NAMES},
+    {"tetgen.subdivision", SUBDIVISION_NAMES},
 };
 
 static const char *const *enum_names(const param *p)
@@ -186,6 +188,7 @@ static const param PARAMS[] = {
     {"n", P_INT64, OFF(n), 0, 1e9, 0},
     {"tetgen.quality", P_DOUBLE, OFF(tet_quality), 1.1, 100, 0},
     {"tetgen.max_volume", P_DOUBLE, OFF(tet_max_volume), 0, 1e30, 0},
+    {"tetgen.subdivision", P_ENUM, OFF(tet_subdivision), 0, 0, 0},
     {"speed0", P_DOUBLE, OFF(speed0), 0, 1e9, 1},
     {"omega1", P_DOUBLE, OFF(omega1), 0, 1e3, 1},
     {"time.frame_rate", P_DOUBLE, OFF(frame_rate), 0, 1e4, 1},
