@@ -15,7 +15,8 @@ void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, c
     const double max_speed = b->max_speed[a], max_force = b->max_force[a];
     double force[3] = {0, 0, 0};
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const double w = b->weight[r][a], *sum = s->rule[r], total = s->weight[r], norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total);
+        const double w = b->weight[r][a], total = s->weight[r], norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total);
+        const float *sum = s->rule[r];
         if (r == FM_BOIDS_SEPARATION) {
             for (int k = 0; k < 3; k++) force[k] += w * max_speed * sum[k];
         } else if (r == FM_BOIDS_COHESION) {
@@ -31,23 +32,9 @@ void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, c
     for (int k = 0; k < 3; k++) f[k] = (float)(force[k] * scale);
 }
 
-/* The agent's own perception parameters: 1 / r of each rule (0 for a radius of 0, which sees no
- * one) and the widest r^2. */
-static void agent_params(const fm_boids_view *b, int64_t a, float inv_r[3], float cos_half[3], float *r2_max)
-{
-    *r2_max = 0;
-    for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const float r2 = b->radius[r][a] * b->radius[r][a];
-        inv_r[r] = r2 > 0 ? 1.0f / b->radius[r][a] : 0.0f;
-        cos_half[r] = b->cos_half[r][a];
-        if (r2 > *r2_max) *r2_max = r2;
-    }
-}
-
 /* Agent a's view of one grid entry k that passed the r2_max test. */
 static inline void add_entry(fm_boids_sums *sums, const fm_grid *g, int32_t k, int64_t a, const float x[3],
-                             const float *const v[3], const float h[3], float hlen, const float inv_r[3],
-                             const float cos_half[3])
+                             const float *const v[3], const fm_boids_viewer *viewer)
 {
     const fm_grid_quad *q = &g->quad[k >> 2];
     const int lane = k & 3;
@@ -56,7 +43,7 @@ static inline void add_entry(fm_boids_sums *sums, const fm_grid *g, int32_t k, i
     const float d[3] = {q->x[lane] - x[0], q->y[lane] - x[1], q->z[lane] - x[2]};
     const fm_grid_quad *w = g->vel ? &g->vel[k >> 2] : NULL; /* the grid's copy, beside the position */
     const float vb[3] = {w ? w->x[lane] : v[0][nb], w ? w->y[lane] : v[1][nb], w ? w->z[lane] : v[2][nb]};
-    fm_boids_add(sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, h, hlen, inv_r, cos_half);
+    fm_boids_add(sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, viewer);
 }
 
 /* The entries [b, e) of the grid within r2_max of x, in entry order, added to the sums. Most
@@ -64,8 +51,7 @@ static inline void add_entry(fm_boids_sums *sums, const fm_grid *g, int32_t k, i
  * (SSE2, one aligned quad per test; -DFM_BOIDS_SCALAR or no SSE2 tests them one by one, with the
  * same float arithmetic and so the same hits in the same order). */
 static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t e, int64_t a, const float x[3],
-                       const float *const v[3], const float h[3], float hlen, const float inv_r[3], const float cos_half[3],
-                       float r2_max)
+                       const float *const v[3], const fm_boids_viewer *viewer, float r2_max)
 {
 #if BOIDS_SSE2
     const __m128 px = _mm_set1_ps(x[0]), py = _mm_set1_ps(x[1]), pz = _mm_set1_ps(x[2]), reach = _mm_set1_ps(r2_max);
@@ -81,7 +67,7 @@ static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t
         while (bits) {
             const int lane = __builtin_ctz((unsigned)bits);
             bits &= bits - 1;
-            add_entry(sums, g, 4 * qi + lane, a, x, v, h, hlen, inv_r, cos_half);
+            add_entry(sums, g, 4 * qi + lane, a, x, v, viewer);
         }
     }
 #else
@@ -89,7 +75,7 @@ static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t
         const fm_grid_quad *q = &g->quad[k >> 2];
         const int lane = k & 3;
         const float dx = q->x[lane] - x[0], dy = q->y[lane] - x[1], dz = q->z[lane] - x[2];
-        if (dx * dx + dy * dy + dz * dz < r2_max) add_entry(sums, g, k, a, x, v, h, hlen, inv_r, cos_half);
+        if (dx * dx + dy * dy + dz * dz < r2_max) add_entry(sums, g, k, a, x, v, viewer);
     }
 #endif
 }
@@ -99,12 +85,12 @@ static void scan_range(fm_boids_sums *sums, const fm_grid *g, int32_t b, int32_t
 static void boids_agent(const fm_grid *g, const fm_boids_view *b, const float *const v[3], int64_t a, const float x[3],
                         const float h[3], const int32_t *ranges, int count, float *const f[3])
 {
-    const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    float inv_r[3], cos_half[3], r2_max;
-    agent_params(b, a, inv_r, cos_half, &r2_max);
+    fm_boids_viewer viewer;
+    float r2_max;
+    fm_boids_viewer_init(b, a, h, &viewer, &r2_max);
     fm_boids_sums sums = {{{0}}, {0}};
     for (int ri = 0; ri < count; ri++)
-        scan_range(&sums, g, ranges[2 * ri], ranges[2 * ri + 1], a, x, v, h, hlen, inv_r, cos_half, r2_max);
+        scan_range(&sums, g, ranges[2 * ri], ranges[2 * ri + 1], a, x, v, &viewer, r2_max);
     float out[3];
     fm_boids_steer(&sums, b, a, h, out);
     for (int k = 0; k < 3; k++) f[k][a] = out[k];
@@ -150,15 +136,15 @@ void fm_kernel_boids_reference(const fm_boids_view *b, const float *const p[3], 
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         const float h[3] = {v[0][a], v[1][a], v[2][a]};
-        const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-        float inv_r[3], cos_half[3], r2_max;
-        agent_params(b, a, inv_r, cos_half, &r2_max);
+        fm_boids_viewer viewer;
+        float r2_max;
+        fm_boids_viewer_init(b, a, h, &viewer, &r2_max);
         fm_boids_sums sums = {{{0}}, {0}};
         for (int64_t nb = 0; nb < n; nb++) {
             if (nb == a) continue;
             const float d[3] = {p[0][nb] - p[0][a], p[1][nb] - p[1][a], p[2][nb] - p[2][a]};
             const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
-            fm_boids_add(&sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, h, hlen, inv_r, cos_half);
+            fm_boids_add(&sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, &viewer);
         }
         float out[3];
         fm_boids_steer(&sums, b, a, h, out);

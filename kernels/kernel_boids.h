@@ -48,45 +48,60 @@ typedef struct fm_boids_view {
 /* W = max(FM_BOIDS_WEIGHT_FLOOR, sum w): below it a rule fades with its neighbours' weight. */
 #define FM_BOIDS_WEIGHT_FLOOR 0.25
 
-/* The bearing weight g of a neighbour whose direction makes cosine c with a's velocity. */
-static inline float fm_boids_bearing(float c, float cos_half)
-{
-    if (cos_half <= -1.0f) return 1.0f;
-    const float t = (c - (cos_half - FM_BOIDS_CONE_BAND)) * (0.5f / FM_BOIDS_CONE_BAND);
-    if (t <= 0) return 0.0f;
-    if (t >= 1) return 1.0f;
-    return t * t * (3 - 2 * t);
-}
-
-/* Sums over one agent's perceived neighbours (double, so the order they come in barely matters). */
+/* Sums over one agent's perceived neighbours, in float: every agent meets its neighbours in the grid's
+ * order, which is the same for any thread and rank count (cells list their agents by id), so the
+ * sums' bits do not depend on either. */
 typedef struct fm_boids_sums {
-    double rule[FM_BOIDS_RULES][3]; /* separation push, weighted cohesion offsets, weighted velocities */
-    double weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
+    float rule[FM_BOIDS_RULES][3]; /* separation push, weighted cohesion offsets, weighted velocities */
+    float weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
 } fm_boids_sums;
 
-/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules, for an agent heading h (|h| =
- * hlen; 0: at rest, it sees all round); inv_r holds 1 / r of each rule (0 for a rule of radius 0,
- * which sees no one). The weights in float, the sums in double. */
-static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const float h[3],
-                                float hlen, const float inv_r[3], const float cos_half[3])
+/* One agent as it perceives, prepared once for all its neighbours (fm_boids_viewer_init). */
+typedef struct fm_boids_viewer {
+    float unit[3];                 /* its heading, unit (0 at rest) */
+    float inv_r[FM_BOIDS_RULES];   /* 1 / r of each rule; infinite for a radius of 0, which sees no one */
+    float lo[FM_BOIDS_RULES];      /* where the cone's band starts, in cosine (below -1: sees all round) */
+} fm_boids_viewer;
+
+/* Agent a heading h; r2_max = the widest r^2. */
+static inline void fm_boids_viewer_init(const fm_boids_view *b, int64_t a, const float h[3], fm_boids_viewer *w,
+                                        float *r2_max)
+{
+    const float hlen = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    for (int k = 0; k < 3; k++) w->unit[k] = hlen > 0 ? h[k] / hlen : 0.0f;
+    *r2_max = 0;
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        const float radius = b->radius[r][a], cos_half = b->cos_half[r][a];
+        w->inv_r[r] = radius > 0 ? 1.0f / radius : INFINITY;
+        w->lo[r] = cos_half <= -1.0f || hlen == 0 ? -3.0f : cos_half - FM_BOIDS_CONE_BAND;
+        if (radius * radius > *r2_max) *r2_max = radius * radius;
+    }
+}
+
+/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules of viewer w; the bearing weight g is the smoothstep of t = (c - lo) / (2 band),
+ * clamped to [0, 1] (a viewer that sees all round has t >= 1 for any c >= -1). */
+static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const fm_boids_viewer *w)
 {
     if (d2 == 0) return;
     const float dist = sqrtf(d2), inv_dist = 1.0f / dist;
-    const float c = hlen > 0 ? (h[0] * d[0] + h[1] * d[1] + h[2] * d[2]) * inv_dist / hlen : 1.0f;
+    const float c = (w->unit[0] * d[0] + w->unit[1] * d[1] + w->unit[2] * d[2]) * inv_dist;
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const float rho = dist * inv_r[r];
-        if (inv_r[r] == 0 || !(rho < 1)) continue;
-        const float g = hlen > 0 ? fm_boids_bearing(c, cos_half[r]) : 1.0f;
-        if (g == 0) continue;
+        const float rho = dist * w->inv_r[r];
+        if (!(rho < 1)) continue;
+        float t = (c - w->lo[r]) * (0.5f / FM_BOIDS_CONE_BAND);
+        if (!(t > 0)) continue;
+        t = t < 1 ? t : 1; /* not fminf: a library call where its NaN rule is kept */
+        const float g = t * t * (3 - 2 * t);
         if (r == FM_BOIDS_SEPARATION) {
-            const double push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) * inv_dist;
+            const float push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) * inv_dist;
             for (int k = 0; k < 3; k++) s->rule[r][k] -= push * d[k];
             continue;
         }
         const float q = 1 - rho * rho;
-        const double w = g * q * q;
-        for (int k = 0; k < 3; k++) s->rule[r][k] += w * (r == FM_BOIDS_COHESION ? d[k] : vb[k]);
-        s->weight[r] += w;
+        const float weight = g * q * q;
+        const float *x = r == FM_BOIDS_COHESION ? d : vb;
+        for (int k = 0; k < 3; k++) s->rule[r][k] += weight * x[k];
+        s->weight[r] += weight;
     }
 }
 
