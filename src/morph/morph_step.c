@@ -120,14 +120,14 @@ static int64_t add_mde(const fm_morph_model *m, fm_morph_state *s, int64_t begin
     return needed;
 }
 
+static double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * (3 - 2 * u); }
+
 /* How much of omega2 V_l agent id at (x, y, z) keeps at time t (issue 38): near the target,
  * smoothstep(d / D), d its distance outside the switch sphere and D style.fade_distance (1 beyond D,
  * 0 on and inside the sphere); late, after T = style.fade_time of flight, times 1 - smoothstep(age / T
  * - 1) (0 from 2T on). Strong fields (FM Table I's creatures) otherwise hold a few per cent of the
  * flock for good in eddies where V_l cancels the global velocity. In double, one agent at a time:
  * the same bits at any thread count, SIMD level and rank count. */
-static double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * (3 - 2 * u); }
-
 static float field_fade(const fm_morph_model *m, float x, float y, float z, int64_t id, double t)
 {
     double f = 1;
