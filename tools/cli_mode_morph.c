@@ -109,9 +109,8 @@ static stragglers_message stragglers_text(const fm_scene_def *def, const fm_morp
                                 (long long)rs->straggler[i].id, PHASE_NAMES[rs->straggler[i].phase & 3],
                                 rs->straggler[i].sphere_distance);
     if (len < sizeof m.text)
-        snprintf(m.text + len, sizeof m.text - len, "; %s", n[1] > 0 ? "agents still flying outside the switch sphere "
-                 "are held off by the style fields or obstacles: lower their gain, raise style.fade_distance or "
-                 "time.frame_limit" : "raise time.frame_limit in the scene");
+        snprintf(m.text + len, sizeof m.text - len, "; raise time.frame_limit in the scene (tets that circle outside "
+                 "the switch sphere are held there by the style fields or obstacles: see style.fade_time)");
     return m;
 }
 
