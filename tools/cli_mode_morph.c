@@ -34,7 +34,9 @@ static json_t *velocity_json(const fm_scene_def *def, const fm_morph_model_info 
         json_array_append_new(fields, o);
     }
     json_t *grid = def->field_grid[0] > 0 ? json_pack("[iii]", def->field_grid[0], def->field_grid[1], def->field_grid[2]) : json_null();
-    return json_pack("{sfsfsosososisfsfsbsfsfsfsfsssf}", "omega1", def->omega1, "omega2", def->omega2, "fields", fields,
+    return json_pack("{sfsfsfsfsosososisfsfsbsfsfsfsfsssf}", "omega1", def->omega1, "omega2", def->omega2,
+                     "field_fade_distance", mi->field_fade_distance, "field_fade_time", mi->field_fade_time,
+                     "fields", fields,
                      "field_grid", grid, "field_evaluation", json_string(mi->fields_baked ? "baked" : "direct"),
                      "obstacles", def->obstacle_count, "k_a", def->k_a, "obstacle_voxel", def->obstacle_voxel,
                      "avoid_in_phase2", def->avoid_in_phase2 != 0, "d_min", def->d_min, "mde_speed", def->mde_speed,
@@ -88,18 +90,50 @@ static json_t *quality_json(const fm_morph_tet_quality *agents, const fm_morph_t
     return q;
 }
 
+static const char *const PHASE_NAMES[4] = {"waiting", "flying", "homing", "arrived"};
+
+/* The frame limit's warning (issue 38): how many agents have not arrived, in which phase, and the
+ * first few by id with their distance outside the switch sphere (docs/errors.md). */
+typedef struct { char text[1024]; } stragglers_message;
+static stragglers_message stragglers_text(const fm_scene_def *def, const fm_morph_run_stats *rs)
+{
+    stragglers_message m;
+    const int64_t *n = rs->stragglers;
+    size_t len = (size_t)snprintf(m.text, sizeof m.text,
+                                  "stopped at the frame limit (%d frames) with %lld agents not yet arrived (%lld waiting "
+                                  "to launch, %lld flying in phase 1, %lld homing in phase 2); first by id:",
+                                  def->frame_limit, (long long)(n[0] + n[1] + n[2]), (long long)n[0], (long long)n[1],
+                                  (long long)n[2]);
+    for (int i = 0; i < rs->stragglers_listed && len < sizeof m.text; i++)
+        len += (size_t)snprintf(m.text + len, sizeof m.text - len, "%s %lld %s %.3g from the switch sphere", i ? "," : "",
+                                (long long)rs->straggler[i].id, PHASE_NAMES[rs->straggler[i].phase & 3],
+                                rs->straggler[i].sphere_distance);
+    if (len < sizeof m.text)
+        snprintf(m.text + len, sizeof m.text - len, "; raise time.frame_limit in the scene (tets that circle outside "
+                 "the switch sphere are held there by the style fields or obstacles: see style.fade_time)");
+    return m;
+}
+
+/* stats.json's "stragglers": null when every agent arrived. */
+static json_t *stragglers_json(const fm_morph_run_stats *rs)
+{
+    if (rs->all_arrived) return json_null();
+    json_t *first = json_array();
+    for (int i = 0; i < rs->stragglers_listed; i++)
+        json_array_append_new(first, json_pack("{sIsssf}", "id", (json_int_t)rs->straggler[i].id, "phase",
+                                               PHASE_NAMES[rs->straggler[i].phase & 3], "sphere_distance",
+                                               rs->straggler[i].sphere_distance));
+    const int64_t *n = rs->stragglers;
+    return json_pack("{sIsIsIsIso}", "count", (json_int_t)(n[0] + n[1] + n[2]), "waiting", (json_int_t)n[0], "flying",
+                     (json_int_t)n[1], "homing", (json_int_t)n[2], "first", first);
+}
+
 static int write_stats(void *run, const fm_scene_def *def, const char *path, const cli_run_record *record)
 {
     morph_run *r = run;
     const fm_morph_model_info *mi = &r->mi;
     const fm_morph_run_stats *rs = &r->rs;
-    if (!rs->all_arrived) {
-        char text[256];
-        snprintf(text, sizeof text, "stopped at the frame limit (%d frames) with %lld agents not yet arrived; "
-                 "raise time.frame_limit in the scene", def->frame_limit,
-                 (long long)(mi->agents - fm_morph_get_info(r->state).run.count[FM_PHASE_ARRIVED]));
-        add_warning(r, text);
-    }
+    if (!rs->all_arrived) add_warning(r, stragglers_text(def, rs).text);
     json_t *j = cli_stats_json(def, record);
     json_object_set_new(j, "source_tets", json_integer(mi->source_tets));
     json_object_set_new(j, "target_tets", json_integer(mi->target_tets));
@@ -116,6 +150,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
     json_object_set_new(j, "morph_fallbacks", json_integer(rs->morph_fallbacks));
     json_object_set_new(j, "mde_fraction_mean", json_real(rs->mde_fraction_mean));
     json_object_set_new(j, "mde_fraction_per_frame", mde_frames_json(rs));
+    json_object_set_new(j, "stragglers", stragglers_json(rs));
     json_object_set_new(j, "min_obstacle_clearance",
                         isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
     json_object_set_new(j, "min_vertex_clearance",

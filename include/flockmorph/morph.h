@@ -52,6 +52,10 @@ typedef struct fm_morph_model_info {
     int fields_baked;           /* the style fields' noise is baked on style.grid (only where the grid
                                    resolves it: cells of at most a quarter of the noise scale) */
     double field_bake_error;    /* baked against direct, relative RMS at t = 0; NaN when not baked */
+    double field_fade_distance; /* style.fade_distance as used: omega2 V_l fades to 0 over this distance
+                                   outside the switch sphere; 0 when it does not fade */
+    double field_fade_time;     /* style.fade_time as used: seconds of flight after which omega2 V_l
+                                   fades out (over as long again); 0 when it never does */
     fm_morph_tet_quality source_quality;        /* the n source tets the agents are (after subdivision) */
     fm_morph_tet_quality target_quality;        /* the n target tets */
     fm_morph_tet_quality source_tetgen_quality; /* TetGen's n1 tets, before subdivision */
@@ -98,6 +102,14 @@ void fm_morph_targets(const fm_morph_state *state, int64_t *out);
 /* Each agent's fm_phase (one byte per agent), agents in id order. */
 void fm_morph_phases(const fm_morph_state *state, uint8_t *out);
 
+/* An agent that had not arrived when a run stopped at its frame limit (issue 38). */
+enum { FM_MORPH_STRAGGLERS_LISTED = 8 };
+typedef struct fm_morph_straggler {
+    int64_t id;                     /* agent id (its launch rank, D1) */
+    int phase;                      /* fm_phase: waiting, flying or homing */
+    double sphere_distance;         /* its centroid's distance outside the switch sphere (< 0: inside) */
+} fm_morph_straggler;
+
 typedef struct fm_morph_run_stats {
     fm_run_totals run;              /* frames, steps, seconds stepping (fm_morph_step) and writing */
     int all_arrived;
@@ -111,6 +123,9 @@ typedef struct fm_morph_run_stats {
     double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */
     double min_obstacle_clearance;  /* smallest d_t - R_X in phase 1; +inf without obstacles */
     double min_vertex_clearance;    /* smallest fm_morph_vertex_clearance over the frames written */
+    int64_t stragglers[4];          /* agents not arrived at the end, per fm_phase (arrived: 0) */
+    int stragglers_listed;          /* the first of them by id, at most FM_MORPH_STRAGGLERS_LISTED */
+    fm_morph_straggler straggler[FM_MORPH_STRAGGLERS_LISTED];
 } fm_morph_run_stats;
 
 void fm_morph_run_stats_free(fm_morph_run_stats *stats);

@@ -228,6 +228,11 @@ typedef struct fm_scene_def {
     fm_field_def fields[FM_MAX_FIELDS];
     int32_t field_count;
     int32_t field_grid[3];      /* bake fields on this grid over the scene bounds; 0 = evaluate directly */
+    double field_fade;          /* units: omega2 V_l fades to 0 over this distance outside the switch sphere
+                                   (issue 38); 0 = the target's bounding-sphere radius, < 0 = no fade */
+    double field_fade_time;     /* seconds: an agent still in phase 1 after this long in flight loses
+                                   omega2 V_l over as long again; 0 = twice the path's length over
+                                   omega1 speed0, < 0 = never */
     /* obstacles (FM §5.3) */
     fm_mesh_ref obstacles[FM_MAX_OBSTACLES];
     int32_t obstacle_count;

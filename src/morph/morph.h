@@ -40,6 +40,8 @@ struct fm_morph_model {
     float *src_radius;       /* R_X at rest: radius of each source tet's minimal bounding sphere */
     float max_radius;        /* the largest R_X */
     fm_field_plan fields;    /* whether the state bakes the style fields (fields.h) */
+    double field_fade;       /* style.fade_distance resolved (its default: sphere_r); 0: no fade */
+    double field_fade_time;  /* style.fade_time resolved (its default: 2 path length / (omega1 speed0)); 0: never */
     fm_obstacles *obstacles; /* FM §5.3 d_t (OpenVDB grid + Embree); NULL without obstacles */
     fm_obstacles *target_sdf;/* the target's own signed distance, for FM_SWITCH_DISTANCE */
     double scene_lo[3], scene_hi[3]; /* bounds of source, target and path: the field grid spans them */

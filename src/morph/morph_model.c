@@ -368,6 +368,21 @@ static fm_status plan_fields(fm_morph_model *m, fm_error *err)
     if (st == FM_OK && m->fields.warning[0]) warn(m, "style.grid", "%s", m->fields.warning);
     m->info.fields_baked = m->fields.baked;
     m->info.field_bake_error = m->fields.bake_error;
+    /* The fade (issue 38) spans the target's own size by default: the scale at which the flock,
+       already inside the path's last stretch, is gathered onto the target. */
+    const double fade = m->def.field_fade;
+    m->field_fade = m->def.field_count == 0 || fade < 0 ? 0 : fade > 0 ? fade : m->info.sphere_radius;
+    m->info.field_fade_distance = m->field_fade;
+    /* ... and in time, so that no agent circles for ever where V_l holds it against V_g (an eddy of a
+       strong curl noise far from the target): by default from twice the time the path takes. */
+    double length = 0, guide = m->def.omega1 * m->def.speed0, after = m->def.field_fade_time;
+    for (int32_t i = 0; i + 1 < m->key_count; i++) {
+        const double dx = (double)m->key_q[0][i + 1] - m->key_q[0][i], dy = (double)m->key_q[1][i + 1] - m->key_q[1][i];
+        const double dz = (double)m->key_q[2][i + 1] - m->key_q[2][i];
+        length += sqrt(dx * dx + dy * dy + dz * dz);
+    }
+    m->field_fade_time = m->def.field_count == 0 || after < 0 ? 0 : after > 0 ? after : guide > 0 ? 2 * length / guide : 0;
+    m->info.field_fade_time = m->field_fade_time;
     return st;
 }
 

@@ -239,6 +239,63 @@ static double mde_mean(const fm_morph_run_stats *stats)
     return frames ? sum / (double)frames : 0.0;
 }
 
+/* Keeps list[0 .. *count) the (at most FM_MORPH_STRAGGLERS_LISTED) smallest ids seen, sorted. */
+static void keep_straggler(fm_morph_straggler *list, int *count, fm_morph_straggler x)
+{
+    int i = *count;
+    if (i == FM_MORPH_STRAGGLERS_LISTED) {
+        if (list[i - 1].id < x.id) return;
+        i--; /* x takes the largest one's place */
+    } else {
+        (*count)++;
+    }
+    for (; i > 0 && list[i - 1].id > x.id; i--) list[i] = list[i - 1];
+    list[i] = x;
+}
+
+static double sphere_distance(const fm_morph_model *m, float x, float y, float z)
+{
+    const double dx = (double)x - m->sphere_c[0], dy = (double)y - m->sphere_c[1], dz = (double)z - m->sphere_c[2];
+    return sqrt(dx * dx + dy * dy + dz * dz) - m->sphere_r;
+}
+
+/* Why a run stopped at its frame limit (issue 38): the agents not arrived, per phase, and the first
+ * few by id with their distance outside the switch sphere. On P ranks each rank lists its own store's
+ * and the ranks merge their lists by id, smallest first (collective; the waiting agents, ids from
+ * s->launched on, are in no store and are added by rank 0). */
+static void find_stragglers(const fm_morph_model *m, const fm_morph_state *s, fm_morph_run_stats *stats)
+{
+    fm_morph_straggler mine[FM_MORPH_STRAGGLERS_LISTED];
+    int count = 0;
+    int64_t per_phase[4] = {0, 0, 0, 0};
+    for (int64_t a = 0; a < fm_morph_slots(s); a++) {
+        const int phase = s->phase[a];
+        if (phase != FM_PHASE_FLYING && phase != FM_PHASE_HOMING) continue;
+        per_phase[phase]++;
+        keep_straggler(mine, &count, (fm_morph_straggler){s->id[a], phase, sphere_distance(m, s->p[0][a], s->p[1][a], s->p[2][a])});
+    }
+    fm_dist_sum_i64(s->dist, per_phase, 4);
+    per_phase[FM_PHASE_WAITING] = s->n - s->launched;
+    if (fm_dist_rank(s->dist) == 0)
+        for (int64_t id = s->launched; id < s->n && id < s->launched + FM_MORPH_STRAGGLERS_LISTED; id++)
+            keep_straggler(mine, &count, (fm_morph_straggler){id, FM_PHASE_WAITING,
+                                                             sphere_distance(m, m->src_c[0][id], m->src_c[1][id], m->src_c[2][id])});
+    memcpy(stats->stragglers, per_phase, sizeof per_phase);
+    stats->stragglers_listed = 0;
+    for (int i = 0, next = 0; i < FM_MORPH_STRAGGLERS_LISTED; i++) { /* the smallest next id of any rank */
+        int64_t best = next < count ? -mine[next].id : INT64_MIN;
+        fm_dist_max_i64(s->dist, &best, 1);
+        if (best == INT64_MIN) break;
+        const int own = next < count && mine[next].id == -best;
+        int64_t phase = own ? mine[next].phase : -1;
+        double distance = own ? mine[next].sphere_distance : -INFINITY;
+        fm_dist_max_i64(s->dist, &phase, 1);
+        fm_dist_max_f64(s->dist, &distance, 1);
+        stats->straggler[stats->stragglers_listed++] = (fm_morph_straggler){-best, (int)phase, distance};
+        next += own;
+    }
+}
+
 /* The end-state checks and totals of stats.json, from the last frame's tets of the store's agents. */
 static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const frame_buffers *f, int shared,
                          fm_morph_run_stats *stats)
@@ -251,6 +308,7 @@ static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const
     stats->morph_fallbacks = s->morph_fallbacks;
     stats->mde_fraction_mean = mde_mean(stats);
     stats->min_obstacle_clearance = s->min_clearance;
+    find_stragglers(m, s, stats);
 }
 
 /* The tetra morph in the shared frame loop (frame_loop.h): its callbacks and what they carry. */

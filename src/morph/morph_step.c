@@ -120,6 +120,43 @@ static int64_t add_mde(const fm_morph_model *m, fm_morph_state *s, int64_t begin
     return needed;
 }
 
+static double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * (3 - 2 * u); }
+
+/* How much of omega2 V_l agent id at (x, y, z) keeps at time t (issue 38): near the target,
+ * smoothstep(d / D), d its distance outside the switch sphere and D style.fade_distance (1 beyond D,
+ * 0 on and inside the sphere); late, after T = style.fade_time of flight, times 1 - smoothstep(age / T
+ * - 1) (0 from 2T on). Strong fields (FM Table I's creatures) otherwise hold a few per cent of the
+ * flock for good in eddies where V_l cancels the global velocity. In double, one agent at a time:
+ * the same bits at any thread count, SIMD level and rank count. */
+static float field_fade(const fm_morph_model *m, float x, float y, float z, int64_t id, double t)
+{
+    double f = 1;
+    if (m->field_fade > 0) {
+        const double dx = (double)x - m->sphere_c[0], dy = (double)y - m->sphere_c[1], dz = (double)z - m->sphere_c[2];
+        f = smoothstep((sqrt(dx * dx + dy * dy + dz * dz) - m->sphere_r) / m->field_fade);
+    }
+    if (m->field_fade_time > 0) { /* in flight since id / launch_rate (due_agents) */
+        const double late = (t - (double)id / m->launch_rate) / m->field_fade_time - 1;
+        if (late > 0) f *= 1 - smoothstep(late);
+    }
+    return (float)f;
+}
+
+/* omega2 V_l (FM eq 6), faded near the target: the fields' kernel writes V_l into the MDE scratch
+ * (free until add_mde), then each flying agent adds its faded share; where the fade is 1 the sum is
+ * bit for bit the unfaded one. */
+static void add_faded_fields(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
+{
+    float *const *vl = s->vla, *const *v = s->v, *const *p = s->p;
+    for (int64_t a = begin; a < end; a++) vl[0][a] = vl[1][a] = vl[2][a] = 0.0f;
+    fm_fields_add_block(s->fields, (const float *const *)p, s->phase, begin, end, s->time, (float)m->def.omega2, vl);
+    for (int64_t a = begin; a < end; a++) {
+        if (s->phase[a] != FM_PHASE_FLYING) continue;
+        const float f = field_fade(m, p[0][a], p[1][a], p[2][a], s->id[a], s->time);
+        v[0][a] += f * vl[0][a], v[1][a] += f * vl[1][a], v[2][a] += f * vl[2][a];
+    }
+}
+
 /* Stage 3 for one block: velocities from positions at the start of the step (FM eq 8). */
 static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end, block_counts *bc)
 {
@@ -129,7 +166,8 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
     const float *const *p = (const float *const *)s->p;
     const float dt = (float)m->dt;
     fm_kernel_global_velocity(&path, p, s->phase, begin, end, (float)(def->omega1 * def->speed0), s->v);
-    if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
+    if (s->fields && (m->field_fade > 0 || m->field_fade_time > 0)) add_faded_fields(m, s, begin, end);
+    else if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
     fm_obstacle_view o;
     fm_radius_view r;
     const fm_obstacle_scratch sc = obstacle_scratch(s);

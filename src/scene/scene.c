@@ -147,7 +147,8 @@ static const char *const *enum_names(const param *p)
 /* Keys (or groups of keys) of the tetra morph alone; "shape_flock" holds the flock's alone. A key of
  * the other mode is an error rather than silently ignored. */
 static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
-                                         "path.attraction", "launch_rate", "morph", "style.omega2",
+                                         "path.attraction", "launch_rate", "morph", "style.omega2", "style.fade_distance",
+                                         "style.fade_time",
                                          "obstacles.in_phase2", "mde", "phase2", "up"};
 
 static int has_prefix(const char *key, const char *group)
@@ -209,6 +210,8 @@ static const param PARAMS[] = {
     {"output.quantum", P_DOUBLE, OFF(cache_quantum), 0, 1e6, 0},
     {"output.piece_agents", P_INT32, OFF(cache_piece_agents), 256, 1 << 30, 0},
     {"style.omega2", P_DOUBLE, OFF(omega2), 0, 1e3, 0},
+    {"style.fade_distance", P_DOUBLE, OFF(field_fade), -1, 1e9, 0},
+    {"style.fade_time", P_DOUBLE, OFF(field_fade_time), -1, 1e9, 0},
     {"style.grid", P_INT3, OFF(field_grid), 0, 2048, 0},
     {"style.fields", P_FIELDS, OFF(fields), 0, 0, 0},
     {"obstacles.meshes", P_OBSTACLES, OFF(obstacles), 0, 0, 0},

@@ -457,6 +457,25 @@ static void test_run_stops_at_frame_limit(void)
     ENSURE(json_is_null(json_object_get(j, "final_max_vertex_error")));
     const char *warning = json_string_value(json_array_get(json_object_get(j, "warnings"), 0));
     ENSURE_MSG(warning && strstr(warning, "stopped at the frame limit (3 frames)"), "stats.json warnings: %s", warning ? warning : "none");
+    /* it names its stragglers (issue 38): how many, in which phase, the first by id and how far out */
+    ENSURE_MSG(strstr(g_err, "agents not yet arrived (") && strstr(g_err, "first by id: 0 ") &&
+               strstr(g_err, "from the switch sphere"), "%s", g_err);
+    json_t *st = json_object_get(j, "stragglers"), *first = json_object_get(st, "first");
+    const json_int_t agents = json_integer_value(json_object_get(j, "agents"));
+    const json_int_t count = json_integer_value(json_object_get(st, "count"));
+    ENSURE_MSG(count > 0 && count <= agents, "stragglers.count %lld of %lld", (long long)count, (long long)agents);
+    ENSURE(count == json_integer_value(json_object_get(st, "waiting")) + json_integer_value(json_object_get(st, "flying")) +
+                        json_integer_value(json_object_get(st, "homing")));
+    ENSURE(json_array_size(first) == (size_t)(count < 8 ? count : 8));
+    for (size_t i = 0; i < json_array_size(first); i++) {
+        json_t *e = json_array_get(first, i);
+        const char *phase = json_string_value(json_object_get(e, "phase"));
+        ENSURE(json_integer_value(json_object_get(e, "id")) >= (json_int_t)i); /* ascending, distinct */
+        ENSURE(i == 0 || json_integer_value(json_object_get(e, "id")) >
+                             json_integer_value(json_object_get(json_array_get(first, i - 1), "id")));
+        ENSURE(phase && (!strcmp(phase, "waiting") || !strcmp(phase, "flying") || !strcmp(phase, "homing")));
+        ENSURE(json_is_real(json_object_get(e, "sphere_distance")));
+    }
     json_decref(j);
     /* an output "directory" that is a regular file is a usage error (docs/errors.md) */
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene, stats);
