@@ -60,7 +60,7 @@ static fm_flock_def fm_default_flock_def(void)
         .alignment = {{20, 40}, {120, 180}, {2, 3}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
-        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75, .reform = 0.25,
+        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75, .reform = 0,
         .arrival_radius = 0.3, .arrival_time = 0.3, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
