@@ -10,11 +10,13 @@ the cache's last frame has not arrived, with their distance outside the switch s
 
     test_converge.py --cli build/flockmorph --tmp DIR --source REPO
 """
-import argparse
 import json
 import os
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import morph_test_args  # noqa: E402
 
 ARGS = None
 LIMIT = 3000
@@ -45,12 +47,7 @@ def last_frame(path):
 
 def main():
     global ARGS
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cli", required=True)
-    ap.add_argument("--tmp", required=True)
-    ap.add_argument("--source", required=True)
-    ARGS = ap.parse_args()
-    os.makedirs(ARGS.tmp, exist_ok=True)
+    ARGS = morph_test_args.parse_args()
     failures = []
 
     cache, stats, _ = run("faded")

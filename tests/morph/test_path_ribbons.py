@@ -13,11 +13,13 @@ Measured by tools/analyse-ribbons.py on mid-flight frames (phase 1, middle 60 % 
 
     test_path_ribbons.py --cli build/flockmorph --tmp DIR --source REPO
 """
-import argparse
 import json
 import os
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import morph_test_args  # noqa: E402
 
 ARGS = None
 HALF = 0.5  # the boxes' half size
@@ -76,12 +78,7 @@ def check(cond, what):
 
 def main():
     global ARGS
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cli", required=True)
-    ap.add_argument("--tmp", required=True)
-    ap.add_argument("--source", required=True)
-    ARGS = ap.parse_args()
-    os.makedirs(ARGS.tmp, exist_ok=True)
+    ARGS = morph_test_args.parse_args()
     ok = True
     for m in (4, 32, 256):
         frames = run(f"two_m{m}", "ribbons_two.obj", m)

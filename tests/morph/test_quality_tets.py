@@ -11,11 +11,13 @@ boundary tets miss the bound (docs/limits.md): only printed.
 
     test_quality_tets.py --cli build/flockmorph --tmp DIR --source REPO
 """
-import argparse
 import json
 import os
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import morph_test_args  # noqa: E402
 
 ARGS = None
 
@@ -48,12 +50,7 @@ def run(scene, name, *sets):
 
 def main():
     global ARGS
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cli", required=True)
-    ap.add_argument("--tmp", required=True)
-    ap.add_argument("--source", required=True)
-    ARGS = ap.parse_args()
-    os.makedirs(ARGS.tmp, exist_ok=True)
+    ARGS = morph_test_args.parse_args()
     failures = []
     for scene in ("moon", "creatures"):
         rc, last, stats = run(scene, scene)

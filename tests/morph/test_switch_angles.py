@@ -10,11 +10,13 @@ the kink is there and the measure sees it.
 
     test_switch_angles.py --cli build/flockmorph --tmp DIR --source REPO
 """
-import argparse
 import json
 import os
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import morph_test_args  # noqa: E402
 
 ARGS = None
 
@@ -37,12 +39,7 @@ def run(name, *sets):
 
 def main():
     global ARGS
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cli", required=True)
-    ap.add_argument("--tmp", required=True)
-    ap.add_argument("--source", required=True)
-    ARGS = ap.parse_args()
-    os.makedirs(ARGS.tmp, exist_ok=True)
+    ARGS = morph_test_args.parse_args()
     failures = []
     rc, blended = run("blend")
     if rc != 0:

@@ -1,0 +1,14 @@
+"""The arguments every python test of tests/morph takes from ctest (tests/CMakeLists.txt): --cli (the
+flockmorph binary), --tmp (a folder for its outputs, made here) and --source (the project's root)."""
+import argparse
+import os
+
+
+def parse_args(description=None):
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--cli", required=True)
+    ap.add_argument("--tmp", required=True)
+    ap.add_argument("--source", required=True)
+    args = ap.parse_args()
+    os.makedirs(args.tmp, exist_ok=True)
+    return args
