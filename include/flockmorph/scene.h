@@ -105,7 +105,10 @@ typedef enum fm_fuzzy_force {
 /* One boids rule (SCF "Basic Steering Behaviors"); every agent draws its own values uniformly from
  * these [lo, hi] ranges. */
 typedef struct fm_boid_rule_def {
-    double radius_j[2];  /* J of SCF eq 6: the perception radius is r = J / sqrt(N) */
+    double radius[2];    /* the perception radius in spacings sqrt(A / N), A the mean of the source's and
+                            the target's surface areas (the default) */
+    double radius_j[2];  /* J of SCF eq 6: the perception radius is r = J / sqrt(N); used when by_j */
+    int32_t by_j;        /* radius_j was given (the loader sets it; radius then may not be) */
     double angle_deg[2]; /* perception angle: full opening of the cone around the heading, (0, 360] */
     double weight[2];
 } fm_boid_rule_def;
@@ -118,6 +121,7 @@ typedef enum fm_flock_sampling {
 typedef enum fm_flock_match {
     FM_FLOCK_MATCH_RANDOM = 0, FM_FLOCK_MATCH_SPHERICAL = 1, FM_FLOCK_MATCH_PROJECTED = 2
 } fm_flock_match;
+
 /* The mosaic's dis_ij (SCF eqs 1-2): it both selects the neighbours and enters E_ij. */
 typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN = 1 } fm_mosaic_distance;
 /* What the Kalman filter's R is scaled over (SCF: R "adjusts how closely the agents follow the
@@ -162,6 +166,8 @@ typedef struct fm_flock_def {
     double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */
     double ease_in, ease_out;    /* seconds a leader takes to speed up from rest, and to slow to rest */
     double ease_spread;          /* seconds between the first leaders' start and the last's, front first */
+    int32_t uncross;             /* projected or spherical match: swap destinations between nearby agents
+                                    whose eq-11 paths cross (fm_match_uncross); 0 = the paper's match */
     double reform;               /* the last fraction of the path over which the formation turns from the
                                     source's layout into the target's; 0 = eq 11, over the whole path */
     double arrival_radius;       /* stepped steering within this distance of the destination; 0 = off */

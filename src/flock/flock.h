@@ -70,8 +70,10 @@ struct fm_flock_model {
 };
 
 /* Agent a's path fraction at time t: its leader's arc-length fraction along R~, eased in and out and
- * delayed by its place in the source (flock_model.c set_ease). 1 from the leader's arrival on. */
-double fm_flock_leader_fraction(const fm_flock_model *m, const float *const start[3], int64_t a, double t);
+ * delayed by its place in the source (flock_model.c set_ease). 1 from the leader's arrival on.
+ * *blend: the formation's blend f at t (fm_path_map_blend; shape_flock.layout, shape_flock.reform),
+ * 1 from the arrival on. */
+double fm_flock_leader(const fm_flock_model *m, const float *const start[3], int64_t a, double t, double *blend);
 
 /* When the last leader reaches its destination: path_time + ease_spread (0 without a path). */
 double fm_flock_leaders_end(const fm_flock_model *m);

@@ -159,22 +159,18 @@ void fm_bspline_eval_table(const fm_bspline *b, double s, double p[3])
 void fm_path_map(const double r[3], const double o1[3], const double o2[3], const double c1[3],
                  const double c2[3], double s, double out[3])
 {
-    fm_path_map_reform(r, o1, o2, c1, c2, s, 0, out);
+    fm_path_map_blend(r, o1, o2, c1, c2, s, s, out);
 }
 
-void fm_path_map_reform(const double r[3], const double o1[3], const double o2[3], const double c1[3],
-                        const double c2[3], double s, double reform, double out[3])
+void fm_path_map_blend(const double r[3], const double o1[3], const double o2[3], const double c1[3],
+                       const double c2[3], double s, double f, double out[3])
 {
     double oo = 0, cc = 0;
     for (int k = 0; k < 3; k++) oo += (o2[k] - o1[k]) * (o2[k] - o1[k]), cc += (c2[k] - c1[k]) * (c2[k] - c1[k]);
     const double alpha = oo > 0 ? sqrt(cc / oo) : 1.0;
-    double x = reform > 0 ? (s - (1 - reform)) / reform : 0;
-    x = x < 0 ? 0 : x > 1 ? 1 : x;
-    const double f = x * x * (3 - 2 * x);
     for (int k = 0; k < 3; k++) {
         const double o = (1 - s) * o1[k] + s * o2[k];
-        const double c = reform > 0 ? o + (1 - f) * (c1[k] - o1[k]) + f * (c2[k] - o2[k]) /* late re-forming */
-                                    : (1 - s) * c1[k] + s * c2[k];                      /* eq 11 */
+        const double c = o + (1 - f) * (c1[k] - o1[k]) + f * (c2[k] - o2[k]);
         out[k] = alpha * r[k] - alpha * o + c;
     }
 }

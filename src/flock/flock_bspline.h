@@ -62,11 +62,11 @@ void fm_bspline_eval_table(const fm_bspline *b, double s, double p[3]);
 void fm_path_map(const double r[3], const double o1[3], const double o2[3], const double c1[3],
                  const double c2[3], double s, double out[3]);
 
-/* Eq 12 with the formation re-formed late (shape_flock.reform, issue 37): C(s) = O(s) + (1 - f)(C1 - O1)
- * + f (C2 - O2) with f = smoothstep((s - (1 - reform)) / reform), so the agents keep the source's
- * layout, carried along the path, until the last `reform` of it, and take the target's over that
- * part; reform = 0 is eq 11's C(s) (f = s). R~(0) = C1 and R~(1) = C2 either way. */
-void fm_path_map_reform(const double r[3], const double o1[3], const double o2[3], const double c1[3],
-                        const double c2[3], double s, double reform, double out[3]);
+/* Eq 12 with the formation's blend f in place of eq 11's s: C(s) = O(s) + (1 - f)(C1 - O1) + f (C2 - O2),
+ * so the agent rides the path at fraction s while its offset from the flock's centre turns from the
+ * source's layout (f = 0) into the target's (f = 1); f = s is eq 11's C(s) (fm_path_map). R~ = C1 when
+ * s = f = 0 and C2 when s = f = 1. */
+void fm_path_map_blend(const double r[3], const double o1[3], const double o2[3], const double c1[3],
+                       const double c2[3], double s, double f, double out[3]);
 
 #endif

@@ -117,18 +117,20 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
 }
 
 /* Each agent draws every parameter uniformly from its range (SCF: "every agent maintains its own
- * attribute list"); radii are r = J / sqrt(N) (eq 6). */
-static void draw_parameters(fm_flock_model *m)
+ * attribute list"); radii are in spacings sqrt(A / N), A the mean of the two surfaces' areas, or
+ * r = J / sqrt(N) (eq 6) where the scene gives J. */
+static void draw_parameters(fm_flock_model *m, double area)
 {
     const fm_flock_def *f = &m->def.flock;
     const fm_boid_rule_def *rules[FM_BOIDS_RULES] = {&f->separation, &f->cohesion, &f->alignment};
     const double inv_sqrt_n = 1.0 / sqrt((double)m->n), deg = 3.14159265358979323846 / 180;
+    const double spacing = sqrt(area) * inv_sqrt_n;
     m->max_radius = 0;
     for (int64_t a = 0; a < m->n; a++) {
         uint64_t stream = STREAM_PARAMS;
 #define DRAW(range) ((range)[0] + ((range)[1] - (range)[0]) * fm_random_unit(m->def.seed, stream++, (uint64_t)a))
         for (int r = 0; r < FM_BOIDS_RULES; r++) {
-            m->radius[r][a] = (float)(DRAW(rules[r]->radius_j) * inv_sqrt_n);
+            m->radius[r][a] = (float)(rules[r]->by_j ? DRAW(rules[r]->radius_j) * inv_sqrt_n : DRAW(rules[r]->radius) * spacing);
             double angle = DRAW(rules[r]->angle_deg);
             m->cos_half[r][a] = angle >= 360 ? -1.0f : (float)cos(0.5 * angle * deg);
             m->weight[r][a] = (float)DRAW(rules[r]->weight);
@@ -228,16 +230,31 @@ static double eased(double x, double e_in, double e_out)
     return top * (0.5 * e_in + x - e_in);
 }
 
-double fm_flock_leader_fraction(const fm_flock_model *m, const float *const start[3], int64_t a, double t)
+/* The formation's blend f (fm_path_map_blend) at path fraction u: eq 11's f = u, or with
+ * shape_flock.reform the source's layout kept until the last `reform` of the path. */
+static double layout_blend(const fm_flock_model *m, double u)
 {
-    if (!(m->path_time > 0)) return 1.0;
+    const double reform = m->def.flock.reform;
+    if (!(reform > 0)) return u;
+    const double x = (u - (1 - reform)) / reform;
+    return x <= 0 ? 0 : x >= 1 ? 1 : x * x * (3 - 2 * x);
+}
+
+double fm_flock_leader(const fm_flock_model *m, const float *const start[3], int64_t a, double t, double *blend)
+{
+    if (!(m->path_time > 0)) {
+        *blend = 1.0;
+        return 1.0;
+    }
     double delay = 0;
     if (m->ease_inv_range > 0) {
         const double x = m->ease_axis[0] * start[0][a] + m->ease_axis[1] * start[1][a] + m->ease_axis[2] * start[2][a];
         const double back = 1 - (x - m->ease_lo) * m->ease_inv_range;
         delay = m->ease_spread * (back < 0 ? 0 : back > 1 ? 1 : back);
     }
-    return eased((t - delay) / m->path_time, m->ease_in, m->ease_out);
+    const double x = (t - delay) / m->path_time, u = eased(x, m->ease_in, m->ease_out);
+    *blend = layout_blend(m, u);
+    return u;
 }
 
 double fm_flock_leaders_end(const fm_flock_model *m) { return m->path_time > 0 ? m->path_time + m->ease_spread : 0; }
@@ -277,6 +294,8 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progr
     if (st == FM_OK && !projected)
         st = fm_name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
                                       fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
+    if (st == FM_OK && m->def.flock.uncross && m->def.flock.match != FM_FLOCK_MATCH_RANDOM)
+        st = fm_match_uncross(src.p, tgt.p, m->n, match, err);
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
     if (st == FM_OK) mean_point(src.p, m->n, m->o1), mean_point(tgt.p, m->n, m->o2);
     fm_samples_free(&src), fm_samples_free(&tgt);
@@ -312,7 +331,8 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     if (st == FM_OK) set_ease(m);
     if (st == FM_OK) st = init_fuzzy(m, err);
     if (st == FM_OK) {
-        draw_parameters(m);
+        const fm_mesh *start = m->from ? &m->from->target.mesh : &source;
+        draw_parameters(m, 0.5 * (fm_mesh_area(start) + fm_mesh_area(&m->target.mesh)));
         scene_bounds(m, &source);
         set_info(m);
         st = plan_fields(m, err);

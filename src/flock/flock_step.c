@@ -5,7 +5,7 @@
  *   1. target     a deforming target's vertices at t + dt; each destination follows its triangle
  *                 (barycentric coordinates), its velocity by difference
  *   2. leaders    each agent's virtual leader at t + dt: its path R~ (eq 12) at its own eased, delayed
- *                 arc-length fraction (fm_flock_leader_fraction), which ends on the destination
+ *                 arc-length fraction (fm_flock_leader), which ends on the destination
  *   3. prepare    the Kalman covariance and gain (shared; with R over the run each agent's own
  *                 is advanced in stage 4); the style-field grid; the neighbour grid
  *                 over the agents not bound (counting sort, cell = the largest perception radius)
@@ -52,13 +52,14 @@ static void update_destinations(const fm_flock_model *m, fm_flock_state *s, doub
 }
 
 /* Stage 2 for one block: each agent's leader at time t, on its own eased path fraction u
- * (fm_flock_leader_fraction; r = R(u)), and its velocity by difference. */
+ * (fm_flock_leader; r = R(u)), and its velocity by difference. */
 static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, int64_t begin, int64_t end)
 {
     const double inv_dt = 1.0 / m->dt;
     for (int64_t a = begin; a < end; a++) {
         if (s->phase[a] == FM_FLOCK_ELSEWHERE) continue; /* another rank's (flock_dist.c) */
-        const double u = fm_flock_leader_fraction(m, (const float *const *)s->prm.start, a, t);
+        double f;
+        const double u = fm_flock_leader(m, (const float *const *)s->prm.start, a, t, &f);
         double z[3];
         if (u >= 1) {
             for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
@@ -67,7 +68,7 @@ static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, 
             const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
             const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
             fm_bspline_eval_table(&m->path, u, r);
-            fm_path_map_reform(r, m->o1, m->o2, c1, c2, u, m->def.flock.reform, z);
+            fm_path_map_blend(r, m->o1, m->o2, c1, c2, u, f, z);
         }
         for (int k = 0; k < 3; k++) {
             s->leader_v[k][a] = (float)((z[k] - s->leader[k][a]) * inv_dt);

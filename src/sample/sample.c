@@ -48,6 +48,13 @@ static double triangle_area(const fm_mesh *m, int64_t t)
     return 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
 }
 
+double fm_mesh_area(const fm_mesh *m)
+{
+    double sum = 0;
+    for (int64_t t = 0; t < m->nt; t++) sum += triangle_area(m, t);
+    return sum;
+}
+
 /* The point of segment a-b nearest q as the weight of b, in [0, 1]. */
 static double segment_param(const double *a, const double *b, const double q[3])
 {

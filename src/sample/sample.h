@@ -85,6 +85,17 @@ typedef enum fm_match_method { FM_MATCH_RANDOM = 0, FM_MATCH_SPHERICAL = 1 } fm_
 fm_status fm_match_agents(const float *agents, const float *samples, int64_t n, fm_match_method m,
                           uint64_t seed, int64_t *out, fm_error *err);
 
+/* Uncrossing (beyond SCF, for eq 11's blend): with x_a = agents[a] and y_a = samples[match[a]], each
+ * less its set's centroid, eq 11 carries agent a's offset from the flock's centre from x_a to y_a,
+ * (1 - u) x_a + u y_a at path fraction u. Two agents whose offset difference turns by more than 90
+ * degrees, (x_a - x_b) . (y_a - y_b) < 0, pass through each other's neighbourhoods on the way (the
+ * flock folds); swapping their samples undoes that and lowers the summed squared travel
+ * sum |x_a - y_a|^2, so repeated swaps converge. Each pass tries every agent, in index order,
+ * against its neighbours on a hash grid (grid.h) of cells about two spacings wide (2 extent /
+ * sqrt(n), points on a surface); at most 32 passes, sequential, depending only on the input.
+ * match: a permutation, changed in place. FM_ERR_MEMORY. */
+fm_status fm_match_uncross(const float *agents, const float *samples, int64_t n, int64_t *match, fm_error *err);
+
 /* SCF's correspondence by projection ("spherically projecting source positions on the first shape
  * onto the surface of the second shape, and let these projected points subject to energy
  * optimization"): point a of `from` (n points, 3 floats each) is seen from their centroid along the
@@ -95,6 +106,9 @@ fm_status fm_match_agents(const float *agents, const float *samples, int64_t n, 
  * FM_ERR_INPUT for a non-finite point of `from` (named). */
 fm_status fm_sample_projected(const fm_mesh *mesh, const float *from, int64_t n, const fm_sample_opts *opts,
                               fm_samples *out, fm_error *err);
+
+/* The mesh's surface area (the sum of its triangles'). */
+double fm_mesh_area(const fm_mesh *m);
 
 /* Uniformity: the mean and the coefficient of variation (standard deviation / mean) of every
  * point's Euclidean distance to its nearest other point (exact, on the hash grid of grid.h; n >= 2;

@@ -13,11 +13,12 @@
  *      direction distance |u_a - v_s|^2; every swap lowers the total, so the passes converge.
  * Everything is sequential and depends only on the input, never on threads. */
 #include "sample.h"
+#include "grid.h"
 
 #include <math.h>
 #include <stdlib.h>
 
-enum { MATCH_WINDOW = 8, MATCH_PASSES = 4 };
+enum { MATCH_WINDOW = 8, MATCH_PASSES = 4, UNCROSS_PASSES = 32 };
 
 /* Unit directions from the centroid (0 for a point at the centroid) and their curve order. */
 static void directions(const float *p, int64_t n, double *u, fm_keyed *order)
@@ -76,6 +77,72 @@ static fm_status match_spherical(const float *agents, const float *samples, int6
         improve_by_swaps(ua, us, ra, n, out);
     }
     free(ua), free(us), free(ra), free(rs);
+    return st;
+}
+
+/* Points less their centroid, in double; returns the largest extent of their bounding box. */
+static double centred(const float *p, int64_t n, double *x)
+{
+    double c[3] = {0, 0, 0}, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c[k] += (double)p[3 * i + k];
+    for (int k = 0; k < 3; k++) c[k] /= (double)n;
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            x[3 * i + k] = (double)p[3 * i + k] - c[k];
+            lo[k] = fmin(lo[k], x[3 * i + k]), hi[k] = fmax(hi[k], x[3 * i + k]);
+        }
+    return fmax(fmax(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
+}
+
+/* Swapping a's and b's samples lowers |x_a - y_a|^2 + |x_b - y_b|^2 by exactly -2 (x_a - x_b) . (y_a - y_b). */
+static int uncross_pair(const double *x, const double *y, int64_t a, int64_t b, int64_t *match)
+{
+    const double *xa = x + 3 * a, *xb = x + 3 * b, *ya = y + 3 * match[a], *yb = y + 3 * match[b];
+    const double turn = (xa[0] - xb[0]) * (ya[0] - yb[0]) + (xa[1] - xb[1]) * (ya[1] - yb[1]) + (xa[2] - xb[2]) * (ya[2] - yb[2]);
+    if (!(turn < 0)) return 0;
+    const int64_t t = match[a];
+    match[a] = match[b], match[b] = t;
+    return 1;
+}
+
+/* One pass of uncrossing: every agent, in index order, against every other in its grid cell's 27
+ * (each pair seen from both ends). Returns the swaps. */
+static int64_t uncross_pass(const fm_grid *g, const double *x, const double *y, int64_t n, int64_t *match)
+{
+    int64_t swaps = 0;
+    for (int64_t a = 0; a < n; a++) {
+        int32_t rk[2 * FM_GRID_MAX_RANGES];
+        const int ranges = fm_grid_ranges(g, (float)x[3 * a], (float)x[3 * a + 1], (float)x[3 * a + 2], rk);
+        for (int r = 0; r < ranges; r++)
+            for (int32_t e = rk[2 * r]; e < rk[2 * r + 1]; e++) {
+                const int64_t b = g->quad[e >> 2].i[e & 3];
+                if (b != a) swaps += uncross_pair(x, y, a, b, match);
+            }
+    }
+    return swaps;
+}
+
+fm_status fm_match_uncross(const float *agents, const float *samples, int64_t n, int64_t *match, fm_error *err)
+{
+    if (n < 2) return FM_OK;
+    double *x = malloc(sizeof(double) * 3 * (size_t)n), *y = malloc(sizeof(double) * 3 * (size_t)n);
+    float *xyz[3] = {malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n)};
+    fm_grid g = {0};
+    fm_status st = !x || !y || !xyz[0] || !xyz[1] || !xyz[2]
+                       ? fm_fail(err, FM_ERR_MEMORY, "out of memory uncrossing %lld agents", (long long)n)
+                       : fm_grid_init(&g, n, err);
+    if (st == FM_OK) {
+        const double extent = centred(agents, n, x);
+        centred(samples, n, y);
+        for (int64_t i = 0; i < n; i++)
+            for (int k = 0; k < 3; k++) xyz[k][i] = (float)x[3 * i + k];
+        /* cells of about two spacings of n points on a surface in this box: a dozen neighbours */
+        fm_grid_build(&g, (const float *const *)xyz, NULL, n, extent > 0 ? (float)(2.0 * extent / sqrt((double)n)) : 1.0f, 1);
+        for (int pass = 0; pass < UNCROSS_PASSES && uncross_pass(&g, x, y, n, match) > 0; pass++) {}
+    }
+    fm_grid_free(&g);
+    free(x), free(y), free(xyz[0]), free(xyz[1]), free(xyz[2]);
     return st;
 }
 

@@ -55,12 +55,14 @@ static fm_flock_def fm_default_flock_def(void)
         .mosaic_k = FM_SAMPLE_MOSAIC_K, .mosaic_w = FM_SAMPLE_MOSAIC_W, .mosaic_step = FM_SAMPLE_MOSAIC_STEP,
         .stratified_lambda = FM_SAMPLE_LAMBDA, .stratified_oversample = FM_SAMPLE_OVERSAMPLE,
         .max_speed = {12, 18}, .max_force = {40, 80},
-        .separation = {{20, 40}, {240, 300}, {0.4, 0.6}},  /* J: a third of SCF's, see docs/shape-flock.md */
-        .cohesion = {{10, 40}, {240, 300}, {0.1, 0.2}},
-        .alignment = {{20, 40}, {120, 180}, {2, 3}},
+        /* radii in spacings: J / sqrt(A) of the J below (a third of SCF's) on the cylinder -> sphere
+           example (A = 330); about 7 others within 1.5 spacings (docs/shape-flock.md) */
+        .separation = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {240, 300}, .weight = {0.4, 0.6}},
+        .cohesion = {.radius = {0.55, 2.2}, .radius_j = {10, 40}, .angle_deg = {240, 300}, .weight = {0.1, 0.2}},
+        .alignment = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {120, 180}, .weight = {2, 3}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
-        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75, .reform = 0,
+        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75, .reform = 0, .uncross = 1,
         .arrival_radius = 0.3, .arrival_time = 0.3, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
@@ -238,12 +240,15 @@ static const param PARAMS[] = {
     {"shape_flock.mass", P_DOUBLE, OFF(flock.mass), 0, 1e9, OPEN_MIN},
     {"shape_flock.max_speed", P_RANGE, OFF(flock.max_speed), 0, 1e9, OPEN_MIN},
     {"shape_flock.max_force", P_RANGE, OFF(flock.max_force), 0, 1e12, 0},
+    {"shape_flock.separation.radius", P_RANGE, OFF(flock.separation.radius), 0, 1e6, 0},
     {"shape_flock.separation.radius_j", P_RANGE, OFF(flock.separation.radius_j), 0, 1e9, 0},
     {"shape_flock.separation.angle", P_RANGE, OFF(flock.separation.angle_deg), 0, 360, OPEN_MIN},
     {"shape_flock.separation.weight", P_RANGE, OFF(flock.separation.weight), 0, 1e6, 0},
+    {"shape_flock.cohesion.radius", P_RANGE, OFF(flock.cohesion.radius), 0, 1e6, 0},
     {"shape_flock.cohesion.radius_j", P_RANGE, OFF(flock.cohesion.radius_j), 0, 1e9, 0},
     {"shape_flock.cohesion.angle", P_RANGE, OFF(flock.cohesion.angle_deg), 0, 360, OPEN_MIN},
     {"shape_flock.cohesion.weight", P_RANGE, OFF(flock.cohesion.weight), 0, 1e6, 0},
+    {"shape_flock.alignment.radius", P_RANGE, OFF(flock.alignment.radius), 0, 1e6, 0},
     {"shape_flock.alignment.radius_j", P_RANGE, OFF(flock.alignment.radius_j), 0, 1e9, 0},
     {"shape_flock.alignment.angle", P_RANGE, OFF(flock.alignment.angle_deg), 0, 360, OPEN_MIN},
     {"shape_flock.alignment.weight", P_RANGE, OFF(flock.alignment.weight), 0, 1e6, 0},
@@ -267,6 +272,7 @@ static const param PARAMS[] = {
     {"shape_flock.ease.out", P_DOUBLE, OFF(flock.ease_out), 0, 1e9, 0},
     {"shape_flock.ease.spread", P_DOUBLE, OFF(flock.ease_spread), 0, 1e9, 0},
     {"shape_flock.reform", P_DOUBLE, OFF(flock.reform), 0, 1, 0},
+    {"shape_flock.uncross", P_BOOL, OFF(flock.uncross), 0, 0, 0},
     {"shape_flock.arrival.radius", P_DOUBLE, OFF(flock.arrival_radius), 0, 1e9, 0},
     {"shape_flock.arrival.time", P_DOUBLE, OFF(flock.arrival_time), 0, 1e6, OPEN_MIN},
     {"shape_flock.arrival.turn_rate", P_DOUBLE, OFF(flock.turn_rate_deg), 0, 1e9, OPEN_MIN},
@@ -1117,6 +1123,29 @@ static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def 
                    "\"leader_speed\": the curve's x is one of them");
 }
 
+/* A rule's radius is given in spacings (.radius) or as the paper's J (.radius_j), not both: the one
+ * given is the one used (by_j). */
+static fm_status read_radius_units(where *w, const json_t *root, fm_scene_def *def)
+{
+    static const char *const names[3] = {"separation", "cohesion", "alignment"};
+    fm_boid_rule_def *rules[3] = {&def->flock.separation, &def->flock.cohesion, &def->flock.alignment};
+    for (int r = 0; r < 3 && def->mode == FM_MODE_SHAPE_FLOCK; r++) {
+        char key[64], key_j[64];
+        snprintf(key, sizeof key, "shape_flock.%s.radius", names[r]);
+        snprintf(key_j, sizeof key_j, "shape_flock.%s.radius_j", names[r]);
+        const json_t *v, *v_j;
+        fm_status st = lookup(w, root, key, &v);
+        if (st == FM_OK) st = lookup(w, root, key_j, &v_j);
+        if (st != FM_OK) return st;
+        rules[r]->by_j = v_j != NULL;
+        if (v && v_j) {
+            w->at_key = 1;
+            return fail_at(w, key_j, "give %s (in spacings) or %s (SCF's J), not both (docs/scene.md)", key, key_j);
+        }
+    }
+    return FM_OK;
+}
+
 /* Reads the document (changed by the overrides, if any) into def. */
 /* What only the whole document of a mode can be checked for. */
 static fm_status check_mode(where *w, const json_t *root, const fm_scene_def *def)
@@ -1158,6 +1187,7 @@ static fm_status read_document(where *w, json_t *root, const fm_scene_override *
     fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
     if (st == FM_OK) st = read_groups(w, root, groups, def);
     if (st == FM_OK) st = read_scene(w, root, def);
+    if (st == FM_OK) st = read_radius_units(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);
     if (st == FM_OK && def->group_count == 0) st = check_mode(w, root, def); /* a shot's groups are checked whole */
     return st;
@@ -1232,6 +1262,7 @@ static fm_status read_group_document(where *w, json_t *root, const fm_scene_over
     def->group_index = g, def->group = groups[g];
     w->in_group = 1, w->group = g;
     st = read_scene(w, doc, def);
+    if (st == FM_OK) st = read_radius_units(w, doc, def);
     if (st == FM_OK) st = check_consistency(w, def);
     if (st == FM_OK) st = check_mode(w, doc, def);
     json_decref(doc);

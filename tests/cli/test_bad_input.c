@@ -261,6 +261,8 @@ static const flock_value_case FLOCK_VALUE_CASES[] = {
      "shape_flock.kalman.r_scale.points", "0 is out of range: must be > 0"},
     {"\"kalman\": {\"r_scale\": {@: [[0, 2]]}}", "\"points\"", "shape_flock.kalman.r_scale.points",
      "set shape_flock.kalman.r_scale.over to \"distance\" or \"leader_speed\": the curve's x is one of them"},
+    {"\"separation\": {\"radius\": [1, 2], @: [20, 40]}", "\"radius_j\"", "shape_flock.separation.radius_j",
+     "give shape_flock.separation.radius (in spacings) or shape_flock.separation.radius_j (SCF's J), not both"},
     {"\"kalman\": {@: 1}", "\"qq\"", "shape_flock.kalman.qq", "unknown key"}, /* '@' at the key */
 };
 

@@ -254,6 +254,73 @@ static double dist2f(const float *a, const float *b)
     return d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
 }
 
+/* match[a] = a, then 4000 swaps of agents at most 2 apart on a side x side grid (an LCG's). */
+static void jumble(int64_t *match, int side)
+{
+    uint64_t x = 12345;
+    for (int64_t a = 0; a < (int64_t)side * side; a++) match[a] = a;
+    for (int s = 0; s < 4000; s++) {
+        x = x * 6364136223846793005u + 1442695040888963407u;
+        const int i = (int)((x >> 33) % (uint64_t)side), j = (int)((x >> 45) % (uint64_t)side);
+        const int di = (int)((x >> 20) % 5) - 2, dj = (int)((x >> 10) % 5) - 2;
+        if (i + di < 0 || i + di >= side || j + dj < 0 || j + dj >= side) continue;
+        const int64_t a = (int64_t)i * side + j, b = (int64_t)(i + di) * side + (j + dj), t = match[a];
+        match[a] = match[b], match[b] = t;
+    }
+}
+
+/* Uncrossing (fm_match_uncross): agents on a 30 x 30 grid layer, samples on the same grid stretched
+ * x2 along x and tilted, matched as the grid matches them but jumbled locally (as a projection
+ * folds): many grid-neighbour pairs cross ((x_a - x_b) . (y_a - y_b) < 0, counted here over the
+ * grid's 4-neighbours, not by the engine's curve windows). After uncrossing few do, the summed squared travel is lower, and it is still a
+ * permutation, the same each time. */
+static void test_uncross(void)
+{
+    enum { SIDE = 30, NP = SIDE * SIDE };
+    float *agents = malloc(sizeof(float) * 3 * NP), *samples = malloc(sizeof(float) * 3 * NP);
+    int64_t *match = malloc(sizeof(int64_t) * NP), *again = malloc(sizeof(int64_t) * NP);
+    for (int i = 0; i < SIDE; i++)
+        for (int j = 0; j < SIDE; j++) {
+            float *a = agents + 3 * (i * SIDE + j), *b = samples + 3 * (i * SIDE + j);
+            a[0] = (float)i, a[1] = (float)j, a[2] = 0;
+            b[0] = 2.0f * i + 5, b[1] = (float)j, b[2] = 0.5f * i;
+        }
+    fm_error err = {0};
+    jumble(match, SIDE);
+    double before = 0, after = 0;
+    int crossed_before = 0, crossed_after = 0, pairs = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) ENSURE_MSG(fm_match_uncross(agents, samples, NP, match, &err) == FM_OK, "%s", err.message);
+        double travel = 0;
+        int crossed = 0;
+        pairs = 0;
+        for (int64_t a = 0; a < NP; a++) {
+            travel += dist2f(agents + 3 * a, samples + 3 * match[a]);
+            const int i = (int)(a / SIDE), j = (int)(a % SIDE);
+            for (int e = 0; e < 2; e++) {
+                const int ni = i + (e == 0), nj = j + (e == 1);
+                if (ni >= SIDE || nj >= SIDE) continue;
+                const int64_t b = ni * SIDE + nj;
+                const float *xa = agents + 3 * a, *xb = agents + 3 * b, *ya = samples + 3 * match[a], *yb = samples + 3 * match[b];
+                double dot = 0;
+                for (int k = 0; k < 3; k++) dot += ((double)xa[k] - xb[k]) * ((double)ya[k] - yb[k]);
+                crossed += dot < 0, pairs++;
+            }
+        }
+        if (pass == 0) before = travel, crossed_before = crossed;
+        else after = travel, crossed_after = crossed;
+    }
+    printf("  uncrossing a jumbled match: crossing neighbour pairs %d -> %d of %d; squared travel %.0f -> %.0f\n",
+           crossed_before, crossed_after, pairs, before, after);
+    ENSURE(is_permutation(match, NP));
+    ENSURE_MSG(crossed_before > pairs / 3 && crossed_after < pairs / 50, "%d of %d pairs cross", crossed_after, pairs);
+    ENSURE(after < before);
+    jumble(again, SIDE);
+    ENSURE(fm_match_uncross(agents, samples, NP, again, &err) == FM_OK && !memcmp(again, match, sizeof(int64_t) * NP));
+    ENSURE(fm_match_uncross(agents, samples, 1, again, &err) == FM_OK);
+    free(agents), free(samples), free(match), free(again);
+}
+
 /* Mean over the points a of `from` of the distance between out's point a and out's point of a's
  * nearest neighbour in `from` (all pairs): how well the projection keeps neighbours together. */
 static double neighbour_spread(const float *from, const float *out, int64_t n)
@@ -456,6 +523,7 @@ int main(void)
     RUN_TEST(test_deterministic);
     RUN_TEST(test_eval_follows_affine_deformation);
     RUN_TEST(test_match);
+    RUN_TEST(test_uncross);
     RUN_TEST(test_projected);
     RUN_TEST(test_nn_stats);
     RUN_TEST(test_bad_input);
