@@ -7,40 +7,20 @@
 //   wrong token and a foreign Origin are refused.
 //   node test_studio_browser.mjs --cli FLOCKMORPH --source REPO --tmp DIR [--python PY] [--shots DIR] [--skip WHY]
 // Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing.
-import { spawn, spawnSync } from 'node:child_process';
+import { spawnSync } from 'node:child_process';
 import { copyFileSync, existsSync, mkdirSync, readFileSync, rmSync } from 'node:fs';
-import { createRequire } from 'node:module';
 import { dirname, join } from 'node:path';
+import { CHROMIUM, launchChromium, playwright, startStudio, stopStudio } from './studio_browser_lib.mjs';
 
 const arg = (name, fallback) => { const i = process.argv.indexOf(name); return i > 0 ? process.argv[i + 1] : fallback; };
 const cli = arg('--cli'), source = arg('--source'), tmp = join(arg('--tmp'), 'studio_browser');
 const python = arg('--python', '/usr/bin/python3'), shots = arg('--shots', tmp);
-const CHROMIUM = '/usr/bin/chromium';
 const t0 = Date.now();
 const log = (...a) => console.log(`[${((Date.now() - t0) / 1000).toFixed(1)} s]`, ...a);
 const fail = (msg) => { console.error(`test_studio_browser: FAIL: ${msg}`); process.exitCode = 1; throw new Error(msg); };
 const check = (ok, msg) => { if (!ok) fail(msg); };
 
 function skip(why) { console.log(`test_studio_browser: SKIPPED: ${why}`); process.exit(77); }
-
-function playwright() {
-  try { return createRequire(join(source, 'web', 'package.json'))('playwright-core'); } catch { return null; }
-}
-
-// `flockmorph studio TARGET --port 0`, and the address it prints.
-function startStudio(target) {
-  const proc = spawn(cli, ['studio', target, '--port', '0', '--no-browser'], { stdio: ['ignore', 'pipe', 'pipe'] });
-  proc.stderr.on('data', (d) => process.stderr.write(`studio: ${d}`));
-  return new Promise((resolve, reject) => {
-    let out = '';
-    proc.stdout.on('data', (d) => { out += d; const m = /open (\S+)/.exec(out); if (m) resolve({ proc, url: m[1] }); });
-    proc.on('exit', (code) => reject(new Error(`studio exited with ${code}: ${out}`)));
-  });
-}
-
-function stopStudio(s) {
-  return new Promise((resolve) => { s.proc.removeAllListeners('exit'); s.proc.on('exit', resolve); s.proc.kill('SIGTERM'); });
-}
 
 function cacheFacts(cache, ...extra) {
   const r = spawnSync(python, [join(source, 'tests', 'studio', 'cache_facts.py'), cache, ...extra], { encoding: 'utf8' });
@@ -201,7 +181,7 @@ async function live(browser, studio, workdir) {
 }
 
 async function playback(browser, cache, k, expected) {
-  const studio = await startStudio(cache);
+  const studio = await startStudio(cli, cache);
   try {
     const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
     await page.goto(studio.url);
@@ -218,7 +198,7 @@ async function playback(browser, cache, k, expected) {
 async function main() {
   if (arg('--skip')) skip(arg('--skip'));
   if (!existsSync(CHROMIUM)) skip(`no ${CHROMIUM} (Debian's chromium: tools/setup.sh installs it)`);
-  const pw = playwright();
+  const pw = playwright(source);
   if (!pw) skip('no playwright-core in web/node_modules (npm ci in web/: tools/setup.sh)');
   if (!existsSync(join(dirname(cli), 'studio', 'index.html'))) skip('the page is not built (node and npm ci: tools/setup.sh)');
   rmSync(tmp, { recursive: true, force: true });
@@ -229,10 +209,9 @@ async function main() {
   for (const m of ['cylinder.obj', 'sphere.obj']) copyFileSync(join(source, 'examples', 'flock_cylinder_sphere', m), join(tmp, m));
   const original = readFileSync(scene, 'utf8');
 
-  const browser = await pw.chromium.launch({ executablePath: CHROMIUM,
-    args: ['--headless=new', '--no-sandbox', '--use-gl=angle', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+  const browser = await launchChromium(pw);
   try {
-    const studio = await startStudio(scene);
+    const studio = await startStudio(cli, scene);
     let received;
     try {
       await refused(browser, studio.url);
