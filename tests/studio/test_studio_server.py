@@ -7,7 +7,7 @@ WebSocket: a wrong token or a foreign Origin gets no connection; malformed JSON,
 not an object, an unknown type, a missing or mistyped field, a huge, binary or fragmented message,
 and scene edits the loader refuses (the error names the key) each get an error message, and the
 connection still answers after them. Two clients edit at once and agree on the result; clients that
-vanish mid-run leave the studio running; Save writes the file atomically, and `flockmorph run` of it
+vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running; Save writes the file atomically, and `flockmorph run` of it
 writes the frames the studio streamed, byte for byte. The studio never crashes and exits 0 on SIGTERM.
 """
 import argparse
@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import shutil
+import struct
 import subprocess
 import sys
 import time
@@ -119,8 +120,8 @@ def check_vanishing_clients(url):
     c.send({"type": "frame", "k": 0})
     c.close()  # mid-run, with a frame on its way
     d = WebSocket(url)
-    d.send_frame(1, b'{"type": "fra')
-    d.sock.close()  # abruptly, mid-message
+    d.sock.sendall(bytes([0x81, 0x80 | 127]) + struct.pack(">Q", 1 << 40) + os.urandom(4) + b"x" * 1000)
+    d.sock.close()  # a frame that claims a terabyte, cut off
 
 
 def check_truth(args, ws, scene, tmp):
