@@ -128,13 +128,16 @@ class App {
     this.advance(dt);
     for (let k = this.current; k < this.current + (this.playing ? AHEAD : 1); k++) this.ask(k);
     if (this.current !== this.shown && this.frames.has(this.current)) this.show(this.current);
+    else if (!this.view.framed && !this.shapes.length && this.shown >= 0) this.frameOnFlock();
     this.view.render();
     this.timeline.update();
     requestAnimationFrame((time) => this.tick(time));
   }
 
   show(k) {
-    this.view.showFrame(this.frames.get(k), this.frames.get(k - 1));
+    const f = this.frames.get(k);
+    this.view.showFrame(f, this.frames.get(k - 1));
+    if (!this.view.framed && !this.shapes.length) this.frameOnFlock();
     this.shown = k;
     const c = this.counter, now = performance.now();
     c.frames += 1;
@@ -142,6 +145,14 @@ class App {
   }
 
   redraw() { this.shown = -1; }
+
+  // No shapes to frame (a played cache): the first and last frames, once both are here.
+  frameOnFlock() {
+    const ends = [0, this.status.frames - 1];
+    ends.forEach((k) => this.ask(k));
+    if (!ends.every((k) => this.frames.has(k))) return;
+    this.view.framePositions(ends.map((k) => { const f = this.frames.get(k); return f.attrs[ATTR.TET_VERTICES] ?? f.attrs[ATTR.POSITION]; }));
+  }
 
   // The shown flock's box on the page, in CSS pixels (tests look for its pixels there).
   flockBox() {

@@ -62,9 +62,19 @@ export class View {
   }
 
   // Frames the camera on the shapes (once, when the first ones come).
-  frameShapes() {
-    const box = new THREE.Box3().setFromObject(this.shapes);
+  frameShapes() { this.frameBox(new THREE.Box3().setFromObject(this.shapes)); }
+
+  // ... or, with no shapes (a played cache), on frames' positions (the first and the last: where
+  // the flock starts and where it ends).
+  framePositions(arrays) {
+    const box = new THREE.Box3();
+    for (const p of arrays) for (let i = 0; i < p.length; i += 3) box.expandByPoint(_v.set(p[i], p[i + 1], p[i + 2]));
+    this.frameBox(box);
+  }
+
+  frameBox(box) {
     if (box.isEmpty()) return;
+    this.framed = true;
     const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
     this.orbit.target.copy(centre);
     this.camera.position.copy(centre).add(new THREE.Vector3(0, -0.9 * size, 0.45 * size));
@@ -135,6 +145,7 @@ function discSprite() {
 }
 
 const _c = new THREE.Color();
+const _v = new THREE.Vector3();
 
 // Each agent's colour by phase, group, id or speed (the displacement since the previous frame, or
 // a point flock's velocity), written to its `repeat` vertices.
