@@ -113,6 +113,29 @@ def check_two_editors(url, ws):
     return last_a
 
 
+def check_burst(url):
+    """A slider drag: twenty edits in a row run the one in progress and the last, not twenty."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    start = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)["generation"]
+    values = [round(10 + 0.1 * i, 1) for i in range(20)]
+    for v in values:
+        ws.send({"type": "set", "key": "speed0", "value": v})
+    scenes, status, deadline = [], None, time.time() + 60
+    while time.time() < deadline and not (len(scenes) == 20 and status and status["stage"] == "finished"
+                                          and status["generation"] > start and not ws.readable(1.0)):
+        m = ws.recv_json(timeout=60)
+        if m["type"] == "scene":
+            scenes.append(m["scene"]["speed0"])
+        elif m["type"] == "status":
+            status = m
+    check(scenes == values, "every edit of the burst was applied, in order")
+    runs = status["generation"] - start
+    check(runs <= 3, f"twenty edits in a row made {runs} runs (at most 3: the one in progress, perhaps one more, the last)")
+    check(status["stage"] == "finished", "the last edit's run finished")
+    ws.close()
+
+
 def check_vanishing_clients(url):
     c = WebSocket(url)
     c.recv_json("hello")
@@ -165,6 +188,7 @@ def main():
         first = finished(ws)
         check(first["stage"] == "finished" and first["frames"] > 10, f"the first run finished ({first['frames']} frames)")
         check_bad_messages(ws)
+        check_burst(url)
         speed = check_two_editors(url, ws)
         check_vanishing_clients(url)
         check(proc.poll() is None, "the studio is still running")
