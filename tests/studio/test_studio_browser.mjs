@@ -1,7 +1,7 @@
 // test_studio_browser: the studio's page in a real browser (Debian's chromium, headless, driven by
 // playwright-core from web/node_modules), against a running `flockmorph studio`:
 //   the canvas shows the flock; a control point dragged with real mouse events moves the route;
-//   a parameter typed into the panel and a sketched path re-run the scene; Save writes the scene,
+//   a panel slider dragged with the mouse and a sketched path re-run the scene; Save writes the scene,
 //   and `flockmorph run` of it writes byte for byte the frames the page received (SHA-256 of each
 //   frame's tet vertices, from the Python reader); a played cache's frame K is the reader's; a
 //   wrong token and a foreign Origin are refused.
@@ -103,11 +103,14 @@ function nearestCentroid(page, p, frames) {
   }, { p, frames });
 }
 
-async function typeParameter(page, name, value) {
+// Drags a panel slider with the mouse across `steps` values (a drag sends edits as it goes; the
+// server cancels the runs they make stale) and returns the value it ends on.
+async function dragSlider(page, name, toFraction) {
   const row = page.locator('.lil-controller', { has: page.locator('.lil-name', { hasText: new RegExp(`^${name}$`) }) });
-  const input = row.locator('input').last();
-  await input.fill(String(value));
-  await input.press('Enter');
+  const box = await row.locator('.lil-slider').boundingBox();
+  const y = box.y + box.height / 2;
+  await drag(page, { x: box.x + 2, y }, { x: box.x + box.width * toFraction, y }, 20);
+  return page.evaluate((key) => window.studio.panel.values[key], name);
 }
 
 async function sketch(page) {
@@ -161,9 +164,11 @@ async function live(browser, studio, workdir) {
   log(`the route passes ${nearest.toFixed(3)} from the moved point`);
   check(nearest < 1.5, `the flock's route passes ${nearest} from the moved control point`);
 
-  await typeParameter(page, 'speed0', 14);
+  const speed = await dragSlider(page, 'speed0', 0.25);
+  await page.waitForFunction((v) => window.studio.scene.speed0 === v, speed, { timeout: 10000 });
+  const dragStart = run.generation;
   run = await finishedRun(page, run.generation);
-  check(await page.evaluate(() => window.studio.scene.speed0) === 14, 'speed0 typed in the panel did not reach the scene');
+  log(`speed0 dragged to ${speed}: ${run.generation - dragStart} runs`);
 
   await sketch(page);
   run = await finishedRun(page, run.generation);
