@@ -107,6 +107,9 @@ studio_frame *studio_frame_make(uint32_t generation, uint32_t frame, uint64_t ag
 int studio_playback_open(studio *s);         /* 0 or an exit status, printed */
 /* Frame k of the played cache (with lock held); NULL with msg on failure. */
 studio_frame *studio_playback_frame(studio *s, uint32_t k, char *msg, size_t size);
+/* What the page shows beside a played cache: its header's facts and stats.json's plain values from
+ * beside it ("stats": null without one). With lock held. */
+json_t *studio_cache_json(studio *s);
 /* "tets" when the attributes hold tet vertices, else "points". */
 const char *studio_kind(int attr_count, const fm_cache_attr_info *const *attrs);
 

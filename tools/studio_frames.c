@@ -110,3 +110,33 @@ studio_frame *studio_playback_frame(studio *s, uint32_t k, char *msg, size_t siz
     for (int i = 0; i < n; i++) free(data[i]);
     return f;
 }
+
+/* stats.json's plain values (numbers, strings, booleans), from beside the cache; NULL without one. */
+static json_t *stats_beside(const char *cache)
+{
+    char path[FM_PATH_MAX + 16];
+    const char *slash = strrchr(cache, '/');
+    int dir = slash ? (int)(slash - cache + 1) : 0;
+    snprintf(path, sizeof path, "%.*sstats.json", dir, cache);
+    json_t *all = json_load_file(path, 0, NULL), *plain = json_object(), *v;
+    const char *key;
+    json_object_foreach(all, key, v) if (json_is_number(v) || json_is_string(v) || json_is_boolean(v))
+        json_object_set(plain, key, v);
+    json_decref(all);
+    return json_object_size(plain) ? plain : (json_decref(plain), NULL);
+}
+
+json_t *studio_cache_json(studio *s)
+{
+    fm_cache_reader *r = s->reader;
+    json_t *names = json_array();
+    for (int i = 0; i < fm_cache_attr_count(r); i++) json_array_append_new(names, json_string(fm_cache_attr_at(r, i)->name));
+    const fm_cache_options o = fm_cache_get_options(r);
+    json_t *stats = stats_beside(s->path);
+    return json_pack("{sIsIsfsisosIsIsIsisbsisfssso*}", "agents", (json_int_t)s->agents, "frames", (json_int_t)s->frame_count,
+                     "frame_rate", s->frame_rate, "version", (int)fm_cache_version(r), "attributes", names, "file_bytes",
+                     (json_int_t)fm_cache_file_bytes(r), "raw_bytes", (json_int_t)fm_cache_raw_bytes(r),
+                     "compressed_bytes", (json_int_t)fm_cache_compressed_bytes(r), "compression_level",
+                     o.compression_level, "delta", o.delta, "key_interval", o.key_interval, "quantum", o.quantum,
+                     "warning", fm_cache_warning(r), "stats", stats);
+}

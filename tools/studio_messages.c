@@ -27,8 +27,9 @@ void studio_on_ready(studio *s, struct mg_connection *conn)
 {
     const char *name = strrchr(s->path, '/') ? strrchr(s->path, '/') + 1 : s->path;
     pthread_mutex_lock(&s->lock);
-    json_t *j = json_pack("{sssisssssO}", "type", "hello", "protocol", STUDIO_PROTOCOL, "mode",
-                          s->playback ? "playback" : "live", "name", name, "scene", s->doc ? s->doc : json_null());
+    json_t *j = json_pack("{sssisssssOso}", "type", "hello", "protocol", STUDIO_PROTOCOL, "mode",
+                          s->playback ? "playback" : "live", "name", name, "scene", s->doc ? s->doc : json_null(),
+                          "cache", s->playback ? studio_cache_json(s) : json_null());
     char *hello = j ? json_dumps(j, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
     char *status = studio_status_text(s);
     char *shapes = s->shapes ? strdup(s->shapes) : NULL;

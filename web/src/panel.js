@@ -68,6 +68,20 @@ export class Panel {
     gui.add(actions, 'speed', ['scene rate', 'as fast as it can']).name('Playback').onChange((v) => { app.fastest = v !== 'scene rate'; });
     gui.add(actions, 'follow').name('Follow the run').onChange((v) => { app.follow = v; });
     if (hello.mode === 'live') this.buildParameters(hello.scene);
+    if (hello.cache) this.buildCacheFacts(hello.cache);
+  }
+
+  // A played cache's facts and, where a stats.json lies beside it, the run's plain values.
+  buildCacheFacts(cache) {
+    const show = (folder, facts) => {
+      for (const [k, v] of Object.entries(facts)) {
+        if (v === null || typeof v === 'object') continue;
+        folder.add({ [k]: Array.isArray(v) ? v.join(', ') : v }, k).disable();
+      }
+    };
+    const folder = this.gui.addFolder('Cache');
+    show(folder, { ...cache, attributes: cache.attributes.join(', ') });
+    if (cache.stats) show(this.gui.addFolder('stats.json').close(), cache.stats);
   }
 
   buildParameters(doc) {
