@@ -8,7 +8,8 @@ not an object, an unknown type, a missing or mistyped field, a huge, binary or f
 and scene edits the loader refuses (the error names the key) each get an error message, and the
 connection still answers after them. Two clients edit at once and agree on the result; clients that
 vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running; Save writes the file atomically, and `flockmorph run` of it
-writes the frames the studio streamed, byte for byte. The studio never crashes and exits 0 on SIGTERM.
+writes the frames the studio streamed, byte for byte; that cache played back gives the reader's
+frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
 """
 import argparse
 import hashlib
@@ -164,6 +165,28 @@ def check_truth(args, ws, scene, tmp):
     check(written == streamed, f"run wrote the {len(written)} frames the studio streamed ({len(streamed)}), byte for byte")
 
 
+def check_playback(args, cache):
+    """A played cache: its facts in hello, its frames as the reader decodes them, no edits."""
+    proc, url = start_studio(args.cli, cache)
+    try:
+        ws = WebSocket(url)
+        hello = ws.recv_json("hello")
+        facts = json.loads(subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), cache],
+                                          capture_output=True, text=True, check=True).stdout)
+        check(hello["mode"] == "playback" and hello["cache"]["frames"] == facts["frames"]
+              and hello["cache"]["stats"]["frames"] == facts["frames"], "playback: hello has the cache's facts and stats.json's")
+        k = facts["frames"] // 2
+        check(hashlib.sha256(ws.frame(k)[1][1]).hexdigest() == facts["sha256"][k], f"playback: frame {k} is the reader's")
+        e = error_of(ws, {"type": "set", "key": "speed0", "value": 3})
+        check("no scene" in e, f"playback: an edit is refused: {e}")
+        e = error_of(ws, {"type": "frame", "k": facts["frames"]})
+        check("not in the cache" in e, f"playback: a frame past the end: {e}")
+        ws.close()
+    finally:
+        code, err = stop_studio(proc)
+    check(code == 0 and "AddressSanitizer" not in err, "playback: the studio exits 0, no sanitizer report")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cli", required=True)
@@ -202,6 +225,7 @@ def main():
         ws.close()
     finally:
         code, err = stop_studio(proc)
+    check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
     check("AddressSanitizer" not in err and "runtime error" not in err, "no sanitizer report")
     print(f"test_studio_server: {time.time() - t0:.1f} s")
