@@ -143,8 +143,10 @@ static int serve(studio *s, const studio_options *o)
     int rc = start(s);
     if (!rc) {
         char url[400];
-        snprintf(url, sizeof url, "http://%s:%d/%s/", s->host, s->port, s->token);
+        const int everywhere = !strcmp(s->host, "0.0.0.0"); /* opened here as 127.0.0.1 */
+        snprintf(url, sizeof url, "http://%s:%d/%s/", everywhere ? "127.0.0.1" : s->host, s->port, s->token);
         printf("flockmorph studio: %s %s\n  open %s\n  (Ctrl-C ends it)\n", s->playback ? "playing" : "running", s->path, url);
+        if (everywhere) printf("  listening on every address: from elsewhere, this machine's name or address in place of 127.0.0.1\n");
         if (!s->page_dir[0]) printf("  the page is not built: tools/setup.sh builds it (Node and npm; docs/studio.md)\n");
         fflush(stdout);
         if (!o->no_browser) open_browser(url);

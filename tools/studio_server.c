@@ -43,6 +43,13 @@ static int origin_allowed(const studio *s, const struct mg_connection *conn)
         snprintf(own, sizeof own, "http://%s:%d", hosts[i], s->port);
         if (!strcmp(origin, own)) return 1;
     }
+    /* Listening on every address (--host 0.0.0.0), the page's own origin is whichever address the
+     * browser used: the one its request was sent to (the token still guards it). */
+    const char *host = mg_get_header(conn, "Host");
+    if (!strcmp(s->host, "0.0.0.0") && host) {
+        snprintf(own, sizeof own, "http://%.300s", host);
+        return !strcmp(origin, own);
+    }
     return 0;
 }
 
