@@ -61,6 +61,7 @@ typedef struct studio {
     char *shapes;                   /* the "shapes" message of the latest run (meshes as placed) */
     int dirty;                      /* edited since the last save */
     fm_scene_def *def;              /* the doc read as the loader reads it: what the next run runs */
+    fm_scene_def *first;            /* the scene as the studio started: the files it may read */
     int run_wanted;                 /* the worker should start a run of def (the latest edit wins) */
     int quit;
     volatile sig_atomic_t stop;     /* cancels the worker's run at the next frame boundary */

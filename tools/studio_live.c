@@ -181,6 +181,8 @@ int studio_live_open(studio *s)
     s->def = malloc(sizeof *s->def);
     if (!s->def) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     if (fm_scene_load(s->path, s->def, &err) != FM_OK) return cli_report(&err); /* the file's own lines */
+    if (!(s->first = malloc(sizeof *s->first))) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    *s->first = *s->def;
     if (!(s->doc = json_load_file(s->path, 0, &jerr)))
         return fprintf(stderr, "flockmorph: %s:%d:%d: %s\n", s->path, jerr.line, jerr.column, jerr.text), FM_ERR_INPUT;
     snprintf(s->outdir, sizeof s->outdir, "/tmp/flockmorph-studio-XXXXXX");
@@ -220,6 +222,7 @@ void studio_live_close(studio *s)
     drop_frames(s);
     free(s->frames);
     free(s->shapes);
+    free(s->first);
     free(s->def);
     json_decref(s->doc);
 }
@@ -264,6 +267,33 @@ static json_t *edited(const json_t *doc, const char *key, const json_t *value, f
     return cand;
 }
 
+/* A mesh path the scene named when the studio started (the files it may read). */
+static int known_file(const fm_scene_def *first, const char *path)
+{
+    if (!path[0] || !strcmp(path, first->source.path) || !strcmp(path, first->target.path) ||
+        !strcmp(path, first->flock.deform_sequence))
+        return 1;
+    for (int i = 0; i < first->obstacle_count; i++)
+        if (!strcmp(path, first->obstacles[i].path)) return 1;
+    return 0;
+}
+
+/* The studio reads only the scene's own meshes and writes only the scene (docs/studio.md, "Safety"):
+ * an edit that names another file, or another cache name, is refused. 0, or -1 with msg. */
+static int other_files(const fm_scene_def *first, const fm_scene_def *def, const char *label, char *msg, size_t size)
+{
+    const char *bad = !known_file(first, def->source.path)            ? def->source.path
+                      : !known_file(first, def->target.path)          ? def->target.path
+                      : !known_file(first, def->flock.deform_sequence) ? def->flock.deform_sequence
+                      : strcmp(first->cache_name, def->cache_name)     ? def->cache_name
+                                                                       : NULL;
+    for (int i = 0; !bad && i < def->obstacle_count; i++)
+        if (!known_file(first, def->obstacles[i].path)) bad = def->obstacles[i].path;
+    if (bad) snprintf(msg, size, "%s: the studio reads only the files the scene named when it started, and writes only "
+                                 "the scene: '%.300s' is refused (edit the file, then start the studio again)", label, bad);
+    return bad ? -1 : 0;
+}
+
 static int edit_here(studio *s, const char *key, const json_t *value, char *msg, size_t size)
 {
     char label[320], *text = json_dumps(value, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(17));
@@ -275,7 +305,8 @@ static int edit_here(studio *s, const char *key, const json_t *value, char *msg,
     json_t *cand = NULL;
     int rc = -1;
     if (s->def->group_count > 0) snprintf(msg, size, "%s: a scene with groups (a shot) is not edited live", s->path);
-    else if ((cand = edited(s->doc, key, value, def, msg, size)) && check_doc(s, cand, label, def, msg, size) == 0) {
+    else if ((cand = edited(s->doc, key, value, def, msg, size)) && check_doc(s, cand, label, def, msg, size) == 0 &&
+             other_files(s->first, def, label, msg, size) == 0) {
         json_decref(s->doc), s->doc = cand, cand = NULL;
         *s->def = *def;
         s->frame_rate = def->frame_rate;
