@@ -26,6 +26,9 @@ double cli_seconds(void);
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
+/* The message cli_report last printed on this thread ("" before any): the studio's worker shows a
+ * failed run's reason on the page. */
+extern _Thread_local char cli_last_error[2048];
 /* A message that starts with a bare scene key ("shape_flock.deform.sequence: ..."; the shape flock's
  * meshes are named that way) gets the key's FILE:LINE:COL in front, as the scene's own errors have. */
 void cli_locate_key(const fm_scene_def *def, fm_error *err);
