@@ -54,7 +54,7 @@ typedef struct studio {
     char kind[16];                  /* "tets" or "points" */
     double frame_rate;
     const char *stage;              /* "building", "running", "finished", "failed", "cancelled", "playback" */
-    char failure[1024];             /* the run's error, when it failed */
+    char failure[2200];             /* the run's error, when it failed */
     double last_status;             /* when the last status went out (they are sent at most every 0.1 s) */
     /* live */
     json_t *doc;                    /* the scene document as edited; Save writes it */

@@ -141,12 +141,14 @@ static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
     cli_utc_now(o.start_time, sizeof o.start_time);
     run_tap tap = {.s = s, .generation = generation};
     const cli_run_hooks hooks = {&s->stop, on_cache, &tap};
+    cli_last_error[0] = 0;
     int rc = cli_run_scene_hooked(&o, def, &hooks);
     pthread_mutex_lock(&s->lock);
     if (generation == s->generation) {
         s->stage = rc == 0 ? "finished" : rc == FM_STOPPED ? "cancelled" : "failed";
         if (rc && rc != FM_STOPPED)
-            snprintf(s->failure, sizeof s->failure, "the run failed (exit status %d); the studio's terminal has its message", rc);
+            snprintf(s->failure, sizeof s->failure, "the run failed (exit status %d): %s", rc,
+                     cli_last_error[0] ? cli_last_error : "the studio's terminal has its message");
         tell_pages(s, 1);
     }
     pthread_mutex_unlock(&s->lock);

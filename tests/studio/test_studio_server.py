@@ -106,6 +106,21 @@ def check_bad_messages(ws):
     check(head["frame"] == 0 and 1 in attrs, "after all that the connection still serves frames")
 
 
+def check_failed_run(url):
+    """An edit the loader accepts but the model build refuses (n below TetGen's count): the run
+    fails, the page hears why, and the next edit runs again."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    start = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)["generation"]
+    ws.send({"type": "set", "key": "n", "value": 10})
+    failed = ws.wait_status(lambda m: m["generation"] > start and m["stage"] in ("failed", "finished"), timeout=60)
+    check(failed["stage"] == "failed" and "n: 10 is smaller" in failed["failure"], f"a failed run says why: {failed['failure']}")
+    ws.send({"type": "set", "key": "n", "value": None})
+    again = ws.wait_status(lambda m: m["generation"] > failed["generation"] and m["stage"] in ("failed", "finished"), timeout=60)
+    check(again["stage"] == "finished" and not again["failure"], "the next edit runs again")
+    ws.close()
+
+
 def check_two_editors(url, ws):
     a, b = WebSocket(url), WebSocket(url)
     a.recv_json("hello"), b.recv_json("hello")
@@ -215,6 +230,7 @@ def main():
         first = finished(ws)
         check(first["stage"] == "finished" and first["frames"] > 10, f"the first run finished ({first['frames']} frames)")
         check_bad_messages(ws)
+        check_failed_run(url)
         check_burst(url)
         speed = check_two_editors(url, ws)
         check_vanishing_clients(url)
