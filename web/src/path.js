@@ -169,7 +169,7 @@ function vertexMean(v) {
 }
 
 // k points at equal arc length strictly inside the stroke (its ends are the shapes' centres).
-function resample(stroke, k) {
+export function resample(stroke, k) {
   const acc = [0];
   for (let i = 1; i < stroke.length; i++) acc.push(acc[i - 1] + stroke[i].distanceTo(stroke[i - 1]));
   const total = acc[acc.length - 1], out = [];
