@@ -8,7 +8,7 @@
 #include <string.h>
 
 static const char *const USAGE_STUDIO =
-    "usage: flockmorph studio SCENE.json|CACHE.fmc [--port N] [--host H] [--no-browser]\n"
+    "usage: flockmorph studio SCENE.json|CACHE.fmc [--port N] [--host H] [--no-browser] [-o DIR]\n"
     "\n"
     "Serves a page that shows the scene's flock as the engine runs it, with a timeline, the path's\n"
     "control points as handles to drag, a sketch mode and the main parameters; an edit runs the\n"
@@ -18,7 +18,9 @@ static const char *const USAGE_STUDIO =
     "\n"
     "  --port N       the port (default 8765; 0: any free one, printed)\n"
     "  --host H       the address to listen on (default 127.0.0.1: this machine only)\n"
-    "  --no-browser   do not open the address in a browser\n";
+    "  --no-browser   do not open the address in a browser\n"
+    "  -o, --output DIR  where the page's Render button writes: `flockmorph run` of the saved\n"
+    "                 scene with -o DIR (without it, Render is off: the studio writes only the scene)\n";
 
 #ifdef FM_HAVE_STUDIO
 #include "studio.h"
@@ -36,7 +38,7 @@ static const char *const USAGE_STUDIO =
 extern char **environ;
 
 typedef struct studio_options {
-    const char *input, *host;
+    const char *input, *host, *output;
     long port;
     int no_browser;
 } studio_options;
@@ -53,7 +55,8 @@ static int parse_studio(int argc, char **argv, studio_options *o)
             o->host = argv[++i];
             if (!o->host[0] || strlen(o->host) > 200 || strpbrk(o->host, ",:[] "))
                 return cli_usage_error(USAGE_STUDIO, "--host wants an IPv4 address or a host name, not '%s'", o->host);
-        } else if (!strcmp(a, "--no-browser")) o->no_browser = 1;
+        } else if ((!strcmp(a, "-o") || !strcmp(a, "--output")) && i + 1 < argc) o->output = argv[++i];
+        else if (!strcmp(a, "--no-browser")) o->no_browser = 1;
         else if (a[0] == '-') return cli_usage_error(USAGE_STUDIO, "unknown or incomplete option '%s'", a);
         else if (!o->input) o->input = a;
         else return cli_usage_error(USAGE_STUDIO, "unexpected argument '%s'", a);
@@ -154,6 +157,7 @@ static int serve(studio *s, const studio_options *o)
         printf("flockmorph studio: stopped\n");
     }
     studio_server_stop(s);
+    studio_render_stop(s);
     if (s->playback && s->reader) fm_cache_close(s->reader);
     if (!s->playback) studio_live_close(s);
     return rc;
@@ -169,6 +173,7 @@ int cli_studio(int argc, char **argv)
     if (!s) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     snprintf(s->path, sizeof s->path, "%s", o.input);
     snprintf(s->host, sizeof s->host, "%s", o.host);
+    snprintf(s->render_dir, sizeof s->render_dir, "%s", o.output ? o.output : "");
     s->port = (int)o.port;
     s->playback = is_cache(o.input);
     find_page(s->page_dir, sizeof s->page_dir);

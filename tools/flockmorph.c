@@ -7,7 +7,7 @@
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
  *   flockmorph wedge list|count WEDGES.json
- *   flockmorph studio SCENE.json|CACHE.fmc [--port N] [--host H] [--no-browser]
+ *   flockmorph studio SCENE.json|CACHE.fmc [--port N] [--host H] [--no-browser] [-o DIR]
  *   flockmorph run SCENE.json --set KEY=VALUE --wedge-file WEDGES.json [--wedge I] -o 'out/{wedge}' 
  *   flockmorph help [COMMAND]          (COMMAND --help)
  *   flockmorph --version | -V

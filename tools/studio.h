@@ -5,7 +5,8 @@
  *   studio_server.c    CivetWeb: the token, the Origin check, the page's files, the WebSocket
  *   studio_messages.c  the protocol's messages (docs/studio.md has the table), checked here
  *   studio_live.c      the scene document, its edits and save, the worker's runs, kept frames
- *   studio_frames.c    the binary frame message, from a run's tap or a cache's reader */
+ *   studio_frames.c    the binary frame message, from a run's tap or a cache's reader
+ *   studio_render.c    the Render button: `flockmorph run` of the saved scene as a child process */
 #ifndef FM_STUDIO_H
 #define FM_STUDIO_H
 
@@ -15,6 +16,7 @@
 #include <pthread.h>
 #include <signal.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #define STUDIO_PROTOCOL 1
 #define STUDIO_MAX_CLIENTS 16
@@ -70,6 +72,12 @@ typedef struct studio {
     int worker_started;
     /* playback */
     fm_cache_reader *reader;        /* used under lock (it keeps the last decoded frame) */
+    /* Render (--output DIR) */
+    char render_dir[FM_PATH_MAX];   /* "" without --output: no Render */
+    int rendering, render_joinable;
+    pid_t render_pid;
+    int render_fd;                  /* the child's stdout and stderr */
+    pthread_t render_thread;
 } studio;
 
 /* studio_server.c */
@@ -100,6 +108,10 @@ int studio_live_save(studio *s, char *msg, size_t size); /* atomically: PATH.par
 char *studio_scene_text(const json_t *doc);
 /* Keeps a frame of the current generation (with lock held); takes f. */
 void studio_keep_frame(studio *s, studio_frame *f);
+
+/* studio_render.c */
+int studio_render_start(studio *s, char *msg, size_t size); /* 0, or -1 with why not in msg */
+void studio_render_stop(studio *s);
 
 /* studio_frames.c */
 /* A frame message of `frame` from attribute arrays (the writer's order), orientation left out. */

@@ -27,9 +27,9 @@ void studio_on_ready(studio *s, struct mg_connection *conn)
 {
     const char *name = strrchr(s->path, '/') ? strrchr(s->path, '/') + 1 : s->path;
     pthread_mutex_lock(&s->lock);
-    json_t *j = json_pack("{sssisssssOso}", "type", "hello", "protocol", STUDIO_PROTOCOL, "mode",
+    json_t *j = json_pack("{sssisssssOsosb}", "type", "hello", "protocol", STUDIO_PROTOCOL, "mode",
                           s->playback ? "playback" : "live", "name", name, "scene", s->doc ? s->doc : json_null(),
-                          "cache", s->playback ? studio_cache_json(s) : json_null());
+                          "cache", s->playback ? studio_cache_json(s) : json_null(), "render", s->render_dir[0] != 0);
     char *hello = j ? json_dumps(j, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
     char *status = studio_status_text(s);
     char *shapes = s->shapes ? strdup(s->shapes) : NULL;
@@ -106,6 +106,13 @@ static void on_save(studio *s, struct mg_connection *conn, json_t *m)
     tell_scene(s); /* dirty is now false on every page */
 }
 
+static void on_render(studio *s, struct mg_connection *conn, json_t *m)
+{
+    (void)m;
+    char msg[2048];
+    if (studio_render_start(s, msg, sizeof msg)) studio_send_error(conn, "render", "%s", msg);
+}
+
 static void on_hello(studio *s, struct mg_connection *conn, json_t *m)
 {
     (void)s;
@@ -117,7 +124,7 @@ static void on_hello(studio *s, struct mg_connection *conn, json_t *m)
 static const struct {
     const char *type;
     void (*fn)(studio *s, struct mg_connection *conn, json_t *m);
-} HANDLERS[] = {{"hello", on_hello}, {"frame", on_frame}, {"set", on_set}, {"save", on_save}};
+} HANDLERS[] = {{"hello", on_hello}, {"frame", on_frame}, {"set", on_set}, {"save", on_save}, {"render", on_render}};
 
 /* The message's JSON object, or NULL after an error message to the page. */
 static json_t *parse(struct mg_connection *conn, int opcode, const char *data, size_t bytes)
@@ -143,6 +150,6 @@ void studio_on_message(studio *s, struct mg_connection *conn, int opcode, const 
     size_t i = 0;
     while (i < sizeof HANDLERS / sizeof HANDLERS[0] && strcmp(HANDLERS[i].type, type)) i++;
     if (i < sizeof HANDLERS / sizeof HANDLERS[0]) HANDLERS[i].fn(s, conn, m);
-    else studio_send_error(conn, type, "unknown message type '%.64s' (hello, frame, set, save)", type);
+    else studio_send_error(conn, type, "unknown message type '%.64s' (hello, frame, set, save, render)", type);
     json_decref(m);
 }
