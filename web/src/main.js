@@ -43,6 +43,7 @@ class App {
     c.addEventListener('shapes', (e) => this.onShapes(e.detail.shapes));
     c.addEventListener('scene', (e) => this.onScene(e.detail));
     c.addEventListener('saved', (e) => this.setStatusNote(`saved ${e.detail.path}`));
+    c.addEventListener('render', (e) => this.onRender(e.detail));
     c.addEventListener('error', (e) => this.showError(e.detail.message));
     c.addEventListener('frame', (e) => this.onFrame(e.detail));
     c.addEventListener('closed', () => this.setStatusNote('disconnected: the studio has stopped'));
@@ -181,6 +182,14 @@ class App {
   }
 
   setStatusNote(text) { this.note = text; this.renderStatus(); }
+
+  // The Render button's run: its progress line, then where it wrote or why it failed.
+  onRender(r) {
+    this.render = r;
+    if (r.state === 'running') this.setStatusNote(`render: ${r.line}`);
+    else if (r.state === 'finished') this.setStatusNote(`rendered: ${r.output}`);
+    else { this.setStatusNote(`render failed (exit ${r.exit})`); this.showError(`render: ${r.line}`); }
+  }
 
   showError(message) {
     this.errors.push(message);

@@ -56,9 +56,11 @@ export class Panel {
   build(hello) {
     const gui = this.gui, app = this.app;
     const actions = { save: () => app.connection.send({ type: 'save' }), sketch: false, sketchPoints: 4,
+      render: () => app.connection.send({ type: 'render' }),
       colourBy: 'phase', speed: 'scene rate', follow: true };
     if (hello.mode === 'live') {
       gui.add(actions, 'save').name('Save scene');
+      if (hello.render) gui.add(actions, 'render').name('Render (flockmorph run of the saved scene)');
       gui.add(actions, 'sketch').name('Sketch path').onChange((v) => app.path.setSketching(v));
       gui.add(actions, 'sketchPoints', 1, 16, 1).name('Sketch points').onChange((v) => { app.path.sketchPoints = v; });
     }
