@@ -5,11 +5,13 @@
 HTTP: the token on every request, a foreign Origin refused, only the page's own files. The
 WebSocket: a wrong token or a foreign Origin gets no connection; malformed JSON, a message that is
 not an object, an unknown type, a missing or mistyped field, a huge, binary or fragmented message,
-and scene edits the loader refuses (the error names the key) each get an error message, and the
-connection still answers after them. Two clients edit at once and agree on the result; clients that
-vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running; Save writes the file atomically, and `flockmorph run` of it
-writes the frames the studio streamed, byte for byte; that cache played back gives the reader's
-frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
+scene edits the loader refuses (the error names the key) and edits naming other files each get an
+error message, and the connection still answers after them. A run the model build refuses says
+why; twenty edits in a row make at most three runs; two clients edit at once and agree; clients
+that vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running.
+Save writes the file atomically, and `flockmorph run` of it writes the frames the studio streamed,
+byte for byte, as does the Render button (refused before a save). That cache played back gives
+the reader's frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
 """
 import argparse
 import hashlib
@@ -170,6 +172,8 @@ def check_vanishing_clients(url):
 def check_truth(args, ws, scene, tmp):
     """Save, then `flockmorph run` of the saved file against every frame the studio streams."""
     status = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)  # the last edit's run
+    e = error_of(ws, {"type": "render"})
+    check("save the scene first" in e, f"render before a save is refused: {e}")
     ws.send({"type": "save"})
     saved = ws.recv_json("saved")
     check(saved["path"] == scene, "save answers with the scene's path")
@@ -182,6 +186,15 @@ def check_truth(args, ws, scene, tmp):
                            capture_output=True, text=True, check=True)
     written = json.loads(facts.stdout)["sha256"]
     check(written == streamed, f"run wrote the {len(written)} frames the studio streamed ({len(streamed)}), byte for byte")
+    ws.send({"type": "render"})
+    end = ws.recv_json("render")
+    while end["state"] == "running":
+        end = ws.recv_json("render", timeout=60)
+    check(end["state"] == "finished" and end["exit"] == 0, f"Render ran flockmorph run of the saved scene ({end})")
+    facts = subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), os.path.join(args.render, "frames.fmc")],
+                           capture_output=True, text=True)
+    check(facts.returncode == 0 and json.loads(facts.stdout)["sha256"] == written,
+          "Render's cache is the frames the studio streamed, byte for byte")
 
 
 def check_playback(args, cache):
@@ -200,6 +213,8 @@ def check_playback(args, cache):
         check("no scene" in e, f"playback: an edit is refused: {e}")
         e = error_of(ws, {"type": "frame", "k": facts["frames"]})
         check("not in the cache" in e, f"playback: a frame past the end: {e}")
+        e = error_of(ws, {"type": "render"})
+        check("no scene" in e, f"playback: Render is refused: {e}")
         ws.close()
     finally:
         code, err = stop_studio(proc)
@@ -220,7 +235,8 @@ def main():
     for m in ("cylinder.obj", "sphere.obj"):
         shutil.copy(os.path.join(args.source, "examples", "flock_cylinder_sphere", m), tmp)
     t0 = time.time()
-    proc, url = start_studio(args.cli, scene)
+    args.render = os.path.join(tmp, "render")
+    proc, url = start_studio(args.cli, scene, "--output", args.render)
     try:
         token, port = url.split("/")[3], int(url.split(":")[2].split("/")[0])
         check_http(url, port, token)
