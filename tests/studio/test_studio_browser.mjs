@@ -1,12 +1,13 @@
 // test_studio_browser: the studio's page in a real browser (Debian's chromium, headless, driven by
 // playwright-core from web/node_modules), against a running `flockmorph studio`:
 //   the canvas shows the flock; a control point dragged with real mouse events moves the route;
-//   a panel slider dragged with the mouse and a sketched path re-run the scene; Save writes the scene,
-//   and `flockmorph run` of it writes byte for byte the frames the page received (SHA-256 of each
-//   frame's tet vertices, from the Python reader); a played cache's frame K is the reader's; a
-//   wrong token and a foreign Origin are refused.
+//   a panel slider dragged with the mouse and a sketched path (which the route then follows)
+//   re-run the scene; Save writes the scene, and `flockmorph run` of it writes byte for byte the
+//   frames the page received (SHA-256 of each frame's tet vertices, from the Python reader); a
+//   played cache's frame K is the reader's; a wrong token and a foreign Origin are refused.
+// Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing,
+// or with --skip (the sanitizer build).
 //   node test_studio_browser.mjs --cli FLOCKMORPH --source REPO --tmp DIR [--python PY] [--shots DIR] [--skip WHY]
-// Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing.
 import { spawnSync } from 'node:child_process';
 import { copyFileSync, existsSync, mkdirSync, readFileSync, rmSync } from 'node:fs';
 import { dirname, join } from 'node:path';
@@ -174,6 +175,10 @@ async function live(browser, studio, workdir) {
   run = await finishedRun(page, run.generation);
   const sketched = await page.evaluate(() => window.studio.scene.path.points);
   check(sketched.length === 4, `the sketch gave ${sketched.length} control points, not 4`);
+  await receiveAll(page, run.frames);
+  const near = await nearestCentroid(page, sketched[1], run.frames);
+  log(`sketched path ${JSON.stringify(sketched)}: the route passes ${near.toFixed(3)} from its second point`);
+  check(near < 1.5, `the flock's route passes ${near} from the sketched path`);
   await showFrame(page, Math.floor(run.frames / 2));
   await page.screenshot({ path: join(shots, 'studio-sketch.png') });
 
