@@ -18,6 +18,7 @@ int cli_render(int argc, char **argv);
 int cli_inspect(int argc, char **argv);
 int cli_info(int argc, char **argv); /* inspect --json */
 int cli_wedge(int argc, char **argv); /* wedge list | count (cli_wedge.c) */
+int cli_studio(int argc, char **argv); /* the browser studio (cli_studio.c, docs/studio.md) */
 
 double cli_seconds(void);
 /* Prints "flockmorph: <fmt with arg>" and "see 'flockmorph help CMD'" (CMD from the usage text's
@@ -25,6 +26,9 @@ double cli_seconds(void);
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
+/* The message cli_report last printed on this thread ("" before any): the studio's worker shows a
+ * failed run's reason on the page. */
+extern _Thread_local char cli_last_error[2048];
 /* A message that starts with a bare scene key ("shape_flock.deform.sequence: ..."; the shape flock's
  * meshes are named that way) gets the key's FILE:LINE:COL in front, as the scene's own errors have. */
 void cli_locate_key(const fm_scene_def *def, fm_error *err);
@@ -71,6 +75,17 @@ typedef struct cli_run_options {
     int argc;
     char **argv;                        /* as typed, for the manifest */
 } cli_run_options;
+
+/* `flockmorph studio` runs a scene through run's one path (cli_run.c), so that the frames it shows
+ * are the frames `run` writes: in OUTDIR (made by the caller), with the studio's stop flag instead
+ * of the signals' and no checkpoints; cache_ready gets the cache writer before frame 0 (to tap the
+ * frames: fm_cache_writer_set_tap). Returns run's exit status, or FM_STOPPED when stopped. */
+typedef struct cli_run_hooks {
+    volatile sig_atomic_t *stop;
+    void (*cache_ready)(fm_cache_writer *cache, void *user);
+    void *user;
+} cli_run_hooks;
+int cli_run_scene_hooked(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks);
 
 /* A wedge file (docs/wedges.md): a list of override sets ({"wedges": [{KEY: VALUE, ...}, ...]}) or
  * the product of value lists and ranges ({"product": {KEY: [v, ...] or {"from", "to", "count"}}},

@@ -49,8 +49,11 @@ int cli_usage_error(const char *usage, const char *fmt, const char *arg)
     return FM_ERR_USAGE;
 }
 
+_Thread_local char cli_last_error[sizeof ((fm_error *)0)->message];
+
 int cli_report(const fm_error *err)
 {
+    snprintf(cli_last_error, sizeof cli_last_error, "%s", err->message);
     fprintf(stderr, "flockmorph: error: %s\n", err->message);
     return err->status ? (int)err->status : FM_ERR_INTERNAL;
 }

@@ -164,7 +164,8 @@ static fm_status checkpoint_logged(int64_t frames, void *user, fm_error *err)
     return FM_OK;
 }
 
-static fm_run_control run_control(const cli_run_options *o, const cli_outputs *files, cli_progress *progress)
+static fm_run_control run_control(const cli_run_options *o, const cli_outputs *files, cli_progress *progress,
+                                  const cli_run_hooks *hooks)
 {
     fm_run_control c = fm_default_run_control();
     c.progress = frame_progress, c.progress_user = progress;
@@ -175,6 +176,10 @@ static fm_run_control run_control(const cli_run_options *o, const cli_outputs *f
     c.checkpoint_seconds = cli_checkpoint_seconds(o);
     c.stop = &cli_stop_signal;
     c.stop_frames = o->stop_after_frame + 1; /* 0 without one */
+    if (hooks) { /* the studio's runs: cancelled by its next edit, never resumed (docs/studio.md) */
+        c.stop = hooks->stop;
+        c.checkpoint_path = NULL, c.checkpoint = NULL;
+    }
     return c;
 }
 
@@ -237,7 +242,7 @@ static int write_obstacles(const fm_scene_def *def, const char *path)
  * checkpoints and the stop signals, then the finished cache, stats.json and the summary; the
  * checkpoint of a complete run is removed. */
 static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, const fm_scene_def *def,
-                    double prep_seconds)
+                    double prep_seconds, const cli_run_hooks *hooks)
 {
     fm_error err = {0};
     cli_outputs files;
@@ -245,15 +250,17 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     fm_cache_writer *cache = NULL;
     int rc = open_run(mode, run, o, def, &files, &cache);
     if (rc) return rc;
+    if (hooks && cache) hooks->cache_ready(cache, hooks->user);
     const cli_mode_run *common = run;
     const int64_t agents = common->agents;
     cli_progress progress = {.show = o->quiet || !cli_is_root() ? 0 : isatty(STDERR_FILENO) ? 1 : 2, .agents = agents,
                              .frame_limit = def->frame_limit, .start = cli_seconds(), .log_every = o->log_every,
                              .last_log = -INFINITY, .phase_labels = mode->phase_labels, .first_frame = -1};
-    const fm_run_control control = run_control(o, &files, &progress);
-    cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
+    const fm_run_control control = run_control(o, &files, &progress, hooks);
+    if (!hooks) cli_catch_stop_signals(1); /* the run checkpoints and stops at the end of the frame */
     fm_status st = mode->simulate(run, cache, &control, &err);
-    cli_catch_stop_signals(0);
+    if (!hooks) cli_catch_stop_signals(0);
+    if (hooks && st == FM_STOPPED) return fm_cache_writer_close_partial(cache), FM_STOPPED; /* cancelled */
     if (progress.show == 1) fprintf(stderr, "\n");
     const int planned = st == FM_STOPPED && !cli_stop_signal; /* --stop-after-frame, not a signal */
     if (!cli_is_root()) return rank_exit_status(st, planned);
@@ -286,7 +293,7 @@ static const cli_mode *scene_mode(const fm_scene_def *def)
     return def->mode == FM_MODE_SHAPE_FLOCK ? &cli_mode_flock : &cli_mode_morph;
 }
 
-static int run_scene(const cli_run_options *o, const fm_scene_def *def)
+static int run_scene(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks)
 {
     const cli_mode *mode = scene_mode(def);
     void *run = calloc(1, mode->size);
@@ -296,7 +303,8 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def)
     int rc = cli_agree(mode->build(run, def, &show), NULL); /* the same model on every rank */
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n"); /* after the preparation's progress line */
-    if (!rc) rc = simulate(mode, run, o, def, prep_seconds);
+    if (!rc && hooks && *hooks->stop) rc = FM_STOPPED; /* cancelled while the model was built */
+    if (!rc) rc = simulate(mode, run, o, def, prep_seconds, hooks);
     mode->close(run);
     free(run);
     return rc;
@@ -319,9 +327,14 @@ static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, cons
 {
     int rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
     if (rc) return rc;
-    rc = run_scene(o, def);
+    rc = run_scene(o, def, NULL);
     int manifest = cli_is_root() ? cli_write_manifest(o, ov, def, rc) : 0;
     return rc ? rc : manifest;
+}
+
+int cli_run_scene_hooked(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks)
+{
+    return run_scene(o, def, hooks);
 }
 
 int cli_run(int argc, char **argv)

@@ -7,6 +7,7 @@
  *   flockmorph inspect CACHE [--json]
  *   flockmorph info CACHE              (inspect --json)
  *   flockmorph wedge list|count WEDGES.json
+ *   flockmorph studio SCENE.json|CACHE.fmc [--port N] [--host H] [--no-browser] [-o DIR]
  *   flockmorph run SCENE.json --set KEY=VALUE --wedge-file WEDGES.json [--wedge I] -o 'out/{wedge}' 
  *   flockmorph help [COMMAND]          (COMMAND --help)
  *   flockmorph --version | -V
@@ -34,6 +35,7 @@ static const char *USAGE_MAIN =
     "  inspect  describe a cache: attributes, options, sizes, compression, bounds\n"
     "  info     the same as 'inspect --json'\n"
     "  wedge    list or count the variants of a wedge file (run --wedge-file runs one)\n"
+    "  studio   shape a scene live in a browser, or play back a cache\n"
     "\n"
     "'flockmorph help <command>' or 'flockmorph <command> --help' describes each command;\n"
     "'flockmorph --version' prints the version. docs/ has the scene file reference.\n";
@@ -43,7 +45,7 @@ static const struct {
     int (*fn)(int argc, char **argv);
 } COMMANDS[] = {
     {"run", cli_run}, {"export", cli_export}, {"render", cli_render}, {"inspect", cli_inspect}, {"info", cli_info},
-    {"wedge", cli_wedge},
+    {"wedge", cli_wedge}, {"studio", cli_studio},
 };
 
 static int (*find_command(const char *name))(int, char **)

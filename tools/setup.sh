@@ -33,6 +33,10 @@ packages=(
   ffmpeg
   libopenmpi-dev
   openmpi-bin
+  libcivetweb-dev
+  nodejs
+  npm
+  chromium
 )
 # Debian's Blender 3.4 runs the add-on's test (tests/blender/test_blender_import.py). With
 # --no-install-recommends it is 31 packages, a 70 MiB download and 270 MiB installed (Debian 12),
@@ -55,6 +59,9 @@ read -r -a extra_packages <<< "${FM_EXTRA_PACKAGES:-}"
 packages+=("${extra_packages[@]}")
 missing=()
 for p in "${packages[@]}"; do
+  # A Node from elsewhere (NodeSource's nodejs carries its own npm, and conflicts with Debian's)
+  # serves as well: the page needs node >= 18 and npm, not Debian's packages of them.
+  case $p in nodejs|npm) command -v "${p/nodejs/node}" > /dev/null && continue ;; esac
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 # What it does goes to stderr, a line a step, so a caller that hides the build's output
@@ -67,6 +74,14 @@ if [ ${#missing[@]} -gt 0 ]; then
   [ "$(id -u)" -ne 0 ] && sudo=sudo
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# The studio's page (docs/studio.md): its npm packages exactly as web/package-lock.json pins them,
+# again only when the lockfile changed (npm ci starts from an empty node_modules). From npm's cache
+# where it has them, so a machine that ran this once builds the page offline.
+if [ ! web/node_modules/.package-lock.json -nt web/package-lock.json ]; then
+  say "installing the studio page's npm packages (npm ci in web/)"
+  (cd web && npm ci --prefer-offline --no-audit --no-fund --loglevel=error) >&2
 fi
 
 mkdir -p "$build_dir"

@@ -95,6 +95,16 @@ fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const 
  * readable. */
 fm_cache_writer *fm_cache_writer_resume(const char *path, uint32_t frames, fm_error *err);
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w); /* frames handed over so far */
+/* The writer's agents and attributes, in the order given to create_attrs (as the reader's
+ * fm_cache_agents, fm_cache_attr_count and fm_cache_attr_at). */
+uint64_t fm_cache_writer_agents(const fm_cache_writer *w);
+int fm_cache_writer_attr_count(const fm_cache_writer *w);
+const fm_cache_attr_info *fm_cache_writer_attr_at(const fm_cache_writer *w, int i);
+/* Called with every frame handed over, on the caller's thread before add_frame_attrs copies it:
+ * `flockmorph studio` streams the very arrays the cache stores, so what a page shows is what the
+ * run writes (docs/studio.md). data[i] as given to add_frame_attrs; NULL tap: none. */
+typedef void (*fm_cache_frame_tap)(uint32_t frame, const void *const *data, void *user);
+void fm_cache_writer_set_tap(fm_cache_writer *w, fm_cache_frame_tap tap, void *user);
 /* Waits until every frame handed over so far is written, then flushes and fsyncs the file, so a
  * checkpoint taken after it can rely on those frames being on disk. */
 fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err);

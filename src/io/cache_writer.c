@@ -46,6 +46,8 @@ struct fm_cache_writer {
     fm_status worker_status; /* the first failure, reported by the next call */
     fm_error worker_err;
     double wait_seconds;     /* add_frame's time waiting for a free slot: 0 when the writer keeps up */
+    fm_cache_frame_tap tap;  /* fm_cache_writer_set_tap's, or NULL */
+    void *tap_user;
 };
 
 static void *worker_main(void *arg);
@@ -240,6 +242,7 @@ static fm_status wait_idle(fm_cache_writer *w, fm_error *err) { return wait_queu
  * worker advances next and lowers queued together). */
 fm_status fm_cache_writer_add_frame_attrs(fm_cache_writer *w, const void *const *data, fm_error *err)
 {
+    if (w->tap) w->tap(w->handed, data, w->tap_user);
     if (frame_buffers(w, err) != FM_OK) return err->status;
     double t0 = fm_seconds();
     pthread_mutex_lock(&w->lock);
@@ -340,6 +343,18 @@ fm_status fm_cache_writer_add_frame(fm_cache_writer *w, const float *verts, fm_e
 }
 
 uint32_t fm_cache_writer_frames(const fm_cache_writer *w) { return w->handed; }
+uint64_t fm_cache_writer_agents(const fm_cache_writer *w) { return w->l.agents; }
+int fm_cache_writer_attr_count(const fm_cache_writer *w) { return w->l.attr_count; }
+
+const fm_cache_attr_info *fm_cache_writer_attr_at(const fm_cache_writer *w, int i)
+{
+    return i >= 0 && i < w->l.attr_count ? w->l.attrs[i] : NULL;
+}
+
+void fm_cache_writer_set_tap(fm_cache_writer *w, fm_cache_frame_tap tap, void *user)
+{
+    w->tap = tap, w->tap_user = user;
+}
 
 fm_status fm_cache_writer_flush(fm_cache_writer *w, fm_error *err)
 {

@@ -69,6 +69,20 @@ quiet run "$prefix/bin/flockmorph" run "$work/scene.json" -o "$work/run" --quiet
 cache=$work/run/frames.fmc
 [ -s "$cache" ] || fail "the installed CLI wrote no $cache"
 
+# the studio's page (docs/studio.md), where this build made it: installed beside the CLI, which
+# finds it there (its address comes without "the page is not built")
+if [ -f "$build/studio/index.html" ]; then
+  [ -f "$prefix/share/flockmorph/studio/index.html" ] && [ -f "$prefix/share/flockmorph/studio/app.js" ] \
+    || fail "not installed: share/flockmorph/studio/ (the studio's page)"
+  "$prefix/bin/flockmorph" studio "$cache" --port 0 --no-browser > "$work/studio.log" 2>&1 &
+  studio_pid=$!
+  for _ in $(seq 100); do grep -q "open http" "$work/studio.log" && break; sleep 0.1; done
+  kill "$studio_pid"; wait "$studio_pid" || true
+  grep -q "open http" "$work/studio.log" || { cat "$work/studio.log"; fail "the installed studio printed no address"; }
+  if grep -q "not built" "$work/studio.log"; then fail "the installed studio does not find its page"; fi
+  log "the installed studio finds its page"
+fi
+
 # nm and ldd: nothing of the engine's heavy libraries in what only reads caches
 check_reader_only() {
   local file=$1

@@ -1,0 +1,274 @@
+"""test_studio_server: `flockmorph studio` under bad input, without a browser (docs/studio.md).
+
+    test_studio_server.py --cli FLOCKMORPH --source REPO --tmp DIR
+
+HTTP: the token on every request, a foreign Origin refused, only the page's own files. The
+WebSocket: a wrong token or a foreign Origin gets no connection; malformed JSON, a message that is
+not an object, an unknown type, a missing or mistyped field, a huge, binary or fragmented message,
+scene edits the loader refuses (the error names the key) and edits naming other files each get an
+error message, and the connection still answers after them. A run the model build refuses says
+why; twenty edits in a row make at most three runs; two clients edit at once and agree; clients
+that vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running.
+Save writes the file atomically, and `flockmorph run` of it writes the frames the studio streamed,
+byte for byte, as does the Render button (refused before a save). That cache played back gives
+the reader's frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
+"""
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from studio_client import WebSocket, http_get, start_studio, stop_studio  # noqa: E402
+
+FAILURES = []
+
+
+def check(ok, what):
+    print(("ok   " if ok else "FAIL ") + what, flush=True)
+    if not ok:
+        FAILURES.append(what)
+
+
+def error_of(ws, message=None, raw=None):
+    """The error message the studio answers with."""
+    if raw is not None:
+        ws.send_frame(*raw) if isinstance(raw, tuple) else ws.send_frame(1, raw)
+    else:
+        ws.send(message)
+    return ws.recv_json("error", timeout=20)["message"]
+
+
+def finished(ws, after=0):
+    return ws.wait_status(lambda m: m["generation"] > after and m["stage"] in ("finished", "failed"), timeout=60)
+
+
+def check_http(url, port, token):
+    base = url.rsplit("/", 2)[0]
+    status, _ = http_get(url)
+    check(status in (200, 500), f"the page with the token answers ({status})")
+    check(http_get(base + "/")[0] == 403, "no token: 403")
+    check(http_get(base + "/" + "0" * 32 + "/")[0] == 403, "a wrong token: 403")
+    check(http_get(url + "app.js", {"Origin": "http://evil.example"})[0] == 403, "a foreign Origin: 403")
+    check(http_get(url + "..%2f..%2fetc%2fpasswd")[0] in (403, 404), "a path out of the page's folder is refused")
+    check(http_get(url + ".hidden")[0] == 404, "a hidden file name is refused")
+
+
+def check_refusals(url):
+    check(WebSocket(url, origin="http://evil.example").status != 101, "a WebSocket from a foreign Origin is refused")
+    wrong = url.replace(url.split("/")[3], "f" * 32)
+    check(WebSocket(wrong).status != 101, "a WebSocket with a wrong token is refused")
+    own = url.split("/")[0] + "//" + url.split("/")[2]
+    ws = WebSocket(url, origin=own)
+    check(ws.status == 101, "a WebSocket from the studio's own origin is accepted")
+    ws.close()
+
+
+def check_bad_messages(ws):
+    e = error_of(ws, raw=b'{"type": "frame", "k": ')
+    check("malformed JSON" in e, f"malformed JSON: {e}")
+    e = error_of(ws, raw=b"[1, 2, 3]")
+    check('"type"' in e, f"not an object with a type: {e}")
+    e = error_of(ws, {"type": "launch_missiles"})
+    check("launch_missiles" in e, f"an unknown type is named: {e}")
+    e = error_of(ws, raw=b'{"type": "frame", "k": 1, "k": 2}')
+    check("malformed JSON" in e, f"a duplicate key: {e}")
+    e = error_of(ws, raw=(1, b" " * 300000))
+    check("300000 bytes" in e, f"a huge message: {e}")
+    e = error_of(ws, raw=(2, b"\x00\x01\x02"))
+    check("binary" in e, f"a binary message: {e}")
+    ws.send_frame(1, b'{"type": ', fin=False)
+    e = error_of(ws, raw=(0, b'"frame", "k": 0}'))
+    check("fragmented" in e, f"a fragmented message: {e}")
+    e = error_of(ws, {"type": "frame", "k": "seven"})
+    check('"k"' in e, f"a mistyped frame number: {e}")
+    e = error_of(ws, {"type": "frame", "k": 10 ** 9})
+    check("not simulated yet" in e, f"a frame past the run: {e}")
+    e = error_of(ws, {"type": "set", "key": "speed0"})
+    check('"value"' in e, f"an edit without a value: {e}")
+    e = error_of(ws, {"type": "set", "key": "speed0", "value": -1})
+    check("speed0" in e and "out of range" in e, f"an invalid edit names the key: {e}")
+    e = error_of(ws, {"type": "set", "key": "mde.d_min", "value": "far"})
+    check("mde.d_min" in e, f"a mistyped nested edit names the key: {e}")
+    e = error_of(ws, {"type": "set", "key": "speeed0", "value": 3})
+    check("speeed0" in e, f"an unknown key is named: {e}")
+    e = error_of(ws, {"type": "set", "key": "source.mesh", "value": "/etc/passwd"})
+    check("/etc/passwd" in e and "refused" in e, f"an edit that names another file is refused: {e}")
+    e = error_of(ws, {"type": "set", "key": "output.cache", "value": "elsewhere.fmc"})
+    check("elsewhere.fmc" in e and "refused" in e, f"an edit of the cache's name is refused: {e}")
+    e = error_of(ws, {"type": "hello", "protocol": 99})
+    check("protocol 1" in e, f"another protocol version: {e}")
+    head, attrs = ws.frame(0)
+    check(head["frame"] == 0 and 1 in attrs, "after all that the connection still serves frames")
+
+
+def check_failed_run(url):
+    """An edit the loader accepts but the model build refuses (n below TetGen's count): the run
+    fails, the page hears why, and the next edit runs again."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    start = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)["generation"]
+    ws.send({"type": "set", "key": "n", "value": 10})
+    failed = ws.wait_status(lambda m: m["generation"] > start and m["stage"] in ("failed", "finished"), timeout=60)
+    check(failed["stage"] == "failed" and "n: 10 is smaller" in failed["failure"], f"a failed run says why: {failed['failure']}")
+    ws.send({"type": "set", "key": "n", "value": None})
+    again = ws.wait_status(lambda m: m["generation"] > failed["generation"] and m["stage"] in ("failed", "finished"), timeout=60)
+    check(again["stage"] == "finished" and not again["failure"], "the next edit runs again")
+    ws.close()
+
+
+def check_two_editors(url, ws):
+    a, b = WebSocket(url), WebSocket(url)
+    a.recv_json("hello"), b.recv_json("hello")
+    a.send({"type": "set", "key": "speed0", "value": 13.0})
+    b.send({"type": "set", "key": "speed0", "value": 15.0})
+    last_a = [a.recv_json("scene")["scene"]["speed0"] for _ in range(2)][-1]
+    last_b = [b.recv_json("scene")["scene"]["speed0"] for _ in range(2)][-1]
+    check(last_a == last_b and last_a in (13.0, 15.0), f"two editors see the same last edit ({last_a}, {last_b})")
+    a.close(), b.close()
+    return last_a
+
+
+def check_burst(url):
+    """A slider drag: twenty edits in a row run the one in progress and the last, not twenty."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    start = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)["generation"]
+    values = [round(10 + 0.1 * i, 1) for i in range(20)]
+    for v in values:
+        ws.send({"type": "set", "key": "speed0", "value": v})
+    scenes, status, deadline = [], None, time.time() + 60
+    while time.time() < deadline and not (len(scenes) == 20 and status and status["stage"] == "finished"
+                                          and status["generation"] > start and not ws.readable(1.0)):
+        m = ws.recv_json(timeout=60)
+        if m["type"] == "scene":
+            scenes.append(m["scene"]["speed0"])
+        elif m["type"] == "status":
+            status = m
+    check(scenes == values, "every edit of the burst was applied, in order")
+    runs = status["generation"] - start
+    check(runs <= 3, f"twenty edits in a row made {runs} runs (at most 3: the one in progress, perhaps one more, the last)")
+    check(status["stage"] == "finished", "the last edit's run finished")
+    ws.close()
+
+
+def check_vanishing_clients(url):
+    c = WebSocket(url)
+    c.recv_json("hello")
+    c.send({"type": "set", "key": "launch_rate", "value": 900})
+    c.send({"type": "frame", "k": 0})
+    c.close()  # mid-run, with a frame on its way
+    d = WebSocket(url)
+    d.sock.sendall(bytes([0x81, 0x80 | 127]) + struct.pack(">Q", 1 << 40) + os.urandom(4) + b"x" * 1000)
+    d.sock.close()  # a frame that claims a terabyte, cut off
+
+
+def check_truth(args, ws, scene, tmp):
+    """Save, then `flockmorph run` of the saved file against every frame the studio streams."""
+    status = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)  # the last edit's run
+    e = error_of(ws, {"type": "render"})
+    check("save the scene first" in e, f"render before a save is refused: {e}")
+    ws.send({"type": "save"})
+    saved = ws.recv_json("saved")
+    check(saved["path"] == scene, "save answers with the scene's path")
+    check(not os.path.exists(scene + ".partial"), "save leaves no partial file")
+    streamed = [hashlib.sha256(ws.frame(k)[1][1]).hexdigest() for k in range(status["frames"])]
+    out = os.path.join(tmp, "out")
+    run = subprocess.run([args.cli, "run", scene, "-o", out, "--quiet"], capture_output=True, text=True)
+    check(run.returncode == 0, f"flockmorph run of the saved scene ({run.stderr.strip()})")
+    facts = subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), os.path.join(out, "frames.fmc")],
+                           capture_output=True, text=True, check=True)
+    written = json.loads(facts.stdout)["sha256"]
+    check(written == streamed, f"run wrote the {len(written)} frames the studio streamed ({len(streamed)}), byte for byte")
+    ws.send({"type": "render"})
+    end = ws.recv_json("render")
+    while end["state"] == "running":
+        end = ws.recv_json("render", timeout=60)
+    check(end["state"] == "finished" and end["exit"] == 0, f"Render ran flockmorph run of the saved scene ({end})")
+    facts = subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), os.path.join(args.render, "frames.fmc")],
+                           capture_output=True, text=True)
+    check(facts.returncode == 0 and json.loads(facts.stdout)["sha256"] == written,
+          "Render's cache is the frames the studio streamed, byte for byte")
+
+
+def check_playback(args, cache):
+    """A played cache: its facts in hello, its frames as the reader decodes them, no edits."""
+    proc, url = start_studio(args.cli, cache)
+    try:
+        ws = WebSocket(url)
+        hello = ws.recv_json("hello")
+        facts = json.loads(subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), cache],
+                                          capture_output=True, text=True, check=True).stdout)
+        check(hello["mode"] == "playback" and hello["cache"]["frames"] == facts["frames"]
+              and hello["cache"]["stats"]["frames"] == facts["frames"], "playback: hello has the cache's facts and stats.json's")
+        k = facts["frames"] // 2
+        check(hashlib.sha256(ws.frame(k)[1][1]).hexdigest() == facts["sha256"][k], f"playback: frame {k} is the reader's")
+        e = error_of(ws, {"type": "set", "key": "speed0", "value": 3})
+        check("no scene" in e, f"playback: an edit is refused: {e}")
+        e = error_of(ws, {"type": "frame", "k": facts["frames"]})
+        check("not in the cache" in e, f"playback: a frame past the end: {e}")
+        e = error_of(ws, {"type": "render"})
+        check("no scene" in e, f"playback: Render is refused: {e}")
+        ws.close()
+    finally:
+        code, err = stop_studio(proc)
+    check(code == 0 and "AddressSanitizer" not in err, "playback: the studio exits 0, no sanitizer report")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cli", required=True)
+    ap.add_argument("--source", required=True)
+    ap.add_argument("--tmp", required=True)
+    args = ap.parse_args()
+    tmp = os.path.join(args.tmp, "studio_server")
+    shutil.rmtree(tmp, ignore_errors=True)
+    os.makedirs(tmp)
+    scene = os.path.join(tmp, "scene.json")
+    shutil.copy(os.path.join(args.source, "tests", "studio", "scene_small.json"), scene)
+    for m in ("cylinder.obj", "sphere.obj"):
+        shutil.copy(os.path.join(args.source, "examples", "flock_cylinder_sphere", m), tmp)
+    t0 = time.time()
+    args.render = os.path.join(tmp, "render")
+    proc, url = start_studio(args.cli, scene, "--output", args.render)
+    try:
+        token, port = url.split("/")[3], int(url.split(":")[2].split("/")[0])
+        check_http(url, port, token)
+        check_refusals(url)
+        ws = WebSocket(url)
+        check(ws.recv_json("hello")["mode"] == "live", "hello says live")
+        first = finished(ws)
+        check(first["stage"] == "finished" and first["frames"] > 10, f"the first run finished ({first['frames']} frames)")
+        check_bad_messages(ws)
+        check_failed_run(url)
+        check_burst(url)
+        speed = check_two_editors(url, ws)
+        check_vanishing_clients(url)
+        check(proc.poll() is None, "the studio is still running")
+        ws.close()
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        check_truth(args, ws, scene, tmp)
+        with open(scene) as f:
+            doc = json.load(f)
+        check(doc["speed0"] == speed and doc["launch_rate"] == 900, "the saved scene holds the last edits")
+        ws.close()
+    finally:
+        code, err = stop_studio(proc)
+    check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
+    check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
+    check("AddressSanitizer" not in err and "runtime error" not in err, "no sanitizer report")
+    print(f"test_studio_server: {time.time() - t0:.1f} s")
+    if FAILURES:
+        print(f"test_studio_server: {len(FAILURES)} FAILED", file=sys.stderr)
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()

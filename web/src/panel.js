@@ -1,0 +1,148 @@
+// The control panel (lil-gui): the scene's main parameters, Save, the sketch mode, the colouring
+// and the playback speed. A parameter change is sent as {type: "set", key, value} (the server
+// checks it as the scene loader does, and runs the scene again from the start).
+import GUI from 'lil-gui';
+
+// [key, default (docs/scene.md), min, max, step]; shown for the modes listed.
+const MORPH = 'tetra_morph', FLOCK = 'shape_flock';
+const NUMBERS = [
+  ['n', 0, 0, 50000, 1, [MORPH, FLOCK]],
+  ['speed0', 10, 0.5, 60, 0.1, [MORPH, FLOCK]],
+  ['omega1', 1, 0.05, 5, 0.01, [MORPH]],
+  ['launch_rate', 0, 0, 20000, 10, [MORPH]],
+  ['style.omega2', 1, 0, 5, 0.01, [MORPH, FLOCK]],
+  ['path.key_points', 32, 1, 200, 1, [MORPH, FLOCK]],
+  ['path.width', 0, 0, 20, 0.1, [MORPH]],
+  ['mde.d_min', 0, 0, 2, 0.01, [MORPH]],
+  ['morph.shrink', 0.5, 0.05, 1, 0.01, [MORPH]],
+  ['shape_flock.damping', 3, 0, 20, 0.1, [FLOCK]],
+  ['shape_flock.external_gain', 1, 0, 10, 0.1, [FLOCK]],
+  ['time.frame_limit', 600, 2, 5000, 1, [MORPH, FLOCK]],
+];
+const RANGES = [ // [lo, hi] values (the shape flock's per-agent ranges)
+  ['shape_flock.max_speed', [12, 18], 0.5, 60],
+  ['shape_flock.max_force', [40, 80], 1, 400],
+  ['shape_flock.separation.weight', [0.4, 0.6], 0, 10],
+  ['shape_flock.cohesion.weight', [0.1, 0.2], 0, 10],
+  ['shape_flock.alignment.weight', [2, 3], 0, 10],
+];
+const FUZZY = ['steering', 'homing', 'damping', 'external'];
+
+export function getKey(doc, key) {
+  return key.split('.').reduce((o, k) => (o == null ? undefined : o[k]), doc);
+}
+
+export class Panel {
+  constructor(app) {
+    this.app = app;
+    this.gui = new GUI({ title: 'flockmorph studio' });
+    this.values = {};
+    this.pending = new Map();
+    this.timer = null;
+  }
+
+  // Sends edits at most every 120 ms, the last value of each key (the server cancels a run an
+  // edit makes stale; this only keeps a drag from flooding the socket).
+  set(key, value) {
+    this.pending.set(key, value);
+    if (this.timer) return;
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      for (const [k, v] of this.pending) this.app.connection.send({ type: 'set', key: k, value: v });
+      this.pending.clear();
+    }, 120);
+  }
+
+  build(hello) {
+    const gui = this.gui, app = this.app;
+    const actions = { save: () => app.connection.send({ type: 'save' }), sketch: false, sketchPoints: 4,
+      render: () => app.connection.send({ type: 'render' }),
+      colourBy: 'phase', speed: 'scene rate', follow: true };
+    if (hello.mode === 'live') {
+      gui.add(actions, 'save').name('Save scene');
+      if (hello.render) gui.add(actions, 'render').name('Render (flockmorph run of the saved scene)');
+      gui.add(actions, 'sketch').name('Sketch path').onChange((v) => app.path.setSketching(v));
+      gui.add(actions, 'sketchPoints', 1, 16, 1).name('Sketch points').onChange((v) => { app.path.sketchPoints = v; });
+    }
+    gui.add(actions, 'colourBy', ['phase', 'speed', 'group', 'id']).name('Colour by').onChange((v) => {
+      app.view.colourBy = v; app.redraw();
+    });
+    gui.add(actions, 'speed', ['scene rate', 'as fast as it can']).name('Playback').onChange((v) => { app.fastest = v !== 'scene rate'; });
+    gui.add(actions, 'follow').name('Follow the run').onChange((v) => { app.follow = v; });
+    if (hello.mode === 'live') this.buildParameters(hello.scene);
+    if (hello.cache) this.buildCacheFacts(hello.cache);
+  }
+
+  // A played cache's facts and, where a stats.json lies beside it, the run's plain values.
+  buildCacheFacts(cache) {
+    const show = (folder, facts) => {
+      for (const [k, v] of Object.entries(facts)) {
+        if (v === null || typeof v === 'object') continue;
+        folder.add({ [k]: Array.isArray(v) ? v.join(', ') : v }, k).disable();
+      }
+    };
+    const folder = this.gui.addFolder('Cache');
+    show(folder, { ...cache, attributes: cache.attributes.join(', ') });
+    if (cache.stats) show(this.gui.addFolder('stats.json').close(), cache.stats);
+  }
+
+  buildParameters(doc) {
+    const mode = doc.mode ?? MORPH;
+    const folder = this.gui.addFolder('Scene');
+    for (const [key, def, min, max, step, modes] of NUMBERS) {
+      if (!modes.includes(mode)) continue;
+      this.values[key] = getKey(doc, key) ?? def;
+      folder.add(this.values, key, min, max, step).name(key).onChange((v) => this.set(key, v));
+    }
+    this.values['path.curve'] = getKey(doc, 'path.curve') ?? 'polyline';
+    folder.add(this.values, 'path.curve', ['polyline', 'catmull_rom']).onChange((v) => this.set('path.curve', v));
+    if (mode === FLOCK) this.buildRanges(doc);
+    this.buildFields(doc);
+    if (mode === FLOCK) this.buildFuzzy(doc);
+  }
+
+  buildRanges(doc) {
+    const folder = this.gui.addFolder('Boids and limits (ranges)');
+    for (const [key, def, min, max] of RANGES) {
+      const r = getKey(doc, key) ?? def, pair = { lo: r[0], hi: r[1] };
+      const send = () => this.set(key, [pair.lo, pair.hi]);
+      folder.add(pair, 'lo', min, max).name(`${key.replace('shape_flock.', '')} lo`).onChange(send);
+      folder.add(pair, 'hi', min, max).name(`${key.replace('shape_flock.', '')} hi`).onChange(send);
+    }
+  }
+
+  // Each style field's gain and scale where it has them (the fields' own keys: scene.md).
+  buildFields(doc) {
+    const fields = getKey(doc, 'style.fields') ?? [];
+    if (!fields.length) return;
+    const folder = this.gui.addFolder('Style fields');
+    fields.forEach((f, i) => {
+      for (const k of ['gain', 'scale', 'speed', 'strength']) {
+        if (typeof f[k] !== 'number') continue;
+        const key = `style.fields.${i}.${k}`, holder = { [key]: f[k] };
+        folder.add(holder, key, 0, Math.max(10, 4 * f[k])).name(`${i} ${f.type} ${k}`).onChange((v) => this.set(key, v));
+      }
+    });
+  }
+
+  // The fuzzy curves' key points as JSON text ([[d, w], ...]); empty goes back to the default.
+  buildFuzzy(doc) {
+    const folder = this.gui.addFolder('Fuzzy curves [[d, w], ...]');
+    for (const name of FUZZY) {
+      const key = `shape_flock.fuzzy.${name}`, holder = { [key]: JSON.stringify(getKey(doc, key) ?? '') };
+      folder.add(holder, key).name(name).onFinishChange((text) => {
+        if (!text.trim() || text === '""') return this.set(key, null);
+        try { this.set(key, JSON.parse(text)); } catch (e) { this.app.showError(`${key}: not JSON: ${e.message}`); }
+      });
+    }
+  }
+
+  // Another tab's edit (or the loader's rounding): the controls show the scene as it is now.
+  refresh(doc) {
+    for (const key of Object.keys(this.values)) {
+      const v = getKey(doc, key);
+      if (v !== undefined) this.values[key] = v;
+    }
+    this.gui.controllersRecursive().forEach((c) => c.updateDisplay());
+  }
+}

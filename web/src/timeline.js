@@ -1,0 +1,35 @@
+// The timeline: play and pause (space), a frame back and on (arrow keys), back to the start, and
+// the scrub bar over every frame simulated so far.
+export class Timeline {
+  constructor(app) {
+    this.app = app;
+    this.el = (id) => document.getElementById(id);
+    this.el('play').onclick = () => this.toggle();
+    this.el('back').onclick = () => app.seek(0);
+    this.el('step').onclick = () => { app.playing = false; app.seek(app.current + 1); };
+    this.el('step-back').onclick = () => { app.playing = false; app.seek(app.current - 1); };
+    this.el('scrub').oninput = (e) => { app.playing = false; app.seek(Number(e.target.value)); };
+    window.addEventListener('keydown', (e) => {
+      if (e.target.tagName === 'INPUT' && e.target.type !== 'range') return;
+      if (e.key === ' ') { e.preventDefault(); this.toggle(); }
+      if (e.key === 'ArrowRight') this.el('step').onclick();
+      if (e.key === 'ArrowLeft') this.el('step-back').onclick();
+    });
+  }
+
+  toggle() {
+    const app = this.app;
+    if (!app.playing && app.current >= app.status.frames - 1) app.seek(0); // play again from the start
+    app.playing = !app.playing;
+  }
+
+  setLength(frames) { this.el('scrub').max = String(Math.max(0, frames - 1)); }
+
+  update() {
+    const app = this.app;
+    this.el('scrub').value = String(app.current);
+    this.el('frame-label').textContent = `${app.shown < 0 ? '–' : app.shown} / ${Math.max(0, app.status.frames - 1)}`;
+    this.el('play').textContent = app.playing ? '||' : '▶';
+    this.el('fps').textContent = `${app.counter.fps.toFixed(1)} fps`;
+  }
+}
