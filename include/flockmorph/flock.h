@@ -34,7 +34,9 @@ typedef struct fm_flock_model_info {
     double time_step;
     int32_t steps_per_frame;
     double max_radius;         /* the largest perception radius: the neighbour grid's cell */
-    int deforming;             /* the target moves (fm_deform_kind != NONE) */
+    int deforming;             /* the target moves: it deforms (fm_deform_kind != NONE) or travels */
+    double travel_length;      /* a travelling target's route (target.path.points): its length (0: none), */
+    double travel_start, travel_end; /* and when it sets off and stops, s (NaN without a route) */
     int fields_baked;          /* as fm_morph_model_info's */
     double field_bake_error;
 } fm_flock_model_info;

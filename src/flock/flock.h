@@ -36,6 +36,13 @@ typedef struct fm_flock_target {
     int32_t *file_vertex;  /* sequence: the welded vertex of each of the target file's vertices as read */
     int64_t file_count;
     fm_samples dest;       /* agent a's destination: dest.tri[a], dest.bary[3a..], dest.p at rest */
+    /* travelling (target.path.points; route.count 0: it stays): the shape at time t is carried by
+     * B(u) - B(0) and turned about B(0) by F(u) F(0)^T, u the route's eased arc-length fraction */
+    fm_bspline route;      /* B through target.path.points, by arc length */
+    double *route_normal;  /* the rotation-minimising frame's normal at each of route.arc's samples */
+    double route_start;    /* seconds when it sets off (fm_flock_target_set_start) */
+    double route_time;     /* seconds from setting off to stopping */
+    double route_ease;     /* each speed ramp, as a fraction of route_time */
 } fm_flock_target;
 
 struct fm_flock_model {
@@ -182,6 +189,15 @@ extern const int fm_flock_state_member_count;
 fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_error *err);
 void fm_flock_target_free(fm_flock_target *t);
 void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def, double time, double *out);
+/* A travelling target's start: target.path.start, or the leaders' end when that is < 0. */
+void fm_flock_target_set_start(fm_flock_target *t, const fm_flock_def *def, double leaders_end);
+/* When a travelling target stops (0 for one that does not travel). */
+double fm_flock_target_travel_end(const fm_flock_target *t);
+/* [lo, hi] grown to hold the shape anywhere along its route (a sphere about B(0) swept along it). */
+void fm_flock_target_grow_bounds(const fm_flock_target *t, double lo[3], double hi[3]);
+/* flock_model.c: the leaders' eased fraction of the way at normalised time x (raised-cosine speed
+ * ramps of e_in and e_out, e_in + e_out <= 1), which the travelling target shares. */
+double fm_flock_eased(double x, double e_in, double e_out);
 
 /* flock_memory.c: the shape flock's bytes for n agents (docs/limits.md), and the refusal of a run
  * that does not fit (memory.h). */

@@ -39,13 +39,14 @@ static void flock_step(void *sim)
     fm_flock_step(r->m, r->s);
 }
 
-/* A static target with binding is done when every agent is bound; floating agents and a moving
- * target keep going to the frame limit. */
+/* A static target with binding is done when every agent is bound (a travelling one once it has
+ * stopped, too); floating agents and a deforming target keep going to the frame limit. */
 static int flock_finished(const void *sim)
 {
     const flock_run *r = sim;
     const fm_flock_def *f = &r->m->def.flock;
-    return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+    return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n &&
+           r->s->time >= fm_flock_target_travel_end(&r->m->target);
 }
 
 /* What sets the shape flock's speeds and forces, for a runaway's message. */

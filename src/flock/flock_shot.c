@@ -36,7 +36,7 @@ struct fm_flock_shot {
 /* Whether group g can ever be done: a static target whose agents bind. */
 static int binds(const fm_scene_def *def)
 {
-    return def->flock.deform == FM_DEFORM_NONE && def->flock.arrival_mode == FM_ARRIVAL_BIND;
+    return !fm_flock_target_moves(&def->flock) && def->flock.arrival_mode == FM_ARRIVAL_BIND;
 }
 
 static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *err)
@@ -47,7 +47,8 @@ static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *er
     fm_scene_key_location(&def[g], "source", where, sizeof where);
     return fm_fail(err, FM_ERR_INPUT, "%s: \"%s\" never holds a formed shape to start from: its target %s; a group "
                    "starts from a static target whose agents bind (shape_flock.arrival.mode \"bind\")", where,
-                   def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms" : "lets its agents float");
+                   def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms"
+                   : def[a].flock.travel_point_count > 0 ? "travels (target.path.points)" : "lets its agents float");
 }
 
 /* The groups together in memory (fm_memory_check_shot): a group from another's shape has its n. */
