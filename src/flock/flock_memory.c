@@ -78,7 +78,9 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     const double table = fm_memory_grid_bytes(n) - agents * listed; /* as fm_memory_grid_bytes counts */
     const double per_slot = listed + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float);
     e.grid = n > 0 ? (table + per_slot * ceil(agents * held)) / agents : 0;
-    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR);
+    /* the look's history in the store (flock_look.c), twice: the store and a frame's view */
+    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR) +
+              2 * (double)sizeof(fm_flock_look);
     e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
     fm_memory_total(&e, n);
     return e;
