@@ -25,6 +25,9 @@ static json_t *settings_json(const fm_scene_def *def, const fm_flock_model_info 
                      def->field_count, "obstacles", def->obstacle_count, "max_perception_radius", mi->max_radius, "mass",
                      f->mass);
     json_object_set_new(j, "kalman_r_scale_over", json_string(r_over[f->kalman_r_over]));
+    json_object_set_new(j, "target_path_length", json_real(mi->travel_length));
+    json_object_set_new(j, "target_path_start", number_or_null(mi->travel_start));
+    json_object_set_new(j, "target_path_end", number_or_null(mi->travel_end));
     return j;
 }
 
@@ -139,7 +142,7 @@ static void summary(const void *run, const fm_scene_def *def)
     const fm_flock_run_stats *rs = &r->rs;
     printf("; bound %.1f%%, distance to destination mean %.3g max %.3g\n", 100 * rs->bound_fraction,
            rs->final_mean_distance, rs->final_max_distance);
-    if (!r->mi.deforming && def->flock.arrival_mode == FM_ARRIVAL_BIND && !rs->all_bound)
+    if (def->flock.deform == FM_DEFORM_NONE && def->flock.arrival_mode == FM_ARRIVAL_BIND && !rs->all_bound)
         fprintf(stderr, "flockmorph: warning: stopped at the frame limit (%d frames) with %.1f%% of the agents not yet bound; "
                 "raise time.frame_limit in the scene\n", def->frame_limit, 100 * (1 - rs->bound_fraction));
 }

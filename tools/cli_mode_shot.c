@@ -188,6 +188,19 @@ static json_t *flock_group_json(const shot_run *r, int g)
     json_object_set_new(j, "bound_fraction", json_real(gs->bound_fraction));
     json_object_set_new(j, "final_mean_distance", json_real(gs->final_mean_distance));
     json_object_set_new(j, "final_max_distance", json_real(gs->final_max_distance));
+    /* the group's flock measures (docs/stats.md "Shape-flock shot"): the mean, and one entry a frame */
+    const fm_flock_shot_stats *st = &r->flock_stats;
+    json_t *mean = json_object(), *per_frame = json_object();
+    for (int i = 0; i < FM_FLOCK_MEASURES; i++) {
+        json_object_set_new(mean, fm_flock_measure_names[i], number_or_null(gs->measures_mean[i]));
+        json_t *a = json_array();
+        json_array_append_new(a, json_null()); /* frame 0, the rest state */
+        for (int64_t f = 0; st->measures && f + 1 < st->run.frames; f++)
+            json_array_append_new(a, number_or_null(st->measures[(f * st->groups + g) * FM_FLOCK_MEASURES + i]));
+        json_object_set_new(per_frame, fm_flock_measure_names[i], a);
+    }
+    json_object_set_new(j, "flock_measures", mean);
+    json_object_set_new(j, "flock_measures_per_frame", per_frame);
     return j;
 }
 
@@ -235,6 +248,7 @@ static void close_run(void *run)
     shot_run *r = run;
     fm_shot_destroy(r->shot);
     fm_flock_shot_destroy(r->flock_shot);
+    fm_flock_shot_stats_free(&r->flock_stats);
     json_decref(r->warnings);
 }
 

@@ -76,34 +76,58 @@ def mid_frame(p):
     return int(half[0]) if len(half) else len(p) // 2
 
 
-def measure(path):
-    with flockmorph_cache.open(path) as cache:
-        p = positions(cache)
-        fps = cache.frame_rate
-    frames, n, _ = p.shape
-    mid = mid_frame(p)
-    later = min(mid + int(round(fps)), frames - 1)
+def velocities(p, fps):
+    """Central differences of the positions (one-sided at the ends), units per second."""
     v = np.zeros_like(p)
     v[1:-1] = (p[2:] - p[:-2]) * (fps / 2)
     v[0], v[-1] = (p[1] - p[0]) * fps, (p[-1] - p[-2]) * fps
+    return v
+
+
+def accelerations(p, fps):
     a = np.zeros_like(p)
     a[1:-1] = (p[2:] - 2 * p[1:-1] + p[:-2]) * fps * fps
+    return a
 
+
+def persistence_at(p, fps, mid):
+    """The share of each agent's K nearest at frame mid still among its K nearest 1 s later."""
+    later = min(mid + int(round(fps)), len(p) - 1)
     nb_mid, nb_later = knn(p[mid]), knn(p[later])
-    same = [len(set(nb_mid[i]) & set(nb_later[i])) for i in range(n)]
-    persistence = float(np.mean(same)) / K
+    same = [len(set(nb_mid[i]) & set(nb_later[i])) for i in range(p.shape[1])]
+    return float(np.mean(same)) / K
 
+
+def coherence_at(p, v, mid):
+    """The mean cosine between the velocity fluctuations of each agent and its K nearest at mid."""
+    nb_mid = knn(p[mid])
     dv = v[mid] - v[mid].mean(0)
     unit = dv / np.maximum(np.linalg.norm(dv, axis=1, keepdims=True), 1e-12)
-    coherence = float((unit[:, None, :] * unit[nb_mid]).sum(2).mean())
+    return float((unit[:, None, :] * unit[nb_mid]).sum(2).mean())
 
+
+def smoothness_at(a, fps, mid):
+    """The per-agent acceleration autocorrelation at lag LAG over the 2 s around mid."""
+    frames = len(a)
     lo, hi = max(1, mid - int(fps)), min(frames - 1 - LAG, mid + int(fps))
     mean = a[lo:hi + LAG].mean(0)  # each agent's own, so a steady turn is not counted as smooth
     a0, a1 = a[lo:hi] - mean, a[lo + LAG:hi + LAG] - mean
     num = (a0 * a1).sum((0, 2))
     den = np.sqrt((a0 * a0).sum((0, 2)) * (a1 * a1).sum((0, 2)))
     ok = den > 0
-    smoothness = float((num[ok] / den[ok]).mean()) if ok.any() else 1.0
+    return float((num[ok] / den[ok]).mean()) if ok.any() else 1.0
+
+
+def measure(path):
+    with flockmorph_cache.open(path) as cache:
+        p = positions(cache)
+        fps = cache.frame_rate
+    frames, n, _ = p.shape
+    mid = mid_frame(p)
+    v = velocities(p, fps)
+    persistence = persistence_at(p, fps, mid)
+    coherence = coherence_at(p, v, mid)
+    smoothness = smoothness_at(accelerations(p, fps), fps, mid)
 
     speed = np.linalg.norm(p[1:] - p[:-1], axis=2) * fps  # speed over frame f -> f+1
     threshold = MOVING * float(np.median(speed[min(mid, len(speed) - 1)]))

@@ -23,4 +23,11 @@ for name in "${scenes[@]}"; do
   k=$((frames * 2 / 5)); [ "$name" = castling ] && k=$((frames * 3 / 5))
   render "$name" --frame "$k" -o "docs/images/scenario_$name.png"
 done
-echo "docs/images: ${#scenes[@]} scenarios and 5 frames of words rendered"
+# docs/shape-flock.md "A target that travels": flock_travel forming, formed, gliding and stopped, one
+# camera over the whole run.
+build/flockmorph run examples/flock_travel/scene.json -o out/flock_travel --quiet > /dev/null
+for k in 150 215 300 404; do
+  build/flockmorph render out/flock_travel/frames.fmc --frame "$k" -o "docs/images/flock_travel_$k.png" --view persp \
+    --size 480x270 --samples 2 --camera animation --color speed --color-range 0:12 > /dev/null
+done
+echo "docs/images: ${#scenes[@]} scenarios, 5 frames of words and 4 of flock_travel rendered"

@@ -34,7 +34,9 @@ typedef struct fm_flock_model_info {
     double time_step;
     int32_t steps_per_frame;
     double max_radius;         /* the largest perception radius: the neighbour grid's cell */
-    int deforming;             /* the target moves (fm_deform_kind != NONE) */
+    int deforming;             /* the target moves: it deforms (fm_deform_kind != NONE) or travels */
+    double travel_length;      /* a travelling target's route (target.path.points): its length (0: none), */
+    double travel_start, travel_end; /* and when it sets off and stops, s (NaN without a route) */
     int fields_baked;          /* as fm_morph_model_info's */
     double field_bake_error;
 } fm_flock_model_info;
@@ -79,7 +81,10 @@ fm_cache_writer *fm_flock_cache_create(const char *path, const fm_flock_model *m
  * same way); the mean nearest-neighbour distance (among agents in flight, from up to 1,024 of them
  * spread evenly over the ids; NaN with fewer than 2 in flight); the mean distance from the agent's
  * own eq-12 path point (its virtual leader); the mean speed. Over all agents: the mean distance to
- * the destination. And the fraction of agents in flight. NaN where no agent is in flight. */
+ * the destination. And the fraction of agents in flight. NaN where no agent is in flight. And the
+ * look (tools/flock-look.py's figures, every FM_LOOK_EVERY-th frame on a fixed sample of up to 256
+ * agents, NaN on the others): neighbour persistence over 1 s, neighbour coherence and acceleration
+ * smoothness at a lag of 4 frames, each ending at the frame (src/flock/flock_look.c says how). */
 typedef enum fm_flock_measure {
     FM_FLOCK_POLARISATION = 0,
     FM_FLOCK_NN_DISTANCE = 1,
@@ -87,11 +92,14 @@ typedef enum fm_flock_measure {
     FM_FLOCK_SPEED = 3,
     FM_FLOCK_DESTINATION_DISTANCE = 4,
     FM_FLOCK_IN_FLIGHT = 5,
-    FM_FLOCK_MEASURES = 6
+    FM_FLOCK_PERSISTENCE = 6,
+    FM_FLOCK_COHERENCE = 7,
+    FM_FLOCK_SMOOTHNESS = 8,
+    FM_FLOCK_MEASURES = 9
 } fm_flock_measure;
 
 /* Their names in stats.json: "polarisation", "nn_distance", "leader_distance", "speed",
- * "destination_distance", "in_flight". */
+ * "destination_distance", "in_flight", "persistence", "coherence", "smoothness". */
 extern const char *const fm_flock_measure_names[FM_FLOCK_MEASURES];
 
 /* The measures of the state's current positions into out[FM_FLOCK_MEASURES]. The same for any
@@ -161,6 +169,7 @@ typedef struct fm_flock_shot_group_stats {
     double final_mean_distance;     /* to the destination, at the last frame */
     double final_max_distance;
     double bound_fraction;
+    double measures_mean[FM_FLOCK_MEASURES]; /* its flock measures' mean over the frames it had agents in flight */
 } fm_flock_shot_group_stats;
 
 typedef struct fm_flock_shot_stats {
@@ -168,7 +177,15 @@ typedef struct fm_flock_shot_stats {
     int64_t rows;
     int all_bound;                  /* every group bound all its agents */
     fm_flock_shot_group_stats group[FM_MAX_GROUPS];
+    int groups;                     /* the groups measured */
+    double *measures;               /* per frame after frame 0, groups * FM_FLOCK_MEASURES each: row k - 1
+                                       is frame k's, group g's measures from g * FM_FLOCK_MEASURES, NaN
+                                       where it has not started or has bound all (malloc'ed;
+                                       fm_flock_shot_stats_free) */
 } fm_flock_shot_stats;
+
+/* Frees stats->measures (and sets it to NULL). */
+void fm_flock_shot_stats_free(fm_flock_shot_stats *stats);
 
 /* Steps until every group has bound its agents or the frame limit, writing every frame to `cache`
  * (may be NULL; created with FM_ATTR_POSITION and any of FM_ATTR_VELOCITY, FM_ATTR_ORIENTATION,

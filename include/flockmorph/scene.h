@@ -185,6 +185,15 @@ typedef struct fm_flock_def {
     char deform_sequence[FM_PATH_MAX]; /* sequence: printf pattern with one integer, "wave_%03d.obj" */
     int32_t deform_frames;       /* sequence: meshes 0 .. frames-1 */
     double deform_frame_rate;    /* sequence: meshes per second; the sequence loops */
+    /* a travelling target (target.path.*, docs/shape-flock.md "A target that travels"): the shape,
+     * static or deforming, is carried along a route B, a cubic B-spline through these points, by
+     * B(u) - B(0), turned about B(0) with the route's tangent when orient is set */
+    double travel_points[FM_MAX_PATH_POINTS][3];
+    int32_t travel_point_count;  /* 0: the target stays where it is placed; else >= 2 */
+    double travel_start;         /* seconds when it sets off; < 0: when the last leader arrives */
+    double travel_speed;         /* its cruise speed along the route, units/s; 0 = speed0 */
+    double travel_ease;          /* seconds it takes to speed up from rest, and to slow to rest */
+    int32_t travel_orient;       /* it turns with the route's tangent (a rotation-minimising frame) */
 } fm_flock_def;
 
 /* One change to a scene file's JSON before it is read (`flockmorph run --set KEY=VALUE`, a

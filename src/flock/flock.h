@@ -36,6 +36,13 @@ typedef struct fm_flock_target {
     int32_t *file_vertex;  /* sequence: the welded vertex of each of the target file's vertices as read */
     int64_t file_count;
     fm_samples dest;       /* agent a's destination: dest.tri[a], dest.bary[3a..], dest.p at rest */
+    /* travelling (target.path.points; route.count 0: it stays): the shape at time t is carried by
+     * B(u) - B(0) and turned about B(0) by F(u) F(0)^T, u the route's eased arc-length fraction */
+    fm_bspline route;      /* B through target.path.points, by arc length */
+    double *route_normal;  /* the rotation-minimising frame's normal at each of route.arc's samples */
+    double route_start;    /* seconds when it sets off (fm_flock_target_set_start) */
+    double route_time;     /* seconds from setting off to stopping */
+    double route_ease;     /* each speed ramp, as a fraction of route_time */
 } fm_flock_target;
 
 struct fm_flock_model {
@@ -95,6 +102,19 @@ fm_flock_model *fm_flock_model_build_from_shape_shared(const fm_scene_def *def, 
 fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,
                                                 fm_progress_fn progress, void *user, fm_error *err);
 
+/* The look's history (flock_look.c): a fixed sample's positions over the last frames and its
+ * neighbour lists over the last second, kept in the store so that a checkpoint keeps them and a
+ * resumed run measures what an uninterrupted one does. Frame rates above FM_LOOK_MAX_SECOND frames
+ * a second have no look. */
+enum { FM_LOOK_AGENTS = 256, FM_LOOK_K = 6, FM_LOOK_LAG = 4, FM_LOOK_EVERY = 4, FM_LOOK_MAX_SECOND = 60,
+       FM_LOOK_HISTORY = 2 * FM_LOOK_MAX_SECOND + FM_LOOK_LAG + 2 };
+typedef struct fm_flock_look {
+    int64_t p_frame[FM_LOOK_HISTORY];                    /* frame + 1 each entry of p holds; 0: none */
+    float p[FM_LOOK_HISTORY][FM_LOOK_AGENTS][3];         /* the sample's positions, ring by frame */
+    int64_t nb_frame[FM_LOOK_MAX_SECOND + 1];            /* frame + 1 each entry of nb holds; 0: none */
+    int32_t nb[FM_LOOK_MAX_SECOND + 1][FM_LOOK_AGENTS][FM_LOOK_K]; /* neighbour ids, -1: not in flight */
+} fm_flock_look;
+
 /* Per-block results of a step, combined in block order. */
 typedef struct flock_block {
     int64_t count[4];  /* agents per fm_phase after the step */
@@ -143,6 +163,7 @@ struct fm_flock_state {
     flock_block *blocks;
     int64_t count[4];
     double lag_sum;                /* fm_flock_run: the tracking lag's sum over its frames so far */
+    fm_flock_look look;            /* the look's history (flock_look.c) */
     /* On P ranks (flock_dist.c; NULL on one process): the slots hold this rank's agents (those of
      * its slab) and, during a step, the ghosts of its halo (phase FM_FLOCK_ELSEWHERE), all by id. */
     const fm_dist *dist;
@@ -184,6 +205,15 @@ extern const int fm_flock_state_member_count;
 fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_error *err);
 void fm_flock_target_free(fm_flock_target *t);
 void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def, double time, double *out);
+/* A travelling target's start: target.path.start, or the leaders' end when that is < 0. */
+void fm_flock_target_set_start(fm_flock_target *t, const fm_flock_def *def, double leaders_end);
+/* When a travelling target stops (0 for one that does not travel). */
+double fm_flock_target_travel_end(const fm_flock_target *t);
+/* [lo, hi] grown to hold the shape anywhere along its route (a sphere about B(0) swept along it). */
+void fm_flock_target_grow_bounds(const fm_flock_target *t, double lo[3], double hi[3]);
+/* flock_model.c: the leaders' eased fraction of the way at normalised time x (raised-cosine speed
+ * ramps of e_in and e_out, e_in + e_out <= 1), which the travelling target shares. */
+double fm_flock_eased(double x, double e_in, double e_out);
 
 /* flock_memory.c: the shape flock's bytes for n agents (docs/limits.md), and the refusal of a run
  * that does not fit (memory.h). */
@@ -213,10 +243,23 @@ void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, f
                           float *orientation, uint8_t *phase);
 void fm_flock_distance_blocks(const fm_flock_state *s, int64_t begin, int64_t end, const fm_dist *d, double *mean,
                               double *max);
-/* flock_measures.c: fm_flock_measure_frame on P ranks from their shares (each rank's view from
- * fm_flock_dist_share: runs of whole FM_BLOCK blocks); out on rank 0. */
+/* flock_measures.c: fm_flock_measure_frame of frame `frame` on P ranks from their shares (each
+ * rank's view from fm_flock_dist_share or fm_flock_dist_blocks: runs of whole FM_BLOCK blocks); out
+ * on rank 0; the look's history in s. */
 fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, fm_flock_state *view,
-                                        double out[FM_FLOCK_MEASURES], fm_error *err);
+                                        int64_t frame, double out[FM_FLOCK_MEASURES], fm_error *err);
+/* fm_flock_measure_frame of frame `frame` with the look's history in `look` (s may be a view that
+ * holds every agent, on rank 0). */
+void fm_flock_measure_frame_look(const fm_flock_model *m, fm_flock_state *s, fm_flock_look *look, int64_t frame,
+                                 double out[FM_FLOCK_MEASURES]);
+/* flock_look.c: the look's three figures of frame f into out (NaN unless f is a multiple of
+ * FM_LOOK_EVERY and its history is there), its history advanced. s: every agent, or on P ranks (d)
+ * this rank's store; s->member its agents in flight (on P ranks set here); grid_fresh: s->grid is a
+ * grid of them built this frame (mean_nn's); mean_v: the mean velocity of all agents (NULL: no
+ * coherence, on ranks other than 0). Collective on P ranks. */
+fm_status fm_flock_look_frame(const fm_flock_model *m, fm_flock_state *s, const fm_dist *d, fm_flock_look *look,
+                              int64_t f, const double mean_v[3], int grid_fresh, double out[FM_FLOCK_MEASURES],
+                              fm_error *err);
 
 /* The cache written in parallel: this rank's share of the ids (begin[rank] … begin[rank + 1] − 1)
  * complete in its view (returned; NULL on failure, which every rank agrees), from every rank;

@@ -1,14 +1,16 @@
 /* The flock measures of a frame (include/flockmorph/flock.h, docs/stats.md "Flock measures"):
  * polarisation, nearest-neighbour distance, distance from the eq-12 path, speed, distance to the
- * destination, the fraction in flight. Sums are taken per FM_BLOCK block of agents on the threads
- * and combined in block order, so the figures do not depend on the thread count. */
+ * destination, the fraction in flight, and the look (flock_look.c). Sums are taken per FM_BLOCK
+ * block of agents on the threads and combined in block order, so the figures do not depend on the
+ * thread count. */
 #include "flock.h"
 
 #include <math.h>
 #include <stdlib.h>
 
 const char *const fm_flock_measure_names[FM_FLOCK_MEASURES] = {"polarisation", "nn_distance", "leader_distance",
-                                                               "speed", "destination_distance", "in_flight"};
+                                                               "speed", "destination_distance", "in_flight",
+                                                               "persistence", "coherence", "smoothness"};
 
 /* Nearest-neighbour queries a frame: the mean of 1,024 has a standard error near 1 % for the
  * nearest-neighbour distances of a flock (their CV is about 0.3). */
@@ -17,6 +19,7 @@ enum { NN_QUERIES = 1024 };
 typedef struct measure_block {
     int64_t in_flight, moving;
     double unit[3], speed, leader, destination;
+    double velocity[3]; /* of all agents (the look's mean velocity) */
 } measure_block;
 
 static double distance3(const float *const a[3], const float *const b[3], int64_t i)
@@ -31,6 +34,7 @@ static void measure_agent(const fm_flock_state *s, int64_t a, measure_block *b)
 {
     const float *const *p = (const float *const *)s->p;
     b->destination += distance3(p, (const float *const *)s->dest, a);
+    for (int k = 0; k < 3; k++) b->velocity[k] += s->v[k][a];
     if (!s->member[a]) return;
     const double v[3] = {s->v[0][a], s->v[1][a], s->v[2][a]}, speed = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
     b->speed += speed;
@@ -85,13 +89,15 @@ static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const fm_dist 
     return found > 0 ? sum / (double)found : NAN;
 }
 
-static void combine(const measure_block *blocks, int64_t count, int64_t n, double out[FM_FLOCK_MEASURES])
+/* out's measures of the blocks, and the mean velocity of all agents into mean_v. */
+static void combine(const measure_block *blocks, int64_t count, int64_t n, double out[FM_FLOCK_MEASURES],
+                    double mean_v[3])
 {
     measure_block t = {0};
     for (int64_t i = 0; i < count; i++) { /* block order */
         const measure_block *b = &blocks[i];
         t.in_flight += b->in_flight, t.moving += b->moving;
-        for (int k = 0; k < 3; k++) t.unit[k] += b->unit[k];
+        for (int k = 0; k < 3; k++) t.unit[k] += b->unit[k], t.velocity[k] += b->velocity[k];
         t.speed += b->speed, t.leader += b->leader, t.destination += b->destination;
     }
     const double flying = t.in_flight > 0 ? (double)t.in_flight : NAN;
@@ -101,6 +107,7 @@ static void combine(const measure_block *blocks, int64_t count, int64_t n, doubl
     out[FM_FLOCK_SPEED] = t.speed / flying;
     out[FM_FLOCK_DESTINATION_DISTANCE] = n > 0 ? t.destination / (double)n : NAN;
     out[FM_FLOCK_IN_FLIGHT] = n > 0 ? (double)t.in_flight / (double)n : NAN;
+    for (int k = 0; k < 3; k++) mean_v[k] = n > 0 ? t.velocity[k] / (double)n : NAN;
 }
 
 /* Blocks [b0, b1): s->member of their agents (in flight) and their in-flight counts. */
@@ -139,6 +146,13 @@ static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int
 
 void fm_flock_measure_frame(const fm_flock_model *m, fm_flock_state *s, double out[FM_FLOCK_MEASURES])
 {
+    fm_flock_measure_frame_look(m, s, &s->look, s->step / m->steps_per_frame, out);
+}
+
+void fm_flock_measure_frame_look(const fm_flock_model *m, fm_flock_state *s, fm_flock_look *look, int64_t frame,
+                                 double out[FM_FLOCK_MEASURES])
+{
+    double mean_v[3] = {NAN, NAN, NAN};
     const int64_t n = s->n, blocks = (s->slots + FM_BLOCK - 1) / FM_BLOCK;
     measure_block *b = calloc((size_t)(blocks > 0 ? blocks : 1), sizeof *b);
     nn_query *query = malloc(sizeof(nn_query) * NN_QUERIES);
@@ -151,9 +165,10 @@ void fm_flock_measure_frame(const fm_flock_model *m, fm_flock_state *s, double o
         for (int64_t i = 0; i < blocks; i++) total += b[i].in_flight;
         const int64_t stride = total > NN_QUERIES ? (total + NN_QUERIES - 1) / NN_QUERIES : 1;
         if (sum_blocks(s, 0, blocks, 0, stride, b, query, 0) == FM_OK) {
-            combine(b, blocks, n, out);
+            combine(b, blocks, n, out, mean_v);
             if (total >= 2)
                 out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, NULL, query, (total + stride - 1) / stride, nn, nn + NN_QUERIES, self);
+            fm_flock_look_frame(m, s, NULL, look, frame, mean_v, total >= 2, out, NULL); /* s->member: in flight */
         }
     }
     free(b), free(query), free(nn), free(self);
@@ -174,7 +189,7 @@ static int64_t in_flight_before(const fm_dist *d, int64_t mine, int64_t *total)
 }
 
 fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state *s, fm_flock_state *view,
-                                        double out[FM_FLOCK_MEASURES], fm_error *err)
+                                        int64_t frame, double out[FM_FLOCK_MEASURES], fm_error *err)
 {
     const fm_dist *d = s->dist;
     const int64_t blocks = (view->slots + FM_BLOCK - 1) / FM_BLOCK; /* the view starts on a block */
@@ -196,13 +211,16 @@ fm_status fm_flock_measure_frame_shared(const fm_flock_model *m, fm_flock_state 
     int64_t count = 0, words = 0;
     if (st == FM_OK) st = fm_dist_gather(d, b, blocks, sizeof *b, &all, &count, err);
     for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
-    if (st == FM_OK && fm_dist_rank(d) == 0) combine(all, count, s->n, out);
+    double mean_v[3] = {NAN, NAN, NAN};
+    if (st == FM_OK && fm_dist_rank(d) == 0) combine(all, count, s->n, out, mean_v);
     if (st == FM_OK && total >= 2)
         st = fm_dist_allgather_i32(d, (const int32_t *)mine, 4 * (q1 - q0), &queries, &words, err);
     if (st == FM_OK && total >= 2) {
         fm_flock_dist_own_in_flight(s); /* s->member: this rank's own agents in flight, not the ghosts */
         out[FM_FLOCK_NN_DISTANCE] = mean_nn(m, s, d, (const nn_query *)queries, words / 4, nn, nn + NN_QUERIES, self);
     }
+    if (st == FM_OK) /* collective: the ranks' own agents answer the look's queries */
+        st = fm_flock_look_frame(m, s, d, &s->look, frame, fm_dist_rank(d) == 0 ? mean_v : NULL, total >= 2, out, err);
     fm_free(all), fm_free(queries), free(b), free(mine), free(nn), free(self);
     return st;
 }

@@ -64,7 +64,7 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     const int shared = ranks > 1;
     e.model = shared ? 0 : FLOCK_MODEL_PER_AGENT;
     e.shared = shared ? FLOCK_MODEL_PER_AGENT : 0;
-    e.state = (FLOCK_STATE_PER_AGENT + (def->flock.deform != FM_DEFORM_NONE ? FLOCK_DEFORM_PER_AGENT : 0) +
+    e.state = (FLOCK_STATE_PER_AGENT + (fm_flock_target_moves(&def->flock) ? FLOCK_DEFORM_PER_AGENT : 0) +
                (own_kalman ? FLOCK_OWN_KALMAN_PER_AGENT : 0) + (ranks > 1 ? FLOCK_SLOT_EXTRA : 0)) * held;
     /* On P ranks the frame is the rank's share n / P (frame_share.h): its arrays and view, its
      * encoder's stored and previous words and blocks (the frame with ids), and the exchange of the
@@ -78,7 +78,9 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     const double table = fm_memory_grid_bytes(n) - agents * listed; /* as fm_memory_grid_bytes counts */
     const double per_slot = listed + sizeof(fm_grid_quad) / 4.0 + 3 * sizeof(float);
     e.grid = n > 0 ? (table + per_slot * ceil(agents * held)) / agents : 0;
-    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR);
+    /* the look's history in the store (flock_look.c), twice: the store and a frame's view */
+    e.fixed = fm_memory_fixed_bytes(def) + fm_memory_encoder_scratch_bytes(def, n, FLOCK_LARGEST_ATTR) +
+              2 * (double)sizeof(fm_flock_look);
     e.preprocess_per_agent = flock_preprocess_per_agent(def, n);
     fm_memory_total(&e, n);
     return e;

@@ -150,6 +150,7 @@ static void scene_bounds(fm_flock_model *m, const fm_mesh *source)
     fm_grow_bounds(m->scene_lo, m->scene_hi, source->v, source->nv);
     fm_grow_bounds(m->scene_lo, m->scene_hi, m->target.mesh.v, m->target.mesh.nv);
     fm_grow_bounds(m->scene_lo, m->scene_hi, &m->def.path_points[0][0], m->def.path_point_count);
+    fm_flock_target_grow_bounds(&m->target, m->scene_lo, m->scene_hi);
     double pad = 0;
     for (int k = 0; k < 3; k++) pad = fmax(pad, 0.15 * (m->scene_hi[k] - m->scene_lo[k]));
     for (int k = 0; k < 3; k++) m->scene_lo[k] -= pad, m->scene_hi[k] += pad;
@@ -171,11 +172,11 @@ static fm_status plan_fields(fm_flock_model *m, fm_error *err)
 }
 
 /* SCF "Fuzzy Control Logic": the static strategy's curves for a static target, the tracking
- * strategy's for a deforming one. */
+ * strategy's for a moving one (deforming or travelling). */
 static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
 {
     static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
-    const int tracking = m->def.flock.deform != FM_DEFORM_NONE;
+    const int tracking = fm_flock_target_moves(&m->def.flock);
     const fm_fuzzy_def *curves = tracking ? m->def.flock.fuzzy_tracking : m->def.flock.fuzzy;
     fm_status st = FM_OK;
     for (int f = 0; f < FM_FUZZY_FORCES && st == FM_OK; f++) {
@@ -275,7 +276,10 @@ static void set_info(fm_flock_model *m)
     i->time_step = m->dt;
     i->steps_per_frame = m->steps_per_frame;
     i->max_radius = m->max_radius;
-    i->deforming = def->flock.deform != FM_DEFORM_NONE;
+    i->deforming = fm_flock_target_moves(&def->flock);
+    i->travel_length = m->target.route.length;
+    i->travel_start = m->target.route.count > 0 ? m->target.route_start : NAN;
+    i->travel_end = m->target.route.count > 0 ? fm_flock_target_travel_end(&m->target) : NAN;
 }
 
 /* Samples both surfaces and assigns each agent its start and destination. */
@@ -328,7 +332,7 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
     if (st == FM_OK) st = build_path(m, err);
-    if (st == FM_OK) set_ease(m);
+    if (st == FM_OK) set_ease(m), fm_flock_target_set_start(&m->target, &def->flock, fm_flock_leaders_end(m));
     if (st == FM_OK) st = init_fuzzy(m, err);
     if (st == FM_OK) {
         const fm_mesh *start = m->from ? &m->from->target.mesh : &source;
@@ -432,6 +436,7 @@ static fm_status build_replicated(void *model, fm_error *err)
     m->target.dest = dest;
     fm_mesh source = {0};
     if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) fm_flock_target_set_start(&m->target, &m->def.flock, fm_flock_leaders_end(m));
     if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
     if (st == FM_OK) st = build_obstacles(m, &source, err);
     fm_mesh_free(&source);
@@ -498,3 +503,5 @@ void fm_flock_model_endpoints(const fm_flock_model *m, float *c1, float *c2)
             if (c2) c2[3 * a + k] = m->dest0[k][a];
         }
 }
+
+double fm_flock_eased(double x, double e_in, double e_out) { return eased(x, e_in, e_out); }

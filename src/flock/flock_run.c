@@ -39,13 +39,14 @@ static void flock_step(void *sim)
     fm_flock_step(r->m, r->s);
 }
 
-/* A static target with binding is done when every agent is bound; floating agents and a moving
- * target keep going to the frame limit. */
+/* A static target with binding is done when every agent is bound (a travelling one once it has
+ * stopped, too); floating agents and a deforming target keep going to the frame limit. */
 static int flock_finished(const void *sim)
 {
     const flock_run *r = sim;
     const fm_flock_def *f = &r->m->def.flock;
-    return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+    return f->deform == FM_DEFORM_NONE && f->arrival_mode == FM_ARRIVAL_BIND && r->s->count[FM_PHASE_ARRIVED] == r->s->n &&
+           r->s->time >= fm_flock_target_travel_end(&r->m->target);
 }
 
 /* What sets the shape flock's speeds and forces, for a runaway's message. */
@@ -67,7 +68,7 @@ static fm_status write_and_measure(flock_run *r, fm_flock_state *s, int64_t fram
     if (st != FM_OK || frame == 0) return st; /* frame 0 is the rest state: no step made it, nothing to measure */
     st = fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err);
     if (st != FM_OK) return st;
-    fm_flock_measure_frame(r->m, s, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
+    fm_flock_measure_frame_look(r->m, s, &r->s->look, frame, r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES);
     if (r->m->info.deforming && r->s->time >= fm_flock_leaders_end(r->m)) { /* tracking lag */
         double mean, max;
         fm_flock_distance(s, &mean, &max);
@@ -100,7 +101,7 @@ static fm_status measure_shared(flock_run *r, fm_flock_state *view, int64_t fram
     fm_status st = root ? fm_frame_rows_room(&r->stats->measures, frame, FM_FLOCK_MEASURES, &r->capacity, err) : FM_OK;
     if ((st = fm_dist_agree(s->dist, st, err)) != FM_OK) return st;
     double *out = root ? r->stats->measures + (size_t)(frame - 1) * FM_FLOCK_MEASURES : scratch;
-    st = fm_flock_measure_frame_shared(r->m, s, view, out, err);
+    st = fm_flock_measure_frame_shared(r->m, s, view, frame, out, err);
     if (st == FM_OK && r->m->info.deforming && s->time >= fm_flock_leaders_end(r->m)) { /* tracking lag */
         double mean, max;
         fm_flock_distance_blocks(view, 0, view->slots, s->dist, &mean, &max);
@@ -213,9 +214,14 @@ static void summarise_measures(const fm_flock_model *m, fm_flock_run_stats *stat
         stats->measures_mid_flight[i] = NAN;
     }
     const int64_t mid = (int64_t)llround(0.5 * fm_flock_leaders_end(m) * m->def.frame_rate);
+    /* the look's figures are every FM_LOOK_EVERY-th frame's: the one nearest mid-flight */
+    const int64_t look_mid = FM_MAX(FM_LOOK_EVERY, (mid + FM_LOOK_EVERY / 2) / FM_LOOK_EVERY * FM_LOOK_EVERY);
     if (rows > 0 && mid >= 1)
-        for (int i = 0; i < FM_FLOCK_MEASURES; i++)
-            stats->measures_mid_flight[i] = stats->measures[(FM_MIN(mid, rows) - 1) * FM_FLOCK_MEASURES + i];
+        for (int i = 0; i < FM_FLOCK_MEASURES; i++) {
+            const int look = i >= FM_FLOCK_PERSISTENCE;
+            if (look && look_mid > rows) continue;
+            stats->measures_mid_flight[i] = stats->measures[(FM_MIN(look ? look_mid : mid, rows) - 1) * FM_FLOCK_MEASURES + i];
+        }
 }
 
 fm_status fm_flock_run_controlled(const fm_flock_model *m, fm_flock_state *s, fm_cache_writer *cache,

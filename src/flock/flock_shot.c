@@ -31,12 +31,13 @@ struct fm_flock_shot {
     fm_frame_share share; /* on P ranks with a cache: each rank encodes its share of the rows */
     int64_t saved_frames; /* the frames of the last checkpoint written or loaded (0: none) */
     fm_flock_shot_stats *stats;
+    int64_t measure_rows; /* rows stats->measures holds */
 };
 
 /* Whether group g can ever be done: a static target whose agents bind. */
 static int binds(const fm_scene_def *def)
 {
-    return def->flock.deform == FM_DEFORM_NONE && def->flock.arrival_mode == FM_ARRIVAL_BIND;
+    return !fm_flock_target_moves(&def->flock) && def->flock.arrival_mode == FM_ARRIVAL_BIND;
 }
 
 static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *err)
@@ -47,7 +48,8 @@ static fm_status check_source_group(const fm_scene_def *def, int g, fm_error *er
     fm_scene_key_location(&def[g], "source", where, sizeof where);
     return fm_fail(err, FM_ERR_INPUT, "%s: \"%s\" never holds a formed shape to start from: its target %s; a group "
                    "starts from a static target whose agents bind (shape_flock.arrival.mode \"bind\")", where,
-                   def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms" : "lets its agents float");
+                   def[a].group.name, def[a].flock.deform != FM_DEFORM_NONE ? "deforms"
+                   : def[a].flock.travel_point_count > 0 ? "travels (target.path.points)" : "lets its agents float");
 }
 
 /* The groups together in memory (fm_memory_check_shot): a group from another's shape has its n. */
@@ -303,7 +305,7 @@ static fm_shot_ckpt shot_checkpoint(fm_flock_shot *s, fm_flock_shot_stats *stats
         .stats = SHOT_STATS, .stats_count = (int)(sizeof SHOT_STATS / sizeof SHOT_STATS[0]), .run_stats = stats,
         .def = &s->def[0], .model_hash = fm_shot_ckpt_groups_hash(s->def, agents, s->count),
         .model_what = "the groups' scenes (their parameters or agent counts)", .check = check_shot, .frames = stats->run.frames,
-        .dist = s->dist};
+        .dist = s->dist, .per_frame = &stats->measures, .per_frame_width = s->count * FM_FLOCK_MEASURES};
     return (fm_shot_ckpt){shot, s->count, s, save_group, load_group};
 }
 
@@ -322,6 +324,52 @@ fm_status fm_flock_shot_checkpoint_load(fm_flock_shot *s, const char *path, fm_f
     if (st != FM_OK) return st;
     s->saved_frames = stats->run.frames;
     return FM_OK;
+}
+
+/* Frame k's flock measures of every group (fm_flock_measure_frame, docs/stats.md "Shape-flock shot")
+ * into the statistics' row k - 1, NaN for a group not started or done; on P ranks from each rank's
+ * whole blocks of the group (collective), on rank 0. */
+static fm_status measure_groups(fm_flock_shot *s, int64_t k, fm_error *err)
+{
+    const int width = s->count * FM_FLOCK_MEASURES;
+    fm_status st = fm_dist_agree(s->dist, fm_frame_rows_room(&s->stats->measures, k, width, &s->measure_rows, err), err);
+    s->stats->groups = s->count;
+    for (int g = 0; g < s->count && st == FM_OK; g++) {
+        double *out = s->stats->measures + (size_t)(k - 1) * (size_t)width + (size_t)g * FM_FLOCK_MEASURES;
+        for (int i = 0; i < FM_FLOCK_MEASURES; i++) out[i] = NAN;
+        if (!s->started[g] || s->done[g]) continue;
+        if (!s->dist) {
+            fm_flock_measure_frame_look(s->model[g], s->state[g], &s->state[g]->look, k, out);
+            continue;
+        }
+        fm_flock_state *view = fm_flock_dist_blocks(s->state[g], err);
+        st = fm_dist_agree(s->dist, view ? FM_OK : err->status, err);
+        if (st == FM_OK) st = fm_flock_measure_frame_shared(s->model[g], s->state[g], view, k, out, err);
+        fm_flock_dist_release(s->state[g]);
+    }
+    return st;
+}
+
+/* Each group's measures' mean over the frames it had agents in flight, in frame order. */
+static void summarise_measures(const fm_flock_shot *s, fm_flock_shot_stats *stats)
+{
+    const int width = s->count * FM_FLOCK_MEASURES;
+    for (int g = 0; g < s->count; g++)
+        for (int i = 0; i < FM_FLOCK_MEASURES; i++) {
+            double sum = 0;
+            int64_t count = 0;
+            for (int64_t f = 0; stats->measures && f + 1 < stats->run.frames; f++) {
+                const double *row = stats->measures + (size_t)f * (size_t)width + (size_t)g * FM_FLOCK_MEASURES;
+                if (!isnan(row[i]) && row[FM_FLOCK_IN_FLIGHT] > 0) sum += row[i], count++;
+            }
+            stats->group[g].measures_mean[i] = count > 0 ? sum / (double)count : NAN;
+        }
+}
+
+void fm_flock_shot_stats_free(fm_flock_shot_stats *stats)
+{
+    free(stats->measures);
+    stats->measures = NULL;
 }
 
 typedef struct shot_loop {
@@ -351,6 +399,7 @@ static fm_status loop_frame(void *sim, int64_t k, fm_error *err)
         if (r->s->state[g]->dist_status != FM_OK) return *err = r->s->state[g]->dist_error, err->status = r->s->state[g]->dist_status;
     fm_status st = r->s->share.on ? write_shared_frame(r->s, r->cache, k, err)
                                   : fm_dist_agree(r->s->dist, write_frame(r->s, r->cache, k, err), err);
+    if (st == FM_OK && k > 0) st = measure_groups(r->s, k, err);
     const int64_t *counts[FM_MAX_GROUPS];
     for (int g = 0; g < r->s->count; g++) counts[g] = r->s->state[g]->count;
     if (st == FM_OK) fm_frame_loop_shot_progress(r->c, k, r->s->step, r->s->dt, counts, r->s->writes, r->s->count);
@@ -382,6 +431,8 @@ static void finish_stats(fm_flock_shot *s, fm_flock_shot_stats *stats)
         gs->bound_fraction = (double)st->count[FM_PHASE_ARRIVED] / (double)st->n;
         group_distance(s, g, &gs->final_mean_distance, &gs->final_max_distance);
     }
+    stats->groups = s->count;
+    summarise_measures(s, stats);
 }
 
 fm_status fm_flock_shot_run(fm_flock_shot *s, fm_cache_writer *cache, const fm_run_control *control,

@@ -24,7 +24,7 @@
 const fm_store_member fm_flock_state_members[] = {
     AGENT_XYZ(p), AGENT_XYZ(v), AGENT_ARRAY(orient, 4 * sizeof(float)), AGENT_ARRAY(phase, sizeof(uint8_t)),
     AGENT_ARRAY(t_bind, sizeof(float)), AGENT_XYZ(dest), AGENT_XYZ(leader), AGENT_ARRAY(kalman_p, 3 * sizeof(double)),
-    SCALAR(step), SCALAR(time), SCALAR(kalman), SCALAR(count), SCALAR(lag_sum),
+    SCALAR(step), SCALAR(time), SCALAR(kalman), SCALAR(count), SCALAR(lag_sum), SCALAR(look),
 };
 #undef AGENT_ARRAY
 #undef AGENT_XYZ

@@ -67,6 +67,7 @@ static fm_flock_def fm_default_flock_def(void)
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
         .deform_direction = {1, 0, 0}, .deform_frame_rate = 24,
+        .travel_start = -1, .travel_ease = 1, .travel_orient = 1,
     };
     default_fuzzy(f.fuzzy, f.fuzzy_tracking);
     return f;
@@ -161,7 +162,7 @@ static int has_prefix(const char *key, const char *group)
 
 static int applies(const param *p, fm_mode mode)
 {
-    if (has_prefix(p->key, "shape_flock")) return mode == FM_MODE_SHAPE_FLOCK;
+    if (has_prefix(p->key, "shape_flock") || has_prefix(p->key, "target.path")) return mode == FM_MODE_SHAPE_FLOCK;
     for (size_t i = 0; i < sizeof TETRA_ONLY / sizeof TETRA_ONLY[0]; i++)
         if (has_prefix(p->key, TETRA_ONLY[i])) return mode == FM_MODE_TETRA_MORPH;
     return 1;
@@ -188,6 +189,11 @@ static const param PARAMS[] = {
     {"target.translate", P_VEC3, OFF(target.translate), -1e9, 1e9, 0},
     {"target.scale", P_DOUBLE, OFF(target.scale), 0, 1e9, 1},
     {"target.rotate_deg", P_VEC3, OFF(target.rotate_deg), -3600, 3600, 0},
+    {"target.path.points", P_POINTS, OFF(flock.travel_points), -1e9, 1e9, 0},
+    {"target.path.start", P_DOUBLE, OFF(flock.travel_start), -1, 1e9, 0},
+    {"target.path.speed", P_DOUBLE, OFF(flock.travel_speed), 0, 1e9, 0},
+    {"target.path.ease", P_DOUBLE, OFF(flock.travel_ease), 0, 1e9, 0},
+    {"target.path.orient", P_BOOL, OFF(flock.travel_orient), 0, 0, 0},
     {"n", P_INT64, OFF(n), 0, 1e9, 0},
     {"tetgen.quality", P_DOUBLE, OFF(tet_quality), 1.1, 100, 0},
     {"tetgen.max_volume", P_DOUBLE, OFF(tet_max_volume), 0, 1e30, 0},
@@ -478,15 +484,23 @@ static fm_status read_vec3(where *w, const param *p, const json_t *v, double *ou
     return FM_OK;
 }
 
+/* A P_POINTS key's count: path.points' or target.path.points'. */
+static int32_t *point_count(const param *p, const fm_scene_def *def)
+{
+    return (int32_t *)(p->offset == OFF(path_points) ? &def->path_point_count : &def->flock.travel_point_count);
+}
+
 static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene_def *def)
 {
     if (!json_is_array(v)) return fail_at(w, KEY(w, p), "expected an array of [x, y, z] points, got %s", fm_json_type_name(v));
     if (json_array_size(v) > FM_MAX_PATH_POINTS)
         return fail_at(w, KEY(w, p), "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
-    def->path_point_count = (int32_t)json_array_size(v);
-    for (int32_t i = 0; i < def->path_point_count; i++) {
+    int32_t *count = point_count(p, def);
+    double (*points)[3] = (double (*)[3])((char *)def + p->offset);
+    *count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < *count; i++) {
         w->steps[w->depth++] = (fm_json_step){NULL, i};
-        fm_status st = read_vec3(w, p, json_array_get(v, (size_t)i), def->path_points[i]);
+        fm_status st = read_vec3(w, p, json_array_get(v, (size_t)i), points[i]);
         w->depth--;
         if (st != FM_OK) return st;
     }
@@ -962,6 +976,11 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
         fm_status st = check_stratified_work(w, def);
         if (st != FM_OK) return st;
     }
+    if (f->travel_point_count == 1) {
+        where_set_key(w, "target.path.points");
+        return fail_at(w, "target.path.points", "a route needs at least 2 points: where the target is (the point it "
+                       "turns about) and where it goes");
+    }
     const double *dir = f->deform_direction;
     if (f->deform == FM_DEFORM_WAVE && dir[0] == 0 && dir[1] == 0 && dir[2] == 0) {
         where_set_key(w, "shape_flock.deform.type");
@@ -1029,6 +1048,19 @@ static fm_status check_lists(where *w, const fm_scene_def *def)
     return FM_OK;
 }
 
+/* A P_POINTS list of a definition built in code (check_table skips lists). */
+static fm_status check_points(const where *w, const fm_scene_def *def, const char *key)
+{
+    const param *p = find_param(key);
+    const int32_t count = *point_count(p, def);
+    if (count < 0 || count > FM_MAX_PATH_POINTS) return fail_at(w, key, "between 0 and %d points", FM_MAX_PATH_POINTS);
+    const double (*points)[3] = (const double (*)[3])((const char *)def + p->offset);
+    fm_status st = FM_OK;
+    for (int32_t i = 0; i < count; i++)
+        for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(w, p, points[i][k]);
+    return st;
+}
+
 fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
 {
     where w = {def->scene_path, NULL, err, {{0}}, {{0}}, 0, 0, "", def, 0, 0};
@@ -1037,12 +1069,8 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     fm_status st = check_table(&w, PARAMS, PARAM_COUNT, def, NULL);
     if (st == FM_OK) st = check_lists(&w, def);
     if (st != FM_OK) return st;
-    if (def->path_point_count < 0 || def->path_point_count > FM_MAX_PATH_POINTS)
-        return fail_at(&w, "path.points", "between 0 and %d points", FM_MAX_PATH_POINTS);
-    const param *points = find_param("path.points"); /* check_table skips lists */
-    for (int32_t i = 0; i < def->path_point_count; i++)
-        for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(&w, points, def->path_points[i][k]);
-    if (st != FM_OK) return st;
+    if ((st = check_points(&w, def, "path.points")) != FM_OK || (st = check_points(&w, def, "target.path.points")) != FM_OK)
+        return st;
     if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
         return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
     const char *problem = memchr(def->cache_name, 0, sizeof def->cache_name) ? cache_name_problem(def->cache_name)
@@ -1095,7 +1123,7 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
 static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_scene_def *def)
 {
     static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
-    const int deforming = def->flock.deform != FM_DEFORM_NONE;
+    const int deforming = fm_flock_target_moves(&def->flock);
     for (int f = 0; f < FM_FUZZY_FORCES; f++) {
         char key[64], other[64];
         snprintf(key, sizeof key, deforming ? "shape_flock.fuzzy.%s" : "shape_flock.fuzzy.tracking.%s", names[f]);
@@ -1106,7 +1134,8 @@ static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_sce
         w->at_key = 1;
         if (v)
             return fail_at(w, key, "the target %s, so the %s strategy's curve %s applies (docs/scene.md)",
-                           deforming ? "deforms" : "is static", deforming ? "tracking" : "static", other);
+                           deforming ? (def->flock.deform != FM_DEFORM_NONE ? "deforms" : "travels (target.path.points)")
+                                     : "is static", deforming ? "tracking" : "static", other);
         w->at_key = 0;
     }
     return FM_OK;
@@ -1146,6 +1175,21 @@ static fm_status read_radius_units(where *w, const json_t *root, fm_scene_def *d
     return FM_OK;
 }
 
+/* The route's timing and turning without a route would be ignored. */
+static fm_status check_travel(where *w, const json_t *root, const fm_scene_def *def)
+{
+    static const char *const keys[] = {"target.path.start", "target.path.speed", "target.path.ease", "target.path.orient"};
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0] && def->flock.travel_point_count == 0; i++) {
+        const json_t *v;
+        fm_status st = lookup(w, root, keys[i], &v);
+        if (st != FM_OK) return st;
+        w->at_key = 1;
+        if (v) return fail_at(w, keys[i], "the target has no route: set target.path.points (docs/scene.md)");
+        w->at_key = 0;
+    }
+    return FM_OK;
+}
+
 /* Reads the document (changed by the overrides, if any) into def. */
 /* What only the whole document of a mode can be checked for. */
 static fm_status check_mode(where *w, const json_t *root, const fm_scene_def *def)
@@ -1154,6 +1198,7 @@ static fm_status check_mode(where *w, const json_t *root, const fm_scene_def *de
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_r_scale(w, root, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_flock(w, def);
     if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_fuzzy_strategy(w, root, def);
+    if (st == FM_OK && def->mode == FM_MODE_SHAPE_FLOCK) st = check_travel(w, root, def);
     return st;
 }
 
@@ -1317,8 +1362,8 @@ static void feed_value(const param *p, const char *field, const fm_scene_def *de
     case P_SWITCH: e = (int32_t)*(const fm_phase_switch *)field, add(&e, sizeof e, user); break;
     case P_FIELD_KIND: e = (int32_t)*(const fm_field_kind *)field, add(&e, sizeof e, user); break;
     case P_POINTS:
-        add(&def->path_point_count, sizeof def->path_point_count, user);
-        add(def->path_points, sizeof def->path_points[0] * (size_t)def->path_point_count, user);
+        add(point_count(p, def), sizeof(int32_t), user);
+        add(field, sizeof(double[3]) * (size_t)*point_count(p, def), user);
         break;
     case P_FIELDS:
         feed_list(FIELD_PARAMS, sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0], def->fields, sizeof def->fields[0],

@@ -34,6 +34,13 @@ int fm_scene_is_key(const char *key);
  * ("scene.json:3:14: source.mesh: ..."); returns st. */
 fm_status fm_scene_name_key(const fm_scene_def *def, fm_status st, const char *key, fm_error *err);
 
+/* The shape flock's target moves: it deforms or travels along a route (target.path.points). A moving
+ * target runs the tracking strategy's curves and is evaluated every step. */
+static inline int fm_flock_target_moves(const fm_flock_def *f)
+{
+    return f->deform != FM_DEFORM_NONE || f->travel_point_count > 0;
+}
+
 /* Checks a fuzzy weight curve (1 .. FM_FUZZY_MAX_POINTS points, finite, d strictly increasing in
  * float, w >= 0); errors name `key` ("shape_flock.fuzzy.homing"). */
 fm_status fm_fuzzy_def_check(const fm_fuzzy_def *def, const char *key, fm_error *err);

@@ -323,6 +323,27 @@ static void test_speed_is_bounded_on_a_fast_target(void)
     ENSURE(checked > 100000);
 }
 
+/* A travelling target faster than MaxSpeed (target.path.*, issue 37): flock_cylinder_sphere's
+ * sphere, once its agents are bound, runs 50 units at 20 units/s against MaxSpeed 10. The bound
+ * agents trail it at MaxSpeed (still bound), never faster, and close up once it stops. */
+static void test_speed_is_bounded_on_a_fast_route(void)
+{
+    fm_scene_def def = load_example("flock_cylinder_sphere");
+    def.n = 800, def.time_step = 0, def.frame_limit = 480;
+    def.flock.max_speed[0] = def.flock.max_speed[1] = 10;
+    static const double route[3][3] = {{15, 0, 0}, {45, 0, 0}, {60, 20, 0}};
+    memcpy(def.flock.travel_points, route, sizeof route);
+    def.flock.travel_point_count = 3, def.flock.travel_start = 9, def.flock.travel_speed = 20;
+    double fastest = 0, fastest_bound = 0, mismatch = 0;
+    int64_t checked = 0;
+    fastest_in_cache(&def, FM_TEST_TMP "/flock_fast_route.fmc", &fastest, &fastest_bound, &mismatch, &checked);
+    printf("  fast route (20 units/s): fastest unbound agent %.4f units/s, bound %.4f (MaxSpeed 10)\n", fastest,
+           fastest_bound);
+    ENSURE_MSG(fastest_bound > 9.9 && fastest_bound <= 10 * (1 + 1e-4), "a bound agent moved at %g units/s, MaxSpeed 10",
+               fastest_bound);
+    ENSURE_MSG(fastest <= 10 * (1 + 1e-4), "an unbound agent moved at %g units/s, MaxSpeed 10", fastest);
+}
+
 /* stats.json's flock measures on a flock larger than the 1,024 nearest-neighbour queries: the
  * sampled mean is within 3 % of every agent's (in double, all pairs), the polarisation is the one
  * of the velocities, and both threads counts give the same figures bit for bit. */
@@ -360,6 +381,7 @@ int main(void)
 {
     RUN_TEST(test_measures_of_a_large_flock);
     RUN_TEST(test_speed_is_bounded_on_a_fast_target);
+    RUN_TEST(test_speed_is_bounded_on_a_fast_route);
     RUN_TEST(test_default_run_binds_in_time);
     if (base.n == 0) return 1;
     RUN_TEST(test_boids_off_moves_the_flock);

@@ -7,6 +7,7 @@
   boids, a deforming target, the vortex, an obstacle, R over the run, stepped homing, floating);
 - a stress case: on 4 ranks every agent changes rank (castling's flock, and the shape flock, sweep
   the slab axis), halos are exchanged, and the bytes still match;
+- a travelling target (examples/flock_travel, target.path) gives the plain run's bytes on 2 and 3 ranks;
 - shots (castling's king then rook; a chain of groups each starting from the previous one's
   shape; flock_sequence's sphere then torus) give the plain run's bytes on P ranks;
 - a run interrupted on 2 ranks resumes on 3 with the uninterrupted plain run's bytes (both modes);
@@ -166,6 +167,13 @@ class SameBytes(unittest.TestCase):
         """Pieces that are not whole blocks of 1024 agents (the flock measures' blocks): rank 0
         gathers every frame, writes and measures it."""
         self.check_scene(FLOCK_STRESS, [(2, 1), (3, 1)], pieces(1000))
+
+    def test_travelling_target(self):
+        """examples/flock_travel: the bird, then its bound agents, carried 38 units along its route
+        (target.path): each rank evaluates the same target at the same times; frames written in
+        parallel (pieces of 1024) and gathered."""
+        self.check_scene("examples/flock_travel/scene.json", [(2, 1), (3, 1)], pieces(1024))
+        self.check_scene("examples/flock_travel/scene.json", [(2, 1)], pieces(1000))
 
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is

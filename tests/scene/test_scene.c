@@ -286,6 +286,34 @@ static void test_out_of_range(void)
     expect_error_at("range_cache.json", "{" MESHES ", \"output\": {\"cache\": @\"../x.fmc\"}}", "output.cache");
 }
 
+/* A travelling target (target.path.*, issue 37): off by default; read in the shape flock; refused in
+ * the tetra morph, with one point, with its timing but no route, and with the static strategy's
+ * curves (a travelling target runs the tracking ones). */
+#define FLOCK_ROUTE "{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"},\n"
+static void test_target_route(void)
+{
+    fm_scene_def d;
+    fm_error err = {0};
+    ENSURE_MSG(load_text("route_none.json", FLOCK_ROUTE "\"target\": {\"mesh\": \"b.obj\"}}", &d, &err) == FM_OK, "%s",
+               err.message);
+    ENSURE(d.flock.travel_point_count == 0 && d.flock.travel_start == -1 && d.flock.travel_speed == 0);
+    ENSURE(d.flock.travel_ease == 1 && d.flock.travel_orient == 1);
+    ENSURE_MSG(load_text("route.json", FLOCK_ROUTE "\"target\": {\"mesh\": \"b.obj\", \"path\": {\"points\": [[0, 0, 0], "
+                         "[5, 1, 0], [9, 4, 2]], \"start\": 2.5, \"speed\": 4, \"ease\": 0.5, \"orient\": false}}}", &d, &err) == FM_OK,
+               "%s", err.message);
+    ENSURE(d.flock.travel_point_count == 3 && d.flock.travel_points[2][0] == 9 && d.flock.travel_points[2][2] == 2);
+    ENSURE(d.flock.travel_start == 2.5 && d.flock.travel_speed == 4 && d.flock.travel_ease == 0.5 && !d.flock.travel_orient);
+    expect_error_at("route_one.json", FLOCK_ROUTE "\"target\": {\"mesh\": \"b.obj\", \"path\": {\"points\": @[[0, 0, 0]]}}}",
+                    "a route needs at least 2 points");
+    expect_error_at("route_timing.json", FLOCK_ROUTE "\"target\": {\"mesh\": \"b.obj\", \"path\": {@\"speed\": 3}}}",
+                    "target.path.speed: the target has no route");
+    expect_error_at("route_tetra.json", "{\"source\": {\"mesh\": \"a.obj\"},\n\"target\": {\"mesh\": \"b.obj\", "
+                    "\"path\": {@\"points\": [[0, 0, 0], [1, 0, 0]]}}}", "does not apply to mode \"tetra_morph\"");
+    expect_error_at("route_static_curve.json", FLOCK_ROUTE "\"target\": {\"mesh\": \"b.obj\", \"path\": {\"points\": "
+                    "[[0, 0, 0], [1, 0, 0]]}},\n\"shape_flock\": {\"fuzzy\": {@\"homing\": [[0, 1]]}}}",
+                    "travels (target.path.points)");
+}
+
 /* `up` (issue 14): +Z by default, any non-zero direction, refused when zero or in a shape flock. */
 static void test_up_direction(void)
 {
@@ -449,6 +477,7 @@ int main(void)
     RUN_TEST(test_out_of_range);
     RUN_TEST(test_time_step_must_divide_frame);
     RUN_TEST(test_up_direction);
+    RUN_TEST(test_target_route);
     RUN_TEST(test_syntax_error);
     RUN_TEST(test_duplicate_keys);
     RUN_TEST(test_missing_mesh);
