@@ -152,7 +152,7 @@ static fm_morph_state *create_empty(const fm_morph_model *m, int threads, int64_
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)capacity);
         return NULL;
     }
-    if (create_velocity_model(m, s, err) != FM_OK) {
+    if (create_velocity_model(m, s, err) != FM_OK || (m->motion && !(s->motion_now = fm_morph_motion_now_create(m, err)))) {
         fm_morph_state_destroy(s);
         return NULL;
     }
@@ -185,6 +185,7 @@ void fm_morph_state_destroy(fm_morph_state *s)
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     fm_slabs_free(s->slabs);
+    fm_morph_motion_now_free(s->motion_now);
     free(s);
 }
 
@@ -238,6 +239,29 @@ static void target_relative(const fm_morph_model *m, int64_t slot, const uint8_t
             rel[3 * i + k] = m->tgt_f[12 * slot + 3 * perm[i] + k] - m->tgt_c[k][slot];
 }
 
+/* A moving target's tet (m->motion) for slot a's agent, in its vertex order, at the state's time. */
+static void moving_target_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double out[12])
+{
+    double t[12], c[3];
+    fm_morph_motion_tet(m, s->motion_now, s->target[a], t, c);
+    const uint8_t *perm = fm_even_permutations[s->perm[a]];
+    for (int i = 0; i < 4; i++) memcpy(out + 3 * i, t + 3 * perm[i], 3 * sizeof(double));
+}
+
+/* A moving target (issue 38): the homing tet's shape takes on the target tet's deformation (its
+ * vertices relative to its centroid now, less at rest) by the fraction u of the flight, at the tet's
+ * scale, so it lands on the deformed tet exactly as the static one lands on the rest tet. */
+static void add_deformation(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double u, double scale, float *out)
+{
+    double now[12], c[3] = {0, 0, 0};
+    moving_target_tet(m, s, a, now);
+    for (int i = 0; i < 4; i++)
+        for (int k = 0; k < 3; k++) c[k] += 0.25 * now[3 * i + k];
+    float rest[12];
+    target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rest);
+    for (int j = 0; j < 12; j++) out[j] = (float)(out[j] + u * scale * (now[j] - c[j % 3] - rest[j]));
+}
+
 /* Phase 2 shape (FM §6): A(t) on the shrunk tet for the first morph_fraction of the flight, then
  * the shrunk target tet enlarges to full size as it reaches its place. */
 static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double time, float *out)
@@ -257,11 +281,14 @@ static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t
         double full[9], mat[9];
         fm_morph_affine(rest, rel, full);
         fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], full, u / um, mat);
-        place_tet(c, fm_shrink_scale(def, time - launch), mat, rest, out);
+        const double scale = fm_shrink_scale(def, time - launch);
+        place_tet(c, scale, mat, rest, out);
+        if (m->motion) add_deformation(m, s, a, u, scale, out);
         return;
     }
     double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
+    if (m->motion) add_deformation(m, s, a, u, sm + e * (1 - sm), out);
 }
 
 /* An agent's tet in any phase but phase 1 (the synthesis kernel, kernel_synth.h, has those). */
@@ -275,6 +302,12 @@ static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t 
         homing_tet(m, s, a, s->time, out);
         break;
     default: { /* arrived: exactly the target tet, in this agent's vertex order */
+        if (m->motion) { /* the moving target's, now */
+            double t[12];
+            moving_target_tet(m, s, a, t);
+            for (int j = 0; j < 12; j++) out[j] = (float)t[j];
+            break;
+        }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         for (int i = 0; i < 4; i++) memcpy(out + 3 * i, m->tgt_f + 12 * s->target[a] + 3 * perm[i], 3 * sizeof(float));
     }
@@ -293,6 +326,7 @@ static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_
     fm_synth_view flying = {{s->p[0], s->p[1], s->p[2]}, {0}, s->id, s->time, m->launch_rate, m->def.shrink,
                             m->def.shrink_time, by_slot};
     for (int j = 0; j < 12; j++) flying.rest[j] = s->rest_rel[j];
+    if (m->motion) fm_morph_motion_prepare(m, s->motion_now, s->time); /* serial, before the threads read it */
     const int64_t slots = fm_morph_slots(s), blocks = (slots + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
