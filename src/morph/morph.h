@@ -68,6 +68,7 @@ struct fm_morph_model {
 
 fm_status fm_morph_motion_build(fm_morph_model *m, fm_error *err); /* after tgt_f and the path */
 void fm_morph_motion_destroy(fm_morph_motion *mo);
+void fm_morph_motion_hash(const fm_morph_motion *mo, fm_hash *h); /* for a checkpoint's model hash */
 fm_morph_motion_now *fm_morph_motion_now_create(const fm_morph_model *m, fm_error *err);
 void fm_morph_motion_now_free(fm_morph_motion_now *now);
 /* now at `time` (nothing to do if it is already): the path's offset, the moved key points, the

@@ -26,6 +26,7 @@ struct fm_morph_motion {
     fm_mesh_sequence seq;
     int32_t *bind_tri;       /* sequence: 4 per slot, the triangle each target-tet vertex is bound to */
     double *bind;            /* sequence: 12 per slot, (b1, b2, h) of each vertex */
+    int64_t bind_count;      /* slots bound (the model's n) */
 };
 
 static const double *tri_vertex(const double *v, const int32_t *tri, int64_t t, int i) { return v + 3 * (size_t)tri[3 * t + i]; }
@@ -63,6 +64,7 @@ static void bind_vertex(const fm_mesh *rest, int64_t t, const double p[3], doubl
 static fm_status bind_targets(const fm_morph_model *m, fm_morph_motion *mo, fm_error *err)
 {
     const int64_t n = m->n;
+    mo->bind_count = n;
     mo->bind_tri = fm_alloc(sizeof(int32_t) * 4 * (size_t)n);
     mo->bind = fm_alloc(sizeof(double) * 12 * (size_t)n);
     if (!mo->bind_tri || !mo->bind) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the moving target's binding");
@@ -113,6 +115,14 @@ void fm_morph_motion_destroy(fm_morph_motion *mo)
     fm_mesh_sequence_free(&mo->seq);
     fm_free(mo->bind_tri), fm_free(mo->bind);
     free(mo);
+}
+
+void fm_morph_motion_hash(const fm_morph_motion *mo, fm_hash *h)
+{
+    if (mo->rest.nv == 0) return; /* a path alone is all in the scene */
+    fm_hash_bytes(mo->seq.frames, sizeof(double) * 3 * (size_t)mo->rest.nv * (size_t)mo->seq.count, h);
+    fm_hash_bytes(mo->bind_tri, sizeof(int32_t) * 4 * (size_t)(mo->bind_count), h);
+    fm_hash_bytes(mo->bind, sizeof(double) * 12 * (size_t)(mo->bind_count), h);
 }
 
 /* The path's offset `along` units from its start ([0, 0, 0], then the points; it stops at the last). */
