@@ -281,14 +281,32 @@ static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t
         double full[9], mat[9];
         fm_morph_affine(rest, rel, full);
         fm_morph_matrix(s->morph + FM_MORPH_FLOATS * a, s->morph_safe[a], full, u / um, mat);
-        const double scale = fm_shrink_scale(def, time - launch);
-        place_tet(c, scale, mat, rest, out);
-        if (m->motion) add_deformation(m, s, a, u, scale, out);
+        place_tet(c, fm_shrink_scale(def, time - launch), mat, rest, out);
         return;
     }
     double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
-    if (m->motion) add_deformation(m, s, a, u, sm + e * (1 - sm), out);
+}
+
+/* A moving target (issue 38), over what agent_tet wrote for a static one: an arrived tet is the
+ * target tet where it is now; a homing one takes on its deformation by the fraction u of its flight,
+ * at homing_tet's scale then. */
+static void ride_moving_target(const fm_morph_model *m, const fm_morph_state *s, int64_t a, float *out)
+{
+    if (s->phase[a] == FM_PHASE_ARRIVED) {
+        double t[12];
+        moving_target_tet(m, s, a, t);
+        for (int j = 0; j < 12; j++) out[j] = (float)t[j];
+        return;
+    }
+    if (s->phase[a] != FM_PHASE_HOMING) return;
+    const fm_scene_def *def = &m->def;
+    const double launch = (double)s->id[a] / m->launch_rate, tf = s->tf[a], um = def->morph_fraction;
+    double u = tf > 0 ? (s->time - s->t2[a]) / tf : 1.0;
+    u = u < 0 ? 0 : u > 1 ? 1 : u;
+    const double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch);
+    const double scale = u < um ? fm_shrink_scale(def, s->time - launch) : sm + (um < 1 ? (u - um) / (1 - um) : 1) * (1 - sm);
+    add_deformation(m, s, a, u, scale, out);
 }
 
 /* An agent's tet in any phase but phase 1 (the synthesis kernel, kernel_synth.h, has those). */
@@ -302,12 +320,6 @@ static void agent_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t 
         homing_tet(m, s, a, s->time, out);
         break;
     default: { /* arrived: exactly the target tet, in this agent's vertex order */
-        if (m->motion) { /* the moving target's, now */
-            double t[12];
-            moving_target_tet(m, s, a, t);
-            for (int j = 0; j < 12; j++) out[j] = (float)t[j];
-            break;
-        }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         for (int i = 0; i < 4; i++) memcpy(out + 3 * i, m->tgt_f + 12 * s->target[a] + 3 * perm[i], 3 * sizeof(float));
     }
@@ -334,6 +346,7 @@ static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_
         fm_kernel_flying_tets(&flying, s->phase, FM_PHASE_FLYING, begin, end, out);
         for (int64_t a = begin; a < end; a++)
             if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + fm_synth_place(&flying, a));
+        for (int64_t a = begin; a < end && m->motion; a++) ride_moving_target(m, s, a, out + fm_synth_place(&flying, a));
     }
 }
 
