@@ -194,7 +194,6 @@ def main():
         count = len(c)
         checked = sorted(set(range(0, count, 12)) | {count - 1})  # every 0.5 s
         first_d = None  # each (row, vertex)'s distance at its first arrived frame, nan before
-        on_surface = None
         worst_out, stay, moved_from, moved = 0.0, [], None, 0.0
         arrived_at_start = 0
         for k in checked:
