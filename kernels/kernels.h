@@ -60,7 +60,9 @@ int64_t fm_kernel_integrate_flying_ref(float *const p[3], const float *const v[3
  * straight at V_e = (P_X' - P_X - T_b V_1 / 2) / (tf - T_b / 2), which lands it on its target at
  * t2 + tf as eq 9 does (|V_e| is speed0 to within O(T_b / tf)); heading and speed are continuous.
  * Then v[] must hold V_1 (the velocity of the switch step) all through phase 2 and is left as it
- * is. blend = 0 is the paper's hard switch, and v[] is V_2. */
+ * is. blend = 0 is the paper's hard switch, and v[] is V_2.
+ * A moving target (issue 38): target NULL, and tgt_c holds each slot's own target centroid at the
+ * step's end (the three kernels here alike), so the flight chases it and lands on it where it is. */
 int64_t fm_kernel_homing(float *const p[3], float *const v[3], uint8_t *phase,
                          const int64_t *target, const float *const tgt_c[3],
                          const float *const p2[3], const float *t2, const float *tf,

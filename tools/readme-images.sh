@@ -30,4 +30,10 @@ for k in 150 215 300 404; do
   build/flockmorph render out/flock_travel/frames.fmc --frame "$k" -o "docs/images/flock_travel_$k.png" --view persp \
     --size 480x270 --samples 2 --camera animation --color speed --color-range 0:12 > /dev/null
 done
-echo "docs/images: ${#scenes[@]} scenarios, 5 frames of words and 4 of flock_travel rendered"
+# docs/scenarios.md, "A target that moves": walking_suzanne formed at rest (frame 119, t = 4.96 s, the
+# motion starts at 5 s), then breathing and walking off: one camera over the whole run for the walk,
+# and each frame's own camera for the breath and the nod.
+build/flockmorph run examples/walking_suzanne/scene.json -o out/walking_suzanne --quiet > /dev/null
+for k in 119 200 287; do render walking_suzanne --frame "$k" --camera animation -o "docs/images/walking_suzanne_wide_$k.png"; done
+for k in 119 150 200 250; do render walking_suzanne --frame "$k" -o "docs/images/walking_suzanne_$k.png"; done
+echo "docs/images: ${#scenes[@]} scenarios, 5 frames of words, 4 of flock_travel and 7 of walking_suzanne rendered"

@@ -11,6 +11,7 @@ extern "C" {
 
 #define FM_PATH_MAX 4096
 #define FM_MAX_PATH_POINTS 256
+#define FM_MAX_MOTION_POINTS 64
 
 /* The files `flockmorph run` writes beside the cache in its output directory; output.cache may
  * not take one of these names (nor end in .partial, the name of a file being written). */
@@ -268,6 +269,18 @@ typedef struct fm_scene_def {
     double switch_distance;     /* units, for FM_SWITCH_DISTANCE */
     double blend_time;          /* beyond the paper (issue 38): seconds over which the phase-1 velocity
                                    blends into eq 9's V_2 after the switch; 0 = the hard switch */
+    /* a target that moves (issue 38; docs/scene.md "target_motion"): a mesh sequence with the
+       target mesh's connectivity that the target tets follow, and/or a path the target travels;
+       both a pure function of the time since `start` */
+    struct fm_target_motion_def {
+        char sequence[FM_PATH_MAX];  /* printf pattern with one integer, as shape_flock.deform.sequence; "" = none */
+        int32_t frames;              /* meshes 0 .. frames-1 */
+        double frame_rate;           /* meshes per second, linear between them, looping */
+        double start;                /* seconds before the target starts to move */
+        double path[FM_MAX_MOTION_POINTS][3]; /* offsets from the rest placement, after [0, 0, 0] */
+        int32_t path_count;
+        double speed;                /* units per second along the path; it stops at the last point */
+    } target_motion;
     uint64_t seed;              /* random seed */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
     int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */

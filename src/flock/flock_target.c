@@ -5,7 +5,6 @@
 #include "flock.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,40 +31,12 @@ static fm_status vertex_normals(fm_flock_target *t, fm_error *err)
     return FM_OK;
 }
 
-/* Frame is the target's mesh as read, vertex for vertex (the same count and triangles over the same
- * file vertices, which welding maps onto the target's)? Welding alone cannot tell: it orders the
- * vertices by position, and a deformation changes that order. */
-static int same_connectivity(const fm_flock_target *t, const fm_mesh *frame)
+/* The sequence over the target (geom.h), its meshes in t->frames once loaded. */
+static fm_mesh_sequence sequence_of(const fm_flock_target *t, const fm_scene_def *def)
 {
-    if (frame->nv != t->file_count || frame->nt != t->mesh.nt) return 0;
-    for (int64_t k = 0; k < 3 * frame->nt; k++)
-        if (t->file_vertex[frame->tri[k]] != t->mesh.tri[k]) return 0;
-    return 1;
-}
-
-/* Mesh i of the sequence, placed like the target, checked to have the target's connectivity; its
- * vertices as read go where the target's went (vertices welded in the target move as one: the
- * first of them read). */
-static fm_status load_frame(fm_flock_target *t, const fm_scene_def *def, int32_t i, double *out, fm_error *err)
-{
-    char path[FM_PATH_MAX + 32];
-    snprintf(path, sizeof path, def->flock.deform_sequence, i);
-    fm_mesh frame;
-    char key[64];
-    snprintf(key, sizeof key, "shape_flock.deform.sequence: mesh %d", i);
-    fm_status st = fm_name_key(fm_mesh_load_as_read(path, &frame, err), key, err);
-    if (st != FM_OK) return st;
-    if (same_connectivity(t, &frame)) {
-        fm_mesh_place(&frame, &def->target);
-        for (int64_t v = frame.nv - 1; v >= 0; v--) /* backwards: the first one read is written last */
-            memcpy(out + 3 * (size_t)t->file_vertex[v], frame.v + 3 * v, 3 * sizeof(double));
-    } else
-        st = fm_fail(err, FM_ERR_INPUT, "shape_flock.deform.sequence: %s has other vertices or triangles than the "
-                     "target %s (as read: %lld vertices and %lld triangles, against %lld and %lld): a sequence keeps "
-                     "the target's connectivity", path, def->target.path, (long long)frame.nv, (long long)frame.nt,
-                     (long long)t->file_count, (long long)t->mesh.nt);
-    fm_mesh_free(&frame);
-    return st;
+    return (fm_mesh_sequence){def->flock.deform_sequence, def->flock.deform_frames, def->flock.deform_frame_rate,
+                              &t->mesh, &def->target, t->file_vertex, t->file_count, "shape_flock.deform.sequence",
+                              t->frames};
 }
 
 /* ---------------------------------------------------------------- the route */
@@ -222,11 +193,9 @@ fm_status fm_flock_target_build(fm_flock_target *t, const fm_scene_def *def, fm_
         return FM_OK;
     }
     if (t->kind != FM_DEFORM_SEQUENCE) return FM_OK;
-    const size_t per_frame = 3 * (size_t)t->mesh.nv;
-    t->frames = malloc(sizeof(double) * per_frame * (size_t)def->flock.deform_frames);
-    if (!t->frames) return fm_fail(err, FM_ERR_MEMORY, "out of memory for %d target meshes", def->flock.deform_frames);
-    for (int32_t i = 0; i < def->flock.deform_frames && st == FM_OK; i++)
-        st = load_frame(t, def, i, t->frames + per_frame * (size_t)i, err);
+    fm_mesh_sequence q = sequence_of(t, def);
+    st = fm_mesh_sequence_load(&q, err);
+    t->frames = q.frames;
     return st;
 }
 
@@ -258,12 +227,9 @@ void fm_flock_target_vertices(const fm_flock_target *t, const fm_flock_def *def,
         double s = 1 + def->deform_amplitude * sin(TWO_PI * time / def->deform_period);
         for (size_t j = 0; j < count; j++) out[j] = t->center[j % 3] + (m->v[j] - t->center[j % 3]) * s;
     } else if (t->kind == FM_DEFORM_SEQUENCE) { /* linear between meshes, looping */
-        double f = time * def->deform_frame_rate;
-        int32_t frames = def->deform_frames;
-        double whole = floor(f), w = f - whole;
-        int32_t i0 = (int32_t)fmod(whole, frames), i1 = (i0 + 1) % frames;
-        const double *a = t->frames + count * (size_t)i0, *b = t->frames + count * (size_t)i1;
-        for (size_t j = 0; j < count; j++) out[j] = a[j] + w * (b[j] - a[j]);
+        const fm_mesh_sequence q = {.count = def->deform_frames, .frame_rate = def->deform_frame_rate, .rest = m,
+                                    .frames = t->frames};
+        fm_mesh_sequence_at(&q, time, out);
     } else
         memcpy(out, m->v, sizeof(double) * count);
     if (t->route.count > 0) travel(t, def->travel_orient, time, out);

@@ -59,6 +59,25 @@ void fm_mesh_place(fm_mesh *mesh, const fm_mesh_ref *ref);
 #define FM_MESH_MIN_RELATIVE_EXTENT 1e-6
 fm_status fm_mesh_check_extent(const fm_mesh *mesh, const char *path, fm_error *err);
 double fm_mesh_signed_volume(const fm_mesh *mesh);
+
+/* mesh_sequence.c: meshes pattern % 0 .. count-1, each with the rest mesh's vertices and triangles
+ * as the file lists them (rest loaded by fm_mesh_load_mapped, whose file_vertex maps them), placed
+ * like it, linear between meshes at frame_rate and looping. The caller fills the inputs. */
+typedef struct fm_mesh_sequence {
+    const char *pattern;          /* printf pattern with one integer conversion */
+    int32_t count;
+    double frame_rate;            /* meshes per second */
+    const fm_mesh *rest;          /* placed */
+    const fm_mesh_ref *place;     /* its placement (and path, for messages) */
+    const int32_t *file_vertex;   /* fm_mesh_load_mapped's */
+    int64_t file_count;
+    const char *key;              /* the scene key messages name */
+    double *frames;               /* out: 3 rest->nv doubles per mesh */
+} fm_mesh_sequence;
+fm_status fm_mesh_sequence_load(fm_mesh_sequence *q, fm_error *err);
+/* The vertices at `time` (3 rest->nv doubles). */
+void fm_mesh_sequence_at(const fm_mesh_sequence *q, double time, double *out);
+void fm_mesh_sequence_free(fm_mesh_sequence *q);
 #ifdef __cplusplus
 }
 #endif

@@ -18,6 +18,17 @@
 enum { FM_RESORT_INTERVAL = 8 }; /* steps between spatial re-sorts of the store */
 enum { FM_MODEL_MAX_WARNINGS = 8 };
 
+/* morph_motion.c: a target that moves (issue 38), built for every rank from the model (NULL: static). */
+typedef struct fm_morph_motion fm_morph_motion;
+/* The moving target at one time: a pure function of it, cached in the state (fm_morph_motion_prepare). */
+typedef struct fm_morph_motion_now {
+    double time;             /* when prepared; NaN: not yet */
+    double offset[3];        /* target_motion.path's translation */
+    double *v;               /* sequence: the surface's vertices (3 a vertex) */
+    double *frame;           /* sequence: each triangle's edges b - a, c - a and N / sqrt|N| (9 a triangle) */
+    float *key_q[3], *key_f[3]; /* path: the key points with the offset (FM eq 3), NULL without a path */
+} fm_morph_motion_now;
+
 /* Immutable after fm_morph_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
 struct fm_morph_model {
@@ -52,7 +63,19 @@ struct fm_morph_model {
     int warning_count;
     fm_dist_shared *shared;  /* on P ranks (fm_morph_model_build_shared): the segment the machine's
                                 ranks share, which holds the arrays above; NULL: each its own */
+    fm_morph_motion *motion; /* target_motion (issue 38); NULL: the target stands still. Each rank its own */
 };
+
+fm_status fm_morph_motion_build(fm_morph_model *m, fm_error *err); /* after tgt_f and the path */
+void fm_morph_motion_destroy(fm_morph_motion *mo);
+void fm_morph_motion_hash(const fm_morph_motion *mo, fm_hash *h); /* for a checkpoint's model hash */
+fm_morph_motion_now *fm_morph_motion_now_create(const fm_morph_model *m, fm_error *err);
+void fm_morph_motion_now_free(fm_morph_motion_now *now);
+/* now at `time` (nothing to do if it is already): the path's offset, the moved key points, the
+ * deformed surface. Serial; the reads below are thread-safe. */
+void fm_morph_motion_prepare(const fm_morph_model *m, fm_morph_motion_now *now, double time);
+/* Target slot's tet at now's time (12 doubles, the slot's own vertex order) and its centroid. */
+void fm_morph_motion_tet(const fm_morph_model *m, const fm_morph_motion_now *now, int64_t slot, double out[12], double c[3]);
 
 /* On P ranks: the first rank of each machine builds the model (TetGen, the preparation's peak) and
  * puts its arrays (132 bytes an agent) in memory that the machine's ranks share; the others copy
@@ -155,6 +178,10 @@ struct fm_morph_state {
     fm_slabs *slabs;
     fm_status dist_status;   /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
+    /* A moving target (m->motion): where it is at the time last prepared (the step's end; a frame
+     * prepares its own time), a cache of a pure function of time, so it is in no checkpoint.
+     * Writable through a const state: the frame's writers prepare it. NULL: static target. */
+    fm_morph_motion_now *motion_now;
 };
 
 /* The slots that hold agents: all n on one process, this rank's [0, active_end) on P ranks. */

@@ -32,6 +32,7 @@ static uint64_t model_hash(const fm_morph_model *m)
     fm_hash_bytes(&m->dt, sizeof m->dt, h), fm_hash_bytes(&m->steps_per_frame, sizeof m->steps_per_frame, h);
     fm_hash_bytes(&m->launch_rate, sizeof m->launch_rate, h);
     fm_hash_sdf(h, m->obstacles), fm_hash_sdf(h, m->target_sdf);
+    if (m->motion) fm_morph_motion_hash(m->motion, h); /* the sequence's meshes and the binding */
     return fm_hash_end(h);
 }
 

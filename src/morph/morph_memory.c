@@ -16,6 +16,10 @@ static const double STATE_PER_AGENT =
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
     + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */
     + (double)sizeof(block_counts) / FM_BLOCK;
+/* A moving target's sequence (morph_motion.c): each target-tet vertex's triangle and (b1, b2, h),
+ * held by every rank. */
+static const double MOTION_PER_AGENT = 4 * (sizeof(int32_t) + 3 * sizeof(double));
+
 /* The preparation's peak (morph_model.c), as the source half of the model is stored: both tet sets
  * in double (subdivided to n), D1 and its sort keys, and that half (src_rel, src_c, src_index). The
  * target half comes after the source tets are freed, without the double targets (a shot's group
@@ -37,7 +41,7 @@ fm_memory_estimate fm_morph_memory_estimate(const fm_scene_def *def, int64_t n)
     const int64_t mine = (int64_t)ceil((double)n * held); /* the agents a rank's store holds */
     /* on P ranks a machine holds one model, its first rank's (fm_morph_model_build_shared) */
     const int shared = ranks > 1;
-    e.model = shared ? 0 : MODEL_PER_AGENT;
+    e.model = (shared ? 0 : MODEL_PER_AGENT) + (def->target_motion.sequence[0] ? MOTION_PER_AGENT : 0);
     e.shared = shared ? MODEL_PER_AGENT : 0;
     e.state = STATE_PER_AGENT * held;
     e.frames = ranks > 1 ? OWN_TETS * held + SHARE_FRAME / ranks

@@ -519,6 +519,7 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     report(progress, user, "obstacles", 0.9);
     if (def->obstacle_count > 0 && (st = build_obstacles(m, s, max_radius, err)) != FM_OK) return st;
     if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
+    if ((st = fm_morph_motion_build(m, err)) != FM_OK) return st;
     set_timing(m);
     report(progress, user, "ready", 1.0);
     return FM_OK;
@@ -597,10 +598,11 @@ static fm_status build_replicated(void *model, fm_error *err)
 {
     fm_morph_model *m = model;
     const fm_scene_def *def = &m->def;
-    if (def->obstacle_count == 0 && def->phase_switch != FM_SWITCH_DISTANCE) return FM_OK; /* no grid to build */
+    fm_status st = fm_morph_motion_build(m, err); /* from the shared tgt_f: the first rank's binding */
+    if (st != FM_OK || (def->obstacle_count == 0 && def->phase_switch != FM_SWITCH_DISTANCE)) return st; /* no grid */
     prep_scratch s;
     memset(&s, 0, sizeof s);
-    fm_status st = fm_scene_mesh_load(def, &def->source, "source.mesh", &s.src_mesh, err);
+    st = fm_scene_mesh_load(def, &def->source, "source.mesh", &s.src_mesh, err);
     if (st == FM_OK) st = fm_scene_mesh_load(def, &def->target, "target.mesh", &s.dst_mesh, err);
     if (st == FM_OK && def->obstacle_count > 0) st = load_obstacles(m, &s, 0, err);
     if (st == FM_OK && def->obstacle_count > 0) st = build_obstacles(m, &s, m->max_radius, err);
@@ -615,7 +617,7 @@ static void take_scalars(void *model, const fm_scene_def *def)
 {
     fm_morph_model *m = model;
     m->def = *def;
-    m->tgt = NULL, m->obstacles = m->target_sdf = NULL, m->shared = NULL;
+    m->tgt = NULL, m->obstacles = m->target_sdf = NULL, m->shared = NULL, m->motion = NULL;
 }
 
 /* A shot's group: the group it starts from and whether to keep its target tets in double. */
@@ -653,6 +655,7 @@ void fm_morph_model_destroy(fm_morph_model *m)
     if (!m) return;
     fm_obstacles_destroy(m->obstacles); /* NULL-safe */
     fm_obstacles_destroy(m->target_sdf);
+    fm_morph_motion_destroy(m->motion);
     fm_free(m->tgt);
     void **p[MODEL_ARRAYS];
     size_t bytes[MODEL_ARRAYS];

@@ -25,10 +25,12 @@ int64_t fm_count_inverted_tets(const float *verts, size_t n)
     return count;
 }
 
-/* Largest distance between an agent's vertex and its target tet's matching vertex. */
+/* Largest distance between an agent's vertex and its target tet's matching vertex (a moving
+ * target's at the state's time, in float as the frame has it). */
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot)
 {
     double worst = !verts || s->launched < s->n ? INFINITY : 0; /* on P ranks the waiting agents are in no store */
+    if (m->motion) fm_morph_motion_prepare(m, s->motion_now, s->time);
     for (int64_t a = 0; a < fm_morph_slots(s) && worst < INFINITY; a++) { /* slot a: agent id[a]; verts by id */
         if (s->target[a] < 0) {
             worst = INFINITY; /* not arrived: the loop ends */
@@ -36,6 +38,13 @@ double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state
         }
         const uint8_t *perm = fm_even_permutations[s->perm[a]];
         const float *t = m->tgt_f + 12 * s->target[a];
+        float moved[12];
+        if (m->motion) {
+            double d[12], c[3];
+            fm_morph_motion_tet(m, s->motion_now, s->target[a], d, c);
+            for (int j = 0; j < 12; j++) moved[j] = (float)d[j];
+            t = moved;
+        }
         const float *v = verts + 12 * (size_t)(by_slot ? a : s->id[a]);
         for (int i = 0; i < 4; i++)
             for (int k = 0; k < 3; k++) worst = fmax(worst, fabs((double)v[3 * i + k] - (double)t[3 * perm[i] + k]));
@@ -330,10 +339,11 @@ static void morph_step(void *sim)
     fm_morph_step(r->m, r->s);
 }
 
+/* A moving target goes on moving after the last tet arrived: its run ends at the frame limit. */
 static int morph_finished(const void *sim)
 {
     const morph_run *r = sim;
-    return r->s->count[FM_PHASE_ARRIVED] == r->s->n;
+    return r->s->count[FM_PHASE_ARRIVED] == r->s->n && !r->m->motion;
 }
 
 /* Frame k: written, its MDE fraction recorded, the progress reported. */

@@ -152,7 +152,7 @@ static fm_morph_state *create_empty(const fm_morph_model *m, int threads, int64_
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)capacity);
         return NULL;
     }
-    if (create_velocity_model(m, s, err) != FM_OK) {
+    if (create_velocity_model(m, s, err) != FM_OK || (m->motion && !(s->motion_now = fm_morph_motion_now_create(m, err)))) {
         fm_morph_state_destroy(s);
         return NULL;
     }
@@ -185,6 +185,7 @@ void fm_morph_state_destroy(fm_morph_state *s)
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     fm_slabs_free(s->slabs);
+    fm_morph_motion_now_free(s->motion_now);
     free(s);
 }
 
@@ -238,6 +239,29 @@ static void target_relative(const fm_morph_model *m, int64_t slot, const uint8_t
             rel[3 * i + k] = m->tgt_f[12 * slot + 3 * perm[i] + k] - m->tgt_c[k][slot];
 }
 
+/* A moving target's tet (m->motion) for slot a's agent, in its vertex order, at the state's time. */
+static void moving_target_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double out[12])
+{
+    double t[12], c[3];
+    fm_morph_motion_tet(m, s->motion_now, s->target[a], t, c);
+    const uint8_t *perm = fm_even_permutations[s->perm[a]];
+    for (int i = 0; i < 4; i++) memcpy(out + 3 * i, t + 3 * perm[i], 3 * sizeof(double));
+}
+
+/* A moving target (issue 38): the homing tet's shape takes on the target tet's deformation (its
+ * vertices relative to its centroid now, less at rest) by the fraction u of the flight, at the tet's
+ * scale, so it lands on the deformed tet exactly as the static one lands on the rest tet. */
+static void add_deformation(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double u, double scale, float *out)
+{
+    double now[12], c[3] = {0, 0, 0};
+    moving_target_tet(m, s, a, now);
+    for (int i = 0; i < 4; i++)
+        for (int k = 0; k < 3; k++) c[k] += 0.25 * now[3 * i + k];
+    float rest[12];
+    target_relative(m, s->target[a], fm_even_permutations[s->perm[a]], rest);
+    for (int j = 0; j < 12; j++) out[j] = (float)(out[j] + u * scale * (now[j] - c[j % 3] - rest[j]));
+}
+
 /* Phase 2 shape (FM §6): A(t) on the shrunk tet for the first morph_fraction of the flight, then
  * the shrunk target tet enlarges to full size as it reaches its place. */
 static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t a, double time, float *out)
@@ -262,6 +286,27 @@ static void homing_tet(const fm_morph_model *m, const fm_morph_state *s, int64_t
     }
     double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch), e = um < 1 ? (u - um) / (1 - um) : 1;
     place_tet(c, sm + e * (1 - sm), NULL, rel, out);
+}
+
+/* A moving target (issue 38), over what agent_tet wrote for a static one: an arrived tet is the
+ * target tet where it is now; a homing one takes on its deformation by the fraction u of its flight,
+ * at homing_tet's scale then. */
+static void ride_moving_target(const fm_morph_model *m, const fm_morph_state *s, int64_t a, float *out)
+{
+    if (s->phase[a] == FM_PHASE_ARRIVED) {
+        double t[12];
+        moving_target_tet(m, s, a, t);
+        for (int j = 0; j < 12; j++) out[j] = (float)t[j];
+        return;
+    }
+    if (s->phase[a] != FM_PHASE_HOMING) return;
+    const fm_scene_def *def = &m->def;
+    const double launch = (double)s->id[a] / m->launch_rate, tf = s->tf[a], um = def->morph_fraction;
+    double u = tf > 0 ? (s->time - s->t2[a]) / tf : 1.0;
+    u = u < 0 ? 0 : u > 1 ? 1 : u;
+    const double sm = fm_shrink_scale(def, s->t2[a] + um * tf - launch);
+    const double scale = u < um ? fm_shrink_scale(def, s->time - launch) : sm + (um < 1 ? (u - um) / (1 - um) : 1) * (1 - sm);
+    add_deformation(m, s, a, u, scale, out);
 }
 
 /* An agent's tet in any phase but phase 1 (the synthesis kernel, kernel_synth.h, has those). */
@@ -293,6 +338,7 @@ static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_
     fm_synth_view flying = {{s->p[0], s->p[1], s->p[2]}, {0}, s->id, s->time, m->launch_rate, m->def.shrink,
                             m->def.shrink_time, by_slot};
     for (int j = 0; j < 12; j++) flying.rest[j] = s->rest_rel[j];
+    if (m->motion) fm_morph_motion_prepare(m, s->motion_now, s->time); /* serial, before the threads read it */
     const int64_t slots = fm_morph_slots(s), blocks = (slots + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
@@ -300,6 +346,7 @@ static void store_tets(const fm_morph_model *m, const fm_morph_state *s, int by_
         fm_kernel_flying_tets(&flying, s->phase, FM_PHASE_FLYING, begin, end, out);
         for (int64_t a = begin; a < end; a++)
             if (s->phase[a] != FM_PHASE_FLYING) agent_tet(m, s, a, out + fm_synth_place(&flying, a));
+        for (int64_t a = begin; a < end && m->motion; a++) ride_moving_target(m, s, a, out + fm_synth_place(&flying, a));
     }
 }
 

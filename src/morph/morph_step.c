@@ -128,11 +128,11 @@ static double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * (3
  * - 1) (0 from 2T on). Strong fields (FM Table I's creatures) otherwise hold a few per cent of the
  * flock for good in eddies where V_l cancels the global velocity. In double, one agent at a time:
  * the same bits at any thread count, SIMD level and rank count. */
-static float field_fade(const fm_morph_model *m, float x, float y, float z, int64_t id, double t)
+static float field_fade(const fm_morph_model *m, const double sphere_c[3], float x, float y, float z, int64_t id, double t)
 {
     double f = 1;
     if (m->field_fade > 0) {
-        const double dx = (double)x - m->sphere_c[0], dy = (double)y - m->sphere_c[1], dz = (double)z - m->sphere_c[2];
+        const double dx = (double)x - sphere_c[0], dy = (double)y - sphere_c[1], dz = (double)z - sphere_c[2];
         f = smoothstep((sqrt(dx * dx + dy * dy + dz * dz) - m->sphere_r) / m->field_fade);
     }
     if (m->field_fade_time > 0) { /* in flight since id / launch_rate (due_agents) */
@@ -148,20 +148,38 @@ static float field_fade(const fm_morph_model *m, float x, float y, float z, int6
 static void add_faded_fields(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
 {
     float *const *vl = s->vla, *const *v = s->v, *const *p = s->p;
+    double c[3] = {m->sphere_c[0], m->sphere_c[1], m->sphere_c[2]};
+    for (int k = 0; k < 3 && m->motion; k++) c[k] += s->motion_now->offset[k]; /* the sphere travels with the target */
     for (int64_t a = begin; a < end; a++) vl[0][a] = vl[1][a] = vl[2][a] = 0.0f;
     fm_fields_add_block(s->fields, (const float *const *)p, s->phase, begin, end, s->time, (float)m->def.omega2, vl);
     for (int64_t a = begin; a < end; a++) {
         if (s->phase[a] != FM_PHASE_FLYING) continue;
-        const float f = field_fade(m, p[0][a], p[1][a], p[2][a], s->id[a], s->time);
+        const float f = field_fade(m, c, p[0][a], p[1][a], p[2][a], s->id[a], s->time);
         v[0][a] += f * vl[0][a], v[1][a] += f * vl[1][a], v[2][a] += f * vl[2][a];
     }
+}
+
+/* A moving target (issue 38): each homing agent's target centroid at the step's end (prepared by
+ * fm_morph_step) in the MDE scratch, idle between the fields and MDE and after MDE; the homing
+ * kernels read it by slot (target NULL). */
+static const float *const *moving_goals(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end)
+{
+    for (int64_t a = begin; a < end; a++) {
+        if (s->phase[a] != FM_PHASE_HOMING) continue;
+        double t[12], c[3];
+        fm_morph_motion_tet(m, s->motion_now, s->target[a], t, c);
+        for (int k = 0; k < 3; k++) s->vla[k][a] = (float)c[k];
+    }
+    return (const float *const *)s->vla;
 }
 
 /* Stage 3 for one block: velocities from positions at the start of the step (FM eq 8). */
 static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end, block_counts *bc)
 {
     const fm_scene_def *def = &m->def;
-    const fm_path_view path = {{m->key_q[0], m->key_q[1], m->key_q[2]}, {m->key_f[0], m->key_f[1], m->key_f[2]},
+    const fm_morph_motion_now *now = s->motion_now;
+    float *const *key_q = now && now->key_q[0] ? now->key_q : m->key_q, *const *key_f = now && now->key_q[0] ? now->key_f : m->key_f;
+    const fm_path_view path = {{key_q[0], key_q[1], key_q[2]}, {key_f[0], key_f[1], key_f[2]},
                                m->key_count, (float)(0.5 * def->path_width), (float)def->path_attraction};
     const float *const *p = (const float *const *)s->p;
     const float dt = (float)m->dt;
@@ -178,8 +196,9 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
         bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt, sc);
     }
     if (steer_phase2) {
-        fm_kernel_homing_aim(p, s->v, s->phase, s->target, (const float *const *)m->tgt_c, s->t2, begin, end,
-                             (float)def->speed0, s->time, dt, def->blend_time);
+        const int64_t *target = m->motion ? NULL : s->target;
+        fm_kernel_homing_aim(p, s->v, s->phase, target, m->motion ? moving_goals(m, s, begin, end) : (const float *const *)m->tgt_c,
+                             s->t2, begin, end, (float)def->speed0, s->time, dt, def->blend_time);
         fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_HOMING, begin, end, s->time, dt, sc);
     }
     bc->flying = 0;
@@ -193,17 +212,21 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
 static void move_block(const fm_morph_model *m, fm_morph_state *s, int64_t begin, int64_t end, double t_end,
                        block_counts *bc)
 {
-    const fm_sphere_view sphere = {{m->sphere_c[0], m->sphere_c[1], m->sphere_c[2]}, m->sphere_r};
+    fm_sphere_view sphere = {{m->sphere_c[0], m->sphere_c[1], m->sphere_c[2]}, m->sphere_r};
+    if (m->motion) /* the switch sphere travels with target_motion.path */
+        for (int k = 0; k < 3; k++) sphere.c[k] = (float)(m->sphere_c[k] + s->motion_now->offset[k]);
     fm_sdf_view target_sdf;
     if (m->target_sdf) target_sdf = fm_obstacles_sdf(m->target_sdf);
     const float *const *v = (const float *const *)s->v, *const *tgt_c = (const float *const *)m->tgt_c;
+    const int64_t *target = s->target;
+    if (m->motion) tgt_c = moving_goals(m, s, begin, end), target = NULL;
     bc->entered = fm_kernel_integrate_flying(s->p, v, s->phase, begin, end, (float)m->dt, sphere,
                                              m->target_sdf ? &target_sdf : NULL,
                                              (float)m->def.switch_distance, s->entered);
     if (m->obstacles && m->def.avoid_in_phase2)
-        bc->arrived = fm_kernel_homing_steered(s->p, v, s->phase, s->target, tgt_c, begin, end, (float)m->dt);
+        bc->arrived = fm_kernel_homing_steered(s->p, v, s->phase, target, tgt_c, begin, end, (float)m->dt);
     else
-        bc->arrived = fm_kernel_homing(s->p, s->v, s->phase, s->target, tgt_c, (const float *const *)s->p2,
+        bc->arrived = fm_kernel_homing(s->p, s->v, s->phase, target, tgt_c, (const float *const *)s->p2,
                                        s->t2, s->tf, begin, end, t_end, m->def.blend_time);
 }
 
@@ -213,10 +236,11 @@ static void take_target(const fm_morph_model *m, fm_morph_state *s, int64_t a, i
     s->target[a] = slot;
     s->phase[a] = FM_PHASE_HOMING;
     s->t2[a] = (float)t_end;
-    double d2 = 0;
+    double d2 = 0, now[12], c[3];
+    if (m->motion) fm_morph_motion_tet(m, s->motion_now, slot, now, c); /* where it is at t_end */
     for (int k = 0; k < 3; k++) {
         s->p2[k][a] = s->p[k][a];
-        double d = (double)m->tgt_c[k][slot] - s->p[k][a];
+        double d = (double)(m->motion ? (float)c[k] : m->tgt_c[k][slot]) - s->p[k][a];
         d2 += d * d;
     }
     s->tf[a] = (float)(sqrt(d2) / m->def.speed0); /* eq 9 */
@@ -349,6 +373,7 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
     int64_t ghosts = 0;
     if (s->dist && m->def.d_min > 0 && (s->dist_status = fm_morph_dist_ghosts(s, &ghosts, &s->dist_error)) != FM_OK)
         return;
+    if (m->motion) fm_morph_motion_prepare(m, s->motion_now, t_end); /* the target at the step's end */
     lap(s, FM_STAGE_LAUNCH, &t);
     block_counts *bc = s->blocks; /* P ranks: after the store made room for this step's agents */
     if (s->fields) fm_fields_prepare(s->fields, s->time, s->threads);

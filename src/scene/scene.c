@@ -102,6 +102,8 @@ fm_scene_def fm_default_scene_def(void)
     d.path_attraction = 1.0;
     strcpy(d.cache_name, "frames.fmc");
     d.flock = fm_default_flock_def();
+    d.target_motion.frame_rate = 24;
+    d.target_motion.speed = 1;
     return d;
 }
 
@@ -152,7 +154,7 @@ static const char *const *enum_names(const param *p)
 static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
                                          "path.attraction", "launch_rate", "morph", "style.omega2", "style.fade_distance",
                                          "style.fade_time",
-                                         "obstacles.in_phase2", "mde", "phase2", "up"};
+                                         "obstacles.in_phase2", "mde", "phase2", "up", "target_motion"};
 
 static int has_prefix(const char *key, const char *group)
 {
@@ -234,6 +236,12 @@ static const param PARAMS[] = {
     {"phase2.switch", P_SWITCH, OFF(phase_switch), 0, 0, 0},
     {"phase2.switch_distance", P_DOUBLE, OFF(switch_distance), -1e9, 1e9, 0},
     {"phase2.blend_time", P_DOUBLE, OFF(blend_time), 0, 1e6, 0},
+    {"target_motion.sequence", P_PATTERN, OFF(target_motion.sequence), 0, 0, 0},
+    {"target_motion.frames", P_INT32, OFF(target_motion.frames), 0, 1e6, 0},
+    {"target_motion.frame_rate", P_DOUBLE, OFF(target_motion.frame_rate), 0, 1e6, OPEN_MIN},
+    {"target_motion.start", P_DOUBLE, OFF(target_motion.start), 0, 1e9, 0},
+    {"target_motion.path", P_POINTS, OFF(target_motion.path), -1e9, 1e9, 0},
+    {"target_motion.speed", P_DOUBLE, OFF(target_motion.speed), 0, 1e9, OPEN_MIN},
     {"shape_flock.sampling", P_ENUM, OFF(flock.sampling), 0, 0, 0}, /* before the two groups below */
     {"shape_flock.mosaic.iterations", P_INT32, OFF(flock.mosaic_iterations), 0, 1e5, 0},
     {"shape_flock.mosaic.distance", P_ENUM, OFF(flock.mosaic_distance), 0, 0, 0},
@@ -484,23 +492,32 @@ static fm_status read_vec3(where *w, const param *p, const json_t *v, double *ou
     return FM_OK;
 }
 
-/* A P_POINTS key's count: path.points' or target.path.points'. */
-static int32_t *point_count(const param *p, const fm_scene_def *def)
+/* A list of points in the scene: path.points, target.path.points (the shape flock's travelling
+ * target) or target_motion.path (the tetra morph's moving target). */
+typedef struct points_ref {
+    double (*at)[3];
+    int32_t *count;
+    int max;
+} points_ref;
+static points_ref points_of(const param *p, fm_scene_def *def)
 {
-    return (int32_t *)(p->offset == OFF(path_points) ? &def->path_point_count : &def->flock.travel_point_count);
+    if (!strcmp(p->key, "target_motion.path"))
+        return (points_ref){def->target_motion.path, &def->target_motion.path_count, FM_MAX_MOTION_POINTS};
+    if (!strcmp(p->key, "target.path.points"))
+        return (points_ref){def->flock.travel_points, &def->flock.travel_point_count, FM_MAX_PATH_POINTS};
+    return (points_ref){def->path_points, &def->path_point_count, FM_MAX_PATH_POINTS};
 }
 
 static fm_status read_points(where *w, const param *p, const json_t *v, fm_scene_def *def)
 {
+    const points_ref pts = points_of(p, def);
     if (!json_is_array(v)) return fail_at(w, KEY(w, p), "expected an array of [x, y, z] points, got %s", fm_json_type_name(v));
-    if (json_array_size(v) > FM_MAX_PATH_POINTS)
-        return fail_at(w, KEY(w, p), "%zu points is more than the %d supported", json_array_size(v), FM_MAX_PATH_POINTS);
-    int32_t *count = point_count(p, def);
-    double (*points)[3] = (double (*)[3])((char *)def + p->offset);
-    *count = (int32_t)json_array_size(v);
-    for (int32_t i = 0; i < *count; i++) {
+    if (json_array_size(v) > (size_t)pts.max)
+        return fail_at(w, KEY(w, p), "%zu points is more than the %d supported", json_array_size(v), pts.max);
+    *pts.count = (int32_t)json_array_size(v);
+    for (int32_t i = 0; i < *pts.count; i++) {
         w->steps[w->depth++] = (fm_json_step){NULL, i};
-        fm_status st = read_vec3(w, p, json_array_get(v, (size_t)i), points[i]);
+        fm_status st = read_vec3(w, p, json_array_get(v, (size_t)i), pts.at[i]);
         w->depth--;
         if (st != FM_OK) return st;
     }
@@ -874,6 +891,8 @@ static fm_status check_field_vectors(where *w, const fm_scene_def *def)
 }
 
 /* Checks that span several parameters. */
+static fm_status check_target_motion(where *w, const fm_scene_def *def);
+
 static fm_status check_consistency(where *w, const fm_scene_def *def)
 {
     if (!(fabs(def->up[0]) + fabs(def->up[1]) + fabs(def->up[2]) > 0)) {
@@ -905,7 +924,8 @@ static fm_status check_consistency(where *w, const fm_scene_def *def)
         return fail_at(w, "style.grid", "[%d, %d, %d] is %.3g cells, more than the 2^28 supported (16 bytes each)",
                        g[0], g[1], g[2], (double)g[0] * g[1] * g[2]);
     }
-    return check_field_vectors(w, def);
+    fm_status st = def->mode == FM_MODE_TETRA_MORPH ? check_target_motion(w, def) : FM_OK;
+    return st == FM_OK ? check_field_vectors(w, def) : st;
 }
 
 static fm_status check_range_pair(const where *w, const param *p, const double *lo_hi)
@@ -995,6 +1015,35 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
     return FM_OK;
 }
 
+/* The tetra morph's moving target (issue 38): a sequence needs a pattern and meshes, and frames
+ * without a sequence say nothing. A shot's groups chain their formed shapes (morph_shot.c), which a
+ * target in motion has not got. */
+static fm_status check_target_motion(where *w, const fm_scene_def *def)
+{
+    const struct fm_target_motion_def *tm = &def->target_motion;
+    if (!tm->sequence[0] && tm->frames != 0) {
+        where_set_key(w, "target_motion.frames");
+        return fail_at(w, "target_motion.frames", "meshes of no sequence: give target_motion.sequence");
+    }
+    if (!tm->sequence[0] && tm->path_count == 0) return FM_OK;
+    if (def->group_index >= 0 || def->group_count > 0) {
+        where_set_key(w, "target_motion");
+        return fail_at(w, "target_motion", "a shot's groups cannot move their target yet (a single morph can)");
+    }
+    if (def->phase_switch == FM_SWITCH_DISTANCE) {
+        where_set_key(w, "phase2.switch");
+        return fail_at(w, "phase2.switch", "\"distance\" reads the target's distance at rest: with target_motion "
+                       "the switch is the travelling sphere (\"sphere\")");
+    }
+    if (!tm->sequence[0]) return FM_OK;
+    where_set_key(w, "target_motion.sequence");
+    if (!one_integer_conversion(tm->sequence))
+        return fail_at(w, "target_motion.sequence", "'%s' is not a file name pattern with one integer, like "
+                       "\"walk_%%03d.obj\"", tm->sequence);
+    if (tm->frames < 1) return fail_at(w, "target_motion.frames", "a sequence needs at least one mesh");
+    return FM_OK;
+}
+
 /* Range checks of every numeric entry of a table over the struct at base. */
 static fm_status check_table(where *w, const param *table, size_t count, const void *base, const char *prefix)
 {
@@ -1052,12 +1101,11 @@ static fm_status check_lists(where *w, const fm_scene_def *def)
 static fm_status check_points(const where *w, const fm_scene_def *def, const char *key)
 {
     const param *p = find_param(key);
-    const int32_t count = *point_count(p, def);
-    if (count < 0 || count > FM_MAX_PATH_POINTS) return fail_at(w, key, "between 0 and %d points", FM_MAX_PATH_POINTS);
-    const double (*points)[3] = (const double (*)[3])((const char *)def + p->offset);
+    const points_ref pts = points_of(p, (fm_scene_def *)def); /* read only */
+    if (*pts.count < 0 || *pts.count > pts.max) return fail_at(w, key, "between 0 and %d points", pts.max);
     fm_status st = FM_OK;
-    for (int32_t i = 0; i < count; i++)
-        for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(w, p, points[i][k]);
+    for (int32_t i = 0; i < *pts.count; i++)
+        for (int k = 0; k < 3 && st == FM_OK; k++) st = check_range(w, p, pts.at[i][k]);
     return st;
 }
 
@@ -1069,7 +1117,8 @@ fm_status fm_scene_validate(const fm_scene_def *def, fm_error *err)
     fm_status st = check_table(&w, PARAMS, PARAM_COUNT, def, NULL);
     if (st == FM_OK) st = check_lists(&w, def);
     if (st != FM_OK) return st;
-    if ((st = check_points(&w, def, "path.points")) != FM_OK || (st = check_points(&w, def, "target.path.points")) != FM_OK)
+    if ((st = check_points(&w, def, "path.points")) != FM_OK || (st = check_points(&w, def, "target.path.points")) != FM_OK ||
+        (st = check_points(&w, def, "target_motion.path")) != FM_OK)
         return st;
     if (def->path_curve != FM_CURVE_POLYLINE && def->path_curve != FM_CURVE_CATMULL_ROM)
         return fail_at(&w, "path.curve", "unknown curve %d", (int)def->path_curve);
@@ -1361,10 +1410,12 @@ static void feed_value(const param *p, const char *field, const fm_scene_def *de
     case P_CURVE: e = (int32_t)*(const fm_curve *)field, add(&e, sizeof e, user); break;
     case P_SWITCH: e = (int32_t)*(const fm_phase_switch *)field, add(&e, sizeof e, user); break;
     case P_FIELD_KIND: e = (int32_t)*(const fm_field_kind *)field, add(&e, sizeof e, user); break;
-    case P_POINTS:
-        add(point_count(p, def), sizeof(int32_t), user);
-        add(field, sizeof(double[3]) * (size_t)*point_count(p, def), user);
+    case P_POINTS: {
+        const points_ref pts = points_of(p, (fm_scene_def *)def); /* read only */
+        add(pts.count, sizeof *pts.count, user);
+        add(pts.at, sizeof pts.at[0] * (size_t)*pts.count, user);
         break;
+    }
     case P_FIELDS:
         feed_list(FIELD_PARAMS, sizeof FIELD_PARAMS / sizeof FIELD_PARAMS[0], def->fields, sizeof def->fields[0],
                   def->field_count, def, add, user);

@@ -139,6 +139,14 @@ class SameBytes(unittest.TestCase):
     def test_words(self):
         self.check_scene("examples/words/scene.json", [(2, 1), (3, 1), (4, 1)], pieces(2000))
 
+    def test_moving_target(self):
+        """A target that breathes and walks off (target_motion, issue 38): a function of time alone,
+        its binding built by every rank from the target tets (on two machines, from the machine's
+        shared ones); 40 frames of motion after the flock formed."""
+        extra = pieces(4096) + ("--set", "time.frame_limit=160")
+        self.check_scene("examples/walking_suzanne/scene.json", [(2, 1), (3, 1)], extra)
+        self.check_scene("examples/walking_suzanne/scene.json", [(3, 1)], extra, machine_ranks=2)
+
     def test_castling_shot(self):
         """The whole castling (groups king, then rook): every group's state on P ranks, each rank
         encoding its share of the rows (pieces of 2000 agents; the default's one piece: one rank

@@ -463,6 +463,34 @@ static void test_validate(void)
     EXPECT_INVALID(strcpy(d_.cache_name, "frames.fmc.partial"), "output.cache");
 }
 
+/* Issue 38: the tetra morph's moving target, its defaults, and the combinations it refuses. */
+static void test_target_motion_keys(void)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    fm_status st = load_text("motion.json",
+        "{" MESHES ", \"target_motion\": {\"sequence\": \"walk_%03d.obj\", \"frames\": 12, \"start\": 2,"
+        " \"path\": [[1, 0, 0], [1, 2, 0]], \"speed\": 3}}",
+        &def, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    const struct fm_target_motion_def *tm = &def.target_motion;
+    ENSURE(strstr(tm->sequence, "/walk_%03d.obj") != NULL && tm->frames == 12 && tm->frame_rate == 24);
+    ENSURE(tm->start == 2 && tm->path_count == 2 && tm->path[1][1] == 2 && tm->speed == 3);
+    const fm_scene_def d = fm_default_scene_def(); /* no motion: the target stands still */
+    ENSURE(!d.target_motion.sequence[0] && d.target_motion.path_count == 0 && d.target_motion.speed == 1);
+    expect_error_at("motion_frames.json", "{" MESHES ",\n \"target_motion\": {\"frames\": @3}}",
+                    "target_motion.frames: meshes of no sequence");
+    expect_error_at("motion_pattern.json", "{" MESHES ",\n \"target_motion\": {\"sequence\": @\"walk.obj\", \"frames\": 3}}",
+                    "not a file name pattern");
+    expect_error_at("motion_none.json", "{" MESHES ",\n \"target_motion\": {\"sequence\": @\"w%d.obj\"}}",
+                    "target_motion.frames: a sequence needs at least one mesh");
+    expect_error_at("motion_speed.json", "{" MESHES ",\n \"target_motion\": {\"speed\": @0}}", "target_motion.speed");
+    expect_error_at("motion_switch.json", "{" MESHES ",\n \"phase2\": {\"switch\": @\"distance\"},"
+                    " \"target_motion\": {\"path\": [[1, 0, 0]]}}", "phase2.switch: \"distance\" reads");
+    expect_error_at("motion_flock.json", "{\"mode\": \"shape_flock\", \"n\": 10, " MESHES ",\n \"target_motion\": {@\"start\": 1}}",
+                    "target_motion.start: does not apply");
+}
+
 int main(void)
 {
     RUN_TEST(test_valid_scene_fields);
@@ -470,6 +498,7 @@ int main(void)
     RUN_TEST(test_boundary_values_accepted);
     RUN_TEST(test_relative_scene_path);
     RUN_TEST(test_velocity_model_keys);
+    RUN_TEST(test_target_motion_keys);
     RUN_TEST(test_unknown_key_top_level);
     RUN_TEST(test_unknown_key_nested);
     RUN_TEST(test_unusual_keys_located);
