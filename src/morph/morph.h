@@ -45,7 +45,7 @@ typedef struct fm_path_route {
  * pts (n points, malloc'd) is replaced only when a stretch was rerouted. */
 fm_status fm_path_route_dense(fm_path_route *r, double **pts, int64_t *n, fm_error *err);
 /* fm_path_build, then rerouted round the obstacles where it crosses them (route may be NULL: none).
- * A rerouted path gets at least one key point per r_soft of its length. */
+ * A rerouted path gets one key point per r_soft of its length, up to twice path.key_points + 2. */
 fm_status fm_path_build_routed(const fm_scene_def *def, const double cs[3], const double ct[3], fm_path_route *route,
                                fm_path *out, fm_error *err);
 /* The navigation function over the key points q (3 doubles each): u, the shortest cost to C_T

@@ -79,8 +79,10 @@ fm_status fm_path_build_routed(const fm_scene_def *def, const double cs[3], cons
     fm_status st = route ? fm_path_route_dense(route, &dense, &n, err) : FM_OK;
     double total = 0;
     for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
-    if (st == FM_OK && route && route->routed && route->r_soft > 0) /* the key points resolve the way round */
-        out->count = (int32_t)fmax(out->count, fmin(ceil(total / route->r_soft) + 1, 1e5));
+    /* the key points resolve the way round: one per r_soft, but at most twice the scene's (eq 3's
+       nearest key point costs O(m) an agent-step) */
+    if (st == FM_OK && route && route->routed && route->r_soft > 0)
+        out->count = (int32_t)fmax(out->count, fmin(ceil(total / route->r_soft) + 1, 2.0 * out->count));
     if (st == FM_OK && !(total > 0))
         st = fm_fail(err, FM_ERR_INPUT, "the path has fewer than two distinct points (zero length): the source "
                      "and target centroids coincide and no path point lies apart from them");
