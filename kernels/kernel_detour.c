@@ -10,12 +10,17 @@ void fm_kernel_detour_velocity(const fm_detour_view *dv, const float *const p[3]
 {
     for (int64_t a = begin; a < end; a++) {
         if (!st.on[a] || phase[a] != FM_KERNEL_FLYING) continue;
-        float grad[3];
-        fm_sdf_sample(&dv->u, p[0][a], p[1][a], p[2][a], grad);
-        const float len = sqrtf(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]);
+        const float x = p[0][a], y = p[1][a], z = p[2][a];
+        float grad[3], out[3], dir[3];
+        fm_sdf_sample(&dv->u, x, y, z, grad);
+        const float d = fm_sdf_sample(&dv->d, x, y, z, out), w = d < dv->near ? 1 - fmaxf(d, 0) / dv->near : 0;
+        const float lu = sqrtf(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]);
+        const float lo = sqrtf(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+        for (int k = 0; k < 3; k++) dir[k] = (lu > 1e-6f ? -grad[k] / lu : 0) + (lo > 1e-6f ? w * out[k] / lo : 0);
+        const float len = sqrtf(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
         if (!(len > 1e-6f)) continue; /* outside the grid, or a ridge: eq 3 as it is */
-        const float s = -dv->speed / len;
-        v[0][a] = s * grad[0], v[1][a] = s * grad[1], v[2][a] = s * grad[2];
+        const float s = dv->speed / len;
+        v[0][a] = s * dir[0], v[1][a] = s * dir[1], v[2][a] = s * dir[2];
     }
 }
 

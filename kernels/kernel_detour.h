@@ -17,6 +17,7 @@
 typedef struct fm_detour_view {
     fm_sdf_view u;      /* the navigation function: length to go round the obstacles to C_T */
     fm_sdf_view g;      /* its part off the path: length onto the key-point polyline */
+    fm_sdf_view d;      /* the obstacles' d_t: a detour also backs away from the surface */
     float wait;         /* seconds without progress before a detour (obstacles.detour_time) */
     float progress;     /* the fall in u that counts as progress (a grid cell) */
     float join;         /* g below which a detouring agent is back on the path */
@@ -32,7 +33,10 @@ typedef struct fm_detour_store {
     uint8_t *on;
 } fm_detour_store;
 
-/* Flying agents on a detour: V_g = speed * -grad u / |grad u| (kept where the gradient vanishes). */
+/* Flying agents on a detour: V_g = speed * the unit of -grad u / |grad u| + w grad d_t / |grad d_t|,
+ * w = 1 - d_t / near (0 beyond near): the grid of u is coarse beside a concave pocket, and eq 7 takes
+ * the outward part off a velocity that would collide, so a tet in contact backs away from the
+ * surface as it follows u. Kept (eq 3) where both gradients vanish. */
 void fm_kernel_detour_velocity(const fm_detour_view *dv, const float *const p[3], const uint8_t *phase,
                                fm_detour_store st, int64_t begin, int64_t end, float *const v[3]);
 

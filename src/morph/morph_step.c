@@ -83,8 +83,8 @@ static fm_detour_view detour_view(const fm_morph_model *m)
     const fm_sdf_view u = {n->u, {n->n[0], n->n[1], n->n[2]}, {n->origin[0], n->origin[1], n->origin[2]}, n->h, INFINITY};
     fm_sdf_view g = u;
     g.d = n->g;
-    return (fm_detour_view){u, g, (float)m->detour_time, n->h, 2 * n->h, (float)m->def.k_a,
-                            (float)(m->def.omega1 * m->def.speed0)};
+    return (fm_detour_view){u, g, fm_obstacles_sdf(m->obstacles), (float)m->detour_time, n->h, 2 * n->h,
+                            (float)m->def.k_a, (float)(m->def.omega1 * m->def.speed0)};
 }
 
 static fm_detour_store detour_store(const fm_morph_state *s)
