@@ -46,6 +46,9 @@ typedef struct fm_morph_model_info {
     double sphere_center[3];    /* exact minimal bounding sphere of the target (phase switch) */
     double sphere_radius;
     int32_t key_points;         /* m + 2 key points Q_0..Q_{m+1} */
+    int32_t path_routed;        /* stretches of the path rerouted round the obstacles (obstacles.route) */
+    double detour_time;         /* obstacles.detour_time as used: seconds without progress near an obstacle
+                                   before a tet takes the detour; 0 when tets never do */
     double time_step;           /* seconds per step */
     int32_t steps_per_frame;
     double launch_rate;         /* agents per second, after the default is applied */
@@ -87,6 +90,7 @@ typedef struct fm_morph_info {
     int64_t morph_fallbacks;   /* agents whose correspondence needed the safe A(t) form */
     int64_t flying_agent_steps;/* phase-1 agent-steps so far ... */
     int64_t mde_agent_steps;   /* ... and those among them that MDE pushed (FM §5.4) */
+    int64_t detour_agent_steps; /* ... and those on a detour round an obstacle (issue 38) */
     double min_obstacle_clearance; /* smallest d_t - R_X seen in phase 1; +inf without obstacles */
 } fm_morph_info;
 
@@ -118,6 +122,7 @@ typedef struct fm_morph_run_stats {
     double final_max_vertex_error;  /* last frame vs the target tets (ground truth, double) */
     int target_tets_filled_once;    /* every target tet taken by exactly one agent */
     int64_t morph_fallbacks;
+    int64_t detour_agent_steps;     /* phase-1 agent-steps on a detour round an obstacle (issue 38) */
     double *mde_fraction;           /* per frame after frame 0: MDE agent-steps / phase-1 agent-steps,
                                        NaN for frames with nobody in phase 1; free with fm_morph_run_stats_free */
     double mde_fraction_mean;       /* mean over the frames with agents in phase 1 (FM Table I) */

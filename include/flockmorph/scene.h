@@ -255,6 +255,11 @@ typedef struct fm_scene_def {
     double k_a;                 /* influence range of eq 7, units */
     double obstacle_voxel;      /* signed-distance voxel size, units; 0 = automatic */
     int32_t avoid_in_phase2;    /* beyond the paper (§8): obstacle avoidance also in phase 2 */
+    int32_t path_route;         /* issue 38: the path is rerouted round the obstacles (inflated by the
+                                   largest tet radius) where it crosses them; default 1 */
+    double detour_time;         /* issue 38: seconds a tet near an obstacle may make no progress along
+                                   the path before it takes the detour down the navigation function;
+                                   0 = 8 k_a / (omega1 speed0), < 0 = never */
     double up[3];               /* the scene's up direction (any length, not zero; default +Z, glTF's
                                    is +Y): obstacle avoidance turns agents round an obstacle in the
                                    plane normal to it, so upright obstacles are passed at the side */

@@ -28,6 +28,46 @@ typedef struct fm_morph_motion_now {
     double *frame;           /* sequence: each triangle's edges b - a, c - a and N / sqrt|N| (9 a triangle) */
     float *key_q[3], *key_f[3]; /* path: the key points with the offset (FM eq 3), NULL without a path */
 } fm_morph_motion_now;
+/* morph_path.c: key points Q_0..Q_{m+1} from C_S through the control points to C_T (FM §5.1). */
+typedef struct fm_path {
+    double *q;      /* 3 per key point */
+    int32_t count;  /* m + 2 */
+} fm_path;
+fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
+                        fm_path *out, fm_error *err);
+void fm_path_free(fm_path *path);
+
+/* morph_route.c: the global detour (issue 38). What the route and the navigation function read:
+ * the obstacles, the largest tet radius and the clearance preferred beyond it (k_a), the box of the
+ * source and target; routed and unroutable count the stretches of the path that were rerouted and
+ * the ones with no way round (left as the user's). */
+typedef struct fm_path_route {
+    const fm_obstacles *obstacles;
+    double r_infl, r_soft;
+    double lo[3], hi[3];
+    double obstacle_lo[3], obstacle_hi[3];
+    int meshes;                       /* each obstacle mesh's box: a stretch is routed round the whole */
+    double mesh_lo[FM_MAX_OBSTACLES][3], mesh_hi[FM_MAX_OBSTACLES][3];
+    int routed, unroutable;
+} fm_path_route;
+/* The path with every stretch that passes closer than r_infl to an obstacle replaced by a shortest
+ * way round (A* on a coarse grid, pulled taut, corner-cut); the other points are kept as they are.
+ * pts (n points, malloc'd) is replaced only when a stretch was rerouted. */
+fm_status fm_path_route_dense(fm_path_route *r, double **pts, int64_t *n, fm_error *err);
+/* fm_path_build, then rerouted round the obstacles where it crosses them (route may be NULL: none).
+ * A rerouted path gets one key point per r_soft of its length, up to twice path.key_points + 2. */
+fm_status fm_path_build_routed(const fm_scene_def *def, const double cs[3], const double ct[3], fm_path_route *route,
+                               fm_path *out, fm_error *err);
+/* The navigation function over the key points q (3 doubles each): u, the shortest cost to C_T
+ * (weighted up near obstacles, halved along the clear stretches of the key-point polyline); g, the
+ * cost onto those stretches; n nodes from origin, h apart (fm_alloc'd; fm_free). */
+typedef struct fm_nav {
+    float *u, *g;
+    int32_t n[3];
+    float origin[3];
+    float h;
+} fm_nav;
+fm_status fm_nav_build(const fm_path_route *r, const double *q, int32_t keys, fm_nav *nav, fm_error *err);
 
 /* Immutable after fm_morph_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
@@ -55,6 +95,9 @@ struct fm_morph_model {
     double field_fade_time;  /* style.fade_time resolved (its default: 2 path length / (omega1 speed0)); 0: never */
     fm_obstacles *obstacles; /* FM §5.3 d_t (OpenVDB grid + Embree); NULL without obstacles */
     fm_obstacles *target_sdf;/* the target's own signed distance, for FM_SWITCH_DISTANCE */
+    fm_nav nav;              /* issue 38's navigation function round the obstacles (morph_route.c); its
+                                arrays are meaningful only when detour_time > 0 */
+    double detour_time;      /* obstacles.detour_time resolved; 0: no detours */
     double scene_lo[3], scene_hi[3]; /* bounds of source, target and path: the field grid spans them */
     double dt;
     int32_t steps_per_frame;
@@ -108,6 +151,7 @@ typedef struct block_counts {
     int64_t entered, arrived, fallbacks;
     int64_t flying, mde;      /* agents in phase 1, and of those the ones MDE pushed */
     float clearance;          /* smallest d_t - R_X in phase 1 */
+    int64_t detours;          /* agents on a detour (issue 38) after this step */
 } block_counts;
 
 /* Stages of fm_morph_step, timed into fm_morph_state.stage_seconds for the benchmarks. */
@@ -152,6 +196,10 @@ struct fm_morph_state {
     float *morph;            /* FM_MORPH_FLOATS per agent */
     uint8_t *perm;           /* vertex correspondence: index into fm_even_permutations */
     uint8_t *morph_safe;     /* 1: uses the always-invertible A(t) form (see morph.c) */
+    float *detour_best;      /* issue 38's detour clock (kernel_detour.h): the least navigation value since
+                                the clock last started, INFINITY when the agent is not watched */
+    float *detour_since;     /* the time it was reached */
+    uint8_t *detour_on;      /* 1: on a detour down the navigation function */
     uint8_t *entered;        /* scratch: entered the target sphere this step */
     void *sort_scratch;      /* scratch for the re-sort: 16 bytes per agent; the velocity stage
                                 borrows 8 of them for the obstacle kernels (morph_step.c) */
@@ -168,6 +216,7 @@ struct fm_morph_state {
     uint8_t *member;         /* scratch: flying this step (the grid's members) */
     float *vla[3];           /* scratch: MDE velocities */
     uint8_t *mde_needed;     /* scratch */
+    int64_t detour_agent_steps; /* phase-1 agent-steps on a detour (issue 38), since the start */
     int64_t mde_agent_steps; /* since the last frame: phase-1 agent-steps that needed MDE ... */
     int64_t flying_agent_steps; /* ... out of all phase-1 agent-steps */
     float min_clearance;     /* smallest d_t - R_X seen in phase 1 (INFINITY without obstacles) */
@@ -286,14 +335,7 @@ static inline void fm_active_block(const fm_morph_state *s, int64_t b, int64_t *
 extern const fm_store_member fm_morph_state_members[];
 extern const int fm_morph_state_member_count;
 
-/* morph_path.c: key points Q_0..Q_{m+1} from C_S through the control points to C_T (FM §5.1). */
-typedef struct fm_path {
-    double *q;      /* 3 per key point */
-    int32_t count;  /* m + 2 */
-} fm_path;
-fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
-                        fm_path *out, fm_error *err);
-void fm_path_free(fm_path *path);
+
 
 /* morph_order.c: FM eq 4. order[k] = index of the tet with the k-th smallest key (ties by index). */
 fm_status fm_order_d1(const fm_tets *src, const fm_path *path, int64_t *order, fm_error *err);

@@ -24,9 +24,10 @@
 /* An agent that changes rank: everything its store slot carries but the rest data. */
 typedef struct agent_record {
     float p[3], v[3], p2[3], t2, tf, morph[FM_MORPH_FLOATS];
+    float detour_best, detour_since;
     int64_t target;
     int32_t id;
-    uint8_t phase, perm, morph_safe;
+    uint8_t phase, perm, morph_safe, detour_on;
     uint8_t settled; /* a resumed agent that arrived before the last re-sort (fm_morph_dist_adopt) */
 } agent_record;
 
@@ -71,7 +72,7 @@ static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent
  * its state zero; rest data come from the model as for any agent that arrives in a store. */
 static agent_record rest_record(const fm_morph_model *m, int64_t i, uint8_t phase)
 {
-    agent_record r = {.target = -1, .id = (int32_t)i, .phase = phase};
+    agent_record r = {.target = -1, .id = (int32_t)i, .phase = phase, .detour_best = INFINITY};
     for (int k = 0; k < 3; k++) r.p[k] = m->src_c[k][i];
     return r;
 }
@@ -97,6 +98,7 @@ static void pack_agent(const fm_morph_state *s, int64_t a, agent_record *r)
     r->t2 = s->t2[a], r->tf = s->tf[a], r->target = s->target[a], r->id = s->id[a];
     memcpy(r->morph, s->morph + FM_MORPH_FLOATS * a, sizeof r->morph);
     r->phase = s->phase[a], r->perm = s->perm[a], r->morph_safe = s->morph_safe[a];
+    r->detour_best = s->detour_best[a], r->detour_since = s->detour_since[a], r->detour_on = s->detour_on[a];
 }
 
 static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent_record *r, int64_t a)
@@ -105,6 +107,7 @@ static void unpack_agent(const fm_morph_model *m, fm_morph_state *s, const agent
     s->t2[a] = r->t2, s->tf[a] = r->tf, s->target[a] = r->target, s->id[a] = r->id;
     memcpy(s->morph + FM_MORPH_FLOATS * a, r->morph, sizeof r->morph);
     s->phase[a] = r->phase, s->perm[a] = r->perm, s->morph_safe[a] = r->morph_safe;
+    s->detour_best[a] = r->detour_best, s->detour_since[a] = r->detour_since, s->detour_on[a] = r->detour_on;
     const size_t i = (size_t)r->id;
     for (int j = 0; j < 12; j++) s->rest_rel[j][a] = m->src_rel[12 * i + (size_t)j];
     s->rest_radius[a] = m->src_radius[i];
@@ -119,6 +122,8 @@ static void move_slot(fm_morph_state *s, int64_t from, int64_t to)
     s->target[to] = s->target[from], s->t2[to] = s->t2[from], s->tf[to] = s->tf[from];
     memcpy(s->morph + FM_MORPH_FLOATS * to, s->morph + FM_MORPH_FLOATS * from, sizeof(float) * FM_MORPH_FLOATS);
     s->perm[to] = s->perm[from], s->morph_safe[to] = s->morph_safe[from];
+    s->detour_best[to] = s->detour_best[from], s->detour_since[to] = s->detour_since[from];
+    s->detour_on[to] = s->detour_on[from];
 }
 
 static int in_flight(uint8_t phase) { return phase == FM_PHASE_FLYING || phase == FM_PHASE_HOMING; }

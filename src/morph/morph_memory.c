@@ -10,8 +10,9 @@ static const double MODEL_PER_AGENT =
     sizeof(float) * (12 + 3 + 12 + 3 + 1) /* src_rel, src_c, tgt_f, tgt_c, src_radius */
     + sizeof(int64_t);                     /* src_index */
 static const double STATE_PER_AGENT =
-    sizeof(float) * (3 + 3 + 3 + 2 + FM_MORPH_FLOATS + 3) /* p, v, p2, t2 and tf, morph, vla */
-    + 6                                                 /* phase, perm, morph_safe, entered, member, mde_needed */
+    sizeof(float) * (3 + 3 + 3 + 2 + FM_MORPH_FLOATS + 3 + 2) /* p, v, p2, t2 and tf, morph, vla, detour clock */
+    + 7                                                 /* phase, perm, morph_safe, entered, member, mde_needed,
+                                                           detour_on */
     + sizeof(int64_t)                                   /* target */
     + sizeof(int32_t) + 16 + 2 * sizeof(uint32_t) + 2 * sizeof(int32_t) /* id; re-sort scratch, keys, slots */
     + sizeof(float) * (12 + 1)                          /* rest_rel, rest_radius: the model's, in store order */

@@ -317,6 +317,62 @@ static fm_status build_obstacles(fm_morph_model *m, const prep_scratch *s, float
     return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
 }
 
+/* The largest R_X of the source tets (tet_radii's, before the tets are stored in launch order):
+ * the obstacles' grid and the route need it before the path orders the tets. */
+static float largest_radius(const fm_tets *src)
+{
+    float most = 0;
+    for (int64_t t = 0; t < src->n; t++) {
+        const double *v = src->v + 12 * t;
+        double c[3];
+        float rel[12];
+        fm_tet_centroid(v, c);
+        for (int i = 0; i < 12; i++) rel[i] = (float)(v[i] - c[i % 3]);
+        most = fmaxf(most, centroid_radius(rel));
+    }
+    return most;
+}
+
+/* What the route and the navigation function read (issue 38): the obstacles inflated by the
+ * largest tet radius, with k_a more clearance preferred, in the box of the source and target. */
+static void path_route_of(const fm_morph_model *m, const prep_scratch *s, float max_radius, fm_path_route *r)
+{
+    memset(r, 0, sizeof *r);
+    r->obstacles = m->obstacles, r->r_infl = max_radius, r->r_soft = m->def.k_a;
+    for (int k = 0; k < 3; k++) r->lo[k] = r->obstacle_lo[k] = INFINITY, r->hi[k] = r->obstacle_hi[k] = -INFINITY;
+    fm_grow_bounds(r->lo, r->hi, s->src_mesh.v, s->src_mesh.nv);
+    fm_grow_bounds(r->lo, r->hi, s->dst_mesh.v, s->dst_mesh.nv);
+    r->meshes = m->def.obstacle_count;
+    for (int i = 0; i < m->def.obstacle_count; i++) {
+        for (int k = 0; k < 3; k++) r->mesh_lo[i][k] = INFINITY, r->mesh_hi[i][k] = -INFINITY;
+        fm_grow_bounds(r->mesh_lo[i], r->mesh_hi[i], s->obstacles[i].v, s->obstacles[i].nv);
+        fm_grow_bounds(r->obstacle_lo, r->obstacle_hi, s->obstacles[i].v, s->obstacles[i].nv);
+    }
+}
+
+static void warn_route(fm_morph_model *m, const fm_path_route *r)
+{
+    m->info.path_routed = r->routed;
+    if (r->unroutable)
+        warn(m, "obstacles.meshes", "%d stretch%s of the path cross%s an obstacle with no way round at least the largest "
+             "tet radius (%g) wide: %s kept as given, and tets may stall there", r->unroutable,
+             r->unroutable > 1 ? "es" : "", r->unroutable > 1 ? "" : "es", r->r_infl, r->unroutable > 1 ? "they are" : "it is");
+}
+
+/* The navigation function for detours (issue 38), unless obstacles.detour_time turns them off. The
+ * default wait is the time to cross the eq 7 band k_a eight times at the path's speed: a tet that
+ * slides round an obstacle gains a grid cell of u well within it (the shipped castling rook: no
+ * detour at 1.5 s, where 0.9 s sent tets that were sliding on detours), a stuck one never does. */
+#define DETOUR_CROSSINGS 8
+static fm_status build_detour(fm_morph_model *m, const prep_scratch *s, const fm_path_route *r, fm_error *err)
+{
+    const double t = m->def.detour_time, guide = m->def.omega1 * m->def.speed0;
+    m->detour_time = t < 0 ? 0 : t > 0 ? t : guide > 0 ? DETOUR_CROSSINGS * m->def.k_a / guide : 0;
+    m->info.detour_time = m->detour_time;
+    if (!(m->detour_time > 0)) return FM_OK;
+    return fm_nav_build(r, s->path.q, s->path.count, &m->nav, err);
+}
+
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
 /* About the voxels of the target's distance grid (obstacles_vdb.cpp's count, to a voxel) with this band. */
 static double target_grid_voxels(const double lo[3], const double hi[3], double voxel, double band)
@@ -504,20 +560,27 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     m->info.target_quality = tet_quality(m, &s->dst);
     m->info.source_volume = total_volume(&s->src, m->info.source_centroid);
     m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
+    /* the obstacles before the path, which is routed round them (issue 38) */
+    report(progress, user, "obstacles", 0.7);
+    const float radius = def->obstacle_count > 0 ? largest_radius(&s->src) : 0; /* tet_radii's max_radius */
+    if (def->obstacle_count > 0 && (st = build_obstacles(m, s, radius, err)) != FM_OK) return st;
     report(progress, user, "order", 0.8);
-    st = fm_path_build(def, m->info.source_centroid, m->info.target_centroid, &s->path, err);
+    fm_path_route route;
+    if (m->obstacles) path_route_of(m, s, radius, &route);
+    st = fm_path_build_routed(def, m->info.source_centroid, m->info.target_centroid,
+                              m->obstacles && def->path_route ? &route : NULL, &s->path, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
     m->info.key_points = s->path.count;
+    if (m->obstacles && def->path_route) warn_route(m, &route);
     if ((st = store_sources(m, s, err)) != FM_OK || (st = store_targets(m, s, err)) != FM_OK) return st;
     if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
+    if (m->obstacles && (st = build_detour(m, s, &route, err)) != FM_OK) return st;
     if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
     scene_bounds(m, s);
     if ((st = plan_fields(m, err)) != FM_OK) return st;
     float max_radius = 0;
     if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
     m->max_radius = max_radius;
-    report(progress, user, "obstacles", 0.9);
-    if (def->obstacle_count > 0 && (st = build_obstacles(m, s, max_radius, err)) != FM_OK) return st;
     if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
     if ((st = fm_morph_motion_build(m, err)) != FM_OK) return st;
     set_timing(m);
@@ -573,12 +636,15 @@ void fm_morph_model_drop_targets(fm_morph_model *m)
 /* ---------------------------------------------------------------- one model per machine */
 
 /* The model's arrays (all but a shot's tgt), by address and size: what a machine's ranks share. */
-enum { MODEL_ARRAYS = 16 }; /* <= FM_DIST_MAX_ARRAYS */
+enum { MODEL_ARRAYS = 18 }; /* <= FM_DIST_MAX_ARRAYS */
 static int model_arrays(void *model, void **p[], size_t bytes[])
 {
     fm_morph_model *m = model;
     const size_t n = (size_t)m->n, keys = (size_t)m->key_count;
+    const size_t nav = m->detour_time > 0 ? (size_t)m->nav.n[0] * (size_t)m->nav.n[1] * (size_t)m->nav.n[2] : 0;
     int c = 0;
+    p[c] = (void **)&m->nav.u, bytes[c++] = sizeof(float) * nav;
+    p[c] = (void **)&m->nav.g, bytes[c++] = sizeof(float) * nav;
     p[c] = (void **)&m->src_rel, bytes[c++] = sizeof(float) * 12 * n;
     p[c] = (void **)&m->tgt_f, bytes[c++] = sizeof(float) * 12 * n;
     p[c] = (void **)&m->src_index, bytes[c++] = sizeof(int64_t) * n;

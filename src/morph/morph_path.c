@@ -1,5 +1,6 @@
 /* The global path (FM §5.1): a curve from C_S through the user's control points to C_T,
- * resampled to m + 2 key points Q_0 = C_S .. Q_{m+1} = C_T evenly spaced by arc length. */
+ * resampled to m + 2 key points Q_0 = C_S .. Q_{m+1} = C_T evenly spaced by arc length; with
+ * obstacles, rerouted round them first where it crosses them (morph_route.c, issue 38). */
 #include "morph.h"
 
 #include <math.h>
@@ -59,34 +60,44 @@ static void resample(const double *pts, int64_t n, double total, int32_t count, 
     memcpy(out + 3 * (count - 1), pts + 3 * (n - 1), 3 * sizeof(double));
 }
 
-fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3],
-                        fm_path *out, fm_error *err)
+fm_status fm_path_build_routed(const fm_scene_def *def, const double cs[3], const double ct[3], fm_path_route *route,
+                               fm_path *out, fm_error *err)
 {
     int count = def->path_point_count + 2;
     double *ctrl = malloc(sizeof(double) * 3 * (size_t)count);
     double *dense = malloc(sizeof(double) * 3 * ((size_t)count * CURVE_SAMPLES_PER_SEGMENT + 1));
     out->count = def->path_key_points + 2;
-    out->q = malloc(sizeof(double) * 3 * (size_t)out->count);
-    if (!ctrl || !dense || !out->q) {
-        free(ctrl), free(dense), fm_path_free(out);
+    out->q = NULL;
+    if (!ctrl || !dense) {
+        free(ctrl), free(dense);
         return fm_fail(err, FM_ERR_MEMORY, "out of memory building the path");
     }
     memcpy(ctrl, cs, 3 * sizeof(double));
     memcpy(ctrl + 3 * (count - 1), ct, 3 * sizeof(double));
     memcpy(ctrl + 3, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
     int64_t n = densify(ctrl, count, def->path_curve, dense);
+    fm_status st = route ? fm_path_route_dense(route, &dense, &n, err) : FM_OK;
     double total = 0;
     for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
-    fm_status st = FM_OK;
-    if (!(total > 0))
+    /* the key points resolve the way round: one per r_soft, but at most twice the scene's (eq 3's
+       nearest key point costs O(m) an agent-step) */
+    if (st == FM_OK && route && route->routed && route->r_soft > 0)
+        out->count = (int32_t)fmax(out->count, fmin(ceil(total / route->r_soft) + 1, 2.0 * out->count));
+    if (st == FM_OK && !(total > 0))
         st = fm_fail(err, FM_ERR_INPUT, "the path has fewer than two distinct points (zero length): the source "
                      "and target centroids coincide and no path point lies apart from them");
-    else
-        resample(dense, n, total, out->count, out->q);
+    if (st == FM_OK && !(out->q = malloc(sizeof(double) * 3 * (size_t)out->count)))
+        st = fm_fail(err, FM_ERR_MEMORY, "out of memory building the path");
+    if (st == FM_OK) resample(dense, n, total, out->count, out->q);
     free(ctrl);
     free(dense);
     if (st != FM_OK) fm_path_free(out);
     return st;
+}
+
+fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const double ct[3], fm_path *out, fm_error *err)
+{
+    return fm_path_build_routed(def, cs, ct, NULL, out, err);
 }
 
 void fm_path_free(fm_path *path)

@@ -119,6 +119,11 @@ void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)
     permute(s->morph, sizeof(float) * FM_MORPH_FLOATS, order, count, tmp, s->threads);
     permute(s->perm, 1, order, count, tmp, s->threads);
     permute(s->morph_safe, 1, order, count, tmp, s->threads);
+    if (m->detour_time > 0) { /* issue 38's detour clock: only scenes that take detours carry it */
+        permute(s->detour_best, sizeof(float), order, count, tmp, s->threads);
+        permute(s->detour_since, sizeof(float), order, count, tmp, s->threads);
+        permute(s->detour_on, 1, order, count, tmp, s->threads);
+    }
     int64_t arrived = 0;
     while (arrived < count && s->phase[arrived] == FM_PHASE_ARRIVED) arrived++;
     s->active_begin = arrived;

@@ -315,6 +315,7 @@ static void finish_stats(const fm_morph_model *m, const fm_morph_state *s, const
     stats->final_max_vertex_error = fm_morph_final_vertex_error(m, s, shared ? f->own : f->verts, shared);
     stats->target_tets_filled_once = fm_morph_targets_taken_once(s);
     stats->morph_fallbacks = s->morph_fallbacks;
+    stats->detour_agent_steps = s->detour_agent_steps;
     stats->mde_fraction_mean = mde_mean(stats);
     stats->min_obstacle_clearance = s->min_clearance;
     find_stragglers(m, s, stats);

@@ -25,9 +25,11 @@ const fm_store_member fm_morph_state_members[] = {
     AGENT_ARRAY(morph, sizeof(float) * FM_MORPH_FLOATS),
     AGENT_ARRAY(perm, sizeof(uint8_t)),
     AGENT_ARRAY(morph_safe, sizeof(uint8_t)),
+    AGENT_ARRAY(detour_best, sizeof(float)), AGENT_ARRAY(detour_since, sizeof(float)),
+    AGENT_ARRAY(detour_on, sizeof(uint8_t)),
     AGENT_ARRAY(id, sizeof(int32_t)), SCALAR(active_begin), SCALAR(active_end),
     SCALAR(step), SCALAR(time), SCALAR(launched), SCALAR(next_slot), SCALAR(count),
-    SCALAR(morph_fallbacks), SCALAR(mde_agent_steps), SCALAR(flying_agent_steps), SCALAR(min_clearance),
+    SCALAR(morph_fallbacks), SCALAR(mde_agent_steps), SCALAR(detour_agent_steps), SCALAR(flying_agent_steps), SCALAR(min_clearance),
 };
 const int fm_morph_state_member_count = (int)(sizeof fm_morph_state_members / sizeof fm_morph_state_members[0]);
 
@@ -46,6 +48,7 @@ static const slot_array SLOT_ARRAYS[] = {
     SLOTS(rest_rel[8], 4), SLOTS(rest_rel[9], 4), SLOTS(rest_rel[10], 4), SLOTS(rest_rel[11], 4),
     SLOTS(rest_radius, 4), SLOTS(id, 4), SLOTS(phase, 1), SLOTS(target, 8), SLOTS(t2, 4), SLOTS(tf, 4),
     SLOTS(morph, 4 * FM_MORPH_FLOATS), SLOTS(perm, 1), SLOTS(morph_safe, 1), SLOTS(entered, 1),
+    SLOTS(detour_best, 4), SLOTS(detour_since, 4), SLOTS(detour_on, 1),
     SLOTS(member, 1), SLOTS(mde_needed, 1), SLOTS(vla[0], 4), SLOTS(vla[1], 4), SLOTS(vla[2], 4),
     SLOTS(sort_scratch, 16), SLOTS(sort_keys, 2 * sizeof(uint32_t)), SLOTS(sort_slots, 2 * sizeof(int32_t)),
 };
@@ -158,6 +161,7 @@ static fm_morph_state *create_empty(const fm_morph_model *m, int threads, int64_
     }
     s->count[FM_PHASE_WAITING] = s->n;
     s->min_clearance = INFINITY;
+    for (int64_t a = 0; a < capacity; a++) s->detour_best[a] = INFINITY, s->detour_since[a] = 0, s->detour_on[a] = 0;
     return s;
 }
 
@@ -203,6 +207,7 @@ fm_morph_info fm_morph_get_info(const fm_morph_state *s)
 {
     fm_morph_info info = {.run = {.step = s->step, .time = s->time}, .morph_fallbacks = s->morph_fallbacks,
                           .flying_agent_steps = s->flying_agent_steps, .mde_agent_steps = s->mde_agent_steps,
+                          .detour_agent_steps = s->detour_agent_steps,
                           .min_obstacle_clearance = s->min_clearance};
     memcpy(info.run.count, s->count, sizeof info.run.count);
     info.all_arrived = s->count[FM_PHASE_ARRIVED] == s->n;

@@ -21,6 +21,7 @@
 #include "morph.h"
 #include "kernels.h"
 #include "kernel_avoid.h"
+#include "kernel_detour.h"
 #include "kernel_mde.h"
 
 #include <math.h>
@@ -72,6 +73,23 @@ static fm_obstacle_view obstacle_view(const fm_morph_model *m)
     const double *u = m->def.up, len = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     return (fm_obstacle_view){sdf, (float)m->def.k_a, (float)m->def.speed0, exact_distance, m->obstacles,
                               m->max_radius + 2.0f * sdf.voxel, {(float)(u[0] / len), (float)(u[1] / len), (float)(u[2] / len)}};
+}
+
+/* Issue 38's detour (kernel_detour.h): the navigation function, the clock's wait, progress of a grid
+ * cell, back on the path within two cells, watched within k_a of an obstacle. */
+static fm_detour_view detour_view(const fm_morph_model *m)
+{
+    const fm_nav *n = &m->nav;
+    const fm_sdf_view u = {n->u, {n->n[0], n->n[1], n->n[2]}, {n->origin[0], n->origin[1], n->origin[2]}, n->h, INFINITY};
+    fm_sdf_view g = u;
+    g.d = n->g;
+    return (fm_detour_view){u, g, fm_obstacles_sdf(m->obstacles), (float)m->detour_time, n->h, 2 * n->h,
+                            (float)m->def.k_a, (float)(m->def.omega1 * m->def.speed0)};
+}
+
+static fm_detour_store detour_store(const fm_morph_state *s)
+{
+    return (fm_detour_store){s->detour_best, s->detour_since, s->detour_on};
 }
 
 /* The MDE grid's cell edge: at least d_min (the search reaches one cell), and no smaller than the
@@ -184,6 +202,12 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
     const float *const *p = (const float *const *)s->p;
     const float dt = (float)m->dt;
     fm_kernel_global_velocity(&path, p, s->phase, begin, end, (float)(def->omega1 * def->speed0), s->v);
+    const int detours = m->obstacles && m->detour_time > 0;
+    fm_detour_view dv;
+    if (detours) { /* V_g of the agents on a detour: down the navigation function instead of f_i */
+        dv = detour_view(m);
+        fm_kernel_detour_velocity(&dv, p, s->phase, detour_store(s), begin, end, s->v);
+    }
     if (s->fields && (m->field_fade > 0 || m->field_fade_time > 0)) add_faded_fields(m, s, begin, end);
     else if (s->fields) fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, (float)def->omega2, s->v);
     fm_obstacle_view o;
@@ -194,6 +218,7 @@ static void velocity_block(const fm_morph_model *m, fm_morph_state *s, int64_t b
     if (m->obstacles) { /* V_grn -> V_oa where the look-ahead collides (eqs 7-8) */
         o = obstacle_view(m), r = radius_view(m, s);
         bc->clearance = fm_kernel_avoid(&o, &r, p, s->v, s->phase, FM_PHASE_FLYING, begin, end, s->time, dt, sc);
+        if (detours) bc->detours = fm_kernel_detour_track(&dv, &path, sc, p, s->phase, detour_store(s), begin, end, s->time);
     }
     if (steer_phase2) {
         const int64_t *target = m->motion ? NULL : s->target;
@@ -331,14 +356,14 @@ static void lap(fm_morph_state *s, fm_stage k, double *t)
 /* The step's counts, block by block in block order, then (on P ranks) summed over the ranks. */
 static void combine_counts(fm_morph_state *s, const block_counts *bc, int64_t blocks)
 {
-    int64_t sum[5] = {0}; /* entered, arrived, fallbacks, flying, mde */
+    int64_t sum[6] = {0}; /* entered, arrived, fallbacks, flying, mde, detours */
     float clearance = INFINITY;
     for (int64_t b = 0; b < blocks; b++) {
         sum[0] += bc[b].entered, sum[1] += bc[b].arrived, sum[2] += bc[b].fallbacks;
-        sum[3] += bc[b].flying, sum[4] += bc[b].mde;
+        sum[3] += bc[b].flying, sum[4] += bc[b].mde, sum[5] += bc[b].detours;
         clearance = fminf(clearance, bc[b].clearance);
     }
-    fm_dist_sum_i64(s->dist, sum, 5);
+    fm_dist_sum_i64(s->dist, sum, 6);
     fm_dist_min_f32(s->dist, &clearance, 1);
     s->count[FM_PHASE_FLYING] -= sum[0];
     s->count[FM_PHASE_HOMING] += sum[0] - sum[1];
@@ -346,6 +371,7 @@ static void combine_counts(fm_morph_state *s, const block_counts *bc, int64_t bl
     s->morph_fallbacks += sum[2];
     s->flying_agent_steps += sum[3];
     s->mde_agent_steps += sum[4];
+    s->detour_agent_steps += sum[5];
     s->min_clearance = fminf(s->min_clearance, clearance);
 }
 
@@ -385,7 +411,7 @@ void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
     for (int64_t b = 0; b < blocks; b++) {
         int64_t begin, end;
         fm_active_block(s, b, &begin, &end);
-        bc[b] = (block_counts){0, 0, 0, 0, 0, INFINITY};
+        bc[b] = (block_counts){0, 0, 0, 0, 0, INFINITY, 0};
         velocity_block(m, s, begin, end, &bc[b]);
     }
     lap(s, FM_STAGE_VELOCITY, &t);

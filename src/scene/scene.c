@@ -99,6 +99,7 @@ fm_scene_def fm_default_scene_def(void)
     d.cache_piece_agents = 65536;
     d.omega2 = 1.0;
     d.k_a = 1.0;
+    d.path_route = 1;
     d.path_attraction = 1.0;
     strcpy(d.cache_name, "frames.fmc");
     d.flock = fm_default_flock_def();
@@ -154,7 +155,8 @@ static const char *const *enum_names(const param *p)
 static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
                                          "path.attraction", "launch_rate", "morph", "style.omega2", "style.fade_distance",
                                          "style.fade_time",
-                                         "obstacles.in_phase2", "mde", "phase2", "up", "target_motion"};
+                                         "obstacles.in_phase2", "obstacles.route", "obstacles.detour_time", "mde",
+                                         "phase2", "up", "target_motion"};
 
 static int has_prefix(const char *key, const char *group)
 {
@@ -228,6 +230,8 @@ static const param PARAMS[] = {
     {"obstacles.k_a", P_DOUBLE, OFF(k_a), 0, 1e9, OPEN_MIN},
     {"obstacles.voxel", P_DOUBLE, OFF(obstacle_voxel), 0, 1e9, 0},
     {"obstacles.in_phase2", P_BOOL, OFF(avoid_in_phase2), 0, 0, 0},
+    {"obstacles.route", P_BOOL, OFF(path_route), 0, 0, 0},
+    {"obstacles.detour_time", P_DOUBLE, OFF(detour_time), -1, 1e6, 0},
     {"up", P_VEC3, OFF(up), -1e9, 1e9, 0},
     {"mde.d_min", P_DOUBLE, OFF(d_min), 0, 1e9, 0},
     {"mde.speed", P_DOUBLE, OFF(mde_speed), 0, 1e9, 0},

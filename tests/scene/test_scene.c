@@ -198,6 +198,11 @@ static void test_velocity_model_keys(void)
     ENSURE(def.obstacle_count == 1 && def.obstacles[0].scale == 2 && strstr(def.obstacles[0].path, "k.obj"));
     ENSURE(def.k_a == 0.5 && def.avoid_in_phase2 == 1 && def.d_min == 0.1 && def.path_width == 3);
     ENSURE(def.phase_switch == FM_SWITCH_DISTANCE && def.switch_distance == 0.2 && def.blend_time == 0.5);
+    ENSURE(def.path_route == 1 && def.detour_time == 0); /* issue 38's detour: on by default */
+    st = load_text("detour.json", "{" MESHES ", \"obstacles\": {\"meshes\": [{\"mesh\": \"k.obj\"}], \"route\": false,"
+                   " \"detour_time\": -1}}", &def, &err);
+    ENSURE_MSG(st == FM_OK, "%s", err.message);
+    ENSURE(def.path_route == 0 && def.detour_time == -1);
     ENSURE(fm_default_scene_def().blend_time == 0.25); /* issue 38: the switch blend is on by default */
     expect_error_at("field_key.json", "{" MESHES ",\n \"style\": {\"fields\": [{\"type\": \"curl_noise\", @\"speed\": 1}]}}",
                     "style.fields[0].speed: does not apply");
