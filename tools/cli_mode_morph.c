@@ -155,11 +155,11 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
                         isinf(rs->min_obstacle_clearance) ? json_null() : json_real(rs->min_obstacle_clearance));
     json_object_set_new(j, "min_vertex_clearance",
                         isinf(rs->min_vertex_clearance) ? json_null() : json_real(rs->min_vertex_clearance));
-    if (def->obstacle_count > 0) { /* issue 38's global detour */
-        json_object_set_new(j, "path_routed", json_integer(mi->path_routed));
-        json_object_set_new(j, "detour_time", json_real(mi->detour_time));
-        json_object_set_new(j, "detour_agent_steps", json_integer(rs->detour_agent_steps));
-    }
+    /* issue 38's global detour: 0 without obstacles, so every run has the same keys */
+    const int obstacles = def->obstacle_count > 0;
+    json_object_set_new(j, "path_routed", json_integer(obstacles ? mi->path_routed : 0));
+    json_object_set_new(j, "detour_time", json_real(obstacles ? mi->detour_time : 0.0));
+    json_object_set_new(j, "detour_agent_steps", json_integer(obstacles ? rs->detour_agent_steps : 0));
     json_t *velocity = velocity_json(def, mi);
     json_object_set_new(velocity, "field_bake_error", isnan(mi->field_bake_error) ? json_null() : json_real(mi->field_bake_error));
     json_object_set_new(j, "velocity_model", velocity);
