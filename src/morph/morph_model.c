@@ -60,7 +60,7 @@ static fm_status check_tet_bound(const fm_scene_def *def, const fm_mesh_ref *ref
     fm_scene_key_location(def, "tetgen.max_volume", where, sizeof where);
     return fm_fail(err, FM_ERR_INPUT, "%s: %s over the volume %.6g of %s (%s) implies at least %.3g tets (volume / "
                    "max_volume x %.1f; TetGen makes 1.9 to 2.5 times volume / max_volume), and a run of that many agents "
-                   "needs about %.1f GiB, more than this machine's %.1f GiB of physical memory: at most about %.3g agents "
+                   "needs about %.1f GiB, more than this machine's %.1f GiB of physical memory (or ulimit -v): at most about %.3g agents "
                    "fit; use a tetgen.max_volume of at least %.2g (docs/limits.md)", where,
                    fm_shortest(bound, def->tet_max_volume), volume, key, ref->path, tets, TETS_PER_BOUND,
                    e.total / gib, fm_physical_memory() / gib, fits, ceil(least / mag) * mag);

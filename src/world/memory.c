@@ -11,6 +11,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 /* A frame of `frame` bytes per agent: the run's own buffers (morph_run.c, flock_run.c). The cache
@@ -97,7 +98,13 @@ void fm_memory_total(fm_memory_estimate *e, int64_t n)
 double fm_physical_memory(void)
 {
     long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+    double bytes = pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+    /* a process limited to less address space (ulimit -v, a farm's cap) has only that: refused here,
+     * a run fails at once instead of after TetGen has spent minutes filling the limit */
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && (bytes <= 0 || (double)limit.rlim_cur < bytes))
+        bytes = (double)limit.rlim_cur;
+    return bytes;
 }
 
 int fm_memory_fits(const fm_memory_estimate *e)
@@ -137,7 +144,7 @@ fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_ne
         return fm_fail(err, FM_ERR_INPUT,
                        "%s: %lld agents need about %.1f GiB on this machine's %d ranks (bytes per agent: the model %.0f, "
                        "once; and on each rank agent store %.0f, frame buffers %.0f, neighbour grid %.0f, plus %.0f MiB "
-                       "that do not grow with n), more than its %.1f GiB of physical memory; at most about %.3g agents "
+                       "that do not grow with n), more than its %.1f GiB of physical memory (or ulimit -v); at most about %.3g agents "
                        "fit (docs/limits.md)", where, (long long)n, e.total / gib, e.ranks_here, e.shared, e.state, e.frames,
                        e.grid, e.fixed / (1024.0 * 1024.0), physical / gib, fits);
     char ranks[96] = "";
@@ -145,7 +152,7 @@ fm_status fm_memory_check(const fm_scene_def *def, int64_t n, const fm_memory_ne
     return fm_fail(err, FM_ERR_INPUT,
                    "%s: %lld agents need about %.1f GiB%s (%.0f bytes per agent: model %.0f, agent store %.0f, frame "
                    "buffers %.0f, neighbour grid %.0f; plus %.0f MiB that do not grow with n), more than this "
-                   "machine's %.1f GiB of physical memory; at most about %.3g agents fit (docs/limits.md)",
+                   "machine's %.1f GiB of physical memory (or ulimit -v); at most about %.3g agents fit (docs/limits.md)",
                    where, (long long)n, e.total / gib, ranks, e.per_agent, e.model, e.state, e.frames, e.grid,
                    e.fixed / (1024.0 * 1024.0), physical / gib, fits);
 }
@@ -185,7 +192,7 @@ fm_status fm_memory_check_shot(const fm_scene_def *defs, const int64_t *agents, 
     return fm_fail(err, FM_ERR_INPUT,
                    "%s: the shot's %d groups (%s agents) need about %.1f GiB together%s (models %.1f GiB%s, agent "
                    "stores and grids %.1f GiB, a frame of %.3g rows %.1f GiB, preparation peak %.1f GiB; plus %.0f MiB "
-                   "that do not grow with n), more than this machine's %.1f GiB of physical memory: lower the groups' "
+                   "that do not grow with n), more than this machine's %.1f GiB of physical memory (or ulimit -v): lower the groups' "
                    "n (docs/limits.md)", defs[0].scene_path, count, groups, total / gib, ranks, (models + shared) / gib,
                    shared > 0 ? " once" : here > 1 ? " on each rank" : "", stores / gib, rows, frame * rows / gib,
                    preparation / gib, fixed / (1024.0 * 1024.0), physical / gib);

@@ -49,7 +49,7 @@ void fm_memory_set_ranks(int ranks, int ranks_here);
 int fm_memory_ranks(void);
 /* Fills per_agent, run, preprocess, ranks_here, preparations_here and total from the parts. */
 void fm_memory_total(fm_memory_estimate *e, int64_t n);
-double fm_physical_memory(void); /* bytes (sysconf); 0 if unknown */
+double fm_physical_memory(void); /* bytes (sysconf), or the address-space limit (RLIMIT_AS) if lower; 0 if unknown */
 /* Whether the machine's total fits its physical memory (or that is unknown), and how many agents
  * would. */
 int fm_memory_fits(const fm_memory_estimate *e);
