@@ -144,7 +144,8 @@ class SameBytes(unittest.TestCase):
         its binding built by every rank from the target tets (on two machines, from the machine's
         shared ones); 40 frames of motion after the flock formed."""
         extra = pieces(4096) + ("--set", "time.frame_limit=160")
-        self.check_scene("examples/walking_suzanne/scene.json", [(2, 1), (3, 1)], extra)
+        # one run on 3 ranks as two machines (ranks 0-1 and 2): the CI's time is short, and 2 and 3
+        # ranks of one machine are what every other SameBytes case checks
         self.check_scene("examples/walking_suzanne/scene.json", [(3, 1)], extra, machine_ranks=2)
 
     def test_castling_shot(self):
@@ -180,8 +181,8 @@ class SameBytes(unittest.TestCase):
         """examples/flock_travel: the bird, then its bound agents, carried 38 units along its route
         (target.path): each rank evaluates the same target at the same times; frames written in
         parallel (pieces of 1024) and gathered."""
-        self.check_scene("examples/flock_travel/scene.json", [(2, 1), (3, 1)], pieces(1024))
-        self.check_scene("examples/flock_travel/scene.json", [(2, 1)], pieces(1000))
+        # to frame 300: 3.5 s of the route after the bird formed (it sets off at 9 s, frame 216)
+        self.check_scene("examples/flock_travel/scene.json", [(3, 1)], pieces(1000) + ("--set", "time.frame_limit=300"))
 
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
