@@ -178,7 +178,7 @@ class SameBytes(unittest.TestCase):
         self.check_scene(FLOCK_STRESS, [(2, 1), (3, 1)], pieces(1000))
 
     def test_travelling_target(self):
-        """examples/flock_travel: the bird, then its bound agents, carried 38 units along its route
+        """examples/flock_travel: the bird, then its bound agents, carried along its route
         (target.path): each rank evaluates the same target at the same times; frames written in
         parallel (pieces of 1024) and gathered."""
         # to frame 300: 3.5 s of the route after the bird formed (it sets off at 9 s, frame 216)
