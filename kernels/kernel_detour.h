@@ -1,7 +1,7 @@
 /* The global detour (issue 38, beyond FM §5.3): eq 7 slides a tet along an obstacle, but a tet held
  * in a concave pocket, or square against a wall, makes no progress along the path for good. A tet
  * near an obstacle whose navigation value u (the length still to go round the obstacles, onto the
- * path and along it: morph_route.c) has not fallen by `progress` for `wait` seconds takes the
+ * path and along it: path_route.c) has not fallen by `progress` for `wait` seconds takes the
  * detour: its V_g becomes speed * -grad u / |grad u| instead of eq 3's f_i, until it is back on
  * the path (g < join) where the path leads on. Eqs 7-8 and the contact step still act on top, so no vertex enters an
  * obstacle. Per agent and in its own slots only: any thread count gives the same bits. Scalar

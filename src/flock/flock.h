@@ -56,6 +56,7 @@ struct fm_flock_model {
     fm_flock_target target;
     fm_bspline path;               /* R from O1 to O2, by arc length */
     double o1[3], o2[3];
+    double route_margin;           /* obstacles.route: R's clearance beyond k_a (flock_model.c route_path) */
     double path_time;              /* each leader's time along its path, eased in and out */
     double ease_in, ease_out;      /* the ramps, as fractions of path_time (their sum <= 1) */
     double ease_spread;            /* seconds from the first leaders' start to the last's */

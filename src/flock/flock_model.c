@@ -4,6 +4,7 @@
  * (eq 6). Everything here runs once; the result is immutable. */
 #include "flock.h"
 #include "fm_math.h"
+#include "path_route.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -96,6 +97,130 @@ static void mean_point(const float *p, int64_t n, double out[3])
     for (int k = 0; k < 3; k++) out[k] = sum[k] / (double)n;
 }
 
+/* Beyond SCF, which has no obstacles (issue 38, as the tetra morph's path, path_route.c): R sampled
+ * ROUTE_SAMPLES_PER_SEGMENT times a segment of the spline; where it passes closer than
+ * k_a + route_margin to an obstacle, that stretch goes round the obstacles (A* on the distance
+ * field, taut, corner-cut), preferring k_a more clearance; then R is the B-spline through the
+ * rerouted polyline resampled by arc length every ROUTE_SPACING_OF_INFLATION of that inflation
+ * radius (at most ROUTE_POINTS_MAX points). A path that nowhere comes that close is left as it
+ * is, bit for bit. */
+enum { ROUTE_SAMPLES_PER_SEGMENT = 128, ROUTE_POINTS_MAX = 512 };
+#define ROUTE_SPACING_OF_INFLATION 0.5
+/* The margin: rho, the larger of the source's and the target's bounding radius about its centre
+ * (the agents' C1 about O1, C2 about O2) times ROUTE_MARGIN_OF_RADIUS. Eq 12 carries each agent's
+ * offset from O(s) along R, so each agent rides its own copy of R up to rho aside; a route that
+ * clears only the core leaves the copies of the agents on the obstacle's side through it. Eq 7's
+ * push does not keep them out: measured from the caches of tests/flock/route (test_flock_route.py),
+ * R through the wall leaves 995 of 1,500 agents unbound at the frame limit and 17,923
+ * position-frames inside the 0.8-thick wall (0.4 deep: through it); routed with rho / 4, 98
+ * unbound and 1,550 inside; rho / 2 binds all but leaves 9 position-frames inside the ball; rho / 1.5
+ * and rho, none in either. So the whole radius: every agent's copy of R keeps about k_a clear and
+ * the push has only the flock's deformation to handle; the cost is a detour wider by the flock's
+ * radius round a small obstacle. */
+#define ROUTE_MARGIN_OF_RADIUS 1.0
+
+static double spread_of(float *const p[3], int64_t n, const double centre[3])
+{
+    double most = 0;
+    for (int64_t a = 0; a < n; a++) {
+        const double d[3] = {p[0][a] - centre[0], p[1][a] - centre[1], p[2][a] - centre[2]};
+        most = fmax(most, d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    }
+    return sqrt(most);
+}
+
+/* The route's distance grid: the flock's own (m->obstacles) has a band of k_a, too narrow to tell
+ * k_a + margin of clearance, and its voxel follows its band, so a wider one here would change the
+ * push's bytes; this one is built for the route alone and freed with it. */
+static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obstacles **grid, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    memset(r, 0, sizeof *r);
+    r->r_infl = def->k_a + m->route_margin, r->r_soft = def->k_a;
+    for (int k = 0; k < 3; k++) r->lo[k] = r->obstacle_lo[k] = INFINITY, r->hi[k] = r->obstacle_hi[k] = -INFINITY;
+    const double rho = m->route_margin / ROUTE_MARGIN_OF_RADIUS; /* the box of the source and target */
+    for (int e = 0; e < 2; e++) {
+        const double *o = e ? m->o2 : m->o1;
+        const double lo[3] = {o[0] - rho, o[1] - rho, o[2] - rho}, hi[3] = {o[0] + rho, o[1] + rho, o[2] + rho};
+        fm_grow_bounds(r->lo, r->hi, lo, 1), fm_grow_bounds(r->lo, r->hi, hi, 1);
+    }
+    fm_mesh *meshes = calloc((size_t)def->obstacle_count, sizeof *meshes);
+    if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    fm_status st = FM_OK;
+    for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) { /* checked against the shapes already */
+        st = fm_obstacle_mesh_load(def, i, NULL, NULL, &meshes[i], err);
+        for (int k = 0; st == FM_OK && k < 3; k++) r->mesh_lo[i][k] = INFINITY, r->mesh_hi[i][k] = -INFINITY;
+        if (st != FM_OK) break;
+        fm_grow_bounds(r->mesh_lo[i], r->mesh_hi[i], meshes[i].v, meshes[i].nv);
+        fm_grow_bounds(r->obstacle_lo, r->obstacle_hi, meshes[i].v, meshes[i].nv);
+    }
+    r->meshes = def->obstacle_count;
+    *grid = st == FM_OK ? fm_obstacles_grid(def, meshes, r->r_infl + r->r_soft, err) : NULL;
+    if (st == FM_OK && !*grid) st = err ? err->status : FM_ERR_INPUT;
+    r->obstacles = *grid;
+    for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
+    free(meshes);
+    return st;
+}
+
+static double dist3(const double *a, const double *b)
+{
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* pts (n points) resampled by arc length to `count` points into out, the ends exactly o1 and o2. */
+static void resample(const double *pts, int64_t n, int32_t count, const double o1[3], const double o2[3], double *out)
+{
+    double total = 0;
+    for (int64_t i = 0; i + 1 < n; i++) total += dist3(pts + 3 * i, pts + 3 * (i + 1));
+    int64_t i = 0;
+    double at = 0; /* arc length at pts[i] */
+    for (int32_t j = 1; j + 1 < count; j++) {
+        const double s = total * (double)j / (double)(count - 1);
+        double len = dist3(pts + 3 * i, pts + 3 * (i + 1));
+        while (i + 2 < n && at + len < s) at += len, i++, len = dist3(pts + 3 * i, pts + 3 * (i + 1));
+        const double t = len > 0 ? fmin(fmax((s - at) / len, 0), 1) : 0;
+        for (int k = 0; k < 3; k++) out[3 * j + k] = pts[3 * i + k] + t * (pts[3 * (i + 1) + k] - pts[3 * i + k]);
+    }
+    memcpy(out, o1, 3 * sizeof(double)), memcpy(out + 3 * (count - 1), o2, 3 * sizeof(double));
+}
+
+static void set_route_margin(fm_flock_model *m)
+{
+    m->route_margin = ROUTE_MARGIN_OF_RADIUS * fmax(spread_of(m->start, m->n, m->o1), spread_of(m->dest0, m->n, m->o2));
+}
+
+static fm_status route_path(fm_flock_model *m, fm_error *err)
+{
+    fm_path_route r;
+    fm_obstacles *grid = NULL;
+    fm_status st = route_setup(m, &r, &grid, err);
+    int64_t n = (int64_t)ROUTE_SAMPLES_PER_SEGMENT * (m->path.count - 1) + 1;
+    double *dense = st == FM_OK ? malloc(sizeof(double) * 3 * (size_t)n) : NULL;
+    if (st == FM_OK && !dense) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    for (int64_t i = 0; st == FM_OK && i < n; i++)
+        fm_bspline_eval_arc(&m->path, (double)i / (double)(n - 1), dense + 3 * i, NULL);
+    if (st == FM_OK) memcpy(dense, m->o1, sizeof m->o1), memcpy(dense + 3 * (n - 1), m->o2, sizeof m->o2);
+    if (st == FM_OK) st = fm_path_route_dense(&r, &dense, &n, err);
+    double *pts = NULL;
+    if (st == FM_OK && r.routed) {
+        double total = 0;
+        for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
+        const double spacing = ROUTE_SPACING_OF_INFLATION * r.r_infl;
+        const int32_t count = (int32_t)fmin(ceil(total / spacing) + 1, ROUTE_POINTS_MAX);
+        if (!(pts = malloc(sizeof(double) * 3 * (size_t)count)))
+            st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+        if (st == FM_OK) {
+            resample(dense, n, count, m->o1, m->o2, pts);
+            fm_bspline_free(&m->path);
+            st = fm_bspline_build(pts, count, &m->path, err);
+        }
+    }
+    free(pts), free(dense);
+    fm_obstacles_destroy(grid);
+    return st;
+}
+
 /* SCF "Global Path Control": R from O1 (the source's centre) through path.points to O2. */
 static fm_status build_path(fm_flock_model *m, fm_error *err)
 {
@@ -110,6 +235,7 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
     for (int32_t i = 1; i < count; i++) distinct |= memcmp(pts, pts + 3 * i, sizeof m->o1) != 0;
     fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
     free(pts);
+    if (st == FM_OK && distinct && m->obstacles && def->path_route) st = route_path(m, err);
     /* speed0 is the leaders' cruise: the ramps of set_ease take half their length more */
     const double ramps = 0.5 * (def->flock.ease_in + def->flock.ease_out);
     m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 + ramps : 0;
@@ -331,6 +457,8 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
+    if (st == FM_OK) st = build_obstacles(m, &source, err); /* before the path, routed round them */
+    if (st == FM_OK) set_route_margin(m);
     if (st == FM_OK) st = build_path(m, err);
     if (st == FM_OK) set_ease(m), fm_flock_target_set_start(&m->target, &def->flock, fm_flock_leaders_end(m));
     if (st == FM_OK) st = init_fuzzy(m, err);
@@ -341,7 +469,6 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
         set_info(m);
         st = plan_fields(m, err);
     }
-    if (st == FM_OK) st = build_obstacles(m, &source, err);
     fm_mesh_free(&source);
     if (progress && st == FM_OK) progress("ready", 1.0, user);
     return st;
@@ -435,11 +562,11 @@ static fm_status build_replicated(void *model, fm_error *err)
     fm_status st = fm_flock_target_build(&m->target, &m->def, err);
     m->target.dest = dest;
     fm_mesh source = {0};
+    if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
+    if (st == FM_OK) st = build_obstacles(m, &source, err); /* route_margin came with the scalars */
+    fm_mesh_free(&source);
     if (st == FM_OK) st = build_path(m, err);
     if (st == FM_OK) fm_flock_target_set_start(&m->target, &m->def.flock, fm_flock_leaders_end(m));
-    if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
-    if (st == FM_OK) st = build_obstacles(m, &source, err);
-    fm_mesh_free(&source);
     return st;
 }
 

@@ -10,6 +10,7 @@
 #include "grid.h"
 #include "memory.h"
 #include "obstacles.h"
+#include "path_route.h"
 #include "scene_internal.h"
 #include "slabs.h"
 
@@ -37,37 +38,10 @@ fm_status fm_path_build(const fm_scene_def *def, const double cs[3], const doubl
                         fm_path *out, fm_error *err);
 void fm_path_free(fm_path *path);
 
-/* morph_route.c: the global detour (issue 38). What the route and the navigation function read:
- * the obstacles, the largest tet radius and the clearance preferred beyond it (k_a), the box of the
- * source and target; routed and unroutable count the stretches of the path that were rerouted and
- * the ones with no way round (left as the user's). */
-typedef struct fm_path_route {
-    const fm_obstacles *obstacles;
-    double r_infl, r_soft;
-    double lo[3], hi[3];
-    double obstacle_lo[3], obstacle_hi[3];
-    int meshes;                       /* each obstacle mesh's box: a stretch is routed round the whole */
-    double mesh_lo[FM_MAX_OBSTACLES][3], mesh_hi[FM_MAX_OBSTACLES][3];
-    int routed, unroutable;
-} fm_path_route;
-/* The path with every stretch that passes closer than r_infl to an obstacle replaced by a shortest
- * way round (A* on a coarse grid, pulled taut, corner-cut); the other points are kept as they are.
- * pts (n points, malloc'd) is replaced only when a stretch was rerouted. */
-fm_status fm_path_route_dense(fm_path_route *r, double **pts, int64_t *n, fm_error *err);
 /* fm_path_build, then rerouted round the obstacles where it crosses them (route may be NULL: none).
  * A rerouted path gets one key point per r_soft of its length, up to twice path.key_points + 2. */
 fm_status fm_path_build_routed(const fm_scene_def *def, const double cs[3], const double ct[3], fm_path_route *route,
                                fm_path *out, fm_error *err);
-/* The navigation function over the key points q (3 doubles each): u, the shortest cost to C_T
- * (weighted up near obstacles, halved along the clear stretches of the key-point polyline); g, the
- * cost onto those stretches; n nodes from origin, h apart (fm_alloc'd; fm_free). */
-typedef struct fm_nav {
-    float *u, *g;
-    int32_t n[3];
-    float origin[3];
-    float h;
-} fm_nav;
-fm_status fm_nav_build(const fm_path_route *r, const double *q, int32_t keys, fm_nav *nav, fm_error *err);
 
 /* Immutable after fm_morph_model_build. Agent a is the source tet with the a-th smallest D1 (its launch
  * rank); target slot k is the target tet with the k-th smallest D2 (its hand-out rank). */
@@ -95,7 +69,7 @@ struct fm_morph_model {
     double field_fade_time;  /* style.fade_time resolved (its default: 2 path length / (omega1 speed0)); 0: never */
     fm_obstacles *obstacles; /* FM §5.3 d_t (OpenVDB grid + Embree); NULL without obstacles */
     fm_obstacles *target_sdf;/* the target's own signed distance, for FM_SWITCH_DISTANCE */
-    fm_nav nav;              /* issue 38's navigation function round the obstacles (morph_route.c); its
+    fm_nav nav;              /* issue 38's navigation function round the obstacles (path_route.c); its
                                 arrays are meaningful only when detour_time > 0 */
     double detour_time;      /* obstacles.detour_time resolved; 0: no detours */
     double scene_lo[3], scene_hi[3]; /* bounds of source, target and path: the field grid spans them */

@@ -1,6 +1,6 @@
 /* The global path (FM §5.1): a curve from C_S through the user's control points to C_T,
  * resampled to m + 2 key points Q_0 = C_S .. Q_{m+1} = C_T evenly spaced by arc length; with
- * obstacles, rerouted round them first where it crosses them (morph_route.c, issue 38). */
+ * obstacles, rerouted round them first where it crosses them (path_route.c, issue 38). */
 #include "morph.h"
 
 #include <math.h>

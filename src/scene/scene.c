@@ -155,7 +155,7 @@ static const char *const *enum_names(const param *p)
 static const char *const TETRA_ONLY[] = {"tetgen", "omega1", "path.key_points", "path.curve", "path.width",
                                          "path.attraction", "launch_rate", "morph", "style.omega2", "style.fade_distance",
                                          "style.fade_time",
-                                         "obstacles.in_phase2", "obstacles.route", "obstacles.detour_time", "mde",
+                                         "obstacles.in_phase2", "obstacles.detour_time", "mde",
                                          "phase2", "up", "target_motion"};
 
 static int has_prefix(const char *key, const char *group)

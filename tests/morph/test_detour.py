@@ -184,7 +184,9 @@ def check_inside_test():
     return int((got != truth).sum()) + int((np.abs(depth - want) > 1e-12).sum())
 
 
-def check_cache(name, cache, frame_limit, meshes):
+def check_cache(name, cache, frame_limit, meshes, attr="tet_vertices", agents="tets", points="vertex"):
+    """Every agent arrived (phase 3: a tet arrived, a shape-flock agent bound) in the last frame, before
+    frame_limit, and no point of `attr` inside a mesh in any frame: the failures, as lines."""
     import numpy as np
     sys.path.insert(0, os.path.join(ARGS.source, "python"))
     import flockmorph_cache
@@ -194,7 +196,7 @@ def check_cache(name, cache, frame_limit, meshes):
         frames = len(c)
         for first in range(0, frames, BATCH):  # frames in batches: one pass of the cells for each
             last = min(first + BATCH, frames)
-            p = np.asarray(c.read_range("tet_vertices", first, last), float)
+            p = np.asarray(c.read_range(attr, first, last), float)
             per_frame = p[0].size // 3
             p = p.reshape(-1, 3)
             for m in tests:
@@ -209,13 +211,13 @@ def check_cache(name, cache, frame_limit, meshes):
                     deepest = max(deepest, float(d.max()))
         phase = np.asarray(c.read(frames - 1, "phase")).ravel()
     left = int((phase != 3).sum())
-    print(f"{name}: {frames} frames (limit {frame_limit}), {left} of {phase.size} tets not arrived, "
-          f"{bad_vertices} vertex-frames inside an obstacle (deepest {deepest:.3g})")
+    print(f"{name}: {frames} frames (limit {frame_limit}), {left} of {phase.size} {agents} not arrived, "
+          f"{bad_vertices} {points}-frames inside an obstacle (deepest {deepest:.3g})")
     fails = []
     if left or frames >= frame_limit:
-        fails.append(f"{name}: {left} tets not arrived after {frames} frames (limit {frame_limit})")
+        fails.append(f"{name}: {left} {agents} not arrived after {frames} frames (limit {frame_limit})")
     if bad_vertices:
-        fails.append(f"{name}: {bad_vertices} vertices inside an obstacle, from frame {bad_frames[0]}, up to {deepest:.3g} deep")
+        fails.append(f"{name}: {bad_vertices} {points}-frames inside an obstacle, from frame {bad_frames[0]}, up to {deepest:.3g} deep")
     return fails
 
 

@@ -3,10 +3,11 @@
  * preparation, deterministically, on one coarse grid over the scene:
  *
  *   route  where the path (the straight line, or the user's curve) passes closer than the largest
- *          tet radius to an obstacle, that stretch is replaced by a shortest path (A*) around the
- *          obstacles inflated by that radius, which prefers a further k_a of clearance, pulled
- *          taut and corner-cut (Chaikin) while it stays clear; the rest of the path is the user's,
- *          bit for bit, and a path that nowhere comes that close is not touched at all;
+ *          tet radius (the shape flock's R: k_a and a margin, flock_model.c) to an obstacle, that
+ *          stretch is replaced by a shortest path (A*) around the obstacles inflated by that radius,
+ *          which prefers a further k_a of clearance, pulled taut and corner-cut (Chaikin) while it
+ *          stays clear; the rest of the path is the user's, bit for bit, and a path that nowhere
+ *          comes that close is not touched at all;
  *   nav    a navigation function over the grid: u(x) = the shortest cost from x to C_T (Dijkstra
  *          from C_T alone; near and inside obstacles at a higher cost per length, along the clear
  *          stretches of the key-point polyline, the road, at half), and g(x), the cost onto the
@@ -16,7 +17,7 @@
  *          The step sends a tet that made no progress in u for a while down -grad u until it is
  *          back on the path where the path leads on (kernel_detour.c). */
 #include "fm_math.h"
-#include "morph.h"
+#include "path_route.h"
 
 #include <math.h>
 #include <stdlib.h>
