@@ -184,6 +184,12 @@ class SameBytes(unittest.TestCase):
         # to frame 300: 3.5 s of the route after the bird formed (it sets off at 9 s, frame 216)
         self.check_scene("examples/flock_travel/scene.json", [(3, 1)], pieces(1000) + ("--set", "time.frame_limit=300"))
 
+    def test_flock_routed_round_an_obstacle(self):
+        """A wall across the shape flock's straight path (obstacles.route, issue 38): the first rank of
+        each machine routes R and hands the margin on, so every rank flies the same rerouted path."""
+        self.check_scene("tests/flock/route/wall.json", [(2, 1)], pieces(512))
+        self.check_scene("tests/flock/route/wall.json", [(3, 1)], pieces(512), machine_ranks=2)
+
     def test_shape_flock(self):
         """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
         handed on (migrations at least the agent count), and the boids read ghosts. Pieces of 1024
