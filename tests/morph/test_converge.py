@@ -71,9 +71,7 @@ def main():
     msg = f"warning: stopped at the frame limit ({LIMIT} frames) with {len(left)} agents not yet arrived ("
     if msg not in err or "first by id: %d flying " % (left[0] if left else -1) not in err:
         failures.append(f"the warning does not name the stragglers: {err.strip()}")
-    for f in failures:
-        print("FAIL:", f)
-    return 1 if failures else 0
+    return morph_test_args.finish(failures)
 
 
 if __name__ == "__main__":

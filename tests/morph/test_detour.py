@@ -246,9 +246,7 @@ def main():
             digest = [hashlib.sha256(open(x, "rb").read()).hexdigest() for x in (cache, one)]
             if digest[0] != digest[1]:
                 failures.append("wall: the caches of 1 and 2 threads differ")
-    for f in failures:
-        print("FAIL:", f)
-    return 1 if failures else 0
+    return morph_test_args.finish(failures)
 
 
 if __name__ == "__main__":

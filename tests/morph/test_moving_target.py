@@ -247,9 +247,7 @@ def main():
         failures.append(f"{arrived_at_start} tets arrived before the motion: none would chase it, or all")
     if int((phase != 3).sum()):
         failures.append(f"{int((phase != 3).sum())} tets have not arrived at the frame limit")
-    for f in failures:
-        print("FAIL:", f)
-    return 1 if failures else 0
+    return morph_test_args.finish(failures)
 
 
 if __name__ == "__main__":

@@ -68,9 +68,7 @@ def main():
     rc, _, _ = run("moon", "moon_paper", "tetgen.subdivision=paper")
     if rc == 0:
         failures.append("moon with the paper's subdivision passes the check: the measure does not see the slivers")
-    for f in failures:
-        print("FAIL:", f)
-    return 1 if failures else 0
+    return morph_test_args.finish(failures)
 
 
 if __name__ == "__main__":

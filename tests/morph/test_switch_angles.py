@@ -54,9 +54,7 @@ def main():
     if blended["frames"] != hard["frames"]:
         failures.append(f"the blend changed when the flock arrives: {blended['frames']} frames, "
                         f"hard switch {hard['frames']}")
-    for f in failures:
-        print("FAIL:", f)
-    return 1 if failures else 0
+    return morph_test_args.finish(failures)
 
 
 if __name__ == "__main__":
