@@ -480,6 +480,7 @@ fm_status fm_flock_dist_checkpoint_save(const char *path, const fm_flock_model *
     fm_flock_state *view = share(s, begin, 0, sizeof(agent_record), pack, unpack, err);
     fm_ckpt_part part = fm_ckpt_share(s->n, m->def.cache_piece_agents, me, ranks);
     part.at = 0; /* the view's element 0 is the share's first agent */
+    if (view) view->look = s->look; /* the same on every rank (fm_flock_look_frame merges the ranks') */
     st = view ? fm_flock_checkpoint_write(path, m, view, s->dist, stats, frames, &part, 1, err) : err->status;
     free(begin);
     return fm_dist_agree(s->dist, st, err);
@@ -509,6 +510,7 @@ fm_status fm_flock_dist_adopt(const fm_flock_model *m, fm_flock_state *s, fm_err
         pack(view, a, out + at[fm_slabs_owner(d, view->p[d->axis][a], d->rank)]++);
     s->step = view->step, s->time = view->time, s->kalman = view->kalman, s->lag_sum = view->lag_sum;
     memcpy(s->count, view->count, sizeof s->count);
+    s->look = view->look;
     fm_flock_state_destroy(view), s->view = NULL; /* its agents are in the records */
     void *in = NULL;
     int64_t received = 0;

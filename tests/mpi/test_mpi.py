@@ -368,6 +368,8 @@ class Segments(unittest.TestCase):
         self.assertEqual(plain.returncode, 0, plain.stderr)
         self.assertEqual(sha256(os.path.join(out, "frames.fmc")), sha256(os.path.join(whole, "frames.fmc")), name)
         self.assertEqual(stats(out)["frames"], stats(whole)["frames"])
+        # the look's history travels in the checkpoint: a resumed run measures what the plain one did
+        self.assertEqual(stats(out).get("flock_measures_per_frame"), stats(whole).get("flock_measures_per_frame"))
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
 
     def test_shape_flock_checkpoint_is_the_plain_runs(self):
