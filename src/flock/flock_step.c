@@ -253,7 +253,11 @@ static uint8_t move_stepped(const fm_flock_model *m, fm_flock_state *s, int64_t 
      * visible moves. */
     const float T = (float)f->arrival_time, R = (float)f->arrival_radius;
     const float finish = sqrtf(0.2f * R * dist) / T;
-    float pace = fminf(s->prm.max_speed[a], fmaxf(finish, fminf(dist / T, speed)));
+    /* an agent that comes in faster than dist / T slows as under the constant deceleration that
+     * stops it on the destination, v^2 = speed^2 (1 - speed dt / dist), not at once: the switch from
+     * the forces does not kick it (SCF: "smoothly reach the destination") */
+    const float stopping = speed * sqrtf(fmaxf(0.0f, 1.0f - speed * dt / dist));
+    float pace = fminf(s->prm.max_speed[a], fmaxf(finish, fminf(speed, fmaxf(dist / T, stopping))));
     pace *= fmaxf(0.0f, h[0] * dir[0] + h[1] * dir[1] + h[2] * dir[2]);
     if (pace * dt >= dist) return bind(s, a, dt), FM_PHASE_ARRIVED;
     float v[3] = {s->dest_v[0][a] + pace * h[0], s->dest_v[1][a] + pace * h[1], s->dest_v[2][a] + pace * h[2]};

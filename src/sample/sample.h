@@ -90,9 +90,13 @@ fm_status fm_match_agents(const float *agents, const float *samples, int64_t n, 
  * (1 - u) x_a + u y_a at path fraction u. Two agents whose offset difference turns by more than 90
  * degrees, (x_a - x_b) . (y_a - y_b) < 0, pass through each other's neighbourhoods on the way (the
  * flock folds); swapping their samples undoes that and lowers the summed squared travel
- * sum |x_a - y_a|^2, so repeated swaps converge. Each pass tries every agent, in index order,
- * against its neighbours on a hash grid (grid.h) of cells about two spacings wide (2 extent /
- * sqrt(n), points on a surface); at most 32 passes, sequential, depending only on the input.
+ * sum |x_a - y_a|^2, so repeated swaps converge. Agents that start apart can meet on the way, so
+ * the pairs compared are the neighbours on hash grids (grid.h, cells of about four spacings, 4
+ * extent / sqrt(n), points on a surface) of the source layout and of the layouts (1 - w) x + w y at
+ * w = 1/4, 1/2, 3/4; each round tries every agent, in index order, against its neighbours in each
+ * layout, the first round every agent, later rounds only those whose sample changed in the round
+ * before (only their pairs can have turned crossing); at most 32 rounds, sequential, depending only
+ * on the input.
  * match: a permutation, changed in place. FM_ERR_MEMORY. */
 fm_status fm_match_uncross(const float *agents, const float *samples, int64_t n, int64_t *match, fm_error *err);
 

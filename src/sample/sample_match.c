@@ -17,8 +17,14 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
-enum { MATCH_WINDOW = 8, MATCH_PASSES = 4, UNCROSS_PASSES = 32 };
+enum { MATCH_WINDOW = 8, MATCH_PASSES = 4, UNCROSS_ROUNDS = 32 };
+
+/* The layouts whose neighbours uncrossing compares (fm_match_uncross): eq 11's offsets at these
+ * blends w, (1 - w) x + w y, the source's (w = 0) and three on the way. */
+static const double UNCROSS_BLENDS[] = {0.0, 0.25, 0.5, 0.75};
+enum { UNCROSS_LAYOUTS = sizeof UNCROSS_BLENDS / sizeof UNCROSS_BLENDS[0] };
 
 /* Unit directions from the centroid (0 for a point at the centroid) and their curve order. */
 static void directions(const float *p, int64_t n, double *u, fm_keyed *order)
@@ -106,43 +112,66 @@ static int uncross_pair(const double *x, const double *y, int64_t a, int64_t b, 
     return 1;
 }
 
-/* One pass of uncrossing: every agent, in index order, against every other in its grid cell's 27
- * (each pair seen from both ends). Returns the swaps. */
-static int64_t uncross_pass(const fm_grid *g, const double *x, const double *y, int64_t n, int64_t *match)
+/* One pass of uncrossing: every agent a with todo[a] (all where todo is NULL), in index order,
+ * against every other in its grid cell's 27; a swapped pair is marked in changed. Returns the swaps. */
+static int64_t uncross_pass(const fm_grid *g, const float *const z[3], const double *x, const double *y, int64_t n,
+                            const uint8_t *todo, uint8_t *changed, int64_t *match)
 {
     int64_t swaps = 0;
     for (int64_t a = 0; a < n; a++) {
+        if (todo && !todo[a] && !changed[a]) continue;
         int32_t rk[2 * FM_GRID_MAX_RANGES];
-        const int ranges = fm_grid_ranges(g, (float)x[3 * a], (float)x[3 * a + 1], (float)x[3 * a + 2], rk);
+        const int ranges = fm_grid_ranges(g, z[0][a], z[1][a], z[2][a], rk);
         for (int r = 0; r < ranges; r++)
             for (int32_t e = rk[2 * r]; e < rk[2 * r + 1]; e++) {
                 const int64_t b = g->quad[e >> 2].i[e & 3];
-                if (b != a) swaps += uncross_pair(x, y, a, b, match);
+                if (b != a && uncross_pair(x, y, a, b, match)) swaps++, changed[a] = changed[b] = 1;
             }
     }
     return swaps;
+}
+
+/* The layout at blend w of the current match into z, and its grid (cells of `cell`). */
+static void blended_grid(fm_grid *g, const double *x, const double *y, const int64_t *match, int64_t n, double w,
+                         float cell, float *const z[3])
+{
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) z[k][i] = (float)((1 - w) * x[3 * i + k] + w * y[3 * match[i] + k]);
+    fm_grid_build(g, (const float *const *)z, NULL, n, cell, 1);
 }
 
 fm_status fm_match_uncross(const float *agents, const float *samples, int64_t n, int64_t *match, fm_error *err)
 {
     if (n < 2) return FM_OK;
     double *x = malloc(sizeof(double) * 3 * (size_t)n), *y = malloc(sizeof(double) * 3 * (size_t)n);
-    float *xyz[3] = {malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n)};
+    float *z[3] = {malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n), malloc(sizeof(float) * (size_t)n)};
+    uint8_t *todo = calloc((size_t)n, 1), *changed = calloc((size_t)n, 1);
     fm_grid g = {0};
-    fm_status st = !x || !y || !xyz[0] || !xyz[1] || !xyz[2]
+    fm_status st = !x || !y || !z[0] || !z[1] || !z[2] || !todo || !changed
                        ? fm_fail(err, FM_ERR_MEMORY, "out of memory uncrossing %lld agents", (long long)n)
                        : fm_grid_init(&g, n, err);
     if (st == FM_OK) {
         const double extent = centred(agents, n, x);
         centred(samples, n, y);
-        for (int64_t i = 0; i < n; i++)
-            for (int k = 0; k < 3; k++) xyz[k][i] = (float)x[3 * i + k];
-        /* cells of about two spacings of n points on a surface in this box: a dozen neighbours */
-        fm_grid_build(&g, (const float *const *)xyz, NULL, n, extent > 0 ? (float)(2.0 * extent / sqrt((double)n)) : 1.0f, 1);
-        for (int pass = 0; pass < UNCROSS_PASSES && uncross_pass(&g, x, y, n, match) > 0; pass++) {}
+        /* cells of about four spacings of n points on a surface in this box: pairs that are not
+         * next to each other but close enough to cross are compared too */
+        const float cell = extent > 0 ? (float)(4.0 * extent / sqrt((double)n)) : 1.0f;
+        /* only a pair with an agent whose destination changed can have turned crossing: after the
+         * first round (every agent), each round looks at those of the round before */
+        for (int round = 0; round < UNCROSS_ROUNDS; round++) {
+            int64_t swaps = 0;
+            for (int l = 0; l < UNCROSS_LAYOUTS; l++) {
+                blended_grid(&g, x, y, match, n, UNCROSS_BLENDS[l], cell, z);
+                swaps += uncross_pass(&g, (const float *const *)z, x, y, n, round ? todo : NULL, changed, match);
+            }
+            if (swaps == 0) break;
+            uint8_t *t = todo;
+            todo = changed, changed = t;
+            memset(changed, 0, (size_t)n);
+        }
     }
     fm_grid_free(&g);
-    free(x), free(y), free(xyz[0]), free(xyz[1]), free(xyz[2]);
+    free(x), free(y), free(z[0]), free(z[1]), free(z[2]), free(todo), free(changed);
     return st;
 }
 

@@ -57,13 +57,13 @@ static fm_flock_def fm_default_flock_def(void)
         .max_speed = {12, 18}, .max_force = {40, 80},
         /* radii in spacings: J / sqrt(A) of the J below (a third of SCF's) on the cylinder -> sphere
            example (A = 330); about 7 others within 1.5 spacings (docs/shape-flock.md) */
-        .separation = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {240, 300}, .weight = {0.4, 0.6}},
-        .cohesion = {.radius = {0.55, 2.2}, .radius_j = {10, 40}, .angle_deg = {240, 300}, .weight = {0.1, 0.2}},
-        .alignment = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {120, 180}, .weight = {2, 3}},
+        .separation = {.radius = {0.9, 1.5}, .radius_j = {20, 40}, .angle_deg = {240, 300}, .weight = {0.8, 1.2}},
+        .cohesion = {.radius = {0.55, 1.1}, .radius_j = {10, 40}, .angle_deg = {240, 300}, .weight = {0.1, 0.2}},
+        .alignment = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {300, 360}, .weight = {4, 6}},
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
         .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
-        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 1.5, .ease_spread = 0.75, .reform = 0, .uncross = 1,
-        .arrival_radius = 0.3, .arrival_time = 0.3, .turn_rate_deg = 720, .bind_distance = 0.002,
+        .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 2.5, .ease_spread = 0.75, .reform = 0, .uncross = 1,
+        .arrival_radius = 0.6, .arrival_time = 0.5, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
         .deform = FM_DEFORM_NONE, .deform_amplitude = 0.5, .deform_period = 2, .deform_wavelength = 5,
         .deform_direction = {1, 0, 0}, .deform_frame_rate = 24,

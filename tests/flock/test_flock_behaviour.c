@@ -169,8 +169,11 @@ static void test_boids_off_moves_the_flock(void)
     scale_boids(&def, 0, 0, 0);
     snapshot off = fly(&def);
     double rms = rms_difference(&base, &off);
-    printf("  boids off: RMS position difference at mid-flight %.4f (median nn spacing %.4f)\n", rms, base_median_nn);
+    double *nn = nn_distances(&off), off_mean = mean_of(nn, off.n);
+    printf("  boids off: RMS position difference at mid-flight %.4f (median nn spacing %.4f); mean nn %.4f, on %.4f (+%.0f %%)\n",
+           rms, base_median_nn, off_mean, base_mean_nn, 100 * (base_mean_nn / off_mean - 1));
     ENSURE_MSG(rms >= base_median_nn, "boids on and off differ by %g RMS, spacing %g", rms, base_median_nn);
+    free(nn);
     snapshot_free(&off);
 }
 
@@ -183,9 +186,12 @@ static void test_stronger_rules_spread_the_flock(void)
     double *nn = nn_distances(&strong), mean = mean_of(nn, strong.n);
     printf("  boids x4: mid-flight mean nn %.4f against %.4f (+%.0f %%), bound after %lld steps\n", mean, base_mean_nn,
            100 * (mean / base_mean_nn - 1), (long long)strong.steps);
-    /* +20 % and more with the hard-edged rules before issue 37; the smooth kernels weigh the neighbours
-     * near a rule's radius less, and x4 now spreads by 8-9 % (and stays smooth: test_flock_look.sh) */
-    ENSURE_MSG(mean >= 1.05 * base_mean_nn, "x4 weights: mean nn %g against %g", mean, base_mean_nn);
+    /* +20 % and more with the hard-edged rules before issue 37, +8-9 % with the smooth kernels and
+     * separation out to 2.2 spacings; separation out to 1.5 spacings (neighbours that stay together:
+     * docs/shape-flock.md) spreads it by 1-2 % more than the defaults do (which spread the shipped
+     * example by more than 5 % against the rules off: test_flock_look.sh, SCF Figure 7): x4 is never
+     * more concentrated, and stays a smooth flock */
+    ENSURE_MSG(mean >= base_mean_nn, "x4 weights: mean nn %g against %g", mean, base_mean_nn);
     ENSURE_MSG(strong.steps > 0 && strong.max_distance == 0, "x4 weights: not every agent binds exactly");
     free(nn);
     snapshot_free(&strong);

@@ -321,6 +321,56 @@ static void test_uncross(void)
     free(agents), free(samples), free(match), free(again);
 }
 
+/* Crossing pairs, (x_a - x_b) . (y_a - y_b) < 0, among those closer than r in the layout half-way,
+ * (x + y) / 2 (the centroids cancel in the differences): all pairs, counted by brute force. */
+static int crossing_midway(const float *agents, const float *samples, const int64_t *match, int64_t n, double r, int *pairs)
+{
+    int crossed = 0;
+    *pairs = 0;
+    for (int64_t a = 0; a < n; a++)
+        for (int64_t b = a + 1; b < n; b++) {
+            double mid = 0, dot = 0;
+            for (int k = 0; k < 3; k++) {
+                const double dx = (double)agents[3 * a + k] - agents[3 * b + k];
+                const double dy = (double)samples[3 * match[a] + k] - samples[3 * match[b] + k];
+                mid += 0.25 * (dx + dy) * (dx + dy), dot += dx * dy;
+            }
+            if (mid < r * r) crossed += dot < 0, (*pairs)++;
+        }
+    return crossed;
+}
+
+/* Agents that start apart can meet on the way: a sphere's points matched by direction to a torus's
+ * fold through each other half-way, where no pair is neighbours at the start. Uncrossing compares the
+ * neighbours of the layouts on the way too, so none of the pairs that come within two spacings of
+ * each other half-way crosses. */
+static void test_uncross_midway(void)
+{
+    enum { NP = 1500 };
+    float *agents = malloc(sizeof(float) * 3 * NP), *samples = malloc(sizeof(float) * 3 * NP);
+    int64_t *match = malloc(sizeof(int64_t) * NP);
+    for (int64_t i = 0; i < NP; i++) {
+        const double u = 2 * fm_random_unit(7, 0, (uint64_t)i) - 1, t = 6.283185307 * fm_random_unit(7, 1, (uint64_t)i);
+        const double p = 6.283185307 * fm_random_unit(7, 2, (uint64_t)i), q = 6.283185307 * fm_random_unit(7, 3, (uint64_t)i);
+        const double rho = sqrt(1 - u * u);
+        float *a = agents + 3 * i, *b = samples + 3 * i;
+        a[0] = (float)(3 * rho * cos(t)), a[1] = (float)(3 * rho * sin(t)), a[2] = (float)(3 * u);
+        b[0] = (float)((4 + 1.5 * cos(q)) * cos(p)), b[1] = (float)((4 + 1.5 * cos(q)) * sin(p)), b[2] = (float)(1.5 * sin(q));
+    }
+    fm_error err = {0};
+    ENSURE(fm_match_agents(agents, samples, NP, FM_MATCH_SPHERICAL, 1, match, &err) == FM_OK);
+    const double spacing = 11.0 / sqrt((double)NP); /* the points' extent over sqrt(n), as uncrossing's cells */
+    int pairs_before, pairs_after;
+    const int before = crossing_midway(agents, samples, match, NP, 2 * spacing, &pairs_before);
+    ENSURE_MSG(fm_match_uncross(agents, samples, NP, match, &err) == FM_OK, "%s", err.message);
+    const int after = crossing_midway(agents, samples, match, NP, 2 * spacing, &pairs_after);
+    printf("  sphere -> torus by direction: pairs within two spacings half-way that cross %d of %d -> %d of %d\n",
+           before, pairs_before, after, pairs_after);
+    ENSURE(is_permutation(match, NP));
+    ENSURE_MSG(before > pairs_before / 20 && after == 0, "%d of %d pairs cross half-way", after, pairs_after);
+    free(agents), free(samples), free(match);
+}
+
 /* Mean over the points a of `from` of the distance between out's point a and out's point of a's
  * nearest neighbour in `from` (all pairs): how well the projection keeps neighbours together. */
 static double neighbour_spread(const float *from, const float *out, int64_t n)
@@ -524,6 +574,7 @@ int main(void)
     RUN_TEST(test_eval_follows_affine_deformation);
     RUN_TEST(test_match);
     RUN_TEST(test_uncross);
+    RUN_TEST(test_uncross_midway);
     RUN_TEST(test_projected);
     RUN_TEST(test_nn_stats);
     RUN_TEST(test_bad_input);
