@@ -395,6 +395,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     /* which flockmorph wrote it, so a pipeline can tell results of different builds apart */
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));
     if (r->options) cli_stats_provenance(j, r->options);
+    json_object_set_new(j, "meshes", cli_meshes_json(def, def->group_count > 0 && def->group_index < 0 ? 0 : 1));
     json_object_set_new(j, "mode", json_string(r->mode));
     json_object_set_new(j, "agents", json_integer(r->agents));
     json_object_set_new(j, "frames", json_integer(r->frames));
@@ -409,7 +410,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_object_set_new(j, "threads", json_integer(r->threads));
     json_object_set_new(j, "ranks", json_integer(fm_dist_size(cli_dist))); /* MPI processes: threads each */
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", cli_json_string(r->cache));
+    cli_stats_cache_path(j, r->cache);
     return j;
 }
 
