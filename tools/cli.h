@@ -272,6 +272,9 @@ int cli_agree(int rc, fm_error *err);
 fm_dist_totals cli_sum_totals(fm_dist_totals mine);
 json_t *cli_scale_out_json(const fm_dist_totals *t);
 void cli_catch_stop_signals(int catch);
+/* While the model is built (no frame yet): SIGINT / SIGTERM print why and end the process at once
+ * with 128 + the signal; 0 restores the default action. */
+void cli_end_on_stop_signals(int end);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

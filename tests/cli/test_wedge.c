@@ -399,6 +399,35 @@ static void test_seed_read_back_by_json_tools(void)
     ENSURE_MSG(!same_output("seeds/wedge", "seeds/neighbour", "frames.fmc"), "%s", "the seed does not change the cache");
 }
 
+/* examples/wedges/slurm.sh run by hand on a fresh checkout: it makes its log folder before it calls
+ * sbatch (Slurm opens --output before the job's first line), and submits itself with the log
+ * there and its arguments passed on. A stand-in sbatch checks the folder and records its words. */
+static void test_slurm_script_makes_its_log_folder_first(void)
+{
+    char bin[FM_PATH_MAX], work[FM_PATH_MAX], record[FM_PATH_MAX], sbatch[FM_PATH_MAX + 16], command[6 * FM_PATH_MAX];
+    tmp(bin, "slurm_bin");
+    tmp(work, "slurm_checkout");
+    tmp(record, "slurm_sbatch_words.txt");
+    snprintf(command, sizeof command, "rm -rf '%s' '%s' '%s' && mkdir -p '%s' '%s'", bin, work, record, bin, work);
+    ENSURE(system(command) == 0);
+    snprintf(sbatch, sizeof sbatch, "%s/sbatch", bin);
+    write_text(sbatch, "#!/bin/sh\n"
+                       "for a; do case $a in --output=*) d=$(dirname \"${a#--output=}\");\n"
+                       "  [ -d \"$d\" ] || { echo \"sbatch: no folder $d for the log\" >&2; exit 3; };; esac; done\n"
+                       "printf '%s\\n' \"$@\" > \"$SBATCH_RECORD\"\n");
+    ENSURE(chmod(sbatch, 0755) == 0);
+    snprintf(command, sizeof command, "cd '%s' && env -u SLURM_JOB_ID PATH='%s':\"$PATH\" SBATCH_RECORD='%s' "
+             "bash '%s/examples/wedges/slurm.sh' --array=0-2 > slurm.out 2>&1", work, bin, record, FM_SOURCE_DIR);
+    int rc = system(command);
+    static char words[4096], out[4096];
+    slurp(record, words, sizeof words);
+    snprintf(command, sizeof command, "%s/slurm.out", work);
+    slurp(command, out, sizeof out);
+    ENSURE_MSG(rc == 0, "slurm.sh by hand: status %d: %s", rc, out);
+    ENSURE_MSG(strstr(words, "--output=out/wedges/logs/slurm-%A_%a.log\n--array=0-2\n") &&
+                   strstr(words, "/examples/wedges/slurm.sh\n"), "sbatch was given: %s", words);
+}
+
 int main(void)
 {
     clear_index_variables(); /* a test run inside a farm task must not pick its index */
@@ -409,5 +438,6 @@ int main(void)
     RUN_TEST(test_wedge_index);
     RUN_TEST(test_manifest);
     RUN_TEST(test_seed_read_back_by_json_tools);
+    RUN_TEST(test_slurm_script_makes_its_log_folder_first);
     return test_result();
 }
