@@ -1,4 +1,4 @@
-"""Reads flockmorph frame caches (.fmc, formats 1, 2 and 3; docs/cache-format.md) into numpy arrays.
+"""Reads flockmorph frame caches (.fmc, formats 1 to 4; docs/cache-format.md) into numpy arrays.
 
     import flockmorph_cache
     with flockmorph_cache.open("out/frames.fmc") as cache:

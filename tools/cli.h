@@ -194,8 +194,19 @@ typedef struct cli_run_record {
 json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r);
 /* stats.json's schema number (docs/stats.md): raised when a key changes meaning or goes away. */
 #define CLI_STATS_SCHEMA 1
-/* schema, scene, scene_absolute, scene_xxh64, command_line, start_time, machine (cli_stats.c). */
+/* schema, commit, scene, scene_absolute, scene_xxh64, command_line, working_directory, start_time,
+ * machine (cli_stats.c). */
 void cli_stats_provenance(json_t *j, const cli_run_options *o);
+/* The absolute form of path: realpath where it exists, else the working directory joined to it. */
+json_t *cli_absolute_path(const char *path);
+/* "cache" as given and "cache_absolute". */
+void cli_stats_cache_path(json_t *j, const char *cache);
+/* stats.json's "meshes": every mesh file the scenes (one, or a shot's groups) read, with its XXH64. */
+json_t *cli_meshes_json(const fm_scene_def *defs, int count);
+/* What made the cache at `cache` (of `agents` and `frames`): the provenance keys of the stats.json
+ * beside it, when that stats.json names a cache of this file name, agents and frames; json null
+ * otherwise (inspect --json). */
+json_t *cli_cache_provenance(const char *cache, int64_t agents, int64_t frames);
 /* Now, UTC, ISO 8601: 2026-12-02T08:05:46Z. */
 void cli_utc_now(char *out, size_t size);
 double cli_agent_steps_per_second(const cli_run_record *r);
@@ -261,6 +272,9 @@ int cli_agree(int rc, fm_error *err);
 fm_dist_totals cli_sum_totals(fm_dist_totals mine);
 json_t *cli_scale_out_json(const fm_dist_totals *t);
 void cli_catch_stop_signals(int catch);
+/* While the model is built (no frame yet): SIGINT / SIGTERM print why and end the process at once
+ * with 128 + the signal; 0 restores the default action. */
+void cli_end_on_stop_signals(int end);
 
 typedef struct cli_frame_options {
     const char *cache, *out, *view;

@@ -395,6 +395,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     /* which flockmorph wrote it, so a pipeline can tell results of different builds apart */
     json_object_set_new(j, "version", json_string(FM_VERSION_STRING));
     if (r->options) cli_stats_provenance(j, r->options);
+    json_object_set_new(j, "meshes", cli_meshes_json(def, def->group_count > 0 && def->group_index < 0 ? 0 : 1));
     json_object_set_new(j, "mode", json_string(r->mode));
     json_object_set_new(j, "agents", json_integer(r->agents));
     json_object_set_new(j, "frames", json_integer(r->frames));
@@ -409,7 +410,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_object_set_new(j, "threads", json_integer(r->threads));
     json_object_set_new(j, "ranks", json_integer(fm_dist_size(cli_dist))); /* MPI processes: threads each */
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
-    json_object_set_new(j, "cache", cli_json_string(r->cache));
+    cli_stats_cache_path(j, r->cache);
     return j;
 }
 
@@ -566,15 +567,41 @@ static void on_stop_signal(int sig)
     cli_stop_signal = sig;
 }
 
-void cli_catch_stop_signals(int catch)
+static void handle_stop_signals(void (*handler)(int))
 {
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
-    sa.sa_handler = catch ? on_stop_signal : SIG_DFL;
+    sa.sa_handler = handler;
     sa.sa_flags = SA_RESTART; /* the cache writer's I/O carries on */
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+}
+
+void cli_catch_stop_signals(int catch) { handle_stop_signals(catch ? on_stop_signal : SIG_DFL); }
+
+static volatile sig_atomic_t g_say_preparing_stopped; /* rank 0 says it; the other ranks end quietly */
+
+/* During the model build, which cannot stop halfway (TetGen, sampling): say why, and end at once
+ * with 128 + the signal, as an interrupted run does. Only write(2) and _exit(2) here: both are
+ * async-signal-safe, stdio is not. Nothing was written yet but the manifest. */
+static void on_signal_while_preparing(int sig)
+{
+    static const char term[] = "flockmorph: interrupted by SIGTERM while preparing the run (before frame 0): "
+                               "nothing to save; run it again\n";
+    static const char intr[] = "flockmorph: interrupted by SIGINT while preparing the run (before frame 0): "
+                               "nothing to save; run it again\n";
+    if (g_say_preparing_stopped) {
+        ssize_t written = write(STDERR_FILENO, sig == SIGTERM ? term : intr, (sig == SIGTERM ? sizeof term : sizeof intr) - 1);
+        (void)written; /* a message that could not be written is lost; the status still says it */
+    }
+    _exit(128 + sig);
+}
+
+void cli_end_on_stop_signals(int end)
+{
+    g_say_preparing_stopped = cli_is_root();
+    handle_stop_signals(end ? on_signal_while_preparing : SIG_DFL);
 }
 
 fm_dist_totals cli_sum_totals(fm_dist_totals mine)

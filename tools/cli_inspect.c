@@ -110,8 +110,9 @@ static json_t *inspect_json(fm_cache_reader *r, const char *path, fm_error *err)
     const char *warning = fm_cache_warning(r);
     /* formats 1 and 2 have no frame count in the header */
     json_t *header_frames = fm_cache_version(r) >= 3 ? json_integer(fm_cache_header_frames(r)) : json_null();
-    return json_pack("{s:s, s:i, s:I, s:I, s:o, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:o, s:o, s:o, s:b, s:o}",
-                     "path", path, "format_version", (int)fm_cache_version(r),
+    return json_pack("{s:s, s:o, s:i, s:I, s:I, s:o, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:o, s:o, s:o, s:b, s:o, "
+                     "s:o}",
+                     "path", path, "path_absolute", cli_absolute_path(path), "format_version", (int)fm_cache_version(r),
                      "agents", (json_int_t)fm_cache_agents(r), "frames", (json_int_t)frames,
                      "header_frames", header_frames, "frame_rate", rate,
                      "duration_seconds", frames > 1 && rate > 0 ? (frames - 1) / rate : 0.0,
@@ -120,7 +121,8 @@ static json_t *inspect_json(fm_cache_reader *r, const char *path, fm_error *err)
                      "compressed_bytes", (json_int_t)packed,
                      "compression_ratio", packed ? json_real((double)raw / (double)packed) : json_null(),
                      "frame_bytes", frame_bytes_json(r), "bounds", bounds, "complete", !warning[0],
-                     "warning", warning[0] ? json_string(warning) : json_null());
+                     "warning", warning[0] ? json_string(warning) : json_null(),
+                     "provenance", cli_cache_provenance(path, (int64_t)fm_cache_agents(r), (int64_t)frames));
 }
 
 static void print_bounds(const char *name, json_t *b)

@@ -225,6 +225,7 @@ static int write_stats(void *run, const fm_scene_def *def, const char *path, con
         morph_shot_stats(r, j);
     }
     json_object_set_new(j, "groups", groups);
+    json_object_set_new(j, "meshes", cli_meshes_json(r->defs, r->count));
     json_object_set(j, "warnings", r->warnings);
     if (fm_dist_size(cli_dist) > 1) json_object_set_new(j, "scale_out", cli_scale_out_json(&r->scale_out));
     return cli_write_json(path, j);

@@ -148,8 +148,10 @@ static void frame_progress(const fm_run_info *info, int64_t frame, void *user)
     char line[512];
     if (p->show == 2 && now - p->last_log < p->log_every) return;
     format_progress(p, info, frame, fraction, now, line, sizeof line);
-    if (p->show == 1) fprintf(stderr, "\r\033[K  %s", line);
-    else fprintf(stderr, "flockmorph: progress: %s\n", line), p->last_log = now;
+    if (p->show == 1) return (void)fprintf(stderr, "\r\033[K  %s", line);
+    char utc[32];
+    cli_utc_now(utc, sizeof utc);
+    fprintf(stderr, "%s flockmorph: progress: %s\n", utc, line), p->last_log = now;
 }
 
 /* A farm's log says when a checkpoint was written and what it cost (the cache's flush and the
@@ -158,8 +160,10 @@ static fm_status checkpoint_logged(int64_t frames, void *user, fm_error *err)
 {
     (void)err;
     const cli_progress *p = user;
+    char utc[32];
+    cli_utc_now(utc, sizeof utc);
     if (p->show == 2)
-        fprintf(stderr, "flockmorph: checkpoint at frame %lld written (%.2f s)\n", (long long)frames - 1,
+        fprintf(stderr, "%s flockmorph: checkpoint at frame %lld written (%.2f s)\n", utc, (long long)frames - 1,
                 cli_seconds() - p->frame_done);
     return FM_OK;
 }
@@ -300,7 +304,10 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def, const cl
     if (!run) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     int show = !o->quiet && isatty(STDERR_FILENO);
     double t0 = cli_seconds();
-    int rc = cli_agree(mode->build(run, def, &show), NULL); /* the same model on every rank */
+    if (!hooks) cli_end_on_stop_signals(1); /* the build cannot stop halfway; a signal ends it, saying so */
+    int rc = mode->build(run, def, &show);
+    if (!hooks) cli_end_on_stop_signals(0);
+    rc = cli_agree(rc, NULL); /* the same model on every rank */
     double prep_seconds = cli_seconds() - t0;
     if (show) fprintf(stderr, "\n"); /* after the preparation's progress line */
     if (!rc && hooks && *hooks->stop) rc = FM_STOPPED; /* cancelled while the model was built */

@@ -26,6 +26,13 @@ static double round15(double x)
     return strtod(text, NULL);
 }
 
+/* An integer that a double does not hold exactly (beyond 2^53 - 1 either way). */
+static int beyond_doubles(const json_t *v)
+{
+    json_int_t i = json_integer_value(v);
+    return json_is_integer(v) && (i > (json_int_t)FM_SEED_MAX || i < -(json_int_t)FM_SEED_MAX);
+}
+
 /* {"from": a, "to": b, "count": n}: n values evenly spaced from a to b, integers when a and b are
  * and every step is whole (seeds, counts). */
 static json_t *range_values(const char *path, const char *key, const json_t *r)
@@ -35,6 +42,9 @@ static json_t *range_values(const char *path, const char *key, const json_t *r)
         return wedge_error(path, key, "a range is {\"from\": NUMBER, \"to\": NUMBER, \"count\": WHOLE NUMBER}"), NULL;
     json_int_t n = json_integer_value(count);
     if (n < 1 || n > CLI_MAX_WEDGES) return wedge_error(path, key, "a range's count must be 1 to 1000000"), NULL;
+    if (beyond_doubles(from) || beyond_doubles(to))
+        return wedge_error(path, key, "a range's from and to must lie within -9007199254740991 ... 9007199254740991 "
+                           "(2^53 - 1): its values are counted in doubles, and a seed must be at most that"), NULL;
     double a = json_number_value(from), b = json_number_value(to);
     int whole = json_is_integer(from) && json_is_integer(to) && (n == 1 || fmod(b - a, (double)(n - 1)) == 0);
     json_t *values = json_array();
@@ -168,7 +178,7 @@ int cli_wedge_index(cli_run_options *o, long count)
 
 uint64_t cli_wedge_seed(uint64_t base, long index)
 {
-    return fm_random_bits(base, WEDGE_SEED_STREAM, (uint64_t)index) >> 1; /* the scene's seed is 0 ... 2^63 - 1 */
+    return fm_random_bits(base, WEDGE_SEED_STREAM, (uint64_t)index) >> 11; /* 53 bits: the scene's 0 ... FM_SEED_MAX */
 }
 
 /* A real in the fewest digits (15, 16 or 17) that read back to the same double. */

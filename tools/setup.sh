@@ -37,6 +37,7 @@ packages=(
   nodejs
   npm
   chromium
+  jq # test_wedge reads a wedge's seed back with jq (and Node), as a pipeline would (docs/wedges.md)
 )
 # Debian's Blender 3.4 runs the add-on's test (tests/blender/test_blender_import.py). With
 # --no-install-recommends it is 31 packages, a 70 MiB download and 270 MiB installed (Debian 12),

@@ -54,14 +54,26 @@ class IMPORT_SCENE_OT_flockmorph(bpy.types.Operator, ImportHelper):
     scale: FloatProperty(name="Scale", description="Multiplies positions and velocities", default=1.0,
                          min=1e-6, soft_max=100.0)
     set_scene: BoolProperty(name="Set Scene Frames and FPS",
-                            description="Set the scene's frame range and frame rate to play the cache at its own speed",
-                            default=True)
+                            description="Set the scene's frame range and frame rate to play the cache at its own "
+                                        "speed (off: the scene's range and rate stay as they are)",
+                            default=False)
+    animate: EnumProperty(
+        name="Animate With",
+        items=[
+            ("ADDON", "This Add-on", "A frame handler reads each frame from the cache: positions and attributes"),
+            ("PC2", "Mesh Cache Modifier (PC2)", "Also bake the positions to //<object>.pc2 beside the saved "
+                                                 ".blend, read by a Mesh Cache modifier: the .blend animates "
+                                                 "without this add-on"),
+        ],
+        default="ADDON",
+    )
 
     def execute(self, context):
         try:
             _, warning = importer.import_cache(
                 context, self.filepath, mode=self.mode, first=self.frame_first, last=self.frame_last,
-                step=self.frame_step, start=self.start_frame, scale=self.scale, set_scene=self.set_scene)
+                step=self.frame_step, start=self.start_frame, scale=self.scale, set_scene=self.set_scene,
+                animate=self.animate)
         except ValueError as e:  # ImportFailed, and the reader's errors for files that are not caches
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -97,6 +109,39 @@ class OBJECT_OT_flockmorph_bake_pc2(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class DATA_PT_flockmorph(bpy.types.Panel):
+    """Properties > Object Data > flockmorph: the cache's path (a CacheFile, so File > External
+    Data's tools fix it too), and what is wrong when the cache cannot be read."""
+    bl_label = "flockmorph"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.object
+        return obj is not None and obj.type == "MESH" and importer.SETTINGS in obj.data
+
+    def draw(self, context):
+        mesh = context.object.data
+        layout = self.layout
+        linked = importer.cache_file_of(mesh)
+        if linked is not None:
+            layout.prop(linked, "filepath", text="Cache")
+        else:
+            layout.label(text=f"Cache: {importer.cache_path(mesh)}")
+        status = importer.cache_status(mesh)
+        if status:
+            column = layout.column()
+            column.alert = True
+            column.label(text=status, icon="ERROR")
+        s = mesh[importer.SETTINGS]
+        layout.label(text=f"{s['mode'].lower()}: cache frames {s['first']} … {s['last']} step {s['step']}, "
+                          f"from scene frame {s['start']}, scale {s['scale']:g}")
+        if context.object.modifiers.get(importer.PC2_MODIFIER):
+            layout.label(text="Positions also from the Mesh Cache modifier (PC2)", icon="MODIFIER")
+
+
 def menu_func_bake(self, context):
     self.layout.operator(OBJECT_OT_flockmorph_bake_pc2.bl_idname)
 
@@ -108,13 +153,17 @@ def menu_func_import(self, context):
 def register():
     bpy.utils.register_class(IMPORT_SCENE_OT_flockmorph)
     bpy.utils.register_class(OBJECT_OT_flockmorph_bake_pc2)
+    bpy.utils.register_class(DATA_PT_flockmorph)
     bpy.types.TOPBAR_MT_file_import.append(menu_func_import)
     bpy.types.VIEW3D_MT_object_animation.append(menu_func_bake)
     bpy.app.handlers.frame_change_pre.append(importer.on_frame_change)
+    bpy.app.handlers.load_post.append(importer.on_load)
 
 
 def unregister():
+    bpy.app.handlers.load_post.remove(importer.on_load)
     bpy.app.handlers.frame_change_pre.remove(importer.on_frame_change)
+    bpy.utils.unregister_class(DATA_PT_flockmorph)
     bpy.types.VIEW3D_MT_object_animation.remove(menu_func_bake)
     bpy.types.TOPBAR_MT_file_import.remove(menu_func_import)
     bpy.utils.unregister_class(OBJECT_OT_flockmorph_bake_pc2)

@@ -11,7 +11,14 @@ were the alternative: they need no add-on at render time, but they hold every fr
 velocity and orientation attributes that point flocks carry.
 
 The settings an object was imported with live on its mesh as the custom property "flockmorph",
-so a saved .blend animates again when it is opened with the add-on enabled.
+so a saved .blend animates again when it is opened with the add-on enabled. The cache's path does
+not: it lives in a CacheFile datablock (the mesh's ID property "flockmorph_cache" points at it).
+Blender's path walker (bpath) visits every CacheFile's `filepath`, so Blender's own tools see and
+fix it: saving a .blend for the first time makes it relative (`//`), File > External Data's Make
+Paths Relative/Absolute, Report Missing Files and Find Missing Files act on it, and a .blend moved
+with its cache finds it. A CacheFile opens a file only when its name ends in .abc or .usd*, so an
+.fmc in one costs nothing. (An Image or Text datablock would be visited too, but Blender would try
+to load the .fmc as an image or as text; a Mesh Cache modifier only reads MDD and PC2.)
 """
 import importlib.util
 import os
@@ -42,6 +49,7 @@ def _load_reader():
 fmc = _load_reader()
 
 SETTINGS = "flockmorph"  # the mesh's custom property
+CACHE_LINK = "flockmorph_cache"  # the mesh's ID property: the CacheFile datablock holding the cache's path
 TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int32)  # outward, docs/cache-format.md
 MODES = ("AUTO", "MESH", "POINTS")
 
@@ -77,6 +85,79 @@ def close_caches():
     for _, cache in _open_caches.values():
         cache.close()
     _open_caches.clear()
+
+
+# ---------------------------------------------------------------- the cache's path, in a CacheFile
+
+def cache_file_of(mesh):
+    """The CacheFile datablock naming the mesh's cache, or None (a .blend from before the
+    CacheFile, whose settings hold the absolute path as "cache")."""
+    linked = mesh.get(CACHE_LINK)
+    return linked if isinstance(linked, bpy.types.CacheFile) else None
+
+
+def cache_path(mesh):
+    """The absolute path of the mesh's cache: its CacheFile's path resolved against the .blend
+    (or the library the CacheFile comes from), or the path a pre-CacheFile import stored."""
+    linked = cache_file_of(mesh)
+    if linked is None:
+        return mesh[SETTINGS]["cache"]
+    return os.path.normpath(bpy.path.abspath(linked.filepath, library=linked.library))
+
+
+def stored_path(path):
+    """`path` as the CacheFile keeps it: relative (`//`) to a saved .blend when the preference
+    File Paths > Default > Relative Paths is on (Blender's default), else absolute. An unsaved
+    .blend keeps it absolute until its first save, which makes every path relative."""
+    if bpy.data.filepath and bpy.context.preferences.filepaths.use_relative_paths:
+        try:
+            return bpy.path.relpath(path)
+        except ValueError:  # another drive (Windows): no relative path exists
+            pass
+    return path
+
+
+def link_cache_file(mesh, path, name):
+    """Points the mesh at a CacheFile for the cache at absolute `path`: an existing one naming the
+    same file, or a new one named `name`."""
+    for linked in bpy.data.cache_files:
+        if linked.library is None and os.path.normpath(bpy.path.abspath(linked.filepath)) == path:
+            break
+    else:
+        before = set(bpy.data.cache_files)
+        bpy.ops.cachefile.open(filepath=stored_path(path))  # bpy.data.cache_files has no new()
+        (linked,) = set(bpy.data.cache_files) - before
+        linked.name = name
+        linked.user_clear()  # the operator counted a user for a UI slot it had not; the mesh is the user
+    mesh[CACHE_LINK] = linked
+
+
+# mesh name -> (path, file stamp, message): the last error the frame handler met for the mesh,
+# which holds while the mesh names the same file, unchanged (a good frame clears it)
+_errors = {}
+
+
+def file_stamp(path):
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_mtime_ns, st.st_size
+
+
+def note_error(mesh, message):
+    path = cache_path(mesh)
+    _errors[mesh.name_full] = (path, file_stamp(path), message)
+
+
+def cache_status(mesh):
+    """None when the mesh's cache can be read, else what is wrong, for the panel and the console."""
+    path = cache_path(mesh)
+    stamp = file_stamp(path)
+    if stamp is None:
+        return f"cache missing: {path} (File > External Data > Find Missing Files, or set the path here)"
+    error = _errors.get(mesh.name_full)
+    return error[2] if error and error[:2] == (path, stamp) else None
 
 
 # ---------------------------------------------------------------- frames and geometry
@@ -156,11 +237,11 @@ def build_topology(mesh, agents, mode):
 def load_frame(mesh, scene_frame):
     """Writes the cache frame shown at `scene_frame` into the mesh: positions and attributes."""
     settings = mesh[SETTINGS]
-    cache = open_cache(settings["cache"])
+    cache = open_cache(cache_path(mesh))
     mode, scale = settings["mode"], settings["scale"]
     per_agent = 4 if mode == "MESH" else 1
     if cache.agents * per_agent != len(mesh.vertices):
-        raise ImportFailed(f"{settings['cache']}: the cache now has {cache.agents} agents, the object was imported "
+        raise ImportFailed(f"{cache.path}: the cache now has {cache.agents} agents, the object was imported "
                            f"with {len(mesh.vertices) // per_agent}; import it again")
     k = cache_frame(settings, scene_frame)
     xyz = vertex_positions(cache, k, mode) * scale
@@ -216,23 +297,34 @@ def set_scene_timing(scene, cache, settings):
         scene.render.fps_base = scene.render.fps / rate  # Blender's frame rate is fps / fps_base
 
 
-def import_cache(context, path, mode="AUTO", first=0, last=-1, step=1, start=1, scale=1.0, set_scene=True):
+ANIMATE = ("ADDON", "PC2")  # by this add-on's frame handler; by a Mesh Cache modifier reading a PC2 bake
+
+
+def import_cache(context, path, mode="AUTO", first=0, last=-1, step=1, start=1, scale=1.0, set_scene=False,
+                 animate="ADDON"):
     """Creates the animated object of the cache at `path` in the active collection and returns
-    (object, warning or None). Raises ImportFailed (a ValueError) with a message for the user."""
+    (object, warning or None). Raises ImportFailed (a ValueError) with a message for the user.
+    `set_scene` sets the scene's frame range and rate to the frames shown; `animate` "PC2" also
+    bakes the positions to //<object>.pc2 beside the saved .blend, read by a Mesh Cache modifier,
+    so the .blend animates without the add-on."""
     path = os.path.abspath(bpy.path.abspath(path))
     cache = open_cache(path)
     if cache.agents == 0:
         raise ImportFailed(f"{path}: the cache has no agents")
     if not scale > 0:
         raise ImportFailed(f"scale must be positive, not {scale}")
+    if animate not in ANIMATE:
+        raise ImportFailed(f"animate must be one of {', '.join(ANIMATE)}, not {animate!r}")
+    if animate == "PC2":
+        require_saved_blend()
     mode = choose_mode(cache, mode)
     first, last = frame_range(cache, first, last, step)
-    settings = {"cache": path, "mode": mode, "first": first, "last": last, "step": step, "start": start,
-                "scale": float(scale)}
+    settings = {"mode": mode, "first": first, "last": last, "step": step, "start": start, "scale": float(scale)}
     name = f"{Path(path).parent.name}_{Path(path).stem}"
     mesh = bpy.data.meshes.new(name)
     build_topology(mesh, cache.agents, mode)
     mesh[SETTINGS] = settings
+    link_cache_file(mesh, path, name)
     obj = bpy.data.objects.new(name, mesh)
     context.collection.objects.link(obj)
     for other in context.view_layer.objects:
@@ -245,6 +337,8 @@ def import_cache(context, path, mode="AUTO", first=0, last=-1, step=1, start=1, 
     # The handler changes mesh data while frames render: Blender needs the interface locked then.
     scene.render.use_lock_interface = True
     load_frame(mesh, scene.frame_current)
+    if animate == "PC2":
+        bake_pc2(obj, f"//{bpy.path.clean_name(obj.name)}.pc2")
     return obj, cache.warning
 
 
@@ -265,6 +359,11 @@ def write_pc2(path, frames, start, points):
     os.replace(path + ".partial", path)
 
 
+def require_saved_blend():
+    if not bpy.data.filepath:
+        raise ImportFailed("save the .blend first: the modifier finds the point cache by a path relative to it")
+
+
 def bake_pc2(obj, filepath):
     """Writes the vertex positions of every scene frame the import shows, start ... end, into the
     PC2 file `filepath` (a Blender path: `//` is the .blend's folder) and adds a Mesh Cache
@@ -274,10 +373,9 @@ def bake_pc2(obj, filepath):
     mesh = obj.data
     if obj.type != "MESH" or SETTINGS not in mesh:
         raise ImportFailed(f"{obj.name} was not imported from a flockmorph cache")
-    if not bpy.data.filepath:
-        raise ImportFailed("save the .blend first: the modifier finds the point cache by a path relative to it")
+    require_saved_blend()
     settings = mesh[SETTINGS]
-    cache = open_cache(settings["cache"])
+    cache = open_cache(cache_path(mesh))
     samples = range(settings["first"], settings["last"] + 1, settings["step"])
     per_agent = 4 if settings["mode"] == "MESH" else 1
     target = os.path.abspath(bpy.path.abspath(filepath))
@@ -306,12 +404,45 @@ def animated_meshes(scene):
     return meshes.values()
 
 
+def report_once(mesh, message):
+    if (mesh.name_full, message) not in _reported:
+        _reported.add((mesh.name_full, message))
+        print(f"flockmorph: {mesh.name_full}: {message}")
+
+
 @bpy.app.handlers.persistent
 def on_frame_change(scene, *_):
     for mesh in animated_meshes(scene):
         try:
             load_frame(mesh, scene.frame_current)
+            _errors.pop(mesh.name_full, None)
         except (ValueError, OSError, KeyError, IndexError) as e:
-            if (mesh.name_full, str(e)) not in _reported:
-                _reported.add((mesh.name_full, str(e)))
-                print(f"flockmorph: {mesh.name_full}: {e}")
+            note_error(mesh, str(e))
+            report_once(mesh, cache_status(mesh) or str(e))
+
+
+def missing_caches():
+    """(mesh, message) for every flockmorph mesh of the file whose cache cannot be read."""
+    found = []
+    for mesh in bpy.data.meshes:
+        if SETTINGS in mesh:
+            status = cache_status(mesh)
+            if status:
+                found.append((mesh, status))
+    return found
+
+
+@bpy.app.handlers.persistent
+def on_load(*_):
+    """A .blend opened with a cache out of reach says so at once, on the console and, with a
+    window, in a pop-up, rather than leaving the object frozen at its saved frame."""
+    _errors.clear()
+    missing = missing_caches()
+    for mesh, message in missing:
+        report_once(mesh, message)
+    window_manager = bpy.context.window_manager
+    if missing and not bpy.app.background and window_manager is not None and window_manager.windows:
+        def draw(menu, _context):
+            for mesh, message in missing:
+                menu.layout.label(text=f"{mesh.name_full}: {message}", icon="ERROR")
+        window_manager.popup_menu(draw, title="flockmorph: caches not found", icon="ERROR")

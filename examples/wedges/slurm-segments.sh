@@ -15,6 +15,8 @@ fi
 scene=$1 out=$2 frames=$3 segments=$4
 shift 4
 cpus=${CPUS:-4}
+# Slurm opens each job's --output before the job runs: its folder must exist now
+mkdir -p "$(dirname "$out")"
 previous=
 for ((k = 0; k < segments; k++)); do
   end=$(( k + 1 < segments ? (k + 1) * frames - 1 : 2000000000 ))

@@ -12,6 +12,9 @@ extern "C" {
 #define FM_PATH_MAX 4096
 #define FM_MAX_PATH_POINTS 256
 #define FM_MAX_MOTION_POINTS 64
+/* The largest seed: 2^53 - 1, the largest integer that every JSON reader keeps exactly (jq and
+ * JavaScript hold numbers as doubles, so a larger seed read back by them names another run). */
+#define FM_SEED_MAX 9007199254740991ull
 
 /* The files `flockmorph run` writes beside the cache in its output directory; output.cache may
  * not take one of these names (nor end in .partial, the name of a file being written). */
@@ -286,7 +289,7 @@ typedef struct fm_scene_def {
         int32_t path_count;
         double speed;                /* units per second along the path; it stops at the last point */
     } target_motion;
-    uint64_t seed;              /* random seed */
+    uint64_t seed;              /* random seed, 0 ... FM_SEED_MAX */
     int32_t compression_level;  /* zstd level of the frame cache, 1..19 */
     int32_t cache_delta;        /* frame cache: XOR delta to the previous frame (lossless; default 1) */
     int32_t cache_key_interval; /* frame cache: frames from one whole frame to the next with delta */

@@ -474,8 +474,12 @@ static fm_status read_integer(const where *w, const param *p, const json_t *v, i
 {
     if (!json_is_integer(v)) return fail_at(w, KEY(w, p), "expected an integer, got %s", fm_json_type_name(v));
     *out = json_integer_value(v);
-    if (p->type == P_UINT64) {
+    if (p->type == P_UINT64) { /* the seed */
         if (*out < 0) return fail_at(w, KEY(w, p), "must be >= 0");
+        if ((uint64_t)*out > FM_SEED_MAX)
+            return fail_at(w, KEY(w, p), "%lld is out of range: must be <= %llu (2^53 - 1: a larger integer does not "
+                           "survive JSON readers that hold numbers as doubles, such as jq and JavaScript)",
+                           (long long)*out, (unsigned long long)FM_SEED_MAX);
         return FM_OK;
     }
     return check_range(w, p, (double)*out);

@@ -15,18 +15,24 @@ Geometry Nodes instancing on the point flock's rotation attribute, a .blend save
 again, a cache cut short, and the errors. It bakes an import to PC2 (the Mesh Cache modifier),
 checks the samples against `flockmorph export -o FILE.pc2` byte for byte, moves the saved .blend
 and its point cache to another folder, and evaluates two frames of it in a second Blender without
-the add-on. Without blender on PATH it prints SKIPPED and exits 77.
+the add-on. It saves a .blend, moves it with its cache to another folder and reopens it: the
+cache's path is a CacheFile's, relative (//), the positions are the reader's bit for bit, and
+Blender's make_paths_absolute/relative and find_missing_files handle the path; a missing cache is
+printed when the .blend opens and shown in the add-on's panel. Without blender on PATH it prints SKIPPED and exits 77.
 
     test_blender_import.py --cli build/flockmorph --points build/tests/cache_points \\
         --addon-zip build/flockmorph_import.zip --tmp DIR --source REPO
 """
 import argparse
+import contextlib
+import io
 import json
 import os
 import shutil
 import subprocess
 import sys
 import time
+import types
 import unittest
 import warnings
 import zipfile
@@ -131,6 +137,7 @@ def reset_scene():
         bpy.data.objects.remove(obj)
     for mesh in list(bpy.data.meshes):
         bpy.data.meshes.remove(mesh)
+    bpy.data.batch_remove(list(bpy.data.cache_files))
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end, scene.frame_current = 1, 250, 1
     scene.render.fps, scene.render.fps_base = 24, 1.0
@@ -213,7 +220,7 @@ class BlenderCase(BlenderBase):
 
     def test_tet_mesh_follows_the_cache(self):
         c = self.tets
-        obj = import_cache(ARGS.tets_cache)
+        obj = import_cache(ARGS.tets_cache, set_scene=True)
         scene = bpy.context.scene
         self.assertEqual((scene.frame_start, scene.frame_end), (1, c.frames))
         self.assert_fps(c.frame_rate)
@@ -238,7 +245,7 @@ class BlenderCase(BlenderBase):
         c = self.tets
         first, last, step, start, scale = 3, c.frames - 2, 5, 10, 0.3
         obj = import_cache(ARGS.tets_cache, frame_first=first, frame_last=last, frame_step=step,
-                           start_frame=start, scale=scale)
+                           start_frame=start, scale=scale, set_scene=True)
         shown = (last - first) // step  # scene frames after the start
         scene = bpy.context.scene
         self.assertEqual((scene.frame_start, scene.frame_end), (start, start + shown))
@@ -257,7 +264,7 @@ class BlenderCase(BlenderBase):
     def test_point_flock_with_attributes(self):
         c = self.points
         scale = 2.0
-        obj = import_cache(ARGS.points_cache, scale=scale)
+        obj = import_cache(ARGS.points_cache, scale=scale, set_scene=True)
         self.assertEqual((len(obj.data.vertices), len(obj.data.polygons)), (c.agents, 0))
         self.assertEqual((bpy.context.scene.frame_start, bpy.context.scene.frame_end), (1, c.frames))
         self.assert_fps(c.frame_rate)
@@ -318,6 +325,18 @@ class BlenderCase(BlenderBase):
         (obj,) = [o for o in bpy.data.objects if "flockmorph" in o.data]
         self.assert_positions(obj, 1 + k, c.read(k, "tet_vertices").reshape(-1, 3))
 
+    def test_import_leaves_the_scene_range_unless_asked(self):
+        """A second import (here any import with the defaults) keeps the scene's range and rate;
+        Set Scene Frames and FPS sets them."""
+        scene = bpy.context.scene
+        scene.frame_start, scene.frame_end, scene.render.fps = 7, 99, 25
+        import_cache(ARGS.tets_cache, frame_step=2)
+        import_cache(ARGS.points_cache)
+        self.assertEqual((scene.frame_start, scene.frame_end, scene.render.fps, scene.render.fps_base), (7, 99, 25, 1.0))
+        import_cache(ARGS.points_cache, start_frame=3, set_scene=True)
+        self.assertEqual((scene.frame_start, scene.frame_end), (3, 3 + self.points.frames - 1))
+        self.assert_fps(self.points.frame_rate)
+
     def test_cache_cut_short_imports_its_complete_frames(self):
         cut = os.path.join(ARGS.tmp, "cut.fmc")
         with open(ARGS.tets_cache, "rb") as f:
@@ -328,7 +347,7 @@ class BlenderCase(BlenderBase):
             warnings.simplefilter("ignore")
             c = fmc.open(cut)
             self.addCleanup(c.close)
-            obj = import_cache(cut)
+            obj = import_cache(cut, set_scene=True)
         self.assertFalse(c.complete)
         self.assertGreater(c.frames, 1)
         self.assertEqual(bpy.context.scene.frame_end, c.frames)
@@ -402,17 +421,19 @@ class BakeCase(BlenderBase):
         self.assertEqual(np.frombuffer(theirs[20:24], "<f4")[0], 0.0)
         self.assertEqual(ours[24:], theirs[24:])
 
-    def test_baked_blend_animates_without_the_addon(self):
+    def test_pc2_import_animates_without_the_addon(self):
+        """The import mode Animate With: Mesh Cache Modifier writes //<object>.pc2 beside the saved
+        .blend; moved with it, the .blend animates in a Blender without the add-on."""
         c = self.tets
         first, step, start = 2, 3, 5
-        obj = import_cache(ARGS.tets_cache, frame_first=first, frame_step=step, start_frame=start)
         last = first + (c.frames - 1 - first) // step * step
         work, moved = os.path.join(ARGS.tmp, "bake"), os.path.join(ARGS.tmp, "bake_moved")
         for d in (work, moved):
             shutil.rmtree(d, ignore_errors=True)
         os.makedirs(work)
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(work, "scene.blend"))
-        self.assertEqual(bpy.ops.object.flockmorph_bake_pc2(), {"FINISHED"})
+        obj = import_cache(ARGS.tets_cache, frame_first=first, frame_step=step, start_frame=start, animate="PC2")
+        self.assertTrue(os.path.isfile(os.path.join(work, f"{obj.name}.pc2")))
         mod = obj.modifiers["flockmorph PC2"]
         self.assertEqual((mod.type, mod.cache_format), ("MESH_CACHE", "PC2"))
         self.assertTrue(mod.filepath.startswith("//"), mod.filepath)
@@ -444,11 +465,130 @@ class BakeCase(BlenderBase):
     def test_bake_needs_a_saved_blend(self):
         bpy.ops.wm.read_homefile(use_empty=True)
         self.assertEqual(bpy.data.filepath, "")
+        with self.assertRaises(RuntimeError) as caught:
+            bpy.ops.import_scene.flockmorph(filepath=ARGS.points_cache, animate="PC2")
+        self.assertIn("save the .blend first", str(caught.exception))
+        self.assertEqual(len(bpy.data.objects), 0)
         obj = import_cache(ARGS.points_cache)
         with self.assertRaises(RuntimeError) as caught:
             bpy.ops.object.flockmorph_bake_pc2()
         self.assertIn("save the .blend first", str(caught.exception))
         self.assertEqual(len(obj.modifiers), 0)
+
+
+class Recorder:
+    """Stands in for a panel's UILayout: keeps the labels drawn and whether they were drawn alert."""
+    def __init__(self, labels=None):
+        self.labels = [] if labels is None else labels
+        self.alert = False
+
+    def label(self, text="", icon="NONE"):
+        self.labels.append((text, icon, self.alert))
+
+    def prop(self, *_args, **_kw):
+        pass
+
+    def column(self, **_kw):
+        return Recorder(self.labels)
+
+
+class RelocateCase(BlenderBase):
+    """The cache's path is a CacheFile's: relative to the saved .blend, and Blender's own path
+    tools (File > External Data) see it, make it absolute or relative, report and find it."""
+
+    def setUp(self):
+        super().setUp()
+        bpy.ops.wm.read_homefile(use_empty=True)
+        self.root = os.path.join(ARGS.tmp, "relocate")
+        shutil.rmtree(self.root, ignore_errors=True)
+        self.project = os.path.join(self.root, "shot")
+        os.makedirs(os.path.join(self.project, "caches"))
+        self.cache = os.path.join(self.project, "caches", "frames.fmc")
+        shutil.copyfile(ARGS.tets_cache, self.cache)
+
+    def flock_object(self):
+        (obj,) = [o for o in bpy.data.objects if "flockmorph" in o.data]
+        return obj
+
+    def assert_bit_identical(self, obj, scene_frame, k):
+        bpy.context.scene.frame_set(scene_frame)
+        np.testing.assert_array_equal(positions(evaluated(obj)), self.tets.read(k, "tet_vertices").reshape(-1, 3),
+                                      err_msg=f"scene frame {scene_frame}")
+
+    def panel_labels(self, obj):
+        import flockmorph_import
+        recorder = Recorder()
+        flockmorph_import.DATA_PT_flockmorph.draw(types.SimpleNamespace(layout=recorder),
+                                                  types.SimpleNamespace(object=obj))
+        return recorder.labels
+
+    def test_moved_with_its_cache_and_fixed_by_blenders_path_tools(self):
+        obj = import_cache(self.cache)
+        linked = obj.data["flockmorph_cache"]
+        self.assertIsInstance(linked, bpy.types.CacheFile)
+        self.assertEqual(linked.filepath, self.cache)  # absolute until the .blend is saved
+        self.assertNotIn("cache", obj.data["flockmorph"].keys())
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(self.project, "shot.blend"))
+        self.assertEqual(linked.filepath, "//caches/frames.fmc")
+        moved = os.path.join(self.root, "moved")
+        os.rename(self.project, moved)  # the .blend and its cache together; the old folder is gone
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(moved, "shot.blend"))
+        obj, k = self.flock_object(), self.moving_frame()
+        linked = obj.data["flockmorph_cache"]
+        self.assertEqual(linked.filepath, "//caches/frames.fmc")
+        self.assert_bit_identical(obj, 1 + k, k)
+        self.assertEqual([t for t, icon, alert in self.panel_labels(obj) if alert], [])
+
+        bpy.ops.file.make_paths_absolute()
+        self.assertEqual(linked.filepath, os.path.join(moved, "caches", "frames.fmc"))
+        self.assert_bit_identical(obj, 3 + k, 2 + k)
+        bpy.ops.file.make_paths_relative()
+        self.assertEqual(linked.filepath, "//caches/frames.fmc")
+
+        # The cache moves on its own: the panel says so, then Find Missing Files finds it.
+        elsewhere = os.path.join(moved, "elsewhere", "deep")
+        os.makedirs(elsewhere)
+        os.rename(os.path.join(moved, "caches", "frames.fmc"), os.path.join(elsewhere, "frames.fmc"))
+        bpy.context.scene.frame_set(5)
+        alerts = [(t, icon) for t, icon, alert in self.panel_labels(obj) if alert]
+        self.assertEqual(len(alerts), 1, alerts)
+        self.assertIn(f"cache missing: {os.path.join(moved, 'caches', 'frames.fmc')}", alerts[0][0])
+        self.assertEqual(alerts[0][1], "ERROR")
+        bpy.ops.file.find_missing_files(directory=moved)
+        self.assertEqual(linked.filepath, "//elsewhere/deep/frames.fmc")
+        self.assertEqual([t for t, icon, alert in self.panel_labels(obj) if alert], [])
+        self.assert_bit_identical(obj, 2 + k, 1 + k)
+
+    def test_a_saved_blend_stores_the_path_relative_at_import(self):
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(self.project, "shot.blend"))
+        a, b = import_cache(self.cache), import_cache(self.cache, mode="POINTS")
+        self.assertEqual(a.data["flockmorph_cache"].filepath, "//caches/frames.fmc")
+        self.assertEqual(a.data["flockmorph_cache"], b.data["flockmorph_cache"])  # one CacheFile a cache
+        self.assertEqual(len(bpy.data.cache_files), 1)
+
+    def test_a_missing_cache_is_reported_when_the_blend_opens(self):
+        """Opening a .blend whose cache is gone prints the path at once (the add-on's load
+        handler), and the panel says so before any frame changes."""
+        import_cache(self.cache)
+        blend = os.path.join(self.project, "shot.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+        os.remove(self.cache)
+        importer()._reported.clear()
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            bpy.ops.wm.open_mainfile(filepath=blend)
+        self.assertIn(f"caches_frames: cache missing: {self.cache}", printed.getvalue())
+        alerts = [t for t, icon, alert in self.panel_labels(self.flock_object()) if alert]
+        self.assertEqual(len(alerts), 1, alerts)
+        self.assertIn(f"cache missing: {self.cache}", alerts[0])
+
+    def test_a_blend_from_before_the_cache_file_still_animates(self):
+        """An import of an older add-on kept the absolute path in the settings."""
+        obj = import_cache(self.cache)
+        del obj.data["flockmorph_cache"]
+        obj.data["flockmorph"]["cache"] = self.cache
+        k = self.moving_frame()
+        self.assert_bit_identical(obj, 1 + k, k)
 
 
 def importer():
@@ -469,7 +609,8 @@ def inner(args):
         return 1
     result = unittest.TextTestRunner(stream=sys.stdout, verbosity=2).run(
         unittest.TestSuite([unittest.defaultTestLoader.loadTestsFromTestCase(BlenderCase),
-                            unittest.defaultTestLoader.loadTestsFromTestCase(BakeCase)]))
+                            unittest.defaultTestLoader.loadTestsFromTestCase(BakeCase),
+                            unittest.defaultTestLoader.loadTestsFromTestCase(RelocateCase)]))
     return 0 if result.wasSuccessful() else 1
 
 

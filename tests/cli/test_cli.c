@@ -8,6 +8,7 @@
 #include "geom.h"
 
 #include <jansson.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -280,6 +281,93 @@ static void check_stats_keys_documented(const char *stats, const char *mode_sect
     json_decref(j);
 }
 
+static json_t *inspect_json(const char *path, int expect_exit);
+
+/* XXH64 (seed 0) of a file's bytes as 16 hex digits, as xxhsum prints it; "" if unreadable. */
+static void file_hash(const char *path, char hex[17])
+{
+    static char bytes[1 << 20];
+    size_t n = slurp(path, bytes, sizeof bytes);
+    snprintf(hex, 17, "%016llx", n ? (unsigned long long)XXH64(bytes, n, 0) : 0ull);
+    if (!n) hex[0] = 0;
+}
+
+/* stats.json's "meshes" entry for `key`: its path and xxh64 must be those of the file. */
+static void check_mesh_entry(json_t *meshes, const char *key, const char *file)
+{
+    char absolute[PATH_MAX], hex[17];
+    json_t *found = NULL, *m;
+    size_t i;
+    json_array_foreach(meshes, i, m) if (!strcmp(json_string_value(json_object_get(m, "key")), key)) found = m;
+    ENSURE_MSG(found && realpath(file, absolute), "no meshes entry %s for %s", key, file);
+    if (!found) return;
+    file_hash(file, hex);
+    ENSURE_MSG(!strcmp(json_string_value(json_object_get(found, "path")), absolute), "%s: path %s, expected %s", key,
+               json_string_value(json_object_get(found, "path")), absolute);
+    ENSURE_MSG(!strcmp(json_string_value(json_object_get(found, "xxh64")), hex), "%s: xxh64 %s, the file's %s", key,
+               json_string_value(json_object_get(found, "xxh64")), hex);
+}
+
+/* The build's commit (40 hex digits, "-modified" when tracked files differed; "unknown" outside a
+ * git checkout), the cache's absolute path, the working directory and the meshes with their hashes;
+ * `inspect --json` of the cache gives the same. */
+static void check_run_provenance(json_t *j, const char *outdir)
+{
+    const char *commit = json_string_value(json_object_get(j, "commit"));
+    size_t hex = commit ? strspn(commit, "0123456789abcdef") : 0;
+    ENSURE_MSG(commit && ((hex == 40 && (!commit[40] || !strcmp(commit + 40, "-modified"))) || !strcmp(commit, "unknown")),
+               "commit %s", commit ? commit : "missing");
+    char cache[FM_PATH_MAX + 16], absolute[PATH_MAX], cwd[PATH_MAX];
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
+    ENSURE(realpath(cache, absolute) && getcwd(cwd, sizeof cwd));
+    ENSURE(!strcmp(json_string_value(json_object_get(j, "cache_absolute")), absolute));
+    ENSURE(!strcmp(json_string_value(json_object_get(j, "working_directory")), cwd));
+    json_t *meshes = json_object_get(j, "meshes");
+    char mesh[FM_PATH_MAX];
+    ENSURE_MSG(json_array_size(meshes) == 1, "%zu meshes: source and target are one file", json_array_size(meshes));
+    check_mesh_entry(meshes, "source.mesh", tmp_path(mesh, "octahedron.obj"));
+    json_t *inspected = inspect_json(cache, 0), *from_stats = json_object_get(inspected, "provenance");
+    static const char *const same[] = {"version", "commit", "meshes", "cache_absolute", "working_directory", "scene_xxh64"};
+    for (size_t k = 0; k < sizeof same / sizeof same[0]; k++)
+        ENSURE_MSG(json_equal(json_object_get(from_stats, same[k]), json_object_get(j, same[k])),
+                   "inspect --json's provenance.%s differs from stats.json's", same[k]);
+    ENSURE(!strcmp(json_string_value(json_object_get(inspected, "path_absolute")), absolute));
+    json_decref(inspected);
+}
+
+/* stats.json's mesh hash follows the mesh: a byte changed in the file (a comment, the same shape)
+ * changes its xxh64 to the new file's, and the scene's own hash stays. */
+static void test_stats_mesh_hash_follows_the_mesh(void)
+{
+    char scene[FM_PATH_MAX], mesh[FM_PATH_MAX], args[3 * FM_PATH_MAX], stats[2][FM_PATH_MAX + 32], out[FM_PATH_MAX + 16];
+    char base[FM_PATH_MAX];
+    write_text(tmp_path(scene, "hashed.json"), "{\"source\": {\"mesh\": \"cli_hashed.obj\", \"translate\": [-4, 0, 0]},\n"
+               " \"target\": {\"mesh\": \"cli_hashed.obj\", \"translate\": [4, 0, 0]}, \"n\": 8,\n"
+               " \"time\": {\"frame_limit\": 2}}\n");
+    write_octahedron(tmp_path(mesh, "hashed.obj"));
+    json_t *run[2];
+    for (int r = 0; r < 2; r++) {
+        if (r) {
+            FILE *f = fopen(mesh, "a");
+            ENSURE(f && fputs("# the same shape, other bytes\n", f) >= 0);
+            if (f) fclose(f);
+        }
+        snprintf(out, sizeof out, "%s_%d", tmp_path(base, "hashed_out"), r);
+        snprintf(stats[r], sizeof stats[r], "%s/stats.json", out);
+        remove(stats[r]);
+        snprintf(args, sizeof args, "run '%s' -o '%s' --quiet --threads 1", scene, out);
+        ENSURE_EXIT(args, 0);
+        run[r] = json_load_file(stats[r], 0, NULL);
+        ENSURE(run[r] != NULL);
+        if (run[r]) check_mesh_entry(json_object_get(run[r], "meshes"), "source.mesh", mesh);
+    }
+    const char *hash[2];
+    for (int r = 0; r < 2; r++) hash[r] = json_string_value(json_object_get(json_array_get(json_object_get(run[r], "meshes"), 0), "xxh64"));
+    ENSURE_MSG(hash[0] && hash[1] && strcmp(hash[0], hash[1]) != 0, "the mesh changed, its hash stayed %s", hash[0] ? hash[0] : "missing");
+    ENSURE(json_equal(json_object_get(run[0], "scene_xxh64"), json_object_get(run[1], "scene_xxh64")));
+    json_decref(run[0]), json_decref(run[1]);
+}
+
 /* schema, scene and its hash, command line, start time, machine; mde_fraction_per_frame one
  * entry per frame, frame 0 null; every key documented both ways. */
 static void test_stats_provenance(void)
@@ -293,10 +381,8 @@ static void test_stats_provenance(void)
     if (!j) return;
     ENSURE(json_integer_value(json_object_get(j, "schema")) == 1);
     ENSURE(!strcmp(json_string_value(json_object_get(j, "scene")), scene));
-    static char bytes[1 << 16];
-    size_t n = slurp(scene, bytes, sizeof bytes);
     char hex[17];
-    snprintf(hex, sizeof hex, "%016llx", (unsigned long long)XXH64(bytes, n, 0));
+    file_hash(scene, hex);
     const char *have = json_string_value(json_object_get(j, "scene_xxh64"));
     ENSURE_MSG(have && !strcmp(have, hex), "scene_xxh64 %s, expected %s", have ? have : "missing", hex);
     json_t *cmd = json_object_get(j, "command_line");
@@ -318,6 +404,7 @@ static void test_stats_provenance(void)
                json_is_null(json_array_get(mde, 0)) && json_is_number(json_array_get(mde, 1)),
                "mde_fraction_per_frame: %zu entries for %lld frames", json_array_size(mde),
                (long long)json_integer_value(json_object_get(j, "frames")));
+    check_run_provenance(j, outdir);
     json_decref(j);
     check_stats_keys_documented(stats, "## Tetra morph");
     snprintf(stats, sizeof stats, "%s/stats.json", tmp_path(outdir, "omp_flock_out"));
@@ -871,6 +958,7 @@ int main(void)
     RUN_TEST(test_run_stops_at_frame_limit);
     RUN_TEST(test_run_writes_obstacles);
     RUN_TEST(test_stats_provenance);
+    RUN_TEST(test_stats_mesh_hash_follows_the_mesh);
     RUN_TEST(test_export);
     RUN_TEST(test_export_errors);
     RUN_TEST(test_render);

@@ -622,6 +622,36 @@ static void test_segment_script(void)
 }
 
 static void test_kill9_then_resume(void) { kill9_then_resume(&g_tetra); }
+/* SIGTERM while the model is built (examples/words at 3·10^5 tets: seconds of TetGen and
+ * bisection before frame 0): the run says so and ends at once with 143, leaving no cache. Without
+ * the handler the default action would end it with the same status but in silence. */
+static void test_sigterm_while_preparing(void)
+{
+    const char *out = DIR_ "/preparing";
+    char manifest[FM_PATH_MAX + 32], partial[FM_PATH_MAX + 32], log_path[FM_PATH_MAX + 8];
+    snprintf(manifest, sizeof manifest, "%s/" FM_OUTPUT_MANIFEST, out);
+    snprintf(partial, sizeof partial, "%s/frames.fmc.partial", out);
+    snprintf(log_path, sizeof log_path, "%s.log", out);
+    clear_outputs(out);
+    remove(manifest);
+    pid_t pid = start_scene(FM_SOURCE_DIR "/examples/words/scene.json", out, "--set n=300000");
+    /* the manifest is written once the output folder is taken, just before the build */
+    ENSURE_MSG(wait_for_size(pid, manifest, 0), "%s", "the run ended before it could be interrupted");
+    sleep_ms(300);
+    long long t0 = now_ms();
+    kill(pid, SIGTERM);
+    int rc = wait_status(pid);
+    long long waited = now_ms() - t0;
+    size_t len;
+    char *log = slurp(log_path, &len);
+    ENSURE_MSG(rc == 143, "exit %d, expected 143: %s", rc, log ? log : "");
+    ENSURE_MSG(log && strstr(log, "flockmorph: interrupted by SIGTERM while preparing the run (before frame 0): nothing "
+                                  "to save; run it again\n"), "no message: %s", log ? log : "");
+    ENSURE_MSG(waited < 5000, "it took %lld ms to end", waited);
+    ENSURE_MSG(!exists(partial), "%s", "a cache was started: the signal came after the build");
+    free(log);
+}
+
 static void test_sigint_then_resume(void) { interrupt_then_resume(&g_tetra, SIGINT, 130, 0.6, "SIGINT"); }
 static void test_sigterm_then_resume(void) { interrupt_then_resume(&g_tetra, SIGTERM, 143, 0.3, "SIGTERM"); }
 
@@ -857,6 +887,7 @@ int main(void)
     RUN_TEST(test_kill9_then_resume);
     RUN_TEST(test_segments_then_resume);
     RUN_TEST(test_segment_script);
+    RUN_TEST(test_sigterm_while_preparing);
     RUN_TEST(test_sigint_then_resume);
     RUN_TEST(test_sigterm_then_resume);
     RUN_TEST(test_cli_refuses_other_scene_and_damage);

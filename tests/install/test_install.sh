@@ -124,16 +124,23 @@ compile() { # SOURCE OUTPUT PKG_CONFIG_PATH pkg-config-arguments...
   local flags
   flags=$(PKG_CONFIG_PATH=$path pkg-config "$@") || fail "pkg-config $*"
   # shellcheck disable=SC2086 # the flags are words
-  quiet "cc_$(basename "$out")" "$cc" -o "$out" "$here/consumer/$source" -DEXPECTED_VERSION="\"$version\"" $flags
+  quiet "cc_$(basename "$out")" "$cc" -o "$out" "$here/consumer/$source" -DEXPECTED_VERSION="\"$version\"" $flags ${extra_flags:-}
 }
 compile read_cache.c "$work/pc_reader" "$PKG_CONFIG_PATH" --cflags --libs flockmorph_reader
 "$work/pc_reader" "$cache" "$agents" || fail "pc_reader (pkg-config flockmorph_reader)"
 check_reader_only "$work/pc_reader"
 if [ "$shared" = ON ]; then
-  compile read_cache.c "$work/pc_shared" "$PKG_CONFIG_PATH" --cflags --libs flockmorph
-  LD_LIBRARY_PATH=$prefix/$libdir ldd "$work/pc_shared" | grep "=> $prefix/$libdir/libflockmorph\.so" > /dev/null \
-    || fail "pc_shared does not load libflockmorph.so"
-  LD_LIBRARY_PATH=$prefix/$libdir "$work/pc_shared" "$cache" "$agents" || fail "pc_shared (pkg-config flockmorph)"
+  # without an rpath the program does not find the library when it starts (docs/install.md)...
+  compile read_cache.c "$work/pc_shared_no_rpath" "$PKG_CONFIG_PATH" --cflags --libs flockmorph
+  env -u LD_LIBRARY_PATH ldd "$work/pc_shared_no_rpath" | grep 'libflockmorph\.so\.[0-9.]* => not found' > /dev/null \
+    || fail "pc_shared_no_rpath found libflockmorph.so without an rpath: the documented flags are not tested"
+  # ...and with the documented flags it does, LD_LIBRARY_PATH unset
+  extra_flags="-Wl,-rpath,$(pkg-config --variable=libdir flockmorph)" \
+    compile read_cache.c "$work/pc_shared" "$PKG_CONFIG_PATH" --cflags --libs flockmorph
+  loaded=$(env -u LD_LIBRARY_PATH ldd "$work/pc_shared" | awk '/libflockmorph\.so/ { print $3 }')
+  [ -n "$loaded" ] && [ "$(realpath "$loaded")" = "$(realpath "$prefix/$libdir/libflockmorph.so")" ] \
+    || fail "pc_shared does not load the installed libflockmorph.so (ldd: ${loaded:-none})"
+  env -u LD_LIBRARY_PATH "$work/pc_shared" "$cache" "$agents" || fail "pc_shared (pkg-config flockmorph, -Wl,-rpath)"
   # the static library through pkg-config --static, where no shared one is beside it
   cp -a "$prefix" "$work/static_prefix"
   rm -f "$work/static_prefix/$libdir"/libflockmorph.so*

@@ -42,7 +42,8 @@ fmc = None  # python/flockmorph_cache.py, imported from --source
 
 # stats.json keys that may differ between runs of different P or T (docs/stats.md)
 VARYING = {"preprocess_seconds", "simulate_seconds", "output_seconds", "agent_steps_per_second",
-           "steps_per_second", "threads", "ranks", "scale_out", "command_line", "start_time", "machine", "cache"}
+           "steps_per_second", "threads", "ranks", "scale_out", "command_line", "start_time", "machine", "cache",
+           "cache_absolute", "working_directory"}
 
 
 def env():

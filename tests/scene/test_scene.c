@@ -95,7 +95,7 @@ static void test_valid_scene_fields(void)
         "  \"path\": {\"points\": [[1, 2, 3], [-4, -5.5, 6]], \"key_points\": 12, \"curve\": \"catmull_rom\"},\n"
         "  \"launch_rate\": 100,\n"
         "  \"morph\": {\"shrink\": 0.25, \"shrink_time\": 0.5, \"morph_fraction\": 0.6},\n"
-        "  \"seed\": 9007199254740993,\n"
+        "  \"seed\": 9007199254740991,\n"
         "  \"output\": {\"cache\": \"run.fmc\", \"compression_level\": 19, \"delta\": false, \"key_interval\": 7,\n"
         "             \"quantum\": 0.001}\n"
         "}\n";
@@ -120,7 +120,7 @@ static void test_valid_scene_fields(void)
     ENSURE(d.path_key_points == 12 && d.path_curve == FM_CURVE_CATMULL_ROM);
     ENSURE(d.launch_rate == 100);
     ENSURE(d.shrink == 0.25 && d.shrink_time == 0.5 && d.morph_fraction == 0.6);
-    ENSURE(d.seed == 9007199254740993ull);
+    ENSURE(d.seed == 9007199254740991ull && d.seed == FM_SEED_MAX); /* 2^53 - 1, the largest */
     ENSURE(strcmp(d.cache_name, "run.fmc") == 0 && d.compression_level == 19);
     ENSURE(d.cache_delta == 0 && d.cache_key_interval == 7 && d.cache_quantum == 0.001);
 }
@@ -288,6 +288,19 @@ static void test_out_of_range(void)
     expect_error_at("range_blend.json", "{" MESHES ", \"phase2\": {\"blend_time\": @-0.1}}",
                     "phase2.blend_time: -0.1 is out of range");
     expect_error_at("range_seed.json", "{" MESHES ", \"seed\": @-1}", "seed");
+    /* 2^53 + 1 reads back as 2^53 in jq and JavaScript: refused, the message naming the key */
+    expect_error_at("range_seed_53.json", "{" MESHES ", \"seed\": @9007199254740992}",
+                    "seed: 9007199254740992 is out of range: must be <= 9007199254740991 (2^53 - 1");
+    { /* a group's own seed too, read with its group */
+        char path[FM_PATH_MAX];
+        write_text(tmp_path(path, "range_seed_group.json"),
+                   "{\"groups\": [{\"name\": \"a\", " MESHES ", \"seed\": 9223372036854775807}]}");
+        fm_scene_def def;
+        fm_error err = {0};
+        ENSURE(fm_scene_load_group(path, NULL, 0, 0, &def, &err) == FM_ERR_INPUT);
+        ENSURE_MSG(strstr(err.message, "groups[0].seed: 9223372036854775807 is out of range: must be <= "
+                                       "9007199254740991") != NULL, "%s", err.message);
+    }
     expect_error_at("range_cache.json", "{" MESHES ", \"output\": {\"cache\": @\"../x.fmc\"}}", "output.cache");
 }
 
