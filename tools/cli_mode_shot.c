@@ -73,7 +73,7 @@ static int build_morphs(shot_run *r, int *show)
         for (int i = 0; i < fm_morph_model_warning_count(m); i++)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_morph_model_warning(m, i)));
     }
-    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run};
+    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run, NULL};
     return 0;
 }
 
@@ -88,7 +88,7 @@ static int build_flocks(shot_run *r, int *show)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_flock_model_warning(m, i)));
     }
     r->common = (cli_mode_run){fm_flock_shot_rows(r->flock_shot), fm_flock_shot_model(r->flock_shot, 0)->dt,
-                               &r->flock_stats.run};
+                               &r->flock_stats.run, NULL};
     return 0;
 }
 

@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 char *studio_scene_text(const json_t *doc)
@@ -88,6 +89,7 @@ static void on_cache(fm_cache_writer *cache, void *user)
     if (t->attr_count > 16) t->attr_count = 16;
     for (int i = 0; i < t->attr_count; i++) t->attrs[i] = fm_cache_writer_attr_at(cache, i);
     pthread_mutex_lock(&t->s->lock);
+    t->s->model_kept = t->s->keep.reused, t->s->build_seconds = t->s->keep.build_seconds;
     t->s->agents = t->agents;
     snprintf(t->s->kind, sizeof t->s->kind, "%s", studio_kind(t->attr_count, t->attrs));
     t->s->stage = "running";
@@ -140,7 +142,7 @@ static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
                          .stop_after_frame = -1, .log_every = 10, .wedge = -1};
     cli_utc_now(o.start_time, sizeof o.start_time);
     run_tap tap = {.s = s, .generation = generation};
-    const cli_run_hooks hooks = {&s->stop, on_cache, &tap};
+    const cli_run_hooks hooks = {&s->stop, on_cache, &tap, &s->keep}; /* keep: the worker's alone */
     cli_last_error[0] = 0;
     int rc = cli_run_scene_hooked(&o, def, &hooks);
     pthread_mutex_lock(&s->lock);
@@ -154,6 +156,20 @@ static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
     pthread_mutex_unlock(&s->lock);
 }
 
+/* Waits (with lock held) until no edit came for STUDIO_EDIT_SETTLE seconds: edits that come faster
+ * than that (a slider's drag, a script's burst) start one run, not one each, now that a kept model
+ * builds in milliseconds. */
+static void settle_edits(studio *s)
+{
+    for (double left; !s->quit && (left = s->last_edit + STUDIO_EDIT_SETTLE - cli_seconds()) > 0;) {
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        long ns = until.tv_nsec + (long)(left * 1e9);
+        until.tv_sec += ns / 1000000000L, until.tv_nsec = ns % 1000000000L;
+        pthread_cond_timedwait(&s->wake, &s->lock, &until);
+    }
+}
+
 static void *worker_main(void *arg)
 {
     studio *s = arg;
@@ -161,11 +177,13 @@ static void *worker_main(void *arg)
     pthread_mutex_lock(&s->lock);
     while (def && !s->quit) {
         if (!s->run_wanted) { pthread_cond_wait(&s->wake, &s->lock); continue; }
+        settle_edits(s);
+        if (s->quit) break;
         *def = *s->def;
         s->run_wanted = 0, s->stop = 0;
         uint32_t generation = ++s->generation;
         drop_frames(s);
-        s->stage = "building", s->failure[0] = 0, s->agents = 0;
+        s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->build_seconds = 0;
         tell_pages(s, 1);
         pthread_mutex_unlock(&s->lock);
         run_once(s, def, generation);
@@ -221,6 +239,7 @@ void studio_live_close(studio *s)
         pthread_cond_destroy(&s->wake);
     }
     if (s->outdir[0]) remove_outdir(s->outdir);
+    cli_model_keep_free(&s->keep);
     drop_frames(s);
     free(s->frames);
     free(s->shapes);
@@ -313,6 +332,7 @@ static int edit_here(studio *s, const char *key, const json_t *value, char *msg,
         *s->def = *def;
         s->frame_rate = def->frame_rate;
         s->dirty = 1, s->run_wanted = 1, s->stop = 1; /* cancels the run in progress */
+        s->last_edit = cli_seconds();
         pthread_cond_signal(&s->wake);
         rc = 0;
     }
