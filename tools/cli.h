@@ -86,6 +86,8 @@ typedef struct cli_run_hooks {
     void (*cache_ready)(fm_cache_writer *cache, void *user);
     void *user;
     cli_model_keep *keep; /* NULL, or what the model build keeps for the next run (below) */
+    const char *scene_text; /* NULL, or the scene's text as edited: a shot's groups are read from it,
+                               not from the file (the studio's edits of a shot) */
 } cli_run_hooks;
 
 /* The studio's runs keep the costly part of the model (TetGen's tets and the tets at n, or the
@@ -222,6 +224,7 @@ typedef struct cli_mode_run {
     double time_step;
     const fm_run_totals *totals; /* the run statistics' frames, steps and seconds */
     cli_model_keep *keep;        /* set before build(): the studio's keep, or NULL */
+    const char *scene_text;      /* set before build(): the hooks' scene_text, or NULL */
 } cli_mode_run;
 
 /* One simulation mode as `run` drives it: cli_run.c holds the one run path, and each mode fills a

@@ -106,7 +106,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
-    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep};
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
         fprintf(stderr, "flockmorph: warning: %s\n", fm_flock_model_warning(r->model, i));
     return 0;

@@ -184,7 +184,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     if (keep) keep->reused = keep->morph->reused;
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
-    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep};
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_morph_model_warning_count(r->model); i++) add_warning(r, fm_morph_model_warning(r->model, i));
     return 0;
 }

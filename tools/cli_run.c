@@ -301,6 +301,7 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def, const cl
     int show = !o->quiet && isatty(STDERR_FILENO);
     cli_model_keep *keep = hooks ? hooks->keep : NULL;
     ((cli_mode_run *)run)->keep = keep;
+    ((cli_mode_run *)run)->scene_text = hooks ? hooks->scene_text : NULL;
     if (keep) keep->reused = 0;
     double t0 = cli_seconds();
     int rc = cli_agree(mode->build(run, def, &show), NULL); /* the same model on every rank */

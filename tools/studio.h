@@ -64,7 +64,9 @@ typedef struct studio {
     char *shapes;                   /* the "shapes" message of the latest run (meshes as placed) */
     int dirty;                      /* edited since the last save */
     fm_scene_def *def;              /* the doc read as the loader reads it: what the next run runs */
-    fm_scene_def *first;            /* the scene as the studio started: the files it may read */
+    fm_scene_def *first;            /* the scene as the studio started, then a shot's every group (first_count
+                                       in all): the files it may read */
+    int first_count;
     int run_wanted;                 /* the worker should start a run of def (the latest edit wins) */
     double last_edit;               /* when the last edit was accepted (cli_seconds) */
     cli_model_keep keep;            /* the worker's: the model's costly part, for the next edit's run */

@@ -19,8 +19,9 @@ const rounds = Number(arg('--rounds', 2)), chosen = arg('--variants', 'before,af
 const scene = process.argv[process.argv.length - 1];
 
 // before: the studio's first drawing (lit on both sides, always full resolution); after: today's.
-// The others take one lever at a time.
+// The others take one lever at a time; page: the page as it is (another build's page, too).
 const VARIANTS = {
+  page: null,
   before: { tetStyle: { material: 'lambert', cull: false }, dynamic: false },
   cull: { tetStyle: { material: 'lambert', cull: true }, dynamic: false },
   flat: { tetStyle: { material: 'flat', cull: true }, dynamic: false },
@@ -57,11 +58,12 @@ async function rate(page, fastest, studioPid) {
   for (let t = 0; t < seconds; t++) {
     await page.waitForTimeout(1000);
     samples.push(await page.evaluate(() => window.studio.counter.fps));
-    ratios.push(await page.evaluate(() => window.studio.view.resolution.ratio));
+    ratios.push(await page.evaluate(() => window.studio.view.resolution?.ratio ?? 1));
     await page.evaluate(() => { const s = window.studio; if (s.current >= s.status.frames - 2) s.seek(0); });
   }
   const mean = (a) => a.reduce((x, y) => x + y, 0) / a.length;
-  const shown = (await page.evaluate(() => window.studio.shownCount)) - shown0;
+  const counted = (await page.evaluate(() => window.studio.shownCount)) - shown0;
+  const shown = Number.isFinite(counted) ? counted : mean(samples) * seconds; // a page without the count
   return { fps: mean(samples), ratio: mean(ratios), cpu: ((browserCpu(studioPid) - cpu0) * 1000) / Math.max(1, shown) };
 }
 
@@ -83,8 +85,8 @@ try {
   for (let r = 0; r < rounds; r++) {
     for (const name of chosen) {
       const v = VARIANTS[name];
-      if (!v) throw new Error(`no variant '${name}' (${Object.keys(VARIANTS).join(', ')})`);
-      await page.evaluate((x) => { const view = window.studio.view; view.setTetStyle(x.tetStyle); view.dynamicResolution = x.dynamic; }, v);
+      if (v === undefined) throw new Error(`no variant '${name}' (${Object.keys(VARIANTS).join(', ')})`);
+      if (v) await page.evaluate((x) => { const view = window.studio.view; view.setTetStyle(x.tetStyle); view.dynamicResolution = x.dynamic; }, v);
       const a = await rate(page, false, studio.proc.pid), b = await rate(page, true, studio.proc.pid);
       measured[name].scene_rate.push(a.fps), measured[name].fastest.push(b.fps), measured[name].ratio.push((a.ratio + b.ratio) / 2);
       measured[name].cpu.push(b.cpu);

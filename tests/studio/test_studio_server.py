@@ -12,8 +12,10 @@ that vanish mid-run (one mid-way through a frame claiming a terabyte) leave the 
 An edit of the path keeps the model (TetGen's tets), one of the target's placement does not.
 Save writes the file atomically, and `flockmorph run` of it writes the frames the studio streamed,
 byte for byte, as does the Render button (refused before a save): the run compared is one whose
-model was kept. The same for a shape flock whose samples and match were kept. That cache played
-back gives the reader's frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
+model was kept. The same for a shape flock whose samples and match were kept, and for a shot
+(a scene with groups) edited live: a group's key changes its run, a bad one is named. That cache
+played back gives the reader's frames and refuses edits. The studio never crashes and exits 0 on
+SIGTERM.
 """
 import argparse
 import hashlib
@@ -260,6 +262,43 @@ def check_flock_keep(args, tmp):
           "shape flock: the studio exits 0, no sanitizer report")
 
 
+def check_shot_edit(args, tmp):
+    """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
+    changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
+    the file writes the edited run's frames byte for byte."""
+    scene = os.path.join(tmp, "shot.json")
+    with open(scene, "w") as f:
+        json.dump({"time": {"frame_rate": 24, "frame_limit": 48}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+                   "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+                               "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
+                              {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
+                               "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]}, f)
+    proc, url = start_studio(args.cli, scene)
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        first = finished(ws)
+        before = hashlib.sha256(ws.frame(first["frames"] - 1)[1][1]).hexdigest()
+        e = error_of(ws, {"type": "set", "key": "groups.1.speed0", "value": -2})
+        check("groups[1].speed0" in e and "out of range" in e, f"shot: an invalid group edit names the group's key: {e}")
+        e = error_of(ws, {"type": "set", "key": "groups.0.target.mesh", "value": "/etc/passwd"})
+        check("/etc/passwd" in e and "refused" in e, f"shot: a group's edit that names another file is refused: {e}")
+        run = edited_run(ws, "groups.1.speed0", 7.0, first["generation"])
+        check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
+        after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
+        check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
+        ws.send({"type": "save"})
+        ws.recv_json("saved")
+        streamed, written = streamed_and_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"))
+        check(written == streamed, f"shot: run of the saved file wrote the {len(written)} frames the studio streamed "
+                                   f"({len(streamed)}), byte for byte")
+        ws.close()
+    finally:
+        code, err = stop_studio(proc)
+    check(code == 0 and "AddressSanitizer" not in err and "runtime error" not in err,
+          "shot: the studio exits 0, no sanitizer report")
+
+
 def check_playback(args, cache):
     """A played cache: its facts in hello, its frames as the reader decodes them, no edits."""
     proc, url = start_studio(args.cli, cache)
@@ -327,6 +366,7 @@ def main():
         code, err = stop_studio(proc)
     check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
     check_flock_keep(args, tmp)
+    check_shot_edit(args, tmp)
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
     check("AddressSanitizer" not in err and "runtime error" not in err, "no sanitizer report")
     print(f"test_studio_server: {time.time() - t0:.1f} s")
