@@ -232,6 +232,21 @@ def check_truth(args, ws, scene, tmp):
           "Render's cache is the frames the studio streamed, byte for byte")
 
 
+def check_saved_run(args, ws, scene, frames, out, what):
+    """Save, then `flockmorph run` of the file writes the frames the studio streamed."""
+    ws.send({"type": "save"})
+    ws.recv_json("saved")
+    streamed, written = streamed_and_run(args, ws, scene, frames, out)
+    check(written == streamed, f"{what}: run of the saved file wrote the {len(written)} frames the studio streamed "
+                               f"({len(streamed)}), byte for byte")
+
+
+def check_stopped(proc, what):
+    code, err = stop_studio(proc)
+    check(code == 0 and "AddressSanitizer" not in err and "runtime error" not in err,
+          f"{what}: the studio exits 0, no sanitizer report")
+
+
 def check_flock_keep(args, tmp):
     """A shape flock: an edit of the boids' weights keeps the samples and the match, one of n does
     not; Save, and `flockmorph run` writes the kept run's frames byte for byte."""
@@ -250,16 +265,10 @@ def check_flock_keep(args, tmp):
         kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], more["generation"])
         check(kept["stage"] == "finished" and kept["model_kept"] is True,
               f"shape flock: a boids edit keeps the samples and the match (built in {kept['build_seconds']:.3f} s)")
-        ws.send({"type": "save"})
-        ws.recv_json("saved")
-        streamed, written = streamed_and_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"))
-        check(written == streamed, f"shape flock: run wrote the {len(written)} frames the studio streamed "
-                                   f"({len(streamed)}) from the kept samples, byte for byte")
+        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (samples kept)")
         ws.close()
     finally:
-        code, err = stop_studio(proc)
-    check(code == 0 and "AddressSanitizer" not in err and "runtime error" not in err,
-          "shape flock: the studio exits 0, no sanitizer report")
+        check_stopped(proc, "shape flock")
 
 
 def check_shot_edit(args, tmp):
@@ -287,16 +296,10 @@ def check_shot_edit(args, tmp):
         check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
         after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
         check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
-        ws.send({"type": "save"})
-        ws.recv_json("saved")
-        streamed, written = streamed_and_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"))
-        check(written == streamed, f"shot: run of the saved file wrote the {len(written)} frames the studio streamed "
-                                   f"({len(streamed)}), byte for byte")
+        check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot")
         ws.close()
     finally:
-        code, err = stop_studio(proc)
-    check(code == 0 and "AddressSanitizer" not in err and "runtime error" not in err,
-          "shot: the studio exits 0, no sanitizer report")
+        check_stopped(proc, "shot")
 
 
 def check_playback(args, cache):
