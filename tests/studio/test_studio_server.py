@@ -145,8 +145,7 @@ def check_model_keep(url):
     moved = edited_run(ws, "target.translate", [16.0, 0.0, 0.0], path["generation"])
     check(moved["stage"] == "finished" and moved["model_kept"] is False,
           f"moving the target builds the model again ({moved['build_seconds']:.3f} s)")
-    back = edited_run(ws, "target.translate", [15.0, 0.0, 0.0], moved["generation"])
-    check(back["stage"] == "finished" and back["model_kept"] is False, "and moving it back builds it again")
+    edited_run(ws, "target.translate", [15.0, 0.0, 0.0], moved["generation"])  # back, for the checks after
     ws.close()
 
 
@@ -254,7 +253,7 @@ def check_flock_keep(args, tmp):
     with open(scene, "w") as f:
         json.dump({"mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
                    "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
-                   "time": {"frame_rate": 24, "frame_limit": 60}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9}, f)
+                   "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9}, f)
     proc, url = start_studio(args.cli, scene)
     try:
         ws = WebSocket(url)
@@ -277,7 +276,7 @@ def check_shot_edit(args, tmp):
     the file writes the edited run's frames byte for byte."""
     scene = os.path.join(tmp, "shot.json")
     with open(scene, "w") as f:
-        json.dump({"time": {"frame_rate": 24, "frame_limit": 48}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+        json.dump({"time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
                    "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
                                "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
                               {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
