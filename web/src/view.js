@@ -132,10 +132,10 @@ export class View {
     const flock = this.flock;
     if (flock?.userData.kind !== 'tets') return;
     const g = flock.geometry, index = g.index, eye = this.camera.position;
-    const key = this.tetStyle.cull ? `${this.shownFrame},${eye.x},${eye.y},${eye.z}` : 'all';
+    const height = this.container.clientHeight || 1;
+    const key = this.tetStyle.cull ? `${this.shownFrame},${eye.x},${eye.y},${eye.z},${height}` : 'all';
     if (this.facesFor === key) return;
-    // a unit at distance 1 on the screen, in CSS pixels
-    const perUnit = (this.container.clientHeight || 1) / 2 / Math.tan((this.camera.fov * Math.PI) / 360);
+    const perUnit = height / 2 / Math.tan((this.camera.fov * Math.PI) / 360); // a unit at distance 1, in CSS pixels
     const count = this.tetStyle.cull
       ? frontFaces(g.getAttribute('position').array, flock.userData.agents, eye, index.array, perUnit, this.tetStyle.tiny ?? 0)
       : fillAllFaces(index.array, flock.userData.agents);
