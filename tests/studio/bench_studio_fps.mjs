@@ -6,7 +6,7 @@
 // of the drawing (VARIANTS below), the frame rate playing at the scene's rate and as fast as frames
 // come, and the mean resolution ratio while it played, in headless chromium (SwiftShader: the CPU
 // draws, so a machine with a GPU and a desktop browser does better). The variants are measured in
-// turn, R rounds, in the same page on the same frames, so that the machine's load falls on each
+// turn, R rounds, on the same frames (in one page, or one a page query), so that the machine's load falls on each
 // alike; each figure is the median of its rounds. cpu_ms_per_frame is the browser's processor time
 // (every chromium process, user and system, from /proc) per frame shown: on a machine shared with
 // other jobs the frame rate follows the processor time the browser gets, this does much less.
@@ -19,14 +19,15 @@ const rounds = Number(arg('--rounds', 2)), chosen = arg('--variants', 'before,af
 const scene = process.argv[process.argv.length - 1];
 
 // before: the studio's first drawing (lit on both sides, always full resolution); after: today's.
-// The others take one lever at a time; page: the page as it is (another build's page, too).
+// The others take one lever at a time; page: the page as it is (another build's page, too). Each
+// query (none today) is a page of its own.
 const VARIANTS = {
-  page: null,
-  before: { tetStyle: { material: 'lambert', cull: false }, dynamic: false },
-  cull: { tetStyle: { material: 'lambert', cull: true }, dynamic: false },
-  flat: { tetStyle: { material: 'flat', cull: true }, dynamic: false },
-  dynamic: { tetStyle: { material: 'lambert', cull: false }, dynamic: true },
-  after: { tetStyle: { material: 'flat', cull: true }, dynamic: true },
+  page: { query: '' },
+  before: { tetStyle: { material: 'lambert', cull: false }, dynamic: false, query: '' },
+  cull: { tetStyle: { material: 'lambert', cull: true }, dynamic: false, query: '' },
+  flat: { tetStyle: { material: 'flat', cull: true }, dynamic: false, query: '' },
+  dynamic: { tetStyle: { material: 'flat', cull: true }, dynamic: true, query: '' },
+  after: { tetStyle: { material: 'flat', cull: true }, dynamic: true, query: '' },
 };
 
 // Processor seconds (user + system) of this process's descendants but `except`'s (the studio).
@@ -70,24 +71,37 @@ async function rate(page, fastest, studioPid) {
 const median = (a) => { const s = [...a].sort((x, y) => x - y); return s.length % 2 ? s[(s.length - 1) / 2] : (s[s.length / 2 - 1] + s[s.length / 2]) / 2; };
 const round1 = (x) => Math.round(x * 10) / 10;
 
+// A page of the studio at url, with every frame of the finished live run in it.
+async function openPage(browser, url) {
+  const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
+  await page.goto(url);
+  await page.waitForFunction(() => window.studio.status.stage === 'finished', null, { timeout: 300000 });
+  const frames = await page.evaluate(() => window.studio.status.frames);
+  await page.evaluate((n) => { for (let k = 0; k < n; k++) window.studio.ask(k); }, frames);
+  await page.waitForFunction((n) => window.studio.frames.size >= n, frames, { timeout: 120000 });
+  await page.evaluate(() => { window.studio.playing = false; }); // still while the others are measured
+  return page;
+}
+
 const browser = await launchChromium(playwright(source));
 const studio = await startStudio(cli, scene);
 try {
-  const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
-  const t0 = Date.now();
-  await page.goto(studio.url);
-  await page.waitForFunction(() => window.studio.status.stage === 'finished', null, { timeout: 300000 });
+  const t0 = Date.now(), pages = {};
+  for (const name of chosen) {
+    const v = VARIANTS[name];
+    if (v === undefined) throw new Error(`no variant '${name}' (${Object.keys(VARIANTS).join(', ')})`);
+    pages[v.query] ??= await openPage(browser, studio.url + v.query);
+  }
   const live = (Date.now() - t0) / 1000;
-  const status = await page.evaluate(() => window.studio.status);
-  await page.evaluate((n) => { for (let k = 0; k < n; k++) window.studio.ask(k); }, status.frames);
-  await page.waitForFunction((n) => window.studio.frames.size >= n, status.frames, { timeout: 120000 });
+  const status = await Object.values(pages)[0].evaluate(() => window.studio.status);
   const measured = Object.fromEntries(chosen.map((v) => [v, { scene_rate: [], fastest: [], ratio: [], cpu: [] }]));
   for (let r = 0; r < rounds; r++) {
     for (const name of chosen) {
-      const v = VARIANTS[name];
-      if (v === undefined) throw new Error(`no variant '${name}' (${Object.keys(VARIANTS).join(', ')})`);
-      if (v) await page.evaluate((x) => { const view = window.studio.view; view.setTetStyle(x.tetStyle); view.dynamicResolution = x.dynamic; }, v);
+      const v = VARIANTS[name], page = pages[v.query];
+      await page.bringToFront();
+      if (v.tetStyle) await page.evaluate((x) => { const view = window.studio.view; view.setTetStyle(x.tetStyle); view.dynamicResolution = x.dynamic; }, v);
       const a = await rate(page, false, studio.proc.pid), b = await rate(page, true, studio.proc.pid);
+      await page.evaluate(() => { window.studio.playing = false; });
       measured[name].scene_rate.push(a.fps), measured[name].fastest.push(b.fps), measured[name].ratio.push((a.ratio + b.ratio) / 2);
       measured[name].cpu.push(b.cpu);
       console.error(`round ${r} ${name}: ${a.fps.toFixed(1)} fps at the scene's rate, ${b.fps.toFixed(1)} as fast as frames come (${b.cpu.toFixed(0)} ms of processor a frame), ratio ${a.ratio.toFixed(2)} / ${b.ratio.toFixed(2)}`);
@@ -98,7 +112,7 @@ try {
     cpu_ms_per_frame: Math.round(median(m.cpu)), mean_resolution_ratio: Math.round(median(m.ratio) * 100) / 100,
     rounds: m.scene_rate.map(round1) }]));
   console.log(JSON.stringify({ scene, agents: status.agents, kind: status.kind, frames: status.frames,
-    live_run_seconds: live, frame_rate: status.frame_rate, variants }));
+    pages_opened_to_live_run_finished_seconds: live, frame_rate: status.frame_rate, variants }));
 } finally {
   await stopStudio(studio);
   await browser.close();

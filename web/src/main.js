@@ -133,7 +133,7 @@ class App {
     else if (!this.view.framed && !this.shapes.length && this.shown >= 0) this.frameOnFlock();
     // playing for the dynamic resolution: a frame was shown in the last half second (following a
     // live run, the timeline waits for frames at its end without going back to full resolution)
-    this.view.render(this.playing && t - this.shownAt < 500, this.status.frame_rate || 24);
+    this.view.render(this.playing && t - this.shownAt < 500, this.status.frame_rate || 24, this.counter.fps);
     // The bar's numbers ten times a second while playing (each write lays out and paints it again:
     // 4 ms a frame in software), at once otherwise.
     if (!this.playing || !(t - this.timelineAt < 100)) { this.timeline.update(); this.timelineAt = t; }

@@ -157,13 +157,13 @@ export class View {
   }
 
   // Draws if something changed. playing: the timeline runs (the dynamic resolution applies); rate:
-  // the frames per second it plays at (the budget).
+  // the frames per second it plays at (the budget); shown: the frames a second it shows.
   // The cost of a drawn frame is the time from its draw to the next animation frame (the browser's
   // raster of it included). Paused, the canvas goes back to full resolution and is drawn again.
-  render(playing = false, rate = 24) {
+  render(playing = false, rate = 24, shown = Infinity) {
     const now = performance.now(), r = this.resolution;
     if (!playing || !this.dynamicResolution) { if (r.full()) this.resize(); }
-    else if (this.drawnAt !== undefined && r.measure(now - this.drawnAt, now, rate)) this.resize();
+    else if (this.drawnAt !== undefined && r.measure(now - this.drawnAt, now, rate, shown)) this.resize();
     this.drawnAt = undefined;
     if (!this.dirty) return;
     this.dirty = false;

@@ -76,14 +76,14 @@ test('dynamic resolution steps down while frames cost more than the frame rate a
 test('dynamic resolution stays at full resolution under budget and goes back up when frames get cheap', () => {
   assert.deepEqual(new Set(settle(() => 20, 100).seen), new Set([1]));
   const d = new DynamicResolution();
-  for (let i = 0, now = 0; i < 100; i++, now += 50) d.measure(80, now, 24);
+  for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(10 + 300 * d.ratio ** 2, now, 24);
   assert.equal(d.ratio, RATIOS[RATIOS.length - 1]); // at most the last step, however slow
   for (let i = 0, now = 10000; i < 200; i++, now += 50) d.measure(5, now, 24);
   assert.equal(d.ratio, 1);
 });
 
 test('dynamic resolution: a paused page is drawn at full resolution', () => {
-  const { d } = settle(() => 100, 100);
+  const { d } = settle((r) => 10 + 100 * r * r, 100);
   assert.ok(d.ratio < 1);
   assert.equal(d.full(), true); // changed: the caller redraws
   assert.equal(d.ratio, 1);
@@ -130,4 +130,18 @@ test('frontFaces draws a tet smaller than `tiny` pixels as its one face that fac
   assert.equal(frontFaces(tet, 1, eye, index, 100, 1), 9); // over 1 px: every front face
   assert.equal(frontFaces(tet, 1, eye, index, 100, 3), 3); // under 3 px: one face,
   assert.deepEqual([...index.slice(0, 3)].sort(), [0, 2, 3]); // the x = 0 one
+});
+
+test('dynamic resolution: where a smaller canvas does not pay, it goes back to full resolution and stays', () => {
+  const { seen } = settle(() => 50, 400); // 50 ms whatever the pixels: over budget at every ratio
+  assert.ok(seen.includes(0.75), 'it tries a step down');
+  assert.equal(seen[seen.length - 1], 1);
+  const changes = seen.filter((r, i) => i > 0 && r !== seen[i - 1]).length;
+  assert.ok(changes <= 6, `no see-saw: ${changes} changes in 20 s`);
+});
+
+test('dynamic resolution: a page that shows the frame rate keeps its resolution, however long frames seem', () => {
+  const d = new DynamicResolution();
+  for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(60, now, 24, 24); // slow ticks, every frame shown
+  assert.equal(d.ratio, 1);
 });
