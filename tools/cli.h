@@ -80,11 +80,29 @@ typedef struct cli_run_options {
  * are the frames `run` writes: in OUTDIR (made by the caller), with the studio's stop flag instead
  * of the signals' and no checkpoints; cache_ready gets the cache writer before frame 0 (to tap the
  * frames: fm_cache_writer_set_tap). Returns run's exit status, or FM_STOPPED when stopped. */
+typedef struct cli_model_keep cli_model_keep;
 typedef struct cli_run_hooks {
     volatile sig_atomic_t *stop;
     void (*cache_ready)(fm_cache_writer *cache, void *user);
     void *user;
+    cli_model_keep *keep; /* NULL, or what the model build keeps for the next run (below) */
+    const char *scene_text; /* NULL, or the scene's text as edited: a shot's groups are read from it,
+                               not from the file (the studio's edits of a shot) */
 } cli_run_hooks;
+
+/* The studio's runs keep the costly part of the model (TetGen's tets and the tets at n, or the
+ * shape flock's samples and match) for the next run of an edited scene, which reuses it where its
+ * inputs are unchanged (fm_morph_model_build_keeping, fm_flock_model_build_keeping; docs/studio.md,
+ * "An edit and the model"). A shot is built as run builds it. */
+struct cli_model_keep {
+    struct fm_morph_keep *morph; /* made at the first build of its mode */
+    struct fm_flock_keep *flock;
+    int reused;                  /* the last build reused the costly part */
+    double build_seconds;        /* the last build's wall time */
+};
+void cli_model_keep_free(cli_model_keep *keep);
+void cli_morph_keep_free(cli_model_keep *keep); /* its morph part (cli_mode_morph.c) */
+void cli_flock_keep_free(cli_model_keep *keep); /* its flock part (cli_mode_flock.c) */
 int cli_run_scene_hooked(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks);
 
 /* A wedge file (docs/wedges.md): a list of override sets ({"wedges": [{KEY: VALUE, ...}, ...]}) or
@@ -216,6 +234,8 @@ typedef struct cli_mode_run {
     int64_t agents;
     double time_step;
     const fm_run_totals *totals; /* the run statistics' frames, steps and seconds */
+    cli_model_keep *keep;        /* set before build(): the studio's keep, or NULL */
+    const char *scene_text;      /* set before build(): the hooks' scene_text, or NULL */
 } cli_mode_run;
 
 /* One simulation mode as `run` drives it: cli_run.c holds the one run path, and each mode fills a

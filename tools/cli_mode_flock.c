@@ -7,6 +7,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 static json_t *number_or_null(double x) { return isfinite(x) ? json_real(x) : json_null(); }
@@ -96,14 +97,26 @@ static int build(void *run, const fm_scene_def *def, int *show)
 {
     flock_run *r = run;
     fm_error err = {0};
-    r->model = fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    cli_model_keep *keep = r->common.keep;
+    if (keep && !keep->flock && !(keep->flock = calloc(1, sizeof *keep->flock)))
+        return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    r->model = keep ? fm_flock_model_build_keeping(def, keep->flock, cli_prep_progress, show, &err)
+                    : fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    if (keep) keep->reused = keep->flock->reused;
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
-    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
         fprintf(stderr, "flockmorph: warning: %s\n", fm_flock_model_warning(r->model, i));
     return 0;
+}
+
+void cli_flock_keep_free(cli_model_keep *keep)
+{
+    fm_flock_keep_clear(keep->flock);
+    free(keep->flock);
+    keep->flock = NULL;
 }
 
 static fm_status create_state(void *run, int threads, fm_error *err)

@@ -176,12 +176,24 @@ static int build(void *run, const fm_scene_def *def, int *show)
     morph_run *r = run;
     fm_error err = {0};
     r->warnings = json_array();
-    r->model = fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    cli_model_keep *keep = r->common.keep;
+    if (keep && !keep->morph && !(keep->morph = calloc(1, sizeof *keep->morph)))
+        return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    r->model = keep ? fm_morph_model_build_keeping(def, keep->morph, cli_prep_progress, show, &err)
+                    : fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    if (keep) keep->reused = keep->morph->reused;
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
-    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run};
+    r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_morph_model_warning_count(r->model); i++) add_warning(r, fm_morph_model_warning(r->model, i));
     return 0;
+}
+
+void cli_morph_keep_free(cli_model_keep *keep)
+{
+    fm_morph_keep_clear(keep->morph);
+    free(keep->morph);
+    keep->morph = NULL;
 }
 
 static fm_status create_state(void *run, int threads, fm_error *err)

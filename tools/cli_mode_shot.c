@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 typedef struct shot_run {
     cli_mode_run common;         /* first: cli_run.c reads it */
@@ -35,10 +36,13 @@ void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t fi
     g_overrides = set, g_override_count = count, g_file_seed = file_seed, g_run_seed = run_seed;
 }
 
-/* Group g's scene, with the run's overrides and seed. */
-static fm_status load_group(const fm_scene_def *def, int g, fm_scene_def *out, fm_error *err)
+/* Group g's scene, with the run's overrides and seed: from the file, or from text (the studio's
+ * edited scene; NULL: the file). */
+static fm_status load_group(const fm_scene_def *def, const char *text, int g, fm_scene_def *out, fm_error *err)
 {
-    fm_status st = fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, out, err);
+    fm_status st = text ? fm_scene_parse_group(text, strlen(text), def->scene_path, g_overrides, g_override_count, g,
+                                               out, err)
+                        : fm_scene_load_group(def->scene_path, g_overrides, g_override_count, g, out, err);
     if (st == FM_OK && out->seed == g_file_seed) out->seed = g_run_seed; /* a group with its own seed keeps it */
     return st;
 }
@@ -48,7 +52,7 @@ static int load_groups(shot_run *r, const fm_scene_def *def)
     fm_error err = {0};
     r->count = def->group_count;
     for (int g = 0; g < r->count; g++)
-        if (load_group(def, g, &r->defs[g], &err) != FM_OK) return cli_report(&err);
+        if (load_group(def, r->common.scene_text, g, &r->defs[g], &err) != FM_OK) return cli_report(&err);
     return 0;
 }
 
@@ -56,7 +60,7 @@ int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def)
 {
     fm_error err = {0};
     fm_scene_def first;
-    fm_status st = load_group(def, 0, &first, &err);
+    fm_status st = load_group(def, NULL, 0, &first, &err);
     if (st == FM_OK)
         st = def->mode == FM_MODE_SHAPE_FLOCK ? fm_flock_shot_checkpoint_check(path, &first, &err)
                                               : fm_shot_checkpoint_check(path, &first, &err);
@@ -73,7 +77,7 @@ static int build_morphs(shot_run *r, int *show)
         for (int i = 0; i < fm_morph_model_warning_count(m); i++)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_morph_model_warning(m, i)));
     }
-    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run};
+    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run, NULL, NULL};
     return 0;
 }
 
@@ -88,7 +92,7 @@ static int build_flocks(shot_run *r, int *show)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_flock_model_warning(m, i)));
     }
     r->common = (cli_mode_run){fm_flock_shot_rows(r->flock_shot), fm_flock_shot_model(r->flock_shot, 0)->dt,
-                               &r->flock_stats.run};
+                               &r->flock_stats.run, NULL, NULL};
     return 0;
 }
 

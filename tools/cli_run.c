@@ -303,12 +303,17 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def, const cl
     void *run = calloc(1, mode->size);
     if (!run) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     int show = !o->quiet && isatty(STDERR_FILENO);
+    cli_model_keep *keep = hooks ? hooks->keep : NULL;
+    ((cli_mode_run *)run)->keep = keep;
+    ((cli_mode_run *)run)->scene_text = hooks ? hooks->scene_text : NULL;
+    if (keep) keep->reused = 0;
     double t0 = cli_seconds();
     if (!hooks) cli_end_on_stop_signals(1); /* the build cannot stop halfway; a signal ends it, saying so */
     int rc = mode->build(run, def, &show);
     if (!hooks) cli_end_on_stop_signals(0);
     rc = cli_agree(rc, NULL); /* the same model on every rank */
     double prep_seconds = cli_seconds() - t0;
+    if (keep) keep->build_seconds = prep_seconds;
     if (show) fprintf(stderr, "\n"); /* after the preparation's progress line */
     if (!rc && hooks && *hooks->stop) rc = FM_STOPPED; /* cancelled while the model was built */
     if (!rc) rc = simulate(mode, run, o, def, prep_seconds, hooks);
@@ -342,6 +347,13 @@ static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, cons
 int cli_run_scene_hooked(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks)
 {
     return run_scene(o, def, hooks);
+}
+
+void cli_model_keep_free(cli_model_keep *keep)
+{
+    cli_morph_keep_free(keep); /* each beside its mode: the engine's headers of the two modes */
+    cli_flock_keep_free(keep);
+    *keep = (cli_model_keep){0};
 }
 
 int cli_run(int argc, char **argv)

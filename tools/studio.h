@@ -23,6 +23,7 @@
 #define STUDIO_MAX_MESSAGE 65536 /* a page's edit is a few hundred bytes; a sketch of 256 points fits */
 #define STUDIO_MAX_KEPT_BYTES ((uint64_t)2 << 30) /* frames kept for the timeline, all together */
 #define STUDIO_TOKEN_CHARS 32
+#define STUDIO_EDIT_SETTLE 0.05 /* seconds without an edit before a run starts (studio_live.c) */
 
 struct mg_context;
 struct mg_connection;
@@ -63,8 +64,14 @@ typedef struct studio {
     char *shapes;                   /* the "shapes" message of the latest run (meshes as placed) */
     int dirty;                      /* edited since the last save */
     fm_scene_def *def;              /* the doc read as the loader reads it: what the next run runs */
-    fm_scene_def *first;            /* the scene as the studio started: the files it may read */
+    fm_scene_def *first;            /* the scene as the studio started, then a shot's every group (first_count
+                                       in all): the files it may read */
+    int first_count;
     int run_wanted;                 /* the worker should start a run of def (the latest edit wins) */
+    double last_edit;               /* when the last edit was accepted (cli_seconds) */
+    cli_model_keep keep;            /* the worker's: the model's costly part, for the next edit's run */
+    int model_kept;                 /* this run's model build reused it (0 until the build is done) */
+    double build_seconds;           /* this run's model build time (0 until it is done) */
     int quit;
     volatile sig_atomic_t stop;     /* cancels the worker's run at the next frame boundary */
     pthread_t worker;

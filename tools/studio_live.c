@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 char *studio_scene_text(const json_t *doc)
@@ -88,9 +89,10 @@ static void on_cache(fm_cache_writer *cache, void *user)
     if (t->attr_count > 16) t->attr_count = 16;
     for (int i = 0; i < t->attr_count; i++) t->attrs[i] = fm_cache_writer_attr_at(cache, i);
     pthread_mutex_lock(&t->s->lock);
+    t->s->model_kept = t->s->keep.reused, t->s->build_seconds = t->s->keep.build_seconds;
     t->s->agents = t->agents;
     snprintf(t->s->kind, sizeof t->s->kind, "%s", studio_kind(t->attr_count, t->attrs));
-    t->s->stage = "running";
+    if (!t->s->run_wanted) t->s->stage = "running"; /* else an edit cancels this run: "building" stands */
     tell_pages(t->s, 1);
     pthread_mutex_unlock(&t->s->lock);
     fm_cache_writer_set_tap(cache, on_frame, t);
@@ -112,10 +114,9 @@ static json_t *shape_json(const fm_scene_def *def, const fm_mesh_ref *ref, const
     return json_pack("{ssso so}", "name", key, "vertices", v, "triangles", t);
 }
 
-/* The "shapes" message: the source and target (a shape flock's first ones) and the obstacles. */
-static char *shapes_text(const fm_scene_def *def, uint32_t generation)
+/* A scene's source and target (a shape flock's first ones) and obstacles, onto list. */
+static void add_shapes(json_t *list, const fm_scene_def *def)
 {
-    json_t *list = json_array();
     json_t *src = def->source.path[0] ? shape_json(def, &def->source, "source", -1) : NULL;
     json_t *dst = def->target.path[0] ? shape_json(def, &def->target, "target", -1) : NULL;
     if (src) json_array_append_new(list, src);
@@ -124,15 +125,28 @@ static char *shapes_text(const fm_scene_def *def, uint32_t generation)
         json_t *o = shape_json(def, NULL, "obstacle", i);
         if (o) json_array_append_new(list, o);
     }
-    json_t *j = json_pack("{sssIso}", "type", "shapes", "generation", (json_int_t)generation, "shapes", list);
-    char *text = j ? json_dumps(j, JSON_COMPACT) : NULL;
-    json_decref(j);
-    return text;
 }
 
-static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
+/* The "shapes" message: the scene's, or a shot's every group's (read from text, the edited scene). */
+static char *shapes_text(const fm_scene_def *def, const char *text, uint32_t generation)
 {
-    char *shapes = shapes_text(def, generation);
+    json_t *list = json_array();
+    fm_scene_def *group = def->group_count > 0 && text ? malloc(sizeof *group) : NULL;
+    fm_error err = {0};
+    if (!group) add_shapes(list, def);
+    for (int g = 0; group && g < def->group_count; g++)
+        if (fm_scene_parse_group(text, strlen(text), def->scene_path, NULL, 0, g, group, &err) == FM_OK)
+            add_shapes(list, group);
+    free(group);
+    json_t *j = json_pack("{sssIso}", "type", "shapes", "generation", (json_int_t)generation, "shapes", list);
+    char *out = j ? json_dumps(j, JSON_COMPACT) : NULL;
+    json_decref(j);
+    return out;
+}
+
+static void run_once(studio *s, const fm_scene_def *def, const char *text, uint32_t generation)
+{
+    char *shapes = shapes_text(def, text, generation);
     pthread_mutex_lock(&s->lock);
     if (shapes) studio_broadcast(s, shapes), free(s->shapes), s->shapes = shapes;
     pthread_mutex_unlock(&s->lock);
@@ -140,11 +154,11 @@ static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
                          .stop_after_frame = -1, .log_every = 10, .wedge = -1};
     cli_utc_now(o.start_time, sizeof o.start_time);
     run_tap tap = {.s = s, .generation = generation};
-    const cli_run_hooks hooks = {&s->stop, on_cache, &tap};
+    const cli_run_hooks hooks = {&s->stop, on_cache, &tap, &s->keep, text}; /* keep: the worker's alone */
     cli_last_error[0] = 0;
     int rc = cli_run_scene_hooked(&o, def, &hooks);
     pthread_mutex_lock(&s->lock);
-    if (generation == s->generation) {
+    if (generation == s->generation && !s->run_wanted) { /* else an edit's run is due: its stage stands */
         s->stage = rc == 0 ? "finished" : rc == FM_STOPPED ? "cancelled" : "failed";
         if (rc && rc != FM_STOPPED)
             snprintf(s->failure, sizeof s->failure, "the run failed (exit status %d): %s", rc,
@@ -154,6 +168,20 @@ static void run_once(studio *s, const fm_scene_def *def, uint32_t generation)
     pthread_mutex_unlock(&s->lock);
 }
 
+/* Waits (with lock held) until no edit came for STUDIO_EDIT_SETTLE seconds: edits that come faster
+ * than that (a slider's drag, a script's burst) start one run, not one each, now that a kept model
+ * builds in milliseconds. */
+static void settle_edits(studio *s)
+{
+    for (double left; !s->quit && (left = s->last_edit + STUDIO_EDIT_SETTLE - cli_seconds()) > 0;) {
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        long ns = until.tv_nsec + (long)(left * 1e9);
+        until.tv_sec += ns / 1000000000L, until.tv_nsec = ns % 1000000000L;
+        pthread_cond_timedwait(&s->wake, &s->lock, &until);
+    }
+}
+
 static void *worker_main(void *arg)
 {
     studio *s = arg;
@@ -161,14 +189,18 @@ static void *worker_main(void *arg)
     pthread_mutex_lock(&s->lock);
     while (def && !s->quit) {
         if (!s->run_wanted) { pthread_cond_wait(&s->wake, &s->lock); continue; }
+        settle_edits(s);
+        if (s->quit) break;
         *def = *s->def;
+        char *text = studio_scene_text(s->doc); /* a shot's groups are read from it */
         s->run_wanted = 0, s->stop = 0;
         uint32_t generation = ++s->generation;
         drop_frames(s);
-        s->stage = "building", s->failure[0] = 0, s->agents = 0;
+        s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->build_seconds = 0;
         tell_pages(s, 1);
         pthread_mutex_unlock(&s->lock);
-        run_once(s, def, generation);
+        run_once(s, def, text, generation);
+        free(text);
         pthread_mutex_lock(&s->lock);
     }
     pthread_mutex_unlock(&s->lock);
@@ -183,8 +215,13 @@ int studio_live_open(studio *s)
     s->def = malloc(sizeof *s->def);
     if (!s->def) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
     if (fm_scene_load(s->path, s->def, &err) != FM_OK) return cli_report(&err); /* the file's own lines */
-    if (!(s->first = malloc(sizeof *s->first))) return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
-    *s->first = *s->def;
+    /* the files it may read: the scene's and, in a shot, every group's as the file names them */
+    s->first_count = 1 + s->def->group_count;
+    if (!(s->first = malloc(sizeof *s->first * (size_t)s->first_count)))
+        return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    s->first[0] = *s->def;
+    for (int g = 0; g < s->def->group_count; g++)
+        if (fm_scene_load_group(s->path, NULL, 0, g, &s->first[1 + g], &err) != FM_OK) return cli_report(&err);
     if (!(s->doc = json_load_file(s->path, 0, &jerr)))
         return fprintf(stderr, "flockmorph: %s:%d:%d: %s\n", s->path, jerr.line, jerr.column, jerr.text), FM_ERR_INPUT;
     snprintf(s->outdir, sizeof s->outdir, "/tmp/flockmorph-studio-XXXXXX");
@@ -221,6 +258,7 @@ void studio_live_close(studio *s)
         pthread_cond_destroy(&s->wake);
     }
     if (s->outdir[0]) remove_outdir(s->outdir);
+    cli_model_keep_free(&s->keep);
     drop_frames(s);
     free(s->frames);
     free(s->shapes);
@@ -240,16 +278,36 @@ static void edit_message(const char *path, const char *label, const char *messag
     snprintf(msg, size, "%s: %s", label, message);
 }
 
-/* The candidate document read as the loader reads a file (from the text Save would write). */
+static int other_files(const studio *s, const fm_scene_def *def, const char *label, char *msg, size_t size);
+
+/* A shot's every group read from the candidate's text as `run` reads them (fm_scene_load_group), and
+ * the files each names. 0, or -1 with msg. */
+static int check_groups(studio *s, const char *text, int count, const char *label, char *msg, size_t size)
+{
+    fm_scene_def *group = malloc(sizeof *group);
+    fm_error err = {0};
+    int rc = group ? 0 : (snprintf(msg, size, "out of memory"), -1);
+    for (int g = 0; rc == 0 && g < count; g++) {
+        if (fm_scene_parse_group(text, strlen(text), s->path, NULL, 0, g, group, &err) != FM_OK)
+            edit_message(s->path, label, err.message, msg, size), rc = -1;
+        else rc = other_files(s, group, label, msg, size);
+    }
+    free(group);
+    return rc;
+}
+
+/* The candidate document read as the loader reads a file (from the text Save would write): the
+ * scene, or a shot's top level and each of its groups. */
 static int check_doc(studio *s, const json_t *doc, const char *label, fm_scene_def *def, char *msg, size_t size)
 {
     fm_error err = {0};
     char *text = studio_scene_text(doc);
     fm_status st = text ? fm_scene_parse(text, strlen(text), s->path, def, &err)
                         : fm_fail(&err, FM_ERR_MEMORY, "out of memory");
-    free(text);
     if (st != FM_OK) edit_message(s->path, label, err.message, msg, size);
-    return st == FM_OK ? 0 : -1;
+    int rc = st != FM_OK ? -1 : check_groups(s, text, def->group_count, label, msg, size);
+    free(text);
+    return rc;
 }
 
 /* Applies the edit as `--set KEY=VALUE` applies one (fm_overrides_apply): dotted keys, list
@@ -269,28 +327,32 @@ static json_t *edited(const json_t *doc, const char *key, const json_t *value, f
     return cand;
 }
 
-/* A mesh path the scene named when the studio started (the files it may read). */
-static int known_file(const fm_scene_def *first, const char *path)
+/* A mesh path the scene (or a group of a shot) named when the studio started: the files it may read. */
+static int known_file(const studio *s, const char *path)
 {
-    if (!path[0] || !strcmp(path, first->source.path) || !strcmp(path, first->target.path) ||
-        !strcmp(path, first->flock.deform_sequence))
-        return 1;
-    for (int i = 0; i < first->obstacle_count; i++)
-        if (!strcmp(path, first->obstacles[i].path)) return 1;
+    if (!path[0]) return 1;
+    for (int f = 0; f < s->first_count; f++) {
+        const fm_scene_def *first = &s->first[f];
+        if (!strcmp(path, first->source.path) || !strcmp(path, first->target.path) ||
+            !strcmp(path, first->flock.deform_sequence))
+            return 1;
+        for (int i = 0; i < first->obstacle_count; i++)
+            if (!strcmp(path, first->obstacles[i].path)) return 1;
+    }
     return 0;
 }
 
 /* The studio reads only the scene's own meshes and writes only the scene (docs/studio.md, "Safety"):
  * an edit that names another file, or another cache name, is refused. 0, or -1 with msg. */
-static int other_files(const fm_scene_def *first, const fm_scene_def *def, const char *label, char *msg, size_t size)
+static int other_files(const studio *s, const fm_scene_def *def, const char *label, char *msg, size_t size)
 {
-    const char *bad = !known_file(first, def->source.path)            ? def->source.path
-                      : !known_file(first, def->target.path)          ? def->target.path
-                      : !known_file(first, def->flock.deform_sequence) ? def->flock.deform_sequence
-                      : strcmp(first->cache_name, def->cache_name)     ? def->cache_name
-                                                                       : NULL;
+    const char *bad = !known_file(s, def->source.path)                ? def->source.path
+                      : !known_file(s, def->target.path)              ? def->target.path
+                      : !known_file(s, def->flock.deform_sequence)    ? def->flock.deform_sequence
+                      : strcmp(s->first->cache_name, def->cache_name) ? def->cache_name
+                                                                      : NULL;
     for (int i = 0; !bad && i < def->obstacle_count; i++)
-        if (!known_file(first, def->obstacles[i].path)) bad = def->obstacles[i].path;
+        if (!known_file(s, def->obstacles[i].path)) bad = def->obstacles[i].path;
     if (bad) snprintf(msg, size, "%s: the studio reads only the files the scene named when it started, and writes only "
                                  "the scene: '%.300s' is refused (edit the file, then start the studio again)", label, bad);
     return bad ? -1 : 0;
@@ -306,13 +368,15 @@ static int edit_here(studio *s, const char *key, const json_t *value, char *msg,
     pthread_mutex_lock(&s->lock);
     json_t *cand = NULL;
     int rc = -1;
-    if (s->def->group_count > 0) snprintf(msg, size, "%s: a scene with groups (a shot) is not edited live", s->path);
-    else if ((cand = edited(s->doc, key, value, def, msg, size)) && check_doc(s, cand, label, def, msg, size) == 0 &&
-             other_files(s->first, def, label, msg, size) == 0) {
+    if ((cand = edited(s->doc, key, value, def, msg, size)) && check_doc(s, cand, label, def, msg, size) == 0 &&
+        other_files(s, def, label, msg, size) == 0) {
         json_decref(s->doc), s->doc = cand, cand = NULL;
         *s->def = *def;
         s->frame_rate = def->frame_rate;
         s->dirty = 1, s->run_wanted = 1, s->stop = 1; /* cancels the run in progress */
+        s->last_edit = cli_seconds();
+        s->stage = "building"; /* the edit's run, due once the edits settle: no page takes the run before it for it */
+        tell_pages(s, 1);
         pthread_cond_signal(&s->wake);
         rc = 0;
     }

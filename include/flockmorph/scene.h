@@ -318,6 +318,10 @@ fm_scene_def fm_default_scene_def(void);
 fm_status fm_scene_load_group(const char *path, const fm_scene_override *overrides, int count, int g,
                               fm_scene_def *def, fm_error *err);
 
+/* The same from a scene text in memory (len bytes; name stands for the file, as in fm_scene_parse). */
+fm_status fm_scene_parse_group(const char *text, size_t len, const char *name, const fm_scene_override *overrides,
+                               int count, int g, fm_scene_def *def, fm_error *err);
+
 /* Reads and validates a JSON scene file. Relative mesh paths are resolved against the scene
  * file's directory. Unknown keys, wrong types and out-of-range values fail with
  * "FILE:LINE:COLUMN: ..." in err->message. */

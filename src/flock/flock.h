@@ -98,6 +98,29 @@ fm_flock_model *fm_flock_model_build_from_shape_shared(const fm_scene_def *def, 
                                                        const fm_dist *dist, fm_progress_fn progress, void *user,
                                                        fm_error *err);
 
+/* What a build keeps for the next build of an edited scene (flockmorph studio: docs/studio.md, "An
+ * edit and the model"): the samples of both surfaces and the match, with what they were made from.
+ * A build given a keep samples and matches again only where those inputs differ (the placed source
+ * and target meshes byte for byte, n, seed and the keys of shape_flock's sampling and match), which
+ * a path, speed, boids, fuzzy or style edit leaves; everything after is built as always, and the
+ * model is the same bytes either way. */
+typedef struct fm_flock_keep {
+    int has;
+    fm_mesh source, target;     /* the placed source mesh and the target at time 0, sampled */
+    int64_t n;
+    uint64_t seed;
+    fm_flock_def flock;         /* the shape_flock keys it was made with (sampling, mosaic, match, uncross) */
+    fm_samples src, tgt;        /* the samples */
+    int64_t *match;             /* agent a's target sample */
+    int reused;                 /* the last build did not sample or match again */
+} fm_flock_keep;
+
+/* fm_flock_model_build, keeping in *keep (zeroed at first) the samples and the match it makes, and
+ * reusing the kept ones where they fit. */
+fm_flock_model *fm_flock_model_build_keeping(const fm_scene_def *def, fm_flock_keep *keep, fm_progress_fn progress,
+                                             void *user, fm_error *err);
+void fm_flock_keep_clear(fm_flock_keep *keep);
+
 /* A group of a shot that starts from the shape `from` formed (flock_shot.c): its agents are from's,
  * starting on from's destinations (a static target that binds). */
 fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,

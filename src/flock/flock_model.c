@@ -408,24 +408,107 @@ static void set_info(fm_flock_model *m)
     i->travel_end = m->target.route.count > 0 ? fm_flock_target_travel_end(&m->target) : NAN;
 }
 
-/* Samples both surfaces and assigns each agent its start and destination. */
-static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_progress_fn progress, void *user, fm_error *err)
+/* Samples both surfaces and matches them: agent a starts on src's sample a and flies to tgt's match[a]. */
+static fm_status sample_and_match(const fm_flock_model *m, const fm_mesh *source, fm_samples *src, fm_samples *tgt,
+                                  int64_t *match, fm_progress_fn progress, void *user, fm_error *err)
+{
+    if (progress) progress("sample source", 0.1, user);
+    fm_status st = m->from ? formed_shape(m->from, src, err) : sample(source, m, STREAM_SOURCE, src, err);
+    if (progress && st == FM_OK) progress("sample target", 0.4, user);
+    const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
+    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, src, tgt, match, err);
+    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, tgt, err);
+    if (progress && st == FM_OK) progress("match", 0.7, user);
+    if (st == FM_OK && !projected)
+        st = fm_name_key(fm_match_agents(src->p, tgt->p, m->n, (fm_match_method)m->def.flock.match,
+                                      fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
+    if (st == FM_OK && m->def.flock.uncross && m->def.flock.match != FM_FLOCK_MATCH_RANDOM)
+        st = fm_match_uncross(src->p, tgt->p, m->n, match, err);
+    return st;
+}
+
+/* ---------------------------------------------------------------- the studio's keep */
+
+static void *copy_array(const void *from, size_t bytes, int *ok)
+{
+    if (!from) return NULL;
+    void *to = fm_alloc(bytes ? bytes : 1);
+    if (to) memcpy(to, from, bytes);
+    else *ok = 0;
+    return to;
+}
+
+static fm_status copy_samples(const fm_samples *from, fm_samples *to, fm_error *err)
+{
+    int ok = 1;
+    const size_t n = (size_t)from->n;
+    fm_samples c = {copy_array(from->p, sizeof(float) * 3 * n, &ok), copy_array(from->tri, sizeof(int32_t) * n, &ok),
+                    copy_array(from->bary, sizeof(float) * 3 * n, &ok), from->n};
+    if (!ok) return fm_samples_free(&c), fm_fail(err, FM_ERR_MEMORY, "out of memory for %lld samples", (long long)from->n);
+    *to = c;
+    return FM_OK;
+}
+
+/* What sample_and_match reads of the scene: the shape_flock keys of the sampling and the match. */
+static int same_sampling(const fm_flock_def *a, const fm_flock_def *b)
+{
+    return a->sampling == b->sampling && a->match == b->match && a->mosaic_iterations == b->mosaic_iterations &&
+           a->mosaic_distance == b->mosaic_distance && a->mosaic_k == b->mosaic_k && a->mosaic_w == b->mosaic_w &&
+           a->mosaic_step == b->mosaic_step && a->stratified_lambda == b->stratified_lambda &&
+           a->stratified_oversample == b->stratified_oversample && a->uncross == b->uncross;
+}
+
+static int keep_fits(const fm_flock_keep *k, const fm_flock_model *m, const fm_mesh *source)
+{
+    return k->has && k->n == m->n && k->seed == m->def.seed && same_sampling(&k->flock, &m->def.flock) &&
+           fm_mesh_same(&k->source, source) && fm_mesh_same(&k->target, &m->target.mesh);
+}
+
+static fm_status from_keep(const fm_flock_keep *k, fm_samples *src, fm_samples *tgt, int64_t *match, fm_error *err)
+{
+    fm_status st = copy_samples(&k->src, src, err);
+    if (st == FM_OK) st = copy_samples(&k->tgt, tgt, err);
+    if (st == FM_OK) memcpy(match, k->match, sizeof(int64_t) * (size_t)k->n);
+    return st;
+}
+
+static fm_status into_keep(fm_flock_keep *k, const fm_flock_model *m, const fm_mesh *source, const fm_samples *src,
+                           const fm_samples *tgt, const int64_t *match, fm_error *err)
+{
+    fm_flock_keep_clear(k);
+    int ok = 1;
+    k->match = copy_array(match, sizeof(int64_t) * (size_t)m->n, &ok);
+    fm_status st = ok ? fm_mesh_copy(source, &k->source, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
+    if (st == FM_OK) st = fm_mesh_copy(&m->target.mesh, &k->target, err);
+    if (st == FM_OK) st = copy_samples(src, &k->src, err);
+    if (st == FM_OK) st = copy_samples(tgt, &k->tgt, err);
+    if (st != FM_OK) return fm_flock_keep_clear(k), st;
+    k->n = m->n, k->seed = m->def.seed, k->flock = m->def.flock, k->has = 1;
+    return FM_OK;
+}
+
+void fm_flock_keep_clear(fm_flock_keep *keep)
+{
+    if (!keep) return;
+    fm_mesh_free(&keep->source), fm_mesh_free(&keep->target);
+    fm_samples_free(&keep->src), fm_samples_free(&keep->tgt);
+    fm_free(keep->match);
+    memset(keep, 0, sizeof *keep);
+}
+
+/* Samples both surfaces (or takes the keep's samples, where they fit) and assigns each agent its
+ * start and destination. */
+static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, fm_progress_fn progress,
+                              void *user, fm_error *err)
 {
     fm_samples src = {0}, tgt = {0};
     int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
-    if (progress) progress("sample source", 0.1, user);
+    const int kept = keep && !m->from && keep_fits(keep, m, source);
     fm_status st = !match ? fm_fail(err, FM_ERR_MEMORY, "out of memory")
-                   : m->from ? formed_shape(m->from, &src, err) : sample(source, m, STREAM_SOURCE, &src, err);
-    if (progress && st == FM_OK) progress("sample target", 0.4, user);
-    const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
-    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, &src, &tgt, match, err);
-    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, &tgt, err);
-    if (progress && st == FM_OK) progress("match", 0.7, user);
-    if (st == FM_OK && !projected)
-        st = fm_name_key(fm_match_agents(src.p, tgt.p, m->n, (fm_match_method)m->def.flock.match,
-                                      fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
-    if (st == FM_OK && m->def.flock.uncross && m->def.flock.match != FM_FLOCK_MATCH_RANDOM)
-        st = fm_match_uncross(src.p, tgt.p, m->n, match, err);
+                   : kept ? from_keep(keep, &src, &tgt, match, err)
+                          : sample_and_match(m, source, &src, &tgt, match, progress, user, err);
+    if (st == FM_OK && keep && !kept) st = into_keep(keep, m, source, &src, &tgt, match, err);
+    if (keep) keep->reused = kept;
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
     if (st == FM_OK) mean_point(src.p, m->n, m->o1), mean_point(tgt.p, m->n, m->o2);
     fm_samples_free(&src), fm_samples_free(&tgt);
@@ -449,14 +532,14 @@ static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_er
     return m->obstacles ? FM_OK : err ? err->status : FM_ERR_INPUT;
 }
 
-static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, fm_error *err)
+static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
     fm_status st = fm_flock_target_build(&m->target, def, err);
     if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
-    if (st == FM_OK) st = place_agents(m, &source, progress, user, err);
+    if (st == FM_OK) st = place_agents(m, &source, keep, progress, user, err);
     if (st == FM_OK) st = build_obstacles(m, &source, err); /* before the path, routed round them */
     if (st == FM_OK) set_route_margin(m);
     if (st == FM_OK) st = build_path(m, err);
@@ -474,8 +557,8 @@ static fm_status build(fm_flock_model *m, fm_progress_fn progress, void *user, f
     return st;
 }
 
-static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model *from, fm_progress_fn progress,
-                                   void *user, fm_error *err)
+static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model *from, fm_flock_keep *keep,
+                                   fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
     if (def->mode != FM_MODE_SHAPE_FLOCK) {
@@ -491,7 +574,9 @@ static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model
     m->def = *def;
     m->n = from ? from->n : def->n;
     m->from = from;
-    fm_status st = build(m, progress, user, err);
+    if (keep) keep->reused = 0;
+    fm_status st = build(m, keep, progress, user, err);
+    if (keep && st != FM_OK) keep->reused = 0;
     m->from = NULL;
     if (st != FM_OK) {
         fm_flock_model_destroy(m);
@@ -507,13 +592,20 @@ fm_flock_model *fm_flock_model_build(const fm_scene_def *def, fm_progress_fn pro
                 "and run them together (fm_flock_shot_build), as flockmorph run does", def->scene_path, def->group_count);
         return NULL;
     }
-    return build_model(def, NULL, progress, user, err);
+    return build_model(def, NULL, NULL, progress, user, err);
+}
+
+fm_flock_model *fm_flock_model_build_keeping(const fm_scene_def *def, fm_flock_keep *keep, fm_progress_fn progress,
+                                             void *user, fm_error *err)
+{
+    if (def->group_count > 0 && def->group_index < 0) return fm_flock_model_build(def, progress, user, err); /* its error */
+    return build_model(def, NULL, keep, progress, user, err);
 }
 
 fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,
                                                 fm_progress_fn progress, void *user, fm_error *err)
 {
-    return build_model(def, from, progress, user, err);
+    return build_model(def, from, NULL, progress, user, err);
 }
 
 /* ---------------------------------------------------------------- one model a machine */

@@ -103,6 +103,12 @@ double fm_mesh_winding_number(const fm_mesh *mesh, const double p[3]);
 #endif
 void fm_tets_free(fm_tets *tets);
 
+/* mesh_copy.c: copies (malloc'ed as the loaders' and TetGen's are; freed with fm_mesh_free and
+ * fm_tets_free), and whether two meshes are the same bytes (vertices and triangles). */
+fm_status fm_mesh_copy(const fm_mesh *from, fm_mesh *to, fm_error *err);
+int fm_mesh_same(const fm_mesh *a, const fm_mesh *b);
+fm_status fm_tets_copy(const fm_tets *from, fm_tets *to, fm_error *err);
+
 /* subdivide.c (FM eqs 1-2) */
 double fm_tet_signed_volume(const double *tet);
 void fm_tet_centroid(const double *tet, double c[3]);

@@ -112,6 +112,34 @@ fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_mor
 fm_morph_model *fm_morph_model_build_group_shared(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
                                                   const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err);
 void fm_morph_model_drop_targets(fm_morph_model *m);
+
+/* What a build keeps for the next build of an edited scene (flockmorph studio: docs/studio.md, "An
+ * edit and the model"): for each shape, TetGen's tets of the placed mesh and the tets at n, with the
+ * inputs each was made from. A build given a keep makes neither again where those inputs are the
+ * same (the placed mesh byte for byte, tetgen.quality and tetgen.max_volume; then
+ * tetgen.subdivision and n), which is what a path, speed, style or MDE edit leaves; everything
+ * after (obstacles, path, orders, fields) is built as always. The model is the same bytes either
+ * way: TetGen and the subdivision are functions of those inputs alone. */
+typedef struct fm_kept_tets {
+    int has_tetgen, has_at_n;
+    fm_mesh mesh;               /* the placed mesh TetGen was given, */
+    double quality, max_volume; /* with tetgen.quality and tetgen.max_volume */
+    fm_tets tetgen;             /* TetGen's tets of it */
+    int subdivision;            /* tetgen.subdivision and */
+    int64_t n;                  /* the agents the tets at n were made for */
+    fm_tets at_n;
+    int64_t refined;            /* the refined count (fm_morph_model_info) */
+} fm_kept_tets;
+
+typedef struct fm_morph_keep {
+    fm_kept_tets shape[2]; /* source, target */
+    int reused;            /* the last build made none of them again (TetGen nor subdivision) */
+} fm_morph_keep;
+
+/* fm_morph_model_build, keeping in *keep (zeroed at first) what it makes and reusing what fits. */
+fm_morph_model *fm_morph_model_build_keeping(const fm_scene_def *def, fm_morph_keep *keep, fm_progress_fn progress,
+                                             void *user, fm_error *err);
+void fm_morph_keep_clear(fm_morph_keep *keep);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
 /* verts: the store's tets by agent id, or (by_slot) in slot order; NULL (no room for them) gives infinity. */
 double fm_morph_final_vertex_error(const fm_morph_model *m, const fm_morph_state *s, const float *verts, int by_slot);

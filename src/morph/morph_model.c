@@ -23,6 +23,8 @@ typedef struct prep_scratch {
     fm_mesh *obstacles;  /* obstacle meshes, placed (def.obstacle_count) */
     const fm_morph_model *from; /* a shot's group from another's formed shape: its target tets are the source */
     int keep_targets;           /* keep the model's target tets in double (m->tgt) for a later group */
+    fm_morph_keep *keep;        /* the studio's: the tets of the build before (NULL: none) */
+    int made;                   /* TetGen runs and subdivisions this build made (none: all kept) */
 } prep_scratch;
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
@@ -66,14 +68,32 @@ static fm_status check_tet_bound(const fm_scene_def *def, const fm_mesh_ref *ref
                    e.total / gib, fm_physical_memory() / gib, fits, ceil(least / mag) * mag);
 }
 
+/* TetGen's tets of the mesh, from the keep when it holds those of the same mesh and bounds. */
+static fm_status tetrahedralize_kept(const fm_scene_def *def, const fm_mesh *mesh, const char *name, fm_kept_tets *kept,
+                                     fm_tets *tets, int *made, fm_error *err)
+{
+    if (kept && kept->has_tetgen && kept->quality == def->tet_quality && kept->max_volume == def->tet_max_volume &&
+        fm_mesh_same(&kept->mesh, mesh))
+        return fm_tets_copy(&kept->tetgen, tets, err);
+    ++*made;
+    fm_status st = fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, name, tets, err);
+    if (st != FM_OK || !kept) return st;
+    fm_mesh_free(&kept->mesh), fm_tets_free(&kept->tetgen), fm_tets_free(&kept->at_n);
+    kept->has_tetgen = kept->has_at_n = 0; /* the tets at n were of the TetGen tets before */
+    if ((st = fm_mesh_copy(mesh, &kept->mesh, err)) != FM_OK || (st = fm_tets_copy(tets, &kept->tetgen, err)) != FM_OK)
+        return st;
+    kept->quality = def->tet_quality, kept->max_volume = def->tet_max_volume, kept->has_tetgen = 1;
+    return FM_OK;
+}
+
 /* Loads, checks, places and tetrahedralizes one mesh. */
 static fm_status prepare_mesh(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
-                              fm_tets *tets, fm_error *err)
+                              fm_tets *tets, fm_kept_tets *kept, int *made, fm_error *err)
 {
     fm_status st = fm_scene_mesh_load(def, ref, key, mesh, err);
     if (st == FM_OK) st = check_tet_bound(def, ref, mesh, key, err);
     if (st != FM_OK) return st;
-    return fm_scene_name_key(def, fm_tetrahedralize(mesh, def->tet_quality, def->tet_max_volume, ref->path, tets, err), key, err);
+    return fm_scene_name_key(def, tetrahedralize_kept(def, mesh, ref->path, kept, tets, made, err), key, err);
 }
 
 /* A shot's group from another's formed shape: that group's target mesh (placed) and its n target
@@ -524,16 +544,37 @@ static fm_status tets_to_n(const fm_morph_model *m, const fm_mesh *mesh, const c
     return fm_bisect_to(tets, m->n, err);
 }
 
+/* tets_to_n, or the keep's tets at n where they were made from the same TetGen tets (the keep's, as
+ * tetrahedralize_kept leaves it) for the same subdivision and n. */
+static fm_status tets_to_n_kept(const fm_morph_model *m, const fm_mesh *mesh, const char *name, fm_tets *tets,
+                                int64_t *refined, fm_kept_tets *kept, int *made, fm_error *err)
+{
+    if (kept && kept->has_at_n && kept->subdivision == (int)m->def.tet_subdivision && kept->n == m->n) {
+        fm_tets_free(tets);
+        *refined = kept->refined;
+        return fm_tets_copy(&kept->at_n, tets, err);
+    }
+    ++*made;
+    fm_status st = tets_to_n(m, mesh, name, tets, refined, err);
+    if (st != FM_OK || !kept || !kept->has_tetgen) return st;
+    fm_tets_free(&kept->at_n);
+    if ((st = fm_tets_copy(tets, &kept->at_n, err)) != FM_OK) return kept->has_at_n = 0, st;
+    kept->subdivision = (int)m->def.tet_subdivision, kept->n = m->n, kept->refined = *refined, kept->has_at_n = 1;
+    return FM_OK;
+}
+
 /* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
 static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     report(progress, user, "tetrahedralize source", 0.0);
+    fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
     fm_status st = s->from ? source_from_targets(def, s->from, &s->src_mesh, &s->src, err)
-                           : prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, err);
+                           : prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, kept, &s->made, err);
     if (st != FM_OK) return st;
     report(progress, user, "tetrahedralize target", 0.3);
-    if ((st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, err)) != FM_OK) return st;
+    st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, kept ? kept + 1 : NULL, &s->made, err);
+    if (st != FM_OK) return st;
     m->info.source_tets = s->src.n;
     m->info.target_tets = s->dst.n;
     m->info.source_tetgen_quality = tet_quality(m, &s->src);
@@ -550,9 +591,12 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     if (st != FM_OK) return st;
     report(progress, user, "subdivide", 0.6);
     /* a group from another's shape has as many source tets as agents: its source is never refined */
-    st = tets_to_n(m, s->from ? NULL : &s->src_mesh, def->source.path, &s->src, &m->info.source_refined_tets, err);
+    fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
+    st = tets_to_n_kept(m, s->from ? NULL : &s->src_mesh, def->source.path, &s->src, &m->info.source_refined_tets,
+                        kept, &s->made, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, "source.mesh", err);
-    st = tets_to_n(m, &s->dst_mesh, def->target.path, &s->dst, &m->info.target_refined_tets, err);
+    st = tets_to_n_kept(m, &s->dst_mesh, def->target.path, &s->dst, &m->info.target_refined_tets, kept ? kept + 1 : NULL,
+                        &s->made, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, "target.mesh", err);
     m->info.agents = m->n;
     /* Subdividing can only worsen the shapes TetGen made: measure the tets the agents are. */
@@ -589,7 +633,7 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
 }
 
 static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
-                                   fm_progress_fn progress, void *user, fm_error *err)
+                                   fm_morph_keep *keep, fm_progress_fn progress, void *user, fm_error *err)
 {
     if (fm_scene_validate(def, err) != FM_OK) return NULL;
     if (def->group_count > 0 && def->group_index < 0) {
@@ -607,7 +651,9 @@ static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model
     prep_scratch scratch;
     memset(&scratch, 0, sizeof scratch);
     scratch.from = from, scratch.keep_targets = keep_targets; /* else no tgt: the run reads tgt_f */
+    scratch.keep = keep;
     fm_status st = build(m, &scratch, progress, user, err);
+    if (keep) keep->reused = st == FM_OK && scratch.made == 0;
     free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
         fm_morph_model_destroy(m);
@@ -618,13 +664,29 @@ static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model
 
 fm_morph_model *fm_morph_model_build(const fm_scene_def *def, fm_progress_fn progress, void *user, fm_error *err)
 {
-    return build_model(def, NULL, 0, progress, user, err);
+    return build_model(def, NULL, 0, NULL, progress, user, err);
 }
 
 fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
                                            fm_progress_fn progress, void *user, fm_error *err)
 {
-    return build_model(def, from, keep_targets, progress, user, err);
+    return build_model(def, from, keep_targets, NULL, progress, user, err);
+}
+
+fm_morph_model *fm_morph_model_build_keeping(const fm_scene_def *def, fm_morph_keep *keep, fm_progress_fn progress,
+                                             void *user, fm_error *err)
+{
+    keep->reused = 0;
+    return build_model(def, NULL, 0, keep, progress, user, err);
+}
+
+void fm_morph_keep_clear(fm_morph_keep *keep)
+{
+    for (int i = 0; keep && i < 2; i++) {
+        fm_kept_tets *k = &keep->shape[i];
+        fm_mesh_free(&k->mesh), fm_tets_free(&k->tetgen), fm_tets_free(&k->at_n);
+        memset(k, 0, sizeof *k);
+    }
 }
 
 void fm_morph_model_drop_targets(fm_morph_model *m)
@@ -695,7 +757,8 @@ typedef struct group_of_shot {
 static void *build_one(const fm_scene_def *def, const void *context, fm_progress_fn progress, void *user, fm_error *err)
 {
     const group_of_shot *g = context;
-    return g ? build_model(def, g->from, g->keep_targets, progress, user, err) : fm_morph_model_build(def, progress, user, err);
+    return g ? build_model(def, g->from, g->keep_targets, NULL, progress, user, err)
+             : fm_morph_model_build(def, progress, user, err);
 }
 
 static void destroy_one(void *m) { fm_morph_model_destroy(m); }

@@ -1378,6 +1378,13 @@ fm_status fm_scene_load_group(const char *path, const fm_scene_override *overrid
     return load_scene(path, overrides, count, g, def, err);
 }
 
+fm_status fm_scene_parse_group(const char *text, size_t len, const char *name, const fm_scene_override *overrides,
+                               int count, int g, fm_scene_def *def, fm_error *err)
+{
+    if (g < 0) return fm_fail(err, FM_ERR_USAGE, "%s: no group %d", name, g);
+    return parse_scene(text, len, name, overrides, count, g, def, err);
+}
+
 fm_status fm_scene_load(const char *path, fm_scene_def *def, fm_error *err)
 {
     return fm_scene_load_overridden(path, NULL, 0, def, err);

@@ -9,9 +9,13 @@ scene edits the loader refuses (the error names the key) and edits naming other 
 error message, and the connection still answers after them. A run the model build refuses says
 why; twenty edits in a row make at most three runs; two clients edit at once and agree; clients
 that vanish mid-run (one mid-way through a frame claiming a terabyte) leave the studio running.
+An edit of the path keeps the model (TetGen's tets), one of the target's placement does not.
 Save writes the file atomically, and `flockmorph run` of it writes the frames the studio streamed,
-byte for byte, as does the Render button (refused before a save). That cache played back gives
-the reader's frames and refuses edits. The studio never crashes and exits 0 on SIGTERM.
+byte for byte, as does the Render button (refused before a save): the run compared is one whose
+model was kept. The same for a shape flock whose samples and match were kept, and for a shot
+(a scene with groups) edited live: a group's key changes its run, a bad one is named. That cache
+played back gives the reader's frames and refuses edits. The studio never crashes and exits 0 on
+SIGTERM.
 """
 import argparse
 import hashlib
@@ -123,6 +127,28 @@ def check_failed_run(url):
     ws.close()
 
 
+def edited_run(ws, key, value, after):
+    """The finished status of the run an edit makes."""
+    ws.send({"type": "set", "key": key, "value": value})
+    return ws.wait_status(lambda m: m["generation"] > after and m["stage"] in ("finished", "failed"), timeout=60)
+
+
+def check_model_keep(url):
+    """An edit that leaves the meshes, the tetgen keys and n as they were keeps the model's tets
+    (the build takes no TetGen run); one that moves the target makes them again."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    start = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)["generation"]
+    path = edited_run(ws, "path.points", [[0.0, -5.0, 7.5]], start)
+    check(path["stage"] == "finished" and path["model_kept"] is True,
+          f"a path edit keeps the model (built in {path['build_seconds']:.3f} s)")
+    moved = edited_run(ws, "target.translate", [16.0, 0.0, 0.0], path["generation"])
+    check(moved["stage"] == "finished" and moved["model_kept"] is False,
+          f"moving the target builds the model again ({moved['build_seconds']:.3f} s)")
+    edited_run(ws, "target.translate", [15.0, 0.0, 0.0], moved["generation"])  # back, for the checks after
+    ws.close()
+
+
 def check_two_editors(url, ws):
     a, b = WebSocket(url), WebSocket(url)
     a.recv_json("hello"), b.recv_json("hello")
@@ -169,22 +195,30 @@ def check_vanishing_clients(url):
     d.sock.close()  # a frame that claims a terabyte, cut off
 
 
+def streamed_and_run(args, ws, scene, frames, out):
+    """(SHA-256 of each frame the studio streams, of each frame `flockmorph run` of the scene writes)."""
+    streamed = []
+    for k in range(frames):
+        attrs = ws.frame(k)[1]
+        streamed.append(hashlib.sha256(attrs[1 if 1 in attrs else 2]).hexdigest())  # tet vertices, or positions
+    run = subprocess.run([args.cli, "run", scene, "-o", out, "--quiet"], capture_output=True, text=True)
+    check(run.returncode == 0, f"flockmorph run of the saved scene ({run.stderr.strip()})")
+    facts = subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), os.path.join(out, "frames.fmc")],
+                           capture_output=True, text=True, check=True)
+    return streamed, json.loads(facts.stdout)["sha256"]
+
+
 def check_truth(args, ws, scene, tmp):
     """Save, then `flockmorph run` of the saved file against every frame the studio streams."""
     status = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)  # the last edit's run
+    check(status["model_kept"] is True, "the run compared below (launch_rate edited) kept the model")
     e = error_of(ws, {"type": "render"})
     check("save the scene first" in e, f"render before a save is refused: {e}")
     ws.send({"type": "save"})
     saved = ws.recv_json("saved")
     check(saved["path"] == scene, "save answers with the scene's path")
     check(not os.path.exists(scene + ".partial"), "save leaves no partial file")
-    streamed = [hashlib.sha256(ws.frame(k)[1][1]).hexdigest() for k in range(status["frames"])]
-    out = os.path.join(tmp, "out")
-    run = subprocess.run([args.cli, "run", scene, "-o", out, "--quiet"], capture_output=True, text=True)
-    check(run.returncode == 0, f"flockmorph run of the saved scene ({run.stderr.strip()})")
-    facts = subprocess.run([sys.executable, os.path.join(HERE, "cache_facts.py"), os.path.join(out, "frames.fmc")],
-                           capture_output=True, text=True, check=True)
-    written = json.loads(facts.stdout)["sha256"]
+    streamed, written = streamed_and_run(args, ws, scene, status["frames"], os.path.join(tmp, "out"))
     check(written == streamed, f"run wrote the {len(written)} frames the studio streamed ({len(streamed)}), byte for byte")
     ws.send({"type": "render"})
     end = ws.recv_json("render")
@@ -195,6 +229,76 @@ def check_truth(args, ws, scene, tmp):
                            capture_output=True, text=True)
     check(facts.returncode == 0 and json.loads(facts.stdout)["sha256"] == written,
           "Render's cache is the frames the studio streamed, byte for byte")
+
+
+def check_saved_run(args, ws, scene, frames, out, what):
+    """Save, then `flockmorph run` of the file writes the frames the studio streamed."""
+    ws.send({"type": "save"})
+    ws.recv_json("saved")
+    streamed, written = streamed_and_run(args, ws, scene, frames, out)
+    check(written == streamed, f"{what}: run of the saved file wrote the {len(written)} frames the studio streamed "
+                               f"({len(streamed)}), byte for byte")
+
+
+def check_stopped(proc, what):
+    code, err = stop_studio(proc)
+    check(code == 0 and "AddressSanitizer" not in err and "runtime error" not in err,
+          f"{what}: the studio exits 0, no sanitizer report")
+
+
+def check_flock_keep(args, tmp):
+    """A shape flock: an edit of the boids' weights keeps the samples and the match, one of n does
+    not; Save, and `flockmorph run` writes the kept run's frames byte for byte."""
+    scene = os.path.join(tmp, "flock.json")
+    with open(scene, "w") as f:
+        json.dump({"mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+                   "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
+                   "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9}, f)
+    proc, url = start_studio(args.cli, scene)
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        first = finished(ws)
+        more = edited_run(ws, "n", 320, first["generation"])
+        check(more["stage"] == "finished" and more["model_kept"] is False, "shape flock: an edit of n samples again")
+        kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], more["generation"])
+        check(kept["stage"] == "finished" and kept["model_kept"] is True,
+              f"shape flock: a boids edit keeps the samples and the match (built in {kept['build_seconds']:.3f} s)")
+        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (samples kept)")
+        ws.close()
+    finally:
+        check_stopped(proc, "shape flock")
+
+
+def check_shot_edit(args, tmp):
+    """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
+    changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
+    the file writes the edited run's frames byte for byte."""
+    scene = os.path.join(tmp, "shot.json")
+    with open(scene, "w") as f:
+        json.dump({"time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+                   "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+                               "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
+                              {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
+                               "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]}, f)
+    proc, url = start_studio(args.cli, scene)
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        first = finished(ws)
+        before = hashlib.sha256(ws.frame(first["frames"] - 1)[1][1]).hexdigest()
+        e = error_of(ws, {"type": "set", "key": "groups.1.speed0", "value": -2})
+        check("groups[1].speed0" in e and "out of range" in e, f"shot: an invalid group edit names the group's key: {e}")
+        e = error_of(ws, {"type": "set", "key": "groups.0.target.mesh", "value": "/etc/passwd"})
+        check("/etc/passwd" in e and "refused" in e, f"shot: a group's edit that names another file is refused: {e}")
+        run = edited_run(ws, "groups.1.speed0", 7.0, first["generation"])
+        check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
+        after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
+        check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
+        check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot")
+        ws.close()
+    finally:
+        check_stopped(proc, "shot")
 
 
 def check_playback(args, cache):
@@ -247,6 +351,7 @@ def main():
         check(first["stage"] == "finished" and first["frames"] > 10, f"the first run finished ({first['frames']} frames)")
         check_bad_messages(ws)
         check_failed_run(url)
+        check_model_keep(url)
         check_burst(url)
         speed = check_two_editors(url, ws)
         check_vanishing_clients(url)
@@ -262,6 +367,8 @@ def main():
     finally:
         code, err = stop_studio(proc)
     check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
+    check_flock_keep(args, tmp)
+    check_shot_edit(args, tmp)
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
     check("AddressSanitizer" not in err and "runtime error" not in err, "no sanitizer report")
     print(f"test_studio_server: {time.time() - t0:.1f} s")

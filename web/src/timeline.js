@@ -25,11 +25,19 @@ export class Timeline {
 
   setLength(frames) { this.el('scrub').max = String(Math.max(0, frames - 1)); }
 
+  // Called every animation frame: the DOM is written only where a value changed (a write makes the
+  // browser lay out and paint the bar again).
   update() {
-    const app = this.app;
-    this.el('scrub').value = String(app.current);
-    this.el('frame-label').textContent = `${app.shown < 0 ? '–' : app.shown} / ${Math.max(0, app.status.frames - 1)}`;
-    this.el('play').textContent = app.playing ? '||' : '▶';
-    this.el('fps').textContent = `${app.counter.fps.toFixed(1)} fps`;
+    const app = this.app, ratio = app.view.resolution.ratio; // the dynamic resolution's, while playing
+    this.set('scrub', 'value', String(app.current));
+    this.set('frame-label', 'textContent', `${app.shown < 0 ? '–' : app.shown} / ${Math.max(0, app.status.frames - 1)}`);
+    this.set('play', 'textContent', app.playing ? '||' : '▶');
+    this.set('fps', 'textContent', `${app.counter.fps.toFixed(1)} fps`);
+    this.set('resolution', 'textContent', ratio < 1 ? `${Math.round(100 * ratio)} % res` : '');
+  }
+
+  set(id, property, value) {
+    const el = this.el(id);
+    if (el[property] !== value) el[property] = value;
   }
 }

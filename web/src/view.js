@@ -3,18 +3,33 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { ATTR } from './protocol.js';
+import { DynamicResolution } from './resolution.js';
+import { TET_FACES, frontFaces } from './tets.js';
 
 // fm_phase: waiting, flying, homing, arrived (a shape flock's phases share the palette).
 const PHASE_COLOURS = [0x8a8f99, 0x3fa7ff, 0xffa63f, 0x5fd35f].map((c) => new THREE.Color(c));
 const SHAPE_COLOURS = { source: 0x6d7380, target: 0x9aa3b5, obstacle: 0xb05050 };
-// Four faces of a tet from its vertices 0..3 (the cache's order).
-const TET_FACES = [0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
+
+// How the tets are drawn (docs/studio.md, "Frame rate"). 'flat': each face its colour times one
+// light term from the face's own normal (screen-space derivatives), no three.js lights; cull: only
+// the faces that face the eye, chosen on the CPU each frame (tets.js): a closed tet shows only
+// those, so the eye cannot tell, and the rasterizer sets up half the triangles; tiny: a tet under
+// this many pixels is drawn as its one face that faces the eye most (a quarter). 'lambert':
+// three.js's lit material, every face on both sides, as the studio drew them first (kept for the
+// benchmark's before and after).
+export const TET_STYLES = {
+  flat: { material: 'flat', cull: true, tiny: 3 },
+  lambert: { material: 'lambert', cull: false },
+};
 
 export class View {
   constructor(container) {
     this.container = container;
-    this.renderer = new THREE.WebGLRenderer({ antialias: false });
+    this.renderer = new THREE.WebGLRenderer({ antialias: false, powerPreference: 'high-performance' });
     this.renderer.setPixelRatio(window.devicePixelRatio);
+    this.resolution = new DynamicResolution();
+    this.dynamicResolution = true; // off: always the device's pixel ratio (the benchmark's before)
+    this.tetStyle = TET_STYLES.flat;
     container.appendChild(this.renderer.domElement);
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0x15171c);
@@ -40,6 +55,7 @@ export class View {
 
   resize() {
     const w = this.container.clientWidth || 1, h = this.container.clientHeight || 1;
+    this.renderer.setPixelRatio(window.devicePixelRatio * this.resolution.ratio);
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
@@ -87,8 +103,9 @@ export class View {
   // The flock object for this many agents of this kind, made again only when they change.
   ensureFlock(kind, agents) {
     if (this.flock && this.flock.userData.kind === kind && this.flock.userData.agents === agents) return this.flock;
-    if (this.flock) { this.scene.remove(this.flock); this.flock.geometry.dispose(); }
-    this.flock = kind === 'tets' ? makeTets(agents) : makePoints(agents);
+    if (this.flock) { this.scene.remove(this.flock); this.flock.geometry.dispose(); this.flock.material.dispose(); }
+    this.flock = kind === 'tets' ? makeTets(agents, this.tetStyle) : makePoints(agents);
+    this.facesFor = null;
     this.flock.userData = { kind, agents };
     this.flock.frustumCulled = false; // positions change every frame; no bounding sphere to keep
     this.scene.add(this.flock);
@@ -104,32 +121,111 @@ export class View {
     const pos = flock.geometry.getAttribute('position');
     pos.array.set(positions);
     pos.needsUpdate = true;
+    this.shownFrame = (this.shownFrame ?? 0) + 1; // the faces that face the eye are found again before the next draw
     colour(flock.geometry.getAttribute('color'), frame, previous, this.colourBy, tets ? 4 : 1);
     this.dirty = true;
   }
 
-  render() {
+  // Only the faces that face the eye go to the index buffer (its used part uploaded), found again
+  // when the flock or the camera moved; every face, once, without culling.
+  cullFaces() {
+    const flock = this.flock;
+    if (flock?.userData.kind !== 'tets') return;
+    const g = flock.geometry, index = g.index, eye = this.camera.position;
+    const height = this.container.clientHeight || 1;
+    const key = this.tetStyle.cull ? `${this.shownFrame},${eye.x},${eye.y},${eye.z},${height}` : 'all';
+    if (this.facesFor === key) return;
+    const perUnit = height / 2 / Math.tan((this.camera.fov * Math.PI) / 360); // a unit at distance 1, in CSS pixels
+    const count = this.tetStyle.cull
+      ? frontFaces(g.getAttribute('position').array, flock.userData.agents, eye, index.array, perUnit, this.tetStyle.tiny ?? 0)
+      : fillAllFaces(index.array, flock.userData.agents);
+    this.facesFor = key;
+    index.clearUpdateRanges();
+    index.addUpdateRange(0, count);
+    index.needsUpdate = true;
+    g.setDrawRange(0, count);
+  }
+
+  // The tets' drawing (TET_STYLES).
+  setTetStyle(style) {
+    this.tetStyle = style;
+    this.facesFor = null;
+    if (this.flock?.userData.kind !== 'tets') return;
+    this.flock.material.dispose();
+    this.flock.material = tetMaterial(style);
+    this.dirty = true;
+  }
+
+  // Draws if something changed. playing: the timeline runs (the dynamic resolution applies); rate:
+  // the frames per second it plays at (the budget); shown: the frames a second it shows.
+  // The cost of a drawn frame is the time from its draw to the next animation frame (the browser's
+  // raster of it included). Paused, the canvas goes back to full resolution and is drawn again.
+  render(playing = false, rate = 24, shown = Infinity) {
+    const now = performance.now(), r = this.resolution;
+    if (!playing || !this.dynamicResolution) { if (r.full()) this.resize(); }
+    else if (this.drawnAt !== undefined && r.measure(now - this.drawnAt, now, rate, shown)) this.resize();
+    this.drawnAt = undefined;
     if (!this.dirty) return;
     this.dirty = false;
+    this.cullFaces();
     this.renderer.render(this.scene, this.camera);
+    this.drawnAt = now;
   }
 }
 
-function makeTets(agents) {
+// One vertex colour times 0.4 to 1 of a light over the viewer's left shoulder, by the face's normal
+// from the screen-space derivatives of the view position (a flat face: one normal).
+const FLAT_VERTEX = `
+varying vec3 vColour;
+varying vec3 vView;
+void main() {
+  vColour = color;
+  vec4 mv = modelViewMatrix * vec4(position, 1.0);
+  vView = mv.xyz;
+  gl_Position = projectionMatrix * mv;
+}`;
+const FLAT_FRAGMENT = `
+varying vec3 vColour;
+varying vec3 vView;
+void main() {
+  vec3 n = normalize(cross(dFdx(vView), dFdy(vView)));
+  float light = 0.4 + 0.6 * abs(dot(n, vec3(-0.36, 0.48, 0.8)));
+  gl_FragColor = vec4(vColour * light, 1.0);
+  #include <colorspace_fragment>
+}`;
+
+function tetMaterial(style) {
+  const side = style.cull ? THREE.FrontSide : THREE.DoubleSide; // culled: the front faces, as the CPU chose them
+  if (style.material === 'lambert') return new THREE.MeshLambertMaterial({ vertexColors: true, flatShading: true, side });
+  return new THREE.ShaderMaterial({ vertexShader: FLAT_VERTEX, fragmentShader: FLAT_FRAGMENT, vertexColors: true, side });
+}
+
+// Colours as bytes (a quarter of float's upload each frame; clamped: assignment rounds), written in
+// place: no buffer is made again while a run plays.
+function colourAttribute(count) {
+  return new THREE.BufferAttribute(new Uint8ClampedArray(count * 3), 3, true);
+}
+
+function makeTets(agents, style) {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(agents * 12), 3));
-  g.setAttribute('color', new THREE.BufferAttribute(new Float32Array(agents * 12), 3));
-  const index = new Uint32Array(agents * 12);
+  g.setAttribute('color', colourAttribute(agents * 4));
+  const index = new THREE.BufferAttribute(new Uint32Array(agents * 12), 1);
+  index.setUsage(THREE.DynamicDrawUsage);
+  fillAllFaces(index.array, agents);
+  g.setIndex(index);
+  return new THREE.Mesh(g, tetMaterial(style));
+}
+
+function fillAllFaces(index, agents) {
   for (let a = 0; a < agents; a++) for (let i = 0; i < 12; i++) index[12 * a + i] = 4 * a + TET_FACES[i];
-  g.setIndex(new THREE.BufferAttribute(index, 1));
-  const material = new THREE.MeshLambertMaterial({ vertexColors: true, flatShading: true, side: THREE.DoubleSide });
-  return new THREE.Mesh(g, material);
+  return 12 * agents;
 }
 
 function makePoints(agents) {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(agents * 3), 3));
-  g.setAttribute('color', new THREE.BufferAttribute(new Float32Array(agents * 3), 3));
+  g.setAttribute('color', colourAttribute(agents));
   const material = new THREE.PointsMaterial({ size: 0.45, vertexColors: true, map: discSprite(), alphaTest: 0.5,
     sizeAttenuation: true });
   return new THREE.Points(g, material);
@@ -158,14 +254,18 @@ function colour(attr, frame, previous, by, repeat) {
     else if (by === 'id') _c.setHSL(((id ? id[a] : a) / Math.max(1, n)) * 0.8, 0.75, 0.55);
     else if (speed) _c.setHSL(0.66 - 0.66 * speed[a], 0.85, 0.5);
     else _c.copy(PHASE_COLOURS[phase ? phase[a] & 3 : 1]);
-    for (let r = 0, at = 3 * repeat * a; r < repeat; r++, at += 3) { out[at] = _c.r; out[at + 1] = _c.g; out[at + 2] = _c.b; }
+    const r8 = 255 * _c.r, g8 = 255 * _c.g, b8 = 255 * _c.b;
+    for (let r = 0, at = 3 * repeat * a; r < repeat; r++, at += 3) { out[at] = r8; out[at + 1] = g8; out[at + 2] = b8; }
   }
   attr.needsUpdate = true;
 }
 
-// Speeds scaled to 0..1 by the frame's largest.
+// Speeds scaled to 0..1 by the frame's largest (in one array kept for the next frame).
+let _speeds = new Float32Array(0);
 function speeds(frame, previous) {
-  const n = frame.agents, out = new Float32Array(n);
+  const n = frame.agents;
+  if (_speeds.length < n) _speeds = new Float32Array(n);
+  const out = _speeds;
   const vel = frame.attrs[ATTR.VELOCITY];
   const now = frame.attrs[ATTR.TET_VERTICES] ?? frame.attrs[ATTR.POSITION];
   const then = previous && (previous.attrs[ATTR.TET_VERTICES] ?? previous.attrs[ATTR.POSITION]);

@@ -1,13 +1,16 @@
 // Unit tests of the page's pure parts, under node's own test runner (no browser):
 //   node --test web/test/          (ctest: test_studio_page)
 // protocol.js's frame parsing against the layout docs/studio.md gives, path.js's arc-length
-// resampling of a sketch, panel.js's dotted keys.
+// resampling of a sketch, panel.js's dotted keys, resolution.js's dynamic resolution, tets.js's
+// choice of the faces that face the eye.
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 import * as THREE from 'three';
 import { ATTR, parseFrame } from '../src/protocol.js';
 import { resample } from '../src/path.js';
 import { getKey } from '../src/panel.js';
+import { DynamicResolution, RATIOS } from '../src/resolution.js';
+import { frontFaces } from '../src/tets.js';
 
 // A frame message as the server writes it (tools/studio_frames.c): header, entries, 16-aligned arrays.
 function frameMessage(agents, arrays) {
@@ -53,4 +56,92 @@ test('getKey reads dotted keys and tells a missing one', () => {
   assert.deepEqual(getKey(doc, 'shape_flock.cohesion.weight'), [0.1, 0.2]);
   assert.equal(getKey(doc, 'path.width'), undefined);
   assert.equal(getKey(doc, 'mde.d_min'), undefined);
+});
+
+// Feeds frames of cost(ratio) ms, one every 50 ms of page time, and returns the ratios it chose.
+function settle(cost, frames, rate = 24) {
+  const d = new DynamicResolution(), seen = [];
+  for (let i = 0, now = 0; i < frames; i++, now += 50) { d.measure(cost(d.ratio), now, rate); seen.push(d.ratio); }
+  return { d, seen };
+}
+
+test('dynamic resolution steps down while frames cost more than the frame rate allows', () => {
+  // a software rasterizer's frame: 12 ms of fixed work and 60 ms of pixels at full resolution
+  const { d, seen } = settle((r) => 12 + 60 * r * r, 200);
+  assert.equal(d.ratio, 0.5); // 12 + 15 = 27 ms < 37.5 ms (24 frames/s with a 10 % margin); 0.75: 45.75 ms
+  assert.ok(seen.indexOf(0.75) < seen.indexOf(0.5), 'through 0.75 first');
+  assert.equal(new Set(seen.slice(100)).size, 1, 'and stays there: no see-saw');
+});
+
+test('dynamic resolution stays at full resolution under budget and goes back up when frames get cheap', () => {
+  assert.deepEqual(new Set(settle(() => 20, 100).seen), new Set([1]));
+  const d = new DynamicResolution();
+  for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(10 + 300 * d.ratio ** 2, now, 24);
+  assert.equal(d.ratio, RATIOS[RATIOS.length - 1]); // at most the last step, however slow
+  for (let i = 0, now = 10000; i < 200; i++, now += 50) d.measure(5, now, 24);
+  assert.equal(d.ratio, 1);
+});
+
+test('dynamic resolution: a paused page is drawn at full resolution', () => {
+  const { d } = settle((r) => 10 + 100 * r * r, 100);
+  assert.ok(d.ratio < 1);
+  assert.equal(d.full(), true); // changed: the caller redraws
+  assert.equal(d.ratio, 1);
+  assert.equal(d.full(), false);
+});
+
+test('frontFaces: the faces of a tet that face the eye, and no others', () => {
+  const tet = Float32Array.of(0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1), index = new Uint32Array(12);
+  assert.equal(frontFaces(tet, 1, { x: 0.2, y: 0.2, z: 10 }, index), 3); // above: the slanted face alone
+  assert.deepEqual([...index.slice(0, 3)].sort(), [1, 2, 3]);
+  assert.equal(frontFaces(tet, 1, { x: -5, y: -4, z: -3 }, index), 9); // below the corner: its three faces
+  assert.deepEqual(new Set(index.slice(0, 9)).size, 4);
+});
+
+test('frontFaces agrees with faces turned away from the opposite vertex, on random tets', () => {
+  let seed = 7;
+  const rand = () => ((seed = (seed * 1103515245 + 12345) % 2147483648) / 2147483648) * 20 - 10;
+  const agents = 200, v = new Float32Array(12 * agents), index = new Uint32Array(12 * agents);
+  for (let a = 0; a < agents; a++) {
+    for (let i = 0; i < 12; i++) v[12 * a + i] = rand();
+    const d = (i, k) => v[12 * a + 3 * i + k] - v[12 * a + k];
+    const det = d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1)) - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
+      + d(1, 2) * (d(2, 0) * d(3, 1) - d(2, 1) * d(3, 0));
+    if (det < 0) for (let k = 0; k < 3; k++) [v[12 * a + 3 + k], v[12 * a + 6 + k]] = [v[12 * a + 6 + k], v[12 * a + 3 + k]];
+  }
+  const eye = { x: 31, y: -17, z: 23 }, count = frontFaces(v, agents, eye, index);
+  let expected = 0;
+  for (let a = 0; a < agents; a++) for (let skip = 0; skip < 4; skip++) { // the face without vertex `skip`
+    const p = [0, 1, 2, 3].filter((i) => i !== skip).map((i) => [0, 1, 2].map((k) => v[12 * a + 3 * i + k]));
+    const far = [0, 1, 2].map((k) => v[12 * a + 3 * skip + k]);
+    const u = [0, 1, 2].map((k) => p[1][k] - p[0][k]), w = [0, 1, 2].map((k) => p[2][k] - p[0][k]);
+    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+    if (n.reduce((s, x, k) => s + x * (far[k] - p[0][k]), 0) > 0) n = n.map((x) => -x); // away from the far vertex
+    if (n.reduce((s, x, k) => s + x * ([eye.x, eye.y, eye.z][k] - p[0][k]), 0) > 0) expected++;
+  }
+  assert.equal(count, 3 * expected);
+  for (let i = 0; i < count; i += 3) assert.equal(Math.floor(index[i] / 4), Math.floor(index[i + 2] / 4)); // one tet's
+});
+
+test('frontFaces draws a tet smaller than `tiny` pixels as its one face that faces the eye most', () => {
+  const tet = Float32Array.of(0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1), index = new Uint32Array(12);
+  const eye = { x: -50, y: -40, z: -30 }; // 70.7 units away; three faces face it, the x = 0 face most
+  // 100 px a unit at distance 1: its largest face (|n| = sqrt 3) is 3^(1/4) 100 / 70.7 = 1.9 px across
+  assert.equal(frontFaces(tet, 1, eye, index, 100, 1), 9); // over 1 px: every front face
+  assert.equal(frontFaces(tet, 1, eye, index, 100, 3), 3); // under 3 px: one face,
+  assert.deepEqual([...index.slice(0, 3)].sort(), [0, 2, 3]); // the x = 0 one
+});
+
+test('dynamic resolution: where a smaller canvas does not pay, it goes back to full resolution and stays', () => {
+  const { seen } = settle(() => 50, 400); // 50 ms whatever the pixels: over budget at every ratio
+  assert.ok(seen.includes(0.75), 'it tries a step down');
+  assert.equal(seen[seen.length - 1], 1);
+  const changes = seen.filter((r, i) => i > 0 && r !== seen[i - 1]).length;
+  assert.ok(changes <= 6, `no see-saw: ${changes} changes in 20 s`);
+});
+
+test('dynamic resolution: a page that shows the frame rate keeps its resolution, however long frames seem', () => {
+  const d = new DynamicResolution();
+  for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(60, now, 24, 24); // slow ticks, every frame shown
+  assert.equal(d.ratio, 1);
 });
