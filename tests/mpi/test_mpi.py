@@ -20,7 +20,10 @@
   well below four processes (measured from outside); ranks counted as two machines give the same
   bytes (both modes);
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
-  cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
+  cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job;
+  ranks started on different jobs (an MPMD launch with another --set, --stop-after-frame, FM_
+  variable or --resume on rank 1) stop with exit 1 naming what differs, before any work, and the
+  checkpoint one rank was to resume from stays;
 
     test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
 """
@@ -466,7 +469,92 @@ class Segments(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
 
 
+def octahedron_obj():
+    """The regular octahedron |x| + |y| + |z| <= 1, outward triangles (as tests/helpers writes it)."""
+    lines = [f"v {x} {y} {z}" for x, y, z in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))]
+    for s in range(8):  # one face per octant; a reflection reverses the winding
+        x, y, z = (2 if s & 1 else 1), (4 if s & 2 else 3), (6 if s & 4 else 5)
+        odd = ((s & 1) + (s >> 1 & 1) + (s >> 2 & 1)) & 1
+        lines.append(f"f {x} {z if odd else y} {y if odd else z}")
+    return "\n".join(lines) + "\n"
+
+
+def tiny_scene(name, frames=30):
+    """An octahedron's tets flying 20 units to its copy: a run of a second or two."""
+    folder = os.path.join(ARGS.tmp, "mpi_scene_" + name)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, "octahedron.obj"), "w") as f:
+        f.write(octahedron_obj())
+    scene = {"source": {"mesh": "octahedron.obj", "translate": [-10, 0, 0]},
+             "target": {"mesh": "octahedron.obj", "translate": [10, 0, 0]}, "time": {"frame_limit": frames}}
+    path = os.path.join(folder, "scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    return path
+
+
+def run_command(scene, out, extra=()):
+    return [ARGS.cli, "run", scene, "-o", out, "--quiet", "--threads", "1", *extra]
+
+
+def mpmd(first, second, timeout=60):
+    """Rank 0 runs the command `first`, rank 1 `second` (an MPMD launch: each its own command line
+    and environment)."""
+    cmd = [ARGS.mpiexec, "--oversubscribe", "-n", "1", *first, ":", "-n", "1", *second]
+    return subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=timeout, env=env())
+
+
 class Failure(unittest.TestCase):
+    def check_refused(self, done, out, *parts):
+        """Ranks that run different jobs: exit 1 and one message naming rank 1 and what differs, and
+        nothing written in the output directory but the lock and the empty folder."""
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertEqual(done.stderr.count("flockmorph: error:"), 1, done.stderr)
+        self.assertIn("rank 1 of 2 does not run rank 0's job: ", done.stderr)
+        for part in parts:
+            self.assertIn(part, done.stderr)
+        for name in ("frames.fmc", "frames.fmc.partial", "stats.json", "wedge.json"):
+            self.assertFalse(os.path.exists(os.path.join(out, name)), name)
+
+    def test_ranks_with_different_overrides(self):
+        """An MPMD launch whose second rank has another --set: refused before any work (exit 1),
+        naming the scene and both ranks' arguments, where the cache was a mix of the two."""
+        scene, out = tiny_scene("sets"), os.path.join(ARGS.tmp, "mpi_sets")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out, ("--set", "speed0=10")), run_command(scene, out, ("--set", "speed0=11")))
+        self.check_refused(done, out, "the scene as loaded differs",
+                           f"(rank 0: {scene} --set speed0=10; rank 1: {scene} --set speed0=11)")
+
+    def test_ranks_with_different_options(self):
+        scene, out = tiny_scene("options"), os.path.join(ARGS.tmp, "mpi_options")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out), run_command(scene, out, ("--stop-after-frame", "3")))
+        self.check_refused(done, out, "--stop-after-frame differs (rank 0: not given; rank 1: 3)")
+
+    def test_ranks_with_different_environment(self):
+        """An FM_ variable only rank 1 has (mpirun's -x in its part of the launch)."""
+        scene, out = tiny_scene("environment"), os.path.join(ARGS.tmp, "mpi_environment")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out), ["-x", "FM_JOB_NOTE=b"] + run_command(scene, out))
+        self.check_refused(done, out, "the environment variable FM_JOB_NOTE differs (rank 0: unset; rank 1: b)")
+
+    def test_rank_resuming_alone_keeps_the_checkpoint(self):
+        """Rank 1 alone asks to --resume: refused with exit 1 before rank 0, starting over, would
+        delete the checkpoint (and the partial cache) that the run is to resume from."""
+        scene, out = tiny_scene("resume"), os.path.join(ARGS.tmp, "mpi_resume_alone")
+        shutil.rmtree(out, ignore_errors=True)
+        stopped = subprocess.run(run_command(scene, out, ("--stop-after-frame", "3")), stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, timeout=60)
+        self.assertEqual(stopped.returncode, 0, stopped.stderr)
+        checkpoint = os.path.join(out, "checkpoint.fmck")
+        before = sha256(checkpoint)
+        done = mpmd(run_command(scene, out), run_command(scene, out, ("--resume",)))
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertIn("rank 1 of 2 does not run rank 0's job: --resume differs (rank 0: not given; rank 1: given)",
+                      done.stderr)
+        self.assertEqual(sha256(checkpoint), before)
+        self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), 4)
+
     def test_bad_input_only_the_first_rank_meets(self):
         """n below TetGen's tet count is found while the model is built, which only each machine's
         first rank does (ranks 0 and 2 of two "machines"): every rank stops with exit 2 and the one
