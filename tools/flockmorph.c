@@ -22,6 +22,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static const char *USAGE_MAIN =
     "usage: flockmorph <command> [options]\n"
@@ -57,6 +58,21 @@ static int (*find_command(const char *name))(int, char **)
 
 fm_dist *cli_dist; /* the run's ranks under mpirun; NULL otherwise */
 
+/* Threads per rank when neither --threads nor OMP_NUM_THREADS says: a rank that may run on every
+ * core would start a thread per core, and P such ranks on one machine P threads a core, which
+ * OpenMP's spinning barriers turn into minutes for a one-second run. So the machine's cores are
+ * shared among its ranks; a rank bound to fewer cores (mpirun's default binding, --map-by
+ * slot:PE=T) keeps its own, if the ranks' cores together fit the machine. */
+static void share_cores(int ranks_here)
+{
+    const char *user = getenv("OMP_NUM_THREADS");
+    if (ranks_here <= 1 || (user && *user)) return;
+    const long machine = sysconf(_SC_NPROCESSORS_ONLN);
+    const int mine = omp_get_num_procs(); /* the cores this rank may run on */
+    if (machine < 1 || (long)mine * ranks_here <= machine) return;
+    omp_set_num_threads((int)FM_MAX(1, machine / ranks_here));
+}
+
 /* Under an MPI launcher: MPI initialised, and the ranks but 0 silent (every rank reads the same
  * scene and meets the same errors; what only one rank meets reaches rank 0 with the status). */
 static int start_ranks(int *argc, char ***argv)
@@ -65,6 +81,7 @@ static int start_ranks(int *argc, char ***argv)
     fm_error err = {0};
     if (!(cli_dist = fm_dist_init(argc, argv, &err))) return cli_report(&err);
     fm_memory_set_ranks(fm_dist_size(cli_dist), fm_dist_size_here(cli_dist)); /* a run's estimate is one rank's */
+    share_cores(fm_dist_size_here(cli_dist));
     if (fm_dist_rank(cli_dist) != 0 && !getenv("FM_RANK_OUTPUT")) {
         if (!freopen("/dev/null", "w", stdout) || !freopen("/dev/null", "w", stderr)) return FM_ERR_IO;
     }

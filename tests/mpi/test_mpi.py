@@ -24,6 +24,8 @@
   ranks started on different jobs (an MPMD launch with another --set, --stop-after-frame, FM_
   variable or --resume on rank 1) stop with exit 1 naming what differs, before any work, and the
   checkpoint one rank was to resume from stays;
+- threads: 3 ranks on one machine without --threads share its cores (stats.json's threads) and a
+  short run stays short; --threads wins.
 
     test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
 """
@@ -663,6 +665,29 @@ class Failure(unittest.TestCase):
             self.fail("mpirun did not end within 120 s of a rank's death")
         self.assertNotEqual(proc.returncode, 0)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
+
+class Threads(unittest.TestCase):
+    def ranks_threads(self, name, ranks, extra=()):
+        out = os.path.join(ARGS.tmp, "mpi_threads_" + name)
+        shutil.rmtree(out, ignore_errors=True)
+        cmd = [ARGS.mpiexec, "--oversubscribe", "-np", str(ranks), ARGS.cli, "run", tiny_scene("threads", frames=60),
+               "-o", out, "--quiet", *extra]
+        start = time.time()
+        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=120, env=env())
+        self.assertEqual(done.returncode, 0, done.stderr)
+        with open(os.path.join(out, "stats.json")) as f:
+            return json.load(f)["threads"], time.time() - start
+
+    def test_ranks_share_the_cores(self):
+        """3 ranks on this machine without --threads: each takes the cores / 3 (at least 1), not a
+        thread per core each (6 threads on 2 cores took a minute for this run of a second); an
+        explicit --threads still wins (2 ranks of 2 threads, 2 frames)."""
+        threads, seconds = self.ranks_threads("default", 3)
+        self.assertEqual(threads, max(1, os.cpu_count() // 3))
+        self.assertLess(seconds, 30)
+        threads, _ = self.ranks_threads("explicit", 2, ("--threads", "2", "--set", "time.frame_limit=2"))
+        self.assertEqual(threads, 2)
 
 
 def main():
