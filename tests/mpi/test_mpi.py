@@ -42,6 +42,9 @@ import sys
 import time
 import unittest
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "helpers"))
+from octahedron import octahedron_obj  # noqa: E402
+
 ARGS = None
 fmc = None  # python/flockmorph_cache.py, imported from --source
 
@@ -469,16 +472,6 @@ class Segments(unittest.TestCase):
         self.assertIn("checkpoint.fmck': Is a directory", done.stderr)
         self.assertTrue(os.path.exists(os.path.join(out, "checkpoint.fmck.partial", "keep")))
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
-
-
-def octahedron_obj():
-    """The regular octahedron |x| + |y| + |z| <= 1, outward triangles (as tests/helpers writes it)."""
-    lines = [f"v {x} {y} {z}" for x, y, z in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))]
-    for s in range(8):  # one face per octant; a reflection reverses the winding
-        x, y, z = (2 if s & 1 else 1), (4 if s & 2 else 3), (6 if s & 4 else 5)
-        odd = ((s & 1) + (s >> 1 & 1) + (s >> 2 & 1)) & 1
-        lines.append(f"f {x} {z if odd else y} {y if odd else z}")
-    return "\n".join(lines) + "\n"
 
 
 def tiny_scene(name, frames=30):
