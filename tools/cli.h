@@ -256,6 +256,9 @@ static inline int cli_is_root(void) { return fm_dist_rank(cli_dist) == 0; }
 /* The ranks agree on an exit code (the worst); rank 0 has printed its own reason, and prints
  * err's when another rank's was worse (err may be NULL: nothing to tell). */
 int cli_agree(int rc, fm_error *err);
+/* Starts and ends `threads` - 1 threads as OpenMP will: 0, or the reported exit status (4 when
+ * their stacks do not fit) instead of libgomp's exit 1 in the first parallel region. */
+int cli_threads_fit(int threads);
 /* Collective, called by every rank whatever its rc (the exit status so far: its command line, its
  * scene): the ranks agree on the worst rc, then that they run the same job (the scene as loaded, -o,
  * --resume, --stop-after-frame, --checkpoint-every, the version, the FM_ environment; cli_ranks.c).

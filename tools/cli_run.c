@@ -347,6 +347,7 @@ int cli_run(int argc, char **argv)
     memset(&ov, 0, sizeof ov);
     fm_scene_def def;
     int rc = parse_run(argc, argv, &o);
+    if (!rc) rc = cli_threads_fit(fm_threads(o.threads));
     if (!rc) rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
     if (!rc) rc = cli_expand_outdir(&o);
     if (!rc) rc = cli_overrides_load(&o, &ov, &def);

@@ -13,12 +13,15 @@
  *   flockmorph --version | -V
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
-#define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
+#define _GNU_SOURCE /* SIGXFSZ, sigaltstack, alloca */
 #include "cli.h"
 #include "memory.h"
 
+#include <alloca.h>
 #include <omp.h>
+#include <setjmp.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -90,9 +93,53 @@ static int start_ranks(int *argc, char ***argv)
 
 static int dispatch(int argc, char **argv);
 
+/* Under ulimit -v the main thread's stack grows into the address space like any allocation, but a
+ * growth that does not fit is SIGSEGV, not an error one can report (a scene definition is 136 KB,
+ * and a few are on the stack at once: issue 42). So the stack the CLI needs is touched at the
+ * start, and a failure there, caught on an alternate stack, is out of memory (exit 4). */
+enum { STACK_RESERVE = 4 << 20 };
+static sigjmp_buf stack_fault;
+
+static void on_stack_fault(int sig) { siglongjmp(stack_fault, sig); }
+
+static __attribute__((noinline)) void touch_stack(size_t bytes)
+{
+    volatile char *pad = alloca(bytes);
+    for (size_t i = 0; i < bytes; i += 4096) pad[i] = 0;
+}
+
+/* STACK_RESERVE, or less under a smaller stack limit (ulimit -s), leaving room above it. */
+static size_t stack_to_reserve(void)
+{
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_STACK, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return STACK_RESERVE;
+    return limit.rlim_cur > (1 << 20) ? FM_MIN((size_t)STACK_RESERVE, (size_t)limit.rlim_cur - (512 << 10)) : 0;
+}
+
+static int reserve_stack(void)
+{
+    static char alternate[64 << 10];
+    stack_t ss = {.ss_sp = alternate, .ss_size = sizeof alternate}, off = {.ss_flags = SS_DISABLE};
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stack_fault, sa.sa_flags = SA_ONSTACK;
+    sigemptyset(&sa.sa_mask);
+    if (stack_to_reserve() == 0 || sigaltstack(&ss, NULL) != 0 || sigaction(SIGSEGV, &sa, &old) != 0) return 0;
+    const int failed = sigsetjmp(stack_fault, 1); /* no local is live across it (-Wclobbered) */
+    if (!failed) touch_stack(stack_to_reserve());
+    sigaction(SIGSEGV, &old, NULL);
+    sigaltstack(&off, NULL);
+    if (!failed) return 0;
+    fprintf(stderr, "flockmorph: error: out of memory: cannot have %zu MB of stack for the main thread (the "
+            "address-space limit, ulimit -v, is too low)\n", stack_to_reserve() >> 20);
+    return FM_ERR_MEMORY;
+}
+
 int main(int argc, char **argv)
 {
-    int rc = start_ranks(&argc, &argv);
+    int rc = reserve_stack();
+    if (rc) return rc;
+    rc = start_ranks(&argc, &argv);
     if (rc) return rc;
     rc = dispatch(argc, argv);
     fm_dist_finalize(cli_dist);
@@ -107,6 +154,8 @@ static int dispatch(int argc, char **argv)
     /* OpenMP's default team (OMP_NUM_THREADS, unbounded) capped as the engine caps it (fm_threads),
      * for any parallel region that does not name its thread count */
     omp_set_num_threads(fm_threads(0));
+    int rc = cli_threads_fit(fm_threads(0)); /* before any parallel region; run checks its --threads too */
+    if (rc) return rc;
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
     if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) return printf("flockmorph %s\n", FM_VERSION_STRING), 0;
