@@ -287,6 +287,14 @@ static inline int cli_is_root(void) { return fm_dist_rank(cli_dist) == 0; }
 /* The ranks agree on an exit code (the worst); rank 0 has printed its own reason, and prints
  * err's when another rank's was worse (err may be NULL: nothing to tell). */
 int cli_agree(int rc, fm_error *err);
+/* Starts and ends `threads` - 1 threads as OpenMP will: 0, or the reported exit status (4 when
+ * their stacks do not fit) instead of libgomp's exit 1 in the first parallel region. */
+int cli_threads_fit(int threads);
+/* Collective, called by every rank whatever its rc (the exit status so far: its command line, its
+ * scene): the ranks agree on the worst rc, then that they run the same job (the scene as loaded, -o,
+ * --resume, --stop-after-frame, --checkpoint-every, the version, the FM_ environment; cli_ranks.c).
+ * A difference is exit 1, naming the rank and what differs; 0 when every rank runs rank 0's job. */
+int cli_ranks_agree(int rc, const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def);
 /* On P ranks (docs/scale-out.md): what the decomposition cost, every rank's sends together, and
  * its stats.json object. These depend on P, as the timings do; everything else does not. */
 fm_dist_totals cli_sum_totals(fm_dist_totals mine);

@@ -629,3 +629,15 @@ json_t *cli_scale_out_json(const fm_dist_totals *t)
                      t->busy_seconds > 0 ? t->busiest_seconds * fm_dist_size(cli_dist) / t->busy_seconds : 1.0,
                      "migrations", (json_int_t)t->migrated, "max_rank_peak_rss_bytes", (json_int_t)t->peak_rss_bytes);
 }
+
+/* The OpenMP team started before any parallel region, where a failure is out of memory (exit 4)
+ * rather than libgomp's exit 1 (fm_threads_start_team). */
+int cli_threads_fit(int threads)
+{
+    const int e = fm_threads_start_team(threads);
+    if (!e) return 0;
+    fm_error err = {0};
+    fm_fail(&err, e == EAGAIN ? FM_ERR_MEMORY : FM_ERR_INTERNAL, "cannot start %d threads: %s%s", threads, strerror(e),
+            e == EAGAIN ? ": out of memory for their stacks (ulimit -v, or the thread limit); --threads 1 needs none" : "");
+    return cli_report(&err);
+}

@@ -28,7 +28,8 @@ static const char *const USAGE_RUN =
     "meshes in OUTDIR/obstacles.ply (render draws them). OUTDIR is created if needed.\n"
     "\n"
     "  -o, --output DIR      output directory (required)\n"
-    "  --threads N           worker threads (default: all cores); results do not depend on N\n"
+    "  --threads N           worker threads (default: all cores; under MPI, the machine's cores\n"
+    "                        over its ranks); results do not depend on N\n"
     "  --quiet               no progress (on a terminal a line redrawn every frame; otherwise,\n"
     "                        as in a farm's log, a plain line every --log-every seconds)\n"
     "  --log-every S         seconds between those plain lines (default 10; 0: every frame)\n"
@@ -50,7 +51,8 @@ static const char *const USAGE_RUN =
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n"
     "\n"
     "Under MPI, 'mpirun -np P flockmorph run ...' runs either mode on P ranks of --threads N\n"
-    "threads each, with the same cache bytes as one process (docs/scale-out.md).\n";
+    "threads each, with the same cache bytes as one process (docs/scale-out.md). Every rank must\n"
+    "be started with the same scene, options and FM_ variables, or every rank stops with exit 1.\n";
 
 /* --set KEY=VALUE: a key before the first '=' (what it names is the scene loader's to check). */
 static int parse_set(const char *arg, cli_run_options *o)
@@ -360,13 +362,15 @@ int cli_run(int argc, char **argv)
 {
     if (cli_wants_help(argc, argv)) return printf("%s", USAGE_RUN), 0;
     cli_run_options o;
-    int rc = parse_run(argc, argv, &o);
-    if (rc) return rc;
     cli_overrides ov;
+    memset(&ov, 0, sizeof ov);
     fm_scene_def def;
-    rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
+    int rc = parse_run(argc, argv, &o);
+    if (!rc) rc = cli_threads_fit(fm_threads(o.threads));
+    if (!rc) rc = cli_overrides_prepare(&o, &ov); /* the wedge's index is chosen here */
     if (!rc) rc = cli_expand_outdir(&o);
     if (!rc) rc = cli_overrides_load(&o, &ov, &def);
+    rc = cli_ranks_agree(rc, &o, &ov, &def); /* every rank, whatever its rc: no rank waits for one that left */
     if (!rc) cli_shot_use_overrides(ov.set, ov.count, ov.base_seed, def.seed);
     if (!rc) rc = run_in_outdir(&o, &ov, &def);
     cli_overrides_free(&ov);

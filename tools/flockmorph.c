@@ -13,15 +13,19 @@
  *   flockmorph --version | -V
  *
  * Exit status: 0 success, 1 usage, 2 bad input, 3 I/O, 4 memory, 5 internal. */
-#define _POSIX_C_SOURCE 200809L /* SIGXFSZ */
+#define _GNU_SOURCE /* SIGXFSZ, sigaltstack, alloca */
 #include "cli.h"
 #include "memory.h"
 
+#include <alloca.h>
 #include <omp.h>
+#include <setjmp.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static const char *USAGE_MAIN =
     "usage: flockmorph <command> [options]\n"
@@ -57,6 +61,21 @@ static int (*find_command(const char *name))(int, char **)
 
 fm_dist *cli_dist; /* the run's ranks under mpirun; NULL otherwise */
 
+/* Threads per rank when neither --threads nor OMP_NUM_THREADS says: a rank that may run on every
+ * core would start a thread per core, and P such ranks on one machine P threads a core, which
+ * OpenMP's spinning barriers turn into minutes for a one-second run. So the machine's cores are
+ * shared among its ranks; a rank bound to fewer cores (mpirun's default binding, --map-by
+ * slot:PE=T) keeps its own, if the ranks' cores together fit the machine. */
+static void share_cores(int ranks_here)
+{
+    const char *user = getenv("OMP_NUM_THREADS");
+    if (ranks_here <= 1 || (user && *user)) return;
+    const long machine = sysconf(_SC_NPROCESSORS_ONLN);
+    const int mine = omp_get_num_procs(); /* the cores this rank may run on */
+    if (machine < 1 || (long)mine * ranks_here <= machine) return;
+    omp_set_num_threads((int)FM_MAX(1, machine / ranks_here));
+}
+
 /* Under an MPI launcher: MPI initialised, and the ranks but 0 silent (every rank reads the same
  * scene and meets the same errors; what only one rank meets reaches rank 0 with the status). */
 static int start_ranks(int *argc, char ***argv)
@@ -65,6 +84,7 @@ static int start_ranks(int *argc, char ***argv)
     fm_error err = {0};
     if (!(cli_dist = fm_dist_init(argc, argv, &err))) return cli_report(&err);
     fm_memory_set_ranks(fm_dist_size(cli_dist), fm_dist_size_here(cli_dist)); /* a run's estimate is one rank's */
+    share_cores(fm_dist_size_here(cli_dist));
     if (fm_dist_rank(cli_dist) != 0 && !getenv("FM_RANK_OUTPUT")) {
         if (!freopen("/dev/null", "w", stdout) || !freopen("/dev/null", "w", stderr)) return FM_ERR_IO;
     }
@@ -73,9 +93,53 @@ static int start_ranks(int *argc, char ***argv)
 
 static int dispatch(int argc, char **argv);
 
+/* Under ulimit -v the main thread's stack grows into the address space like any allocation, but a
+ * growth that does not fit is SIGSEGV, not an error one can report (a scene definition is 136 KB,
+ * and a few are on the stack at once: issue 42). So the stack the CLI needs is touched at the
+ * start, and a failure there, caught on an alternate stack, is out of memory (exit 4). */
+enum { STACK_RESERVE = 4 << 20 };
+static sigjmp_buf stack_fault;
+
+static void on_stack_fault(int sig) { siglongjmp(stack_fault, sig); }
+
+static __attribute__((noinline)) void touch_stack(size_t bytes)
+{
+    volatile char *pad = alloca(bytes);
+    for (size_t i = 0; i < bytes; i += 4096) pad[i] = 0;
+}
+
+/* STACK_RESERVE, or less under a smaller stack limit (ulimit -s), leaving room above it. */
+static size_t stack_to_reserve(void)
+{
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_STACK, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return STACK_RESERVE;
+    return limit.rlim_cur > (1 << 20) ? FM_MIN((size_t)STACK_RESERVE, (size_t)limit.rlim_cur - (512 << 10)) : 0;
+}
+
+static int reserve_stack(void)
+{
+    static char alternate[64 << 10];
+    stack_t ss = {.ss_sp = alternate, .ss_size = sizeof alternate}, off = {.ss_flags = SS_DISABLE};
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stack_fault, sa.sa_flags = SA_ONSTACK;
+    sigemptyset(&sa.sa_mask);
+    if (stack_to_reserve() == 0 || sigaltstack(&ss, NULL) != 0 || sigaction(SIGSEGV, &sa, &old) != 0) return 0;
+    const int failed = sigsetjmp(stack_fault, 1); /* no local is live across it (-Wclobbered) */
+    if (!failed) touch_stack(stack_to_reserve());
+    sigaction(SIGSEGV, &old, NULL);
+    sigaltstack(&off, NULL);
+    if (!failed) return 0;
+    fprintf(stderr, "flockmorph: error: out of memory: cannot have %zu MB of stack for the main thread (the "
+            "address-space limit, ulimit -v, is too low)\n", stack_to_reserve() >> 20);
+    return FM_ERR_MEMORY;
+}
+
 int main(int argc, char **argv)
 {
-    int rc = start_ranks(&argc, &argv);
+    int rc = reserve_stack();
+    if (rc) return rc;
+    rc = start_ranks(&argc, &argv);
     if (rc) return rc;
     rc = dispatch(argc, argv);
     fm_dist_finalize(cli_dist);
@@ -90,6 +154,8 @@ static int dispatch(int argc, char **argv)
     /* OpenMP's default team (OMP_NUM_THREADS, unbounded) capped as the engine caps it (fm_threads),
      * for any parallel region that does not name its thread count */
     omp_set_num_threads(fm_threads(0));
+    int rc = cli_threads_fit(fm_threads(0)); /* before any parallel region; run checks its --threads too */
+    if (rc) return rc;
     if (argc < 2) return fprintf(stderr, "%s", USAGE_MAIN), FM_ERR_USAGE;
     const char *cmd = argv[1];
     if (!strcmp(cmd, "--version") || !strcmp(cmd, "-V")) return printf("flockmorph %s\n", FM_VERSION_STRING), 0;

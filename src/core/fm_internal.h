@@ -75,10 +75,25 @@ char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, si
 #define FM_MAX_THREADS 1024
 #define FM_THREADS_PER_CORE 4
 int fm_threads(int requested);
+/* Starts this thread's OpenMP team of `threads` (issue 42): libgomp ends the process with exit 1
+ * ("Thread creation failed") when it cannot create a team's thread, as under ulimit -v when the
+ * stacks do not fit. So the threads are first tried as plain threads (the default stack size, as
+ * libgomp makes them without OMP_STACKSIZE; with it set, nothing is tried), whose failure can be
+ * reported, and the team is started at once in the room they leave; libgomp keeps its threads for
+ * every later region of as many threads on this thread, so none has to be made later, when the
+ * run's memory may have taken that room. 0, or the errno of the thread that could not start (the
+ * team is then not started). */
+int fm_threads_start_team(int threads);
 
 /* What the user can do about a failed write with this errno ("" if nothing specific): disk full,
  * file-size limit, read-only file system. */
 const char *fm_write_hint(int errnum);
+
+/* A library could not start (Embree's device: its threads and their memory). `what` names it;
+ * `code` is its error code and `says_memory` whether that code means out of memory. Out of memory
+ * (FM_ERR_MEMORY, exit 4) when it says so, or when an address-space limit (ulimit -v) is set, the
+ * likely cause of a start that fails for a reason the library does not give; internal otherwise. */
+fm_status fm_library_start_failed(fm_error *err, const char *what, int code, int says_memory);
 
 /* x in the fewest significant digits (up to 17) that read back as exactly x, so that two values a
  * message compares never print alike ("10000001 is out of range: must be <= 10000000", where %g

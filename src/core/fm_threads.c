@@ -3,6 +3,8 @@
 #include "fm_internal.h"
 
 #include <omp.h>
+#include <pthread.h>
+#include <stdlib.h>
 
 int fm_threads(int requested)
 {
@@ -10,4 +12,21 @@ int fm_threads(int requested)
     int n = omp_get_max_threads(), cap = FM_THREADS_PER_CORE * omp_get_num_procs();
     if (cap > FM_MAX_THREADS) cap = FM_MAX_THREADS;
     return n < 1 ? 1 : n < cap ? n : cap;
+}
+
+static void *thread_probe(void *arg) { return arg; }
+
+int fm_threads_start_team(int threads)
+{
+    const char *stack = getenv("OMP_STACKSIZE");
+    if (threads <= 1 || (stack && *stack)) return 0;
+    pthread_t t[FM_MAX_THREADS];
+    int started = 0, e = 0;
+    while (started < threads - 1 && started < FM_MAX_THREADS && (e = pthread_create(&t[started], NULL, thread_probe, NULL)) == 0)
+        started++;
+    for (int i = 0; i < started; i++) pthread_join(t[i], NULL);
+    if (e) return e;
+#pragma omp parallel num_threads(threads)
+    (void)0; /* the team, kept for later regions */
+    return 0;
 }

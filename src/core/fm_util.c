@@ -9,6 +9,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <time.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -228,3 +229,14 @@ char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, si
     return text;
 }
 
+
+fm_status fm_library_start_failed(fm_error *err, const char *what, int code, int says_memory)
+{
+    struct rlimit limit;
+    const int limited = getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY;
+    if (!says_memory && !limited)
+        return fm_fail(err, FM_ERR_INTERNAL, "%s could not start (error %d)", what, code);
+    char why[96] = "";
+    if (limited) snprintf(why, sizeof why, " (the address-space limit, ulimit -v, is %.0f MB)", (double)limit.rlim_cur / 1e6);
+    return fm_fail(err, FM_ERR_MEMORY, "out of memory: %s could not start (error %d)%s", what, code, why);
+}

@@ -349,8 +349,10 @@ static void on_embree_error(void *user, enum RTCError code, const char *str)
 static fm_status build_bvh(fm_closest *o, const fm_mesh *meshes, const char *what, fm_error *err)
 {
     o->device = rtcNewDevice(NULL);
-    if (!o->device)
-        return fm_fail(err, FM_ERR_INTERNAL, "Embree could not create a device (error %d)", (int)rtcGetDeviceError(NULL));
+    if (!o->device) {
+        const enum RTCError e = rtcGetDeviceError(NULL); /* reading it clears it */
+        return fm_library_start_failed(err, "Embree's device", (int)e, e == RTC_ERROR_OUT_OF_MEMORY);
+    }
     rtcSetDeviceErrorFunction(o->device, on_embree_error, o);
     o->scene = rtcNewScene(o->device);
     for (int m = 0; o->scene && m < o->count; m++) {

@@ -135,6 +135,19 @@ static fm_status check_faces(const struct aiScene *scene, const char *name, fm_e
     return FM_OK;
 }
 
+/* assimp failed to read (or triangulate) the mesh. Its C API catches its own exceptions and keeps
+ * only their text: an allocation that failed inside it (std::bad_alloc, under ulimit -v) is out of
+ * memory (exit 4), not a mesh it cannot read (issue 42). */
+static fm_status import_failed(const char *name, const char *step, fm_error *err)
+{
+    const char *why = aiGetErrorString();
+    if (strstr(why, "bad_alloc"))
+        return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory reading the mesh (assimp: %s)", name, why);
+    if (!strcmp(step, "read"))
+        return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, STL, OFF, glTF", name, why);
+    return fm_fail(err, FM_ERR_INPUT, "%s: cannot %s the mesh (%s)", name, step, why);
+}
+
 /* How take_scene hands the vertices over. */
 typedef enum vertex_mode {
     WELDED,        /* coincident vertices merged (fm_mesh_load) */
@@ -146,9 +159,7 @@ typedef enum vertex_mode {
 static fm_status take_scene(const struct aiScene *scene, const char *name, vertex_mode mode, fm_mesh *out,
                             int32_t **file_vertex, int64_t *file_count, fm_error *err)
 {
-    if (!scene)
-        return fm_fail(err, FM_ERR_INPUT, "%s: cannot read the mesh (%s); supported: OBJ, PLY, "
-                       "STL, OFF, glTF", name, aiGetErrorString());
+    if (!scene) return import_failed(name, "read", err);
     fm_status st = check_faces(scene, name, err);
     if (st != FM_OK) {
         aiReleaseImport(scene);
@@ -156,7 +167,7 @@ static fm_status take_scene(const struct aiScene *scene, const char *name, verte
     }
     /* releases the scene itself if a step fails */
     if (!(scene = aiApplyPostProcessing(scene, aiProcess_Triangulate | aiProcess_PreTransformVertices)))
-        return fm_fail(err, FM_ERR_INPUT, "%s: cannot triangulate the mesh (%s)", name, aiGetErrorString());
+        return import_failed(name, "triangulate", err);
     st = gather_triangles(scene, name, out, err);
     aiReleaseImport(scene);
     if (st == FM_OK) st = check_finite(out, name, err);

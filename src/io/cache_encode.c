@@ -5,6 +5,8 @@
 #include "cache_format.h"
 
 #include <omp.h>
+#include <zstd.h>
+#include <zstd_errors.h>
 #include <stdlib.h>
 
 uint64_t cache_encoder_blocks(const cache_encoder *e)
@@ -160,8 +162,10 @@ static fm_status first_failure(const cache_encoder *e, const void *const *data, 
                                e->path, k, e->l.attrs[i]->name, (long long)agent, (double)((const float *)data[i])[local],
                                e->l.opts.quantum);
             }
-            if (ZSTD_isError(packed[b]))
-                return fm_fail(err, FM_ERR_INTERNAL, "%s: zstd failed: %s", e->path, ZSTD_getErrorName(packed[b]));
+            if (ZSTD_isError(packed[b])) /* zstd allocates its window in the first call */
+                return fm_fail(err, ZSTD_getErrorCode(packed[b]) == ZSTD_error_memory_allocation ? FM_ERR_MEMORY
+                                                                                                   : FM_ERR_INTERNAL,
+                               "%s: zstd failed: %s", e->path, ZSTD_getErrorName(packed[b]));
         }
     return FM_OK;
 }

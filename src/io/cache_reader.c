@@ -352,6 +352,36 @@ static fm_status check_plausible(const fm_cache_reader *r, fm_error *err)
     return FM_OK;
 }
 
+/* The ratio check above leaves a lie of a few thousand times the agents (a header claiming 2^24
+ * agents in a cache of megabytes), which would still size buffers of gigabytes and fail as out of
+ * memory (exit 4) rather than as the damage it is (issue 42). Frame 0's chunk tells: the block
+ * table the header's agents imply must fit in it and add up to it (as every chunk's must when it is
+ * read), and its first block's zstd header, which states its content size (the writer always
+ * records it), must give the size those agents make. */
+static fm_status check_first_chunk(fm_cache_reader *r, fm_error *err)
+{
+    const uint64_t chunk = r->sizes[0], table = r->l.version == 1 ? 0 : cache_table_bytes(&r->l);
+    if (chunk < CACHE_CHUNK_HEADER || table > chunk - CACHE_CHUNK_HEADER)
+        return fm_fail(err, FM_ERR_INPUT, "%s: damaged header: %llu agents need a block table of %llu bytes, more than "
+                       "frame 0's chunk of %llu bytes holds", r->path, (unsigned long long)r->l.agents,
+                       (unsigned long long)table, (unsigned long long)chunk);
+    const size_t n = (size_t)FM_MIN(table + 18, chunk - CACHE_CHUNK_HEADER); /* 18: zstd's longest frame header */
+    unsigned char *bytes = malloc(n ? n : 1);
+    if (!bytes) return fm_fail(err, FM_ERR_MEMORY, "out of memory reading %s", r->path);
+    fm_status st = read_at(r, r->offsets[0] + CACHE_CHUNK_HEADER, bytes, n, err);
+    if (st == FM_OK && table > 0 && !block_sizes_ok(r, bytes, chunk - CACHE_CHUNK_HEADER))
+        st = fm_fail(err, FM_ERR_INPUT, "%s: damaged header: the block table that %llu agents make (%llu blocks) does "
+                     "not add up to frame 0's chunk", r->path, (unsigned long long)r->l.agents,
+                     (unsigned long long)(table / 8));
+    const unsigned long long stated = st == FM_OK ? ZSTD_getFrameContentSize(bytes + table, n - table) : 0;
+    const uint64_t want = r->l.version == 1 ? cache_attr_bytes(&r->l, 0) : cache_block_bytes(&r->l, 0, 0);
+    if (st == FM_OK && stated != ZSTD_CONTENTSIZE_UNKNOWN && stated != ZSTD_CONTENTSIZE_ERROR && stated != want)
+        st = fm_fail(err, FM_ERR_INPUT, "%s: damaged header: %llu agents make frame 0's first block %llu bytes, but it "
+                     "holds %llu", r->path, (unsigned long long)r->l.agents, (unsigned long long)want, stated);
+    free(bytes);
+    return st;
+}
+
 fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
 {
     fm_cache_reader *r = calloc(1, sizeof *r);
@@ -371,6 +401,7 @@ fm_cache_reader *fm_cache_open(const char *path, fm_error *err)
     if (st == FM_OK) st = read_index(r, err);
     if (st == FM_OK) st = check_header_frames(r, err);
     if (st == FM_OK) st = check_plausible(r, err);
+    if (st == FM_OK && r->frames > 0) st = check_first_chunk(r, err);
     if (st == FM_OK && r->frames > 0) st = alloc_buffers(r, err); /* no frames: nothing to read into */
     if (st != FM_OK) {
         fm_cache_close(r);

@@ -34,6 +34,7 @@ struct fm_cache_writer {
     /* the worker */
     pthread_t thread;
     int thread_started;
+    int team;                /* the worker's encoder team: 0 starting, 1 up, else the errno that stopped it */
     pthread_mutex_t lock;
     pthread_cond_t changed;
     /* A ring of frames handed over, attributes at attr_at. With two, the step loop hands frame k+1
@@ -111,13 +112,20 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, const char *path, fm
 static fm_cache_writer *writer_start(fm_cache_writer *w, fm_error *err)
 {
     w->out.keep_partial_on_failure = 1; /* a cache that fails to finish keeps its complete frames */
-    if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
-        fm_fail(err, FM_ERR_INTERNAL, "%s: cannot start the cache writer thread", w->out.path);
-        fm_cache_writer_abort(w);
-        return NULL;
+    int e = pthread_create(&w->thread, NULL, worker_main, w);
+    if (!e) { /* the worker starts its encoder team while this thread waits (and allocates nothing) */
+        pthread_mutex_lock(&w->lock);
+        while (!w->team) pthread_cond_wait(&w->changed, &w->lock);
+        pthread_mutex_unlock(&w->lock);
+        w->thread_started = 1;
+        if (w->team == 1) return w;
+        e = w->team;
     }
-    w->thread_started = 1;
-    return w;
+    /* EAGAIN: no memory for a stack (ulimit -v) or the thread limit; out of memory either way */
+    fm_fail(err, e == EAGAIN ? FM_ERR_MEMORY : FM_ERR_INTERNAL, "%s: cannot start the cache writer's threads: %s%s",
+            w->out.path, strerror(e), e == EAGAIN ? " (out of memory for their stacks, or the thread limit)" : "");
+    fm_cache_writer_abort(w);
+    return NULL;
 }
 
 fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents, double frame_rate,
@@ -207,7 +215,11 @@ static fm_status append_chunk(fm_cache_writer *w, uint64_t packed, fm_error *err
 static void *worker_main(void *arg)
 {
     fm_cache_writer *w = arg;
+    const int e = fm_threads_start_team(w->enc.threads); /* libgomp would end the process in the first frame */
     pthread_mutex_lock(&w->lock);
+    w->team = e ? e : 1;
+    pthread_cond_broadcast(&w->changed);
+    if (e) w->stop = 1;
     for (;;) {
         while (!w->queued && !w->stop) pthread_cond_wait(&w->changed, &w->lock);
         if (!w->queued) break;

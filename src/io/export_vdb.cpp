@@ -311,6 +311,8 @@ extern "C" fm_status fm_vdb_points_list_attrs(const char *path, char *out, size_
     out[0] = 0;
     try {
         return list_attrs(path, out, size, err);
+    } catch (const std::bad_alloc &) {
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory reading '%s'", path);
     } catch (const std::exception &e) {
         return fm_fail(err, FM_ERR_INPUT, "cannot read '%s': %s", path, e.what());
     }
@@ -322,6 +324,9 @@ extern "C" fm_status fm_vdb_points_read_attr(const char *path, const char *name,
     *n = 0, *components = 0, *values = nullptr;
     try {
         return read_attr(path, name, n, components, values, err);
+    } catch (const std::bad_alloc &) {
+        std::free(*values), *values = nullptr;
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory reading '%s'", path);
     } catch (const std::exception &e) {
         std::free(*values), *values = nullptr;
         return fm_fail(err, FM_ERR_INPUT, "cannot read '%s': %s", path, e.what());

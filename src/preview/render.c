@@ -218,8 +218,8 @@ static fm_status renderer_create(const fm_render_opts *opts, fm_renderer **out, 
     r->device = rtcNewDevice("threads=1");
     if (!r->device) {
         free(r);
-        return fm_fail(err, FM_ERR_INTERNAL, "render: Embree could not create a device (error %d)",
-                       (int)rtcGetDeviceError(NULL));
+        const enum RTCError e = rtcGetDeviceError(NULL); /* reading it clears it */
+        return fm_library_start_failed(err, "render: Embree's device", (int)e, e == RTC_ERROR_OUT_OF_MEMORY);
     }
     rtcSetDeviceErrorFunction(r->device, on_embree_error, r);
     srgb_edges(r->srgb_edge);

@@ -13,6 +13,7 @@
 #include <math.h>
 #include <signal.h>
 #include <spawn.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -197,6 +198,54 @@ static int sync_file(const char *path)
     return rc;
 }
 
+static uint64_t big_endian(const unsigned char *p, int bytes)
+{
+    uint64_t x = 0;
+    for (int i = 0; i < bytes; i++) x = x << 8 | p[i];
+    return x;
+}
+
+/* ffmpeg exits 0 even when writing its file failed (a full disk, a file-size limit: it logs the
+ * error and carries on; issue 42), leaving an MP4 without the index a player reads (the moov box).
+ * So the file is checked: its top-level boxes (a 32-bit size and a type; size 1: a 64-bit size
+ * follows; size 0: to the end) must tile it exactly, mdat and moov among them. NULL when it is
+ * whole, else what is wrong. */
+static const char *mp4_incomplete(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (f && fseeko(f, 0, SEEK_END) != 0) fclose(f), f = NULL;
+    if (!f) return "it cannot be read back";
+    const uint64_t size = (uint64_t)ftello(f);
+    uint64_t at = 0;
+    int moov = 0, mdat = 0;
+    const char *why = NULL;
+    while (!why && at < size) {
+        unsigned char h[16];
+        if (fseeko(f, (off_t)at, SEEK_SET) != 0 || fread(h, 1, 8, f) != 8) why = "it ends inside a box's header";
+        uint64_t box = why ? 0 : big_endian(h, 4);
+        if (!why && box == 1) box = fread(h + 8, 1, 8, f) == 8 ? big_endian(h + 8, 8) : 0;
+        else if (!why && box == 0) box = size - at;
+        if (!why && (box < 8 || box > size - at)) why = "a box runs past the end of the file";
+        moov |= !why && !memcmp(h + 4, "moov", 4), mdat |= !why && !memcmp(h + 4, "mdat", 4);
+        at += box;
+    }
+    fclose(f);
+    if (!why && !moov) why = "it has no moov box (the index a player reads)";
+    if (!why && !mdat) why = "it has no mdat box (the frames)";
+    return why;
+}
+
+/* ffmpeg exited 0 but its file is not whole: an I/O error naming what is wrong and quoting it. */
+static fm_status ffmpeg_left_incomplete(fm_video_writer *v, const char *why, fm_error *err)
+{
+    char tail[FM_VIDEO_LOG_QUOTE + 1];
+    log_tail(v->log, tail, sizeof tail);
+    remove(v->partial);
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': ffmpeg exited with 0 but the file it wrote is incomplete: %s "
+                   "(the disk is full or a file-size limit was reached?)%s%s", v->path, why,
+                   tail[0] ? "; it said:\n" : "", tail);
+}
+
 fm_status fm_video_finish(fm_video_writer *v, fm_error *err)
 {
     if (!v) return fm_fail(err, FM_ERR_USAGE, "video: no writer given");
@@ -208,8 +257,11 @@ fm_status fm_video_finish(fm_video_writer *v, fm_error *err)
     close_input(v); /* end of input: ffmpeg writes the file and exits */
     int sig = 0, code = wait_ffmpeg(v, &sig);
     fm_status st = FM_OK;
+    const char *incomplete = code == 0 ? mp4_incomplete(v->partial) : NULL;
     if (code != 0) {
         st = ffmpeg_failed(v, "failed", err);
+    } else if (incomplete) {
+        st = ffmpeg_left_incomplete(v, incomplete, err);
     } else if (sync_file(v->partial) != 0 || rename(v->partial, v->path) != 0) {
         int e = errno;
         remove(v->partial);

@@ -119,6 +119,17 @@ typedef enum param_type {
 
 enum { OPEN_MIN = 1, OPEN_MAX = 2, POSITIVE_WEIGHTS = 4 /* P_FUZZY: the curve's values are > 0 */ };
 
+/* Bounds that keep a run from blowing up (issue 42; docs/scene.md, "Ranges"), each far beyond any
+ * sane scene: speed0 10^6 units/s crosses a 10-unit scene (the meshes' usual size) 4000 times a
+ * frame at 24 fps; below 1/100 fps one step (time.time_step 0) lasts over 100 s; a mass of 10^-6
+ * keeps the largest force's acceleration (shape_flock.max_force 10^12 / 10^-6) far inside the
+ * float range of the step's velocities. Before, speed0 10^9, 10^-9 fps and a mass of 10^-300 ran
+ * until the state ran away (the runaway check still catches what a bound cannot: speed0 10^6 in a
+ * scene of one unit). */
+#define FM_SPEED0_MAX 1e6
+#define FM_FRAME_RATE_MIN 0.01
+#define FM_FLOCK_MASS_MIN 1e-6
+
 typedef struct param {
     const char *key;    /* dotted: "time.frame_rate" */
     param_type type;
@@ -202,9 +213,9 @@ static const param PARAMS[] = {
     {"tetgen.quality", P_DOUBLE, OFF(tet_quality), 1.1, 100, 0},
     {"tetgen.max_volume", P_DOUBLE, OFF(tet_max_volume), 0, 1e30, 0},
     {"tetgen.subdivision", P_ENUM, OFF(tet_subdivision), 0, 0, 0},
-    {"speed0", P_DOUBLE, OFF(speed0), 0, 1e9, 1},
+    {"speed0", P_DOUBLE, OFF(speed0), 0, FM_SPEED0_MAX, OPEN_MIN}, /* bounds: docs/scene.md, "Ranges" */
     {"omega1", P_DOUBLE, OFF(omega1), 0, 1e3, 1},
-    {"time.frame_rate", P_DOUBLE, OFF(frame_rate), 0, 1e4, 1},
+    {"time.frame_rate", P_DOUBLE, OFF(frame_rate), FM_FRAME_RATE_MIN, 1e4, 0},
     {"time.time_step", P_DOUBLE, OFF(time_step), 0, 1e3, 0},
     {"time.frame_limit", P_INT32, OFF(frame_limit), 1, 1e7, 0},
     {"path.points", P_POINTS, OFF(path_points), -1e9, 1e9, 0},
@@ -255,7 +266,7 @@ static const param PARAMS[] = {
     {"shape_flock.stratified.lambda", P_DOUBLE, OFF(flock.stratified_lambda), 0, 100, OPEN_MIN},
     {"shape_flock.stratified.oversample", P_DOUBLE, OFF(flock.stratified_oversample), 1, 16, 0},
     {"shape_flock.match", P_ENUM, OFF(flock.match), 0, 0, 0},
-    {"shape_flock.mass", P_DOUBLE, OFF(flock.mass), 0, 1e9, OPEN_MIN},
+    {"shape_flock.mass", P_DOUBLE, OFF(flock.mass), FM_FLOCK_MASS_MIN, 1e9, 0},
     {"shape_flock.max_speed", P_RANGE, OFF(flock.max_speed), 0, 1e9, OPEN_MIN},
     {"shape_flock.max_force", P_RANGE, OFF(flock.max_force), 0, 1e12, 0},
     {"shape_flock.separation.radius", P_RANGE, OFF(flock.separation.radius), 0, 1e6, 0},

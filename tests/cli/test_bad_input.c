@@ -241,7 +241,7 @@ static const flock_value_case FLOCK_VALUE_CASES[] = {
     {"\"max_speed\": @", "0", "shape_flock.max_speed", "0 is out of range: must be > 0"},
     {"\"max_speed\": @", "[12, 8]", "shape_flock.max_speed", "the range [12, 8] runs backwards"},
     {"\"max_force\": @", "-1", "shape_flock.max_force", "-1 is out of range: must be >= 0"},
-    {"\"mass\": @", "0", "shape_flock.mass", "0 is out of range: must be > 0"},
+    {"\"mass\": @", "0", "shape_flock.mass", "0 is out of range: must be >= 1e-06"},
     {"\"damping\": @", "-1", "shape_flock.damping", "-1 is out of range: must be >= 0"},
     {"\"external_gain\": @", "-1", "shape_flock.external_gain", "-1 is out of range: must be >= 0"},
     {"\"path_time\": @", "-1", "shape_flock.path_time", "-1 is out of range: must be >= 0"},
@@ -1074,34 +1074,70 @@ static void test_export_file_size_limit(void)
     ENSURE_MSG(!exists(ply), "%s is left", ply);
 }
 
-/* A small cache whose header claims 2^38 agents (its crc32 made to match) is refused as damaged by
- * inspect and export from the file's size, before anything is allocated for that many agents. */
-static void test_cache_agents_beyond_file(void)
+/* Rewrites the header of the cache at path to claim `agents`, its crc32 made to match. */
+static void claim_agents(const char *path, uint64_t agents)
 {
-    enum { AGENTS = 50 };
-    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
-    static float frame[12 * AGENTS];
-    fm_error err = {0};
-    fm_cache_writer *w = fm_cache_writer_create(tmp_path(path, "huge_agents.fmc"), AGENTS, 24, 1, &err);
-    ENSURE_MSG(w && fm_cache_writer_add_frame(w, frame, &err) == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK,
-               "%s", err.message);
     FILE *f = fopen(path, "r+b");
     unsigned char h[CACHE_MAX_HEADER];
     ENSURE(f && fread(h, 1, 64, f) == 64);
     if (!f) return;
     uint32_t header_bytes = get_u32(h + 12);
     ENSURE(header_bytes <= sizeof h && fseek(f, 0, SEEK_SET) == 0 && fread(h, 1, header_bytes, f) == header_bytes);
-    put_u64(h + 16, (uint64_t)1 << 38);
+    put_u64(h + 16, agents);
     put_u32(h + 52, 0); /* the crc32 is computed with its own field 0 */
     put_u32(h + 52, cache_crc32(0, h, header_bytes));
     ENSURE(fseek(f, 0, SEEK_SET) == 0 && fwrite(h, 1, header_bytes, f) == header_bytes);
     fclose(f);
-    cli_env limited = {.memory_limit = 2LL << 30};
+}
+
+/* A cache of `frames` frames of `agents` tets whose coordinates are random (incompressible). */
+static void write_random_cache(const char *path, int agents, int frames)
+{
+    float *frame = malloc(sizeof(float) * 12 * (size_t)agents);
+    uint64_t rng = 5;
+    fm_error err = {0};
+    fm_cache_writer *w = frame ? fm_cache_writer_create(path, (uint64_t)agents, 24, 1, &err) : NULL;
+    fm_status st = w ? FM_OK : FM_ERR_INTERNAL;
+    for (int k = 0; k < frames && st == FM_OK; k++) {
+        for (int i = 0; i < 12 * agents; i++) frame[i] = (float)test_uniform(&rng);
+        st = fm_cache_writer_add_frame(w, frame, &err);
+    }
+    ENSURE_MSG(st == FM_OK && fm_cache_writer_finish(w, &err) == FM_OK, "%s", err.message);
+    free(frame);
+}
+
+/* A cache of `frames` frames of `tets` random tets, its header claiming `agents`, under a memory
+ * limit of `limit` bytes: inspect, then `command` (export or render into PATH.EXT), each exit 2
+ * naming the cache and what it says. */
+static void expect_lying_header(const char *name, uint64_t agents, int tets, int frames, long long limit,
+                                const char *command, const char *ext, const char *says)
+{
+    char path[FM_PATH_MAX], args[3 * FM_PATH_MAX];
+    write_random_cache(tmp_path(path, name), tets, frames);
+    claim_agents(path, agents);
+    cli_env limited = {.memory_limit = limit};
     snprintf(args, sizeof args, "inspect '%s'", path);
-    expect_output(cli_with(&limited, args), 2, "inspect",
-                  (const char *const[]){path, "274877906944 agents cannot come from a file of", NULL});
-    snprintf(args, sizeof args, "export '%s' -o '%s.ply'", path, path);
-    expect_output(cli_with(&limited, args), 2, "export", (const char *const[]){path, "damaged header", NULL});
+    expect_output(cli_with(&limited, args), 2, "inspect", (const char *const[]){path, says, NULL});
+    snprintf(args, sizeof args, "%s '%s' -o '%s.%s'", command, path, path, ext);
+    expect_output(cli_with(&limited, args), 2, command, (const char *const[]){path, "damaged header", NULL});
+}
+
+/* A small cache whose header claims 2^38 agents (its crc32 made to match) is refused as damaged by
+ * inspect and export from the file's size, before anything is allocated for that many agents. */
+static void test_cache_agents_beyond_file(void)
+{
+    expect_lying_header("huge_agents.fmc", (uint64_t)1 << 38, 50, 1, 2LL << 30, "export", "ply",
+                        "274877906944 agents cannot come from a file of");
+}
+
+/* A header claiming 2^24 agents on a cache of 2 frames of 400 random tets (38 KB): the file's size
+ * could hold them at zstd's best ratio, so only the first frame tells the lie (issue 42). inspect
+ * and render under a memory limit that the buffers for 2^24 agents (800 MB a frame) pass refuse it
+ * as damaged input (exit 2), where they ended out of memory (exit 4). */
+static void test_cache_header_lies_within_the_file(void)
+{
+    expect_lying_header("lying_agents.fmc", (uint64_t)1 << 24, 400, 2, 1LL << 29, "render", "png",
+                        "damaged header: the block table that 16777216 agents make");
 }
 
 /* The library alone: a writer whose file hits the file-size limit (this process's, lowered for the
@@ -1144,22 +1180,36 @@ static void test_cache_writer_keeps_partial(void)
 
 /* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
  * first for the cache, then for stats.json after a complete cache. */
+/* Values that can only blow a run up are refused when the scene loads (issue 42), at their key's
+ * line and column, before any mesh is read: speed0 10^9, a frame rate of 10^-9, a flock mass of
+ * 10^-300 each used to run until the state ran away (test_scene loads every example with the bounds). */
+static void test_ranges_that_blow_up(void)
+{
+    expect_scene_error("fast.json", ",\n  \"speed0\": 1e9", "1e9", "speed0",
+                       "speed0: 1000000000 is out of range: must be <= 1000000");
+    expect_scene_error("slow_frames.json", ",\n  \"time\": {\"frame_rate\": 1e-9}", "1e-9", "time.frame_rate",
+                       "time.frame_rate: 1e-09 is out of range: must be >= 0.01");
+    expect_scene_error("light.json", ",\n  \"mode\": \"shape_flock\", \"n\": 40,\n  \"shape_flock\": {\"mass\": 1e-300}",
+                       "1e-300", "shape_flock.mass", "shape_flock.mass: 1e-300 is out of range: must be >= 1e-06");
+    ENSURE_MSG(!strstr(g_err, "ran away"), "%s", g_err);
+}
+
 /* A state that runs away stops the run with exit 2 and the parameters that set the speeds (issue
- * 15): the documented maximum speed0 flies the tets out of any scene in one frame, and a flock of
- * near-zero mass gets infinite accelerations. No stats.json, no cache under its final name; the
- * frames before the runaway stay readable in the .partial. */
+ * 15): the largest speed0 flies the tets out of this small scene in one frame, and a flock as fast
+ * as max_speed allows leaves it as fast. No stats.json, no cache under its final name; the frames
+ * before the runaway stay readable in the .partial. */
 static void test_runaway_state_is_an_error(void)
 {
     char cache[FM_PATH_MAX + 32];
-    EXPECT_RUN(plain_scene("runaway.json", ",\n  \"n\": 40, \"speed0\": 1e9"), 2, "frame 1: agent",
+    EXPECT_RUN(plain_scene("runaway.json", ",\n  \"n\": 40, \"speed0\": 1e6"), 2, "frame 1: agent",
                "flew over 1000 scene sizes out of the scene", "the simulation ran away", "speed0");
     snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
     ENSURE(!exists(cache) && exists(strcat(cache, ".partial")));
     snprintf(cache, sizeof cache, "%s/stats.json", g_outdir);
     ENSURE(!exists(cache));
-    EXPECT_RUN(plain_scene("runaway_flock.json", ",\n  \"mode\": \"shape_flock\", \"n\": 40,\n"
-                                                 "  \"shape_flock\": {\"mass\": 1e-300}"),
-               2, "is not finite", "the simulation ran away", "shape_flock.mass");
+    EXPECT_RUN(plain_scene("runaway_flock.json", ",\n  \"mode\": \"shape_flock\", \"n\": 40, \"speed0\": 1e6,\n"
+                                                 "  \"shape_flock\": {\"mass\": 1e-6, \"max_speed\": 1e9, \"max_force\": 1e12}"),
+               2, "the simulation ran away", "shape_flock.mass");
 }
 
 static void test_disk_full(void)
@@ -1276,8 +1326,8 @@ static void test_messages_name_what_decides(void)
     /* every digit that decides, not 1e+07 twice */
     expect_scene_error("frame_limit.json", ",\n  \"time\": {\"frame_limit\": 10000001}", "10000001", "time.frame_limit",
                        "10000001 is out of range: must be <= 10000000");
-    expect_scene_error("speed0.json", ",\n  \"speed0\": 1.0000000000000002e9", "1.0000000000000002e9", "speed0",
-                       "1000000000.0000002 is out of range: must be <= 1000000000");
+    expect_scene_error("speed0.json", ",\n  \"speed0\": 1000000.0000000001", "1000000.0000000001", "speed0",
+                       "1000000.0000000001 is out of range: must be <= 1000000");
     /* the distance switch's grid is the target's: no obstacles in the wording */
     const char *path = plain_scene("switch.json", ",\n  \"phase2\": {\"switch\": \"distance\", \"switch_distance\": 1e9}");
     char where[FM_PATH_MAX + 32];
@@ -1423,7 +1473,9 @@ int main(void)
     RUN_TEST(test_export_file_size_limit);
     RUN_TEST(test_cache_writer_keeps_partial);
     RUN_TEST(test_cache_agents_beyond_file);
+    RUN_TEST(test_cache_header_lies_within_the_file);
     RUN_TEST(test_disk_full);
+    RUN_TEST(test_ranges_that_blow_up);
     RUN_TEST(test_runaway_state_is_an_error);
     RUN_TEST(test_tetgen_volume_bound_too_fine);
     RUN_TEST(test_stratified_work_too_large);

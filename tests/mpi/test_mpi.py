@@ -20,7 +20,12 @@
   well below four processes (measured from outside); ranks counted as two machines give the same
   bytes (both modes);
 - failure: a full disk on rank 0 (ulimit -f; both modes) stops every rank with exit 3 and a readable partial
-  cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job.
+  cache; SIGTERM to mpirun stops the run, nothing hangs; a rank killed with SIGKILL ends the job;
+  ranks started on different jobs (an MPMD launch with another --set, --stop-after-frame, FM_
+  variable or --resume on rank 1) stop with exit 1 naming what differs, before any work, and the
+  checkpoint one rank was to resume from stays;
+- threads: 3 ranks on one machine without --threads share its cores (stats.json's threads) and a
+  short run stays short; --threads wins.
 
     test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
 """
@@ -36,6 +41,9 @@ import subprocess
 import sys
 import time
 import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "helpers"))
+from octahedron import octahedron_obj  # noqa: E402
 
 ARGS = None
 fmc = None  # python/flockmorph_cache.py, imported from --source
@@ -467,7 +475,82 @@ class Segments(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
 
 
+def tiny_scene(name, frames=30):
+    """An octahedron's tets flying 20 units to its copy: a run of a second or two."""
+    folder = os.path.join(ARGS.tmp, "mpi_scene_" + name)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, "octahedron.obj"), "w") as f:
+        f.write(octahedron_obj())
+    scene = {"source": {"mesh": "octahedron.obj", "translate": [-10, 0, 0]},
+             "target": {"mesh": "octahedron.obj", "translate": [10, 0, 0]}, "time": {"frame_limit": frames}}
+    path = os.path.join(folder, "scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    return path
+
+
+def run_command(scene, out, extra=()):
+    return [ARGS.cli, "run", scene, "-o", out, "--quiet", "--threads", "1", *extra]
+
+
+def mpmd(first, second, timeout=60):
+    """Rank 0 runs the command `first`, rank 1 `second` (an MPMD launch: each its own command line
+    and environment)."""
+    cmd = [ARGS.mpiexec, "--oversubscribe", "-n", "1", *first, ":", "-n", "1", *second]
+    return subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=timeout, env=env())
+
+
 class Failure(unittest.TestCase):
+    def check_refused(self, done, out, *parts):
+        """Ranks that run different jobs: exit 1 and one message naming rank 1 and what differs, and
+        nothing written in the output directory but the lock and the empty folder."""
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertEqual(done.stderr.count("flockmorph: error:"), 1, done.stderr)
+        self.assertIn("rank 1 of 2 does not run rank 0's job: ", done.stderr)
+        for part in parts:
+            self.assertIn(part, done.stderr)
+        for name in ("frames.fmc", "frames.fmc.partial", "stats.json", "wedge.json"):
+            self.assertFalse(os.path.exists(os.path.join(out, name)), name)
+
+    def test_ranks_with_different_overrides(self):
+        """An MPMD launch whose second rank has another --set: refused before any work (exit 1),
+        naming the scene and both ranks' arguments, where the cache was a mix of the two."""
+        scene, out = tiny_scene("sets"), os.path.join(ARGS.tmp, "mpi_sets")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out, ("--set", "speed0=10")), run_command(scene, out, ("--set", "speed0=11")))
+        self.check_refused(done, out, "the scene as loaded differs",
+                           f"(rank 0: {scene} --set speed0=10; rank 1: {scene} --set speed0=11)")
+
+    def test_ranks_with_different_options(self):
+        scene, out = tiny_scene("options"), os.path.join(ARGS.tmp, "mpi_options")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out), run_command(scene, out, ("--stop-after-frame", "3")))
+        self.check_refused(done, out, "--stop-after-frame differs (rank 0: not given; rank 1: 3)")
+
+    def test_ranks_with_different_environment(self):
+        """An FM_ variable only rank 1 has (mpirun's -x in its part of the launch)."""
+        scene, out = tiny_scene("environment"), os.path.join(ARGS.tmp, "mpi_environment")
+        shutil.rmtree(out, ignore_errors=True)
+        done = mpmd(run_command(scene, out), ["-x", "FM_JOB_NOTE=b"] + run_command(scene, out))
+        self.check_refused(done, out, "the environment variable FM_JOB_NOTE differs (rank 0: unset; rank 1: b)")
+
+    def test_rank_resuming_alone_keeps_the_checkpoint(self):
+        """Rank 1 alone asks to --resume: refused with exit 1 before rank 0, starting over, would
+        delete the checkpoint (and the partial cache) that the run is to resume from."""
+        scene, out = tiny_scene("resume"), os.path.join(ARGS.tmp, "mpi_resume_alone")
+        shutil.rmtree(out, ignore_errors=True)
+        stopped = subprocess.run(run_command(scene, out, ("--stop-after-frame", "3")), stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, timeout=60)
+        self.assertEqual(stopped.returncode, 0, stopped.stderr)
+        checkpoint = os.path.join(out, "checkpoint.fmck")
+        before = sha256(checkpoint)
+        done = mpmd(run_command(scene, out), run_command(scene, out, ("--resume",)))
+        self.assertEqual(done.returncode, 1, done.stderr)
+        self.assertIn("rank 1 of 2 does not run rank 0's job: --resume differs (rank 0: not given; rank 1: given)",
+                      done.stderr)
+        self.assertEqual(sha256(checkpoint), before)
+        self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), 4)
+
     def test_bad_input_only_the_first_rank_meets(self):
         """n below TetGen's tet count is found while the model is built, which only each machine's
         first rank does (ranks 0 and 2 of two "machines"): every rank stops with exit 2 and the one
@@ -576,6 +659,29 @@ class Failure(unittest.TestCase):
             self.fail("mpirun did not end within 120 s of a rank's death")
         self.assertNotEqual(proc.returncode, 0)
         self.assertFalse(os.path.exists(os.path.join(out, "frames.fmc")))
+
+
+class Threads(unittest.TestCase):
+    def ranks_threads(self, name, ranks, extra=()):
+        out = os.path.join(ARGS.tmp, "mpi_threads_" + name)
+        shutil.rmtree(out, ignore_errors=True)
+        cmd = [ARGS.mpiexec, "--oversubscribe", "-np", str(ranks), ARGS.cli, "run", tiny_scene("threads", frames=60),
+               "-o", out, "--quiet", *extra]
+        start = time.time()
+        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=120, env=env())
+        self.assertEqual(done.returncode, 0, done.stderr)
+        with open(os.path.join(out, "stats.json")) as f:
+            return json.load(f)["threads"], time.time() - start
+
+    def test_ranks_share_the_cores(self):
+        """3 ranks on this machine without --threads: each takes the cores / 3 (at least 1), not a
+        thread per core each (6 threads on 2 cores took a minute for this run of a second); an
+        explicit --threads still wins (2 ranks of 2 threads, 2 frames)."""
+        threads, seconds = self.ranks_threads("default", 3)
+        self.assertEqual(threads, max(1, os.cpu_count() // 3))
+        self.assertLess(seconds, 30)
+        threads, _ = self.ranks_threads("explicit", 2, ("--threads", "2", "--set", "time.frame_limit=2"))
+        self.assertEqual(threads, 2)
 
 
 def main():

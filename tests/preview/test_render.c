@@ -862,6 +862,22 @@ static void test_cli_mp4_without_ffmpeg(void)
     ENSURE(!file_exists(out) && !file_exists(partial));
 }
 
+/* A disk that fills while ffmpeg writes (a file-size limit of 2 KiB that ffmpeg inherits): ffmpeg
+ * logs the failed write and still exits 0, with an MP4 that has no index (issue 42). The render
+ * must fail (exit 3, saying the file is incomplete) and leave no file, under either name. */
+static void test_cli_mp4_disk_full(void)
+{
+    char cache[512], out[512], partial[600], args[2048];
+    tmp_path(cache, sizeof cache, "drift.fmc");
+    tmp_path(out, sizeof out, "full.mp4");
+    snprintf(partial, sizeof partial, "%s.partial", out);
+    remove(out);
+    snprintf(args, sizeof args, "render '%s' -o '%s' --size 256x192", cache, out);
+    ENSURE_EXIT("ulimit -f 2;", args, 3);
+    ENSURE_MSG(strstr(g_err, out) && strstr(g_err, "incomplete"), "%s", g_err);
+    ENSURE(!file_exists(out) && !file_exists(partial));
+}
+
 static void test_cli_usage_errors(void)
 {
     char cache[512], out[512], args[2048];
@@ -1089,6 +1105,7 @@ int main(void)
     RUN_TEST(test_errors);
     RUN_TEST(test_cli_mp4);
     RUN_TEST(test_cli_mp4_without_ffmpeg);
+    RUN_TEST(test_cli_mp4_disk_full);
     RUN_TEST(test_cli_usage_errors);
     RUN_TEST(test_cli_png);
     RUN_TEST(test_cli_camera_frames_the_shot);

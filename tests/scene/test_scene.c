@@ -157,6 +157,39 @@ static void test_boundary_values_accepted(void)
     ENSURE(d.seed == 0 && d.tet_quality == 1.1);
 }
 
+/* The bounds that keep a run from blowing up (issue 42; docs/scene.md, "Ranges") take their limits
+ * themselves, and every bundled example, each group of a shot too, still loads with them. */
+static void test_blow_up_bounds_accepted_at_their_limits(void)
+{
+    fm_scene_def d;
+    fm_error err = {0};
+    const char *text = "{" MESHES ", \"speed0\": 1e6, \"time\": {\"frame_rate\": 0.01}}";
+    ENSURE_MSG(load_text("blow_up_bounds.json", text, &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.speed0 == 1e6 && d.frame_rate == 0.01);
+    text = "{" MESHES ", \"mode\": \"shape_flock\", \"n\": 10, \"shape_flock\": {\"mass\": 1e-6}}";
+    ENSURE_MSG(load_text("light_flock.json", text, &d, &err) == FM_OK, "%s", err.message);
+    ENSURE(d.flock.mass == 1e-6);
+}
+
+static void test_every_example_loads(void)
+{
+    static const char *const scenes[] = {
+        "castling/scene.json", "castling/rook.json", "creatures/scene.json", "flock_bird/scene.json",
+        "flock_cylinder_sphere/scene.json", "flock_overlap/scene.json", "flock_sequence/scene.json",
+        "flock_suzanne_torus/scene.json", "flock_tracking/scene.json", "flock_travel/scene.json", "moon/scene.json",
+        "walking_suzanne/scene.json", "words/scene.json",
+    };
+    static fm_scene_def d, group;
+    for (size_t i = 0; i < sizeof scenes / sizeof scenes[0]; i++) {
+        char path[FM_PATH_MAX];
+        fm_error err = {0};
+        snprintf(path, sizeof path, "%s/examples/%s", FM_SOURCE_DIR, scenes[i]);
+        ENSURE_MSG(fm_scene_load(path, &d, &err) == FM_OK, "%s: %s", path, err.message);
+        for (int g = 0; g < d.group_count; g++)
+            ENSURE_MSG(fm_scene_load_group(path, NULL, 0, g, &group, &err) == FM_OK, "%s group %d: %s", path, g, err.message);
+    }
+}
+
 /* A scene given by a relative path: its meshes are relative to the scene's directory. */
 static void test_relative_scene_path(void)
 {
@@ -514,6 +547,8 @@ int main(void)
     RUN_TEST(test_valid_scene_fields);
     RUN_TEST(test_defaults_for_left_out_keys);
     RUN_TEST(test_boundary_values_accepted);
+    RUN_TEST(test_blow_up_bounds_accepted_at_their_limits);
+    RUN_TEST(test_every_example_loads);
     RUN_TEST(test_relative_scene_path);
     RUN_TEST(test_velocity_model_keys);
     RUN_TEST(test_target_motion_keys);
