@@ -26,11 +26,12 @@ static const char *const USAGE_EXPORT =
     "every frame of the range into one point cache for Blender's Mesh Cache modifier, Maya,\n"
     "3ds Max or Cinema 4D: a tet's 4 vertices, or a flock's agent positions, per frame.\n"
     "\n"
-    "Tets become 4 triangles each with id and phase (PLY, OBJ), VTK_TETRA cells with cell data\n"
-    "agent_id, velocity and phase (VTK), or points at their centroids (VDB). Points carry\n"
-    "Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY and VDB, and\n"
-    "id, velocity, orient and phase in VTK. A shot's cache adds group to each. VTK's data are\n"
-    "zlib-compressed as VTK writes them.\n"
+    "Tets become 4 triangles each (PLY: per vertex its velocity v and an id unique to it, 4 x the\n"
+    "tet's id + the vertex; per face the tet's agent_id and phase), VTK_TETRA cells with cell data\n"
+    "agent_id, velocity and phase and point data id (VTK), or points at their centroids (VDB).\n"
+    "Points carry Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY\n"
+    "and VDB, and id, velocity, orient and phase in VTK. A shot's cache adds group to each. VTK's\n"
+    "data are zlib-compressed as VTK writes them.\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
@@ -192,7 +193,9 @@ typedef struct export_job {
     double frame_rate;
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
-    int need_velocity;            /* VDB and VTK always (tets: the centroids'); point flocks in every format */
+    int need_velocity;            /* VDB and VTK always (tets: the centroids'), tet PLY (the vertices'); point
+                                     flocks in every format */
+    int vertex_velocity;          /* tet PLY: each vertex's own velocity rather than its centroid's */
     int cache_velocity, cache_ids, cache_phases, cache_groups, cache_orientation;
     int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
     int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
@@ -224,7 +227,9 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
         fprintf(stderr, "flockmorph: error: %s has neither tet vertices nor positions to export\n", job->cache);
         return FM_ERR_INPUT;
     }
-    job->need_velocity = job->format == FM_EXPORT_VDB || job->format == FM_EXPORT_VTK || job->points;
+    job->vertex_velocity = !job->points && job->format == FM_EXPORT_PLY;
+    job->need_velocity = job->format == FM_EXPORT_VDB || job->format == FM_EXPORT_VTK || job->points ||
+                         job->vertex_velocity;
     if (job->need_velocity && !(job->frame_rate > 0 && isfinite(job->frame_rate))) { /* VTK: and the .pvd's times */
         fprintf(stderr, "flockmorph: error: %s has frame rate %g; velocities and timesteps need a "
                 "positive one\n", job->cache, job->frame_rate);
@@ -239,6 +244,10 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
                              fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
     return job->houdini && job->points && !(job->pscale > 0) ? default_pscale(r, job) : 0;
 }
+
+/* The points velocities are taken at: a flock's agents, a tet PLY's vertices (4 a tet), or else the
+ * tets' centroids. */
+static size_t velocity_points(const export_job *job) { return (job->vertex_velocity ? 4 : 1) * job->agents; }
 
 /* How many frames the range exports, and the i-th of them. */
 static uint32_t frame_count(const export_job *job) { return (job->last - job->first) / job->step + 1; }
@@ -283,15 +292,15 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     size_t n = job->agents;
     int failed = 0;
     if (!job->points) s->tets = alloc_or_flag(sizeof(float) * 12 * n, &failed);
-    if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * velocity_points(job), &failed);
     if (job->cache_ids || job->houdini) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
     if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
     if (job->cache_groups) s->groups = alloc_or_flag(n, &failed);
     if (job->cache_orientation) s->orientation = alloc_or_flag(sizeof(float) * 4 * n, &failed);
     if (job->houdini) s->pscales = alloc_or_flag(sizeof(float) * n, &failed);
     if (job->houdini) s->ages = alloc_or_flag(sizeof(float) * n, &failed);
-    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for velocities */
-        if (job->need_velocity) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet vertices or centroids for velocities */
+        if (job->need_velocity) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * velocity_points(job), &failed);
         s->slot_frame[i] = -1;
     }
     if (!failed) return FM_OK;
@@ -316,8 +325,8 @@ static fm_status read_tets(frame_source *s, const export_job *job, uint32_t k, f
     return st;
 }
 
-/* Frame k's positions (a point flock's own, or its tets' centroids) while frame `center` is
- * exported: k is center or a neighbour, and the slots of the three stay. */
+/* Frame k's positions (a point flock's own, or its tets' vertices or centroids, velocity_points)
+ * while frame `center` is exported: k is center or a neighbour, and the slots of the three stay. */
 static fm_status positions(frame_source *s, const export_job *job, uint32_t k, uint32_t center,
                            const float **out, fm_error *err)
 {
@@ -331,7 +340,8 @@ static fm_status positions(frame_source *s, const export_job *job, uint32_t k, u
     s->slot_frame[free_slot] = -1;
     fm_status st = job->points ? read_vectors(s, job, k, FM_ATTR_POSITION, p, err) : read_tets(s, job, k, err);
     if (st != FM_OK) return st;
-    if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
+    if (job->vertex_velocity) memcpy(p, s->tets, sizeof(float) * 12 * job->agents);
+    else if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
     s->slot_frame[free_slot] = (long)k;
     *out = p;
     return FM_OK;
@@ -344,13 +354,13 @@ static fm_status difference_velocity(frame_source *s, const export_job *job, uin
     uint32_t before = k > 0 ? k - 1 : k, after = k + 1 < job->frames ? k + 1 : k;
     const float *a, *b;
     if (before == after) { /* a single frame: nothing moves */
-        memset(s->velocity, 0, sizeof(float) * 3 * job->agents);
+        memset(s->velocity, 0, sizeof(float) * 3 * velocity_points(job));
         return FM_OK;
     }
     fm_status st = positions(s, job, before, k, &a, err);
     if (st == FM_OK) st = positions(s, job, after, k, &b, err);
     double dt = (double)(after - before) / job->frame_rate;
-    if (st == FM_OK) fm_finite_difference(a, b, job->agents, dt, s->velocity);
+    if (st == FM_OK) fm_finite_difference(a, b, velocity_points(job), dt, s->velocity);
     return st;
 }
 
@@ -407,7 +417,8 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
     if (job->need_velocity) {
         st = job->cache_velocity ? read_vectors(s, job, k, FM_ATTR_VELOCITY, s->velocity, err)
                                  : difference_velocity(s, job, k, err);
-        f->velocities = s->velocity;
+        if (job->vertex_velocity) f->vertex_velocities = s->velocity;
+        else f->velocities = s->velocity;
     }
     if (st == FM_OK && !job->points) st = read_tets(s, job, k, err);
     if (st == FM_OK && (job->points || job->format == FM_EXPORT_VDB)) /* VDB writes tets as their centroids */

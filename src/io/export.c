@@ -132,17 +132,15 @@ static const struct {
                         {"age", "float", 1},   {"id", "int", 1},       {"phase", "uchar", 1},
                         {"group", "uchar", 1}};
 
-/* Points carry every attribute given and always their id; tets (4 vertices each, a tet's values
- * on all four) carry id, phase and group when given. */
+/* Points carry every attribute given and always their id. */
 static int has_prop(const fm_export_frame *f, int p)
 {
-    const int points = f->tet_vertices == NULL;
     switch (p) {
-    case P_V: return points && f->velocities;
-    case P_ORIENT: return points && f->orientations;
-    case P_PSCALE: return points && f->pscales;
-    case P_AGE: return points && f->ages;
-    case P_ID: return points || f->ids;
+    case P_V: return f->velocities != NULL;
+    case P_ORIENT: return f->orientations != NULL;
+    case P_PSCALE: return f->pscales != NULL;
+    case P_AGE: return f->ages != NULL;
+    case P_ID: return 1;
     case P_PHASE: return f->phases != NULL;
     default: return f->groups != NULL;
     }
@@ -171,19 +169,38 @@ static void ply_emit_props(fm_le_writer *w, const fm_export_frame *f, size_t i)
     if (has_prop(f, P_GROUP)) fm_le_u8(w, f->groups[i]);
 }
 
+/* Tets: the vertices carry their own velocity and a point id unique to each, 4 × the tet's id + the
+ * vertex (Houdini wants `id` unique per point); the tet's own id, phase and group go on each of its
+ * 4 faces, Houdini's primitive attributes. */
+static int ply_tets_header(FILE *file, const fm_export_frame *f)
+{
+    if (fprintf(file, PLY_VERTICES("tets"), 4 * f->n) < 0) return -1;
+    if (f->vertex_velocities && fputs("property float vx\nproperty float vy\nproperty float vz\n", file) < 0) return -1;
+    if (f->ids && fputs("property int id\n", file) < 0) return -1;
+    if (fprintf(file, "element face %zu\nproperty list uchar int vertex_indices\n", 4 * f->n) < 0) return -1;
+    if (f->ids && fputs("property int agent_id\n", file) < 0) return -1;
+    if (f->phases && fputs("property uchar phase\n", file) < 0) return -1;
+    if (f->groups && fputs("property uchar group\n", file) < 0) return -1;
+    return fputs("end_header\n", file) < 0 ? -1 : 0;
+}
+
 static void ply_tets_data(fm_le_writer *w, const void *data)
 {
     const fm_export_frame *frame = data;
     for (size_t t = 0; t < frame->n; t++) {
         for (int j = 0; j < 4; j++) {
             for (int k = 0; k < 3; k++) fm_le_f32(w, frame->tet_vertices[12 * t + 3 * j + k]);
-            ply_emit_props(w, frame, t);
+            for (int k = 0; frame->vertex_velocities && k < 3; k++) fm_le_f32(w, frame->vertex_velocities[12 * t + 3 * j + k]);
+            if (frame->ids) fm_le_u32(w, fm_tet_point_id(frame->ids[t], j));
         }
     }
     for (size_t t = 0; t < frame->n; t++) {
         for (int j = 0; j < 4; j++) {
             fm_le_u8(w, 3);
             for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
+            if (frame->ids) fm_le_u32(w, frame->ids[t]);
+            if (frame->phases) fm_le_u8(w, frame->phases[t]);
+            if (frame->groups) fm_le_u8(w, frame->groups[t]);
         }
     }
 }
@@ -191,11 +208,7 @@ static void ply_tets_data(fm_le_writer *w, const void *data)
 static int ply_tets_body(FILE *f, const void *data)
 {
     const fm_export_frame *frame = data;
-    size_t n = frame->n;
-    if (fprintf(f, PLY_VERTICES("tets"), 4 * n) < 0 || ply_prop_header(f, frame) ||
-        fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\nend_header\n", 4 * n) < 0)
-        return -1;
-    return fm_le_write(f, ply_tets_data, frame);
+    return ply_tets_header(f, frame) ? -1 : fm_le_write(f, ply_tets_data, frame);
 }
 
 static void ply_points_data(fm_le_writer *w, const void *data)
@@ -352,6 +365,17 @@ void fm_finite_difference(const float *before, const float *after, size_t n, dou
     for (size_t i = 0; i < 3 * n; i++) out[i] = (float)(((double)after[i] - before[i]) / dt);
 }
 
+/* The largest agent id a format holds: PLY's and VDB's ids are int32, VTK's UInt32, and a tet's
+ * point ids (PLY, VTK) go up to 4 × its id + 3; *what names the limit. */
+static uint32_t max_agent_id(const fm_export_frame *frame, fm_export_format format, const char **what)
+{
+    uint32_t most = format == FM_EXPORT_PLY || format == FM_EXPORT_VDB ? (uint32_t)INT32_MAX : UINT32_MAX;
+    *what = most == UINT32_MAX ? "UInt32 id" : "int32 id";
+    if (!frame->tet_vertices || (format != FM_EXPORT_PLY && format != FM_EXPORT_VTK)) return most;
+    *what = most == UINT32_MAX ? "UInt32 point ids (4 x the tet's id + 3)" : "int32 point ids (4 x the tet's id + 3)";
+    return (most - 3) / 4;
+}
+
 /* What a format can hold; an error names the limit. */
 static fm_status check_frame(const fm_export_frame *frame, fm_export_format format, const char *path,
                              fm_error *err)
@@ -365,10 +389,12 @@ static fm_status check_frame(const fm_export_frame *frame, fm_export_format form
     if (format == FM_EXPORT_PLY && n > limit)
         return fm_fail(err, FM_ERR_INPUT, "cannot export %zu agents to '%s': PLY int indices allow "
                        "at most %zu", n, path, limit);
-    for (size_t i = 0; frame->ids && (format == FM_EXPORT_PLY || format == FM_EXPORT_VDB) && i < n; i++)
-        if (frame->ids[i] > (uint32_t)INT32_MAX)
-            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit "
-                           "the format's int32 id", path, i, (unsigned)frame->ids[i]);
+    const char *what;
+    const uint32_t most = max_agent_id(frame, format, &what);
+    for (size_t i = 0; frame->ids && i < n; i++)
+        if (frame->ids[i] > most)
+            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit the format's "
+                           "%s", path, i, (unsigned)frame->ids[i], what);
     return FM_OK;
 }
 
