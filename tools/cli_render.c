@@ -10,7 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 static const char *const USAGE_RENDER =
@@ -254,20 +253,16 @@ static int fix_camera(frame_source *s, const render_args *a, const cli_triangles
 
 /* ---------------------------------------------------------------- obstacles */
 
-/* The mesh at path as the renderer's triangles (floats, unsigned indices). */
-static int load_triangles(const char *path, cli_triangles *t, fm_error *err)
+/* The mesh as the renderer's triangles (floats, unsigned indices). */
+static int take_triangles(const fm_mesh *m, cli_triangles *t)
 {
-    fm_mesh m = {0};
-    if (fm_mesh_load(path, &m, err) != FM_OK) return 1;
-    t->verts = malloc(3 * sizeof(float) * (size_t)m.nv);
-    t->tris = malloc(3 * sizeof(uint32_t) * (size_t)m.nt);
-    int ok = t->verts && t->tris;
-    for (int64_t i = 0; ok && i < 3 * m.nv; i++) t->verts[i] = (float)m.v[i];
-    for (int64_t i = 0; ok && i < 3 * m.nt; i++) t->tris[i] = (uint32_t)m.tri[i];
-    t->nv = (size_t)m.nv, t->nt = (size_t)m.nt;
-    fm_mesh_free(&m);
-    if (!ok) fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the obstacles", path);
-    return !ok;
+    t->verts = malloc(3 * sizeof(float) * (size_t)(m->nv ? m->nv : 1));
+    t->tris = malloc(3 * sizeof(uint32_t) * (size_t)(m->nt ? m->nt : 1));
+    if (!t->verts || !t->tris) return fprintf(stderr, "flockmorph: error: out of memory for the obstacles\n"), FM_ERR_MEMORY;
+    for (int64_t i = 0; i < 3 * m->nv; i++) t->verts[i] = (float)m->v[i];
+    for (int64_t i = 0; i < 3 * m->nt; i++) t->tris[i] = (uint32_t)m->tri[i];
+    t->nv = (size_t)m->nv, t->nt = (size_t)m->nt;
+    return 0;
 }
 
 /* The obstacles to draw: --obstacles FILE, or else obstacles.ply beside the cache when it is
@@ -277,17 +272,12 @@ static int load_obstacles(const render_args *a, cli_triangles *t)
 {
     memset(t, 0, sizeof *t);
     if (a->no_obstacles) return 0;
-    char beside[FM_PATH_MAX + 32];
-    const char *slash = strrchr(a->o.cache, '/');
-    snprintf(beside, sizeof beside, "%.*s" FM_OUTPUT_OBSTACLES, slash ? (int)(slash - a->o.cache + 1) : 0, a->o.cache);
-    struct stat st;
-    const char *path = a->obstacles ? a->obstacles : beside;
-    if (!a->obstacles && stat(beside, &st) != 0) return 0;
-    fm_error err = {0};
-    if (!load_triangles(path, t, &err)) return 0;
-    fprintf(stderr, "flockmorph: error: %s: %s%s\n", a->obstacles ? "--obstacles" : "the obstacles beside the cache",
-            err.message, a->obstacles ? "" : " (--no-obstacles leaves them out)");
-    return err.status ? (int)err.status : FM_ERR_INPUT;
+    fm_mesh m;
+    char path[FM_PATH_MAX + 32];
+    int rc = cli_cache_obstacles(a->o.cache, a->obstacles, &m, path);
+    if (!rc && path[0]) rc = take_triangles(&m, t);
+    fm_mesh_free(&m);
+    return rc;
 }
 
 static void free_triangles(cli_triangles *t)

@@ -121,6 +121,10 @@ void fm_pointcache_abort(fm_pointcache_writer *w);
 void fm_export_up_y(float *xyz, size_t n);
 void fm_export_up_y_quaternions(float *wxyz, size_t n);
 
+/* `export --scale S`: n vectors (positions, tet vertices, velocities) multiplied by scale in place,
+ * each product computed in double and rounded to float once; scale 1 changes nothing. */
+void fm_export_scale(float *xyz, size_t n, double scale);
+
 /* Each tet's centroid (the mean of its 4 vertices, in double): n × 12 floats in, n × 3 out. */
 void fm_tet_centroids(const float *verts, size_t n, float *out);
 

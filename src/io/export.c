@@ -251,6 +251,14 @@ static void ply_meshes_data(fm_le_writer *w, const void *data)
         }
 }
 
+/* A mesh's name on one line of a header: control characters (a newline in a file name) become '?'. */
+static int put_header_text(FILE *f, const char *s)
+{
+    for (; *s; s++)
+        if (fputc((unsigned char)*s < 0x20 ? '?' : *s, f) == EOF) return -1;
+    return 0;
+}
+
 static int ply_meshes_body(FILE *f, const void *data)
 {
     const ply_meshes *pm = data;
@@ -261,8 +269,9 @@ static int ply_meshes_body(FILE *f, const void *data)
         return -1;
     int64_t v0 = 0, t0 = 0;
     for (int i = 0; i < pm->count; v0 += pm->m[i].nv, t0 += pm->m[i].nt, i++)
-        if (fprintf(f, "comment %s: vertices %lld..%lld, faces %lld..%lld\n", pm->m[i].name, (long long)v0,
-                    (long long)(v0 + pm->m[i].nv - 1), (long long)t0, (long long)(t0 + pm->m[i].nt - 1)) < 0)
+        if (fputs("comment ", f) < 0 || put_header_text(f, pm->m[i].name) ||
+            fprintf(f, ": vertices %lld..%lld, faces %lld..%lld\n", (long long)v0, (long long)(v0 + pm->m[i].nv - 1),
+                    (long long)t0, (long long)(t0 + pm->m[i].nt - 1)) < 0)
             return -1;
     if (fprintf(f, "element vertex %lld\nproperty float x\nproperty float y\nproperty float z\n"
                 "element face %lld\nproperty list uchar int vertex_indices\nend_header\n", (long long)nv,
@@ -288,6 +297,36 @@ static int obj_vertices(FILE *f, const float *v, size_t count)
     for (size_t i = 0; i < count; i++, v += 3)
         if (fprintf(f, "v %.9g %.9g %.9g\n", (double)v[0], (double)v[1], (double)v[2]) < 0) return -1;
     return 0;
+}
+
+/* Triangle meshes (an export's obstacles): an `o` line per mesh, its vertices and its faces, the
+ * indices 1-based over the whole file. */
+static int obj_meshes_body(FILE *f, const void *data)
+{
+    const ply_meshes *pm = data;
+    if (fprintf(f, "# flockmorph %s: %d meshes\n", FM_VERSION_STRING, pm->count) < 0) return -1;
+    int64_t base = 1;
+    for (int i = 0; i < pm->count; base += pm->m[i].nv, i++) {
+        if (fputs("o ", f) < 0 || put_header_text(f, pm->m[i].name) || fputc('\n', f) == EOF) return -1;
+        for (int64_t j = 0; j < pm->m[i].nv; j++) {
+            const double *v = pm->m[i].v + 3 * j;
+            if (fprintf(f, "v %.9g %.9g %.9g\n", (double)(float)v[0], (double)(float)v[1], (double)(float)v[2]) < 0)
+                return -1;
+        }
+        for (int64_t t = 0; t < pm->m[i].nt; t++) {
+            const int32_t *c = pm->m[i].tri + 3 * t;
+            if (fprintf(f, "f %lld %lld %lld\n", (long long)(base + c[0]), (long long)(base + c[1]),
+                        (long long)(base + c[2])) < 0)
+                return -1;
+        }
+    }
+    return 0;
+}
+
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err)
+{
+    const ply_meshes pm = {meshes, count};
+    return fm_export_with_body(path, obj_meshes_body, &pm, err);
 }
 
 static int obj_tets_body(FILE *f, const void *data)
@@ -339,6 +378,12 @@ void fm_export_up_y(float *xyz, size_t n)
         float y = xyz[1];
         xyz[1] = xyz[2], xyz[2] = -y; /* exact: a permutation and a sign */
     }
+}
+
+void fm_export_scale(float *xyz, size_t n, double scale)
+{
+    if (scale == 1.0) return;
+    for (size_t i = 0; i < 3 * n; i++) xyz[i] = (float)(scale * xyz[i]);
 }
 
 void fm_export_up_y_quaternions(float *q, size_t n)

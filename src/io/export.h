@@ -60,6 +60,9 @@ typedef struct fm_ply_mesh {
  * run` writes the placed obstacles (OUTDIR/obstacles.ply), which Blender and Houdini import with the
  * cache's axes. */
 fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
+/* The same meshes as OBJ (`export --format obj`'s obstacles): an `o NAME` line per mesh, `v` lines
+ * printed with %.9g of the float (every float read back exactly), `f` lines 1-based over the file. */
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
 
 /* Component c (0 x, 1 y, 2 z, 3 w) of the quaternion q stored as the cache stores it, w, x, y, z:
  * Houdini's orient (PLY, VTK) is x, y, z, w. */

@@ -33,6 +33,7 @@ static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, 0, "", 0}; /* tet v
 static test_cache g_flock = {"flock.fmc", 0, 1, 1, 1, 1, "", 0};       /* a shape flock's five attributes */
 static test_cache g_flock_shot = {"flock_shot.fmc", 0, 1, 1, 1, 1, "", 1}; /* and a shot's group */
 static test_cache g_id_tets = {"idtets.fmc", 1, 0, 1, 1, 0, "", 1};    /* tet vertices, id, phase, group */
+static test_cache g_obstacle_tets = {"obst/shot.fmc", 1, 0, 0, 0, 0, "", 0}; /* with obstacles.ply beside it */
 static const char *g_cache = g_tets.path;
 
 static float g_frames[FRAMES][12 * AGENTS], g_pos[FRAMES][3 * AGENTS], g_vel[FRAMES][3 * AGENTS];
@@ -125,6 +126,9 @@ static void make_caches(void)
     write_cache(&g_flock);
     write_cache(&g_flock_shot);
     write_cache(&g_id_tets);
+    char dir[FM_PATH_MAX];
+    mkdir(export_tmp(dir, "obst"), 0777);
+    write_cache(&g_obstacle_tets);
 }
 
 /* ---------------------------------------------------------------- running the CLI */
@@ -805,6 +809,130 @@ static void test_houdini_vdb(void)
     free(pscale);
 }
 
+/* ---------------------------------------------------------------- axes, scale, presets, obstacles */
+
+/* The obstacle beside g_obstacle_tets: one tet whose vertex 0 is where agent 0's vertex 0 is in
+ * frame 0, so the two must land on the same point in every export. */
+static double g_obstacle[4][3];
+
+static void write_obstacles(void)
+{
+    static const double others[3][3] = {{1.5, -2.25, 3.0}, {-0.75, 0.5, -1.25}, {0.125, 4.0, 0.25}};
+    for (int k = 0; k < 3; k++) g_obstacle[0][k] = g_frames[0][k];
+    memcpy(g_obstacle[1], others, sizeof others);
+    static const int32_t tri[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    fm_ply_mesh mesh = {"obstacles.meshes[0] tet.obj", &g_obstacle[0][0], 4, tri, 4};
+    char path[FM_PATH_MAX];
+    fm_error err = {0};
+    ENSURE_MSG(fm_export_ply_meshes(&mesh, 1, export_tmp(path, "obst/obstacles.ply"), &err) == FM_OK, "%s", err.message);
+}
+
+/* p in the export's convention: (x, z, -y) for Y-up, then times scale, each rounded to float. */
+static void converted(const double p[3], int up_y, double scale, float out[3])
+{
+    float f[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    float turned[3] = {f[0], up_y ? f[2] : f[1], up_y ? -f[1] : f[2]};
+    for (int k = 0; k < 3; k++) out[k] = (float)(scale * turned[k]);
+}
+
+/* The file's vertices are the obstacle's, converted, in some order; and obstacle vertex 0 is the
+ * point `agent` (a vertex of the exported frame). */
+static void check_obstacle_vertices(const char *path, const float *vertices, size_t count, int up_y, double scale,
+                                    const float agent[3])
+{
+    ENSURE_MSG(count == 4, "%s: %zu vertices, expected 4", path, count);
+    for (int i = 0; count == 4 && i < 4; i++) {
+        float want[3];
+        converted(g_obstacle[i], up_y, scale, want);
+        int seen = 0;
+        for (size_t j = 0; j < count; j++) seen |= !memcmp(vertices + 3 * j, want, sizeof want);
+        ENSURE_MSG(seen, "%s: obstacle vertex %d (%g %g %g) is not at (%.9g %.9g %.9g)", path, i, g_obstacle[i][0],
+                   g_obstacle[i][1], g_obstacle[i][2], (double)want[0], (double)want[1], (double)want[2]);
+        if (i == 0)
+            ENSURE_MSG(!memcmp(want, agent, sizeof want), "%s: the obstacle's vertex at (%.9g %.9g %.9g), agent 0's "
+                       "vertex at (%.9g %.9g %.9g): not the same point", path, (double)want[0], (double)want[1],
+                       (double)want[2], (double)agent[0], (double)agent[1], (double)agent[2]);
+    }
+}
+
+/* A PLY's vertex element as floats x y z (read by its header alone). */
+static size_t ply_xyz(const char *path, float *out, size_t cap, const char *columns)
+{
+    export_ply_table t;
+    if (export_ply_read(path, "vertex", &t)) return 0;
+    char names[512];
+    export_ply_col_names(&t, names, sizeof names);
+    ENSURE_MSG(!strcmp(names, columns), "%s: vertex columns '%s', expected '%s'", path, names, columns);
+    size_t n = 0;
+    for (long r = 0; r < t.rows && n < cap; r++, n++)
+        for (int k = 0; k < 3; k++) out[3 * n + k] = (float)t.v[r * t.cols + k];
+    free(t.v);
+    return n;
+}
+
+/* OBJ `v` lines as floats. */
+static size_t obj_xyz(const char *path, float *out, size_t cap)
+{
+    FILE *f = fopen(path, "r");
+    char line[256];
+    size_t n = 0;
+    while (f && n < cap && fgets(line, sizeof line, f))
+        if (sscanf(line, "v %f %f %f", out + 3 * n, out + 3 * n + 1, out + 3 * n + 2) == 3) n++;
+    if (f) fclose(f);
+    return n;
+}
+
+/* --preset houdini turns the obstacles with the frames and names the files Houdini's way from
+ * 1001; --up y --scale S turns and scales both (OBJ frames: OBJ obstacles); an explicit --up z wins
+ * over the preset's; a point cache gets its obstacles beside it; --no-obstacles writes none. */
+static void test_obstacles_follow_the_frames(void)
+{
+    write_obstacles();
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], path[FM_PATH_MAX + 64];
+    float frame[3 * 4 * AGENTS], obstacle[3 * 8];
+    const char *tet_columns = "x y z vx vy vz id";
+    snprintf(args, sizeof args, "--format ply --frames 0:1 --preset houdini -o '%s'", fresh_dir(dir, "obst_houdini"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "shot.1001.ply shot.1002.ply shot_obstacles.ply"), "files '%s'", have);
+    snprintf(path, sizeof path, "%s/shot.1001.ply", dir);
+    ENSURE(ply_xyz(path, frame, 4 * AGENTS, tet_columns) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 1, 1.0, frame);
+
+    snprintf(args, sizeof args, "--format obj --frames 0 --up y --scale 2.5 -o '%s'", fresh_dir(dir, "obst_scale"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/shot_00000.obj", dir);
+    ENSURE(obj_xyz(path, frame, 4 * AGENTS) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.obj", dir);
+    check_obstacle_vertices(path, obstacle, obj_xyz(path, obstacle, 8), 1, 2.5, frame);
+
+    snprintf(args, sizeof args, "--format ply --frames 0 --preset houdini --up z -o '%s'", fresh_dir(dir, "obst_z"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/shot.1001.ply", dir);
+    ENSURE(ply_xyz(path, frame, 4 * AGENTS, tet_columns) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 0, 1.0, frame);
+
+    /* a point cache (Maya: Y-up, from frame 1) and its obstacles beside it, halved */
+    snprintf(path, sizeof path, "%s/anim.pc2", fresh_dir(dir, "obst_pc2"));
+    ENSURE(mkdir(dir, 0777) == 0);
+    snprintf(args, sizeof args, "--frames 0:2 --preset maya --scale 0.5 -o '%s'", path);
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    size_t size;
+    unsigned char *pc = slurp(path, &size);
+    ENSURE_MSG(size >= 44 && read_f32(pc + 20, 0) == 1.0f, "%s: start frame %g", path, size >= 24 ? (double)read_f32(pc + 20, 0) : -1.0);
+    for (int k = 0; k < 3 && size >= 44; k++) frame[k] = read_f32(pc + 32 + 4 * k, 0);
+    free(pc);
+    snprintf(path, sizeof path, "%s/anim_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 1, 0.5, frame);
+
+    snprintf(args, sizeof args, "--format vtk --frames 0 --preset blender --no-obstacles -o '%s'", fresh_dir(dir, "obst_none"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "shot.pvd shot_00001.vtu"), "files '%s'", have);
+}
+
 /* ---------------------------------------------------------------- point caches (PC2, MDD) */
 
 static uint32_t read_u32(const unsigned char *p, int big)
@@ -1002,6 +1130,10 @@ static void test_usage_errors(void)
         {"-o '%s/x.stl'", "-o", "extension"},
         {"--format vdb --voxel -1 -o '%s'", "--voxel", "'-1'"},
         {"--format ply --threads 0 -o '%s'", "--threads", "'0'"},
+        {"--format ply --scale 0 -o '%s'", "--scale", "'0'"},
+        {"--format ply --scale 1e7 -o '%s'", "--scale", "'1e7'"},
+        {"--format ply --preset nuke -o '%s'", "--preset", "'nuke'"},
+        {"--format ply --obstacles o.ply --no-obstacles -o '%s'", "--obstacles FILE", "--no-obstacles"},
     };
     char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
     fresh_dir(dir, "seq_errors");
@@ -1031,6 +1163,11 @@ static void test_io_errors(void)
     ENSURE_MSG(export_cmd(args) == 3 && strstr(g_err, "seq_00003.ply"), "exit and message: %s", g_err);
     snprintf(blocker, sizeof blocker, "%s/seq_00003.ply", dir);
     ENSURE(!export_file_exists(blocker));
+    /* an obstacle mesh that cannot be read: exit 2 naming it, before any frame is written */
+    snprintf(args, sizeof args, "--format ply -o '%s/obst' --obstacles '%s/none.ply'", dir, dir);
+    ENSURE_MSG(export_cmd(args) == 2 && strstr(g_err, "--obstacles") && strstr(g_err, "none.ply"), "exit and message: %s", g_err);
+    snprintf(blocker, sizeof blocker, "%s/obst/seq_00000.ply", dir);
+    ENSURE(!export_file_exists(blocker));
 }
 
 int main(void)
@@ -1054,6 +1191,7 @@ int main(void)
     RUN_TEST(test_up_y);
     RUN_TEST(test_tet_ply_ids_and_phases);
     RUN_TEST(test_houdini_vdb);
+    RUN_TEST(test_obstacles_follow_the_frames);
     RUN_TEST(test_threads_do_not_change_files);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_io_errors);
