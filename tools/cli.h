@@ -60,6 +60,9 @@ int cli_make_outdir(const char *dir, const char *const *names, int count);
  * cannot be read (exit 2, printed; beside the cache it says that --no-obstacles leaves it out). */
 struct fm_mesh;
 int cli_cache_obstacles(const char *cache, const char *given, struct fm_mesh *out, char path[FM_PATH_MAX + 32]);
+/* The scene file's name without its folder and its .json, or the folder's name for a file named
+ * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
+void cli_scene_stem(const char *scene, char *out, size_t size);
 /* Takes the output directory for this run until the process exits (an exclusive flock on
  * dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run holds it. */
 int cli_lock_outdir(const char *dir);
