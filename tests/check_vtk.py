@@ -6,7 +6,8 @@ writer (run by the export tests, tests/cli/test_export_cli.c and tests/io/test_e
       EXPECTED holds little-endian raw values: the Points coordinates (tets: 12n f32, points:
       3n f32), then each ARRAY's values in the order named (agent_id and id: n u32; phase, group: n u8;
       velocity: 3n f32; orient: 4n f32, x y z w). The cell data (tets) or point data (points)
-      must be exactly the ARRAYs named.
+      must be exactly the ARRAYs named. Tets' point data must be exactly `id`, unique per point:
+      4 × the tet's agent_id (from EXPECTED, or 0 … n−1 when not named) + the vertex, 0 … 3.
       vtu: the appended data must be compressed as VTK's vtkZLibDataCompressor writes it: per
       array a UInt64 header [blocks, block size, partial last block size or 0, compressed size
       of each block] and the zlib blocks, each inflating to exactly its size. vtu-raw: each array
@@ -144,6 +145,23 @@ def check_vtu(path, expected_path, kind, names, compressed):
         same = floats_equal_bits(got, want) if kind_name == "Float32" else got == want
         check(same, f"{name} differs from the expected values")
     check(at == len(expected), f"EXPECTED holds {len(expected)} bytes, the arrays named {at}")
+    if kind == "tets":
+        check_tet_point_ids(root, arrays, expected, names, n)
+
+
+def check_tet_point_ids(root, arrays, expected, names, n):
+    """Tets: PointData is `id` alone, 4 agent_id + j for vertex j of each tet: unique per point."""
+    have = section_names(root, "PointData")
+    check(have == ["id"], f"the tets' PointData holds {have}, expected ['id']")
+    agent_ids = tuple(range(n))
+    if "agent_id" in names:
+        at = 4 * 12 * n + sum(struct.calcsize("<%d%s" % (DATA_ARRAYS[m][1] * n, FORMATS[DATA_ARRAYS[m][0]]))
+                              for m in names[:names.index("agent_id")])
+        agent_ids = struct.unpack_from("<%dI" % n, expected, at)
+    want = tuple(4 * a + j for a in agent_ids for j in range(4))
+    got = arrays.get("id", ((), 1))[0]
+    check(got == want, "the tets' point ids are not 4 agent_id + 0 ... 3")
+    check(len(set(got)) == len(got), "the tets' point ids are not unique")
 
 
 def check_pvd(path, rate, frames):

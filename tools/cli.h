@@ -54,6 +54,15 @@ int cli_frame_name(char *out, size_t size, const char *pattern, long frame);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
+/* The obstacles that go with a cache (cli_obstacles.c): the mesh FILE of --obstacles (given), or
+ * else obstacles.ply beside the cache, which `run` writes, when it is there; path gets the file read
+ * ("" for none). 0 (out->nt is 0 when there are none), or the input error naming the file that
+ * cannot be read (exit 2, printed; beside the cache it says that --no-obstacles leaves it out). */
+struct fm_mesh;
+int cli_cache_obstacles(const char *cache, const char *given, struct fm_mesh *out, char path[FM_PATH_MAX + 32]);
+/* The scene file's name without its folder and its .json, or the folder's name for a file named
+ * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
+void cli_scene_stem(const char *scene, char *out, size_t size);
 /* Takes the output directory for this run until the process exits (an exclusive flock on
  * dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run holds it. */
 int cli_lock_outdir(const char *dir);

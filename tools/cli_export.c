@@ -5,6 +5,8 @@
  * one thread. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "export.h"
+#include "geom.h"
 
 #include <limits.h>
 #include <math.h>
@@ -26,25 +28,37 @@ static const char *const USAGE_EXPORT =
     "every frame of the range into one point cache for Blender's Mesh Cache modifier, Maya,\n"
     "3ds Max or Cinema 4D: a tet's 4 vertices, or a flock's agent positions, per frame.\n"
     "\n"
-    "Tets become 4 triangles each with id and phase (PLY, OBJ), VTK_TETRA cells with cell data\n"
-    "agent_id, velocity and phase (VTK), or points at their centroids (VDB). Points carry\n"
-    "Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY and VDB, and\n"
-    "id, velocity, orient and phase in VTK. A shot's cache adds group to each. VTK's data are\n"
-    "zlib-compressed as VTK writes them.\n"
+    "Tets become 4 triangles each (PLY: per vertex its velocity v and an id unique to it, 4 x the\n"
+    "tet's id + the vertex; per face the tet's agent_id and phase), VTK_TETRA cells with cell data\n"
+    "agent_id, velocity and phase and point data id (VTK), or points at their centroids (VDB).\n"
+    "Points carry Houdini's attributes v, orient (x, y, z, w), pscale, age, id and phase in PLY\n"
+    "and VDB, and id, velocity, orient and phase in VTK. A shot's cache adds group to each. VTK's\n"
+    "data are zlib-compressed as VTK writes them.\n"
     "\n"
     "options:\n"
     "  --frames A:B   frames A to B inclusive; A: to the last, :B from the first, K just one;\n"
     "                 negative numbers count from the end (-1 is the last); default: every frame;\n"
     "                 A:B:S every S-th frame from A (::2 every other frame)\n"
-    "  --voxel SIZE   VDB voxel size in world units (default: from the point density)\n"
+    "  --voxel SIZE   VDB voxel size in the file's units (default: from the point density)\n"
     "  --up z|y       y: turn Z-up into Y-up (Houdini, Maya): (x, y, z) -> (x, z, -y), also the\n"
     "                 velocities and orientations; default z (flockmorph's and Blender's axes)\n"
+    "  --scale S      multiply positions, tet vertices, velocities, pscale and the obstacles by S\n"
+    "                 (1e-6 to 1e6, after --up; default 1)\n"
+    "  --preset P     houdini: --up y --name '<cache name>.%04d.<ext>' --start 1001;\n"
+    "                 maya: --up y --name '<cache name>.%04d.<ext>' --start 1;\n"
+    "                 blender: --up z --start 1. A flag given as well wins over the preset's\n"
     "  --name PAT     sequence file names from a pattern with one %d (frames.%04d.ply)\n"
     "  --start N      number the first exported frame N in file names (and PC2's start frame),\n"
     "                 the others N + (frame - first); default: the cache's frame numbers\n"
-    "  --pscale R     points' pscale in world units (default: 0.45 x their median spacing in the\n"
-    "                 cache's last frame, the radius render draws); tets: each tet's radius\n"
+    "  --pscale R     points' pscale in the file's units (default: 0.45 x their median spacing in\n"
+    "                 the cache's last frame, the radius render draws, times --scale); tets: each\n"
+    "                 tet's radius\n"
     "  --threads N    frames written at once (default: one per core); the files do not change\n"
+    "  --obstacles F  the obstacle mesh to write with the frames (default: obstacles.ply beside the\n"
+    "                 cache, which run writes, if it is there): to <cache name>_obstacles.ply in\n"
+    "                 DIR, or FILE's name with _obstacles.ply, in the frames' axes and scale (.obj\n"
+    "                 for OBJ frames)\n"
+    "  --no-obstacles write no obstacles\n"
     "  --quiet        no progress display (it is shown only on a terminal anyway)\n"
     "\n"
     "docs/export.md says how Blender, Houdini and ParaView import each format.\n";
@@ -52,11 +66,30 @@ static const char *const USAGE_EXPORT =
 /* ---------------------------------------------------------------- options */
 
 typedef struct export_options {
-    const char *cache, *out, *format_name, *frames, *name;
+    const char *cache, *out, *format_name, *frames, *name, *obstacles;
     long frame, start;
-    int has_frame, has_start, threads, quiet, up_y;
-    double voxel, pscale;
+    int has_frame, has_start, threads, quiet, up_y, has_up, no_obstacles;
+    double voxel, pscale, scale;
+    const struct export_preset *preset;
 } export_options;
+
+/* --preset NAME: the flags it stands for (docs/export.md). Each applies where the form takes it
+ * (names to sequences, the start to sequences and point caches), and a flag given explicitly wins. */
+typedef struct export_preset {
+    const char *name;
+    int up_y;
+    int four_digit_names; /* --name '<cache name>.%04d.<ext>' (Houdini's $F4, Maya's ####) */
+    long start;
+} export_preset;
+
+static const export_preset PRESETS[] = {{"houdini", 1, 1, 1001}, {"maya", 1, 1, 1}, {"blender", 0, 0, 1}};
+
+static const export_preset *preset_named(const char *name)
+{
+    for (size_t i = 0; i < sizeof PRESETS / sizeof PRESETS[0]; i++)
+        if (!strcmp(name, PRESETS[i].name)) return &PRESETS[i];
+    return NULL;
+}
 
 static int parse_option(int argc, char **argv, int *i, export_options *o)
 {
@@ -77,8 +110,15 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     } else if (!strcmp(a, "--up")) {
         if (strcmp(value, "y") && strcmp(value, "z"))
             return cli_usage_error(USAGE_EXPORT, "--up wants z (as the cache) or y (Y-up), not '%s'", value);
-        o->up_y = !strcmp(value, "y");
-    } else if (!strcmp(a, "--name")) {
+        o->up_y = !strcmp(value, "y"), o->has_up = 1;
+    } else if (!strcmp(a, "--scale")) {
+        if (cli_parse_positive(value, &o->scale) || o->scale > 1e6 || o->scale < 1e-6)
+            return cli_usage_error(USAGE_EXPORT, "--scale wants a factor from 1e-6 to 1e6, not '%s'", value);
+    } else if (!strcmp(a, "--preset")) {
+        if (!(o->preset = preset_named(value)))
+            return cli_usage_error(USAGE_EXPORT, "--preset wants houdini, maya or blender, not '%s'", value);
+    } else if (!strcmp(a, "--obstacles")) o->obstacles = value;
+    else if (!strcmp(a, "--name")) {
         if (cli_check_frame_pattern(value) || strchr(value, '/'))
             return cli_usage_error(USAGE_EXPORT, "--name wants a file name with exactly one integer conversion "
                                    "(%%d, %%04d; %%%% for a literal %%) and no '/', not '%s'", value);
@@ -103,15 +143,19 @@ static int is_point_cache(fm_export_format f) { return f == FM_EXPORT_PC2 || f =
 static int parse_options(int argc, char **argv, export_options *o)
 {
     memset(o, 0, sizeof *o);
+    o->scale = 1.0;
     for (int i = 0; i < argc; i++) {
         int rc;
         if (!strcmp(argv[i], "--quiet") || !strcmp(argv[i], "-q")) o->quiet = 1;
+        else if (!strcmp(argv[i], "--no-obstacles")) o->no_obstacles = 1;
         else if (argv[i][0] == '-' && argv[i][1]) {
             if ((rc = parse_option(argc, argv, &i, o))) return rc;
         } else if (!o->cache) o->cache = argv[i];
         else return cli_usage_error(USAGE_EXPORT, "unexpected argument '%s'", argv[i]);
     }
     if (!o->cache) return cli_usage_error(USAGE_EXPORT, "%s", "no cache file given");
+    if (o->obstacles && o->no_obstacles)
+        return cli_usage_error(USAGE_EXPORT, "%s", "--obstacles FILE and --no-obstacles contradict each other: give one");
     if (!o->out) return cli_usage_error(USAGE_EXPORT, "%s", "no output given (-o DIR with --format, or -o FILE)");
     if (o->has_frame && (o->frames || o->format_name))
         return cli_usage_error(USAGE_EXPORT, "%s", "--frame K names one frame for -o FILE; with --format "
@@ -192,11 +236,17 @@ typedef struct export_job {
     double frame_rate;
     size_t agents;
     int points;                   /* a point flock (positions) rather than tets */
-    int need_velocity;            /* VDB and VTK always (tets: the centroids'); point flocks in every format */
+    int need_velocity;            /* VDB and VTK always (tets: the centroids'), tet PLY (the vertices'); point
+                                     flocks in every format */
+    int vertex_velocity;          /* tet PLY: each vertex's own velocity rather than its centroid's */
     int cache_velocity, cache_ids, cache_phases, cache_groups, cache_orientation;
     int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
     int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
+    double scale;                 /* --scale: every position, vertex, velocity and pscale times it */
     const char *name_pattern;     /* --name; NULL: <stem>_%05d.<ext> */
+    char preset_name[300];        /* the name pattern a --preset stands for */
+    long start;                   /* --start (or the preset's), when has_start */
+    int has_start;
     long number_offset;           /* a frame's number in names: k + number_offset (--start) */
     float pscale;                 /* points: the pscale of every agent */
 } export_job;
@@ -209,7 +259,7 @@ static int default_pscale(fm_cache_reader *r, export_job *job)
     float *p = malloc(sizeof(float) * 3 * (job->agents ? job->agents : 1));
     fm_status st = !p ? fm_fail(&err, FM_ERR_MEMORY, "out of memory for %zu positions", job->agents)
                    : job->frames ? fm_cache_read_attr(r, job->frames - 1, FM_ATTR_POSITION, p, &err) : FM_OK;
-    if (st == FM_OK) job->pscale = (float)fm_render_point_radius(p, job->frames ? job->agents : 0);
+    if (st == FM_OK) job->pscale = (float)(job->scale * fm_render_point_radius(p, job->frames ? job->agents : 0));
     free(p);
     return st == FM_OK ? 0 : cli_report(&err);
 }
@@ -224,7 +274,9 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
         fprintf(stderr, "flockmorph: error: %s has neither tet vertices nor positions to export\n", job->cache);
         return FM_ERR_INPUT;
     }
-    job->need_velocity = job->format == FM_EXPORT_VDB || job->format == FM_EXPORT_VTK || job->points;
+    job->vertex_velocity = !job->points && job->format == FM_EXPORT_PLY;
+    job->need_velocity = job->format == FM_EXPORT_VDB || job->format == FM_EXPORT_VTK || job->points ||
+                         job->vertex_velocity;
     if (job->need_velocity && !(job->frame_rate > 0 && isfinite(job->frame_rate))) { /* VTK: and the .pvd's times */
         fprintf(stderr, "flockmorph: error: %s has frame rate %g; velocities and timesteps need a "
                 "positive one\n", job->cache, job->frame_rate);
@@ -238,6 +290,17 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
     job->cache_orientation = (job->houdini || job->format == FM_EXPORT_VTK) && job->points &&
                              fm_cache_has_attr(r, FM_ATTR_ORIENTATION);
     return job->houdini && job->points && !(job->pscale > 0) ? default_pscale(r, job) : 0;
+}
+
+/* The points velocities are taken at: a flock's agents, a tet PLY's vertices (4 a tet), or else the
+ * tets' centroids. */
+static size_t velocity_points(const export_job *job) { return (job->vertex_velocity ? 4 : 1) * job->agents; }
+
+/* n vectors from the cache's axes and units into the export's: --up y, then --scale. */
+static void to_output(const export_job *job, float *xyz, size_t n)
+{
+    if (job->up_y) fm_export_up_y(xyz, n);
+    fm_export_scale(xyz, n, job->scale);
 }
 
 /* How many frames the range exports, and the i-th of them. */
@@ -283,15 +346,15 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     size_t n = job->agents;
     int failed = 0;
     if (!job->points) s->tets = alloc_or_flag(sizeof(float) * 12 * n, &failed);
-    if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    if (job->need_velocity) s->velocity = alloc_or_flag(sizeof(float) * 3 * velocity_points(job), &failed);
     if (job->cache_ids || job->houdini) s->ids = alloc_or_flag(sizeof(uint32_t) * n, &failed);
     if (job->cache_phases) s->phases = alloc_or_flag(n, &failed);
     if (job->cache_groups) s->groups = alloc_or_flag(n, &failed);
     if (job->cache_orientation) s->orientation = alloc_or_flag(sizeof(float) * 4 * n, &failed);
     if (job->houdini) s->pscales = alloc_or_flag(sizeof(float) * n, &failed);
     if (job->houdini) s->ages = alloc_or_flag(sizeof(float) * n, &failed);
-    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet centroids for velocities */
-        if (job->need_velocity) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * n, &failed);
+    for (int i = 0; i < POSITION_SLOTS; i++) { /* positions: points, or tet vertices or centroids for velocities */
+        if (job->need_velocity) s->slot[i] = alloc_or_flag(sizeof(float) * 3 * velocity_points(job), &failed);
         s->slot_frame[i] = -1;
     }
     if (!failed) return FM_OK;
@@ -299,25 +362,25 @@ static fm_status source_open(frame_source *s, const export_job *job, fm_error *e
     return fm_fail(err, FM_ERR_MEMORY, "out of memory for the buffers of %zu agents", n);
 }
 
-/* An attribute of 3-vectors (position, velocity) of frame k, turned Y-up with --up y. */
+/* An attribute of 3-vectors (position, velocity) of frame k, in the export's axes and units. */
 static fm_status read_vectors(frame_source *s, const export_job *job, uint32_t k, fm_cache_attr attr, float *out,
                               fm_error *err)
 {
     fm_status st = fm_cache_read_attr(s->r, k, attr, out, err);
-    if (st == FM_OK && job->up_y) fm_export_up_y(out, job->agents);
+    if (st == FM_OK) to_output(job, out, job->agents);
     return st;
 }
 
-/* Frame k's tet vertices into s->tets. */
+/* Frame k's tet vertices into s->tets, in the export's axes and units. */
 static fm_status read_tets(frame_source *s, const export_job *job, uint32_t k, fm_error *err)
 {
     fm_status st = fm_cache_read_frame(s->r, k, s->tets, err);
-    if (st == FM_OK && job->up_y) fm_export_up_y(s->tets, 4 * job->agents);
+    if (st == FM_OK) to_output(job, s->tets, 4 * job->agents);
     return st;
 }
 
-/* Frame k's positions (a point flock's own, or its tets' centroids) while frame `center` is
- * exported: k is center or a neighbour, and the slots of the three stay. */
+/* Frame k's positions (a point flock's own, or its tets' vertices or centroids, velocity_points)
+ * while frame `center` is exported: k is center or a neighbour, and the slots of the three stay. */
 static fm_status positions(frame_source *s, const export_job *job, uint32_t k, uint32_t center,
                            const float **out, fm_error *err)
 {
@@ -331,7 +394,8 @@ static fm_status positions(frame_source *s, const export_job *job, uint32_t k, u
     s->slot_frame[free_slot] = -1;
     fm_status st = job->points ? read_vectors(s, job, k, FM_ATTR_POSITION, p, err) : read_tets(s, job, k, err);
     if (st != FM_OK) return st;
-    if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
+    if (job->vertex_velocity) memcpy(p, s->tets, sizeof(float) * 12 * job->agents);
+    else if (!job->points) fm_tet_centroids(s->tets, job->agents, p);
     s->slot_frame[free_slot] = (long)k;
     *out = p;
     return FM_OK;
@@ -344,13 +408,13 @@ static fm_status difference_velocity(frame_source *s, const export_job *job, uin
     uint32_t before = k > 0 ? k - 1 : k, after = k + 1 < job->frames ? k + 1 : k;
     const float *a, *b;
     if (before == after) { /* a single frame: nothing moves */
-        memset(s->velocity, 0, sizeof(float) * 3 * job->agents);
+        memset(s->velocity, 0, sizeof(float) * 3 * velocity_points(job));
         return FM_OK;
     }
     fm_status st = positions(s, job, before, k, &a, err);
     if (st == FM_OK) st = positions(s, job, after, k, &b, err);
     double dt = (double)(after - before) / job->frame_rate;
-    if (st == FM_OK) fm_finite_difference(a, b, job->agents, dt, s->velocity);
+    if (st == FM_OK) fm_finite_difference(a, b, velocity_points(job), dt, s->velocity);
     return st;
 }
 
@@ -407,7 +471,8 @@ static fm_status load_frame(frame_source *s, const export_job *job, uint32_t k, 
     if (job->need_velocity) {
         st = job->cache_velocity ? read_vectors(s, job, k, FM_ATTR_VELOCITY, s->velocity, err)
                                  : difference_velocity(s, job, k, err);
-        f->velocities = s->velocity;
+        if (job->vertex_velocity) f->vertex_velocities = s->velocity;
+        else f->velocities = s->velocity;
     }
     if (st == FM_OK && !job->points) st = read_tets(s, job, k, err);
     if (st == FM_OK && (job->points || job->format == FM_EXPORT_VDB)) /* VDB writes tets as their centroids */
@@ -559,7 +624,7 @@ static fm_status point_cache_frame(fm_cache_reader *r, const export_job *job, ui
                                    fm_error *err)
 {
     fm_status st = job->points ? fm_cache_read_attr(r, k, FM_ATTR_POSITION, xyz, err) : fm_cache_read_frame(r, k, xyz, err);
-    if (st == FM_OK && job->up_y) fm_export_up_y(xyz, job->points ? job->agents : 4 * job->agents);
+    if (st == FM_OK) to_output(job, xyz, job->points ? job->agents : 4 * job->agents);
     return st;
 }
 
@@ -590,6 +655,62 @@ static int export_point_cache(const export_job *job, int quiet)
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
+/* ---------------------------------------------------------------- obstacles */
+
+/* Where the obstacles go: DIR/<stem>_obstacles.ply for a sequence; for one file or a point cache,
+ * its path without the extension and _obstacles.ply. .obj when the frames are OBJ. -1 if too long. */
+static int obstacles_path(const export_job *job, char out[CLI_PATH_BUF])
+{
+    const char *ext = job->format == FM_EXPORT_OBJ ? "obj" : "ply";
+    int len;
+    if (!job->out_file) len = snprintf(out, CLI_PATH_BUF, "%s/%s_obstacles.%s", job->dir, job->stem, ext);
+    else {
+        const char *slash = strrchr(job->out_file, '/'), *dot = strrchr(job->out_file, '.');
+        int keep = dot && (slash ? dot > slash + 1 : dot > job->out_file) ? (int)(dot - job->out_file)
+                                                                          : (int)strlen(job->out_file);
+        len = snprintf(out, CLI_PATH_BUF, "%.*s_obstacles.%s", keep, job->out_file, ext);
+    }
+    return len < 0 || len >= FM_PATH_MAX ? -1 : 0;
+}
+
+/* The mesh's vertices as the frames' are converted: to float, then --up and --scale. */
+static int convert_mesh(const export_job *job, fm_mesh *m)
+{
+    float *xyz = malloc(sizeof(float) * 3 * (size_t)(m->nv ? m->nv : 1));
+    if (!xyz) return fprintf(stderr, "flockmorph: error: out of memory for the obstacles\n"), FM_ERR_MEMORY;
+    for (int64_t i = 0; i < 3 * m->nv; i++) xyz[i] = (float)m->v[i];
+    to_output(job, xyz, (size_t)m->nv);
+    for (int64_t i = 0; i < 3 * m->nv; i++) m->v[i] = xyz[i];
+    free(xyz);
+    return 0;
+}
+
+/* The cache's obstacles (--obstacles FILE, or obstacles.ply beside it, which run writes) in the
+ * frames' axes and units, so that they stand where the flock flies round them in the tool that reads
+ * the export; written gets the file ("" for none). */
+static int export_obstacles(const export_options *o, const export_job *job, char written[CLI_PATH_BUF])
+{
+    written[0] = 0;
+    if (o->no_obstacles) return 0;
+    fm_mesh m;
+    char source[FM_PATH_MAX + 32], name[FM_PATH_MAX + 96];
+    int rc = cli_cache_obstacles(o->cache, o->obstacles, &m, source);
+    if (!rc && source[0] && obstacles_path(job, written))
+        rc = cli_usage_error(USAGE_EXPORT, "-o %s: the obstacles' path would be too long", o->out);
+    if (!rc && source[0]) rc = convert_mesh(job, &m);
+    if (!rc && source[0]) {
+        snprintf(name, sizeof name, "obstacles from %s, up %s, scale %.9g", source, job->up_y ? "y" : "z", job->scale);
+        fm_ply_mesh view = {name, m.v, m.nv, m.tri, m.nt};
+        fm_error err = {0};
+        fm_status st = job->format == FM_EXPORT_OBJ ? fm_export_obj_meshes(&view, 1, written, &err)
+                                                     : fm_export_ply_meshes(&view, 1, written, &err);
+        if (st != FM_OK) rc = cli_report(&err);
+    }
+    fm_mesh_free(&m);
+    if (rc || !source[0]) written[0] = 0;
+    return rc;
+}
+
 /* ---------------------------------------------------------------- the command */
 
 /* The cache's file name without its extension: frames.fmc -> frames. */
@@ -601,6 +722,22 @@ static void cache_stem(const char *cache, char *stem, size_t size)
     snprintf(stem, size, "%.*s", (int)FM_MIN(len, size - 1), base);
 }
 
+/* The flags --preset stands for, where none was given and the form takes them. */
+static void apply_preset(const export_options *o, export_job *job)
+{
+    const export_preset *p = o->preset;
+    if (!o->has_up) job->up_y = p->up_y;
+    if (!o->has_start && (!job->out_file || is_point_cache(job->format))) job->has_start = 1, job->start = p->start;
+    if (o->name || job->out_file || !p->four_digit_names) return;
+    size_t n = 0; /* <stem>.%04d.<ext>, a '%' of the stem doubled */
+    for (const char *c = job->stem; *c && n + 2 < sizeof job->preset_name - 16; c++) {
+        if (*c == '%') job->preset_name[n++] = '%';
+        job->preset_name[n++] = *c;
+    }
+    snprintf(job->preset_name + n, sizeof job->preset_name - n, ".%%04d.%s", fm_export_extension(job->format));
+    job->name_pattern = job->preset_name;
+}
+
 /* Format, output and frames from the options, before the cache is opened. */
 static int plan_job(const export_options *o, export_job *job, frame_range *range)
 {
@@ -608,7 +745,8 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
     job->cache = o->cache;
     job->opts = fm_default_export_options();
     job->opts.voxel_size = o->voxel;
-    job->up_y = o->up_y, job->name_pattern = o->name, job->pscale = (float)o->pscale;
+    job->up_y = o->up_y, job->name_pattern = o->name, job->pscale = (float)o->pscale, job->scale = o->scale;
+    job->has_start = o->has_start, job->start = o->start;
     if (o->format_name) {
         job->format = fm_export_format_named(o->format_name);
         if (job->format == FM_EXPORT_UNKNOWN)
@@ -631,6 +769,7 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
                                "ply|obj|vtk|vdb and -o DIR", o->name);
     if (o->has_start && job->out_file && !is_point_cache(job->format))
         return cli_usage_error(USAGE_EXPORT, "%s", "--start numbers a sequence or a point cache, not one file");
+    if (o->preset) apply_preset(o, job);
     memset(range, 0, sizeof *range);
     range->option = o->frames ? "--frames" : "--frame";
     if (o->has_frame) snprintf(range->text, sizeof range->text, "%ld", o->frame);
@@ -682,11 +821,13 @@ int cli_export(int argc, char **argv)
     rc = describe_cache(r, &job);
     fm_cache_close(r);
     if (!rc) rc = resolve_range(&range, o.cache, job.frames, &job.first, &job.last, &job.step);
-    if (!rc && o.has_start) job.number_offset = o.start - (long)job.first;
+    if (!rc && job.has_start) job.number_offset = job.start - (long)job.first;
     if (!rc && !job.out_file) rc = cli_make_outdir(job.dir, NULL, 0);
+    char pvd[CLI_PATH_BUF] = "", obstacles[CLI_PATH_BUF] = "";
+    if (!rc) rc = export_obstacles(&o, &job, obstacles); /* first: a mesh that cannot be read stops it all */
     if (!rc) rc = is_point_cache(job.format) ? export_point_cache(&job, o.quiet) : export_frames(&job, o.threads, o.quiet);
-    char pvd[CLI_PATH_BUF] = "";
     if (!rc && !job.out_file && job.format == FM_EXPORT_VTK) rc = write_pvd(&job, pvd);
     if (!rc) print_summary(&job, pvd);
+    if (!rc && obstacles[0]) printf("obstacles -> %s\n", obstacles);
     return rc;
 }

@@ -2,6 +2,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 #include "cli_colour.h"
+#include "cli_render_burnin.h"
 #include "cli_render_camera.h"
 #include "geom.h"
 
@@ -10,7 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 static const char *const USAGE_RENDER =
@@ -20,8 +20,8 @@ static const char *const USAGE_RENDER =
     "\n"
     "Ray casts the tets (or, for a point cache, spheres) with Embree: a key light with hard shadows,\n"
     "a ground plane, a colour per agent (--color), and the scene's obstacles (obstacles.ply beside\n"
-    "the cache, which 'flockmorph run' writes) in a light warm grey. The camera frames each frame's\n"
-    "agents and the obstacles near them, smoothed over about a second of frames (--camera).\n"
+    "the cache, which 'flockmorph run' writes) in a light warm grey. The camera frames the whole\n"
+    "shot, every agent of every frame from source to target and the obstacles near them (--camera).\n"
     "The output's extension picks the format: .png renders frame K (default: the last; negative\n"
     "counts from the end); .mp4 renders frames A to B inclusive (default: all; A:, :B and a single\n"
     "K work too; A:B:S every S-th) into H.264 with the ffmpeg program, at F frames per second\n"
@@ -36,9 +36,11 @@ static const char *const USAGE_RENDER =
     "  --samples N     N x N rays per pixel for smoother edges (1..8, default 1)\n"
     "  --radius R      sphere radius of a point cache's agents (default: from their spacing)\n"
     "  --no-ground     leave out the ground plane\n"
-    "  --camera C      frame (default): fitted to each frame's agents and the obstacles near them,\n"
-    "                  smoothed over about a second of frames; animation: one camera fitted to\n"
-    "                  every agent of every frame\n"
+    "  --camera C      shot (default): one camera fitted to every agent of every frame and the\n"
+    "                  obstacles near them; frame: fitted to each frame's agents and the obstacles\n"
+    "                  near them, smoothed over about a second of frames (the default before);\n"
+    "                  animation: one camera fitted to every agent of every frame\n"
+    "  --burn-in       write the scene's name, the frame and its time into the bottom-left corner\n"
     "  --obstacles F   draw the triangle mesh F as the obstacles (default: obstacles.ply beside\n"
     "                  the cache, if it is there)\n"
     "  --no-obstacles  leave the obstacles out\n"
@@ -57,7 +59,7 @@ typedef struct render_args {
     const char *view, *frames, *fps, *color, *color_range, *camera, *obstacles;
     long samples, threads;
     double radius;
-    int no_ground, no_obstacles;
+    int no_ground, no_obstacles, burn_in;
 } render_args;
 
 static const char *const RENDER_ONLY[] = {"--view",    "--frames", "--fps",         "--samples",
@@ -100,14 +102,15 @@ static int parse_args(int argc, char **argv, render_args *a)
     for (int i = 0; i < argc && !rc; i++) {
         if (!strcmp(argv[i], "--no-ground")) a->no_ground = 1;
         else if (!strcmp(argv[i], "--no-obstacles")) a->no_obstacles = 1;
+        else if (!strcmp(argv[i], "--burn-in")) a->burn_in = 1;
         else if (is_render_only(argv[i]) && i + 1 < argc) rc = set_render_only(a, argv[i], argv[i + 1]), i++;
         else rest[n++] = argv[i];
     }
     rest[n] = NULL;
     if (!rc) rc = cli_parse_frame_options(n, rest, USAGE_RENDER, 0, &a->o);
     free(rest);
-    if (!rc && a->camera && strcmp(a->camera, "frame") && strcmp(a->camera, "animation"))
-        rc = cli_usage_error(USAGE_RENDER, "--camera is frame or animation, not '%s'", a->camera);
+    if (!rc && a->camera && strcmp(a->camera, "shot") && strcmp(a->camera, "frame") && strcmp(a->camera, "animation"))
+        rc = cli_usage_error(USAGE_RENDER, "--camera is shot, frame or animation, not '%s'", a->camera);
     if (!rc && a->obstacles && a->no_obstacles)
         rc = cli_usage_error(USAGE_RENDER, "%s", "--obstacles FILE and --no-obstacles contradict each other: give one");
     return rc;
@@ -163,6 +166,8 @@ typedef struct frame_source {
     cli_colouring colour;
     fm_render_colours colours; /* of that frame (source_load) */
     cli_camera camera;         /* each frame's bounds (fix_camera) */
+    const char *burn_in;       /* --burn-in: the scene's name; NULL without it */
+    int width, height;
 } frame_source;
 
 static int is_point_cache(fm_cache_reader *r)
@@ -222,6 +227,16 @@ static int source_load(frame_source *s, uint32_t frame)
     return rc ? rc : source_read(s, frame);
 }
 
+/* --burn-in: "<scene>  frame K  T s", T the frame's time at the cache's frame rate. */
+static void burn_in(const frame_source *s, unsigned char *rgb)
+{
+    char text[320];
+    double rate = fm_cache_frame_rate(s->r);
+    int n = snprintf(text, sizeof text, "%.200s  frame %u", s->burn_in, s->frame);
+    if (rate > 0 && isfinite(rate)) snprintf(text + n, sizeof text - (size_t)n, "  %.2f s", s->frame / rate);
+    cli_burn_in(rgb, s->width, s->height, text);
+}
+
 /* Draws the frame source_load read, coloured as --color says, with that frame's camera. */
 static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
 {
@@ -231,6 +246,7 @@ static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
     if (fm_renderer_set_bounds(rr, cli_camera_bounds(&s->camera, s->frame), &err) != FM_OK) return cli_report(&err);
     fm_status st = s->points ? fm_renderer_draw_points_coloured(rr, s->data, s->n, &s->colours, rgb, &err)
                              : fm_renderer_draw_tets_coloured(rr, s->data, s->n, &s->colours, rgb, &err);
+    if (st == FM_OK && s->burn_in) burn_in(s, rgb);
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
@@ -238,7 +254,8 @@ static int source_draw(frame_source *s, fm_renderer *rr, unsigned char *rgb)
  * sphere radius for all frames. */
 static int fix_camera(frame_source *s, const render_args *a, const cli_triangles *obstacles, fm_render_opts *ro)
 {
-    cli_camera_mode mode = a->camera && !strcmp(a->camera, "animation") ? CLI_CAMERA_ANIMATION : CLI_CAMERA_FRAME;
+    cli_camera_mode mode = !a->camera || !strcmp(a->camera, "shot") ? CLI_CAMERA_SHOT
+                           : !strcmp(a->camera, "animation") ? CLI_CAMERA_ANIMATION : CLI_CAMERA_FRAME;
     uint32_t frames = fm_cache_frames(s->r);
     int rc = cli_camera_init(&s->camera, mode, frames, fm_cache_frame_rate(s->r));
     for (uint32_t f = 0; f < frames && !rc; f++)
@@ -254,20 +271,16 @@ static int fix_camera(frame_source *s, const render_args *a, const cli_triangles
 
 /* ---------------------------------------------------------------- obstacles */
 
-/* The mesh at path as the renderer's triangles (floats, unsigned indices). */
-static int load_triangles(const char *path, cli_triangles *t, fm_error *err)
+/* The mesh as the renderer's triangles (floats, unsigned indices). */
+static int take_triangles(const fm_mesh *m, cli_triangles *t)
 {
-    fm_mesh m = {0};
-    if (fm_mesh_load(path, &m, err) != FM_OK) return 1;
-    t->verts = malloc(3 * sizeof(float) * (size_t)m.nv);
-    t->tris = malloc(3 * sizeof(uint32_t) * (size_t)m.nt);
-    int ok = t->verts && t->tris;
-    for (int64_t i = 0; ok && i < 3 * m.nv; i++) t->verts[i] = (float)m.v[i];
-    for (int64_t i = 0; ok && i < 3 * m.nt; i++) t->tris[i] = (uint32_t)m.tri[i];
-    t->nv = (size_t)m.nv, t->nt = (size_t)m.nt;
-    fm_mesh_free(&m);
-    if (!ok) fm_fail(err, FM_ERR_MEMORY, "%s: out of memory for the obstacles", path);
-    return !ok;
+    t->verts = malloc(3 * sizeof(float) * (size_t)(m->nv ? m->nv : 1));
+    t->tris = malloc(3 * sizeof(uint32_t) * (size_t)(m->nt ? m->nt : 1));
+    if (!t->verts || !t->tris) return fprintf(stderr, "flockmorph: error: out of memory for the obstacles\n"), FM_ERR_MEMORY;
+    for (int64_t i = 0; i < 3 * m->nv; i++) t->verts[i] = (float)m->v[i];
+    for (int64_t i = 0; i < 3 * m->nt; i++) t->tris[i] = (uint32_t)m->tri[i];
+    t->nv = (size_t)m->nv, t->nt = (size_t)m->nt;
+    return 0;
 }
 
 /* The obstacles to draw: --obstacles FILE, or else obstacles.ply beside the cache when it is
@@ -277,17 +290,12 @@ static int load_obstacles(const render_args *a, cli_triangles *t)
 {
     memset(t, 0, sizeof *t);
     if (a->no_obstacles) return 0;
-    char beside[FM_PATH_MAX + 32];
-    const char *slash = strrchr(a->o.cache, '/');
-    snprintf(beside, sizeof beside, "%.*s" FM_OUTPUT_OBSTACLES, slash ? (int)(slash - a->o.cache + 1) : 0, a->o.cache);
-    struct stat st;
-    const char *path = a->obstacles ? a->obstacles : beside;
-    if (!a->obstacles && stat(beside, &st) != 0) return 0;
-    fm_error err = {0};
-    if (!load_triangles(path, t, &err)) return 0;
-    fprintf(stderr, "flockmorph: error: %s: %s%s\n", a->obstacles ? "--obstacles" : "the obstacles beside the cache",
-            err.message, a->obstacles ? "" : " (--no-obstacles leaves them out)");
-    return err.status ? (int)err.status : FM_ERR_INPUT;
+    fm_mesh m;
+    char path[FM_PATH_MAX + 32];
+    int rc = cli_cache_obstacles(a->o.cache, a->obstacles, &m, path);
+    if (!rc && path[0]) rc = take_triangles(&m, t);
+    fm_mesh_free(&m);
+    return rc;
 }
 
 static void free_triangles(cli_triangles *t)
@@ -430,6 +438,9 @@ int cli_render(int argc, char **argv)
     unsigned char *rgb = malloc(3 * (size_t)ro.width * (size_t)ro.height);
     if (!rgb) rc = (fprintf(stderr, "flockmorph: error: out of memory for the image\n"), FM_ERR_MEMORY);
     if (!rc) rc = source_open(a.o.cache, &colour, &s);
+    char scene[256];
+    if (!rc && a.burn_in) cli_burn_in_scene(a.o.cache, scene, sizeof scene), s.burn_in = scene;
+    s.width = ro.width, s.height = ro.height;
     if (!rc) rc = load_obstacles(&a, &obstacles);
     if (!rc) rc = fix_camera(&s, &a, &obstacles, &ro);
     if (!rc && !(rr = fm_renderer_create(&ro, &err))) rc = cli_report(&err);

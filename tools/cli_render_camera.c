@@ -1,6 +1,10 @@
 /* The camera of `flockmorph render` (docs/render.md, "Camera").
  *
- * --camera frame (the default): frame K's camera is fitted to what frame K shows, its agents' box
+ * --camera shot (the default, issue 41): one camera for the whole shot, the box of every agent of
+ * every frame grown by the obstacles near it (as below), so the travel from source to target that
+ * the shot is about is seen whole, and every frame of a video is seen from the same place.
+ *
+ * --camera frame (issue 14): frame K's camera is fitted to what frame K shows, its agents' box
  * grown by the parts of the obstacles that lie within a quarter of the box's largest extent of it.
  * So the obstacle the flock is passing is in the picture, while a far one, or a floor larger than
  * the scene, adds at most that margin; and the box changes continuously as the flock moves (a
@@ -127,7 +131,9 @@ static void smooth(const cli_camera *c, uint32_t f, double out[6])
 void cli_camera_finish(cli_camera *c, double pad, const cli_triangles *obstacles)
 {
     if (c->have_animation) pad_box(c->animation, pad);
-    if (c->mode == CLI_CAMERA_ANIMATION) return;
+    if (c->mode == CLI_CAMERA_SHOT && c->have_animation && obstacles && obstacles->nt)
+        add_near_obstacles(c->animation, obstacles);
+    if (c->mode != CLI_CAMERA_FRAME) return;
     for (uint32_t f = 0; f < c->frames; f++) {
         if (is_empty(c->agents[f])) continue;
         pad_box(c->agents[f], pad);
@@ -138,6 +144,6 @@ void cli_camera_finish(cli_camera *c, double pad, const cli_triangles *obstacles
 
 const double *cli_camera_bounds(const cli_camera *c, uint32_t f)
 {
-    if (c->mode == CLI_CAMERA_ANIMATION || f >= c->frames) return c->have_animation ? c->animation : NULL;
+    if (c->mode != CLI_CAMERA_FRAME || f >= c->frames) return c->have_animation ? c->animation : NULL;
     return is_empty(c->framed[f]) ? NULL : c->framed[f];
 }

@@ -7,8 +7,9 @@
 #include <stdint.h>
 
 typedef enum cli_camera_mode {
-    CLI_CAMERA_FRAME = 0,    /* each frame's own content, smoothed over about a second of frames */
-    CLI_CAMERA_ANIMATION = 1 /* one box: every agent of every frame (the camera before issue 14) */
+    CLI_CAMERA_FRAME = 0,     /* each frame's own content, smoothed over about a second of frames */
+    CLI_CAMERA_ANIMATION = 1, /* one box: every agent of every frame (the camera before issue 14) */
+    CLI_CAMERA_SHOT = 2       /* one box: every agent of every frame and the obstacles near them */
 } cli_camera_mode;
 
 /* Static triangles (the obstacles): nv x 3 floats and nt x 3 indices. */

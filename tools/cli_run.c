@@ -234,8 +234,6 @@ static int write_obstacles(const fm_scene_def *def, const char *path)
     for (; loaded < def->obstacle_count && st == FM_OK; loaded++) {
         st = fm_obstacle_mesh_load(def, loaded, NULL, NULL, &meshes[loaded], &err);
         snprintf(names[loaded], sizeof names[loaded], "obstacles.meshes[%d] %s", loaded, def->obstacles[loaded].path);
-        for (char *c = names[loaded]; *c; c++)
-            if ((unsigned char)*c < 0x20) *c = '?'; /* the name is a line of the PLY header */
         views[loaded] = (fm_ply_mesh){names[loaded], meshes[loaded].v, meshes[loaded].nv, meshes[loaded].tri,
                                       meshes[loaded].nt};
     }

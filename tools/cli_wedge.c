@@ -199,9 +199,7 @@ char *cli_json_text(const json_t *v)
     return json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(17));
 }
 
-/* The scene file's name without its folder and its .json, or the folder's name for a file named
- * scene.json (examples/words/scene.json is "words"). */
-static void scene_stem(const char *scene, char *out, size_t size)
+void cli_scene_stem(const char *scene, char *out, size_t size)
 {
     const char *slash = strrchr(scene, '/'), *name = slash ? slash + 1 : scene;
     size_t len = strlen(name);
@@ -222,7 +220,7 @@ static int put_placeholder(const cli_run_options *o, const char *name, size_t le
     size_t used = strlen(out);
     char stem[FM_PATH_MAX];
     if (len == 5 && !strncmp(name, "wedge", 5) && o->wedge_file) snprintf(out + used, size - used, "%04ld", o->wedge);
-    else if (len == 5 && !strncmp(name, "scene", 5)) scene_stem(o->scene, stem, sizeof stem), snprintf(out + used, size - used, "%s", stem);
+    else if (len == 5 && !strncmp(name, "scene", 5)) cli_scene_stem(o->scene, stem, sizeof stem), snprintf(out + used, size - used, "%s", stem);
     else return -1;
     return 0;
 }

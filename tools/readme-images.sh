@@ -11,8 +11,9 @@ for name in "${scenes[@]}"; do
   build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet > /dev/null
 done
 # --color id: their captions say the colour follows the launch order (the agent id), which is what
-# render drew before --color speed became its default.
-render() { build/flockmorph render "out/$1/frames.fmc" --size 800x400 --samples 2 --color id "${@:2}" > /dev/null; }
+# render drew before --color speed became its default. --camera frame: each frame's own camera, as
+# these pictures were made before the whole-shot camera became the default (a later --camera wins).
+render() { build/flockmorph render "out/$1/frames.fmc" --size 800x400 --samples 2 --color id --camera frame "${@:2}" > /dev/null; }
 # README: the words example at frames 0, 30, 60, 90 and its last frame.
 for k in 0 30 60 90; do render words --frame "$k" -o "docs/images/words_$k.png"; done
 render words --frame -1 -o docs/images/words_last.png

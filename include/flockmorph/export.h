@@ -1,8 +1,9 @@
 /* flockmorph exporters: one frame of agents, given as plain arrays, to the formats animation
  * and analysis tools read (docs/export.md).
  *
- *   PLY   binary little-endian; tets as 4 triangles each (vertex properties id, phase, group), points
- *         as vertices with vx vy vz, orientx .. orientw, pscale, age, id, phase, group
+ *   PLY   binary little-endian; tets as 4 triangles each (vertex properties vx vy vz and an id
+ *         unique per vertex, face properties agent_id, phase, group), points as vertices with
+ *         vx vy vz, orientx .. orientw, pscale, age, id, phase, group
  *   OBJ   tets as 4 triangles each, points as `v` lines
  *   VTK   XML UnstructuredGrid (.vtu, appended data zlib-compressed as VTK's writer does):
  *         VTK_TETRA cells (cell data agent_id, velocity, phase, group) or VTK_VERTEX cells (point
@@ -56,7 +57,9 @@ typedef struct fm_export_frame {
     const float *positions;    /* n × 3: points; for tets the centroids (VDB only; computed if NULL) */
     const float *velocities;   /* n × 3: written for points (PLY, VTK), for tets by VTK (cell data)
                                   and by VDB; NULL: none (VDB: zero) */
-    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: not written) */
+    const uint32_t *ids;       /* n stable agent ids; NULL: 0 .. n-1 (tet PLY: no ids written). A
+                                  tet's 4 points get the ids 4 id + 0 ... 3 (PLY's id, VTK's point
+                                  data id), and its faces or cell the agent id */
     const uint8_t *phases;     /* n fm_phase values; NULL: not written */
     const uint8_t *groups;     /* n: the scene group that moves each agent (a shot's cache); NULL: not written */
     /* Houdini's point attributes (PLY and VDB points, orientations also VTK; NULL: not written): */
@@ -64,6 +67,7 @@ typedef struct fm_export_frame {
                                   written as Houdini's orient, x, y, z, w */
     const float *pscales;      /* n: the agent's radius in world units */
     const float *ages;         /* n: seconds the agent has existed */
+    const float *vertex_velocities; /* tets: n × 12, each vertex's velocity (PLY's vx vy vz); NULL: none */
 } fm_export_frame;
 
 /* VTK's default zlib level: level 1 gives nearly the size of 6 and 9 on a frame's floats (they
@@ -116,6 +120,10 @@ void fm_pointcache_abort(fm_pointcache_writer *w);
  * rotation applied to n quaternions w, x, y, z (r * q in double, r = (cos 45, -sin 45, 0, 0)). */
 void fm_export_up_y(float *xyz, size_t n);
 void fm_export_up_y_quaternions(float *wxyz, size_t n);
+
+/* `export --scale S`: n vectors (positions, tet vertices, velocities) multiplied by scale in place,
+ * each product computed in double and rounded to float once; scale 1 changes nothing. */
+void fm_export_scale(float *xyz, size_t n, double scale);
 
 /* Each tet's centroid (the mean of its 4 vertices, in double): n × 12 floats in, n × 3 out. */
 void fm_tet_centroids(const float *verts, size_t n, float *out);

@@ -132,17 +132,15 @@ static const struct {
                         {"age", "float", 1},   {"id", "int", 1},       {"phase", "uchar", 1},
                         {"group", "uchar", 1}};
 
-/* Points carry every attribute given and always their id; tets (4 vertices each, a tet's values
- * on all four) carry id, phase and group when given. */
+/* Points carry every attribute given and always their id. */
 static int has_prop(const fm_export_frame *f, int p)
 {
-    const int points = f->tet_vertices == NULL;
     switch (p) {
-    case P_V: return points && f->velocities;
-    case P_ORIENT: return points && f->orientations;
-    case P_PSCALE: return points && f->pscales;
-    case P_AGE: return points && f->ages;
-    case P_ID: return points || f->ids;
+    case P_V: return f->velocities != NULL;
+    case P_ORIENT: return f->orientations != NULL;
+    case P_PSCALE: return f->pscales != NULL;
+    case P_AGE: return f->ages != NULL;
+    case P_ID: return 1;
     case P_PHASE: return f->phases != NULL;
     default: return f->groups != NULL;
     }
@@ -171,19 +169,38 @@ static void ply_emit_props(fm_le_writer *w, const fm_export_frame *f, size_t i)
     if (has_prop(f, P_GROUP)) fm_le_u8(w, f->groups[i]);
 }
 
+/* Tets: the vertices carry their own velocity and a point id unique to each, 4 × the tet's id + the
+ * vertex (Houdini wants `id` unique per point); the tet's own id, phase and group go on each of its
+ * 4 faces, Houdini's primitive attributes. */
+static int ply_tets_header(FILE *file, const fm_export_frame *f)
+{
+    if (fprintf(file, PLY_VERTICES("tets"), 4 * f->n) < 0) return -1;
+    if (f->vertex_velocities && fputs("property float vx\nproperty float vy\nproperty float vz\n", file) < 0) return -1;
+    if (f->ids && fputs("property int id\n", file) < 0) return -1;
+    if (fprintf(file, "element face %zu\nproperty list uchar int vertex_indices\n", 4 * f->n) < 0) return -1;
+    if (f->ids && fputs("property int agent_id\n", file) < 0) return -1;
+    if (f->phases && fputs("property uchar phase\n", file) < 0) return -1;
+    if (f->groups && fputs("property uchar group\n", file) < 0) return -1;
+    return fputs("end_header\n", file) < 0 ? -1 : 0;
+}
+
 static void ply_tets_data(fm_le_writer *w, const void *data)
 {
     const fm_export_frame *frame = data;
     for (size_t t = 0; t < frame->n; t++) {
         for (int j = 0; j < 4; j++) {
             for (int k = 0; k < 3; k++) fm_le_f32(w, frame->tet_vertices[12 * t + 3 * j + k]);
-            ply_emit_props(w, frame, t);
+            for (int k = 0; frame->vertex_velocities && k < 3; k++) fm_le_f32(w, frame->vertex_velocities[12 * t + 3 * j + k]);
+            if (frame->ids) fm_le_u32(w, fm_tet_point_id(frame->ids[t], j));
         }
     }
     for (size_t t = 0; t < frame->n; t++) {
         for (int j = 0; j < 4; j++) {
             fm_le_u8(w, 3);
             for (int k = 0; k < 3; k++) fm_le_u32(w, (uint32_t)(4 * t + (size_t)fm_tet_faces[j][k]));
+            if (frame->ids) fm_le_u32(w, frame->ids[t]);
+            if (frame->phases) fm_le_u8(w, frame->phases[t]);
+            if (frame->groups) fm_le_u8(w, frame->groups[t]);
         }
     }
 }
@@ -191,11 +208,7 @@ static void ply_tets_data(fm_le_writer *w, const void *data)
 static int ply_tets_body(FILE *f, const void *data)
 {
     const fm_export_frame *frame = data;
-    size_t n = frame->n;
-    if (fprintf(f, PLY_VERTICES("tets"), 4 * n) < 0 || ply_prop_header(f, frame) ||
-        fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\nend_header\n", 4 * n) < 0)
-        return -1;
-    return fm_le_write(f, ply_tets_data, frame);
+    return ply_tets_header(f, frame) ? -1 : fm_le_write(f, ply_tets_data, frame);
 }
 
 static void ply_points_data(fm_le_writer *w, const void *data)
@@ -238,6 +251,14 @@ static void ply_meshes_data(fm_le_writer *w, const void *data)
         }
 }
 
+/* A mesh's name on one line of a header: control characters (a newline in a file name) become '?'. */
+static int put_header_text(FILE *f, const char *s)
+{
+    for (; *s; s++)
+        if (fputc((unsigned char)*s < 0x20 ? '?' : *s, f) == EOF) return -1;
+    return 0;
+}
+
 static int ply_meshes_body(FILE *f, const void *data)
 {
     const ply_meshes *pm = data;
@@ -248,8 +269,9 @@ static int ply_meshes_body(FILE *f, const void *data)
         return -1;
     int64_t v0 = 0, t0 = 0;
     for (int i = 0; i < pm->count; v0 += pm->m[i].nv, t0 += pm->m[i].nt, i++)
-        if (fprintf(f, "comment %s: vertices %lld..%lld, faces %lld..%lld\n", pm->m[i].name, (long long)v0,
-                    (long long)(v0 + pm->m[i].nv - 1), (long long)t0, (long long)(t0 + pm->m[i].nt - 1)) < 0)
+        if (fputs("comment ", f) < 0 || put_header_text(f, pm->m[i].name) ||
+            fprintf(f, ": vertices %lld..%lld, faces %lld..%lld\n", (long long)v0, (long long)(v0 + pm->m[i].nv - 1),
+                    (long long)t0, (long long)(t0 + pm->m[i].nt - 1)) < 0)
             return -1;
     if (fprintf(f, "element vertex %lld\nproperty float x\nproperty float y\nproperty float z\n"
                 "element face %lld\nproperty list uchar int vertex_indices\nend_header\n", (long long)nv,
@@ -275,6 +297,36 @@ static int obj_vertices(FILE *f, const float *v, size_t count)
     for (size_t i = 0; i < count; i++, v += 3)
         if (fprintf(f, "v %.9g %.9g %.9g\n", (double)v[0], (double)v[1], (double)v[2]) < 0) return -1;
     return 0;
+}
+
+/* Triangle meshes (an export's obstacles): an `o` line per mesh, its vertices and its faces, the
+ * indices 1-based over the whole file. */
+static int obj_meshes_body(FILE *f, const void *data)
+{
+    const ply_meshes *pm = data;
+    if (fprintf(f, "# flockmorph %s: %d meshes\n", FM_VERSION_STRING, pm->count) < 0) return -1;
+    int64_t base = 1;
+    for (int i = 0; i < pm->count; base += pm->m[i].nv, i++) {
+        if (fputs("o ", f) < 0 || put_header_text(f, pm->m[i].name) || fputc('\n', f) == EOF) return -1;
+        for (int64_t j = 0; j < pm->m[i].nv; j++) {
+            const double *v = pm->m[i].v + 3 * j;
+            if (fprintf(f, "v %.9g %.9g %.9g\n", (double)(float)v[0], (double)(float)v[1], (double)(float)v[2]) < 0)
+                return -1;
+        }
+        for (int64_t t = 0; t < pm->m[i].nt; t++) {
+            const int32_t *c = pm->m[i].tri + 3 * t;
+            if (fprintf(f, "f %lld %lld %lld\n", (long long)(base + c[0]), (long long)(base + c[1]),
+                        (long long)(base + c[2])) < 0)
+                return -1;
+        }
+    }
+    return 0;
+}
+
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err)
+{
+    const ply_meshes pm = {meshes, count};
+    return fm_export_with_body(path, obj_meshes_body, &pm, err);
 }
 
 static int obj_tets_body(FILE *f, const void *data)
@@ -328,6 +380,12 @@ void fm_export_up_y(float *xyz, size_t n)
     }
 }
 
+void fm_export_scale(float *xyz, size_t n, double scale)
+{
+    if (scale == 1.0) return;
+    for (size_t i = 0; i < 3 * n; i++) xyz[i] = (float)(scale * xyz[i]);
+}
+
 void fm_export_up_y_quaternions(float *q, size_t n)
 {
     const double c = 0.70710678118654752440; /* r = (c, -c, 0, 0): -90 degrees about x */
@@ -352,6 +410,17 @@ void fm_finite_difference(const float *before, const float *after, size_t n, dou
     for (size_t i = 0; i < 3 * n; i++) out[i] = (float)(((double)after[i] - before[i]) / dt);
 }
 
+/* The largest agent id a format holds: PLY's and VDB's ids are int32, VTK's UInt32, and a tet's
+ * point ids (PLY, VTK) go up to 4 × its id + 3; *what names the limit. */
+static uint32_t max_agent_id(const fm_export_frame *frame, fm_export_format format, const char **what)
+{
+    uint32_t most = format == FM_EXPORT_PLY || format == FM_EXPORT_VDB ? (uint32_t)INT32_MAX : UINT32_MAX;
+    *what = most == UINT32_MAX ? "UInt32 id" : "int32 id";
+    if (!frame->tet_vertices || (format != FM_EXPORT_PLY && format != FM_EXPORT_VTK)) return most;
+    *what = most == UINT32_MAX ? "UInt32 point ids (4 x the tet's id + 3)" : "int32 point ids (4 x the tet's id + 3)";
+    return (most - 3) / 4;
+}
+
 /* What a format can hold; an error names the limit. */
 static fm_status check_frame(const fm_export_frame *frame, fm_export_format format, const char *path,
                              fm_error *err)
@@ -365,10 +434,12 @@ static fm_status check_frame(const fm_export_frame *frame, fm_export_format form
     if (format == FM_EXPORT_PLY && n > limit)
         return fm_fail(err, FM_ERR_INPUT, "cannot export %zu agents to '%s': PLY int indices allow "
                        "at most %zu", n, path, limit);
-    for (size_t i = 0; frame->ids && (format == FM_EXPORT_PLY || format == FM_EXPORT_VDB) && i < n; i++)
-        if (frame->ids[i] > (uint32_t)INT32_MAX)
-            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit "
-                           "the format's int32 id", path, i, (unsigned)frame->ids[i]);
+    const char *what;
+    const uint32_t most = max_agent_id(frame, format, &what);
+    for (size_t i = 0; frame->ids && i < n; i++)
+        if (frame->ids[i] > most)
+            return fm_fail(err, FM_ERR_INPUT, "cannot export to '%s': agent %zu's id %u does not fit the format's "
+                           "%s", path, i, (unsigned)frame->ids[i], what);
     return FM_OK;
 }
 

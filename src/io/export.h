@@ -60,10 +60,17 @@ typedef struct fm_ply_mesh {
  * run` writes the placed obstacles (OUTDIR/obstacles.ply), which Blender and Houdini import with the
  * cache's axes. */
 fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
+/* The same meshes as OBJ (`export --format obj`'s obstacles): an `o NAME` line per mesh, `v` lines
+ * printed with %.9g of the float (every float read back exactly), `f` lines 1-based over the file. */
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
 
 /* Component c (0 x, 1 y, 2 z, 3 w) of the quaternion q stored as the cache stores it, w, x, y, z:
  * Houdini's orient (PLY, VTK) is x, y, z, w. */
 static inline float fm_orient_xyzw(const float *q, int c) { return q[(c + 1) % 4]; }
+
+/* The point id of vertex j (0 ... 3) of the tet with agent id `id` (PLY's `id`, VTK's point data
+ * `id`): unique per point, and the tet's own id is point id / 4. */
+static inline uint32_t fm_tet_point_id(uint32_t id, int j) { return 4 * id + (uint32_t)j; }
 
 /* export_vtk.c: the .vtu body (tets as VTK_TETRA, points as VTK_VERTEX) of a frame, its appended
  * data zlib-compressed at zlib_level (1..9), or raw for 0. */

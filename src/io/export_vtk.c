@@ -9,7 +9,8 @@
  * Tets are VTK_TETRA cells (type 10) with 4 points each; cells share no points, so the
  * connectivity is 0 1 2 3 | 4 5 6 7 | ... in every frame and only the coordinates change. VTK's
  * tetra orders its points like the cache (positive volume for v3 above the face v0 v1 v2 seen
- * counter-clockwise), so the points go out as they are. Points are VTK_VERTEX cells (type 1). */
+ * counter-clockwise), so the points go out as they are; their point data `id` is unique per point
+ * (fm_tet_point_id), the cell data the tet's. Points are VTK_VERTEX cells (type 1). */
 #define _POSIX_C_SOURCE 200809L /* open_memstream */
 #include "export.h"
 
@@ -22,8 +23,8 @@ enum { VTK_VERTEX = 1, VTK_TETRA = 10 };
 /* The uncompressed size of a block: vtkXMLWriter's default, so files look like VTK's own. */
 enum { VTU_BLOCK = 1 << 15 };
 
-/* Points, connectivity, offsets, types, id, phase, velocity, orient. */
-enum { VTU_MAX_ARRAYS = 9 };
+/* Points, connectivity, offsets, types, id, phase, velocity, orient, group, and a tet's point ids. */
+enum { VTU_MAX_ARRAYS = 10 };
 
 typedef enum vtu_section { SEC_POINTS, SEC_CELLS, SEC_CELL_DATA, SEC_POINT_DATA, SEC_COUNT } vtu_section;
 
@@ -69,6 +70,13 @@ static void emit_ids(fm_le_writer *w, const fm_export_frame *f)
     for (size_t i = 0; i < f->n; i++) fm_le_u32(w, f->ids ? f->ids[i] : (uint32_t)i);
 }
 
+/* Tets: each point's own id, 4 × its tet's id + the vertex (ids unique per point, as Houdini's). */
+static void emit_point_ids(fm_le_writer *w, const fm_export_frame *f)
+{
+    for (size_t i = 0; i < f->n; i++)
+        for (int j = 0; j < 4; j++) fm_le_u32(w, fm_tet_point_id(f->ids ? f->ids[i] : (uint32_t)i, j));
+}
+
 static void emit_phases(fm_le_writer *w, const fm_export_frame *f)
 {
     for (size_t i = 0; i < f->n; i++) fm_le_u8(w, f->phases[i]);
@@ -108,6 +116,7 @@ static int vtu_arrays(const fm_export_frame *f, vtu_array a[VTU_MAX_ARRAYS])
     if (f->orientations && !is_tets(f))
         a[k++] = (vtu_array){SEC_POINT_DATA, "Float32", "orient", 4, 16 * n, emit_orientations, NULL, 0};
     if (f->groups) a[k++] = (vtu_array){data, "UInt8", "group", 1, n, emit_groups, NULL, 0};
+    if (is_tets(f)) a[k++] = (vtu_array){SEC_POINT_DATA, "UInt32", "id", 1, 4 * np, emit_point_ids, NULL, 0};
     return k;
 }
 

@@ -110,9 +110,13 @@ static int spawn_ffmpeg(fm_video_writer *v, int child_in, double fps)
     char size[32], rate[32];
     snprintf(size, sizeof size, "%dx%d", v->width, v->height);
     snprintf(rate, sizeof rate, "%.9g", fps);
+    /* BT.709 in TV range, converted with that matrix and tagged so (the stream's VUI and the mp4's
+     * colr atom), so players do not guess; +faststart puts the index (moov) before the frames */
     char *argv[] = {"ffmpeg", "-hide_banner", "-nostats", "-loglevel", "error", "-y",
                     "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", size, "-r", rate, "-i", "-",
-                    "-c:v", "libx264", "-pix_fmt", "yuv420p", "-f", "mp4", v->partial, NULL};
+                    "-vf", "scale=out_color_matrix=bt709:out_range=tv", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+                    "-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709", "-color_range", "tv",
+                    "-movflags", "+faststart", "-f", "mp4", v->partial, NULL};
     posix_spawn_file_actions_t fa;
     int rc = posix_spawn_file_actions_init(&fa);
     if (rc) return rc;

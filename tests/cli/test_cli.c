@@ -619,9 +619,14 @@ static void test_export(void)
     ENSURE_MSG(strncmp(ply, "ply\n", 4) == 0 && strstr(ply, face), "PLY header: %.200s", ply);
     const char *end = strstr(ply, "end_header\n");
     ENSURE(end != NULL);
-    /* a run's cache has ids and phases: each vertex x y z, its tet's int id and uchar phase */
-    ENSURE_MSG(strstr(ply, "property float z\nproperty int id\nproperty uchar phase\nelement face"), "PLY header: %.400s", ply);
-    if (end) ENSURE(len == (size_t)(end + 11 - ply) + 4 * AGENTS * 17 + 4 * AGENTS * 13);
+    /* a run's cache has ids and phases: each vertex x y z, its velocity and its own int id; each
+     * face its tet's int agent_id and uchar phase */
+    ENSURE_MSG(strstr(ply, "property float z\nproperty float vx\nproperty float vy\nproperty float vz\nproperty int id\n"
+                           "element face") &&
+                   strstr(ply, "property list uchar int vertex_indices\nproperty int agent_id\nproperty uchar phase\n"
+                               "end_header\n"),
+               "PLY header: %.600s", ply);
+    if (end) ENSURE(len == (size_t)(end + 11 - ply) + 4 * AGENTS * 28 + 4 * AGENTS * 18);
 }
 
 static void test_export_errors(void)

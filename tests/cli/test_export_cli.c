@@ -32,6 +32,8 @@ static test_cache g_bare_points = {"bare.fmc", 0, 0, 0, 0, 0, "", 0};    /* posi
 static test_cache g_phased_tets = {"phased.fmc", 1, 0, 0, 1, 0, "", 0}; /* tet vertices and phase */
 static test_cache g_flock = {"flock.fmc", 0, 1, 1, 1, 1, "", 0};       /* a shape flock's five attributes */
 static test_cache g_flock_shot = {"flock_shot.fmc", 0, 1, 1, 1, 1, "", 1}; /* and a shot's group */
+static test_cache g_id_tets = {"idtets.fmc", 1, 0, 1, 1, 0, "", 1};    /* tet vertices, id, phase, group */
+static test_cache g_obstacle_tets = {"obst/shot.fmc", 1, 0, 0, 0, 0, "", 0}; /* with obstacles.ply beside it */
 static const char *g_cache = g_tets.path;
 
 static float g_frames[FRAMES][12 * AGENTS], g_pos[FRAMES][3 * AGENTS], g_vel[FRAMES][3 * AGENTS];
@@ -123,6 +125,10 @@ static void make_caches(void)
     write_cache(&g_phased_tets);
     write_cache(&g_flock);
     write_cache(&g_flock_shot);
+    write_cache(&g_id_tets);
+    char dir[FM_PATH_MAX];
+    mkdir(export_tmp(dir, "obst"), 0777);
+    write_cache(&g_obstacle_tets);
 }
 
 /* ---------------------------------------------------------------- running the CLI */
@@ -261,9 +267,10 @@ static void exported_velocity(const test_cache *c, int k, float out[3 * AGENTS])
     difference_velocity(c, k > 0 ? k - 1 : k, k < FRAMES - 1 ? k + 1 : k, out);
 }
 
-/* Frame k of a tet cache as a .vtu must hold it: the tets, agent_id 0 .. n-1, the centroids'
- * velocity (central difference, one-sided at the ends), and phase when the cache has it; checked
- * by check_vtk.py, which decodes the compressed blocks itself. Returns its exit status. With
+/* Frame k of a tet cache as a .vtu must hold it: the tets, agent_id (the cache's ids, or 0 .. n-1),
+ * the centroids' velocity (central difference, one-sided at the ends), and phase and group when the
+ * cache has them, as cell data, and a point id unique to each point, 4 agent_id + the vertex;
+ * checked by check_vtk.py, which decodes the compressed blocks itself. Returns its exit status. With
  * forward set, the velocity expected is the forward difference from frame k - 1 instead, which
  * the checker must refuse. */
 static int check_tet_vtu(const test_cache *c, const char *path, int k, int forward)
@@ -271,14 +278,16 @@ static int check_tet_vtu(const test_cache *c, const char *path, int k, int forwa
     char expected[FM_PATH_MAX], args[3 * FM_PATH_MAX];
     uint32_t ids[AGENTS];
     static float v[3 * AGENTS];
-    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = i;
+    for (uint32_t i = 0; i < AGENTS; i++) ids[i] = c->ids ? g_ids[i] : i;
     if (forward) difference_velocity(c, k - 1, k, v);
     else exported_velocity(c, k, v);
     export_write_raw(export_tmp(expected, "tet_vtu.expected"), g_frames[k], sizeof g_frames[k], 0);
     export_write_raw(expected, ids, sizeof ids, 1);
     export_write_raw(expected, v, sizeof v, 1);
     if (c->phases) export_write_raw(expected, g_phase[k], sizeof g_phase[k], 1);
-    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity%s", path, expected, c->phases ? " phase" : "");
+    if (c->groups) export_write_raw(expected, g_group[k], sizeof g_group[k], 1);
+    snprintf(args, sizeof args, "vtu '%s' '%s' tets agent_id velocity%s%s", path, expected, c->phases ? " phase" : "",
+             c->groups ? " group" : "");
     int rc = export_run_check_vtk(args, forward);
     ENSURE_MSG(forward || rc == 0, "check_vtk.py %s failed", args);
     return rc;
@@ -501,7 +510,7 @@ static void test_point_cache_without_velocity(void)
     }
 }
 
-/* A tet cache with phases gives VTK cell data phase beside agent_id. */
+/* A tet cache with phases gives VTK cell data phase beside agent_id; one with ids and groups too. */
 static void test_phases_in_vtk(void)
 {
     char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32];
@@ -515,6 +524,13 @@ static void test_phases_in_vtk(void)
     head[len] = 0;
     ENSURE_MSG(strstr(head, "Name=\"phase\""), "%s has no phase array", path);
     check_tet_vtu(&g_phased_tets, path, 2, 0);
+    /* the cache's own ids (not the agent order), phases and groups: cell data, and point ids from them */
+    snprintf(args, sizeof args, "--format vtk --frames 0::8 -o '%s'", fresh_dir(dir, "id_vtk"));
+    ENSURE_MSG(export_cmd_on(g_id_tets.path, args) == 0, "%s: %s", args, g_err);
+    for (int k = 0; k < FRAMES; k += 8) {
+        snprintf(path, sizeof path, "%s/idtets_%05d.vtu", dir, k);
+        check_tet_vtu(&g_id_tets, path, k, 0);
+    }
 }
 
 /* A shape flock's .vtu: point data id, velocity (the cache's), orient (x, y, z, w, as Houdini's
@@ -647,29 +663,79 @@ static void test_up_y(void)
     free(pc);
 }
 
-/* Tet PLY: each vertex carries its tet's id and, when the cache has phases, its phase. */
+/* Frame k's tet vertex velocities as the export derives them: each vertex's central difference,
+ * one-sided at the first and last frames, in double from the float vertices. */
+static void vertex_velocity(int k, float out[12 * AGENTS])
+{
+    int before = k > 0 ? k - 1 : k, after = k < FRAMES - 1 ? k + 1 : k;
+    for (int i = 0; i < 12 * AGENTS; i++)
+        out[i] = (float)(((double)g_frames[after][i] - g_frames[before][i]) / ((after - before) / RATE));
+}
+
+static int compare_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Tet PLY, read back by its header alone: each vertex its position, its own velocity and an id
+ * unique to it (4 x the tet's id + the vertex); each face its tet's agent_id, phase and group. */
+static void check_tet_ply(const test_cache *c, const char *path, int k)
+{
+    export_ply_table v, f;
+    char names[512];
+    if (export_ply_read(path, "vertex", &v) || export_ply_read(path, "face", &f)) return;
+    export_ply_col_names(&v, names, sizeof names);
+    ENSURE_MSG(!strcmp(names, "x y z vx vy vz id"), "%s: vertex properties '%s'", path, names);
+    export_ply_col_names(&f, names, sizeof names);
+    char want[128];
+    snprintf(want, sizeof want, "vertex_indices# vertex_indices0 vertex_indices1 vertex_indices2 agent_id%s%s",
+             c->phases ? " phase" : "", c->groups ? " group" : "");
+    ENSURE_MSG(!strcmp(names, want), "%s: face properties '%s', expected '%s'", path, names, want);
+    ENSURE_MSG(v.rows == 4 * AGENTS && f.rows == 4 * AGENTS && v.cols == 7, "%s: %ld vertices, %ld faces", path, v.rows, f.rows);
+    static float vel[12 * AGENTS];
+    vertex_velocity(k, vel);
+    uint32_t ids[4 * AGENTS];
+    for (long r = 0; v.rows == 4 * AGENTS && v.cols == 7 && r < v.rows; r++) {
+        const double *row = v.v + 7 * r;
+        uint32_t agent = c->ids ? g_ids[r / 4] : (uint32_t)(r / 4);
+        for (int j = 0; j < 3; j++) {
+            ENSURE_MSG((float)row[j] == g_frames[k][3 * r + j], "%s: vertex %ld's position", path, r);
+            ENSURE_MSG((float)row[3 + j] == vel[3 * r + j], "%s: vertex %ld's velocity %.9g, expected %.9g", path, r,
+                       row[3 + j], (double)vel[3 * r + j]);
+        }
+        ids[r] = (uint32_t)row[6];
+        ENSURE_MSG(ids[r] == 4 * agent + (uint32_t)(r % 4), "%s: vertex %ld's id %u", path, r, ids[r]);
+    }
+    qsort(ids, 4 * AGENTS, sizeof ids[0], compare_u32);
+    for (int i = 1; i < 4 * AGENTS; i++) ENSURE_MSG(ids[i] != ids[i - 1], "%s: point id %u twice", path, ids[i]);
+    int agent_col = export_ply_col(&f, "agent_id"), phase = export_ply_col(&f, "phase"), group = export_ply_col(&f, "group");
+    for (long r = 0; f.rows == 4 * AGENTS && agent_col > 0 && r < f.rows; r++) {
+        const double *row = f.v + f.cols * r;
+        long t = r / 4;
+        ENSURE_MSG(row[agent_col] == (c->ids ? g_ids[t] : (double)t), "%s: face %ld's agent_id %g", path, r, row[agent_col]);
+        ENSURE_MSG(phase < 0 || row[phase] == g_phase[k][t], "%s: face %ld's phase", path, r);
+        ENSURE_MSG(group < 0 || row[group] == g_group[k][t], "%s: face %ld's group", path, r);
+        for (int j = 0; j < 3; j++)
+            ENSURE_MSG(row[1 + j] == 4 * t + export_tet_faces[r % 4][j], "%s: face %ld's corners", path, r);
+    }
+    free(v.v), free(f.v);
+}
+
+/* Tet PLY with and without the cache's ids, phases and groups, at the first, an inner and the last
+ * frame (the velocity's one-sided and central differences). */
 static void test_tet_ply_ids_and_phases(void)
 {
-    for (int phased = 0; phased < 2; phased++) {
-        char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 32], header[1024];
-        const test_cache *c = phased ? &g_phased_tets : &g_tets;
-        snprintf(args, sizeof args, "--format ply --frames 6 -o '%s'", fresh_dir(dir, "tet_ids"));
-        ENSURE_MSG(export_cmd_on(c->path, args) == 0, "%s: %s", args, g_err);
-        snprintf(path, sizeof path, "%s/%s_00006.ply", dir, phased ? "phased" : "seq");
-        snprintf(header, sizeof header, "ply\nformat binary_little_endian 1.0\ncomment flockmorph " FM_VERSION_STRING
-                 " tets\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\nproperty int id\n"
-                 "%selement face %d\nproperty list uchar int vertex_indices\nend_header\n", 4 * AGENTS,
-                 phased ? "property uchar phase\n" : "", 4 * AGENTS);
-        size_t record = 16 + (size_t)phased;
-        unsigned char *b = ply_body(path, header, 4 * AGENTS * (record + 13));
-        for (int v = 0; b && v < 4 * AGENTS; v++) {
-            const unsigned char *r = b + record * v;
-            uint32_t id;
-            memcpy(&id, r + 12, 4);
-            ENSURE_MSG(!memcmp(r, g_frames[6] + 3 * v, 12) && id == (uint32_t)(v / 4), "%s: vertex %d", path, v);
-            if (phased) ENSURE_MSG(r[16] == g_phase[6][v / 4], "%s: vertex %d's phase", path, v);
+    const test_cache *caches[] = {&g_tets, &g_phased_tets, &g_id_tets};
+    for (int i = 0; i < 3; i++) {
+        char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 96], stem[64];
+        snprintf(args, sizeof args, "--format ply --frames 0::4 -o '%s'", fresh_dir(dir, "tet_ids"));
+        ENSURE_MSG(export_cmd_on(caches[i]->path, args) == 0, "%s: %s", args, g_err);
+        snprintf(stem, sizeof stem, "%.*s", (int)(strlen(caches[i]->name) - 4), caches[i]->name);
+        for (int k = 0; k < FRAMES; k += 4) {
+            snprintf(path, sizeof path, "%s/%s_%05d.ply", dir, stem, k);
+            check_tet_ply(caches[i], path, k);
         }
-        free(b);
     }
 }
 
@@ -741,6 +807,130 @@ static void test_houdini_vdb(void)
     for (size_t j = 0; pscale && j < m; j++)
         ENSURE_MSG(fabs(pscale[j] - sqrt(0.11)) < 1e-5, "tet pscale %g", (double)pscale[j]);
     free(pscale);
+}
+
+/* ---------------------------------------------------------------- axes, scale, presets, obstacles */
+
+/* The obstacle beside g_obstacle_tets: one tet whose vertex 0 is where agent 0's vertex 0 is in
+ * frame 0, so the two must land on the same point in every export. */
+static double g_obstacle[4][3];
+
+static void write_obstacles(void)
+{
+    static const double others[3][3] = {{1.5, -2.25, 3.0}, {-0.75, 0.5, -1.25}, {0.125, 4.0, 0.25}};
+    for (int k = 0; k < 3; k++) g_obstacle[0][k] = g_frames[0][k];
+    memcpy(g_obstacle[1], others, sizeof others);
+    static const int32_t tri[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    fm_ply_mesh mesh = {"obstacles.meshes[0] tet.obj", &g_obstacle[0][0], 4, tri, 4};
+    char path[FM_PATH_MAX];
+    fm_error err = {0};
+    ENSURE_MSG(fm_export_ply_meshes(&mesh, 1, export_tmp(path, "obst/obstacles.ply"), &err) == FM_OK, "%s", err.message);
+}
+
+/* p in the export's convention: (x, z, -y) for Y-up, then times scale, each rounded to float. */
+static void converted(const double p[3], int up_y, double scale, float out[3])
+{
+    float f[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    float turned[3] = {f[0], up_y ? f[2] : f[1], up_y ? -f[1] : f[2]};
+    for (int k = 0; k < 3; k++) out[k] = (float)(scale * turned[k]);
+}
+
+/* The file's vertices are the obstacle's, converted, in some order; and obstacle vertex 0 is the
+ * point `agent` (a vertex of the exported frame). */
+static void check_obstacle_vertices(const char *path, const float *vertices, size_t count, int up_y, double scale,
+                                    const float agent[3])
+{
+    ENSURE_MSG(count == 4, "%s: %zu vertices, expected 4", path, count);
+    for (int i = 0; count == 4 && i < 4; i++) {
+        float want[3];
+        converted(g_obstacle[i], up_y, scale, want);
+        int seen = 0;
+        for (size_t j = 0; j < count; j++) seen |= !memcmp(vertices + 3 * j, want, sizeof want);
+        ENSURE_MSG(seen, "%s: obstacle vertex %d (%g %g %g) is not at (%.9g %.9g %.9g)", path, i, g_obstacle[i][0],
+                   g_obstacle[i][1], g_obstacle[i][2], (double)want[0], (double)want[1], (double)want[2]);
+        if (i == 0)
+            ENSURE_MSG(!memcmp(want, agent, sizeof want), "%s: the obstacle's vertex at (%.9g %.9g %.9g), agent 0's "
+                       "vertex at (%.9g %.9g %.9g): not the same point", path, (double)want[0], (double)want[1],
+                       (double)want[2], (double)agent[0], (double)agent[1], (double)agent[2]);
+    }
+}
+
+/* A PLY's vertex element as floats x y z (read by its header alone). */
+static size_t ply_xyz(const char *path, float *out, size_t cap, const char *columns)
+{
+    export_ply_table t;
+    if (export_ply_read(path, "vertex", &t)) return 0;
+    char names[512];
+    export_ply_col_names(&t, names, sizeof names);
+    ENSURE_MSG(!strcmp(names, columns), "%s: vertex columns '%s', expected '%s'", path, names, columns);
+    size_t n = 0;
+    for (long r = 0; r < t.rows && n < cap; r++, n++)
+        for (int k = 0; k < 3; k++) out[3 * n + k] = (float)t.v[r * t.cols + k];
+    free(t.v);
+    return n;
+}
+
+/* OBJ `v` lines as floats. */
+static size_t obj_xyz(const char *path, float *out, size_t cap)
+{
+    FILE *f = fopen(path, "r");
+    char line[256];
+    size_t n = 0;
+    while (f && n < cap && fgets(line, sizeof line, f))
+        if (sscanf(line, "v %f %f %f", out + 3 * n, out + 3 * n + 1, out + 3 * n + 2) == 3) n++;
+    if (f) fclose(f);
+    return n;
+}
+
+/* --preset houdini turns the obstacles with the frames and names the files Houdini's way from
+ * 1001; --up y --scale S turns and scales both (OBJ frames: OBJ obstacles); an explicit --up z wins
+ * over the preset's; a point cache gets its obstacles beside it; --no-obstacles writes none. */
+static void test_obstacles_follow_the_frames(void)
+{
+    write_obstacles();
+    char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], have[4096], path[FM_PATH_MAX + 64];
+    float frame[3 * 4 * AGENTS], obstacle[3 * 8];
+    const char *tet_columns = "x y z vx vy vz id";
+    snprintf(args, sizeof args, "--format ply --frames 0:1 --preset houdini -o '%s'", fresh_dir(dir, "obst_houdini"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "shot.1001.ply shot.1002.ply shot_obstacles.ply"), "files '%s'", have);
+    snprintf(path, sizeof path, "%s/shot.1001.ply", dir);
+    ENSURE(ply_xyz(path, frame, 4 * AGENTS, tet_columns) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 1, 1.0, frame);
+
+    snprintf(args, sizeof args, "--format obj --frames 0 --up y --scale 2.5 -o '%s'", fresh_dir(dir, "obst_scale"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/shot_00000.obj", dir);
+    ENSURE(obj_xyz(path, frame, 4 * AGENTS) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.obj", dir);
+    check_obstacle_vertices(path, obstacle, obj_xyz(path, obstacle, 8), 1, 2.5, frame);
+
+    snprintf(args, sizeof args, "--format ply --frames 0 --preset houdini --up z -o '%s'", fresh_dir(dir, "obst_z"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    snprintf(path, sizeof path, "%s/shot.1001.ply", dir);
+    ENSURE(ply_xyz(path, frame, 4 * AGENTS, tet_columns) == 4 * AGENTS);
+    snprintf(path, sizeof path, "%s/shot_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 0, 1.0, frame);
+
+    /* a point cache (Maya: Y-up, from frame 1) and its obstacles beside it, halved */
+    snprintf(path, sizeof path, "%s/anim.pc2", fresh_dir(dir, "obst_pc2"));
+    ENSURE(mkdir(dir, 0777) == 0);
+    snprintf(args, sizeof args, "--frames 0:2 --preset maya --scale 0.5 -o '%s'", path);
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    size_t size;
+    unsigned char *pc = slurp(path, &size);
+    ENSURE_MSG(size >= 44 && read_f32(pc + 20, 0) == 1.0f, "%s: start frame %g", path, size >= 24 ? (double)read_f32(pc + 20, 0) : -1.0);
+    for (int k = 0; k < 3 && size >= 44; k++) frame[k] = read_f32(pc + 32 + 4 * k, 0);
+    free(pc);
+    snprintf(path, sizeof path, "%s/anim_obstacles.ply", dir);
+    check_obstacle_vertices(path, obstacle, ply_xyz(path, obstacle, 8, "x y z"), 1, 0.5, frame);
+
+    snprintf(args, sizeof args, "--format vtk --frames 0 --preset blender --no-obstacles -o '%s'", fresh_dir(dir, "obst_none"));
+    ENSURE_MSG(export_cmd_on(g_obstacle_tets.path, args) == 0, "%s: %s", args, g_err);
+    list_dir(dir, have, sizeof have);
+    ENSURE_MSG(!strcmp(have, "shot.pvd shot_00001.vtu"), "files '%s'", have);
 }
 
 /* ---------------------------------------------------------------- point caches (PC2, MDD) */
@@ -940,6 +1130,10 @@ static void test_usage_errors(void)
         {"-o '%s/x.stl'", "-o", "extension"},
         {"--format vdb --voxel -1 -o '%s'", "--voxel", "'-1'"},
         {"--format ply --threads 0 -o '%s'", "--threads", "'0'"},
+        {"--format ply --scale 0 -o '%s'", "--scale", "'0'"},
+        {"--format ply --scale 1e7 -o '%s'", "--scale", "'1e7'"},
+        {"--format ply --preset nuke -o '%s'", "--preset", "'nuke'"},
+        {"--format ply --obstacles o.ply --no-obstacles -o '%s'", "--obstacles FILE", "--no-obstacles"},
     };
     char dir[FM_PATH_MAX], args[3 * FM_PATH_MAX];
     fresh_dir(dir, "seq_errors");
@@ -969,6 +1163,11 @@ static void test_io_errors(void)
     ENSURE_MSG(export_cmd(args) == 3 && strstr(g_err, "seq_00003.ply"), "exit and message: %s", g_err);
     snprintf(blocker, sizeof blocker, "%s/seq_00003.ply", dir);
     ENSURE(!export_file_exists(blocker));
+    /* an obstacle mesh that cannot be read: exit 2 naming it, before any frame is written */
+    snprintf(args, sizeof args, "--format ply -o '%s/obst' --obstacles '%s/none.ply'", dir, dir);
+    ENSURE_MSG(export_cmd(args) == 2 && strstr(g_err, "--obstacles") && strstr(g_err, "none.ply"), "exit and message: %s", g_err);
+    snprintf(blocker, sizeof blocker, "%s/obst/seq_00000.ply", dir);
+    ENSURE(!export_file_exists(blocker));
 }
 
 int main(void)
@@ -992,6 +1191,7 @@ int main(void)
     RUN_TEST(test_up_y);
     RUN_TEST(test_tet_ply_ids_and_phases);
     RUN_TEST(test_houdini_vdb);
+    RUN_TEST(test_obstacles_follow_the_frames);
     RUN_TEST(test_threads_do_not_change_files);
     RUN_TEST(test_usage_errors);
     RUN_TEST(test_io_errors);

@@ -157,6 +157,104 @@ static inline void export_check_ply_points(const char *path, const float *pos, c
     export_check_ply(path, &e, n);
 }
 
+/* One element of a binary little-endian PLY read back from its header alone, not from what the
+ * writer meant to write: its rows, and per row a value per column, as doubles (floats, ints and
+ * uchars convert exactly). A list property (3 items, as triangles have) gives the columns NAME#
+ * (its count) and NAME0, NAME1, NAME2. */
+typedef struct export_ply_table {
+    long rows;
+    int cols;
+    char names[24][48];
+    char types[24][16];
+    double *v; /* rows x cols */
+} export_ply_table;
+
+static inline int export_ply_type_size(const char *type)
+{
+    return !strcmp(type, "uchar") ? 1 : !strcmp(type, "float") || !strcmp(type, "int") ? 4 : 0;
+}
+
+static inline double export_ply_value(const unsigned char *p, const char *type)
+{
+    if (!strcmp(type, "uchar")) return p[0];
+    uint32_t bits = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+    if (!strcmp(type, "int")) return (double)(int32_t)bits;
+    float f;
+    memcpy(&f, &bits, 4);
+    return f;
+}
+
+/* The columns of one element's header lines; *record its bytes per row (lists of 3 int items). */
+static inline void export_ply_columns(export_ply_table *t, char *line, size_t *record)
+{
+    char a[16], b[16], c[16], name[40];
+    if (sscanf(line, "property list %15s %15s %39s", a, b, name) == 3) {
+        static const char suffix[] = "#012";
+        for (int k = 0; k < 4 && t->cols < 24; k++, t->cols++) {
+            snprintf(t->names[t->cols], sizeof t->names[0], "%s%c", name, suffix[k]);
+            snprintf(t->types[t->cols], sizeof t->types[0], "%s", k ? b : a);
+        }
+        *record += (size_t)export_ply_type_size(a) + 3 * (size_t)export_ply_type_size(b);
+    } else if (sscanf(line, "property %15s %39s", c, name) == 2 && t->cols < 24) {
+        snprintf(t->names[t->cols], sizeof t->names[0], "%s", name);
+        snprintf(t->types[t->cols++], sizeof t->types[0], "%s", c);
+        *record += (size_t)export_ply_type_size(c);
+    }
+}
+
+/* Element `which` of the PLY at path; 0, or -1 (a failed ENSURE says why). */
+static inline int export_ply_read(const char *path, const char *which, export_ply_table *out)
+{
+    memset(out, 0, sizeof *out);
+    FILE *f = fopen(path, "rb");
+    ENSURE_MSG(f != NULL, "cannot open %s", path);
+    if (!f) return -1;
+    char line[256], name[40];
+    long count = 0, rows_before = 0;
+    size_t skip = 0, record = 0, record_before = 0; /* the bytes of the elements before `which`, one row */
+    int state = 0, ok = fgets(line, sizeof line, f) && !strcmp(line, "ply\n"); /* state 1: in `which` */
+    while (ok && fgets(line, sizeof line, f) && strcmp(line, "end_header\n")) {
+        if (sscanf(line, "element %39s %ld", name, &count) == 2) {
+            if (state == 0) skip += record_before * (size_t)rows_before;
+            if (state == 1) state = 2;
+            if (state == 0 && !strcmp(name, which)) state = 1, out->rows = count;
+            rows_before = count, record_before = 0;
+        } else if (!strncmp(line, "property", 8)) {
+            export_ply_table scratch = {0};
+            export_ply_columns(state == 1 ? out : &scratch, line, state == 1 ? &record : &record_before);
+        }
+    }
+    int found = state > 0;
+    ok = ok && found && fseek(f, (long)skip, SEEK_CUR) == 0;
+    unsigned char *body = ok ? malloc(record * (size_t)out->rows + 1) : NULL;
+    ok = body && fread(body, 1, record * (size_t)out->rows, f) == record * (size_t)out->rows;
+    fclose(f);
+    ENSURE_MSG(ok, "%s: no element %s, or its body is cut short", path, which);
+    out->v = ok ? malloc(sizeof(double) * (size_t)(out->rows * out->cols + 1)) : NULL;
+    for (long r = 0; ok && r < out->rows; r++) {
+        const unsigned char *p = body + record * (size_t)r;
+        for (int c = 0; c < out->cols; p += export_ply_type_size(out->types[c]), c++)
+            out->v[r * out->cols + c] = export_ply_value(p, out->types[c]);
+    }
+    free(body);
+    return ok ? 0 : -1;
+}
+
+/* The column named name, or -1. */
+static inline int export_ply_col(const export_ply_table *t, const char *name)
+{
+    for (int c = 0; c < t->cols; c++)
+        if (!strcmp(t->names[c], name)) return c;
+    return -1;
+}
+
+/* The column names joined by spaces. */
+static inline void export_ply_col_names(const export_ply_table *t, char *out, size_t size)
+{
+    out[0] = 0;
+    for (int c = 0; c < t->cols; c++) snprintf(out + strlen(out), size - strlen(out), "%s%s", c ? " " : "", t->names[c]);
+}
+
 /* Runs tests/check_vtk.py with args; returns its exit status (-1 if it did not exit). quiet
  * hides its messages (for the checks meant to fail). */
 static inline int export_run_check_vtk(const char *args, int quiet)

@@ -391,7 +391,8 @@ static void test_vdb_errors(void)
     ENSURE(fm_vdb_points_read(path, &n, &rp, &rv, &rid, NULL, &err) == FM_ERR_INPUT);
 }
 
-/* PLY and VDB store ids as int32: a larger id is refused, VTK's UInt32 takes it. */
+/* PLY and VDB store ids as int32: a larger id is refused, VTK's UInt32 takes it; tets' point ids
+ * (4 id + the vertex) lower the limits of PLY and VTK. */
 static void test_id_limits(void)
 {
     float pos[6] = {0, 0, 0, 1, 1, 1};
@@ -410,6 +411,28 @@ static void test_id_limits(void)
         } else {
             ENSURE_MSG(st == FM_ERR_INPUT && strstr(err.message, "2147483648"), "%s: %d %s", name, (int)st, err.message);
             ENSURE(!export_file_exists(path));
+        }
+    }
+    /* Tets: a tet's point ids go to 4 id + 3, so PLY takes ids up to (2^31 - 4) / 4 and VTK (UInt32)
+     * up to 2^30 - 1; VDB (one point a tet) the int32 ids. */
+    float tets[24] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 2, 0, 0, 3, 0, 0, 2, 1, 0, 2, 0, 1};
+    static const struct { fm_export_format format; uint32_t fits, too_big; } tet_cases[] = {
+        {FM_EXPORT_PLY, 536870911u, 536870912u}, {FM_EXPORT_VTK, 1073741823u, 1073741824u},
+        {FM_EXPORT_VDB, 2147483647u, 2147483648u}};
+    for (int i = 0; i < 3; i++) {
+        char name[64], path[FM_PATH_MAX];
+        snprintf(name, sizeof name, "formats_tet_ids.%s", fm_export_extension(tet_cases[i].format));
+        export_tmp(path, name);
+        for (int big = 0; big < 2; big++) {
+            uint32_t tet_ids[2] = {7, big ? tet_cases[i].too_big : tet_cases[i].fits};
+            fm_export_frame t = {.n = 2, .tet_vertices = tets, .ids = tet_ids};
+            fm_error err = {0};
+            remove(path);
+            fm_status st = fm_export_frame_write(&t, tet_cases[i].format, NULL, path, &err);
+            if (!big) ENSURE_MSG(st == FM_OK, "%s, id %u: %s", name, tet_ids[1], err.message);
+            else ENSURE_MSG(st == FM_ERR_INPUT && !export_file_exists(path) &&
+                                (tet_cases[i].format == FM_EXPORT_VDB || strstr(err.message, "point ids")),
+                            "%s, id %u: %d %s", name, tet_ids[1], (int)st, err.message);
         }
     }
 }

@@ -99,6 +99,10 @@ class VtkReadsExports(unittest.TestCase):
                 self.assertEqual(sorted(cells.GetArrayName(i) for i in range(cells.GetNumberOfArrays())),
                                  sorted(["agent_id", "velocity"] + (["phase"] if "phase" in cache.attributes else [])))
                 self.assertTrue(np.array_equal(array(cells, "agent_id"), np.arange(cache.agents)))
+                # every point its own id, 4 x its tet's agent_id + the vertex
+                data = grid.GetPointData()
+                self.assertEqual([data.GetArrayName(i) for i in range(data.GetNumberOfArrays())], ["id"])
+                self.assertTrue(np.array_equal(array(data, "id"), np.arange(4 * cache.agents)))
                 self.assertBits(array(cells, "velocity"), centroid_velocity(cache, k), f"{path}: velocity")
                 if "phase" in cache.attributes:
                     self.assertTrue(np.array_equal(array(cells, "phase"), cache.read(k, "phase")[:, 0]))

@@ -804,6 +804,38 @@ static long probe_frames(const char *path)
     return got && status == 0 ? strtol(line, NULL, 10) : -1;
 }
 
+/* The colour tags ffprobe reads from the video stream: "range,space,transfer,primaries". */
+static void probe_colour(const char *path, char *out, size_t size)
+{
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "ffprobe -v error -select_streams v:0 -show_entries "
+             "stream=color_range,color_space,color_transfer,color_primaries -of csv=p=0 '%s' 2>/dev/null", path);
+    FILE *p = popen(cmd, "r");
+    out[0] = 0;
+    if (p && fgets(out, (int)size, p)) out[strcspn(out, "\n")] = 0;
+    if (p) pclose(p);
+}
+
+/* The MP4's top-level boxes in file order (4 letters each, space-separated), from their headers:
+ * a 32-bit big-endian size and the type, the size 1 meaning a 64-bit size follows. */
+static void top_level_boxes(const char *path, char *out, size_t size)
+{
+    FILE *f = fopen(path, "rb");
+    unsigned char h[16];
+    out[0] = 0;
+    for (long at = 0; f && fseek(f, at, SEEK_SET) == 0 && fread(h, 1, 16, f) >= 8 && strlen(out) + 6 < size;) {
+        uint64_t len = (uint64_t)h[0] << 24 | (uint64_t)h[1] << 16 | (uint64_t)h[2] << 8 | h[3];
+        if (len == 1) {
+            len = 0;
+            for (int k = 8; k < 16; k++) len = len << 8 | h[k];
+        }
+        snprintf(out + strlen(out), size - strlen(out), "%s%.4s", out[0] ? " " : "", (const char *)h + 4);
+        if (len < 8) break;
+        at += (long)len;
+    }
+    if (f) fclose(f);
+}
+
 static void test_cli_mp4(void)
 {
     char cache[512], out[512], partial[600], args[2048];
@@ -816,6 +848,13 @@ static void test_cli_mp4(void)
     ENSURE_EXIT("", args, 0);
     ENSURE_MSG(probe_frames(out) == 5, "ffprobe counts %ld frames, 5 asked for", probe_frames(out));
     ENSURE(!file_exists(partial));
+    /* tagged BT.709, TV range, and the index (moov) before the frames (mdat): plays while it loads */
+    char tags[256], boxes[256];
+    probe_colour(out, tags, sizeof tags);
+    ENSURE_MSG(!strcmp(tags, "tv,bt709,bt709,bt709"), "colour tags '%s'", tags);
+    top_level_boxes(out, boxes, sizeof boxes);
+    const char *moov = strstr(boxes, "moov"), *mdat = strstr(boxes, "mdat");
+    ENSURE_MSG(moov && mdat && moov < mdat, "top-level boxes '%s': moov is not before mdat", boxes);
     snprintf(args, sizeof args, "render '%s' -o '%s' --size 64x48 --view front --fps 12", cache, out);
     ENSURE_EXIT("", args, 0);
     ENSURE_MSG(probe_frames(out) == FRAMES, "all frames: ffprobe counts %ld", probe_frames(out));
@@ -981,7 +1020,7 @@ static void test_cli_camera_frames_the_shot(void)
     for (int k = 0; k < 2; k++) {
         const char *frame = k ? "--frame 24" : "--frame 0";
         char opts[256];
-        snprintf(opts, sizeof opts, "%s --size 200x120 --no-ground", frame);
+        snprintf(opts, sizeof opts, "%s --size 200x120 --no-ground --camera frame", frame);
         rgb_image near = cli_png(cache, "near.png", opts);
         snprintf(opts, sizeof opts, "%s --size 200x120 --no-ground --camera animation", frame);
         rgb_image far = cli_png(cache, "far.png", opts);
@@ -1024,6 +1063,105 @@ static void test_cli_camera_animation_is_the_old_camera(void)
     free(old.rgb), free(now.rgb);
 }
 
+/* The default camera frames the whole shot: without obstacles it is --camera animation's, the
+ * same bytes at the first and the last frame's time; with an obstacle near the path (the cube
+ * below, beside the cache) it widens to take it in, where animation's does not. */
+static void write_cube_ply(const char *path);
+
+/* Obstacle-coloured pixels in the outermost rows and columns. */
+static long obstacle_pixels_on_edge(const rgb_image *im)
+{
+    long n = 0;
+    for (int y = 0; y < im->height; y++)
+        for (int x = 0; x < im->width; x++)
+            if (x == 0 || y == 0 || x == im->width - 1 || y == im->height - 1) n += is_obstacle_colour(pixel(im, x, y));
+    return n;
+}
+
+static void test_cli_default_camera_is_the_shot(void)
+{
+    char cache[512], beside[512];
+    snprintf(cache, sizeof cache, "%s/travel.fmc", TRAVEL_DIR);
+    snprintf(beside, sizeof beside, "%s/obstacles.ply", TRAVEL_DIR);
+    remove(beside);
+    for (int k = 0; k < 2; k++) {
+        const char *frame = k ? "--frame -1 --size 200x120" : "--frame 0 --size 200x120";
+        char opts[256];
+        rgb_image shot = cli_png(cache, "shot.png", frame);
+        snprintf(opts, sizeof opts, "%s --camera animation", frame);
+        rgb_image whole = cli_png(cache, "whole.png", opts);
+        snprintf(opts, sizeof opts, "%s --camera frame", frame);
+        rgb_image follow = cli_png(cache, "follow.png", opts);
+        ENSURE_MSG(shot.rgb && whole.rgb && !memcmp(shot.rgb, whole.rgb, 3 * 200 * 120), "%s: the default camera is "
+                   "not the one fitted to every frame", frame);
+        ENSURE_MSG(shot.rgb && follow.rgb && memcmp(shot.rgb, follow.rgb, 3 * 200 * 120), "%s: the default camera "
+                   "follows the flock", frame);
+        free(shot.rgb), free(whole.rgb), free(follow.rgb);
+    }
+    write_cube_ply(beside);
+    const char *side = "--frame 24 --size 200x120 --view side --no-ground --color id";
+    char opts[256];
+    rgb_image shot = cli_png(cache, "shot.png", side);
+    snprintf(opts, sizeof opts, "%s --camera animation", side);
+    rgb_image whole = cli_png(cache, "whole.png", opts);
+    if (shot.rgb && whole.rgb) {
+        ENSURE_MSG(obstacle_pixels(&shot) > 0, "the shot's camera leaves out the cube near the path");
+        ENSURE_MSG(obstacle_pixels_on_edge(&shot) == 0, "the shot's camera cuts the cube near the path (%ld "
+                   "pixels of it on the picture's edge)", obstacle_pixels_on_edge(&shot));
+        ENSURE_MSG(obstacle_pixels_on_edge(&whole) > 0, "the agents' camera alone takes in the cube: the test "
+                   "shows nothing");
+    }
+    free(shot.rgb), free(whole.rgb);
+    remove(beside);
+}
+
+/* --burn-in writes the scene's name, the frame and its time into a box at the bottom left: the
+ * picture is the same outside it, white text inside; another frame says another thing; the name
+ * comes from stats.json beside the cache (a longer one, a wider line). */
+static void burnt_box(const rgb_image *plain, const rgb_image *burnt, coverage *changed, long *white)
+{
+    *changed = (coverage){0, plain->width, -1, plain->height, -1};
+    *white = 0;
+    for (int y = 0; y < plain->height; y++)
+        for (int x = 0; x < plain->width; x++) {
+            const unsigned char *a = pixel(plain, x, y), *b = pixel(burnt, x, y);
+            if (!memcmp(a, b, 3)) continue;
+            changed->fg++;
+            changed->x0 = x < changed->x0 ? x : changed->x0, changed->x1 = x > changed->x1 ? x : changed->x1;
+            changed->y0 = y < changed->y0 ? y : changed->y0, changed->y1 = y > changed->y1 ? y : changed->y1;
+            *white += b[0] == 255 && b[1] == 255 && b[2] == 255;
+        }
+}
+
+static void test_cli_burn_in(void)
+{
+    char cache[512], stats[512];
+    snprintf(cache, sizeof cache, "%s/travel.fmc", TRAVEL_DIR);
+    snprintf(stats, sizeof stats, "%s/stats.json", TRAVEL_DIR);
+    remove(stats);
+    coverage box[3];
+    long white[3];
+    for (int k = 0; k < 3; k++) {
+        FILE *f = k == 2 ? fopen(stats, "w") : NULL;
+        if (f) fputs("{\"scene\": \"scenes/a_rather_long_scene_name/scene.json\"}\n", f), fclose(f);
+        const char *frame = k == 1 ? "--frame 17 --size 320x180" : "--frame 5 --size 320x180";
+        char opts[256];
+        rgb_image plain = cli_png(cache, "plain.png", frame);
+        snprintf(opts, sizeof opts, "%s --burn-in", frame);
+        rgb_image burnt = cli_png(cache, "burnt.png", opts);
+        if (plain.rgb && burnt.rgb) burnt_box(&plain, &burnt, &box[k], &white[k]);
+        free(plain.rgb), free(burnt.rgb);
+        if (!plain.rgb || !burnt.rgb) return;
+        ENSURE_MSG(box[k].x0 < 10 && box[k].y1 > 170 && box[k].y0 > 150 && white[k] > 100, "%s: the burn-in changes "
+                   "x %d..%d, y %d..%d, %ld white pixels: not a line of text at the bottom left", frame, box[k].x0,
+                   box[k].x1, box[k].y0, box[k].y1, white[k]);
+    }
+    remove(stats);
+    ENSURE_MSG(box[1].x1 > box[0].x1, "frame 17's line (to x %d) is no longer than frame 5's (to x %d)", box[1].x1, box[0].x1);
+    ENSURE_MSG(box[2].x1 > box[0].x1 + 60, "the scene named in stats.json (line to x %d) is not in the line (travel's "
+               "folder: to x %d)", box[2].x1, box[0].x1);
+}
+
 /* A cube |x + 20| <= 2, 1.5 <= y <= 3, |z| <= 2 behind the flock's start. */
 static void write_cube_ply(const char *path)
 {
@@ -1048,7 +1186,7 @@ static void test_cli_obstacles(void)
     tmp_path(other, sizeof other, "cube.ply");
     write_cube_ply(beside);
     write_cube_ply(other);
-    const char *front = "--frame 0 --size 200x120 --view front --no-ground --color id";
+    const char *front = "--frame 0 --size 200x120 --view front --no-ground --color id --camera frame";
     char opts[1024];
     rgb_image with = cli_png(cache, "with.png", front);
     snprintf(opts, sizeof opts, "%s --no-obstacles", front);
@@ -1075,7 +1213,7 @@ static void test_cli_obstacles(void)
     ENSURE_EXIT("", args, 1);
     snprintf(args, sizeof args, "render '%s' -o '%s/x.png' --camera orbit", cache, TRAVEL_DIR);
     ENSURE_EXIT("", args, 1);
-    ENSURE_MSG(strstr(g_err, "--camera is frame or animation, not 'orbit'"), "%s", g_err);
+    ENSURE_MSG(strstr(g_err, "--camera is shot, frame or animation, not 'orbit'"), "%s", g_err);
     FILE *f = fopen(beside, "w"); /* beside the cache but not a mesh: refused, with the way out */
     if (f) fputs("not a mesh\n", f), fclose(f);
     snprintf(args, sizeof args, "render '%s' -o '%s/x.png'", cache, TRAVEL_DIR);
@@ -1110,6 +1248,8 @@ int main(void)
     RUN_TEST(test_cli_png);
     RUN_TEST(test_cli_camera_frames_the_shot);
     RUN_TEST(test_cli_camera_animation_is_the_old_camera);
+    RUN_TEST(test_cli_default_camera_is_the_shot);
+    RUN_TEST(test_cli_burn_in);
     RUN_TEST(test_cli_obstacles);
     return test_result();
 }
