@@ -54,14 +54,20 @@ int cli_frame_name(char *out, size_t size, const char *pattern, long frame);
 /* Creates dir (and parents) if needed and checks that it is writable and that none of the output
  * file names (nor their .partial) is taken by a directory; 0, or FM_ERR_USAGE with a message. */
 int cli_make_outdir(const char *dir, const char *const *names, int count);
-/* Takes the output directory for this run until the process exits (an exclusive flock on
- * dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run holds it. */
+/* Takes the output directory for this run until cli_unlock_outdir or the process's exit (an
+ * exclusive flock on dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run
+ * holds it. cli_unlock_outdir removes the lock file, still held, and releases it. */
 int cli_lock_outdir(const char *dir);
+void cli_unlock_outdir(void);
+/* FM_ERR_USAGE with a message if dir holds a finished run's results (the cache or stats.json
+ * under their final names), which a new run would replace: --overwrite says that is meant. */
+int cli_refuse_earlier_results(const char *dir, const char *cache_name);
 
 /* `run`: its options (cli_run.c). */
 typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
+    int overwrite;         /* --overwrite: replace a finished run's results in OUTDIR */
     long checkpoint_every; /* -1: by wall time (the default) */
     long stop_after_frame; /* -1: none */
     double log_every;      /* seconds between the plain progress lines when stderr is not a terminal */

@@ -434,6 +434,9 @@ static void test_run_writes_obstacles(void)
     fm_mesh_free(&m);
 
     write_scene(scene, ",\n  \"time\": {\"frame_limit\": 3}");
+    ENSURE_EXIT(args, 1); /* the folder holds the first run's results */
+    ENSURE_MSG(strstr(g_err, "holds the results of an earlier run") && strstr(g_err, "--overwrite"), "%s", g_err);
+    strcat(args, " --overwrite");
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(!file_exists(ply), "%s of the scene before is still there", ply);
     write_scene(scene, ",\n  \"output\": {\"cache\": \"obstacles.ply\"}");
@@ -631,18 +634,18 @@ static void test_run_progress_in_a_log(void)
     }
     ENSURE_MSG(lines == (int)g_frames - 1 && last_done == 100.0, "%d progress lines for %lld frames, last %.1f%%: %s",
                lines, (long long)g_frames, last_done, g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     const char *first = strstr(g_err, "flockmorph: progress: frame 1 ");
     ENSURE_MSG(first && !strstr(first + 1, "flockmorph: progress:"), "default interval: %s", g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --checkpoint-every 2", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --checkpoint-every 2 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     double seconds = -1;
     const char *ck = strstr(g_err, "flockmorph: checkpoint at frame 1 written ("); /* frames 0 and 1 written */
     ENSURE_MSG(ck && sscanf(ck, "flockmorph: checkpoint at frame 1 written (%lf s)", &seconds) == 1 && seconds >= 0 &&
                strstr(ck, "flockmorph: checkpoint at frame 3 written (") && !strstr(g_err, "checkpoint at frame 2 "),
                "checkpoints in the log: %s", g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet --checkpoint-every 2", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet --checkpoint-every 2 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(!strstr(g_err, "progress") && !strstr(g_err, "checkpoint at"), "--quiet: %s", g_err);
     snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);

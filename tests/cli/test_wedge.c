@@ -123,7 +123,7 @@ static void test_set_equals_edited_file(void)
     char path[FM_PATH_MAX];
     ENSURE_MSG(access(tmp(path, "plain/" FM_OUTPUT_MANIFEST), F_OK) != 0, "a plain run wrote %s", path);
     ENSURE_MSG(access(tmp(path, "set/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
-    ENSURE_RUN("run @base.json -o @set --quiet", 0); /* a plain run removes the earlier run's manifest */
+    ENSURE_RUN("run @base.json -o @set --quiet --overwrite", 0); /* a plain run removes the earlier run's manifest */
     ENSURE_MSG(access(path, F_OK) != 0, "a plain run left the earlier run's %s", path);
     /* a later --set wins; a list element by index; null removes a key (its default returns) */
     write_scene("points.json", ",\n  \"path\": {\"points\": [[0, 5, 0]]},\n  \"mde\": {\"d_min\": 0.5}");
