@@ -18,6 +18,9 @@
 #include "memory.h"
 
 #include <omp.h>
+
+#include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -73,8 +76,22 @@ static int start_ranks(int *argc, char ***argv)
 
 static int dispatch(int argc, char **argv);
 
+/* Descriptors 0, 1 and 2 open, on /dev/null where closed (`flockmorph run ... >&- 2>&-`): the first
+ * file the run opens would otherwise get descriptor 1 or 2, and a progress line or a message
+ * written to stdout or stderr would land in the cache. -1 if one cannot be opened. */
+static int open_standard_streams(void)
+{
+    for (int fd = 0; fd <= 2; fd++) {
+        if (fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+        int got = open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY); /* the lowest free number: fd */
+        if (got != fd) return -1;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (open_standard_streams() != 0) return FM_ERR_IO; /* before anything else opens a file */
     int rc = start_ranks(&argc, &argv);
     if (rc) return rc;
     rc = dispatch(argc, argv);

@@ -1449,6 +1449,21 @@ static void test_finished_folder_refused(void)
     ENSURE_EXIT(args, 1);
 }
 
+/* With stdout and stderr closed, the first files the run opens would get descriptors 1 and 2 and
+ * its progress lines would land in the cache: it opens /dev/null there first. */
+static void test_closed_standard_streams(void)
+{
+    char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
+    const char *path = plain_scene("closed.json", "");
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&- <&-", path, tmp_path(outdir, "closed_out"));
+    ENSURE_EXIT(args, 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err);
+    ENSURE_MSG(r && !fm_cache_warning(r)[0] && fm_cache_frames(r) > 2, "%s%s", err.message, r ? fm_cache_warning(r) : "");
+    fm_cache_close(r);
+}
+
 /* A scene path that is not UTF-8 stays in stats.json's warnings, each bad byte as \xNN. */
 static void test_stats_keep_text_that_is_not_utf8(void)
 {
@@ -1528,5 +1543,6 @@ int main(void)
     RUN_TEST(test_partial_links_not_followed);
     RUN_TEST(test_two_writers_of_one_name);
     RUN_TEST(test_finished_folder_refused);
+    RUN_TEST(test_closed_standard_streams);
     return test_result();
 }
