@@ -241,6 +241,9 @@ void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t fi
 /* A shot's checkpoint against its first group's scene (with the run's overrides and seed), before the
  * model build: 0, or the reported exit status. */
 int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def);
+/* Every group of the shot read with the overrides as the run reads it (cli_shot_use_overrides
+ * first): 0, or the first group's error printed and its status. */
+int cli_shot_check_groups(const fm_scene_def *def);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

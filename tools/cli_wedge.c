@@ -1,8 +1,9 @@
 /* Wedges (docs/wedges.md): a wedge file's override sets, the index a farm task runs, its seed and
  * output folder, and `flockmorph wedge list | count`. */
-#define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* realpath */
 #include "cli.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -78,10 +79,10 @@ static int load_list(cli_wedges *w, const json_t *list)
         return wedge_error(w->path, "wedges", "expected a non-empty list of objects {KEY: VALUE, ...}");
     if (json_array_size(list) > (size_t)CLI_MAX_WEDGES) return wedge_error(w->path, "wedges", "more than 1000000 wedges");
     for (size_t i = 0; i < json_array_size(list); i++)
-        if (!json_is_object(json_array_get(list, i))) {
+        if (!json_is_object(json_array_get(list, i)) || json_object_size(json_array_get(list, i)) > FM_MAX_OVERRIDES) {
             char label[64];
             snprintf(label, sizeof label, "wedges[%zu]", i);
-            return wedge_error(w->path, label, "expected an object {KEY: VALUE, ...}");
+            return wedge_error(w->path, label, "expected an object of at most 64 overrides {KEY: VALUE, ...}");
         }
     w->list = json_incref((json_t *)list);
     w->count = (long)json_array_size(list);
@@ -189,9 +190,23 @@ char *cli_json_text(const json_t *v)
     return json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(17));
 }
 
+/* The last part of the real path of the scene's folder ("scene" for the root): what "." or ".."
+ * stands for in ./scene.json and ../scene.json, so that {scene} never names the runs folder itself
+ * or the one above it. */
+static void real_folder_name(const char *scene, char *out, size_t size)
+{
+    char dir[FM_PATH_MAX], real[PATH_MAX];
+    const char *slash = strrchr(scene, '/');
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - scene) : 1, slash ? scene : ".");
+    const char *name = realpath(dir[0] ? dir : "/", real) ? strrchr(real, '/') + 1 : "";
+    snprintf(out, size, "%s", name[0] ? name : "scene");
+}
+
+static int names_no_folder(const char *stem) { return !stem[0] || !strcmp(stem, ".") || !strcmp(stem, ".."); }
+
 /* The scene file's name without its folder and its .json, or the folder's name for a file named
  * scene.json (examples/words/scene.json is "words"). */
-static void scene_stem(const char *scene, char *out, size_t size)
+static void scene_name(const char *scene, char *out, size_t size)
 {
     const char *slash = strrchr(scene, '/'), *name = slash ? slash + 1 : scene;
     size_t len = strlen(name);
@@ -204,6 +219,13 @@ static void scene_stem(const char *scene, char *out, size_t size)
         if (end > start) name = start, len = (size_t)(end - start);
     }
     snprintf(out, size, "%.*s", (int)len, name);
+}
+
+/* scene_name, never "", "." or ".." (./scene.json: the current folder's real name). */
+static void scene_stem(const char *scene, char *out, size_t size)
+{
+    scene_name(scene, out, size);
+    if (names_no_folder(out)) real_folder_name(scene, out, size);
 }
 
 /* Appends placeholder `name` ("wedge", "scene") of -o; -1 if it is not one. */
@@ -292,6 +314,8 @@ static int wedge_seed(const cli_wedges *w, long i, const char *scene, uint64_t *
     fm_scene_def *def = malloc(sizeof *def);
     int rc = def ? cli_overrides_add_wedge(w, i, &ov) : FM_ERR_MEMORY;
     if (!rc) rc = cli_overrides_load(&o, &ov, def);
+    if (!rc) cli_shot_use_overrides(ov.set, ov.count, ov.base_seed, def->seed);
+    if (!rc && def->group_count > 0) rc = cli_shot_check_groups(def); /* as run reads a shot's groups */
     if (!rc) *seed = def->seed;
     cli_overrides_free(&ov);
     free(def);

@@ -1279,11 +1279,31 @@ static fm_status read_groups(where *w, const json_t *root, fm_group_def *groups,
     return st;
 }
 
+/* An override of a top-level key that every group of the shot sets itself changes nothing: an
+ * error naming it, rather than a run that silently ignores it. */
+static fm_status check_overrides_reach_groups(where *w, const json_t *root, const fm_scene_override *set, int count,
+                                              const fm_scene_def *def)
+{
+    const json_t *list = json_object_get(root, "groups");
+    for (int i = 0; i < count && def->group_count > 0; i++) {
+        const char after = set[i].key[6];
+        if (!strncmp(set[i].key, "groups", 6) && (after == 0 || after == '.' || after == '[')) continue; /* a group's own */
+        int shadowed = 0;
+        for (int g = 0; g < def->group_count; g++) shadowed += fm_override_shadowed(json_array_get(list, (size_t)g), set[i].key);
+        if (shadowed == def->group_count)
+            return fm_fail(w->err, FM_ERR_INPUT, "%s: every group of the shot sets %s itself, so the scene's top-level "
+                           "value reaches none of them: set it in a group (groups.0.%s)", def->overrides[i].label,
+                           set[i].key, set[i].key);
+    }
+    return FM_OK;
+}
+
 static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
 {
     fm_group_def groups[FM_MAX_GROUPS];
     fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
     if (st == FM_OK) st = read_groups(w, root, groups, def);
+    if (st == FM_OK) st = check_overrides_reach_groups(w, root, set, count, def);
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = read_radius_units(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);

@@ -193,3 +193,15 @@ const fm_scene_override_note *fm_override_blame(const fm_scene_def *def, const c
         if (on_path(def->overrides[i].path, path) || on_path(path, def->overrides[i].path)) return &def->overrides[i];
     return NULL;
 }
+
+int fm_override_shadowed(const json_t *item, const char *key)
+{
+    key_part parts[MAX_KEY_PARTS];
+    int n = split_key(key, parts);
+    const json_t *node = item;
+    for (int i = 0; i < n; i++) {
+        if (!json_is_object(node)) return i > 0; /* a list or value of the group's replaces the key whole */
+        if (!(node = json_object_get(node, parts[i].name))) return 0;
+    }
+    return n > 0;
+}

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 static char *tmp(char *buf, const char *name)
 {
@@ -336,6 +337,88 @@ static void test_manifest(void)
     json_decref(m);
 }
 
+/* Two wedges run one after the other into one folder: the second is refused (exit 1, naming
+ * --overwrite) and the first's results and manifest stay; --overwrite runs it (issue 42). */
+static void test_two_wedges_one_folder(void)
+{
+    clear_index_variables();
+    write_scene("base.json", "");
+    write_file("product.json", PRODUCT);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 1 -o @shared --quiet", 0);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 2 -o @shared --quiet", 1);
+    ENSURE_ERR("holds the results of an earlier run");
+    ENSURE_ERR("pass --overwrite to replace them");
+    json_t *m = load_output_json("shared", FM_OUTPUT_MANIFEST);
+    ENSURE_MSG(json_integer_value(at(m, "wedge.index")) == 1, "the refused wedge rewrote the manifest");
+    json_decref(m);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 2 -o @shared --quiet --overwrite", 0);
+    m = load_output_json("shared", FM_OUTPUT_MANIFEST);
+    ENSURE(json_integer_value(at(m, "wedge.index")) == 2);
+    json_decref(m);
+}
+
+/* {scene} of ./scene.json and ../scene.json is the real name of the folder "." or ".." stands for
+ * (wedge_castle), never "." or "..", which would put the outputs in the runs folder or above it. */
+static void test_scene_placeholder_never_dot(void)
+{
+    char dir[FM_PATH_MAX], cwd[FM_PATH_MAX], path[FM_PATH_MAX];
+    write_scene("base.json", ""); /* and the octahedron the scene names */
+    mkdir(tmp(dir, "castle"), 0777);
+    mkdir(tmp(dir, "castle/inner"), 0777);
+    write_file("castle/scene.json", "{\"source\": {\"mesh\": \"../wedge_octahedron.obj\"}, \"target\": {\"mesh\": "
+               "\"../wedge_octahedron.obj\", \"translate\": [10, 0, 0]}, \"n\": 1}"); /* refused after the folder is made */
+    ENSURE(getcwd(cwd, sizeof cwd) != NULL);
+    ENSURE(chdir(tmp(dir, "castle")) == 0);
+    ENSURE_RUN("run ./scene.json -o '@dots/{scene}' --set speed0=5 --quiet", 2);
+    ENSURE(chdir(tmp(dir, "castle/inner")) == 0);
+    ENSURE_RUN("run ../scene.json -o '@dots/{scene}-up' --set speed0=5 --quiet", 2);
+    ENSURE(chdir(cwd) == 0);
+    ENSURE_MSG(access(tmp(path, "dots/wedge_castle/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
+    ENSURE_MSG(access(tmp(path, "dots/wedge_castle-up/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
+    ENSURE_MSG(access(tmp(path, "dots/" FM_OUTPUT_MANIFEST), F_OK) != 0, "{scene} became '.': %s", path);
+}
+
+/* wedge list --scene refuses what run refuses: a wedge that one of a shot's groups cannot take
+ * (read group by group, as the run reads them), and a wedge of more overrides than a run takes. */
+static void test_wedge_list_refuses_what_run_refuses(void)
+{
+    char scene[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    snprintf(scene, sizeof scene, "%s/examples/flock_sequence/scene.json", FM_SOURCE_DIR);
+    write_file("deform.json", "{\"wedges\": [{}, {\"shape_flock.deform.type\": \"sequence\"}]}");
+    snprintf(args, sizeof args, "wedge list @deform.json --scene '%s'", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("wedge_deform.json: wedge 1: shape_flock.deform.type=\"sequence\": shape_flock.deform.sequence");
+    ENSURE_ERR("1 of the 2 wedges of");
+    char many[4096] = "{\"wedges\": [{";
+    for (int k = 0; k < 65; k++)
+        snprintf(many + strlen(many), sizeof many - strlen(many), "%s\"style.fields.%d.gain\": 1", k ? ", " : "", k);
+    strcat(many, "}]}");
+    write_file("many.json", many);
+    ENSURE_RUN("wedge list @many.json", 2);
+    ENSURE_ERR("wedges[0]: expected an object of at most 64 overrides");
+    write_scene("base.json", "");
+    ENSURE_RUN("run @base.json --wedge-file @many.json --wedge 0 -o @many --quiet", 2);
+    ENSURE_ERR("wedges[0]: expected an object of at most 64 overrides");
+}
+
+/* A --set of a top-level key that every group of a shot sets itself would change nothing: an
+ * error naming it, in run and in wedge list. A key some group leaves to the top level is taken. */
+static void test_set_shadowed_by_every_group(void)
+{
+    char scene[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    write_file("shot.json", "{\"wedges\": [{\"path.points\": [[0, 9, 0]]}]}");
+    snprintf(scene, sizeof scene, "%s/examples/flock_sequence/scene.json", FM_SOURCE_DIR);
+    snprintf(args, sizeof args, "run '%s' -o @shadow --set 'path.points=[[0, 9, 0]]' --quiet", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("--set path.points=[[0, 9, 0]]: every group of the shot sets path.points itself");
+    snprintf(args, sizeof args, "wedge list @shot.json --scene '%s'", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("wedge 0: path.points=[[0,9,0]]: every group of the shot sets path.points itself");
+    write_file("taken.json", "{\"wedges\": [{\"speed0\": 7}]}"); /* no group sets speed0 */
+    snprintf(args, sizeof args, "wedge list @taken.json --scene '%s'", scene);
+    ENSURE_RUN(args, 0);
+}
+
 int main(void)
 {
     clear_index_variables(); /* a test run inside a farm task must not pick its index */
@@ -345,5 +428,9 @@ int main(void)
     RUN_TEST(test_wedge_file_byte_order_mark);
     RUN_TEST(test_wedge_index);
     RUN_TEST(test_manifest);
+    RUN_TEST(test_two_wedges_one_folder);
+    RUN_TEST(test_scene_placeholder_never_dot);
+    RUN_TEST(test_wedge_list_refuses_what_run_refuses);
+    RUN_TEST(test_set_shadowed_by_every_group);
     return test_result();
 }
