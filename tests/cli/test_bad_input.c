@@ -1455,7 +1455,9 @@ static void test_closed_standard_streams(void)
 {
     char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
     const char *path = plain_scene("closed.json", "");
-    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&- <&-", path, tmp_path(outdir, "closed_out"));
+    snprintf(args, sizeof args, "rm -rf '%s'", tmp_path(outdir, "closed_out"));
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&- <&-", path, outdir);
     ENSURE_EXIT(args, 0);
     snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
     fm_error err = {0};
