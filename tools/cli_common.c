@@ -143,20 +143,7 @@ int cli_parse_int(const char *s, long lo, long hi, long *out)
     return 0;
 }
 
-int cli_check_frame_pattern(const char *pattern)
-{
-    int conversions = 0;
-    for (const char *p = pattern; *p; p++) {
-        if (*p != '%') continue;
-        if (*++p == '%') continue;
-        if (*p == '0') p++;
-        for (int digits = 0; *p >= '0' && *p <= '9'; p++)
-            if (++digits > 2) return -1;
-        if (*p != 'd' && *p != 'i' && *p != 'u') return -1;
-        conversions++;
-    }
-    return conversions == 1 ? 0 : -1;
-}
+int cli_check_frame_pattern(const char *pattern) { return fm_one_integer_conversion(pattern) ? 0 : -1; }
 
 int cli_frame_name(char *out, size_t size, const char *pattern, long frame)
 {
@@ -297,6 +284,20 @@ int cli_refuse_earlier_results(const char *dir, const char *cache_name)
     return 0;
 }
 
+/* "WxH", each a whole number in [lo, hi] and nothing after: 0, or -1 (an overflowing
+ * 4294967312x4294967312 and 64x64junk included). */
+static int parse_size(const char *s, long lo, long hi, int *width, int *height)
+{
+    const char *x = strchr(s, 'x');
+    char w[24];
+    long wv, hv;
+    if (!x || (size_t)(x - s) >= sizeof w) return -1;
+    snprintf(w, sizeof w, "%.*s", (int)(x - s), s);
+    if (cli_parse_int(w, lo, hi, &wv) || cli_parse_int(x + 1, lo, hi, &hv)) return -1;
+    *width = (int)wv, *height = (int)hv;
+    return 0;
+}
+
 int cli_parse_frame_options(int argc, char **argv, const char *usage, int optional_out, cli_frame_options *o)
 {
     memset(o, 0, sizeof *o);
@@ -308,7 +309,7 @@ int cli_parse_frame_options(int argc, char **argv, const char *usage, int option
             if (cli_parse_int(argv[++i], -2000000000L, 2000000000L, &o->frame)) return cli_usage_error(usage, "--frame wants a whole number, not '%s'", argv[i]);
             o->has_frame = 1;
         } else if (!strcmp(a, "--size") && i + 1 < argc) {
-            if (sscanf(argv[++i], "%dx%d", &o->width, &o->height) != 2 || o->width < 16 || o->height < 16 || o->width > 16384 || o->height > 16384)
+            if (parse_size(argv[++i], 16, 16384, &o->width, &o->height))
                 return cli_usage_error(usage, "--size wants WIDTHxHEIGHT between 16 and 16384, not '%s'", argv[i]);
         } else if (!strcmp(a, "--view") && i + 1 < argc) o->view = argv[++i];
         else if (a[0] == '-' && a[1]) return cli_usage_error(usage, "unknown or incomplete option '%s'", a);

@@ -239,6 +239,13 @@ static int put_placeholder(const cli_run_options *o, const char *name, size_t le
     return 0;
 }
 
+static int outdir_too_long(const cli_run_options *o)
+{
+    fprintf(stderr, "flockmorph: error: -o %s: the path is too long: the directory and the files the run writes in it "
+            "must fit in %d bytes\n", o->outdir, FM_PATH_MAX - 1);
+    return FM_ERR_USAGE;
+}
+
 int cli_expand_outdir(cli_run_options *o)
 {
     char *out = o->outdir_buf;
@@ -248,9 +255,8 @@ int cli_expand_outdir(cli_run_options *o)
     for (const char *s = o->outdir; *s;) {
         const char *close = *s == '{' ? strchr(s, '}') : NULL;
         size_t used = strlen(out);
-        if (used + 32 >= size)
-            return fprintf(stderr, "flockmorph: error: -o %s: the path is too long: the directory and the files the run "
-                           "writes in it must fit in %d bytes\n", o->outdir, FM_PATH_MAX - 1), FM_ERR_USAGE;
+        if (used + 1 >= size) /* full: what follows, or a placeholder's value, was cut */
+            return outdir_too_long(o);
         if (!close) {
             out[used] = *s++, out[used + 1] = 0;
             continue;
@@ -261,6 +267,8 @@ int cli_expand_outdir(cli_run_options *o)
         placeholders = 1;
         s = close + 1;
     }
+    if (strlen(out) + 1 >= size) /* the last placeholder's value was cut */
+        return outdir_too_long(o);
     for (size_t n = strlen(out); placeholders && n > 1 && out[n - 1] == '/'; n--) out[n - 1] = 0; /* out/{wedge}/ */
     o->outdir = out;
     return 0;

@@ -106,6 +106,12 @@ int fm_threads(int requested);
  * file-size limit, read-only file system. */
 const char *fm_write_hint(int errnum);
 
+/* A file name pattern (wave_%03d.obj, f.%04d.png): exactly one integer conversion %d, %i or %u with
+ * an optional 0 flag and a width of at most FM_PATTERN_WIDTH_DIGITS digits (a width of 10^9 would
+ * make snprintf write a gigabyte of blanks), and %% for a literal %. 1 if it is one, else 0. */
+#define FM_PATTERN_WIDTH_DIGITS 2
+int fm_one_integer_conversion(const char *pattern);
+
 /* x in the fewest significant digits (up to 17) that read back as exactly x, so that two values a
  * message compares never print alike ("10000001 is out of range: must be <= 10000000", where %g
  * says 1e+07 twice). Writes into buf (FM_DOUBLE_CHARS bytes) and returns it. */

@@ -12,15 +12,28 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+/* A message longer than err's buffer keeps its start and its end, with "..." between: a long path
+ * (the part that makes it long) is cut in its middle, and the reason, which comes last, stays. */
+static void keep_ends(char *out, size_t cap, const char *text, size_t len)
+{
+    size_t head = (cap - 4) / 2, tail = cap - 4 - head;
+    while (head > 0 && ((unsigned char)text[head] & 0xC0) == 0x80) head--; /* whole UTF-8 characters */
+    while (tail > 0 && ((unsigned char)text[len - tail] & 0xC0) == 0x80) tail--;
+    snprintf(out, cap, "%.*s...%s", (int)head, text, text + len - tail);
+}
+
 fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
 {
-    if (err) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(err->message, sizeof err->message, fmt, ap);
-        va_end(ap);
-        err->status = status;
-    }
+    if (!err) return status;
+    char whole[4 * FM_PATH_MAX + sizeof err->message]; /* a few paths and the words around them */
+    va_list ap;
+    va_start(ap, fmt);
+    int len = vsnprintf(whole, sizeof whole, fmt, ap);
+    va_end(ap);
+    size_t kept = len < 0 ? 0 : FM_MIN((size_t)len, sizeof whole - 1);
+    if (kept < sizeof err->message) memcpy(err->message, whole, kept + 1);
+    else keep_ends(err->message, sizeof err->message, whole, kept);
+    err->status = status;
     return status;
 }
 
@@ -244,6 +257,21 @@ void fm_output_keep_partial(fm_output_file *o)
     close_folder(o);
 }
 
+int fm_one_integer_conversion(const char *pattern)
+{
+    int conversions = 0;
+    for (const char *p = pattern; *p; p++) {
+        if (*p != '%') continue;
+        if (*++p == '%') continue;
+        if (*p == '0') p++;
+        for (int digits = 0; *p >= '0' && *p <= '9'; p++)
+            if (++digits > FM_PATTERN_WIDTH_DIGITS) return 0;
+        if (*p != 'd' && *p != 'i' && *p != 'u') return 0;
+        conversions++;
+    }
+    return conversions == 1;
+}
+
 const char *fm_shortest(char *buf, double x)
 {
     if (x == floor(x) && fabs(x) < 1e15) return snprintf(buf, FM_DOUBLE_CHARS, "%.0f", x), buf; /* 10000000, not 1e+07 */
@@ -329,6 +357,20 @@ static char *read_stream(FILE *f, size_t max_bytes, size_t *out_len, int *too_bi
     return text;
 }
 
+/* JSON text holds no NUL byte (RFC 8259: not even between tokens; jansson calls one the end of
+ * the file): refused where it is, by line and column (in bytes, from 1). */
+static fm_status check_no_nul(const char *path, const char *text, size_t len, fm_error *err)
+{
+    const char *nul = memchr(text, 0, len);
+    if (!nul) return FM_OK;
+    int line = 1;
+    const char *line_start = text;
+    for (const char *c = text; c < nul; c++)
+        if (*c == '\n') line++, line_start = c + 1;
+    return fm_fail(err, FM_ERR_INPUT, "%s:%d:%d: a NUL byte, which JSON text may not hold (is it a binary file?)", path,
+                   line, (int)(nul - line_start) + 1);
+}
+
 char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, size_t *out_len, fm_status *st,
                         fm_error *err)
 {
@@ -354,6 +396,7 @@ char *fm_read_text_file(const char *path, const char *what, size_t max_bytes, si
         return NULL;
     }
     if (len >= 3 && !memcmp(text, "\xEF\xBB\xBF", 3)) memmove(text, text + 3, (len -= 3) + 1); /* the mark */
+    if ((*st = check_no_nul(path, text, len, err)) != FM_OK) return free(text), NULL;
     *out_len = len;
     return text;
 }

@@ -940,21 +940,6 @@ static fm_status check_range_pair(const where *w, const param *p, const double *
     return st;
 }
 
-/* A printf pattern with exactly one integer conversion (%d, %03d, %i, %u) and no other '%' but "%%". */
-static int one_integer_conversion(const char *pattern)
-{
-    int conversions = 0;
-    for (const char *c = pattern; *c; c++) {
-        if (*c != '%') continue;
-        if (c[1] == '%') { c++; continue; }
-        c++;
-        while (*c >= '0' && *c <= '9') c++;
-        if (*c != 'd' && *c != 'i' && *c != 'u') return 0;
-        conversions++;
-    }
-    return conversions == 1;
-}
-
 /* The stratified sampler's work (sample_stratified.c) per surface: about oversample x n occupied
  * voxels, each weighing its triangles' pieces of edge h / max(2, 2 lambda), about 8 max(1, lambda)^2
  * pieces a voxel. Measured at about 1.2e-7 CPU s a piece (a 320-triangle sphere, n 300, oversample 16,
@@ -1012,9 +997,9 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
     }
     if (f->deform != FM_DEFORM_SEQUENCE) return FM_OK;
     where_set_key(w, "shape_flock.deform.type");
-    if (!f->deform_sequence[0] || !one_integer_conversion(f->deform_sequence))
-        return fail_at(w, "shape_flock.deform.sequence", "'%s' is not a file name pattern with one integer, "
-                       "like \"wave_%%03d.obj\"", f->deform_sequence);
+    if (!f->deform_sequence[0] || !fm_one_integer_conversion(f->deform_sequence))
+        return fail_at(w, "shape_flock.deform.sequence", "'%s' is not a file name pattern with one integer "
+                       "(%%d, %%i or %%u, a width of at most 2 digits), like \"wave_%%03d.obj\"", f->deform_sequence);
     if (f->deform_frames < 1) return fail_at(w, "shape_flock.deform.frames", "a sequence needs at least one mesh");
     return FM_OK;
 }
@@ -1041,9 +1026,9 @@ static fm_status check_target_motion(where *w, const fm_scene_def *def)
     }
     if (!tm->sequence[0]) return FM_OK;
     where_set_key(w, "target_motion.sequence");
-    if (!one_integer_conversion(tm->sequence))
-        return fail_at(w, "target_motion.sequence", "'%s' is not a file name pattern with one integer, like "
-                       "\"walk_%%03d.obj\"", tm->sequence);
+    if (!fm_one_integer_conversion(tm->sequence))
+        return fail_at(w, "target_motion.sequence", "'%s' is not a file name pattern with one integer (%%d, "
+                       "%%i or %%u, a width of at most 2 digits), like \"walk_%%03d.obj\"", tm->sequence);
     if (tm->frames < 1) return fail_at(w, "target_motion.frames", "a sequence needs at least one mesh");
     return FM_OK;
 }

@@ -1143,8 +1143,6 @@ static void test_cache_writer_keeps_partial(void)
     remove(partial);
 }
 
-/* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
- * first for the cache, then for stats.json after a complete cache. */
 /* A state that runs away stops the run with exit 2 and the parameters that set the speeds (issue
  * 15): the documented maximum speed0 flies the tets out of any scene in one frame, and a flock of
  * near-zero mass gets infinite accelerations. No stats.json, no cache under its final name; the
@@ -1322,6 +1320,16 @@ static void test_flock_mesh_errors_located(void)
 
 /* ---------------------------------------------------------------- output paths (issue 15, items 12, 14) */
 
+/* FM_TEST_TMP/bad_NAME/ddd.../ddd, `length` bytes in all (out holds FM_PATH_MAX + 64), in folders of
+ * at most 200 bytes. */
+static void long_path(char *out, const char *name, int length)
+{
+    char base[FM_PATH_MAX], part[201];
+    memset(part, 'd', 200), part[200] = 0;
+    int n = snprintf(out, FM_PATH_MAX + 64, "%s", tmp_path(base, name));
+    while (n < length) n += snprintf(out + n, FM_PATH_MAX + 64 - (size_t)n, "/%.*s", FM_MIN(length - n - 1, 200), part);
+}
+
 static void expect_outdir_refused(const char *scene_path, const char *outdir, const char *what)
 {
     char args[8 * FM_PATH_MAX];
@@ -1336,12 +1344,8 @@ static void test_output_paths_refused_up_front(void)
     struct stat st;
     if (stat("/proc/self", &st) == 0) expect_outdir_refused(path, "/proc", "-o /proc: cannot create the lock file");
     if (stat("/sys/kernel", &st) == 0) expect_outdir_refused(path, "/sys/kernel", "-o /sys/kernel: cannot create the lock file");
-    char longest[FM_PATH_MAX + 64], base[FM_PATH_MAX];
-    int n = snprintf(longest, sizeof longest, "%s", tmp_path(base, "long"));
-    while (n < 4080) n += snprintf(longest + n, sizeof longest - (size_t)n, "/%.*s", 4080 - n - 1 > 200 ? 200 : 4080 - n - 1,
-                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
-                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
-                                   "dddddddddddddd");
+    char longest[FM_PATH_MAX + 64];
+    long_path(longest, "long", 4080);
     ENSURE(strlen(longest) == 4080);
     expect_outdir_refused(path, longest, "the path is too long");
     /* a long cache name in a long directory: the .partial would not fit in a path */
@@ -1466,6 +1470,51 @@ static void test_closed_standard_streams(void)
     fm_cache_close(r);
 }
 
+/* ---------------------------------------------------------------- smaller items (issue 42) */
+
+/* A NUL byte between JSON tokens is refused at its line and column (jansson took it for the end). */
+static void test_nul_byte_between_tokens(void)
+{
+    char path[FM_PATH_MAX];
+    plain_scene("nul.json", "");
+    FILE *f = fopen(tmp_path(path, "nul.json"), "wb");
+    ENSURE(f != NULL);
+    if (!f) return;
+    const char *second_line = strchr(g_scene_text, '\n') + 1;
+    fwrite(g_scene_text, 1, (size_t)(second_line - g_scene_text), f);
+    fputs("  ", f), fputc(0, f), fputs(second_line + 2, f); /* line 2, column 3 */
+    fclose(f);
+    EXPECT_RUN(path, 2, "bad_nul.json:2:3: a NUL byte, which JSON text may not hold");
+}
+
+/* A sequence pattern of a huge width is refused at once, by its key, without 2 KB of blanks. */
+static void test_sequence_pattern_width(void)
+{
+    const char *path = plain_scene("wide.json", ",\n  \"target_motion\": {\"sequence\": \"walk_%999999999d.obj\", \"frames\": 2}");
+    expect_quick_refusal(path, 5, (const char *const[]){"target_motion.sequence: '", "walk_%999999999d.obj' is not a "
+                                                        "file name pattern", "a width of at most 2 digits", NULL});
+    ENSURE_MSG(strlen(g_err) < 512, "%zu bytes of message", strlen(g_err));
+}
+
+/* An -o under PATH_MAX whose files fit (4069 bytes) is taken; an error about a path of several KB
+ * keeps its reason, the path cut in its middle. */
+static void test_long_paths(void)
+{
+    char dir[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX], base[FM_PATH_MAX];
+    long_path(dir, "long4069", 4069);
+    ENSURE(strlen(dir) == 4069);
+    tmp_path(base, "long4069");
+    snprintf(args, sizeof args, "rm -rf '%s'", base);
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", plain_scene("long.json", ",\n  \"time\": {\"frame_limit\": 2}"), dir);
+    ENSURE_EXIT(args, 0);
+    dir[3000] = 0; /* a scene 3000 bytes deep that is not there */
+    snprintf(args, sizeof args, "run '%s/none.json' -o '%s' --quiet", dir, tmp_path(base, "long_out"));
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "...") && strstr(g_err, "none.json: cannot open the scene file: No such file or directory"),
+               "%.300s", g_err + (strlen(g_err) > 300 ? strlen(g_err) - 300 : 0));
+}
+
 /* A scene path that is not UTF-8 stays in stats.json's warnings, each bad byte as \xNN. */
 static void test_stats_keep_text_that_is_not_utf8(void)
 {
@@ -1546,5 +1595,8 @@ int main(void)
     RUN_TEST(test_two_writers_of_one_name);
     RUN_TEST(test_finished_folder_refused);
     RUN_TEST(test_closed_standard_streams);
+    RUN_TEST(test_nul_byte_between_tokens);
+    RUN_TEST(test_sequence_pattern_width);
+    RUN_TEST(test_long_paths);
     return test_result();
 }

@@ -574,6 +574,13 @@ static void test_render(void)
     ENSURE(png[20] == 0 && png[21] == 0 && png[22] == 0 && png[23] == 48);  /* height */
     snprintf(args, sizeof args, "render '%s' -o '%s' --view diagonal", g_cache, out);
     ENSURE_EXIT(args, 1);
+    /* a size past 32 bits (a 16x16 image, once) and trailing junk are refused, naming --size */
+    static const char *const bad_sizes[] = {"4294967312x4294967312", "64x64junk", "64x", "x64", "64x4294967360"};
+    for (size_t i = 0; i < sizeof bad_sizes / sizeof *bad_sizes; i++) {
+        snprintf(args, sizeof args, "render '%s' -o '%s' --size %s", g_cache, out, bad_sizes[i]);
+        ENSURE_EXIT(args, 1);
+        ENSURE_MSG(strstr(g_err, "--size wants WIDTHxHEIGHT") && strstr(g_err, bad_sizes[i]), "%s", g_err);
+    }
 }
 
 /* -o NAME.%04d.png: one PNG per frame of --frames (a stride here), named by the cache's frame

@@ -152,6 +152,11 @@ static void test_set_errors(void)
     ENSURE_ERR("--set n.x=1: n is an integer, not a group of keys");
     ENSURE_RUN("run @base.json -o @bad --set source.translate.3=1", 2);
     ENSURE_ERR("--set source.translate.3=1: source.translate has 3 elements; there is no element 3");
+    /* an element of a documented list the scene does not have: out of range, not an unknown key */
+    ENSURE_RUN("run @base.json -o @bad --set obstacles.meshes.0.scale=2", 2);
+    ENSURE_ERR("--set obstacles.meshes.0.scale=2: element 0 is out of range: the scene has no obstacles.meshes list");
+    ENSURE_RUN("run @base.json -o @bad --set 'path.points[1]=[0, 1, 0]'", 2);
+    ENSURE_ERR("element 1 is out of range: the scene has no path.points list");
     /* found after loading, while the model is built: still the override, not the file's line */
     ENSURE_RUN("run @base.json -o @bad --set n=2", 2);
     ENSURE_ERR("--set n=2: n: 2 is smaller than");
@@ -419,6 +424,19 @@ static void test_set_shadowed_by_every_group(void)
     ENSURE_RUN(args, 0);
 }
 
+/* The manifest keeps run's arguments that are not UTF-8, each bad byte as \xNN. */
+static void test_manifest_keeps_arguments_not_utf8(void)
+{
+    write_scene("caf\xE9.json", "");
+    ENSURE_RUN("run '@caf\xE9.json' -o @latin --set speed0=9 --quiet", 0);
+    json_t *m = load_output_json("latin", FM_OUTPUT_MANIFEST);
+    json_t *a = at(m, "arguments");
+    ENSURE_MSG(json_array_size(a) == 6 && strstr(str(json_array_get(a, 0)), "wedge_caf\\xE9.json"),
+               "arguments: %zu, the first '%s'", json_array_size(a), str(json_array_get(a, 0)));
+    ENSURE(strstr(str(at(m, "scene")), "wedge_caf\\xE9.json") != NULL);
+    json_decref(m);
+}
+
 int main(void)
 {
     clear_index_variables(); /* a test run inside a farm task must not pick its index */
@@ -432,5 +450,6 @@ int main(void)
     RUN_TEST(test_scene_placeholder_never_dot);
     RUN_TEST(test_wedge_list_refuses_what_run_refuses);
     RUN_TEST(test_set_shadowed_by_every_group);
+    RUN_TEST(test_manifest_keeps_arguments_not_utf8);
     return test_result();
 }
