@@ -1461,7 +1461,7 @@ static void test_closed_standard_streams(void)
     const char *path = plain_scene("closed.json", "");
     snprintf(args, sizeof args, "rm -rf '%s'", tmp_path(outdir, "closed_out"));
     ENSURE(system(args) == 0);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&- <&-", path, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&-", path, outdir);
     ENSURE_EXIT(args, 0);
     snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
     fm_error err = {0};
