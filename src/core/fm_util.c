@@ -207,7 +207,10 @@ fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err)
 {
     int e = 0, bad = ferror(o->f) || fflush(o->f) != 0 || fsync(fileno(o->f)) != 0;
     if (bad) e = errno;
-    if (!bad && (e = still_ours(o, fileno(o->f))) != 0) bad = 1;
+    if (!bad && (e = still_ours(o, fileno(o->f))) != 0) {
+        bad = 1;
+        if (e == EBUSY) detail = "another writer of this name replaced its partial file";
+    }
     int closed = close_file(o);
     if (closed && !bad) bad = 1, e = closed;
     if (!bad && (e = fm_output_rename(o)) != 0) bad = 1;
@@ -221,8 +224,9 @@ fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err)
 
 void fm_output_discard(fm_output_file *o)
 {
+    int ours = still_ours(o, o->f ? fileno(o->f) : o->fd) == 0; /* never another writer's PATH.partial */
     close_file(o);
-    if (o->dir >= 0) unlinkat(o->dir, base_name(o->partial), 0);
+    if (o->dir >= 0 && ours) unlinkat(o->dir, base_name(o->partial), 0);
     close_folder(o);
 }
 

@@ -642,8 +642,31 @@ static void test_write_failure_on_the_writer_thread(void)
     full_disk_unmount(dir);
 }
 
+/* Two writers of one cache path (a library user's mistake; a run holds its folder's lock): the
+ * second makes PATH.partial afresh, the first's finish fails naming the replacement and leaves the
+ * second's file alone, and the second's cache is complete under the final name. */
+static void test_second_writer_of_one_path(void)
+{
+    char path[FM_PATH_MAX];
+    tmp_path(path, "twice.fmc");
+    remove(path);
+    float frame[12 * 8] = {0};
+    fm_error err = {0};
+    fm_cache_writer *a = fm_cache_writer_create(path, 8, 24, 1, &err), *b = fm_cache_writer_create(path, 8, 24, 1, &err);
+    ENSURE_MSG(a && b, "%s", err.message);
+    if (!a || !b) return fm_cache_writer_abort(a), fm_cache_writer_abort(b);
+    ENSURE(fm_cache_writer_add_frame(a, frame, &err) == FM_OK);
+    for (int f = 0; f < 3; f++) ENSURE(fm_cache_writer_add_frame(b, frame, &err) == FM_OK);
+    ENSURE_MSG(fm_cache_writer_finish(a, &err) == FM_ERR_IO && strstr(err.message, "another writer"), "%s", err.message);
+    ENSURE_MSG(fm_cache_writer_finish(b, &err) == FM_OK, "%s", err.message);
+    fm_cache_reader *r = fm_cache_open(path, &err);
+    ENSURE_MSG(r && fm_cache_frames(r) == 3 && !fm_cache_warning(r)[0], "%s", err.message);
+    fm_cache_close(r);
+}
+
 int main(void)
 {
+    RUN_TEST(test_second_writer_of_one_path);
     RUN_TEST(test_write_failure_on_the_writer_thread);
     RUN_TEST(test_round_trip_bitwise);
     RUN_TEST(test_zero_frames);
