@@ -24,8 +24,8 @@ trap 'rm -rf "$tmp"' EXIT
 echo "$name, 10^6 agents, $((60 / spf)) frames of $spf steps; $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(nproc) cores"
 for round in $(seq 1 "$rounds"); do
   rm -rf "$tmp/a" "$tmp/b"
-  "$cli" run "$scene" -o "$tmp/a" --threads "$ranks" --quiet "${sets[@]}" > /dev/null
-  mpirun --oversubscribe ${FM_MPIRUN_OPTIONS:-} -np "$ranks" "$cli" run "$scene" -o "$tmp/b" --threads 1 --quiet "${sets[@]}" > /dev/null
+  "$cli" run "$scene" -o "$tmp/a" --threads "$ranks" --quiet --overwrite "${sets[@]}" > /dev/null
+  mpirun --oversubscribe ${FM_MPIRUN_OPTIONS:-} -np "$ranks" "$cli" run "$scene" -o "$tmp/b" --threads 1 --quiet --overwrite "${sets[@]}" > /dev/null
   cmp -s "$tmp/a/frames.fmc" "$tmp/b/frames.fmc" && same=identical || same=DIFFERENT
   /usr/bin/python3 - "$tmp/a/stats.json" "$tmp/b/stats.json" "$round" "$ranks" "$same" <<'PY'
 import json, sys

@@ -171,9 +171,9 @@ for mode in $modes; do
     limit=$((3 * est + 30)); [ "$limit" -gt "$left" ] && limit=$left
     rm -rf "$work/run"
     if [ "$p" = 1 ]; then
-      cmd=("$cli" run "$scene" -o "$work/run" --threads "$t" --quiet "${sets[@]}" "${one[@]}")
+      cmd=("$cli" run "$scene" -o "$work/run" --threads "$t" --quiet --overwrite "${sets[@]}" "${one[@]}")
     else
-      cmd=(mpirun --bind-to none -np "$p" "$cli" run "$scene" -o "$work/run" --threads "$t" --quiet "${sets[@]}" "${one[@]}")
+      cmd=(mpirun --bind-to none -np "$p" "$cli" run "$scene" -o "$work/run" --threads "$t" --quiet --overwrite "${sets[@]}" "${one[@]}")
     fi
     t0=$(date +%s.%N)
     timeout --kill-after=5 "$limit" "${cmd[@]}" > "$work/log" 2>&1

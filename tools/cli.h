@@ -63,14 +63,20 @@ int cli_cache_obstacles(const char *cache, const char *given, struct fm_mesh *ou
 /* The scene file's name without its folder and its .json, or the folder's name for a file named
  * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
 void cli_scene_stem(const char *scene, char *out, size_t size);
-/* Takes the output directory for this run until the process exits (an exclusive flock on
- * dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run holds it. */
+/* Takes the output directory for this run until cli_unlock_outdir or the process's exit (an
+ * exclusive flock on dir/.flockmorph.lock); 0, or FM_ERR_USAGE with a message when another run
+ * holds it. cli_unlock_outdir removes the lock file, still held, and releases it. */
 int cli_lock_outdir(const char *dir);
+void cli_unlock_outdir(void);
+/* FM_ERR_USAGE with a message if dir holds a finished run's results (the cache or stats.json
+ * under their final names), which a new run would replace: --overwrite says that is meant. */
+int cli_refuse_earlier_results(const char *dir, const char *cache_name);
 
 /* `run`: its options (cli_run.c). */
 typedef struct cli_run_options {
     const char *scene, *outdir;
     int threads, quiet, resume;
+    int overwrite;         /* --overwrite: replace a finished run's results in OUTDIR */
     long checkpoint_every; /* -1: by wall time (the default) */
     long stop_after_frame; /* -1: none */
     double log_every;      /* seconds between the plain progress lines when stderr is not a terminal */
@@ -275,6 +281,9 @@ void cli_shot_use_overrides(const fm_scene_override *set, int count, uint64_t fi
 /* A shot's checkpoint against its first group's scene (with the run's overrides and seed), before the
  * model build: 0, or the reported exit status. */
 int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def);
+/* Every group of the shot read with the overrides as the run reads it (cli_shot_use_overrides
+ * first): 0, or the first group's error printed and its status. */
+int cli_shot_check_groups(const fm_scene_def *def);
 /* Writes j (indented) to path through fm_output_*, then frees it; 0 or an exit status. */
 int cli_write_json(const char *path, json_t *j);
 /* A new run first removes the previous run's cache and stats.json, so that should this one fail,

@@ -143,20 +143,7 @@ int cli_parse_int(const char *s, long lo, long hi, long *out)
     return 0;
 }
 
-int cli_check_frame_pattern(const char *pattern)
-{
-    int conversions = 0;
-    for (const char *p = pattern; *p; p++) {
-        if (*p != '%') continue;
-        if (*++p == '%') continue;
-        if (*p == '0') p++;
-        for (int digits = 0; *p >= '0' && *p <= '9'; p++)
-            if (++digits > 2) return -1;
-        if (*p != 'd' && *p != 'i' && *p != 'u') return -1;
-        conversions++;
-    }
-    return conversions == 1 ? 0 : -1;
-}
+int cli_check_frame_pattern(const char *pattern) { return fm_one_integer_conversion(pattern) ? 0 : -1; }
 
 int cli_frame_name(char *out, size_t size, const char *pattern, long frame)
 {
@@ -236,25 +223,79 @@ int cli_make_outdir(const char *dir, const char *const *names, int count)
     return 0;
 }
 
+static int g_lock_fd = -1;                  /* the held lock, until cli_unlock_outdir or exit */
+static char g_lock_path[FM_PATH_MAX + 32];
+
+/* Whether fd is still the file named path: the run that held the lock before may have removed
+ * it between this run's open and its flock (it removes the file while it holds the lock). */
+static int still_named(int fd, const char *path)
+{
+    struct stat held, named;
+    return fstat(fd, &held) == 0 && lstat(path, &named) == 0 && held.st_dev == named.st_dev &&
+           held.st_ino == named.st_ino;
+}
+
 /* flock(2) rather than a file whose existence is the lock: the kernel releases it when the run
- * ends in any way (kill -9 included), so a dead run never blocks the next. The file stays: removing
- * it at exit would let a run that opened it just before lock the removed file while a third run
- * locks a new one. The descriptor is kept open (and the lock held) until the process exits. */
+ * ends in any way (kill -9 included), so a dead run never blocks the next. The descriptor is kept
+ * open (and the lock held) until cli_unlock_outdir or the process's exit. */
 int cli_lock_outdir(const char *dir)
 {
-    char path[FM_PATH_MAX + 32];
-    snprintf(path, sizeof path, "%s/" FM_OUTPUT_LOCK, dir);
-    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
-    if (fd < 0)
-        return fprintf(stderr, "flockmorph: error: -o %s: cannot create the lock file %s: %s\n", dir, path,
-                       strerror(errno)), FM_ERR_USAGE;
-    if (flock(fd, LOCK_EX | LOCK_NB) == 0) return 0;
-    int e = errno;
-    close(fd);
-    if (e == EWOULDBLOCK)
-        return fprintf(stderr, "flockmorph: error: -o %s: another run uses this output directory (it holds %s); wait "
-                       "for it to finish or choose another -o\n", dir, path), FM_ERR_USAGE;
-    return fprintf(stderr, "flockmorph: error: -o %s: cannot lock %s: %s\n", dir, path, strerror(e)), FM_ERR_USAGE;
+    snprintf(g_lock_path, sizeof g_lock_path, "%s/" FM_OUTPUT_LOCK, dir);
+    for (int attempt = 0; attempt < 100; attempt++) {
+        int fd = open(g_lock_path, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+        if (fd < 0)
+            return fprintf(stderr, "flockmorph: error: -o %s: cannot create the lock file %s: %s\n", dir, g_lock_path,
+                           strerror(errno)), FM_ERR_USAGE;
+        if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+            int e = errno;
+            close(fd);
+            if (e == EWOULDBLOCK)
+                return fprintf(stderr, "flockmorph: error: -o %s: another run uses this output directory (it holds %s); "
+                               "wait for it to finish or choose another -o\n", dir, g_lock_path), FM_ERR_USAGE;
+            return fprintf(stderr, "flockmorph: error: -o %s: cannot lock %s: %s\n", dir, g_lock_path, strerror(e)),
+                   FM_ERR_USAGE;
+        }
+        if (still_named(fd, g_lock_path)) return g_lock_fd = fd, 0;
+        close(fd); /* a finished run removed it: lock the file that is there now */
+    }
+    return fprintf(stderr, "flockmorph: error: -o %s: cannot lock %s: it keeps being replaced\n", dir, g_lock_path),
+           FM_ERR_USAGE;
+}
+
+void cli_unlock_outdir(void)
+{
+    if (g_lock_fd < 0) return;
+    unlink(g_lock_path); /* while still held: a run that opened it meanwhile sees it gone and retries */
+    close(g_lock_fd);
+    g_lock_fd = -1;
+}
+
+int cli_refuse_earlier_results(const char *dir, const char *cache_name)
+{
+    const char *names[] = {cache_name, FM_OUTPUT_STATS};
+    for (int i = 0; i < 2; i++) {
+        char path[2 * FM_PATH_MAX];
+        struct stat st;
+        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
+        if (lstat(path, &st) == 0)
+            return fprintf(stderr, "flockmorph: error: -o %s: holds the results of an earlier run (%s); pass --overwrite to "
+                           "replace them, or choose another -o\n", dir, path), FM_ERR_USAGE;
+    }
+    return 0;
+}
+
+/* "WxH", each a whole number in [lo, hi] and nothing after: 0, or -1 (an overflowing
+ * 4294967312x4294967312 and 64x64junk included). */
+static int parse_size(const char *s, long lo, long hi, int *width, int *height)
+{
+    const char *x = strchr(s, 'x');
+    char w[24];
+    long wv, hv;
+    if (!x || (size_t)(x - s) >= sizeof w) return -1;
+    snprintf(w, sizeof w, "%.*s", (int)(x - s), s);
+    if (cli_parse_int(w, lo, hi, &wv) || cli_parse_int(x + 1, lo, hi, &hv)) return -1;
+    *width = (int)wv, *height = (int)hv;
+    return 0;
 }
 
 int cli_parse_frame_options(int argc, char **argv, const char *usage, int optional_out, cli_frame_options *o)
@@ -268,7 +309,7 @@ int cli_parse_frame_options(int argc, char **argv, const char *usage, int option
             if (cli_parse_int(argv[++i], -2000000000L, 2000000000L, &o->frame)) return cli_usage_error(usage, "--frame wants a whole number, not '%s'", argv[i]);
             o->has_frame = 1;
         } else if (!strcmp(a, "--size") && i + 1 < argc) {
-            if (sscanf(argv[++i], "%dx%d", &o->width, &o->height) != 2 || o->width < 16 || o->height < 16 || o->width > 16384 || o->height > 16384)
+            if (parse_size(argv[++i], 16, 16384, &o->width, &o->height))
                 return cli_usage_error(usage, "--size wants WIDTHxHEIGHT between 16 and 16384, not '%s'", argv[i]);
         } else if (!strcmp(a, "--view") && i + 1 < argc) o->view = argv[++i];
         else if (a[0] == '-' && a[1]) return cli_usage_error(usage, "unknown or incomplete option '%s'", a);

@@ -56,6 +56,16 @@ static int load_groups(shot_run *r, const fm_scene_def *def)
     return 0;
 }
 
+int cli_shot_check_groups(const fm_scene_def *def)
+{
+    fm_error err = {0};
+    fm_scene_def *group = malloc(sizeof *group); /* 120 KiB: not on the stack */
+    fm_status st = group ? FM_OK : fm_fail(&err, FM_ERR_MEMORY, "out of memory");
+    for (int g = 0; g < def->group_count && st == FM_OK; g++) st = load_group(def, g, group, &err);
+    free(group);
+    return st == FM_OK ? 0 : cli_report(&err);
+}
+
 int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def)
 {
     fm_error err = {0};

@@ -98,14 +98,14 @@ static json_t *final_overrides(const cli_overrides *ov)
 static json_t *wedge_json(const cli_run_options *o, const cli_overrides *ov)
 {
     if (!o->wedge_file) return json_null();
-    return json_pack("{sssIsIsssO}", "file", o->wedge_file, "index", (json_int_t)o->wedge, "count",
+    return json_pack("{sosIsIsssO}", "file", cli_json_string(o->wedge_file), "index", (json_int_t)o->wedge, "count",
                      (json_int_t)ov->wedge_count, "index_from", o->wedge_from, "overrides", ov->wedge);
 }
 
 static json_t *strings_json(const char *const *s, int n)
 {
     json_t *a = json_array();
-    for (int i = 0; i < n; i++) json_array_append_new(a, json_string(s[i]));
+    for (int i = 0; i < n; i++) json_array_append_new(a, cli_json_string(s[i])); /* not UTF-8: kept as \xNN */
     return a;
 }
 

@@ -18,7 +18,8 @@
 
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
-    "                      [--stop-after-frame F] [--set KEY=VALUE ...] [--wedge-file WEDGES.json [--wedge I]]\n"
+    "                      [--overwrite] [--stop-after-frame F] [--set KEY=VALUE ...]\n"
+    "                      [--wedge-file WEDGES.json [--wedge I]]\n"
     "\n"
     "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
     "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
@@ -39,6 +40,8 @@ static const char *const USAGE_RUN =
     "                        either mode)\n"
     "  --stop-after-frame F  write frames up to F, save the checkpoint and exit 0 (a run split\n"
     "                        into segments under a farm's time limit: the next one --resume's)\n"
+    "  --overwrite           replace the results of a finished run in OUTDIR (without it such a\n"
+    "                        folder is refused)\n"
     "  --set KEY=VALUE       change the scene: KEY dotted (mde.d_min, obstacles.meshes.0.scale),\n"
     "                        VALUE JSON (0.05, true, [1, 2, 3]) or else a string; checked as the\n"
     "                        file is. Repeatable; applied after the wedge's\n"
@@ -92,6 +95,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
             if (cli_parse_int(argv[++i], 0, 2000000000L, &o->wedge)) return cli_usage_error(USAGE_RUN, "--wedge wants a wedge index (0, 1, ...), not '%s'", argv[i]);
             o->wedge_from = "--wedge";
         } else if (!strcmp(a, "--resume")) o->resume = 1;
+        else if (!strcmp(a, "--overwrite")) o->overwrite = 1;
         else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) o->quiet = 1;
         else if (!strcmp(a, "--log-every") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 0, 86400, &v)) return cli_usage_error(USAGE_RUN, "--log-every wants whole seconds from 0 to 86400, not '%s'", argv[i]);
@@ -104,6 +108,8 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     if (!o->scene) return cli_usage_error(USAGE_RUN, "%s", "no scene file given");
     if (!o->outdir) return cli_usage_error(USAGE_RUN, "%s", "no output directory given (-o OUTDIR)");
     if (o->wedge >= 0 && !o->wedge_file) return cli_usage_error(USAGE_RUN, "%s", "--wedge needs --wedge-file");
+    if (o->resume && o->overwrite)
+        return cli_usage_error(USAGE_RUN, "%s", "--resume continues the run in OUTDIR and --overwrite replaces it: give one");
     return 0;
 }
 
@@ -329,6 +335,7 @@ static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const 
     int rc = cli_check_json_path("-o", o->outdir);
     if (!rc) rc = cli_make_outdir(o->outdir, outputs, 4);
     if (!rc) rc = cli_lock_outdir(o->outdir); /* before anything there is removed or read */
+    if (!rc && !o->resume && !o->overwrite) rc = cli_refuse_earlier_results(o->outdir, def->cache_name);
     if (!rc && o->resume) rc = cli_check_checkpoint(o, def); /* before the long preprocessing */
     if (!rc) rc = cli_write_manifest(o, ov, def, -1);
     return rc;
@@ -338,9 +345,10 @@ static int take_outdir(const cli_run_options *o, const cli_overrides *ov, const 
 static int run_in_outdir(const cli_run_options *o, const cli_overrides *ov, const fm_scene_def *def)
 {
     int rc = cli_agree(cli_is_root() ? take_outdir(o, ov, def) : 0, NULL);
-    if (rc) return rc;
+    if (rc) return cli_unlock_outdir(), rc;
     rc = run_scene(o, def, NULL);
     int manifest = cli_is_root() ? cli_write_manifest(o, ov, def, rc) : 0;
+    cli_unlock_outdir(); /* the run is over: the next may take the folder */
     return rc ? rc : manifest;
 }
 

@@ -143,7 +143,7 @@ json_t *cli_meshes_json(const fm_scene_def *defs, int count)
 static json_t *command_line(const cli_run_options *o)
 {
     json_t *a = json_pack("[ss]", "flockmorph", "run");
-    for (int i = 0; i < o->argc; i++) json_array_append_new(a, json_string(o->argv[i]));
+    for (int i = 0; i < o->argc; i++) json_array_append_new(a, cli_json_string(o->argv[i])); /* not UTF-8: \xNN */
     return a;
 }
 
@@ -152,7 +152,7 @@ void cli_stats_provenance(json_t *j, const cli_run_options *o)
     char absolute[PATH_MAX];
     json_object_set_new(j, "schema", json_integer(CLI_STATS_SCHEMA));
     json_object_set_new(j, "commit", json_string(FM_BUILD_COMMIT));
-    json_object_set_new(j, "scene", json_string(o->scene));
+    json_object_set_new(j, "scene", cli_json_string(o->scene));
     json_object_set_new(j, "scene_absolute", realpath(o->scene, absolute) ? json_string(absolute) : json_null());
     json_object_set_new(j, "scene_xxh64", file_xxh64(o->scene));
     json_object_set_new(j, "command_line", command_line(o));

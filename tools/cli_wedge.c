@@ -1,8 +1,9 @@
 /* Wedges (docs/wedges.md): a wedge file's override sets, the index a farm task runs, its seed and
  * output folder, and `flockmorph wedge list | count`. */
-#define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* realpath */
 #include "cli.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -88,10 +89,10 @@ static int load_list(cli_wedges *w, const json_t *list)
         return wedge_error(w->path, "wedges", "expected a non-empty list of objects {KEY: VALUE, ...}");
     if (json_array_size(list) > (size_t)CLI_MAX_WEDGES) return wedge_error(w->path, "wedges", "more than 1000000 wedges");
     for (size_t i = 0; i < json_array_size(list); i++)
-        if (!json_is_object(json_array_get(list, i))) {
+        if (!json_is_object(json_array_get(list, i)) || json_object_size(json_array_get(list, i)) > FM_MAX_OVERRIDES) {
             char label[64];
             snprintf(label, sizeof label, "wedges[%zu]", i);
-            return wedge_error(w->path, label, "expected an object {KEY: VALUE, ...}");
+            return wedge_error(w->path, label, "expected an object of at most 64 overrides {KEY: VALUE, ...}");
         }
     w->list = json_incref((json_t *)list);
     w->count = (long)json_array_size(list);
@@ -199,7 +200,23 @@ char *cli_json_text(const json_t *v)
     return json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(17));
 }
 
-void cli_scene_stem(const char *scene, char *out, size_t size)
+/* The last part of the real path of the scene's folder ("scene" for the root): what "." or ".."
+ * stands for in ./scene.json and ../scene.json, so that {scene} never names the runs folder itself
+ * or the one above it. */
+static void real_folder_name(const char *scene, char *out, size_t size)
+{
+    char dir[FM_PATH_MAX], real[PATH_MAX];
+    const char *slash = strrchr(scene, '/');
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - scene) : 1, slash ? scene : ".");
+    const char *name = realpath(dir[0] ? dir : "/", real) ? strrchr(real, '/') + 1 : "";
+    snprintf(out, size, "%s", name[0] ? name : "scene");
+}
+
+static int names_no_folder(const char *stem) { return !stem[0] || !strcmp(stem, ".") || !strcmp(stem, ".."); }
+
+/* The scene file's name without its folder and its .json, or the folder's name for a file named
+ * scene.json (examples/words/scene.json is "words"). */
+static void scene_name(const char *scene, char *out, size_t size)
 {
     const char *slash = strrchr(scene, '/'), *name = slash ? slash + 1 : scene;
     size_t len = strlen(name);
@@ -214,6 +231,14 @@ void cli_scene_stem(const char *scene, char *out, size_t size)
     snprintf(out, size, "%.*s", (int)len, name);
 }
 
+/* scene_name, never "", "." or ".." (./scene.json: the current folder's real name): -o's {scene},
+ * render's burn-in (cli.h). */
+void cli_scene_stem(const char *scene, char *out, size_t size)
+{
+    scene_name(scene, out, size);
+    if (names_no_folder(out)) real_folder_name(scene, out, size);
+}
+
 /* Appends placeholder `name` ("wedge", "scene") of -o; -1 if it is not one. */
 static int put_placeholder(const cli_run_options *o, const char *name, size_t len, char *out, size_t size)
 {
@@ -225,6 +250,13 @@ static int put_placeholder(const cli_run_options *o, const char *name, size_t le
     return 0;
 }
 
+static int outdir_too_long(const cli_run_options *o)
+{
+    fprintf(stderr, "flockmorph: error: -o %s: the path is too long: the directory and the files the run writes in it "
+            "must fit in %d bytes\n", o->outdir, FM_PATH_MAX - 1);
+    return FM_ERR_USAGE;
+}
+
 int cli_expand_outdir(cli_run_options *o)
 {
     char *out = o->outdir_buf;
@@ -234,9 +266,8 @@ int cli_expand_outdir(cli_run_options *o)
     for (const char *s = o->outdir; *s;) {
         const char *close = *s == '{' ? strchr(s, '}') : NULL;
         size_t used = strlen(out);
-        if (used + 32 >= size)
-            return fprintf(stderr, "flockmorph: error: -o %s: the path is too long: the directory and the files the run "
-                           "writes in it must fit in %d bytes\n", o->outdir, FM_PATH_MAX - 1), FM_ERR_USAGE;
+        if (used + 1 >= size) /* full: what follows, or a placeholder's value, was cut */
+            return outdir_too_long(o);
         if (!close) {
             out[used] = *s++, out[used + 1] = 0;
             continue;
@@ -247,6 +278,8 @@ int cli_expand_outdir(cli_run_options *o)
         placeholders = 1;
         s = close + 1;
     }
+    if (strlen(out) + 1 >= size) /* the last placeholder's value was cut */
+        return outdir_too_long(o);
     for (size_t n = strlen(out); placeholders && n > 1 && out[n - 1] == '/'; n--) out[n - 1] = 0; /* out/{wedge}/ */
     o->outdir = out;
     return 0;
@@ -300,6 +333,8 @@ static int wedge_seed(const cli_wedges *w, long i, const char *scene, uint64_t *
     fm_scene_def *def = malloc(sizeof *def);
     int rc = def ? cli_overrides_add_wedge(w, i, &ov) : FM_ERR_MEMORY;
     if (!rc) rc = cli_overrides_load(&o, &ov, def);
+    if (!rc) cli_shot_use_overrides(ov.set, ov.count, ov.base_seed, def->seed);
+    if (!rc && def->group_count > 0) rc = cli_shot_check_groups(def); /* as run reads a shot's groups */
     if (!rc) *seed = def->seed;
     cli_overrides_free(&ov);
     free(def);

@@ -20,6 +20,8 @@
 #include <alloca.h>
 #include <omp.h>
 #include <setjmp.h>
+#include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <stdio.h>
@@ -135,8 +137,22 @@ static int reserve_stack(void)
     return FM_ERR_MEMORY;
 }
 
+/* Descriptors 0, 1 and 2 open, on /dev/null where closed (`flockmorph run ... >&- 2>&-`): the first
+ * file the run opens would otherwise get descriptor 1 or 2, and a progress line or a message
+ * written to stdout or stderr would land in the cache. -1 if one cannot be opened. */
+static int open_standard_streams(void)
+{
+    for (int fd = 0; fd <= 2; fd++) {
+        if (fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+        int got = open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY); /* the lowest free number: fd */
+        if (got != fd) return -1;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (open_standard_streams() != 0) return FM_ERR_IO; /* before anything else opens a file */
     int rc = reserve_stack();
     if (rc) return rc;
     rc = start_ranks(&argc, &argv);

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 tools/setup.sh build > /dev/null
 scenes=(words moon creatures castling)
 for name in "${scenes[@]}"; do
-  build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet > /dev/null
+  build/flockmorph run "examples/$name/scene.json" -o "out/$name" --quiet --overwrite > /dev/null
 done
 # --color id: their captions say the colour follows the launch order (the agent id), which is what
 # render drew before --color speed became its default. --camera frame: each frame's own camera, as
@@ -26,7 +26,7 @@ for name in "${scenes[@]}"; do
 done
 # docs/shape-flock.md "A target that travels": flock_travel forming, formed, gliding and stopped, one
 # camera over the whole run.
-build/flockmorph run examples/flock_travel/scene.json -o out/flock_travel --quiet > /dev/null
+build/flockmorph run examples/flock_travel/scene.json -o out/flock_travel --quiet --overwrite > /dev/null
 for k in 150 215 300 404; do
   build/flockmorph render out/flock_travel/frames.fmc --frame "$k" -o "docs/images/flock_travel_$k.png" --view persp \
     --size 480x270 --samples 2 --camera animation --color speed --color-range 0:12 > /dev/null
@@ -34,7 +34,7 @@ done
 # docs/scenarios.md, "A target that moves": walking_suzanne formed at rest (frame 119, t = 4.96 s, the
 # motion starts at 5 s), then breathing and walking off: one camera over the whole run for the walk,
 # and each frame's own camera for the breath and the nod.
-build/flockmorph run examples/walking_suzanne/scene.json -o out/walking_suzanne --quiet > /dev/null
+build/flockmorph run examples/walking_suzanne/scene.json -o out/walking_suzanne --quiet --overwrite > /dev/null
 for k in 119 200 287; do render walking_suzanne --frame "$k" --camera animation -o "docs/images/walking_suzanne_wide_$k.png"; done
 for k in 119 150 200 250; do render walking_suzanne --frame "$k" -o "docs/images/walking_suzanne_$k.png"; done
 echo "docs/images: ${#scenes[@]} scenarios, 5 frames of words, 4 of flock_travel and 7 of walking_suzanne rendered"

@@ -8,6 +8,6 @@ name=${1:-words}
 [ -f "examples/$name/scene.json" ] || { echo "no example named '$name' (see examples/)" >&2; exit 1; }
 tools/setup.sh build > /dev/null
 out="out/$name"
-build/flockmorph run "examples/$name/scene.json" -o "$out"
+build/flockmorph run "examples/$name/scene.json" -o "$out" --overwrite
 build/flockmorph render "$out/frames.fmc" --frame -1 -o "$out/last.png" > /dev/null
 echo "preview: $out/last.png"

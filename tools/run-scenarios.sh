@@ -17,7 +17,7 @@ echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
 for name in words moon creatures castling_rook; do
   scene="examples/$name/scene.json"
   [ "$name" = castling_rook ] && scene=examples/castling/rook.json
-  build/flockmorph run "$scene" -o "$out/$name" --threads "$threads" --quiet > /dev/null
+  build/flockmorph run "$scene" -o "$out/$name" --threads "$threads" --quiet --overwrite > /dev/null
   frames=$(stat "$name" frames)
   build/flockmorph render "$out/$name/frames.fmc" --frame $((frames * 2 / 5)) --size 800x400 -o "$out/$name/mid.png" > /dev/null
   steps=$(stat "$name" steps); sim=$(stat "$name" simulate_seconds)

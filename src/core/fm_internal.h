@@ -28,28 +28,54 @@ fm_status fm_name_key(fm_status st, const char *key, fm_error *err);
 void *fm_alloc(size_t bytes);
 void fm_free(void *p);
 
-/* A file written as PATH.partial and renamed to PATH only when complete, so a file under its
- * final name is never half-written. */
+/* A file written under a temporary name in its destination folder and renamed to PATH only when
+ * complete, so a file under its final name is never half-written. The temporary file is created
+ * exclusively (O_CREAT | O_EXCL | O_NOFOLLOW) as PATH.partial.XXXXXX, a name no other process
+ * chose, in the folder held open: neither it nor PATH is ever opened through a symlink planted
+ * there, and two processes writing one PATH never share a file. A writer that keeps its partial
+ * file (the frame cache, for --resume) renames it to the fixed PATH.partial. */
 typedef struct fm_output_file {
-    FILE *f;
+    FILE *f;                     /* fm_output_open's stream, or NULL */
+    int fd;                      /* the temporary file (f's descriptor when f is open), or -1 */
+    int dir;                     /* the destination folder, or -1 */
     char path[FM_PATH_MAX];
-    char partial[FM_PATH_MAX + 16];
+    char partial[FM_PATH_MAX + 32]; /* the temporary file's path (messages, other ranks); before a
+                                       file is created, PATH.partial */
     int keep_partial_on_failure; /* commit leaves PATH.partial when it fails (the frame cache: its
                                     complete frames stay readable) */
+    int fixed;                   /* the temporary file is the fixed PATH.partial (fm_output_open_fixed) */
 } fm_output_file;
+
+/* The suffix of a partial file kept under its fixed name, and the longest a temporary name adds. */
+#define FM_PARTIAL_SUFFIX ".partial"
+#define FM_TEMP_SUFFIX_MAX (sizeof FM_PARTIAL_SUFFIX - 1 + 7) /* .partial.XXXXXX */
 
 /* Sets o's names (PATH and PATH.partial) without opening anything. */
 fm_status fm_output_name(fm_output_file *o, const char *path, fm_error *err);
+/* Creates the temporary file (o->fd, o->partial) exclusively in PATH's folder. */
+fm_status fm_output_create(fm_output_file *o, const char *path, fm_error *err);
+/* fm_output_create, with a stream on it (o->f). */
 fm_status fm_output_open(fm_output_file *o, const char *path, fm_error *err);
+/* The same with the fixed PATH.partial as the temporary file, made afresh (whatever was there, a
+ * link included, is removed, never followed; a directory there is an error), for a file only one
+ * writer makes at a time, under the output folder's lock: the run's cache, whose partial file
+ * --resume continues and a watcher sees grow, and its checkpoint. Commit renames it only while the
+ * name is still this writer's file. */
+fm_status fm_output_create_fixed(fm_output_file *o, const char *path, fm_error *err);
+fm_status fm_output_open_fixed(fm_output_file *o, const char *path, fm_error *err);
+/* Renames the closed temporary file to PATH and syncs the folder; 0 or the errno. */
+int fm_output_rename(fm_output_file *o);
 /* Checks for write errors, flushes to disk, closes and renames; on any failure removes the
  * partial file and reports `detail` (if not NULL or empty) or the errno text. */
 fm_status fm_output_commit(fm_output_file *o, const char *detail, fm_error *err);
+/* Closes and removes the temporary file. */
 void fm_output_discard(fm_output_file *o);
-/* Reopens the PATH.partial an interrupted writer left, keeps its first `keep` bytes and positions
- * at their end, to continue writing (resume). */
+/* Reopens the PATH.partial an interrupted writer left (a regular file, not through a symlink),
+ * keeps its first `keep` bytes and positions at their end, to continue writing (resume). */
 fm_status fm_output_reopen(fm_output_file *o, const char *path, uint64_t keep, fm_error *err);
 
-/* Closes PATH.partial and leaves it on disk (a cache that stopped early stays readable). */
+/* Closes the partial file and leaves it on disk as PATH.partial (a cache that stopped early stays
+ * readable, and --resume continues it). */
 void fm_output_keep_partial(fm_output_file *o);
 
 /* A user's input file (scene, mesh, cache, checkpoint): FM_OK if it is a regular file that can be
@@ -94,6 +120,11 @@ const char *fm_write_hint(int errnum);
  * (FM_ERR_MEMORY, exit 4) when it says so, or when an address-space limit (ulimit -v) is set, the
  * likely cause of a start that fails for a reason the library does not give; internal otherwise. */
 fm_status fm_library_start_failed(fm_error *err, const char *what, int code, int says_memory);
+/* A file name pattern (wave_%03d.obj, f.%04d.png): exactly one integer conversion %d, %i or %u with
+ * an optional 0 flag and a width of at most FM_PATTERN_WIDTH_DIGITS digits (a width of 10^9 would
+ * make snprintf write a gigabyte of blanks), and %% for a literal %. 1 if it is one, else 0. */
+#define FM_PATTERN_WIDTH_DIGITS 2
+int fm_one_integer_conversion(const char *pattern);
 
 /* x in the fewest significant digits (up to 17) that read back as exactly x, so that two values a
  * message compares never print alike ("10000001 is out of range: must be <= 10000000", where %g

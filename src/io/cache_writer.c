@@ -86,6 +86,7 @@ static fm_cache_writer *writer_alloc(const cache_layout *l, const char *path, fm
 {
     fm_cache_writer *w = calloc(1, sizeof *w);
     if (!w) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
+    w->out.fd = w->out.dir = -1; /* no file yet: abort() has nothing to close */
     w->l = *l;
     size_t total = 0;
     for (int i = 0; i < l->attr_count; i++) {
@@ -140,7 +141,7 @@ fm_cache_writer *fm_cache_writer_create_attrs(const char *path, uint64_t agents,
     if (!w) return NULL;
     unsigned char header[CACHE_MAX_HEADER];
     cache_header_encode(&l, header); /* frame count 0 until finish() */
-    if (fm_output_open(&w->out, path, err) != FM_OK || write_bytes(w, header, l.header_bytes, err) != FM_OK) {
+    if (fm_output_open_fixed(&w->out, path, err) != FM_OK || write_bytes(w, header, l.header_bytes, err) != FM_OK) {
         fm_cache_writer_abort(w);
         return NULL;
     }

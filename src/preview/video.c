@@ -1,5 +1,7 @@
 /* Video through the ffmpeg program (Debian package ffmpeg): raw RGB frames go to its stdin, it
- * encodes H.264 into PATH.partial, and finish() renames that to PATH once ffmpeg exits with 0.
+ * encodes H.264 into a temporary file that this process created exclusively beside PATH
+ * (fm_output_create: never a symlink, never another writer's), and finish() renames that to PATH
+ * once ffmpeg exits with 0.
  *
  * ffmpeg reads a socket rather than a pipe so that frames can be sent with MSG_NOSIGNAL: if ffmpeg
  * dies, a write fails with EPIPE instead of killing this process with SIGPIPE, and no process-wide
@@ -32,7 +34,7 @@ struct fm_video_writer {
     int fd;        /* our end of the socket ffmpeg reads as stdin, or -1 */
     FILE *log;     /* ffmpeg's stdout and stderr */
     int width, height;
-    char path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
+    fm_output_file out; /* PATH and the temporary file ffmpeg writes */
 };
 
 /* The end of ffmpeg's stderr (at most FM_VIDEO_LOG_QUOTE bytes, trailing blanks cut). */
@@ -79,13 +81,13 @@ static fm_status ffmpeg_failed(fm_video_writer *v, const char *what, fm_error *e
 {
     close_input(v);
     int sig = 0, code = v->pid ? wait_ffmpeg(v, &sig) : -1;
-    remove(v->partial);
+    fm_output_discard(&v->out);
     char tail[FM_VIDEO_LOG_QUOTE + 1], how[64];
     log_tail(v->log, tail, sizeof tail);
     if (code >= 0) snprintf(how, sizeof how, "exit status %d", code);
     else if (sig) snprintf(how, sizeof how, "killed by signal %d", sig);
     else snprintf(how, sizeof how, "status unknown");
-    return fm_fail(err, FM_ERR_IO, "cannot write '%s': ffmpeg %s (%s)%s%s", v->path, what, how,
+    return fm_fail(err, FM_ERR_IO, "cannot write '%s': ffmpeg %s (%s)%s%s", v->out.path, what, how,
                    tail[0] ? "; it said:\n" : "", tail);
 }
 
@@ -116,7 +118,7 @@ static int spawn_ffmpeg(fm_video_writer *v, int child_in, double fps)
                     "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", size, "-r", rate, "-i", "-",
                     "-vf", "scale=out_color_matrix=bt709:out_range=tv", "-c:v", "libx264", "-pix_fmt", "yuv420p",
                     "-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709", "-color_range", "tv",
-                    "-movflags", "+faststart", "-f", "mp4", v->partial, NULL};
+                    "-movflags", "+faststart", "-f", "mp4", v->out.partial, NULL};
     posix_spawn_file_actions_t fa;
     int rc = posix_spawn_file_actions_init(&fa);
     if (rc) return rc;
@@ -137,17 +139,13 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
     if (!v) return fm_fail(err, FM_ERR_MEMORY, "video '%s': out of memory", path), NULL;
     v->fd = -1;
     v->width = width, v->height = height;
-    snprintf(v->path, sizeof v->path, "%s", path);
-    snprintf(v->partial, sizeof v->partial, "%s.partial", path);
-    /* Create the file ffmpeg will write, so that a missing or read-only directory is reported
-     * plainly, before any frame is rendered. */
-    errno = 0;
-    FILE *probe = fopen(v->partial, "wb");
-    if (!probe || fclose(probe) != 0) {
-        fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", path, strerror(errno ? errno : EIO));
-        free_writer(v);
+    /* Create the file ffmpeg will write (-y: it truncates that file), so that a missing or
+     * read-only directory is reported plainly, before any frame is rendered. */
+    if (fm_output_create(&v->out, path, err) != FM_OK) {
+        free(v);
         return NULL;
     }
+    close(v->out.fd), v->out.fd = -1;
     int sv[2] = {-1, -1};
     errno = 0;
     v->log = tmpfile();
@@ -155,7 +153,7 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
         socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
         fm_fail(err, FM_ERR_IO, "video '%s': cannot set up ffmpeg's input and log: %s", path,
                 strerror(errno ? errno : EIO));
-        remove(v->partial);
+        fm_output_discard(&v->out);
         free_writer(v);
         return NULL;
     }
@@ -170,7 +168,7 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
         fm_fail(err, FM_ERR_IO, "cannot write '%s': cannot run ffmpeg: %s", path, strerror(rc));
     }
     if (rc) {
-        remove(v->partial);
+        fm_output_discard(&v->out);
         free_writer(v);
         return NULL;
     }
@@ -180,7 +178,7 @@ fm_video_writer *fm_video_open(const char *path, int width, int height, double f
 fm_status fm_video_add_frame(fm_video_writer *v, const unsigned char *rgb, fm_error *err)
 {
     if (!v || !rgb) return fm_fail(err, FM_ERR_USAGE, "video: no writer or no frame given");
-    if (v->fd < 0) return fm_fail(err, FM_ERR_USAGE, "video '%s': the writer has failed", v->path);
+    if (v->fd < 0) return fm_fail(err, FM_ERR_USAGE, "video '%s': the writer has failed", v->out.path);
     size_t left = 3 * (size_t)v->width * (size_t)v->height;
     const unsigned char *p = rgb;
     while (left > 0) {
@@ -195,7 +193,7 @@ fm_status fm_video_add_frame(fm_video_writer *v, const unsigned char *rgb, fm_er
 /* Flushes the finished file to disk before it gets its final name. */
 static int sync_file(const char *path)
 {
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
     if (fd < 0) return -1;
     int rc = fsync(fd);
     close(fd);
@@ -244,9 +242,8 @@ static fm_status ffmpeg_left_incomplete(fm_video_writer *v, const char *why, fm_
 {
     char tail[FM_VIDEO_LOG_QUOTE + 1];
     log_tail(v->log, tail, sizeof tail);
-    remove(v->partial);
     return fm_fail(err, FM_ERR_IO, "cannot write '%s': ffmpeg exited with 0 but the file it wrote is incomplete: %s "
-                   "(the disk is full or a file-size limit was reached?)%s%s", v->path, why,
+                   "(the disk is full or a file-size limit was reached?)%s%s", v->out.path, why,
                    tail[0] ? "; it said:\n" : "", tail);
 }
 
@@ -254,22 +251,24 @@ fm_status fm_video_finish(fm_video_writer *v, fm_error *err)
 {
     if (!v) return fm_fail(err, FM_ERR_USAGE, "video: no writer given");
     if (v->fd < 0) {
-        fm_status st = fm_fail(err, FM_ERR_USAGE, "video '%s': the writer has failed", v->path);
+        fm_status st = fm_fail(err, FM_ERR_USAGE, "video '%s': the writer has failed", v->out.path);
         fm_video_abort(v);
         return st;
     }
     close_input(v); /* end of input: ffmpeg writes the file and exits */
     int sig = 0, code = wait_ffmpeg(v, &sig);
     fm_status st = FM_OK;
-    const char *incomplete = code == 0 ? mp4_incomplete(v->partial) : NULL;
+    const char *incomplete = code == 0 ? mp4_incomplete(v->out.partial) : NULL;
     if (code != 0) {
         st = ffmpeg_failed(v, "failed", err);
     } else if (incomplete) {
         st = ffmpeg_left_incomplete(v, incomplete, err);
-    } else if (sync_file(v->partial) != 0 || rename(v->partial, v->path) != 0) {
-        int e = errno;
-        remove(v->partial);
-        st = fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", v->path, strerror(e ? e : EIO));
+        fm_output_discard(&v->out); /* the folder closed; the temporary file removed */
+    } else {
+        errno = 0;
+        int e = sync_file(v->out.partial) != 0 ? (errno ? errno : EIO) : fm_output_rename(&v->out);
+        if (e) st = fm_fail(err, FM_ERR_IO, "cannot write '%s': %s", v->out.path, strerror(e));
+        fm_output_discard(&v->out); /* the folder closed; the temporary file removed if it is left */
     }
     free_writer(v);
     return st;
@@ -284,6 +283,6 @@ void fm_video_abort(fm_video_writer *v)
         kill(v->pid, SIGTERM); /* the ffmpeg this writer started, by its pid */
         wait_ffmpeg(v, &sig);
     }
-    remove(v->partial);
+    fm_output_discard(&v->out);
     free_writer(v);
 }

@@ -955,21 +955,6 @@ static fm_status check_range_pair(const where *w, const param *p, const double *
     return st;
 }
 
-/* A printf pattern with exactly one integer conversion (%d, %03d, %i, %u) and no other '%' but "%%". */
-static int one_integer_conversion(const char *pattern)
-{
-    int conversions = 0;
-    for (const char *c = pattern; *c; c++) {
-        if (*c != '%') continue;
-        if (c[1] == '%') { c++; continue; }
-        c++;
-        while (*c >= '0' && *c <= '9') c++;
-        if (*c != 'd' && *c != 'i' && *c != 'u') return 0;
-        conversions++;
-    }
-    return conversions == 1;
-}
-
 /* The stratified sampler's work (sample_stratified.c) per surface: about oversample x n occupied
  * voxels, each weighing its triangles' pieces of edge h / max(2, 2 lambda), about 8 max(1, lambda)^2
  * pieces a voxel. Measured at about 1.2e-7 CPU s a piece (a 320-triangle sphere, n 300, oversample 16,
@@ -1027,9 +1012,9 @@ static fm_status check_flock(where *w, const fm_scene_def *def)
     }
     if (f->deform != FM_DEFORM_SEQUENCE) return FM_OK;
     where_set_key(w, "shape_flock.deform.type");
-    if (!f->deform_sequence[0] || !one_integer_conversion(f->deform_sequence))
-        return fail_at(w, "shape_flock.deform.sequence", "'%s' is not a file name pattern with one integer, "
-                       "like \"wave_%%03d.obj\"", f->deform_sequence);
+    if (!f->deform_sequence[0] || !fm_one_integer_conversion(f->deform_sequence))
+        return fail_at(w, "shape_flock.deform.sequence", "'%s' is not a file name pattern with one integer "
+                       "(%%d, %%i or %%u, a width of at most 2 digits), like \"wave_%%03d.obj\"", f->deform_sequence);
     if (f->deform_frames < 1) return fail_at(w, "shape_flock.deform.frames", "a sequence needs at least one mesh");
     return FM_OK;
 }
@@ -1056,9 +1041,9 @@ static fm_status check_target_motion(where *w, const fm_scene_def *def)
     }
     if (!tm->sequence[0]) return FM_OK;
     where_set_key(w, "target_motion.sequence");
-    if (!one_integer_conversion(tm->sequence))
-        return fail_at(w, "target_motion.sequence", "'%s' is not a file name pattern with one integer, like "
-                       "\"walk_%%03d.obj\"", tm->sequence);
+    if (!fm_one_integer_conversion(tm->sequence))
+        return fail_at(w, "target_motion.sequence", "'%s' is not a file name pattern with one integer (%%d, "
+                       "%%i or %%u, a width of at most 2 digits), like \"walk_%%03d.obj\"", tm->sequence);
     if (tm->frames < 1) return fail_at(w, "target_motion.frames", "a sequence needs at least one mesh");
     return FM_OK;
 }
@@ -1294,11 +1279,31 @@ static fm_status read_groups(where *w, const json_t *root, fm_group_def *groups,
     return st;
 }
 
+/* An override of a top-level key that every group of the shot sets itself changes nothing: an
+ * error naming it, rather than a run that silently ignores it. */
+static fm_status check_overrides_reach_groups(where *w, const json_t *root, const fm_scene_override *set, int count,
+                                              const fm_scene_def *def)
+{
+    const json_t *list = json_object_get(root, "groups");
+    for (int i = 0; i < count && def->group_count > 0; i++) {
+        const char after = set[i].key[6];
+        if (!strncmp(set[i].key, "groups", 6) && (after == 0 || after == '.' || after == '[')) continue; /* a group's own */
+        int shadowed = 0;
+        for (int g = 0; g < def->group_count; g++) shadowed += fm_override_shadowed(json_array_get(list, (size_t)g), set[i].key);
+        if (shadowed == def->group_count)
+            return fm_fail(w->err, FM_ERR_INPUT, "%s: every group of the shot sets %s itself, so the scene's top-level "
+                           "value reaches none of them: set it in a group (groups.0.%s)", def->overrides[i].label,
+                           set[i].key, set[i].key);
+    }
+    return FM_OK;
+}
+
 static fm_status read_document(where *w, json_t *root, const fm_scene_override *set, int count, fm_scene_def *def)
 {
     fm_group_def groups[FM_MAX_GROUPS];
     fm_status st = json_is_object(root) ? fm_overrides_apply(root, set, count, def, w->err) : FM_OK;
     if (st == FM_OK) st = read_groups(w, root, groups, def);
+    if (st == FM_OK) st = check_overrides_reach_groups(w, root, set, count, def);
     if (st == FM_OK) st = read_scene(w, root, def);
     if (st == FM_OK) st = read_radius_units(w, root, def);
     if (st == FM_OK) st = check_consistency(w, def);

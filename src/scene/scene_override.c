@@ -104,8 +104,11 @@ static fm_status check_part(const json_t *node, const key_part *p, const char *p
     return FM_OK;
 }
 
-/* Moves *node to its member or element p, creating a missing member as an empty object. */
-static fm_status descend(json_t **node, const key_part *p, fm_scene_override_note *note, fm_error *err)
+/* Moves *node to its member or element p, creating a missing member as an empty object; but a
+ * missing member whose `next` part is an index is a list the scene lacks, whose elements cannot
+ * be set one by one. */
+static fm_status descend(json_t **node, const key_part *p, const key_part *next, fm_scene_override_note *note,
+                         fm_error *err)
 {
     char parent[sizeof note->path];
     size_t index = 0;
@@ -115,6 +118,9 @@ static fm_status descend(json_t **node, const key_part *p, fm_scene_override_not
     extend_path(note, *node, p);
     if (json_is_array(*node)) return *node = json_array_get(*node, index), FM_OK;
     json_t *child = json_object_get(*node, p->name);
+    if (!child && (next->bracketed || is_index(next->name)))
+        return fail_override(note, err, "element %s is out of range: the scene has no %s list (set the whole list to "
+                             "add one: --set '%s=[...]')", next->name, note->path, note->path);
     if (!child && json_object_set_new(*node, p->name, child = json_object()) != 0)
         return fm_fail(err, FM_ERR_MEMORY, "%s: out of memory", note->label);
     *node = child;
@@ -158,7 +164,7 @@ static fm_status apply_one(json_t *root, const fm_scene_override *o, fm_scene_ov
     json_t *value = fm_override_value(o->value), *node = root;
     if (!value) return fail_override(note, err, "the value is not UTF-8 text");
     fm_status st = FM_OK;
-    for (int i = 0; i + 1 < n && st == FM_OK; i++) st = descend(&node, &parts[i], note, err);
+    for (int i = 0; i + 1 < n && st == FM_OK; i++) st = descend(&node, &parts[i], &parts[i + 1], note, err);
     if (st == FM_OK) st = assign(node, &parts[n - 1], value, note, err);
     json_decref(value);
     return st;
@@ -192,4 +198,16 @@ const fm_scene_override_note *fm_override_blame(const fm_scene_def *def, const c
     for (int i = def->override_count - 1; i >= 0; i--)
         if (on_path(def->overrides[i].path, path) || on_path(path, def->overrides[i].path)) return &def->overrides[i];
     return NULL;
+}
+
+int fm_override_shadowed(const json_t *item, const char *key)
+{
+    key_part parts[MAX_KEY_PARTS];
+    int n = split_key(key, parts);
+    const json_t *node = item;
+    for (int i = 0; i < n; i++) {
+        if (!json_is_object(node)) return i > 0; /* a list or value of the group's replaces the key whole */
+        if (!(node = json_object_get(node, parts[i].name))) return 0;
+    }
+    return n > 0;
 }

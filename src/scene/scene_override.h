@@ -24,4 +24,8 @@ fm_status fm_overrides_apply(json_t *root, const fm_scene_override *set, int cou
  * ("source" and "source.mesh" both blame --set source.mesh=...), or NULL. */
 const fm_scene_override_note *fm_override_blame(const fm_scene_def *def, const char *path);
 
+/* Whether a shot's group item sets `key` itself (or a list or value above it), so that the group
+ * never sees the scene's top-level value of it. */
+int fm_override_shadowed(const json_t *item, const char *key);
+
 #endif

@@ -498,40 +498,39 @@ static fm_status mpi_failed(const fm_dist_file *f, int code, fm_error *err)
 
 static fm_status close_partial(fm_dist_file *f, fm_status st, fm_error *err);
 
-/* Opens PATH.partial on every rank, empty; or, attaching, the file at names.partial as it is. */
-static fm_status open_partial(fm_dist_file *f, int attach, fm_error *err)
+/* Every rank's handle on the file at names.partial, as it is (rank 0 created it, or it is the
+ * cache being attached). */
+static fm_status open_partial(fm_dist_file *f, fm_error *err)
 {
 #ifdef FM_HAVE_MPI
     if (!one_process(f)) {
-        int rc = MPI_File_open(f->d->comm, f->names.partial, attach ? MPI_MODE_WRONLY : MPI_MODE_CREATE | MPI_MODE_WRONLY,
-                               MPI_INFO_NULL, &f->fh);
-        if (rc == MPI_SUCCESS && attach) return FM_OK;
-        if (rc != MPI_SUCCESS) { /* MPI's error classes say less than errno ("bad file" for a directory) */
-            errno = 0;
-            int fd = open(f->names.partial, O_WRONLY | O_CREAT, 0666);
-            if (fd < 0) return posix_failed(f, errno, err);
-            close(fd);
-            return mpi_failed(f, rc, err);
-        }
-        rc = MPI_File_set_size(f->fh, 0); /* a stale PATH.partial may be longer */
+        int rc = MPI_File_open(f->d->comm, f->names.partial, MPI_MODE_WRONLY, MPI_INFO_NULL, &f->fh);
         return rc == MPI_SUCCESS ? FM_OK : mpi_failed(f, rc, err);
     }
 #endif
     errno = 0;
-    f->fd = attach ? open(f->names.partial, O_WRONLY) : open(f->names.partial, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    if (f->fd < 0) f->fd = open(f->names.partial, O_WRONLY | O_CLOEXEC);
     return f->fd >= 0 ? FM_OK : posix_failed(f, errno, err);
 }
 
+/* Rank 0 creates the temporary file exclusively in PATH's folder (fm_output_create: never through
+ * a link, never another process's) and every rank opens that one. */
 fm_dist_file *fm_dist_file_open(const fm_dist *d, const char *path, fm_error *err)
 {
     fm_dist_file *f = calloc(1, sizeof *f);
     fm_status st = f ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (f) f->d = d, f->fd = -1, st = fm_output_name(&f->names, path, err);
-    if (st == FM_OK) st = open_partial(f, 0, err);
-    if (fm_dist_agree(d, st, err) == FM_OK) return f;
-    if (st == FM_OK) close_partial(f, FM_ERR_IO, NULL); /* another rank failed (the open is collective:
-                                                           in practice they fail alike) */
-    if (f && fm_dist_rank(d) == 0) unlink(f->names.partial); /* unlink: never a directory in the way */
+    if (st == FM_OK && fm_dist_rank(d) == 0) st = fm_output_create_fixed(&f->names, path, err);
+#ifdef FM_HAVE_MPI
+    if (st == FM_OK && !one_process(f) && fm_dist_rank(d) == 0) close(f->names.fd), f->names.fd = -1; /* MPI-IO writes */
+#endif
+    if (fm_dist_agree(d, st, err) == FM_OK) {
+        if (fm_dist_rank(d) == 0) f->fd = f->names.fd, f->names.fd = -1;
+        fm_dist_bcast(d, f->names.partial, sizeof f->names.partial, 0);
+        if (fm_dist_agree(d, open_partial(f, err), err) == FM_OK) return f;
+        if (f->fd >= 0) close(f->fd);
+    }
+    if (f && fm_dist_rank(d) == 0) fm_output_discard(&f->names); /* unlinked: never a directory in the way */
     free(f);
     return NULL;
 }
@@ -585,19 +584,6 @@ static fm_status close_partial(fm_dist_file *f, fm_status st, fm_error *err)
     return st;
 }
 
-/* After the rename, the directory entry itself must reach the disk for the file to survive a
- * crash under its new name. */
-static void sync_directory(const char *path)
-{
-    char dir[FM_PATH_MAX];
-    snprintf(dir, sizeof dir, "%s", path);
-    char *slash = strrchr(dir, '/');
-    if (slash == dir) dir[1] = 0; /* "/name": the root */
-    else if (slash) *slash = 0;
-    int fd = open(slash ? dir : ".", O_RDONLY);
-    if (fd >= 0) fsync(fd), close(fd);
-}
-
 fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err)
 {
     const fm_dist *d = f->d;
@@ -607,10 +593,9 @@ fm_status fm_dist_file_commit(fm_dist_file *f, fm_status st, fm_error *err)
     }
     st = fm_dist_agree(d, close_partial(f, st, err), err);
     if (fm_dist_rank(d) == 0) {
-        errno = 0;
-        if (st == FM_OK && rename(f->names.partial, f->names.path) != 0) st = posix_failed(f, errno, err);
-        if (st == FM_OK) sync_directory(f->names.path);
-        else unlink(f->names.partial);
+        int e = st == FM_OK ? fm_output_rename(&f->names) : 0; /* the folder synced too */
+        if (e) st = posix_failed(f, e, err);
+        if (st != FM_OK) fm_output_discard(&f->names);
     }
     free(f);
     return fm_dist_agree(d, st, err);
@@ -621,10 +606,10 @@ fm_dist_file *fm_dist_file_attach(const fm_dist *d, const char *path, fm_error *
     fm_dist_file *f = calloc(1, sizeof *f);
     fm_status st = f ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (f) {
-        f->d = d, f->fd = -1;
+        f->d = d, f->fd = -1, f->names.fd = f->names.dir = -1;
         snprintf(f->names.path, sizeof f->names.path, "%s", path);
         snprintf(f->names.partial, sizeof f->names.partial, "%s", path); /* written where it is */
-        st = open_partial(f, 1, err);
+        st = open_partial(f, err);
     }
     if (fm_dist_agree(d, st, err) == FM_OK) return f;
     if (st == FM_OK) close_partial(f, FM_ERR_IO, NULL);

@@ -11,6 +11,7 @@
 #include "morph.h"
 #include "test_macros.h"
 #include "test_cli_helpers.h"
+#include "full_disk.h"
 
 #include <jansson.h>
 #include <malloc.h>
@@ -1031,7 +1032,7 @@ static void expect_file_size_limit(const char *scene_path, const char *outdir, f
     write_text(cache, "an older run's cache"), write_text(stats, "{\"all_arrived\": true}");
     remove(partial);
     char args[3 * FM_PATH_MAX];
-    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", scene_path, g_outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet --overwrite", scene_path, g_outdir); /* the older run's go */
     cli_env limited = {.file_size_limit = (long long)st.st_size / 2};
     int rc = cli_with(&limited, args);
     expect_output(rc, 3, "file-size limit", (const char *const[]){partial, "File too large", "ulimit -f",
@@ -1178,8 +1179,6 @@ static void test_cache_writer_keeps_partial(void)
     remove(partial);
 }
 
-/* A full disk (the partial file is a link to /dev/full, which fails every write with ENOSPC),
- * first for the cache, then for stats.json after a complete cache. */
 /* Values that can only blow a run up are refused when the scene loads (issue 42), at their key's
  * line and column, before any mesh is read: speed0 10^9, a frame rate of 10^-9, a flock mass of
  * 10^-300 each used to run until the state ran away (test_scene loads every example with the bounds). */
@@ -1212,31 +1211,30 @@ static void test_runaway_state_is_an_error(void)
                2, "the simulation ran away", "shape_flock.mass");
 }
 
+/* A full disk (a tmpfs, tests/helpers/full_disk.h), first for the cache (no space at all), then for
+ * stats.json after a complete cache (a disk of exactly the cache's pages, learnt from a run
+ * elsewhere: results are the same bytes on every run). */
 static void test_disk_full(void)
 {
-    struct stat st;
-    if (stat("/dev/full", &st) != 0) {
-        printf("  (skipped: no /dev/full)\n");
-        return;
-    }
-    char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], partial[FM_PATH_MAX + 48], stats[FM_PATH_MAX + 16];
+    char outdir[FM_PATH_MAX], cache[2 * FM_PATH_MAX], partial[2 * FM_PATH_MAX + 16], stats[FM_PATH_MAX + 16];
     char args[3 * FM_PATH_MAX];
     const char *path = plain_scene("full.json", "");
-    mkdir(tmp_path(outdir, "full_out"), 0755);
+    if (full_disk_mount(tmp_path(outdir, "full_out"), 0) != 0) return;
     snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
     snprintf(partial, sizeof partial, "%s.partial", cache);
     snprintf(stats, sizeof stats, "%s/stats.json", outdir);
-    remove(cache), remove(stats), remove(partial);
-    ENSURE(symlink("/dev/full", partial) == 0);
     snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", path, outdir);
     int rc = cli(args);
     expect_output(rc, 3, "disk full (cache)", (const char *const[]){partial, "No space left on device", "the disk is full", NULL});
     ENSURE(!exists(cache) && !exists(stats));
-    remove(partial);
+    full_disk_unmount(outdir);
 
-    snprintf(partial, sizeof partial, "%s.partial", stats);
-    remove(partial);
-    ENSURE(symlink("/dev/full", partial) == 0);
+    struct stat st;
+    ENSURE(run_scene(NULL, path, "full_sizes") == 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", g_outdir);
+    ENSURE(stat(cache, &st) == 0);
+    if (full_disk_mount(outdir, (size_t)st.st_size) != 0) return;
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
     rc = cli(args);
     expect_output(rc, 3, "disk full (stats)", (const char *const[]){stats, "No space left on device", NULL});
     ENSURE_MSG(!exists(stats), "stats.json written");
@@ -1244,7 +1242,8 @@ static void test_disk_full(void)
     fm_cache_reader *r = fm_cache_open(cache, &err); /* the cache itself was complete */
     ENSURE_MSG(r != NULL && !fm_cache_warning(r)[0], "%s", err.message);
     fm_cache_close(r);
-    remove(partial);
+    ENSURE_MSG(files_in(outdir) == 1, "%s holds more than the cache", outdir);
+    full_disk_unmount(outdir);
 }
 
 /* ---------------------------------------------------------------- work without bound (issue 15, item 9) */
@@ -1371,6 +1370,16 @@ static void test_flock_mesh_errors_located(void)
 
 /* ---------------------------------------------------------------- output paths (issue 15, items 12, 14) */
 
+/* FM_TEST_TMP/bad_NAME/ddd.../ddd, `length` bytes in all (out holds FM_PATH_MAX + 64), in folders of
+ * at most 200 bytes. */
+static void long_path(char *out, const char *name, int length)
+{
+    char base[FM_PATH_MAX], part[201];
+    memset(part, 'd', 200), part[200] = 0;
+    int n = snprintf(out, FM_PATH_MAX + 64, "%s", tmp_path(base, name));
+    while (n < length) n += snprintf(out + n, FM_PATH_MAX + 64 - (size_t)n, "/%.*s", FM_MIN(length - n - 1, 200), part);
+}
+
 static void expect_outdir_refused(const char *scene_path, const char *outdir, const char *what)
 {
     char args[8 * FM_PATH_MAX];
@@ -1385,12 +1394,8 @@ static void test_output_paths_refused_up_front(void)
     struct stat st;
     if (stat("/proc/self", &st) == 0) expect_outdir_refused(path, "/proc", "-o /proc: cannot create the lock file");
     if (stat("/sys/kernel", &st) == 0) expect_outdir_refused(path, "/sys/kernel", "-o /sys/kernel: cannot create the lock file");
-    char longest[FM_PATH_MAX + 64], base[FM_PATH_MAX];
-    int n = snprintf(longest, sizeof longest, "%s", tmp_path(base, "long"));
-    while (n < 4080) n += snprintf(longest + n, sizeof longest - (size_t)n, "/%.*s", 4080 - n - 1 > 200 ? 200 : 4080 - n - 1,
-                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
-                                   "ddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd"
-                                   "dddddddddddddd");
+    char longest[FM_PATH_MAX + 64];
+    long_path(longest, "long", 4080);
     ENSURE(strlen(longest) == 4080);
     expect_outdir_refused(path, longest, "the path is too long");
     /* a long cache name in a long directory: the .partial would not fit in a path */
@@ -1405,6 +1410,159 @@ static void test_output_paths_refused_up_front(void)
     char bad[FM_PATH_MAX];
     snprintf(bad, sizeof bad, "%s/bad_out_\xFE", FM_TEST_TMP);
     expect_outdir_refused(plain_scene("outpaths.json", ""), bad, "the path is not UTF-8 text");
+}
+
+/* ---------------------------------------------------------------- outputs that cannot be hijacked (issue 42) */
+
+static int same_text(const char *path, const char *text)
+{
+    static char got[256];
+    slurp(path, got, sizeof got);
+    return !strcmp(got, text);
+}
+
+static int regular_file(const char *path)
+{
+    struct stat st;
+    return lstat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* Links planted at the temporary names a run (cache, stats.json, manifest, checkpoint), an export
+ * and a render write through point at a file outside the folder: each writes its own file, and
+ * the file pointed at keeps its bytes. */
+static void test_partial_links_not_followed(void)
+{
+    char outdir[FM_PATH_MAX], victim[FM_PATH_MAX], link[FM_PATH_MAX + 64], file[FM_PATH_MAX + 64], args[4 * FM_PATH_MAX];
+    const char *path = plain_scene("links.json", "");
+    write_text(tmp_path(victim, "victim.txt"), "victim\n");
+    snprintf(args, sizeof args, "rm -rf '%s' && mkdir '%s'", tmp_path(outdir, "links_out"), outdir);
+    ENSURE(system(args) == 0);
+    static const char *const names[] = {"frames.fmc.partial", "stats.json.partial", "wedge.json.partial",
+                                        "checkpoint.fmck.partial", "frame.ply.partial", "frame.png.partial"};
+    for (size_t i = 0; i < sizeof names / sizeof *names; i++) {
+        snprintf(link, sizeof link, "%s/%s", outdir, names[i]);
+        ENSURE(symlink(victim, link) == 0);
+    }
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet --set seed=3 --stop-after-frame 3", path, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet --set seed=3 --resume", path, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(args, sizeof args, "export '%s/frames.fmc' --frame 0 -o '%s/frame.ply'", outdir, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(args, sizeof args, "render '%s/frames.fmc' --size 32x32 -o '%s/frame.png'", outdir, outdir);
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(same_text(victim, "victim\n"), "the file the links point at was written: %.200s", g_err);
+    static const char *const written[] = {"frames.fmc", "stats.json", "wedge.json", "frame.ply", "frame.png"};
+    for (size_t i = 0; i < sizeof written / sizeof *written; i++) {
+        snprintf(file, sizeof file, "%s/%s", outdir, written[i]);
+        ENSURE_MSG(regular_file(file), "%s is not a file of its own", file);
+    }
+}
+
+/* Two writers of one final name (two renders to one PNG) never share a temporary file: each
+ * commit puts its own whole bytes under the name, and no temporary file is left. */
+static void test_two_writers_of_one_name(void)
+{
+    char dir[FM_PATH_MAX], path[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
+    snprintf(args, sizeof args, "rm -rf '%s' && mkdir '%s'", tmp_path(dir, "two_writers"), dir);
+    ENSURE(system(args) == 0);
+    snprintf(path, sizeof path, "%s/image.png", dir);
+    fm_output_file a, b;
+    fm_error err = {0};
+    ENSURE_MSG(fm_output_open(&a, path, &err) == FM_OK && fm_output_open(&b, path, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(strcmp(a.partial, b.partial) != 0, "both write %s", a.partial);
+    fputs("first writer\n", a.f), fputs("second\n", b.f);
+    ENSURE(fm_output_commit(&a, NULL, &err) == FM_OK && same_text(path, "first writer\n"));
+    ENSURE(fm_output_commit(&b, NULL, &err) == FM_OK && same_text(path, "second\n"));
+    ENSURE_MSG(files_in(dir) == 1, "a temporary file was left in %s", dir);
+}
+
+/* A folder that holds a finished run's results is refused (exit 1, naming --overwrite) and keeps
+ * them; --overwrite replaces them; the lock file goes with the run. */
+static void test_finished_folder_refused(void)
+{
+    char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], lock[FM_PATH_MAX + 32], args[3 * FM_PATH_MAX];
+    static char before[1 << 16], after[1 << 16];
+    const char *path = plain_scene("again.json", "");
+    ENSURE(run_scene(NULL, path, "again_out") == 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", tmp_path(outdir, "again_out"));
+    snprintf(lock, sizeof lock, "%s/" FM_OUTPUT_LOCK, outdir);
+    ENSURE_MSG(!exists(lock), "%s is left after the run", lock);
+    struct stat first, now;
+    ENSURE(stat(cache, &first) == 0);
+    size_t n = slurp(cache, before, sizeof before);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet --set time.frame_limit=3", path, outdir);
+    ENSURE_EXIT(args, 1);
+    ENSURE_MSG(strstr(g_err, "holds the results of an earlier run") && strstr(g_err, "--overwrite"), "%s", g_err);
+    ENSURE_MSG(stat(cache, &now) == 0 && now.st_size == first.st_size && slurp(cache, after, sizeof after) == n &&
+               !memcmp(before, after, n), "the refused run changed %s", cache);
+    strcat(args, " --overwrite");
+    ENSURE_EXIT(args, 0);
+    ENSURE_MSG(stat(cache, &now) == 0 && now.st_size < first.st_size, "--overwrite kept the old cache");
+    strcat(args, " --resume");
+    ENSURE_EXIT(args, 1);
+}
+
+/* With stdout and stderr closed, the first files the run opens would get descriptors 1 and 2 and
+ * its progress lines would land in the cache: it opens /dev/null there first. */
+static void test_closed_standard_streams(void)
+{
+    char outdir[FM_PATH_MAX], cache[FM_PATH_MAX + 16], args[3 * FM_PATH_MAX];
+    const char *path = plain_scene("closed.json", "");
+    snprintf(args, sizeof args, "rm -rf '%s'", tmp_path(outdir, "closed_out"));
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --log-every 0 >&- 2>&-", path, outdir);
+    ENSURE_EXIT(args, 0);
+    snprintf(cache, sizeof cache, "%s/frames.fmc", outdir);
+    fm_error err = {0};
+    fm_cache_reader *r = fm_cache_open(cache, &err);
+    ENSURE_MSG(r && !fm_cache_warning(r)[0] && fm_cache_frames(r) > 2, "%s%s", err.message, r ? fm_cache_warning(r) : "");
+    fm_cache_close(r);
+}
+
+/* ---------------------------------------------------------------- smaller items (issue 42) */
+
+/* A NUL byte between JSON tokens is refused at its line and column (jansson took it for the end). */
+static void test_nul_byte_between_tokens(void)
+{
+    char path[FM_PATH_MAX];
+    plain_scene("nul.json", "");
+    FILE *f = fopen(tmp_path(path, "nul.json"), "wb");
+    ENSURE(f != NULL);
+    if (!f) return;
+    const char *second_line = strchr(g_scene_text, '\n') + 1;
+    fwrite(g_scene_text, 1, (size_t)(second_line - g_scene_text), f);
+    fputs("  ", f), fputc(0, f), fputs(second_line + 2, f); /* line 2, column 3 */
+    fclose(f);
+    EXPECT_RUN(path, 2, "bad_nul.json:2:3: a NUL byte, which JSON text may not hold");
+}
+
+/* A sequence pattern of a huge width is refused at once, by its key, without 2 KB of blanks. */
+static void test_sequence_pattern_width(void)
+{
+    const char *path = plain_scene("wide.json", ",\n  \"target_motion\": {\"sequence\": \"walk_%999999999d.obj\", \"frames\": 2}");
+    expect_quick_refusal(path, 5, (const char *const[]){"target_motion.sequence: '", "walk_%999999999d.obj' is not a "
+                                                        "file name pattern", "a width of at most 2 digits", NULL});
+    ENSURE_MSG(strlen(g_err) < 512, "%zu bytes of message", strlen(g_err));
+}
+
+/* An -o under PATH_MAX whose files fit (4069 bytes) is taken; an error about a path of several KB
+ * keeps its reason, the path cut in its middle. */
+static void test_long_paths(void)
+{
+    char dir[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX], base[FM_PATH_MAX];
+    long_path(dir, "long4069", 4069);
+    ENSURE(strlen(dir) == 4069);
+    tmp_path(base, "long4069");
+    snprintf(args, sizeof args, "rm -rf '%s'", base);
+    ENSURE(system(args) == 0);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --quiet", plain_scene("long.json", ",\n  \"time\": {\"frame_limit\": 2}"), dir);
+    ENSURE_EXIT(args, 0);
+    dir[3000] = 0; /* a scene 3000 bytes deep that is not there */
+    snprintf(args, sizeof args, "run '%s/none.json' -o '%s' --quiet", dir, tmp_path(base, "long_out"));
+    ENSURE_EXIT(args, 2);
+    ENSURE_MSG(strstr(g_err, "...") && strstr(g_err, "none.json: cannot open the scene file: No such file or directory"),
+               "%.300s", g_err + (strlen(g_err) > 300 ? strlen(g_err) - 300 : 0));
 }
 
 /* A scene path that is not UTF-8 stays in stats.json's warnings, each bad byte as \xNN. */
@@ -1485,5 +1643,12 @@ int main(void)
     RUN_TEST(test_flock_mesh_errors_located);
     RUN_TEST(test_output_paths_refused_up_front);
     RUN_TEST(test_stats_keep_text_that_is_not_utf8);
+    RUN_TEST(test_partial_links_not_followed);
+    RUN_TEST(test_two_writers_of_one_name);
+    RUN_TEST(test_finished_folder_refused);
+    RUN_TEST(test_closed_standard_streams);
+    RUN_TEST(test_nul_byte_between_tokens);
+    RUN_TEST(test_sequence_pattern_width);
+    RUN_TEST(test_long_paths);
     return test_result();
 }

@@ -521,6 +521,9 @@ static void test_run_writes_obstacles(void)
     fm_mesh_free(&m);
 
     write_scene(scene, ",\n  \"time\": {\"frame_limit\": 3}");
+    ENSURE_EXIT(args, 1); /* the folder holds the first run's results */
+    ENSURE_MSG(strstr(g_err, "holds the results of an earlier run") && strstr(g_err, "--overwrite"), "%s", g_err);
+    strcat(args, " --overwrite");
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(!file_exists(ply), "%s of the scene before is still there", ply);
     write_scene(scene, ",\n  \"output\": {\"cache\": \"obstacles.ply\"}");
@@ -663,6 +666,13 @@ static void test_render(void)
     ENSURE(png[20] == 0 && png[21] == 0 && png[22] == 0 && png[23] == 48);  /* height */
     snprintf(args, sizeof args, "render '%s' -o '%s' --view diagonal", g_cache, out);
     ENSURE_EXIT(args, 1);
+    /* a size past 32 bits (a 16x16 image, once) and trailing junk are refused, naming --size */
+    static const char *const bad_sizes[] = {"4294967312x4294967312", "64x64junk", "64x", "x64", "64x4294967360"};
+    for (size_t i = 0; i < sizeof bad_sizes / sizeof *bad_sizes; i++) {
+        snprintf(args, sizeof args, "render '%s' -o '%s' --size %s", g_cache, out, bad_sizes[i]);
+        ENSURE_EXIT(args, 1);
+        ENSURE_MSG(strstr(g_err, "--size wants WIDTHxHEIGHT") && strstr(g_err, bad_sizes[i]), "%s", g_err);
+    }
 }
 
 /* -o NAME.%04d.png: one PNG per frame of --frames (a stride here), named by the cache's frame
@@ -723,18 +733,18 @@ static void test_run_progress_in_a_log(void)
     }
     ENSURE_MSG(lines == (int)g_frames - 1 && last_done == 100.0, "%d progress lines for %lld frames, last %.1f%%: %s",
                lines, (long long)g_frames, last_done, g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     const char *first = strstr(g_err, "flockmorph: progress: frame 1 ");
     ENSURE_MSG(first && !strstr(first + 1, "flockmorph: progress:"), "default interval: %s", g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --checkpoint-every 2", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --checkpoint-every 2 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     double seconds = -1;
     const char *ck = strstr(g_err, "flockmorph: checkpoint at frame 1 written ("); /* frames 0 and 1 written */
     ENSURE_MSG(ck && sscanf(ck, "flockmorph: checkpoint at frame 1 written (%lf s)", &seconds) == 1 && seconds >= 0 &&
                strstr(ck, "flockmorph: checkpoint at frame 3 written (") && !strstr(g_err, "checkpoint at frame 2 "),
                "checkpoints in the log: %s", g_err);
-    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet --checkpoint-every 2", scene, outdir);
+    snprintf(args, sizeof args, "run '%s' -o '%s' --threads 1 --quiet --checkpoint-every 2 --overwrite", scene, outdir);
     ENSURE_EXIT(args, 0);
     ENSURE_MSG(!strstr(g_err, "progress") && !strstr(g_err, "checkpoint at"), "--quiet: %s", g_err);
     snprintf(args, sizeof args, "run '%s' -o '%s' --log-every -1", scene, outdir);

@@ -548,7 +548,7 @@ static void interrupt_then_resume(const run_case *c, int sig, int status, double
     clear_outputs(c->out);
     copy_file(in(c->dir, "ref.fmc"), in(c->out, "frames.fmc"));
     copy_file(in(c->dir, "ref.json"), in(c->out, "stats.json"));
-    pid_t pid = start_scene(c->scene, c->out, "");
+    pid_t pid = start_scene(c->scene, c->out, "--overwrite"); /* they go: the folder is refused without it */
     ENSURE_MSG(wait_for_size(pid, in(c->out, "frames.fmc.partial"), (long long)(fraction * (double)c->ref_bytes)),
                "%s: the run ended too soon", what);
     kill(pid, sig);
@@ -755,8 +755,9 @@ static void test_second_run_into_same_outdir_refused(void)
     ENSURE_MSG(a && b && strcmp(a, b) == 0, "the first run's stats.json differs:\n%s\nvs\n%s", a ? a : "", b ? b : "");
     free(a), free(b);
     ENSURE(!exists(in(c.out, "checkpoint.fmck")) && !exists(in(c.out, "frames.fmc.partial")));
-    /* the lock went with the first run: the next run takes the directory */
-    ENSURE(wait_status(start_scene(c.scene, c.out, "--checkpoint-every 0")) == 0);
+    /* the lock went with the first run (and its file): the next run takes the directory */
+    ENSURE(!exists(in(c.out, FM_OUTPUT_LOCK)));
+    ENSURE(wait_status(start_scene(c.scene, c.out, "--checkpoint-every 0 --overwrite")) == 0);
 }
 
 /* ---------------------------------------------------------------- the shape flock */

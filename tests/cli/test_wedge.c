@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 static char *tmp(char *buf, const char *name)
 {
@@ -123,7 +124,7 @@ static void test_set_equals_edited_file(void)
     char path[FM_PATH_MAX];
     ENSURE_MSG(access(tmp(path, "plain/" FM_OUTPUT_MANIFEST), F_OK) != 0, "a plain run wrote %s", path);
     ENSURE_MSG(access(tmp(path, "set/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
-    ENSURE_RUN("run @base.json -o @set --quiet", 0); /* a plain run removes the earlier run's manifest */
+    ENSURE_RUN("run @base.json -o @set --quiet --overwrite", 0); /* a plain run removes the earlier run's manifest */
     ENSURE_MSG(access(path, F_OK) != 0, "a plain run left the earlier run's %s", path);
     /* a later --set wins; a list element by index; null removes a key (its default returns) */
     write_scene("points.json", ",\n  \"path\": {\"points\": [[0, 5, 0]]},\n  \"mde\": {\"d_min\": 0.5}");
@@ -151,6 +152,11 @@ static void test_set_errors(void)
     ENSURE_ERR("--set n.x=1: n is an integer, not a group of keys");
     ENSURE_RUN("run @base.json -o @bad --set source.translate.3=1", 2);
     ENSURE_ERR("--set source.translate.3=1: source.translate has 3 elements; there is no element 3");
+    /* an element of a documented list the scene does not have: out of range, not an unknown key */
+    ENSURE_RUN("run @base.json -o @bad --set obstacles.meshes.0.scale=2", 2);
+    ENSURE_ERR("--set obstacles.meshes.0.scale=2: element 0 is out of range: the scene has no obstacles.meshes list");
+    ENSURE_RUN("run @base.json -o @bad --set 'path.points[1]=[0, 1, 0]'", 2);
+    ENSURE_ERR("element 1 is out of range: the scene has no path.points list");
     /* found after loading, while the model is built: still the override, not the file's line */
     ENSURE_RUN("run @base.json -o @bad --set n=2", 2);
     ENSURE_ERR("--set n=2: n: 2 is smaller than");
@@ -426,6 +432,100 @@ static void test_slurm_script_makes_its_log_folder_first(void)
     ENSURE_MSG(rc == 0, "slurm.sh by hand: status %d: %s", rc, out);
     ENSURE_MSG(strstr(words, "--output=out/wedges/logs/slurm-%A_%a.log\n--array=0-2\n") &&
                    strstr(words, "/examples/wedges/slurm.sh\n"), "sbatch was given: %s", words);
+
+/* Two wedges run one after the other into one folder: the second is refused (exit 1, naming
+ * --overwrite) and the first's results and manifest stay; --overwrite runs it (issue 42). */
+static void test_two_wedges_one_folder(void)
+{
+    clear_index_variables();
+    write_scene("base.json", "");
+    write_file("product.json", PRODUCT);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 1 -o @shared --quiet", 0);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 2 -o @shared --quiet", 1);
+    ENSURE_ERR("holds the results of an earlier run");
+    ENSURE_ERR("pass --overwrite to replace them");
+    json_t *m = load_output_json("shared", FM_OUTPUT_MANIFEST);
+    ENSURE_MSG(json_integer_value(at(m, "wedge.index")) == 1, "the refused wedge rewrote the manifest");
+    json_decref(m);
+    ENSURE_RUN("run @base.json --wedge-file @product.json --wedge 2 -o @shared --quiet --overwrite", 0);
+    m = load_output_json("shared", FM_OUTPUT_MANIFEST);
+    ENSURE(json_integer_value(at(m, "wedge.index")) == 2);
+    json_decref(m);
+}
+
+/* {scene} of ./scene.json and ../scene.json is the real name of the folder "." or ".." stands for
+ * (wedge_castle), never "." or "..", which would put the outputs in the runs folder or above it. */
+static void test_scene_placeholder_never_dot(void)
+{
+    char dir[FM_PATH_MAX], cwd[FM_PATH_MAX], path[FM_PATH_MAX];
+    write_scene("base.json", ""); /* and the octahedron the scene names */
+    mkdir(tmp(dir, "castle"), 0777);
+    mkdir(tmp(dir, "castle/inner"), 0777);
+    write_file("castle/scene.json", "{\"source\": {\"mesh\": \"../wedge_octahedron.obj\"}, \"target\": {\"mesh\": "
+               "\"../wedge_octahedron.obj\", \"translate\": [10, 0, 0]}, \"n\": 1}"); /* refused after the folder is made */
+    ENSURE(getcwd(cwd, sizeof cwd) != NULL);
+    ENSURE(chdir(tmp(dir, "castle")) == 0);
+    ENSURE_RUN("run ./scene.json -o '@dots/{scene}' --set speed0=5 --quiet", 2);
+    ENSURE(chdir(tmp(dir, "castle/inner")) == 0);
+    ENSURE_RUN("run ../scene.json -o '@dots/{scene}-up' --set speed0=5 --quiet", 2);
+    ENSURE(chdir(cwd) == 0);
+    ENSURE_MSG(access(tmp(path, "dots/wedge_castle/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
+    ENSURE_MSG(access(tmp(path, "dots/wedge_castle-up/" FM_OUTPUT_MANIFEST), F_OK) == 0, "no %s", path);
+    ENSURE_MSG(access(tmp(path, "dots/" FM_OUTPUT_MANIFEST), F_OK) != 0, "{scene} became '.': %s", path);
+}
+
+/* wedge list --scene refuses what run refuses: a wedge that one of a shot's groups cannot take
+ * (read group by group, as the run reads them), and a wedge of more overrides than a run takes. */
+static void test_wedge_list_refuses_what_run_refuses(void)
+{
+    char scene[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    snprintf(scene, sizeof scene, "%s/examples/flock_sequence/scene.json", FM_SOURCE_DIR);
+    write_file("deform.json", "{\"wedges\": [{}, {\"shape_flock.deform.type\": \"sequence\"}]}");
+    snprintf(args, sizeof args, "wedge list @deform.json --scene '%s'", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("wedge_deform.json: wedge 1: shape_flock.deform.type=\"sequence\": shape_flock.deform.sequence");
+    ENSURE_ERR("1 of the 2 wedges of");
+    char many[4096] = "{\"wedges\": [{";
+    for (int k = 0; k < 65; k++)
+        snprintf(many + strlen(many), sizeof many - strlen(many), "%s\"style.fields.%d.gain\": 1", k ? ", " : "", k);
+    strcat(many, "}]}");
+    write_file("many.json", many);
+    ENSURE_RUN("wedge list @many.json", 2);
+    ENSURE_ERR("wedges[0]: expected an object of at most 64 overrides");
+    write_scene("base.json", "");
+    ENSURE_RUN("run @base.json --wedge-file @many.json --wedge 0 -o @many --quiet", 2);
+    ENSURE_ERR("wedges[0]: expected an object of at most 64 overrides");
+}
+
+/* A --set of a top-level key that every group of a shot sets itself would change nothing: an
+ * error naming it, in run and in wedge list. A key some group leaves to the top level is taken. */
+static void test_set_shadowed_by_every_group(void)
+{
+    char scene[FM_PATH_MAX + 64], args[3 * FM_PATH_MAX];
+    write_file("shot.json", "{\"wedges\": [{\"path.points\": [[0, 9, 0]]}]}");
+    snprintf(scene, sizeof scene, "%s/examples/flock_sequence/scene.json", FM_SOURCE_DIR);
+    snprintf(args, sizeof args, "run '%s' -o @shadow --set 'path.points=[[0, 9, 0]]' --quiet", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("--set path.points=[[0, 9, 0]]: every group of the shot sets path.points itself");
+    snprintf(args, sizeof args, "wedge list @shot.json --scene '%s'", scene);
+    ENSURE_RUN(args, 2);
+    ENSURE_ERR("wedge 0: path.points=[[0,9,0]]: every group of the shot sets path.points itself");
+    write_file("taken.json", "{\"wedges\": [{\"speed0\": 7}]}"); /* no group sets speed0 */
+    snprintf(args, sizeof args, "wedge list @taken.json --scene '%s'", scene);
+    ENSURE_RUN(args, 0);
+}
+
+/* The manifest keeps run's arguments that are not UTF-8, each bad byte as \xNN. */
+static void test_manifest_keeps_arguments_not_utf8(void)
+{
+    write_scene("caf\xE9.json", "");
+    ENSURE_RUN("run '@caf\xE9.json' -o @latin --set speed0=9 --quiet", 0);
+    json_t *m = load_output_json("latin", FM_OUTPUT_MANIFEST);
+    json_t *a = at(m, "arguments");
+    ENSURE_MSG(json_array_size(a) == 6 && strstr(str(json_array_get(a, 0)), "wedge_caf\\xE9.json"),
+               "arguments: %zu, the first '%s'", json_array_size(a), str(json_array_get(a, 0)));
+    ENSURE(strstr(str(at(m, "scene")), "wedge_caf\\xE9.json") != NULL);
+    json_decref(m);
 }
 
 int main(void)
@@ -439,5 +539,10 @@ int main(void)
     RUN_TEST(test_manifest);
     RUN_TEST(test_seed_read_back_by_json_tools);
     RUN_TEST(test_slurm_script_makes_its_log_folder_first);
+    RUN_TEST(test_two_wedges_one_folder);
+    RUN_TEST(test_scene_placeholder_never_dot);
+    RUN_TEST(test_wedge_list_refuses_what_run_refuses);
+    RUN_TEST(test_set_shadowed_by_every_group);
+    RUN_TEST(test_manifest_keeps_arguments_not_utf8);
     return test_result();
 }

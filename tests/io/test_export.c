@@ -2,6 +2,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "flockmorph/flockmorph.h"
 #include "test_macros.h"
+#include "full_disk.h"
 
 #include <float.h>
 #include <stdint.h>
@@ -473,49 +474,47 @@ static void test_unwritable_path(void)
     }
 }
 
-/* The partial file cannot be created (a directory is in its way): FM_ERR_IO, the directory
- * is left alone and no file appears under the final name. */
+/* A directory where the file goes: FM_ERR_IO naming the path, the directory left alone and no
+ * temporary file left. One at PATH.partial is in nobody's way: the temporary file has a name of
+ * its own (issue 42). */
 static void test_partial_is_directory(void)
 {
     char path[512], partial[600];
     tmp_path(path, sizeof path, "fm_test_export_blocked.ply");
     partial_path(partial, sizeof partial, path);
-    remove(path);
+    remove(path), rmdir(path);
     rmdir(partial);
     ENSURE(mkdir(partial, 0700) == 0);
     float verts[12];
     random_tets(verts, 1);
     fm_error err = {0};
+    ENSURE_MSG(fm_export_tets(verts, 1, path, &err) == FM_OK, "%s", err.message);
+    ENSURE(file_exists(path) && remove(path) == 0);
+    ENSURE_MSG(rmdir(partial) == 0, "the directory at the .partial name was not left alone");
+    ENSURE(mkdir(path, 0700) == 0);
     fm_status s = fm_export_tets(verts, 1, path, &err);
     ENSURE_MSG(s == FM_ERR_IO, "status %d", (int)s);
     ENSURE_MSG(strstr(err.message, path) != NULL, "message does not name the path: %s",
                err.message);
-    ENSURE(!file_exists(path));
-    ENSURE_MSG(rmdir(partial) == 0, "the directory in the way was not left alone");
+    ENSURE_MSG(rmdir(path) == 0, "the directory in the way was not left alone");
 }
 
-/* Writes that fail after a successful open (the partial file is a symlink to /dev/full):
- * small files fail in fclose's flush, large ones in fwrite/fprintf. Either way FM_ERR_IO
- * naming the path and ENOSPC, no final file, and the partial file removed. */
+/* Writes that fail after a successful open (a full disk, tests/helpers/full_disk.h): small
+ * files fail in fclose's flush, large ones in fwrite/fprintf. Either way FM_ERR_IO naming the path
+ * and ENOSPC, no final file, and no partial file left. */
 static void test_write_failure(void)
 {
-    if (!file_exists("/dev/full")) return;
+    char dir[512];
+    if (full_disk_mount(tmp_path(dir, sizeof dir, "export_full_disk"), 0) != 0) return;
     enum { BIG = 4000 };
     float *verts = malloc(sizeof(float) * 12 * BIG);
     random_tets(verts, BIG);
-    static const char *const names[] = {"fm_test_export_full.ply", "fm_test_export_full.obj"};
+    static const char *const names[] = {"export_full_disk/full.ply", "export_full_disk/full.obj"};
     static const size_t counts[] = {1, BIG};
     for (int i = 0; i < 2; i++) {
         for (int c = 0; c < 2; c++) {
-            char path[512], partial[600];
+            char path[512];
             tmp_path(path, sizeof path, names[i]);
-            partial_path(partial, sizeof partial, path);
-            remove(path);
-            remove(partial);
-            if (symlink("/dev/full", partial) != 0) {
-                ENSURE_MSG(0, "cannot create the symlink %s", partial);
-                continue;
-            }
             fm_error err = {0};
             fm_status s = fm_export_tets(verts, counts[c], path, &err);
             ENSURE_MSG(s == FM_ERR_IO, "%s, %zu tets: status %d", names[i], counts[c], (int)s);
@@ -524,12 +523,11 @@ static void test_write_failure(void)
             ENSURE_MSG(strstr(err.message, "No space left") != NULL,
                        "message lacks strerror(ENOSPC): %s", err.message);
             ENSURE(!file_exists(path));
-            struct stat st;
-            ENSURE_MSG(lstat(partial, &st) != 0, "%s was left behind", partial);
-            remove(partial);
+            ENSURE_MSG(files_in(dir) == 1, "a partial file of %s was left beside the filler", path);
         }
     }
     free(verts);
+    full_disk_unmount(dir);
 }
 
 int main(void)

@@ -4,6 +4,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "export.h" /* fm_vdb_points_read */
 #include "test_export_helpers.h"
+#include "full_disk.h"
 
 #include <stdint.h>
 #include <sys/stat.h>
@@ -456,29 +457,27 @@ static void test_empty_frames(void)
     check_vdb(export_tmp(path, "formats_empty.vdb"), NULL, NULL, NULL, 0, &voxel);
 }
 
-/* A write that fails (the partial file is /dev/full): FM_ERR_IO naming the path, no file left. */
+/* A write that fails (a full disk, tests/helpers/full_disk.h): FM_ERR_IO naming the path, no file
+ * left. */
 static void test_write_failure(void)
 {
-    if (!export_file_exists("/dev/full")) return;
+    char dir[FM_PATH_MAX];
+    if (full_disk_mount(export_tmp(dir, "formats_full_disk"), 0) != 0) return;
     static float v[12 * 2000];
     random_tets(v, 2000);
     static const fm_export_format formats[] = {FM_EXPORT_VTK, FM_EXPORT_VDB, FM_EXPORT_PLY};
     for (int i = 0; i < 3; i++) {
-        char name[64], path[FM_PATH_MAX], partial[FM_PATH_MAX + 16];
-        snprintf(name, sizeof name, "formats_full.%s", fm_export_extension(formats[i]));
+        char name[64], path[FM_PATH_MAX];
+        snprintf(name, sizeof name, "formats_full_disk/full.%s", fm_export_extension(formats[i]));
         export_tmp(path, name);
-        snprintf(partial, sizeof partial, "%s.partial", path);
-        remove(path), remove(partial);
-        ENSURE(symlink("/dev/full", partial) == 0);
         fm_export_frame f = {.n = 2000, .tet_vertices = v};
         fm_error err = {0};
         fm_status st = fm_export_frame_write(&f, formats[i], NULL, path, &err);
         ENSURE_MSG(st == FM_ERR_IO, "%s: status %d: %s", name, (int)st, err.message);
         ENSURE_MSG(strstr(err.message, path) && strstr(err.message, "No space left"), "%s", err.message);
-        struct stat s;
-        ENSURE_MSG(!export_file_exists(path) && lstat(partial, &s) != 0, "%s: a file was left", name);
-        remove(partial);
+        ENSURE_MSG(!export_file_exists(path) && files_in(dir) == 1, "%s: a file was left", name);
     }
+    full_disk_unmount(dir);
 }
 
 /* ---------------------------------------------------------------- point caches */
@@ -521,12 +520,9 @@ static void test_pointcache_errors(void)
     ENSURE(!fm_pointcache_create(path, &o, &err) && err.status == FM_ERR_USAGE);
     fm_export_frame f = {.n = 2, .positions = xyz};
     ENSURE(fm_export_frame_write(&f, FM_EXPORT_PC2, NULL, path, &err) == FM_ERR_USAGE && strstr(err.message, "sequence"));
-    if (!export_file_exists("/dev/full")) return;
-    char partial[FM_PATH_MAX + 16];
-    export_tmp(path, "pc_full.pc2");
-    snprintf(partial, sizeof partial, "%s.partial", path);
-    remove(path), remove(partial);
-    ENSURE(symlink("/dev/full", partial) == 0);
+    char dir[FM_PATH_MAX];
+    if (full_disk_mount(export_tmp(dir, "pc_full_disk"), 0) != 0) return;
+    export_tmp(path, "pc_full_disk/full.pc2");
     static float big[3 * 100000];
     fm_pointcache_options full = {FM_EXPORT_PC2, 100000, 1, 0, 1, 24};
     w = fm_pointcache_create(path, &full, &err);
@@ -534,8 +530,8 @@ static void test_pointcache_errors(void)
     if (st == FM_OK) st = fm_pointcache_finish(w, &err);
     else fm_pointcache_abort(w);
     ENSURE_MSG(st == FM_ERR_IO && strstr(err.message, "No space left"), "status %d: %s", (int)st, err.message);
-    ENSURE(!export_file_exists(path));
-    remove(partial);
+    ENSURE(!export_file_exists(path) && files_in(dir) == 1);
+    full_disk_unmount(dir);
 }
 
 static void test_format_names(void)
