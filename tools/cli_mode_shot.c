@@ -61,7 +61,7 @@ int cli_shot_check_groups(const fm_scene_def *def)
     fm_error err = {0};
     fm_scene_def *group = malloc(sizeof *group); /* 120 KiB: not on the stack */
     fm_status st = group ? FM_OK : fm_fail(&err, FM_ERR_MEMORY, "out of memory");
-    for (int g = 0; g < def->group_count && st == FM_OK; g++) st = load_group(def, g, group, &err);
+    for (int g = 0; g < def->group_count && st == FM_OK; g++) st = load_group(def, NULL, g, group, &err);
     free(group);
     return st == FM_OK ? 0 : cli_report(&err);
 }

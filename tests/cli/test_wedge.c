@@ -432,6 +432,7 @@ static void test_slurm_script_makes_its_log_folder_first(void)
     ENSURE_MSG(rc == 0, "slurm.sh by hand: status %d: %s", rc, out);
     ENSURE_MSG(strstr(words, "--output=out/wedges/logs/slurm-%A_%a.log\n--array=0-2\n") &&
                    strstr(words, "/examples/wedges/slurm.sh\n"), "sbatch was given: %s", words);
+}
 
 /* Two wedges run one after the other into one folder: the second is refused (exit 1, naming
  * --overwrite) and the first's results and manifest stay; --overwrite runs it (issue 42). */
