@@ -3,8 +3,10 @@
 #include "dist.h"
 
 #include <assert.h>
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <limits.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
@@ -315,6 +317,25 @@ struct fm_dist_shared {
 };
 
 #ifdef FM_HAVE_MPI
+/* Segments that a job killed or hung between making a segment and removing its name left behind
+ * (/dev/shm/flockmorph.PID.K whose process PID is gone): removed before a new one is made, so they
+ * do not pile up in a machine's memory (issue 42). Another user's, or a live process's, stay. */
+static void remove_stale_segments(void)
+{
+    DIR *dir = opendir("/dev/shm");
+    struct dirent *e;
+    while (dir && (e = readdir(dir)) != NULL) {
+        long pid = 0;
+        int k = 0, end = 0;
+        if (sscanf(e->d_name, "flockmorph.%ld.%d%n", &pid, &k, &end) != 2 || e->d_name[end] || pid <= 0) continue;
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (or not ours to ask about) */
+        char name[300];
+        snprintf(name, sizeof name, "/%s", e->d_name);
+        shm_unlink(name);
+    }
+    if (dir) closedir(dir);
+}
+
 /* A segment of POSIX shared memory (/dev/shm), named for this process: its pages reserved now
  * (posix_fallocate), so that a full /dev/shm or a file-size limit (ulimit -f) fails here and not as
  * SIGBUS on a first touch. 0 or an errno. */
@@ -323,6 +344,7 @@ static int create_segment(char name[48], size_t bytes)
     static int made;
     struct rlimit limit;
     if (getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && bytes > limit.rlim_cur) return EFBIG;
+    remove_stale_segments();
     snprintf(name, 48, "/flockmorph.%ld.%d", (long)getpid(), ++made);
     int fd = shm_open(name, O_CREAT | O_EXCL | O_RDWR, 0600);
     if (fd < 0) return errno;

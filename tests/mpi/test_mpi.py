@@ -512,6 +512,26 @@ class Failure(unittest.TestCase):
         for name in ("frames.fmc", "frames.fmc.partial", "stats.json", "wedge.json"):
             self.assertFalse(os.path.exists(os.path.join(out, name)), name)
 
+    def test_stale_shared_memory_removed(self):
+        """A job killed while its machine's shared model still had a name in /dev/shm left the
+        segment there (issue 42): the next job's first rank on the machine removes those whose
+        process is gone, and leaves a live process's."""
+        dead = subprocess.Popen(["true"])
+        dead.wait()
+        stale, live = f"/dev/shm/flockmorph.{dead.pid}.1", f"/dev/shm/flockmorph.{os.getpid()}.1"
+        for path in (stale, live):
+            with open(path, "wb") as f:
+                f.write(b"left")
+        try:
+            done, _ = run(tiny_scene("stale_shm"), "stale_shm", ranks=2)
+            self.assertEqual(done.returncode, 0, done.stderr)
+            self.assertFalse(os.path.exists(stale), "a dead job's segment is still there")
+            self.assertTrue(os.path.exists(live), "a live process's segment was removed")
+        finally:
+            for path in (stale, live):
+                if os.path.exists(path):
+                    os.remove(path)
+
     def test_ranks_with_different_overrides(self):
         """An MPMD launch whose second rank has another --set: refused before any work (exit 1),
         naming the scene and both ranks' arguments, where the cache was a mix of the two."""
