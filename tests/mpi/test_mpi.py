@@ -300,7 +300,8 @@ class Memory(unittest.TestCase):
         as the rank's share and each rank encodes its share of the rows, so the largest of 4 ranks
         peaks well below the one process (it measured 0.57 of it; 0.86 when every group's store was
         made whole and rank 0 assembled and wrote every frame)."""
-        sets = ("--set", "n=150000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
+        sets = ("--set", "n=150000", "--set", "groups.0.launch_rate=1e9", "--set", "groups.1.launch_rate=1e9",
+                "--set", "time.frame_limit=4") + pieces(16384)  # each group sets its own launch_rate
         alone, ranks = self.one_and_four("examples/castling/scene.json", "shotmem", sets)
         self.assertLess(ranks, 0.7 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
