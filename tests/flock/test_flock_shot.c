@@ -82,12 +82,17 @@ static void test_sequence_of_shapes(void)
     int count = 0;
     if (load_groups(path, defs, &count) != 0) return;
     ENSURE(count == 2 && defs[1].group.source_group == 0);
-    fm_flock_shot_stats s1, s2;
-    if (run_shot(defs, count, 1, one, &s1) || run_shot(defs, count, 2, two, &s2)) return;
+    fm_flock_shot_stats s1 = {0}, s2 = {0};
+    const int failed = run_shot(defs, count, 1, one, &s1) || run_shot(defs, count, 2, two, &s2);
+    const int64_t rows = s1.rows;
+    const int all_bound = s1.all_bound && s1.group[0].all_bound && s1.group[1].all_bound;
+    const int waited = s1.group[1].start_time >= s1.group[0].bound_time + 0.5 - 1e-9;
+    fm_flock_shot_stats_free(&s1), fm_flock_shot_stats_free(&s2); /* their per-frame measures */
+    if (failed) return;
     ENSURE_MSG(same_file(one, two), "the flock shot's cache differs between 1 and 2 threads");
-    ENSURE_MSG(s1.rows == defs[0].n, "%lld rows for a flock of %lld", (long long)s1.rows, (long long)defs[0].n);
-    ENSURE(s1.all_bound && s1.group[0].all_bound && s1.group[1].all_bound);
-    ENSURE(s1.group[1].start_time >= s1.group[0].bound_time + 0.5 - 1e-9);
+    ENSURE_MSG(rows == defs[0].n, "%lld rows for a flock of %lld", (long long)rows, (long long)defs[0].n);
+    ENSURE(all_bound);
+    ENSURE(waited);
     fm_error err = {0};
     fm_cache_reader *r = fm_cache_open(one, &err);
     ENSURE_MSG(r != NULL, "%s", err.message);
