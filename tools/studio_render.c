@@ -59,7 +59,9 @@ static void *render_main(void *arg)
  * studio blocks them in every thread for its own wait) so that Ctrl-C's checkpoint works there. */
 static int spawn_run(studio *s, int write_fd, pid_t *pid)
 {
-    char *args[] = {"flockmorph", "run", s->path, "-o", s->render_dir, "--log-every", "1", NULL};
+    /* --overwrite: Render again after an edit replaces the last render (the folder the studio was
+     * started with --output for) */
+    char *args[] = {"flockmorph", "run", s->path, "-o", s->render_dir, "--overwrite", "--log-every", "1", NULL};
     posix_spawn_file_actions_t fa;
     posix_spawnattr_t attr;
     sigset_t none;
