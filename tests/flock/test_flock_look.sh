@@ -21,17 +21,18 @@ rm -rf "$out"
 "$cli" run "$scene" -o "$out/on" --quiet --threads 2
 "$cli" run "$scene" -o "$out/off" --quiet --threads 2 --set 'shape_flock.separation.weight=0' \
   --set 'shape_flock.cohesion.weight=0' --set 'shape_flock.alignment.weight=0'
-"${look[@]}" "$out/on/frames.fmc" --compare "$out/off/frames.fmc" --check "$bounds" |
-  grep -E '^(persistence|coherence|smoothness|dead_stop|nn_spacing|rms_difference) '
+"${look[@]}" "$out/on/frames.fmc" --compare "$out/off/frames.fmc" --check "$bounds" --json > "$out/on.json"
+"${look[@]}" "$out/off/frames.fmc" --json > "$out/off.json"
 grep -q '"all_bound": *true' "$out/on/stats.json" || { echo "test_flock_look: not every agent bound" >&2; exit 1; }
 # SCF Figure 7, "a crowd of flock with a non-flock one": with the rules the flock is more spread at
 # mid-flight (its median nearest-neighbour distance at least 5 % more than with the three weights 0)
-"$python" - "$out/on/frames.fmc" "$out/off/frames.fmc" <<'PY'
-import subprocess, sys, json
-nn = [json.loads(subprocess.run([sys.executable, "tools/flock-look.py", c, "--json"], check=True,
-                                stdout=subprocess.PIPE).stdout)["nn_spacing"] for c in sys.argv[1:]]
-print(f"median nn at mid-flight: rules on {nn[0]:.4f}, off {nn[1]:.4f}")
-sys.exit(0 if nn[0] >= 1.05 * nn[1] else "test_flock_look: the rules do not spread the flock (SCF Figure 7)")
+"$python" - "$out/on.json" "$out/off.json" <<'PY'
+import json, sys
+on, off = (json.load(open(path)) for path in sys.argv[1:])
+for key in ("persistence", "coherence", "smoothness", "dead_stop", "nn_spacing", "rms_difference"):
+    print(f"{key:16} {on[key]:.4f}")
+print(f"median nn at mid-flight: rules on {on['nn_spacing']:.4f}, off {off['nn_spacing']:.4f}")
+sys.exit(0 if on["nn_spacing"] >= 1.05 * off["nn_spacing"] else "test_flock_look: the rules do not spread the flock (SCF Figure 7)")
 PY
 "$cli" run "$scene" -o "$out/x4" --quiet --threads 2 --set 'shape_flock.separation.weight=[3.2,4.8]' \
   --set 'shape_flock.cohesion.weight=[0.4,0.8]' --set 'shape_flock.alignment.weight=[16,24]'
