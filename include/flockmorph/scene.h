@@ -133,6 +133,8 @@ typedef enum fm_mosaic_distance { FM_MOSAIC_EUCLIDEAN = 0, FM_MOSAIC_MANHATTAN =
 typedef enum fm_kalman_r_over {
     FM_KALMAN_R_FIXED = 0, FM_KALMAN_R_OVER_DISTANCE = 1, FM_KALMAN_R_OVER_LEADER_SPEED = 2
 } fm_kalman_r_over;
+/* SCF Figure 6's two strategies: chosen by the target (a moving one tracks), or by the scene. */
+typedef enum fm_fuzzy_strategy { FM_FUZZY_AUTO = 0, FM_FUZZY_STATIC = 1, FM_FUZZY_TRACKING = 2 } fm_fuzzy_strategy;
 typedef enum fm_flock_arrival { FM_ARRIVAL_BIND = 0, FM_ARRIVAL_FLOAT = 1 } fm_flock_arrival;
 typedef enum fm_deform_kind {
     FM_DEFORM_NONE = 0,     /* a static target */
@@ -163,8 +165,10 @@ typedef struct fm_flock_def {
     double kalman_r_velocity;    /* R's velocity variance, units^2/s^2 (> 0) */
     fm_kalman_r_over kalman_r_over; /* R scaled per agent by kalman_r_scale over this; FIXED: not */
     fm_fuzzy_def kalman_r_scale; /* [x, scale] points, scale > 0, linear between, flat beyond */
+    int32_t kalman_r_scale_velocity; /* the scale applies to R's velocity variance too (default: position only) */
     fm_fuzzy_def fuzzy[FM_FUZZY_FORCES];          /* SCF's static strategy (a static target) */
     fm_fuzzy_def fuzzy_tracking[FM_FUZZY_FORCES]; /* its tracking strategy (a deforming target) */
+    fm_fuzzy_strategy fuzzy_strategy; /* which of the two runs (AUTO: tracking for a moving target) */
     double damping;              /* c of the damping force -m c (v - v_destination), 1/s */
     double external_gain;        /* acceleration per unit of style-field velocity, 1/s */
     double path_time;            /* seconds the leaders take along the path; 0 = path length / speed0 */

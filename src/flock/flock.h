@@ -67,6 +67,7 @@ struct fm_flock_model {
     float *max_accel;              /* MaxForce / mass: bounds each force's acceleration */
     float max_radius;              /* the neighbour grid's cell */
     fm_fuzzy fuzzy[FM_FUZZY_FORCES];
+    int tracking;                  /* SCF Figure 6's tracking strategy runs (else the static one) */
     fm_fuzzy r_scale;              /* R's factor over def.flock.kalman_r_over (unused when R is fixed) */
     fm_field_plan fields;          /* whether the state bakes the style fields (fields.h) */
     char warning[1024];            /* fm_flock_model_warning 0: the fields' plan, located */

@@ -20,8 +20,11 @@ void fm_kalman_covariance_step(const fm_kalman *kf, double r_scale, double p[3],
     const double pa = a + 2 * b * dt + c * dt * dt + kf->q * dt * dt * dt / 3;
     const double pb = b + c * dt + kf->q * dt * dt / 2;
     const double pc = c + kf->q * dt;
-    /* K = P- S^-1, S = P- + R */
-    const double sa = pa + kf->r_pos * r_scale, sc = pc + kf->r_vel * r_scale, det = sa * sc - pb * pb;
+    /* K = P- S^-1, S = P- + R; the scale loosens the position only unless told otherwise, so the
+     * agent keeps its leader's velocity however loosely it holds its place (docs/shape-flock.md,
+     * "R over the flight") */
+    const double sa = pa + kf->r_pos * r_scale, sc = pc + kf->r_vel * (kf->scale_velocity ? r_scale : 1.0);
+    const double det = sa * sc - pb * pb;
     const double ia = sc / det, ib = -pb / det, ic = sa / det;
     k[0] = pa * ia + pb * ib, k[1] = pa * ib + pb * ic;
     k[2] = pb * ia + pc * ib, k[3] = pb * ib + pc * ic;

@@ -27,10 +27,12 @@
  * its own state, so the gain grows from 0 to its steady value over the first steps.
  *
  * R adjustable over the run (SCF: R sets how closely the agents follow the virtual leaders): with
- * shape_flock.kalman.r_scale each agent's R is R times a curve of its distance to the destination
- * or of its leader's speed, so P and K become the agent's own (fm_kalman_agents): the same
- * recursion per agent, only when it is under forces. With the scale 1 everywhere it is the shared
- * filter's arithmetic, bit for bit. */
+ * shape_flock.kalman.r_scale each agent's position variance is r_position times a curve of its
+ * distance to the destination or of its leader's speed (the velocity variance stays r_velocity, so
+ * a loosely held agent still flies at its leader's velocity, unless scale_velocity scales it too),
+ * so P and K become the agent's own
+ * (fm_kalman_agents): the same recursion per agent, only when it is under forces. With the scale 1
+ * everywhere it is the shared filter's arithmetic, bit for bit. */
 #ifndef FM_KALMAN_H
 #define FM_KALMAN_H
 
@@ -38,6 +40,7 @@
 
 typedef struct fm_kalman {
     double dt, q, r_pos, r_vel;
+    int scale_velocity; /* fm_kalman_covariance_step's r_scale applies to r_vel too (0: r_pos only) */
     double p[3];   /* posterior covariance per axis: [pos-pos, pos-vel, vel-vel] */
     double k[4];   /* gain of the last advance, row-major 2x2 */
 } fm_kalman;
@@ -55,7 +58,8 @@ void fm_kalman_init(fm_kalman *kf, double dt, double q, double r_pos, double r_v
 /* One step of the covariance recursion: P- from P, the gain K, then P+. */
 void fm_kalman_advance(fm_kalman *kf);
 
-/* The same for a covariance p (3 doubles, updated in place) with R scaled by r_scale; the gain into k. */
+/* The same for a covariance p (3 doubles, updated in place) with R's position variance scaled by
+ * r_scale (and its velocity variance too with kf->scale_velocity); the gain into k. */
 void fm_kalman_covariance_step(const fm_kalman *kf, double r_scale, double p[3], double k[4]);
 
 /* For agents a in [begin, end) with phase[a] == phase_sel: h(a) = weight[a] * F_h / m (eq 9, with the

@@ -298,11 +298,12 @@ static fm_status plan_fields(fm_flock_model *m, fm_error *err)
 }
 
 /* SCF "Fuzzy Control Logic": the static strategy's curves for a static target, the tracking
- * strategy's for a moving one (deforming or travelling). */
+ * strategy's for a moving one (deforming or travelling), unless the scene chooses. */
 static fm_status init_fuzzy(fm_flock_model *m, fm_error *err)
 {
     static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
-    const int tracking = fm_flock_target_moves(&m->def.flock);
+    const int tracking = fm_flock_tracking_strategy(&m->def.flock);
+    m->tracking = tracking;
     const fm_fuzzy_def *curves = tracking ? m->def.flock.fuzzy_tracking : m->def.flock.fuzzy;
     fm_status st = FM_OK;
     for (int f = 0; f < FM_FUZZY_FORCES && st == FM_OK; f++) {

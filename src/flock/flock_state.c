@@ -190,6 +190,7 @@ fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const
         return NULL;
     }
     fm_kalman_init(&s->kalman, m->dt, def->flock.kalman_q, def->flock.kalman_r_position, def->flock.kalman_r_velocity);
+    s->kalman.scale_velocity = def->flock.kalman_r_scale_velocity;
     return s;
 }
 

@@ -104,10 +104,17 @@ static void truncate3(float x[3], float limit)
 }
 
 /* R's factor for the agent this step: the curve over its distance d to the destination or over its
- * leader's speed (SCF: a larger R follows the leader more loosely). */
+ * leader's speed (SCF: a larger R follows the leader more loosely). Over the distance, an agent
+ * that has fallen behind its leader counts as no farther than the leader's distance plus the
+ * curve's first x: once its leader has arrived it is held as tightly as an agent that close, and
+ * closes in at the homing force's pace instead of creeping in under a loose hold. */
 static float r_scale(const fm_flock_model *m, const fm_flock_state *s, int64_t a, float d)
 {
-    if (m->def.flock.kalman_r_over == FM_KALMAN_R_OVER_DISTANCE) return fm_fuzzy_eval(&m->r_scale, d);
+    if (m->def.flock.kalman_r_over == FM_KALMAN_R_OVER_DISTANCE) {
+        const float e[3] = {s->dest[0][a] - s->leader[0][a], s->dest[1][a] - s->leader[1][a], s->dest[2][a] - s->leader[2][a]};
+        const float leader_d = sqrtf(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+        return fm_fuzzy_eval(&m->r_scale, fminf(d, leader_d + m->r_scale.d[0]));
+    }
     const float lv[3] = {s->leader_v[0][a], s->leader_v[1][a], s->leader_v[2][a]};
     return fm_fuzzy_eval(&m->r_scale, sqrtf(lv[0] * lv[0] + lv[1] * lv[1] + lv[2] * lv[2]));
 }
@@ -126,7 +133,10 @@ static void other_forces(const fm_flock_model *m, fm_flock_state *s, int64_t a)
     if (s->r_scale) s->r_scale[a] = r_scale(m, s, a, d);
     float damp[3], ext[3] = {0, 0, 0}, acc[3];
     for (int k = 0; k < 3; k++) {
-        damp[k] = -(float)f->damping * (s->v[k][a] - s->dest_v[k][a]);
+        /* the static strategy slows the agent down (SCF: "slowing down the agent nearby its
+         * destination"); the tracking one damps its velocity relative to its moving destination
+         * (on a static target the two are the same bits: its velocity is 0) */
+        damp[k] = -(float)f->damping * (m->tracking ? s->v[k][a] - s->dest_v[k][a] : s->v[k][a]);
         if (s->fields) ext[k] = (float)f->external_gain * s->ext[k][a];
     }
     truncate3(damp, max_accel), truncate3(ext, max_accel);

@@ -57,11 +57,15 @@ static fm_flock_def fm_default_flock_def(void)
         .max_speed = {12, 18}, .max_force = {40, 80},
         /* radii in spacings: J / sqrt(A) of the J below (a third of SCF's) on the cylinder -> sphere
            example (A = 330); about 7 others within 1.5 spacings (docs/shape-flock.md) */
-        .separation = {.radius = {0.9, 1.5}, .radius_j = {20, 40}, .angle_deg = {240, 300}, .weight = {0.8, 1.2}},
+        .separation = {.radius = {1.2, 2.0}, .radius_j = {20, 40}, .angle_deg = {240, 300}, .weight = {0.8, 1.2}},
         .cohesion = {.radius = {0.55, 1.1}, .radius_j = {10, 40}, .angle_deg = {240, 300}, .weight = {0.1, 0.2}},
         .alignment = {.radius = {1.1, 2.2}, .radius_j = {20, 40}, .angle_deg = {300, 360}, .weight = {4, 6}},
+        /* R over the distance to the destination (SCF: R sets how closely the agents follow their
+           leaders): 8 units and more from it, 30 times r_position, so homing holds the agent's place
+           loosely and the boids shape the flock while it keeps its leader's velocity; within 2 units
+           r_position itself, as tight as a fixed R (docs/shape-flock.md, "R over the flight") */
         .kalman_q = 1, .kalman_r_position = 1, .kalman_r_velocity = 1,
-        .kalman_r_over = FM_KALMAN_R_FIXED, .kalman_r_scale = {.count = 1, .d = {0}, .w = {1}},
+        .kalman_r_over = FM_KALMAN_R_OVER_DISTANCE, .kalman_r_scale = {.count = 2, .d = {2, 8}, .w = {1, 30}},
         .damping = 3, .external_gain = 1, .ease_in = 1, .ease_out = 2.5, .ease_spread = 0.75, .reform = 0, .uncross = 1,
         .arrival_radius = 0.6, .arrival_time = 0.5, .turn_rate_deg = 720, .bind_distance = 0.002,
         .arrival_mode = FM_ARRIVAL_BIND, .float_amplitude = 0.05, .float_period = 2,
@@ -145,12 +149,14 @@ static const char *const MATCH_NAMES[] = {"random", "spherical", "projected", NU
 static const char *const DISTANCE_NAMES[] = {"euclidean", "manhattan", NULL};
 static const char *const ARRIVAL_NAMES[] = {"bind", "float", NULL};
 static const char *const R_OVER_NAMES[] = {"none", "distance", "leader_speed", NULL};
+static const char *const STRATEGY_NAMES[] = {"auto", "static", "tracking", NULL};
 static const char *const DEFORM_NAMES[] = {"none", "wave", "pulse", "sequence", NULL};
 static const char *const SUBDIVISION_NAMES[] = {"bisect", "paper", NULL};
 static const struct { const char *key; const char *const *names; } ENUM_NAMES[] = {
     {"mode", MODE_NAMES}, {"shape_flock.sampling", SAMPLING_NAMES}, {"shape_flock.match", MATCH_NAMES},
     {"shape_flock.arrival.mode", ARRIVAL_NAMES}, {"shape_flock.deform.type", DEFORM_NAMES},
     {"shape_flock.mosaic.distance", DISTANCE_NAMES}, {"shape_flock.kalman.r_scale.over", R_OVER_NAMES},
+    {"shape_flock.fuzzy.strategy", STRATEGY_NAMES},
     {"tetgen.subdivision", SUBDIVISION_NAMES},
 };
 
@@ -286,6 +292,8 @@ static const param PARAMS[] = {
     {"shape_flock.kalman.r_velocity", P_DOUBLE, OFF(flock.kalman_r_velocity), 0, 1e12, OPEN_MIN},
     {"shape_flock.kalman.r_scale.over", P_ENUM, OFF(flock.kalman_r_over), 0, 0, 0},
     {"shape_flock.kalman.r_scale.points", P_FUZZY, OFF(flock.kalman_r_scale), 0, 1e9, POSITIVE_WEIGHTS},
+    {"shape_flock.kalman.r_scale.velocity", P_BOOL, OFF(flock.kalman_r_scale_velocity), 0, 0, 0},
+    {"shape_flock.fuzzy.strategy", P_ENUM, OFF(flock.fuzzy_strategy), 0, 0, 0},
     {"shape_flock.fuzzy.steering", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_STEERING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.homing", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_HOMING]), 0, 1e9, 0},
     {"shape_flock.fuzzy.damping", P_FUZZY, OFF(flock.fuzzy[FM_FUZZY_DAMPING]), 0, 1e9, 0},
@@ -1169,14 +1177,22 @@ void fm_scene_key_location(const fm_scene_def *def, const char *key, char *out, 
     else snprintf(out, size, "%s: %s", file, key);
 }
 
-/* A curve of the strategy the target does not use would be ignored: a static target runs the static
- * curves (shape_flock.fuzzy.*), a deforming one the tracking curves (shape_flock.fuzzy.tracking.*).
- * Scene files written before the two strategies, with shape_flock.fuzzy.* on a deforming target,
- * are refused here naming the key, instead of running with curves they did not choose. */
+/* A curve of the strategy that does not run would be ignored: a static target runs the static
+ * curves (shape_flock.fuzzy.*), a moving one the tracking curves (shape_flock.fuzzy.tracking.*),
+ * unless shape_flock.fuzzy.strategy says which. Scene files written before the two strategies, with
+ * shape_flock.fuzzy.* on a deforming target, are refused here naming the key, instead of running
+ * with curves they did not choose. */
+static const char *strategy_reason(const fm_flock_def *f)
+{
+    if (f->fuzzy_strategy != FM_FUZZY_AUTO) return "strategy is chosen by shape_flock.fuzzy.strategy";
+    if (!fm_flock_target_moves(f)) return "target is static";
+    return f->deform != FM_DEFORM_NONE ? "target deforms" : "target travels (target.path.points)";
+}
+
 static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_scene_def *def)
 {
     static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
-    const int deforming = fm_flock_target_moves(&def->flock);
+    const int deforming = fm_flock_tracking_strategy(&def->flock);
     for (int f = 0; f < FM_FUZZY_FORCES; f++) {
         char key[64], other[64];
         snprintf(key, sizeof key, deforming ? "shape_flock.fuzzy.%s" : "shape_flock.fuzzy.tracking.%s", names[f]);
@@ -1186,23 +1202,31 @@ static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_sce
         if (st != FM_OK) return st;
         w->at_key = 1;
         if (v)
-            return fail_at(w, key, "the target %s, so the %s strategy's curve %s applies (docs/scene.md)",
-                           deforming ? (def->flock.deform != FM_DEFORM_NONE ? "deforms" : "travels (target.path.points)")
-                                     : "is static", deforming ? "tracking" : "static", other);
+            return fail_at(w, key, "the %s, so the %s strategy's curve %s applies (docs/scene.md)",
+                           strategy_reason(&def->flock), deforming ? "tracking" : "static", other);
         w->at_key = 0;
     }
     return FM_OK;
 }
 
-/* R's scale curve without what it is a curve over would be ignored. */
+/* R's scale curve with "none" would be ignored; the default curve's x is a distance, never a speed. */
 static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def *def)
 {
     const json_t *v;
     fm_status st = lookup(w, root, "shape_flock.kalman.r_scale.points", &v);
-    if (st != FM_OK || !v || def->flock.kalman_r_over != FM_KALMAN_R_FIXED) return st;
-    w->at_key = 1;
-    return fail_at(w, "shape_flock.kalman.r_scale.points", "set shape_flock.kalman.r_scale.over to \"distance\" or "
-                   "\"leader_speed\": the curve's x is one of them");
+    if (st != FM_OK) return st;
+    if (v && def->flock.kalman_r_over == FM_KALMAN_R_FIXED) {
+        w->at_key = 1;
+        return fail_at(w, "shape_flock.kalman.r_scale.points", "set shape_flock.kalman.r_scale.over to \"distance\" or "
+                       "\"leader_speed\": the curve's x is one of them");
+    }
+    if (!v && def->flock.kalman_r_over == FM_KALMAN_R_OVER_LEADER_SPEED) {
+        st = lookup(w, root, "shape_flock.kalman.r_scale.over", &v);
+        w->at_key = 1;
+        if (st == FM_OK) st = fail_at(w, "shape_flock.kalman.r_scale.over", "\"leader_speed\" needs "
+                                      "shape_flock.kalman.r_scale.points: the default points are distances");
+    }
+    return st;
 }
 
 /* A rule's radius is given in spacings (.radius) or as the paper's J (.radius_j), not both: the one

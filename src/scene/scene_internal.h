@@ -41,6 +41,12 @@ static inline int fm_flock_target_moves(const fm_flock_def *f)
     return f->deform != FM_DEFORM_NONE || f->travel_point_count > 0;
 }
 
+/* SCF Figure 6: the tracking strategy runs for a moving target, or where the scene asks for it. */
+static inline int fm_flock_tracking_strategy(const fm_flock_def *f)
+{
+    return f->fuzzy_strategy == FM_FUZZY_AUTO ? fm_flock_target_moves(f) : f->fuzzy_strategy == FM_FUZZY_TRACKING;
+}
+
 /* Checks a fuzzy weight curve (1 .. FM_FUZZY_MAX_POINTS points, finite, d strictly increasing in
  * float, w >= 0); errors name `key` ("shape_flock.fuzzy.homing"). */
 fm_status fm_fuzzy_def_check(const fm_fuzzy_def *def, const char *key, fm_error *err);

@@ -461,6 +461,18 @@ static void test_fuzzy_strategy_keys(void)
                      " \"shape_flock\": {\"fuzzy\": {\"tracking\": {\"damping\": [[0, 1]]}}}}", &def, &err) == FM_ERR_INPUT);
     ENSURE_MSG(strstr(err.message, "shape_flock.fuzzy.tracking.damping: the target is static, so the static strategy's curve "
                                    "shape_flock.fuzzy.damping applies"), "%s", err.message);
+    /* shape_flock.fuzzy.strategy chooses against the target: a static target may track */
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"fuzzy\": {\"strategy\": \"tracking\", \"tracking\": {\"damping\": [[0, 1]]}}}}", &def,
+                     &err) == FM_OK);
+    ENSURE(def.flock.fuzzy_strategy == FM_FUZZY_TRACKING && def.flock.fuzzy_tracking[FM_FUZZY_DAMPING].count == 1);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"fuzzy\": {\"strategy\": \"tracking\", \"damping\": [[0, 1]]}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.fuzzy.damping: the strategy is chosen by shape_flock.fuzzy.strategy, so the "
+                                   "tracking strategy's curve shape_flock.fuzzy.tracking.damping applies"), "%s", err.message);
+    ENSURE(load_text("{\"mode\": \"shape_flock\", \"n\": 10, \"source\": {\"mesh\": \"a.obj\"}, \"target\": {\"mesh\": \"b.obj\"},\n"
+                     " \"shape_flock\": {\"fuzzy\": {\"strategy\": \"dynamic\"}}}", &def, &err) == FM_ERR_INPUT);
+    ENSURE_MSG(strstr(err.message, "shape_flock.fuzzy.strategy"), "%s", err.message);
     /* defaults: Figure 6, far from the destination the steering, near it homing; the tracking
      * strategy lowers steering below the static one's near the destination */
     const fm_flock_def f = fm_default_scene_def().flock;

@@ -4,7 +4,8 @@
  *   - on examples/flock_tracking, a curve over the leader's speed that loosens R only for fast
  *     leaders: on the example's fast wave (destinations up to 3.4 units/s) the agents lag clearly
  *     more than with R fixed; on the same wave slowed down (amplitude / 4, up to 0.84 units/s, below
- *     where the curve starts) they lag as with R fixed, once the flight (whose leaders are fast) is over. */
+ *     where the curve starts) they lag as with R fixed, once the flight (whose leaders are fast) is over;
+ *   - SCF Figure 6's two strategies on that wave: the tracking one keeps up, the static one trails. */
 #include "flockmorph/flockmorph.h"
 #include "example_helpers.h"
 #include "test_macros.h"
@@ -40,6 +41,7 @@ static float *positions_after(const fm_scene_def *def, int64_t steps, int64_t *n
 static void test_scale_one_is_the_fixed_filter(void)
 {
     fm_scene_def fixed = load_example("flock_cylinder_sphere"), own = fixed;
+    fixed.flock.kalman_r_over = FM_KALMAN_R_FIXED; /* the default is a curve over the distance */
     static const double one[][2] = {{0, 1}};
     set_r_scale(&own, FM_KALMAN_R_OVER_DISTANCE, 1, one);
     int64_t n = 0, n2 = 0;
@@ -88,8 +90,10 @@ static void test_fast_leaders_followed_loosely(void)
         fm_scene_def def = load_example("flock_tracking");
         def.n = 1500;
         if (!fast) def.flock.deform_amplitude /= 4;
+        def.flock.kalman_r_over = FM_KALMAN_R_FIXED;
         lag[fast][0] = tracking_lag(&def, 2.0, 3.0);
         set_r_scale(&def, FM_KALMAN_R_OVER_LEADER_SPEED, 2, curve);
+        def.flock.kalman_r_scale_velocity = 1; /* trailing a fast target: its velocity too */
         lag[fast][1] = tracking_lag(&def, 2.0, 3.0);
     }
     printf("lag on the slow wave %.4f -> %.4f, on the fast wave %.4f -> %.4f\n", lag[0][0], lag[0][1], lag[1][0],
@@ -98,9 +102,26 @@ static void test_fast_leaders_followed_loosely(void)
     ENSURE_MSG(fabs(lag[0][1] - lag[0][0]) < 0.1 * lag[0][0], "slow wave: %g against %g", lag[0][1], lag[0][0]);
 }
 
+/* SCF Figure 6's strategies on a moving target (flock_tracking's wave): the static one, whose damping
+ * slows the agent down, trails its destination; the tracking one, whose damping is relative to the
+ * destination's velocity and whose homing grows sooner, keeps up. */
+static void test_tracking_strategy_keeps_up(void)
+{
+    double lag[2];
+    for (int tracking = 0; tracking < 2; tracking++) {
+        fm_scene_def def = load_example("flock_tracking");
+        def.n = 1500;
+        def.flock.fuzzy_strategy = tracking ? FM_FUZZY_TRACKING : FM_FUZZY_STATIC;
+        lag[tracking] = tracking_lag(&def, 2.0, 3.0);
+    }
+    printf("lag on the wave: static strategy %.4f, tracking strategy %.4f\n", lag[0], lag[1]);
+    ENSURE_MSG(lag[0] > 1.25 * lag[1], "static %g against tracking %g", lag[0], lag[1]);
+}
+
 int main(void)
 {
     RUN_TEST(test_scale_one_is_the_fixed_filter);
     RUN_TEST(test_fast_leaders_followed_loosely);
+    RUN_TEST(test_tracking_strategy_keeps_up);
     return test_result();
 }

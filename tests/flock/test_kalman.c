@@ -151,6 +151,28 @@ static void test_own_filters(void)
     ENSURE(memcmp(p4, own + 3, sizeof p4) == 0);
 }
 
+/* R's scale loosens the hold on the position, not on the velocity (the shape flock's default R over
+ * the distance: far from its destination an agent keeps its leader's velocity while the boids move
+ * it about), unless scale_velocity asks for both. */
+static void test_scale_loosens_the_position_only(void)
+{
+    fm_kalman kf;
+    fm_kalman_init(&kf, 1.0 / 48, 1, 1, 1);
+    double tight[3] = {0, 0, 0}, loose[3] = {0, 0, 0}, both[3] = {0, 0, 0}, kt[4], kl[4], kb[4];
+    for (int s = 0; s < 2000; s++) {
+        fm_kalman_covariance_step(&kf, 1, tight, kt);
+        fm_kalman_covariance_step(&kf, 30, loose, kl);
+        kf.scale_velocity = 1;
+        fm_kalman_covariance_step(&kf, 30, both, kb);
+        kf.scale_velocity = 0;
+    }
+    printf("  steady gains x 2/dt^2: scale 1 %.1f %.1f, 30 on the position %.1f %.1f, on both %.1f %.1f\n",
+           kt[0] * 4608, kt[1] * 4608, kl[0] * 4608, kl[1] * 4608, kb[0] * 4608, kb[1] * 4608);
+    ENSURE_MSG(kl[0] < 0.3 * kt[0], "position gain %g against %g", kl[0], kt[0]);
+    ENSURE_MSG(fabs(kl[1] - kt[1]) < 0.2 * kt[1], "velocity gain %g against %g", kl[1], kt[1]);
+    ENSURE_MSG(kb[1] < 0.8 * kt[1], "with scale_velocity the velocity gain %g against %g", kb[1], kt[1]);
+}
+
 int main(void)
 {
     RUN_TEST(test_lag_shrinks_as_r_falls);
@@ -159,5 +181,6 @@ int main(void)
     RUN_TEST(test_covariance_converges);
     RUN_TEST(test_phase_and_weight);
     RUN_TEST(test_own_filters);
+    RUN_TEST(test_scale_loosens_the_position_only);
     return test_result();
 }
