@@ -60,6 +60,33 @@ int cli_make_outdir(const char *dir, const char *const *names, int count);
  * cannot be read (exit 2, printed; beside the cache it says that --no-obstacles leaves it out). */
 struct fm_mesh;
 int cli_cache_obstacles(const char *cache, const char *given, struct fm_mesh *out, char path[FM_PATH_MAX + 32]);
+/* --up, --scale and --preset (cli_axes.c, docs/export.md#axes): the axes and units of the files
+ * written for other tools, which `export` and `run` take alike. */
+typedef struct cli_preset {
+    const char *name;
+    int up_y;
+    int four_digit_names; /* export: --name '<cache name>.%04d.<ext>' (Houdini's $F4, Maya's ####) */
+    long start;           /* export: --start */
+} cli_preset;
+typedef struct cli_axes_options {
+    int up_y, has_up;         /* --up y; has_up: --up was given, which wins over a preset's */
+    double scale;             /* --scale; 0 when not given (1) */
+    const cli_preset *preset; /* --preset, or NULL */
+} cli_axes_options;
+/* A convention: the engine's Z-up turned to Y-up or not, then a scale; {0, 1} is the engine's own. */
+typedef struct cli_axes {
+    int up_y;
+    double scale;
+} cli_axes;
+/* When option is --up, --scale or --preset: value parsed into o, and 0 or the usage error's status
+ * (printed, naming the option); 1 for any other option. */
+int cli_axes_parse(const char *usage, const char *option, const char *value, cli_axes_options *o);
+/* The convention the options choose: --up, else the preset's, else z; --scale, else 1. */
+cli_axes cli_axes_chosen(const cli_axes_options *o);
+/* n vectors from the engine's axes and units into a's: --up y, then --scale. */
+void cli_axes_to(const cli_axes *a, float *xyz, size_t n);
+/* A mesh's vertices as frames are converted: to float, then cli_axes_to. 0, or FM_ERR_MEMORY printed. */
+int cli_axes_mesh_to(const cli_axes *a, struct fm_mesh *m);
 /* The scene file's name without its folder and its .json, or the folder's name for a file named
  * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
 void cli_scene_stem(const char *scene, char *out, size_t size);
