@@ -87,6 +87,18 @@ cli_axes cli_axes_chosen(const cli_axes_options *o);
 void cli_axes_to(const cli_axes *a, float *xyz, size_t n);
 /* A mesh's vertices as frames are converted: to float, then cli_axes_to. 0, or FM_ERR_MEMORY printed. */
 int cli_axes_mesh_to(const cli_axes *a, struct fm_mesh *m);
+/* The header line that names a file's convention ("flockmorph axes: up y, scale 2.5", the scale in
+ * the fewest digits that read back exactly): every obstacle file flockmorph writes has it. */
+void cli_axes_comment(const cli_axes *a, char *out, size_t size);
+/* The convention a mesh file's header names (a PLY comment, or an OBJ's leading # line, as
+ * cli_axes_comment writes it): 1 and *a, 0 when it names none (the engine's axes), -1 when the
+ * line is malformed; line (size bytes) gets the last header line read, for a message. */
+int cli_axes_of_file(const char *path, cli_axes *a, char *line, size_t size);
+/* Undoes cli_axes_mesh_to on the vertices (exact for the turn, and for the scale where no two floats
+ * land on one: a power of two, say). */
+void cli_axes_mesh_from(const cli_axes *a, struct fm_mesh *m);
+/* stats.json's "axes": {"up": "z"|"y", "scale": S, "preset": NAME or null}, the convention chosen. */
+json_t *cli_axes_json(const cli_axes_options *o);
 /* The scene file's name without its folder and its .json, or the folder's name for a file named
  * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
 void cli_scene_stem(const char *scene, char *out, size_t size);
@@ -116,6 +128,7 @@ typedef struct cli_run_options {
     char outdir_buf[FM_PATH_MAX];       /* -o with its {wedge} and {scene} filled in (outdir points here) */
     int argc;
     char **argv;                        /* as typed, for the manifest */
+    cli_axes_options axes;              /* --up, --scale, --preset: obstacles.ply's axes and units */
 } cli_run_options;
 
 /* `flockmorph studio` runs a scene through run's one path (cli_run.c), so that the frames it shows

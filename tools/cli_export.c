@@ -639,25 +639,27 @@ static int obstacles_path(const export_job *job, char out[CLI_PATH_BUF])
     return len < 0 || len >= FM_PATH_MAX ? -1 : 0;
 }
 
-/* The cache's obstacles (--obstacles FILE, or obstacles.ply beside it, which run writes) in the
- * frames' axes and units, so that they stand where the flock flies round them in the tool that reads
- * the export; written gets the file ("" for none). */
+/* The cache's obstacles (--obstacles FILE, or obstacles.ply beside it, which run writes; read back
+ * into the cache's axes) in the frames' axes and units, so that they stand where the flock flies
+ * round them in the tool that reads the export; its header names them. written gets the file ("" for
+ * none). */
 static int export_obstacles(const export_options *o, const export_job *job, char written[CLI_PATH_BUF])
 {
     written[0] = 0;
     if (o->no_obstacles) return 0;
     fm_mesh m;
-    char source[FM_PATH_MAX + 32], name[FM_PATH_MAX + 96];
+    char source[FM_PATH_MAX + 32], name[FM_PATH_MAX + 96], axes[64];
     int rc = cli_cache_obstacles(o->cache, o->obstacles, &m, source);
     if (!rc && source[0] && obstacles_path(job, written))
         rc = cli_usage_error(USAGE_EXPORT, "-o %s: the obstacles' path would be too long", o->out);
     if (!rc && source[0]) rc = cli_axes_mesh_to(&job->axes, &m);
     if (!rc && source[0]) {
         snprintf(name, sizeof name, "obstacles from %s, up %s, scale %.9g", source, job->axes.up_y ? "y" : "z", job->axes.scale);
+        cli_axes_comment(&job->axes, axes, sizeof axes);
         fm_ply_mesh view = {name, m.v, m.nv, m.tri, m.nt};
         fm_error err = {0};
-        fm_status st = job->format == FM_EXPORT_OBJ ? fm_export_obj_meshes(&view, 1, written, &err)
-                                                     : fm_export_ply_meshes(&view, 1, written, &err);
+        fm_status st = job->format == FM_EXPORT_OBJ ? fm_export_obj_meshes(&view, 1, axes, written, &err)
+                                                     : fm_export_ply_meshes(&view, 1, axes, written, &err);
         if (st != FM_OK) rc = cli_report(&err);
     }
     fm_mesh_free(&m);
