@@ -1075,17 +1075,24 @@ static void check_export_meets_run(const axes_run *r, const char *dir, const flo
 }
 
 /* An export without flags reads the run's obstacles.ply back into the cache's axes: the engine's
- * vertices exactly after a turn, and within a float's rounding after a scale. */
+ * vertices exactly after a turn, and within a float's rounding after a scale. So does one given, as
+ * --obstacles, the OBJ obstacles an export with the run's flags wrote (their axes in a # line). */
 static void check_export_in_cache_axes(const axes_run *r, const char *dir, const float engine[3 * 6])
 {
-    char out[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 64], cache[FM_PATH_MAX + 16];
+    char out[FM_PATH_MAX], obj_dir[FM_PATH_MAX], args[3 * FM_PATH_MAX], path[FM_PATH_MAX + 64], cache[FM_PATH_MAX + 16];
     float back[3 * 6];
     snprintf(cache, sizeof cache, "%s/frames.fmc", dir);
-    snprintf(args, sizeof args, "--format ply --frames 0 -o '%s'", fresh_dir(out, "axes_back"));
+    snprintf(args, sizeof args, "%s --format obj --frames 0 -o '%s'", r->flags, fresh_dir(obj_dir, "axes_obj"));
     ENSURE_MSG(export_cmd_on(cache, args) == 0, "%s: %s", args, g_err);
-    snprintf(path, sizeof path, "%s/frames_obstacles.ply", out);
-    ENSURE_MSG(ply_xyz(path, back, 6, "x y z") == 6 && same_points(back, engine, 6, r->scale == 1.0 ? 0 : 1.2e-7),
-               "%s, then export: the obstacles are not where the plain run's are", r->flags);
+    for (int via_obj = 0; via_obj < 2; via_obj++) {
+        snprintf(args, sizeof args, "--format ply --frames 0 -o '%s'%s%s%s", fresh_dir(out, "axes_back"),
+                 via_obj ? " --obstacles '" : "", via_obj ? obj_dir : "", via_obj ? "/frames_obstacles.obj'" : "");
+        ENSURE_MSG(export_cmd_on(cache, args) == 0, "%s: %s", args, g_err);
+        snprintf(path, sizeof path, "%s/frames_obstacles.ply", out);
+        ENSURE_MSG(ply_xyz(path, back, 6, "x y z") == 6 && same_points(back, engine, 6, r->scale == 1.0 ? 0 : 1.2e-7),
+                   "%s, then export%s: the obstacles are not where the plain run's are", r->flags,
+                   via_obj ? " of the OBJ obstacles" : "");
+    }
 }
 
 /* run --preset houdini and run --up y --scale 2.5 write obstacles.ply as export converts frames:
