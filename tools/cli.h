@@ -60,6 +60,45 @@ int cli_make_outdir(const char *dir, const char *const *names, int count);
  * cannot be read (exit 2, printed; beside the cache it says that --no-obstacles leaves it out). */
 struct fm_mesh;
 int cli_cache_obstacles(const char *cache, const char *given, struct fm_mesh *out, char path[FM_PATH_MAX + 32]);
+/* --up, --scale and --preset (cli_axes.c, docs/export.md#axes): the axes and units of the files
+ * written for other tools, which `export` and `run` take alike. */
+typedef struct cli_preset {
+    const char *name;
+    int up_y;
+    int four_digit_names; /* export: --name '<cache name>.%04d.<ext>' (Houdini's $F4, Maya's ####) */
+    long start;           /* export: --start */
+} cli_preset;
+typedef struct cli_axes_options {
+    int up_y, has_up;         /* --up y; has_up: --up was given, which wins over a preset's */
+    double scale;             /* --scale; 0 when not given (1) */
+    const cli_preset *preset; /* --preset, or NULL */
+} cli_axes_options;
+/* A convention: the engine's Z-up turned to Y-up or not, then a scale; {0, 1} is the engine's own. */
+typedef struct cli_axes {
+    int up_y;
+    double scale;
+} cli_axes;
+/* When option is --up, --scale or --preset: value parsed into o, and 0 or the usage error's status
+ * (printed, naming the option); 1 for any other option. */
+int cli_axes_parse(const char *usage, const char *option, const char *value, cli_axes_options *o);
+/* The convention the options choose: --up, else the preset's, else z; --scale, else 1. */
+cli_axes cli_axes_chosen(const cli_axes_options *o);
+/* n vectors from the engine's axes and units into a's: --up y, then --scale. */
+void cli_axes_to(const cli_axes *a, float *xyz, size_t n);
+/* A mesh's vertices as frames are converted: to float, then cli_axes_to. 0, or FM_ERR_MEMORY printed. */
+int cli_axes_mesh_to(const cli_axes *a, struct fm_mesh *m);
+/* The header line that names a file's convention ("flockmorph axes: up y, scale 2.5", the scale in
+ * the fewest digits that read back exactly): every obstacle file flockmorph writes has it. */
+void cli_axes_comment(const cli_axes *a, char *out, size_t size);
+/* The convention a mesh file's header names (a PLY comment, or an OBJ's leading # line, as
+ * cli_axes_comment writes it): 1 and *a, 0 when it names none (the engine's axes), -1 when the
+ * line is malformed; line (size bytes) gets the last header line read, for a message. */
+int cli_axes_of_file(const char *path, cli_axes *a, char *line, size_t size);
+/* Undoes cli_axes_mesh_to on the vertices (exact for the turn, and for the scale where no two floats
+ * land on one: a power of two, say). */
+void cli_axes_mesh_from(const cli_axes *a, struct fm_mesh *m);
+/* stats.json's "axes": {"up": "z"|"y", "scale": S, "preset": NAME or null}, the convention chosen. */
+json_t *cli_axes_json(const cli_axes_options *o);
 /* The scene file's name without its folder and its .json, or the folder's name for a file named
  * scene.json (examples/words/scene.json is "words"): -o's {scene}, render's burn-in. */
 void cli_scene_stem(const char *scene, char *out, size_t size);
@@ -89,6 +128,7 @@ typedef struct cli_run_options {
     char outdir_buf[FM_PATH_MAX];       /* -o with its {wedge} and {scene} filled in (outdir points here) */
     int argc;
     char **argv;                        /* as typed, for the manifest */
+    cli_axes_options axes;              /* --up, --scale, --preset: obstacles.ply's axes and units */
 } cli_run_options;
 
 /* `flockmorph studio` runs a scene through run's one path (cli_run.c), so that the frames it shows

@@ -452,6 +452,7 @@ json_t *cli_stats_json(const fm_scene_def *def, const cli_run_record *r)
     json_object_set_new(j, "ranks", json_integer(fm_dist_size(cli_dist))); /* MPI processes: threads each */
     json_object_set_new(j, "seed", json_integer((json_int_t)def->seed));
     cli_stats_cache_path(j, r->cache);
+    if (r->options) json_object_set_new(j, "axes", cli_axes_json(&r->options->axes));
     return j;
 }
 

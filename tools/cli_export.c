@@ -68,28 +68,10 @@ static const char *const USAGE_EXPORT =
 typedef struct export_options {
     const char *cache, *out, *format_name, *frames, *name, *obstacles;
     long frame, start;
-    int has_frame, has_start, threads, quiet, up_y, has_up, no_obstacles;
-    double voxel, pscale, scale;
-    const struct export_preset *preset;
+    int has_frame, has_start, threads, quiet, no_obstacles;
+    double voxel, pscale;
+    cli_axes_options axes; /* --up, --scale, --preset */
 } export_options;
-
-/* --preset NAME: the flags it stands for (docs/export.md). Each applies where the form takes it
- * (names to sequences, the start to sequences and point caches), and a flag given explicitly wins. */
-typedef struct export_preset {
-    const char *name;
-    int up_y;
-    int four_digit_names; /* --name '<cache name>.%04d.<ext>' (Houdini's $F4, Maya's ####) */
-    long start;
-} export_preset;
-
-static const export_preset PRESETS[] = {{"houdini", 1, 1, 1001}, {"maya", 1, 1, 1}, {"blender", 0, 0, 1}};
-
-static const export_preset *preset_named(const char *name)
-{
-    for (size_t i = 0; i < sizeof PRESETS / sizeof PRESETS[0]; i++)
-        if (!strcmp(name, PRESETS[i].name)) return &PRESETS[i];
-    return NULL;
-}
 
 static int parse_option(int argc, char **argv, int *i, export_options *o)
 {
@@ -97,6 +79,8 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     long v;
     if (!value) return cli_usage_error(USAGE_EXPORT, "unknown or incomplete option '%s'", a);
     ++*i;
+    int rc = cli_axes_parse(USAGE_EXPORT, a, value, &o->axes);
+    if (rc != 1) return rc;
     if (!strcmp(a, "-o") || !strcmp(a, "--output")) o->out = value;
     else if (!strcmp(a, "--format")) o->format_name = value;
     else if (!strcmp(a, "--frames")) o->frames = value;
@@ -107,16 +91,6 @@ static int parse_option(int argc, char **argv, int *i, export_options *o)
     } else if (!strcmp(a, "--voxel")) {
         if (cli_parse_positive(value, &o->voxel))
             return cli_usage_error(USAGE_EXPORT, "--voxel wants a positive size in world units, not '%s'", value);
-    } else if (!strcmp(a, "--up")) {
-        if (strcmp(value, "y") && strcmp(value, "z"))
-            return cli_usage_error(USAGE_EXPORT, "--up wants z (as the cache) or y (Y-up), not '%s'", value);
-        o->up_y = !strcmp(value, "y"), o->has_up = 1;
-    } else if (!strcmp(a, "--scale")) {
-        if (cli_parse_positive(value, &o->scale) || o->scale > 1e6 || o->scale < 1e-6)
-            return cli_usage_error(USAGE_EXPORT, "--scale wants a factor from 1e-6 to 1e6, not '%s'", value);
-    } else if (!strcmp(a, "--preset")) {
-        if (!(o->preset = preset_named(value)))
-            return cli_usage_error(USAGE_EXPORT, "--preset wants houdini, maya or blender, not '%s'", value);
     } else if (!strcmp(a, "--obstacles")) o->obstacles = value;
     else if (!strcmp(a, "--name")) {
         if (cli_check_frame_pattern(value) || strchr(value, '/'))
@@ -143,7 +117,6 @@ static int is_point_cache(fm_export_format f) { return f == FM_EXPORT_PC2 || f =
 static int parse_options(int argc, char **argv, export_options *o)
 {
     memset(o, 0, sizeof *o);
-    o->scale = 1.0;
     for (int i = 0; i < argc; i++) {
         int rc;
         if (!strcmp(argv[i], "--quiet") || !strcmp(argv[i], "-q")) o->quiet = 1;
@@ -241,8 +214,8 @@ typedef struct export_job {
     int vertex_velocity;          /* tet PLY: each vertex's own velocity rather than its centroid's */
     int cache_velocity, cache_ids, cache_phases, cache_groups, cache_orientation;
     int houdini;                  /* PLY and VDB: orient, pscale, age (and ids for tet PLY) */
-    int up_y;                     /* --up y: every vector turned from Z-up to Y-up */
-    double scale;                 /* --scale: every position, vertex, velocity and pscale times it */
+    cli_axes axes;                /* --up y: every vector turned from Z-up to Y-up; --scale: every
+                                     position, vertex, velocity and pscale times it */
     const char *name_pattern;     /* --name; NULL: <stem>_%05d.<ext> */
     char preset_name[300];        /* the name pattern a --preset stands for */
     long start;                   /* --start (or the preset's), when has_start */
@@ -259,7 +232,7 @@ static int default_pscale(fm_cache_reader *r, export_job *job)
     float *p = malloc(sizeof(float) * 3 * (job->agents ? job->agents : 1));
     fm_status st = !p ? fm_fail(&err, FM_ERR_MEMORY, "out of memory for %zu positions", job->agents)
                    : job->frames ? fm_cache_read_attr(r, job->frames - 1, FM_ATTR_POSITION, p, &err) : FM_OK;
-    if (st == FM_OK) job->pscale = (float)(job->scale * fm_render_point_radius(p, job->frames ? job->agents : 0));
+    if (st == FM_OK) job->pscale = (float)(job->axes.scale * fm_render_point_radius(p, job->frames ? job->agents : 0));
     free(p);
     return st == FM_OK ? 0 : cli_report(&err);
 }
@@ -295,13 +268,6 @@ static int describe_cache(fm_cache_reader *r, export_job *job)
 /* The points velocities are taken at: a flock's agents, a tet PLY's vertices (4 a tet), or else the
  * tets' centroids. */
 static size_t velocity_points(const export_job *job) { return (job->vertex_velocity ? 4 : 1) * job->agents; }
-
-/* n vectors from the cache's axes and units into the export's: --up y, then --scale. */
-static void to_output(const export_job *job, float *xyz, size_t n)
-{
-    if (job->up_y) fm_export_up_y(xyz, n);
-    fm_export_scale(xyz, n, job->scale);
-}
 
 /* How many frames the range exports, and the i-th of them. */
 static uint32_t frame_count(const export_job *job) { return (job->last - job->first) / job->step + 1; }
@@ -367,7 +333,7 @@ static fm_status read_vectors(frame_source *s, const export_job *job, uint32_t k
                               fm_error *err)
 {
     fm_status st = fm_cache_read_attr(s->r, k, attr, out, err);
-    if (st == FM_OK) to_output(job, out, job->agents);
+    if (st == FM_OK) cli_axes_to(&job->axes, out, job->agents);
     return st;
 }
 
@@ -375,7 +341,7 @@ static fm_status read_vectors(frame_source *s, const export_job *job, uint32_t k
 static fm_status read_tets(frame_source *s, const export_job *job, uint32_t k, fm_error *err)
 {
     fm_status st = fm_cache_read_frame(s->r, k, s->tets, err);
-    if (st == FM_OK) to_output(job, s->tets, 4 * job->agents);
+    if (st == FM_OK) cli_axes_to(&job->axes, s->tets, 4 * job->agents);
     return st;
 }
 
@@ -440,7 +406,7 @@ static fm_status read_orientation(frame_source *s, const export_job *job, uint32
                                   fm_error *err)
 {
     fm_status st = fm_cache_read_attr(s->r, k, FM_ATTR_ORIENTATION, s->orientation, err);
-    if (st == FM_OK && job->up_y) fm_export_up_y_quaternions(s->orientation, job->agents);
+    if (st == FM_OK && job->axes.up_y) fm_export_up_y_quaternions(s->orientation, job->agents);
     if (st == FM_OK) f->orientations = s->orientation;
     return st;
 }
@@ -624,7 +590,7 @@ static fm_status point_cache_frame(fm_cache_reader *r, const export_job *job, ui
                                    fm_error *err)
 {
     fm_status st = job->points ? fm_cache_read_attr(r, k, FM_ATTR_POSITION, xyz, err) : fm_cache_read_frame(r, k, xyz, err);
-    if (st == FM_OK) to_output(job, xyz, job->points ? job->agents : 4 * job->agents);
+    if (st == FM_OK) cli_axes_to(&job->axes, xyz, job->points ? job->agents : 4 * job->agents);
     return st;
 }
 
@@ -673,37 +639,27 @@ static int obstacles_path(const export_job *job, char out[CLI_PATH_BUF])
     return len < 0 || len >= FM_PATH_MAX ? -1 : 0;
 }
 
-/* The mesh's vertices as the frames' are converted: to float, then --up and --scale. */
-static int convert_mesh(const export_job *job, fm_mesh *m)
-{
-    float *xyz = malloc(sizeof(float) * 3 * (size_t)(m->nv ? m->nv : 1));
-    if (!xyz) return fprintf(stderr, "flockmorph: error: out of memory for the obstacles\n"), FM_ERR_MEMORY;
-    for (int64_t i = 0; i < 3 * m->nv; i++) xyz[i] = (float)m->v[i];
-    to_output(job, xyz, (size_t)m->nv);
-    for (int64_t i = 0; i < 3 * m->nv; i++) m->v[i] = xyz[i];
-    free(xyz);
-    return 0;
-}
-
-/* The cache's obstacles (--obstacles FILE, or obstacles.ply beside it, which run writes) in the
- * frames' axes and units, so that they stand where the flock flies round them in the tool that reads
- * the export; written gets the file ("" for none). */
+/* The cache's obstacles (--obstacles FILE, or obstacles.ply beside it, which run writes; read back
+ * into the cache's axes) in the frames' axes and units, so that they stand where the flock flies
+ * round them in the tool that reads the export; its header names them. written gets the file ("" for
+ * none). */
 static int export_obstacles(const export_options *o, const export_job *job, char written[CLI_PATH_BUF])
 {
     written[0] = 0;
     if (o->no_obstacles) return 0;
     fm_mesh m;
-    char source[FM_PATH_MAX + 32], name[FM_PATH_MAX + 96];
+    char source[FM_PATH_MAX + 32], name[FM_PATH_MAX + 96], axes[64];
     int rc = cli_cache_obstacles(o->cache, o->obstacles, &m, source);
     if (!rc && source[0] && obstacles_path(job, written))
         rc = cli_usage_error(USAGE_EXPORT, "-o %s: the obstacles' path would be too long", o->out);
-    if (!rc && source[0]) rc = convert_mesh(job, &m);
+    if (!rc && source[0]) rc = cli_axes_mesh_to(&job->axes, &m);
     if (!rc && source[0]) {
-        snprintf(name, sizeof name, "obstacles from %s, up %s, scale %.9g", source, job->up_y ? "y" : "z", job->scale);
+        snprintf(name, sizeof name, "obstacles from %s, up %s, scale %.9g", source, job->axes.up_y ? "y" : "z", job->axes.scale);
+        cli_axes_comment(&job->axes, axes, sizeof axes);
         fm_ply_mesh view = {name, m.v, m.nv, m.tri, m.nt};
         fm_error err = {0};
-        fm_status st = job->format == FM_EXPORT_OBJ ? fm_export_obj_meshes(&view, 1, written, &err)
-                                                     : fm_export_ply_meshes(&view, 1, written, &err);
+        fm_status st = job->format == FM_EXPORT_OBJ ? fm_export_obj_meshes(&view, 1, axes, written, &err)
+                                                     : fm_export_ply_meshes(&view, 1, axes, written, &err);
         if (st != FM_OK) rc = cli_report(&err);
     }
     fm_mesh_free(&m);
@@ -722,11 +678,11 @@ static void cache_stem(const char *cache, char *stem, size_t size)
     snprintf(stem, size, "%.*s", (int)FM_MIN(len, size - 1), base);
 }
 
-/* The flags --preset stands for, where none was given and the form takes them. */
+/* The names and start --preset stands for (its up is cli_axes_chosen's), where none was given and
+ * the form takes them. */
 static void apply_preset(const export_options *o, export_job *job)
 {
-    const export_preset *p = o->preset;
-    if (!o->has_up) job->up_y = p->up_y;
+    const cli_preset *p = o->axes.preset;
     if (!o->has_start && (!job->out_file || is_point_cache(job->format))) job->has_start = 1, job->start = p->start;
     if (o->name || job->out_file || !p->four_digit_names) return;
     size_t n = 0; /* <stem>.%04d.<ext>, a '%' of the stem doubled */
@@ -745,7 +701,7 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
     job->cache = o->cache;
     job->opts = fm_default_export_options();
     job->opts.voxel_size = o->voxel;
-    job->up_y = o->up_y, job->name_pattern = o->name, job->pscale = (float)o->pscale, job->scale = o->scale;
+    job->axes = cli_axes_chosen(&o->axes), job->name_pattern = o->name, job->pscale = (float)o->pscale;
     job->has_start = o->has_start, job->start = o->start;
     if (o->format_name) {
         job->format = fm_export_format_named(o->format_name);
@@ -769,7 +725,7 @@ static int plan_job(const export_options *o, export_job *job, frame_range *range
                                "ply|obj|vtk|vdb and -o DIR", o->name);
     if (o->has_start && job->out_file && !is_point_cache(job->format))
         return cli_usage_error(USAGE_EXPORT, "%s", "--start numbers a sequence or a point cache, not one file");
-    if (o->preset) apply_preset(o, job);
+    if (o->axes.preset) apply_preset(o, job);
     memset(range, 0, sizeof *range);
     range->option = o->frames ? "--frames" : "--frame";
     if (o->has_frame) snprintf(range->text, sizeof range->text, "%ld", o->frame);

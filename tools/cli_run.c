@@ -19,7 +19,7 @@
 static const char *const USAGE_RUN =
     "usage: flockmorph run SCENE.json -o OUTDIR [--threads N] [--quiet] [--checkpoint-every K] [--resume]\n"
     "                      [--overwrite] [--stop-after-frame F] [--set KEY=VALUE ...]\n"
-    "                      [--wedge-file WEDGES.json [--wedge I]]\n"
+    "                      [--wedge-file WEDGES.json [--wedge I]] [--up z|y] [--scale S] [--preset P]\n"
     "\n"
     "Reads the scene (docs/scene.md) and runs its mode: the tetra morph tetrahedralizes and\n"
     "subdivides the meshes and simulates until every agent has arrived; the shape flock\n"
@@ -49,6 +49,13 @@ static const char *const USAGE_RUN =
     "  --wedge I             which one (0 ...); default: $SLURM_ARRAY_TASK_ID, $PDG_INDEX or\n"
     "                        $CUE_IFRAME. -o may hold {wedge} (0003) and {scene}; OUTDIR/wedge.json\n"
     "                        records what ran\n"
+    "  --up z|y              the axes of obstacles.ply: y turns Z-up into Y-up (Houdini, Maya),\n"
+    "                        (x, y, z) -> (x, z, -y); default z. The cache keeps the engine's axes\n"
+    "  --scale S             obstacles.ply's vertices times S (1e-6 to 1e6, after --up; default 1)\n"
+    "  --preset P            houdini or maya: --up y; blender: --up z (a flag given wins). Export\n"
+    "                        the frames with the same flags (docs/export.md), and they and the\n"
+    "                        obstacles meet; render and export read obstacles.ply back into the\n"
+    "                        cache's axes, as its header says\n"
     "\n"
     "SIGINT (Ctrl-C) or SIGTERM saves a checkpoint at the end of the current frame and exits with\n"
     "status 130 or 143; a second signal ends the run at once. docs/resume.md has the details.\n"
@@ -78,6 +85,7 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
         long v;
+        int rc;
         if ((!strcmp(a, "-o") || !strcmp(a, "--output")) && i + 1 < argc) o->outdir = argv[++i];
         else if (!strcmp(a, "--threads") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 1, 1024, &v)) return cli_usage_error(USAGE_RUN, "--threads wants a whole number from 1 to 1024, not '%s'", argv[i]);
@@ -100,6 +108,9 @@ static int parse_run(int argc, char **argv, cli_run_options *o)
         else if (!strcmp(a, "--log-every") && i + 1 < argc) {
             if (cli_parse_int(argv[++i], 0, 86400, &v)) return cli_usage_error(USAGE_RUN, "--log-every wants whole seconds from 0 to 86400, not '%s'", argv[i]);
             o->log_every = (double)v;
+        } else if (i + 1 < argc && (rc = cli_axes_parse(USAGE_RUN, a, argv[i + 1], &o->axes)) != 1) {
+            if (rc) return rc;
+            i++;
         }
         else if (a[0] == '-') return cli_usage_error(USAGE_RUN, "unknown or incomplete option '%s'", a);
         else if (!o->scene) o->scene = a;
@@ -227,25 +238,29 @@ static int rank_exit_status(fm_status st, int planned)
 
 /* OUTDIR/obstacles.ply: the scene's obstacle meshes placed in the world, loaded as the modes load
  * them (fm_obstacle_mesh_load), so that `render` can draw them and Blender or Houdini import them
- * beside the cache. Nothing is written for a scene without obstacles. */
-static int write_obstacles(const fm_scene_def *def, const char *path)
+ * beside the cache; in the axes and units --up, --scale and --preset choose (converted as `export`
+ * converts frames), which its header names for render and export to read them back. Nothing is
+ * written for a scene without obstacles. */
+static int write_obstacles(const fm_scene_def *def, const cli_axes *axes, const char *path)
 {
     if (def->obstacle_count == 0) return 0;
     fm_error err = {0};
     fm_mesh meshes[FM_MAX_OBSTACLES];
     fm_ply_mesh views[FM_MAX_OBSTACLES];
-    char names[FM_MAX_OBSTACLES][FM_PATH_MAX + 32];
+    char names[FM_MAX_OBSTACLES][FM_PATH_MAX + 32], comment[64];
     fm_status st = FM_OK;
-    int loaded = 0;
-    for (; loaded < def->obstacle_count && st == FM_OK; loaded++) {
+    int loaded = 0, rc = 0;
+    for (; loaded < def->obstacle_count && st == FM_OK && !rc; loaded++) {
         st = fm_obstacle_mesh_load(def, loaded, NULL, NULL, &meshes[loaded], &err);
+        if (st == FM_OK) rc = cli_axes_mesh_to(axes, &meshes[loaded]);
         snprintf(names[loaded], sizeof names[loaded], "obstacles.meshes[%d] %s", loaded, def->obstacles[loaded].path);
         views[loaded] = (fm_ply_mesh){names[loaded], meshes[loaded].v, meshes[loaded].nv, meshes[loaded].tri,
                                       meshes[loaded].nt};
     }
-    if (st == FM_OK) st = fm_export_ply_meshes(views, def->obstacle_count, path, &err);
+    cli_axes_comment(axes, comment, sizeof comment);
+    if (st == FM_OK && !rc) st = fm_export_ply_meshes(views, def->obstacle_count, comment, path, &err);
     for (int i = 0; i < loaded; i++) fm_mesh_free(&meshes[i]);
-    return st == FM_OK ? 0 : cli_report(&err);
+    return rc ? rc : st == FM_OK ? 0 : cli_report(&err);
 }
 
 /* The run after the model build: the cache (new, or the interrupted run's), the simulation with
@@ -285,7 +300,8 @@ static int simulate(const cli_mode *mode, void *run, const cli_run_options *o, c
     }
     const cli_run_record record = {mode->name, agents, t->frames, t->steps, common->time_step, prep_seconds,
                                    t->simulate_seconds, t->output_seconds, files.threads, files.cache, o};
-    if ((rc = write_obstacles(def, files.obstacles))) return rc;
+    const cli_axes axes = cli_axes_chosen(&o->axes);
+    if ((rc = write_obstacles(def, &axes, files.obstacles))) return rc;
     if ((rc = mode->write_stats(run, def, files.stats, &record))) return rc;
     cli_remove_checkpoint(&files);
     printf("agents %lld, frames %lld, steps %lld, %.3g agent-steps/s", (long long)agents, (long long)record.frames,

@@ -169,7 +169,8 @@ void cli_stats_cache_path(json_t *j, const char *cache)
 
 /* The keys of stats.json that say what made a cache, for `inspect --json`. */
 static const char *const PROVENANCE_KEYS[] = {"version", "commit", "scene_absolute", "scene_xxh64", "meshes",
-                                               "cache_absolute", "working_directory", "command_line", "start_time"};
+                                               "cache_absolute", "working_directory", "command_line", "start_time",
+                                               "axes"};
 
 static const char *file_name(const char *path)
 {

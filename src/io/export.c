@@ -236,6 +236,7 @@ static int ply_points_body(FILE *f, const void *data)
 typedef struct ply_meshes {
     const fm_ply_mesh *m;
     int count;
+    const char *comment; /* a header line of its own, or NULL */
 } ply_meshes;
 
 static void ply_meshes_data(fm_le_writer *w, const void *data)
@@ -267,6 +268,8 @@ static int ply_meshes_body(FILE *f, const void *data)
     if (fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment flockmorph %s: %d meshes\n",
                 FM_VERSION_STRING, pm->count) < 0)
         return -1;
+    if (pm->comment && (fputs("comment ", f) < 0 || put_header_text(f, pm->comment) || fputc('\n', f) == EOF))
+        return -1;
     int64_t v0 = 0, t0 = 0;
     for (int i = 0; i < pm->count; v0 += pm->m[i].nv, t0 += pm->m[i].nt, i++)
         if (fputs("comment ", f) < 0 || put_header_text(f, pm->m[i].name) ||
@@ -280,12 +283,13 @@ static int ply_meshes_body(FILE *f, const void *data)
     return fm_le_write(f, ply_meshes_data, pm);
 }
 
-fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err)
+fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *comment, const char *path,
+                               fm_error *err)
 {
     int64_t nv = 0;
     for (int i = 0; i < count; i++) nv += meshes[i].nv;
     if (nv > INT32_MAX) return fm_fail(err, FM_ERR_INPUT, "'%s': %lld vertices do not fit PLY's int indices", path, (long long)nv);
-    const ply_meshes pm = {meshes, count};
+    const ply_meshes pm = {meshes, count, comment};
     return fm_export_with_body(path, ply_meshes_body, &pm, err);
 }
 
@@ -305,6 +309,7 @@ static int obj_meshes_body(FILE *f, const void *data)
 {
     const ply_meshes *pm = data;
     if (fprintf(f, "# flockmorph %s: %d meshes\n", FM_VERSION_STRING, pm->count) < 0) return -1;
+    if (pm->comment && (fputs("# ", f) < 0 || put_header_text(f, pm->comment) || fputc('\n', f) == EOF)) return -1;
     int64_t base = 1;
     for (int i = 0; i < pm->count; base += pm->m[i].nv, i++) {
         if (fputs("o ", f) < 0 || put_header_text(f, pm->m[i].name) || fputc('\n', f) == EOF) return -1;
@@ -323,9 +328,10 @@ static int obj_meshes_body(FILE *f, const void *data)
     return 0;
 }
 
-fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err)
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *comment, const char *path,
+                               fm_error *err)
 {
-    const ply_meshes pm = {meshes, count};
+    const ply_meshes pm = {meshes, count, comment};
     return fm_export_with_body(path, obj_meshes_body, &pm, err);
 }
 

@@ -56,13 +56,16 @@ typedef struct fm_ply_mesh {
 
 /* Writes the meshes as one binary little-endian PLY through PATH.partial and rename(): float x y z
  * per vertex and a uchar-counted int list per face, each mesh's indices offset by the vertices of
- * those before it, and a comment per mesh naming its vertex and face ranges. It is how `flockmorph
- * run` writes the placed obstacles (OUTDIR/obstacles.ply), which Blender and Houdini import with the
- * cache's axes. */
-fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
-/* The same meshes as OBJ (`export --format obj`'s obstacles): an `o NAME` line per mesh, `v` lines
- * printed with %.9g of the float (every float read back exactly), `f` lines 1-based over the file. */
-fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *path, fm_error *err);
+ * those before it, a comment per mesh naming its vertex and face ranges, and `comment` (one line of
+ * text, NULL for none) as a comment of its own after the first. It is how `flockmorph run` writes
+ * the placed obstacles (OUTDIR/obstacles.ply), with a comment naming their axes and scale. */
+fm_status fm_export_ply_meshes(const fm_ply_mesh *meshes, int count, const char *comment, const char *path,
+                               fm_error *err);
+/* The same meshes as OBJ (`export --format obj`'s obstacles): `# comment` after the first line when
+ * comment is not NULL, an `o NAME` line per mesh, `v` lines printed with %.9g of the float (every
+ * float read back exactly), `f` lines 1-based over the file. */
+fm_status fm_export_obj_meshes(const fm_ply_mesh *meshes, int count, const char *comment, const char *path,
+                               fm_error *err);
 
 /* Component c (0 x, 1 y, 2 z, 3 w) of the quaternion q stored as the cache stores it, w, x, y, z:
  * Houdini's orient (PLY, VTK) is x, y, z, w. */

@@ -1172,7 +1172,7 @@ static void write_cube_ply(const char *path)
                                   2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
     const fm_ply_mesh cube = {"cube", v, 8, tri, 12};
     fm_error err = {0};
-    ENSURE_MSG(fm_export_ply_meshes(&cube, 1, path, &err) == FM_OK, "%s", err.message);
+    ENSURE_MSG(fm_export_ply_meshes(&cube, 1, NULL, path, &err) == FM_OK, "%s", err.message);
 }
 
 /* obstacles.ply beside the cache is drawn in the obstacle colour (seen from the front it fills
