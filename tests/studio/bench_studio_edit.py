@@ -52,6 +52,7 @@ def main():
         for name, cli in builds.items():
             proc, url = start_studio(cli, args.scene)
             ws = WebSocket(url)
+            ws.sock.settimeout(600)  # a shot's model build sends nothing for minutes on a loaded machine
             hello = ws.recv_json("hello")
             studios[name] = {"proc": proc, "ws": ws, "value": dotted(hello["scene"], args.key), "trials": []}
         for s in studios.values():

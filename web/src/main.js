@@ -4,7 +4,7 @@
 import { Connection, ATTR } from './protocol.js';
 import { View } from './view.js';
 import { PathEditor } from './path.js';
-import { Panel } from './panel.js';
+import { Panel, scopedKey } from './panel.js';
 import { Timeline } from './timeline.js';
 
 const AHEAD = 4;                   // frames asked for before they are due, to hide the round trip
@@ -14,7 +14,7 @@ class App {
   constructor() {
     this.connection = new Connection();
     this.view = new View(document.getElementById('viewport'));
-    this.path = new PathEditor(this.view, (points) => this.connection.send({ type: 'set', key: 'path.points', value: points }));
+    this.path = new PathEditor(this.view, (points) => this.connection.send({ type: 'set', key: scopedKey(this.path.editGroup, 'path.points'), value: points }));
     this.panel = new Panel(this);
     this.timeline = new Timeline(this);
     this.frames = new Map(); // k → parsed frame of this generation
@@ -45,7 +45,7 @@ class App {
     c.addEventListener('scene', (e) => this.onScene(e.detail));
     c.addEventListener('saved', (e) => this.setStatusNote(`saved ${e.detail.path}`));
     c.addEventListener('render', (e) => this.onRender(e.detail));
-    c.addEventListener('error', (e) => this.showError(e.detail.message));
+    c.addEventListener('error', (e) => this.onError(e.detail));
     c.addEventListener('frame', (e) => this.onFrame(e.detail));
     c.addEventListener('closed', () => this.setStatusNote('disconnected: the studio has stopped'));
   }
@@ -71,6 +71,13 @@ class App {
     this.panel.refresh(m.scene);
     this.status.dirty = m.dirty;
     this.renderStatus();
+  }
+
+  // A shot: the group the panel and the path's handles edit (-1: the top level).
+  selectGroup(k) {
+    this.panel.selectGroup(k, this.scene);
+    this.path.editGroup = k;
+    this.path.setScene(this.scene, this.shapes);
   }
 
   dropFrames() {
@@ -196,6 +203,13 @@ class App {
     if (r.state === 'running') this.setStatusNote(`render: ${r.line}`);
     else if (r.state === 'finished') this.setStatusNote(`rendered: ${r.output}`);
     else { this.setStatusNote(`render failed (exit ${r.exit})`); this.showError(`render: ${r.line}`); }
+  }
+
+  // A frame asked of a run that an edit has just replaced is not there yet in the new run: the
+  // next status drops the old run's frames and asks are made again, so that is not the user's error.
+  onError(e) {
+    if (e.request === 'frame' && e.message.includes('is not simulated yet')) return;
+    this.showError(e.message);
   }
 
   showError(message) {

@@ -1,14 +1,14 @@
 // Unit tests of the page's pure parts, under node's own test runner (no browser):
 //   node --test web/test/          (ctest: test_studio_page)
 // protocol.js's frame parsing against the layout docs/studio.md gives, path.js's arc-length
-// resampling of a sketch, panel.js's dotted keys, resolution.js's dynamic resolution, tets.js's
-// choice of the faces that face the eye.
+// resampling of a sketch, panel.js's dotted keys, a shot's group keys and values and path.js's
+// group path, resolution.js's dynamic resolution, tets.js's choice of the faces that face the eye.
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 import * as THREE from 'three';
 import { ATTR, parseFrame } from '../src/protocol.js';
-import { resample } from '../src/path.js';
-import { getKey } from '../src/panel.js';
+import { groupPath, groupShapes, resample } from '../src/path.js';
+import { editable, getKey, groupValue, scopedKey } from '../src/panel.js';
 import { DynamicResolution, RATIOS } from '../src/resolution.js';
 import { frontFaces } from '../src/tets.js';
 
@@ -56,6 +56,38 @@ test('getKey reads dotted keys and tells a missing one', () => {
   assert.deepEqual(getKey(doc, 'shape_flock.cohesion.weight'), [0.1, 0.2]);
   assert.equal(getKey(doc, 'path.width'), undefined);
   assert.equal(getKey(doc, 'mde.d_min'), undefined);
+});
+
+// A shot as the loader reads it: group 1 sets its own speed0 and path points, group 2 starts from
+// group 0's formed shape.
+const SHOT = { speed0: 8, time: { frame_limit: 24 }, path: { points: [[0, 5, 0]], curve: 'catmull_rom' },
+  style: { fields: [{ type: 'curl_noise', gain: 0.5 }] },
+  groups: [{ name: 'a' }, { name: 'b', speed0: 5, path: { points: [[1, 2, 3], [4, 5, 6]] } },
+    { name: 'c', source: { group: 'a' } }] };
+
+test('a group edits its own keys and shows the top level\'s where it has none', () => {
+  assert.equal(scopedKey(-1, 'speed0'), 'speed0');
+  assert.equal(scopedKey(1, 'path.points'), 'groups.1.path.points');
+  assert.equal(groupValue(SHOT, 1, 'speed0'), 5);
+  assert.equal(groupValue(SHOT, 0, 'speed0'), 8); // the top level's, which group 0 flies with
+  assert.equal(groupValue(SHOT, -1, 'speed0'), 8);
+  assert.equal(groupValue(SHOT, 1, 'style.fields.0.gain'), 0.5);
+  assert.equal(groupValue(SHOT, 2, 'mde.d_min'), undefined);
+  assert.ok(editable(SHOT, 1, 'speed0') && editable(SHOT, 0, 'n') && editable(SHOT, -1, 'time.frame_limit'));
+  assert.ok(!editable(SHOT, 1, 'time.frame_limit'), 'the whole shot shares time');
+  assert.ok(!editable(SHOT, 2, 'n'), 'a group from another\'s shape has its agents');
+});
+
+test('a group\'s path: its own keys over the top level\'s, between its own shapes', () => {
+  assert.deepEqual(groupPath(SHOT, 1), { points: [[1, 2, 3], [4, 5, 6]], curve: 'catmull_rom' });
+  assert.deepEqual(groupPath(SHOT, 0), SHOT.path);
+  const shape = (name, group) => ({ name, group, vertices: [group, 0, 0] });
+  const shapes = [shape('source', 0), shape('target', 0), shape('source', 1), shape('target', 1), shape('obstacle', 1),
+    shape('target', 2)];
+  assert.deepEqual(groupShapes(SHOT, shapes, 1).map((s) => `${s.name} ${s.group}`), ['source 1', 'target 1', 'obstacle 1']);
+  assert.deepEqual(groupShapes(SHOT, shapes, 2).map((s) => `${s.name} ${s.group}`), ['source 0', 'target 2'],
+    'a group from another\'s shape starts where that group formed it');
+  assert.equal(groupShapes(SHOT, shapes, -1).length, shapes.length);
 });
 
 // Feeds frames of cost(ratio) ms, one every 50 ms of page time, and returns the ratios it chose.
