@@ -136,6 +136,7 @@ class App {
     this.last = t;
     this.advance(dt);
     for (let k = this.current; k < this.current + (this.playing ? AHEAD : 1); k++) this.ask(k);
+    this.findRestShapes();
     if (this.current !== this.shown && this.frames.has(this.current)) this.show(this.current);
     else if (!this.view.framed && !this.shapes.length && this.shown >= 0) this.frameOnFlock();
     // playing for the dynamic resolution: a frame was shown in the last half second (following a
@@ -160,6 +161,19 @@ class App {
   }
 
   redraw() { this.shown = -1; }
+
+  // The shapes the tets rest in, for the view to draw as their surface: the run's first frame (the
+  // source) and, once the run has ended, its last (the target), each found once a run.
+  findRestShapes() {
+    const s = this.status, ended = s.stage === 'finished' || s.stage === 'playback';
+    if (s.kind === 'points' || s.frames < 1) return;
+    [0, ended ? s.frames - 1 : -1].forEach((k, i) => {
+      const tag = `${this.generation}:${k}`;
+      if (k < 0 || this.view.restTags[i] === tag) return;
+      if (this.frames.has(k)) this.view.setRestShape(i, this.frames.get(k), tag);
+      else this.ask(k);
+    });
+  }
 
   // No shapes to frame (a played cache): the first and last frames, once both are here.
   frameOnFlock() {

@@ -10,7 +10,7 @@ import { ATTR, parseFrame } from '../src/protocol.js';
 import { groupPath, groupShapes, resample } from '../src/path.js';
 import { editable, getKey, groupValue, scopedKey } from '../src/panel.js';
 import { DynamicResolution, RATIOS } from '../src/resolution.js';
-import { frontFaces } from '../src/tets.js';
+import { TET_FACES, frontFaces, restingTets, sharedFaces } from '../src/tets.js';
 
 // A frame message as the server writes it (tools/studio_frames.c): header, entries, 16-aligned arrays.
 function frameMessage(agents, arrays) {
@@ -176,4 +176,63 @@ test('dynamic resolution: a page that shows the frame rate keeps its resolution,
   const d = new DynamicResolution();
   for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(60, now, 24, 24); // slow ticks, every frame shown
   assert.equal(d.ratio, 1);
+});
+
+// A unit cube as six positively oriented tets (Kuhn's: each along one path from corner 0 to 7).
+function cubeTets() {
+  const corner = (c) => [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+  const paths = [[1, 2, 4], [1, 4, 2], [2, 1, 4], [2, 4, 1], [4, 1, 2], [4, 2, 1]];
+  const v = new Float32Array(12 * paths.length);
+  paths.forEach((p, a) => {
+    const c = [0, p[0], p[0] + p[1], 7].map(corner);
+    const d = (i, k) => c[i][k] - c[0][k];
+    const det = d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1)) - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
+      + d(1, 2) * (d(2, 0) * d(3, 1) - d(2, 1) * d(3, 0));
+    if (det < 0) [c[1], c[2]] = [c[2], c[1]];
+    c.flat().forEach((x, i) => { v[12 * a + i] = x; });
+  });
+  return v;
+}
+
+// The drawn faces as sorted corner coordinates (one string a face).
+function drawnFaces(v, index, count) {
+  const out = [];
+  for (let i = 0; i < count; i += 3) out.push([0, 1, 2].map((j) => Array.from(v.slice(3 * index[i + j], 3 * index[i + j] + 3)).join(',')).sort().join(' '));
+  return out.sort();
+}
+
+test('sharedFaces finds the tet across each inner face of a shape, none on its surface', () => {
+  const v = cubeTets(), across = sharedFaces(v, 6);
+  const seen = new Map(); // each face's corners, counted over every tet: 2 inside the cube, 1 on its surface
+  for (let a = 0; a < 6; a++) for (let f = 0; f < 4; f++) {
+    const k = drawnFaces(v, TET_FACES.slice(3 * f, 3 * f + 3).map((c) => 4 * a + c), 3)[0];
+    seen.set(k, [...(seen.get(k) ?? []), [a, f]]);
+  }
+  for (const owners of seen.values()) {
+    if (owners.length === 1) assert.equal(across[4 * owners[0][0] + owners[0][1]], -1);
+    else assert.deepEqual(owners.map(([a, f]) => across[4 * a + f]), [owners[1][0], owners[0][0]]);
+  }
+  assert.equal([...seen.values()].filter((o) => o.length === 1).length, 12, 'a cube: 6 faces of 2 triangles');
+});
+
+test('frontFaces draws a shape at rest as its surface, and a tet that moved whole', () => {
+  const v = cubeTets(), eye = { x: 5, y: -7, z: 9 }, index = new Uint32Array(72);
+  const shape = { v: v.slice(), across: sharedFaces(v, 6) }, resting = new Uint8Array(6);
+  const all = drawnFaces(v, index, frontFaces(v, 6, eye, index));
+  const surface = drawnFaces(v, index, frontFaces(v, 6, eye, index, 0, 0, restingTets(v, 6, [shape, null], resting)));
+  assert.deepEqual([...resting], [1, 1, 1, 1, 1, 1]);
+  assert.equal(surface.length, 6, 'three faces of the cube face the eye: two triangles each');
+  const inner = new Set(all.filter((k, i) => all.indexOf(k) !== i || all.lastIndexOf(k) !== i));
+  assert.ok(surface.every((k) => all.includes(k) && !inner.has(k)), 'only faces drawn before, none between two tets');
+  for (let i = 0; i < 12; i++) v[i] += 0.25; // tet 0 has moved: it is drawn whole, and so are the faces it left
+  const moved = drawnFaces(v, index, frontFaces(v, 6, eye, index, 0, 0, restingTets(v, 6, [shape, null], resting)));
+  assert.deepEqual([...resting], [0, 1, 1, 1, 1, 1]);
+  const between = new Map(); // the faces of the tets that stay, counted: 2 where two of them share one
+  for (let a = 1; a < 6; a++) for (let f = 0; f < 4; f++) {
+    const k = drawnFaces(v, TET_FACES.slice(3 * f, 3 * f + 3).map((c) => 4 * a + c), 3)[0];
+    between.set(k, (between.get(k) ?? 0) + 1);
+  }
+  const expected = drawnFaces(v, index, frontFaces(v, 6, eye, index)).filter((k) => between.get(k) !== 2);
+  assert.deepEqual(moved, expected);
+  assert.ok(moved.length > surface.length, 'the faces tet 0 left are drawn again');
 });
