@@ -80,14 +80,16 @@ async function drag(page, a, b, steps = 12) {
   await page.mouse.up();
 }
 
-async function dragControlPoint(page, before) {
+// Drags the first control point (of a shot's group g, or the top level's) and returns where it went.
+async function dragControlPoint(page, before, g = -1) {
   const h = await page.evaluate(() => window.studio.path.handleOnScreen(0));
   await page.mouse.click(h.x, h.y); // selects it: the gizmo appears round it
   await page.waitForTimeout(200);
   await drag(page, h, { x: h.x + 60, y: h.y - 70 }); // the gizmo's centre moves it in the view plane
-  await page.waitForFunction((p) => JSON.stringify(window.studio.scene.path.points[0]) !== JSON.stringify(p), before,
-    { timeout: 10000 });
-  return page.evaluate(() => window.studio.scene.path.points[0]);
+  const first = ({ group }) => (group >= 0 ? window.studio.scene.groups[group] : window.studio.scene).path.points[0];
+  await page.waitForFunction(({ group, p }) => JSON.stringify((group >= 0 ? window.studio.scene.groups[group]
+    : window.studio.scene).path.points[0]) !== JSON.stringify(p), { group: g, p: before }, { timeout: 10000 });
+  return page.evaluate(first, { group: g });
 }
 
 // The smallest distance from any agent's centroid, over the page's frames, to p.
@@ -198,8 +200,8 @@ const SHOT = { time: { frame_rate: 24, frame_limit: 24 }, speed0: 12.0, launch_r
       target: { mesh: 'cylinder.obj', translate: [15, -12, 0] }, path: { points: [[0, -18, 4]] } }] };
 
 // A shot: group 1 picked in the panel, the handles are its own path point between its own shapes,
-// and its speed0 slider edits groups.1.speed0; Save, and `flockmorph run` of the saved scene writes
-// byte for byte the frames the page received.
+// a drag of it edits groups.1.path.points and its speed0 slider groups.1.speed0; Save, and
+// `flockmorph run` of the saved scene writes byte for byte the frames the page received.
 async function shotGroups(browser) {
   const scene = join(tmp, 'shot.json');
   writeFileSync(scene, JSON.stringify(SHOT));
@@ -216,6 +218,10 @@ async function shotGroups(browser) {
     log('group 1 picked: handles', JSON.stringify(path.points), 'ends', JSON.stringify(path.ends.map((e) => e.map(Math.round))));
     check(JSON.stringify(path.points) === '[[0,-18,4]]', `the handles are not group 1's own path point: ${JSON.stringify(path.points)}`);
     check(path.ends.every((e) => Math.abs(e[1] + 12) < 1), `the path's ends are not group 1's shapes: ${JSON.stringify(path.ends)}`);
+    const moved = await dragControlPoint(page, [0, -18, 4], 1);
+    const top = await page.evaluate(() => window.studio.scene.path.points);
+    log(`group 1's control point dragged to ${JSON.stringify(moved)}; the top level's stays ${JSON.stringify(top)}`);
+    check(JSON.stringify(top) === JSON.stringify(SHOT.path.points), `the drag moved the top level's path: ${JSON.stringify(top)}`);
     speed = await dragSlider(page, 'speed0', 0.25);
     await page.waitForFunction((v) => window.studio.scene.groups[1].speed0 === v, speed, { timeout: 10000 });
     run = await finishedRun(page, run.generation);
@@ -230,6 +236,8 @@ async function shotGroups(browser) {
   const saved = JSON.parse(readFileSync(scene, 'utf8'));
   check(saved.groups[1].speed0 === speed && saved.speed0 === SHOT.speed0 && saved.groups[0].speed0 === undefined,
     `the saved shot does not carry groups[1].speed0 = ${speed} alone: ${JSON.stringify(saved)}`);
+  check(JSON.stringify(saved.groups[1].path.points[0]) !== JSON.stringify(SHOT.groups[1].path.points[0]) && !saved.groups[0].path,
+    `the saved shot does not carry group 1's dragged point alone: ${JSON.stringify(saved)}`);
   sameFrames(scene, join(tmp, 'shot_out'), received, 'shot');
 }
 
