@@ -84,6 +84,10 @@ async function drag(page, a, b, steps = 12) {
 async function dragControlPoint(page, before, g = -1) {
   const h = await page.evaluate(() => window.studio.path.handleOnScreen(0));
   await page.mouse.click(h.x, h.y); // selects it: the gizmo appears round it
+  // drawn twice with the gizmo (its picking shapes are placed as it is drawn): on a loaded machine
+  // 200 ms may pass before the page draws at all
+  await page.waitForFunction(() => window.studio.path.gizmo.object, null, { timeout: 10000 });
+  await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   await page.waitForTimeout(200);
   await drag(page, h, { x: h.x + 60, y: h.y - 70 }); // the gizmo's centre moves it in the view plane
   const first = ({ group }) => (group >= 0 ? window.studio.scene.groups[group] : window.studio.scene).path.points[0];
