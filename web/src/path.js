@@ -122,6 +122,7 @@ export class PathEditor {
       return;
     }
     if (this.gizmo.dragging || this.gizmo.axis) return; // the gizmo takes it
+    this.group.updateMatrixWorld(); // handles made since the last draw (another group picked) are placed
     const hit = this.ray(e).intersectObjects(this.group.children)[0];
     if (hit) this.gizmo.attach(hit.object);
   }
