@@ -148,14 +148,20 @@ typedef struct cli_run_hooks {
 /* The studio's runs keep the costly part of the model (TetGen's tets and the tets at n, or the
  * shape flock's samples and match) for the next run of an edited scene, which reuses it where its
  * inputs are unchanged (fm_morph_model_build_keeping, fm_flock_model_build_keeping; docs/studio.md,
- * "An edit and the model"). A shot is built as run builds it. */
+ * "An edit and the model"); a shot keeps each group's the same way (fm_shot_build_keeping,
+ * fm_flock_shot_build_keeping). */
 struct cli_model_keep {
-    struct fm_morph_keep *morph; /* made at the first build of its mode */
-    struct fm_flock_keep *flock;
-    int reused;                  /* the last build reused the costly part */
+    struct fm_morph_keep *morph; /* FM_MAX_GROUPS of each, made at the first build of its mode: a scene's */
+    struct fm_flock_keep *flock; /* in [0], a shot's group g's in [g] */
+    int reused;                  /* the last build reused the costly part (a shot: of every group) */
+    int groups_reused;           /* ... of how many groups (a scene: 0 or 1) */
     double build_seconds;        /* the last build's wall time */
 };
 void cli_model_keep_free(cli_model_keep *keep);
+/* The keeps of its mode, made at the first call (cli_mode_morph.c, cli_mode_flock.c): NULL, printed,
+ * when out of memory. */
+struct fm_morph_keep *cli_morph_keeps(cli_model_keep *keep);
+struct fm_flock_keep *cli_flock_keeps(cli_model_keep *keep);
 void cli_morph_keep_free(cli_model_keep *keep); /* its morph part (cli_mode_morph.c) */
 void cli_flock_keep_free(cli_model_keep *keep); /* its flock part (cli_mode_flock.c) */
 int cli_run_scene_hooked(const cli_run_options *o, const fm_scene_def *def, const cli_run_hooks *hooks);

@@ -98,11 +98,10 @@ static int build(void *run, const fm_scene_def *def, int *show)
     flock_run *r = run;
     fm_error err = {0};
     cli_model_keep *keep = r->common.keep;
-    if (keep && !keep->flock && !(keep->flock = calloc(1, sizeof *keep->flock)))
-        return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    if (keep && !cli_flock_keeps(keep)) return FM_ERR_MEMORY;
     r->model = keep ? fm_flock_model_build_keeping(def, keep->flock, cli_prep_progress, show, &err)
                     : fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
-    if (keep) keep->reused = keep->flock->reused;
+    if (keep) keep->reused = keep->groups_reused = keep->flock->reused;
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);
@@ -112,9 +111,16 @@ static int build(void *run, const fm_scene_def *def, int *show)
     return 0;
 }
 
+fm_flock_keep *cli_flock_keeps(cli_model_keep *keep)
+{
+    if (!keep->flock && !(keep->flock = calloc(FM_MAX_GROUPS, sizeof *keep->flock)))
+        fprintf(stderr, "flockmorph: out of memory\n");
+    return keep->flock;
+}
+
 void cli_flock_keep_free(cli_model_keep *keep)
 {
-    fm_flock_keep_clear(keep->flock);
+    for (int g = 0; keep->flock && g < FM_MAX_GROUPS; g++) fm_flock_keep_clear(&keep->flock[g]);
     free(keep->flock);
     keep->flock = NULL;
 }

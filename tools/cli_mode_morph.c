@@ -177,11 +177,10 @@ static int build(void *run, const fm_scene_def *def, int *show)
     fm_error err = {0};
     r->warnings = json_array();
     cli_model_keep *keep = r->common.keep;
-    if (keep && !keep->morph && !(keep->morph = calloc(1, sizeof *keep->morph)))
-        return fprintf(stderr, "flockmorph: out of memory\n"), FM_ERR_MEMORY;
+    if (keep && !cli_morph_keeps(keep)) return FM_ERR_MEMORY;
     r->model = keep ? fm_morph_model_build_keeping(def, keep->morph, cli_prep_progress, show, &err)
                     : fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
-    if (keep) keep->reused = keep->morph->reused;
+    if (keep) keep->reused = keep->groups_reused = keep->morph->reused;
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
@@ -189,9 +188,16 @@ static int build(void *run, const fm_scene_def *def, int *show)
     return 0;
 }
 
+fm_morph_keep *cli_morph_keeps(cli_model_keep *keep)
+{
+    if (!keep->morph && !(keep->morph = calloc(FM_MAX_GROUPS, sizeof *keep->morph)))
+        fprintf(stderr, "flockmorph: out of memory\n");
+    return keep->morph;
+}
+
 void cli_morph_keep_free(cli_model_keep *keep)
 {
-    fm_morph_keep_clear(keep->morph);
+    for (int g = 0; keep->morph && g < FM_MAX_GROUPS; g++) fm_morph_keep_clear(&keep->morph[g]);
     free(keep->morph);
     keep->morph = NULL;
 }

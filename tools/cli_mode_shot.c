@@ -77,24 +77,40 @@ int cli_check_shot_checkpoint(const char *path, const fm_scene_def *def)
     return st == FM_OK ? 0 : cli_report(&err);
 }
 
+/* How many groups' builds reused their kept part (the studio's runs: cli_model_keep). */
+static void count_kept(cli_model_keep *keep, int count, int flock)
+{
+    keep->groups_reused = 0;
+    for (int g = 0; g < count; g++) keep->groups_reused += flock ? keep->flock[g].reused : keep->morph[g].reused;
+    keep->reused = keep->groups_reused == count;
+}
+
 static int build_morphs(shot_run *r, int *show)
 {
     fm_error err = {0};
-    r->shot = fm_shot_build_on(r->defs, r->count, 0, cli_dist, cli_prep_progress, show, &err); /* one model a machine */
+    cli_model_keep *keep = r->common.keep;
+    if (keep && !cli_morph_keeps(keep)) return FM_ERR_MEMORY;
+    r->shot = keep ? fm_shot_build_keeping(r->defs, r->count, 0, keep->morph, cli_prep_progress, show, &err)
+                   : fm_shot_build_on(r->defs, r->count, 0, cli_dist, cli_prep_progress, show, &err); /* one model a machine */
+    if (keep && r->shot) count_kept(keep, r->count, 0);
     if (!r->shot) return cli_report(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_morph_model *m = fm_shot_model(r->shot, g);
         for (int i = 0; i < fm_morph_model_warning_count(m); i++)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_morph_model_warning(m, i)));
     }
-    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run, NULL, NULL};
+    r->common = (cli_mode_run){fm_shot_rows(r->shot), fm_shot_model(r->shot, 0)->dt, &r->stats.run, keep, NULL};
     return 0;
 }
 
 static int build_flocks(shot_run *r, int *show)
 {
     fm_error err = {0};
-    r->flock_shot = fm_flock_shot_build_on(r->defs, r->count, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    cli_model_keep *keep = r->common.keep;
+    if (keep && !cli_flock_keeps(keep)) return FM_ERR_MEMORY;
+    r->flock_shot = keep ? fm_flock_shot_build_keeping(r->defs, r->count, keep->flock, cli_prep_progress, show, &err)
+                         : fm_flock_shot_build_on(r->defs, r->count, cli_dist, cli_prep_progress, show, &err); /* one a machine */
+    if (keep && r->flock_shot) count_kept(keep, r->count, 1);
     if (!r->flock_shot) return cli_report(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_flock_model *m = fm_flock_shot_model(r->flock_shot, g);
@@ -102,7 +118,7 @@ static int build_flocks(shot_run *r, int *show)
             json_array_append_new(r->warnings, json_sprintf("%s: %s", r->defs[g].group.name, fm_flock_model_warning(m, i)));
     }
     r->common = (cli_mode_run){fm_flock_shot_rows(r->flock_shot), fm_flock_shot_model(r->flock_shot, 0)->dt,
-                               &r->flock_stats.run, NULL, NULL};
+                               &r->flock_stats.run, keep, NULL};
     return 0;
 }
 

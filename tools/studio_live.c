@@ -89,7 +89,8 @@ static void on_cache(fm_cache_writer *cache, void *user)
     if (t->attr_count > 16) t->attr_count = 16;
     for (int i = 0; i < t->attr_count; i++) t->attrs[i] = fm_cache_writer_attr_at(cache, i);
     pthread_mutex_lock(&t->s->lock);
-    t->s->model_kept = t->s->keep.reused, t->s->build_seconds = t->s->keep.build_seconds;
+    t->s->model_kept = t->s->keep.reused, t->s->groups_kept = t->s->keep.groups_reused;
+    t->s->build_seconds = t->s->keep.build_seconds;
     t->s->agents = t->agents;
     snprintf(t->s->kind, sizeof t->s->kind, "%s", studio_kind(t->attr_count, t->attrs));
     if (!t->s->run_wanted) t->s->stage = "running"; /* else an edit cancels this run: "building" stands */
@@ -114,17 +115,22 @@ static json_t *shape_json(const fm_scene_def *def, const fm_mesh_ref *ref, const
     return json_pack("{ssso so}", "name", key, "vertices", v, "triangles", t);
 }
 
-/* A scene's source and target (a shape flock's first ones) and obstacles, onto list. */
-static void add_shapes(json_t *list, const fm_scene_def *def)
+/* Appends shape to list, with its group's index in a shot (group >= 0: the page draws a group's path
+ * between its own shapes). */
+static void add_shape(json_t *list, json_t *shape, int group)
 {
-    json_t *src = def->source.path[0] ? shape_json(def, &def->source, "source", -1) : NULL;
-    json_t *dst = def->target.path[0] ? shape_json(def, &def->target, "target", -1) : NULL;
-    if (src) json_array_append_new(list, src);
-    if (dst) json_array_append_new(list, dst);
-    for (int i = 0; i < def->obstacle_count; i++) {
-        json_t *o = shape_json(def, NULL, "obstacle", i);
-        if (o) json_array_append_new(list, o);
-    }
+    if (!shape) return;
+    if (group >= 0) json_object_set_new(shape, "group", json_integer(group));
+    json_array_append_new(list, shape);
+}
+
+/* A scene's source and target (a shape flock's first ones) and obstacles, onto list: a shot's group
+ * `group`'s, or (-1) a scene's. */
+static void add_shapes(json_t *list, const fm_scene_def *def, int group)
+{
+    add_shape(list, def->source.path[0] ? shape_json(def, &def->source, "source", -1) : NULL, group);
+    add_shape(list, def->target.path[0] ? shape_json(def, &def->target, "target", -1) : NULL, group);
+    for (int i = 0; i < def->obstacle_count; i++) add_shape(list, shape_json(def, NULL, "obstacle", i), group);
 }
 
 /* The "shapes" message: the scene's, or a shot's every group's (read from text, the edited scene). */
@@ -133,10 +139,10 @@ static char *shapes_text(const fm_scene_def *def, const char *text, uint32_t gen
     json_t *list = json_array();
     fm_scene_def *group = def->group_count > 0 && text ? malloc(sizeof *group) : NULL;
     fm_error err = {0};
-    if (!group) add_shapes(list, def);
+    if (!group) add_shapes(list, def, -1);
     for (int g = 0; group && g < def->group_count; g++)
         if (fm_scene_parse_group(text, strlen(text), def->scene_path, NULL, 0, g, group, &err) == FM_OK)
-            add_shapes(list, group);
+            add_shapes(list, group, g);
     free(group);
     json_t *j = json_pack("{sssIso}", "type", "shapes", "generation", (json_int_t)generation, "shapes", list);
     char *out = j ? json_dumps(j, JSON_COMPACT) : NULL;
@@ -196,7 +202,8 @@ static void *worker_main(void *arg)
         s->run_wanted = 0, s->stop = 0;
         uint32_t generation = ++s->generation;
         drop_frames(s);
-        s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->build_seconds = 0;
+        s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->groups_kept = 0;
+        s->build_seconds = 0;
         tell_pages(s, 1);
         pthread_mutex_unlock(&s->lock);
         run_once(s, def, text, generation);

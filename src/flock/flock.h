@@ -126,6 +126,12 @@ void fm_flock_keep_clear(fm_flock_keep *keep);
  * starting on from's destinations (a static target that binds). */
 fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const fm_flock_model *from,
                                                 fm_progress_fn progress, void *user, fm_error *err);
+/* The same, keeping in *keep as fm_flock_model_build_keeping does: its source samples are from's
+ * destinations, so the kept samples and match fit while those are the same bytes (and the target,
+ * n, seed and sampling keys are as they were). */
+fm_flock_model *fm_flock_model_build_from_shape_keeping(const fm_scene_def *def, const fm_flock_model *from,
+                                                        fm_flock_keep *keep, fm_progress_fn progress, void *user,
+                                                        fm_error *err);
 
 /* The look's history (flock_look.c): a fixed sample's positions over the last frames and its
  * neighbour lists over the last second, kept in the store so that a checkpoint keeps them and a
@@ -318,6 +324,10 @@ fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model 
 fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const fm_dist *dist, fm_progress_fn progress,
                                       void *user, fm_error *err);
 fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_error *err);
+/* fm_flock_shot_build on one process, group g's model built keeping in keeps[g] (count of them, zeroed
+ * at first): the studio's runs of an edited shot. */
+fm_flock_shot *fm_flock_shot_build_keeping(const fm_scene_def *defs, int count, fm_flock_keep *keeps,
+                                           fm_progress_fn progress, void *user, fm_error *err);
 const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g);
 
 /* flock_state.c */

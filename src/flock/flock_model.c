@@ -459,10 +459,16 @@ static int same_sampling(const fm_flock_def *a, const fm_flock_def *b)
            a->stratified_oversample == b->stratified_oversample && a->uncross == b->uncross;
 }
 
+/* A group from another's shape samples no source: its source samples are from's destinations. */
+static int same_formed_shape(const fm_flock_keep *k, const fm_flock_model *m)
+{
+    return !m->from || (k->src.n == m->n && !memcmp(k->src.p, m->from->target.dest.p, sizeof(float) * 3 * (size_t)m->n));
+}
+
 static int keep_fits(const fm_flock_keep *k, const fm_flock_model *m, const fm_mesh *source)
 {
     return k->has && k->n == m->n && k->seed == m->def.seed && same_sampling(&k->flock, &m->def.flock) &&
-           fm_mesh_same(&k->source, source) && fm_mesh_same(&k->target, &m->target.mesh);
+           fm_mesh_same(&k->source, source) && fm_mesh_same(&k->target, &m->target.mesh) && same_formed_shape(k, m);
 }
 
 static fm_status from_keep(const fm_flock_keep *k, fm_samples *src, fm_samples *tgt, int64_t *match, fm_error *err)
@@ -504,7 +510,7 @@ static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock
 {
     fm_samples src = {0}, tgt = {0};
     int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
-    const int kept = keep && !m->from && keep_fits(keep, m, source);
+    const int kept = keep && keep_fits(keep, m, source);
     fm_status st = !match ? fm_fail(err, FM_ERR_MEMORY, "out of memory")
                    : kept ? from_keep(keep, &src, &tgt, match, err)
                           : sample_and_match(m, source, &src, &tgt, match, progress, user, err);
@@ -607,6 +613,13 @@ fm_flock_model *fm_flock_model_build_from_shape(const fm_scene_def *def, const f
                                                 fm_progress_fn progress, void *user, fm_error *err)
 {
     return build_model(def, from, NULL, progress, user, err);
+}
+
+fm_flock_model *fm_flock_model_build_from_shape_keeping(const fm_scene_def *def, const fm_flock_model *from,
+                                                        fm_flock_keep *keep, fm_progress_fn progress, void *user,
+                                                        fm_error *err)
+{
+    return build_model(def, from, keep, progress, user, err);
 }
 
 /* ---------------------------------------------------------------- one model a machine */

@@ -63,8 +63,21 @@ static fm_status check_memory(const fm_flock_shot *s, fm_error *err)
     return fm_memory_check_shot(s->def, agents, s->count, fm_flock_memory_estimate, err);
 }
 
-/* dist: on P ranks, one model a machine (fm_flock_model_build_shared); NULL: this process's */
-static fm_status build_groups(fm_flock_shot *s, const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
+/* Group g's model: on P ranks (dist) one a machine (fm_flock_model_build_shared); else this process's,
+ * kept in keep where one is given (the studio's: fm_flock_shot_build_keeping). */
+static fm_flock_model *build_group(const fm_flock_shot *s, int g, const fm_dist *dist, fm_flock_keep *keep,
+                                   fm_progress_fn progress, void *user, fm_error *err)
+{
+    const int from = s->def[g].group.source_group;
+    const fm_scene_def *def = &s->def[g];
+    if (keep) return from < 0 ? fm_flock_model_build_keeping(def, keep, progress, user, err)
+                              : fm_flock_model_build_from_shape_keeping(def, s->model[from], keep, progress, user, err);
+    return from < 0 ? fm_flock_model_build_shared(def, dist, progress, user, err)
+                    : fm_flock_model_build_from_shape_shared(def, s->model[from], dist, progress, user, err);
+}
+
+static fm_status build_groups(fm_flock_shot *s, const fm_dist *dist, fm_flock_keep *keeps, fm_progress_fn progress,
+                              void *user, fm_error *err)
 {
     fm_status checked = check_memory(s, err); /* before any group is sampled */
     if (checked != FM_OK) return checked;
@@ -72,9 +85,7 @@ static fm_status build_groups(fm_flock_shot *s, const fm_dist *dist, fm_progress
         const int from = s->def[g].group.source_group;
         fm_status st = check_source_group(s->def, g, err);
         if (st != FM_OK) return st;
-        const fm_scene_def *def = &s->def[g];
-        s->model[g] = from < 0 ? fm_flock_model_build_shared(def, dist, progress, user, err)
-                               : fm_flock_model_build_from_shape_shared(def, s->model[from], dist, progress, user, err);
+        s->model[g] = build_group(s, g, dist, keeps ? &keeps[g] : NULL, progress, user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         else s->row0[g] = s->row0[from];
@@ -123,8 +134,8 @@ fm_flock_shot *fm_flock_shot_build(const fm_scene_def *defs, int count, fm_progr
     return fm_flock_shot_build_on(defs, count, NULL, progress, user, err);
 }
 
-fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const fm_dist *dist, fm_progress_fn progress,
-                                      void *user, fm_error *err)
+static fm_flock_shot *build_shot(const fm_scene_def *defs, int count, const fm_dist *dist, fm_flock_keep *keeps,
+                                 fm_progress_fn progress, void *user, fm_error *err)
 {
     if (count < 1 || count > FM_MAX_GROUPS) {
         fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
@@ -134,10 +145,22 @@ fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const
     if (!s) return fm_fail(err, FM_ERR_MEMORY, "out of memory"), NULL;
     s->count = count;
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
-    fm_status st = build_groups(s, dist, progress, user, err);
+    fm_status st = build_groups(s, dist, keeps, progress, user, err);
     if (st != FM_OK) return fm_flock_shot_destroy(s), NULL;
     set_clock(s, defs);
     return s;
+}
+
+fm_flock_shot *fm_flock_shot_build_on(const fm_scene_def *defs, int count, const fm_dist *dist, fm_progress_fn progress,
+                                      void *user, fm_error *err)
+{
+    return build_shot(defs, count, dist, NULL, progress, user, err);
+}
+
+fm_flock_shot *fm_flock_shot_build_keeping(const fm_scene_def *defs, int count, fm_flock_keep *keeps,
+                                           fm_progress_fn progress, void *user, fm_error *err)
+{
+    return build_shot(defs, count, NULL, keeps, progress, user, err);
 }
 
 void fm_flock_shot_destroy(fm_flock_shot *s)

@@ -139,6 +139,11 @@ typedef struct fm_morph_keep {
 /* fm_morph_model_build, keeping in *keep (zeroed at first) what it makes and reusing what fits. */
 fm_morph_model *fm_morph_model_build_keeping(const fm_scene_def *def, fm_morph_keep *keep, fm_progress_fn progress,
                                              void *user, fm_error *err);
+/* A shot's group (fm_morph_model_build_group), keeping in *keep the same way: its target's tets, and
+ * its source's unless it starts from another group's shape (those tets are from's). */
+fm_morph_model *fm_morph_model_build_group_keeping(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                                   fm_morph_keep *keep, fm_progress_fn progress, void *user,
+                                                   fm_error *err);
 void fm_morph_keep_clear(fm_morph_keep *keep);
 /* stats.json's end-state checks (morph_run.c), for a shot's groups too. */
 /* verts: the store's tets by agent id, or (by_slot) in slot order; NULL (no room for them) gives infinity. */
@@ -299,6 +304,11 @@ fm_status fm_morph_dist_frame_share(const fm_morph_model *m, fm_morph_state *s, 
 fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_progress_fn progress,
                           void *user, fm_error *err);
 fm_status fm_shot_distribute(fm_shot *s, const fm_dist *dist, fm_error *err);
+/* fm_shot_build on one process, group g's model built keeping in keeps[g] (count of them, zeroed at
+ * first; fm_morph_model_build_group_keeping): the studio's runs of an edited shot, where a group whose
+ * meshes, tetgen keys and n are as they were reuses its tets. */
+fm_shot *fm_shot_build_keeping(const fm_scene_def *defs, int count, int threads, fm_morph_keep *keeps,
+                               fm_progress_fn progress, void *user, fm_error *err);
 
 /* morph_state.c: room for `slots` agents in the store (P ranks: before agents arrive); an
  * allocation failure leaves the store as it was. */

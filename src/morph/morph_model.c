@@ -592,8 +592,10 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     report(progress, user, "subdivide", 0.6);
     /* a group from another's shape has as many source tets as agents: its source is never refined */
     fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
-    st = tets_to_n_kept(m, s->from ? NULL : &s->src_mesh, def->source.path, &s->src, &m->info.source_refined_tets,
-                        kept, &s->made, err);
+    /* a group from another's shape: its source tets are that group's (already n), never the keep's */
+    st = s->from ? tets_to_n(m, NULL, def->source.path, &s->src, &m->info.source_refined_tets, err)
+                 : tets_to_n_kept(m, &s->src_mesh, def->source.path, &s->src, &m->info.source_refined_tets, kept,
+                                  &s->made, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, "source.mesh", err);
     st = tets_to_n_kept(m, &s->dst_mesh, def->target.path, &s->dst, &m->info.target_refined_tets, kept ? kept + 1 : NULL,
                         &s->made, err);
@@ -676,8 +678,15 @@ fm_morph_model *fm_morph_model_build_group(const fm_scene_def *def, const fm_mor
 fm_morph_model *fm_morph_model_build_keeping(const fm_scene_def *def, fm_morph_keep *keep, fm_progress_fn progress,
                                              void *user, fm_error *err)
 {
+    return fm_morph_model_build_group_keeping(def, NULL, 0, keep, progress, user, err);
+}
+
+fm_morph_model *fm_morph_model_build_group_keeping(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
+                                                   fm_morph_keep *keep, fm_progress_fn progress, void *user,
+                                                   fm_error *err)
+{
     keep->reused = 0;
-    return build_model(def, NULL, 0, keep, progress, user, err);
+    return build_model(def, from, keep_targets, keep, progress, user, err);
 }
 
 void fm_morph_keep_clear(fm_morph_keep *keep)

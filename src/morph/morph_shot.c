@@ -96,8 +96,10 @@ static fm_status check_memory(const fm_shot *s, fm_error *err)
     return fm_memory_check_shot(s->def, agents, s->count, fm_morph_memory_estimate, err);
 }
 
-/* dist: on P ranks, one model a machine (fm_morph_model_build_group_shared); NULL: this process's own */
-static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_progress_fn progress, void *user, fm_error *err)
+/* dist: on P ranks, one model a machine (fm_morph_model_build_group_shared); NULL: this process's own,
+ * each kept in keeps[g] where keeps is given (the studio's: fm_shot_build_keeping) */
+static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_morph_keep *keeps, fm_progress_fn progress,
+                              void *user, fm_error *err)
 {
     for (int g = 0; g < s->count; g++) {
         fm_status st = check_memory(s, err); /* before TetGen, and again with each group's tet count */
@@ -105,7 +107,10 @@ static fm_status build_models(fm_shot *s, const fm_dist *dist, fm_progress_fn pr
         if (st != FM_OK) return st;
         const int from = s->def[g].group.source_group;
         const fm_morph_model *source = from < 0 ? NULL : s->model[from];
-        s->model[g] = fm_morph_model_build_group_shared(&s->def[g], source, is_a_source(s, g), dist, progress, user, err);
+        s->model[g] = keeps ? fm_morph_model_build_group_keeping(&s->def[g], source, is_a_source(s, g), &keeps[g],
+                                                                 progress, user, err)
+                            : fm_morph_model_build_group_shared(&s->def[g], source, is_a_source(s, g), dist, progress,
+                                                                user, err);
         if (!s->model[g]) return err->status;
         if (from < 0) s->row0[g] = s->rows, s->rows += s->model[g]->n;
         s->writes[g] = from < 0;
@@ -150,8 +155,8 @@ fm_shot *fm_shot_build(const fm_scene_def *defs, int count, int threads, fm_prog
     return fm_shot_build_on(defs, count, threads, NULL, progress, user, err);
 }
 
-fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_progress_fn progress,
-                          void *user, fm_error *err)
+static fm_shot *build_shot(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_morph_keep *keeps,
+                           fm_progress_fn progress, void *user, fm_error *err)
 {
     if (count < 1 || count > FM_MAX_GROUPS) {
         fm_fail(err, FM_ERR_USAGE, "a shot has 1 to %d groups, not %d", FM_MAX_GROUPS, count);
@@ -163,7 +168,7 @@ fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, cons
     memcpy(s->def, defs, sizeof *defs * (size_t)count);
     s->first = defs[0];
     s->threads = threads;
-    fm_status st = build_models(s, dist, progress, user, err);
+    fm_status st = build_models(s, dist, keeps, progress, user, err);
     if (st != FM_OK) return fm_shot_destroy(s), NULL;
     s->dt = s->model[0]->dt, s->steps_per_frame = s->model[0]->steps_per_frame;
     s->frame_limit = defs[0].frame_limit;
@@ -173,6 +178,18 @@ fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, cons
         fm_grow_bounds(s->scene_lo, s->scene_hi, s->model[g]->scene_hi, 1);
     for (int g = 0; g < count; g++) s->start_step[g] = s->arrival_step[g] = -1;
     return s;
+}
+
+fm_shot *fm_shot_build_on(const fm_scene_def *defs, int count, int threads, const fm_dist *dist, fm_progress_fn progress,
+                          void *user, fm_error *err)
+{
+    return build_shot(defs, count, threads, dist, NULL, progress, user, err);
+}
+
+fm_shot *fm_shot_build_keeping(const fm_scene_def *defs, int count, int threads, fm_morph_keep *keeps,
+                               fm_progress_fn progress, void *user, fm_error *err)
+{
+    return build_shot(defs, count, threads, NULL, keeps, progress, user, err);
 }
 
 void fm_shot_destroy(fm_shot *s)

@@ -23,9 +23,13 @@ from studio_client import WebSocket, start_studio, stop_studio  # noqa: E402
 
 
 def dotted(doc, key):
-    for part in key.split("."):
-        doc = doc[int(part)] if isinstance(doc, list) else doc[part]
-    return doc
+    """The value of a dotted key; a shot's groups.K.KEY that the group does not set is the top level's."""
+    parts, node = key.split("."), doc
+    for i, part in enumerate(parts):
+        if isinstance(node, dict) and part not in node and parts[0] == "groups" and i >= 2:
+            return dotted(doc, ".".join(parts[2:]))
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    return node
 
 
 def one_edit(ws, key, value, generation):
@@ -52,6 +56,7 @@ def main():
         for name, cli in builds.items():
             proc, url = start_studio(cli, args.scene)
             ws = WebSocket(url)
+            ws.sock.settimeout(600)  # a shot's model build sends nothing for minutes on a loaded machine
             hello = ws.recv_json("hello")
             studios[name] = {"proc": proc, "ws": ws, "value": dotted(hello["scene"], args.key), "trials": []}
         for s in studios.values():

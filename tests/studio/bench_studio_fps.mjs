@@ -23,11 +23,13 @@ const scene = process.argv[process.argv.length - 1];
 // query (none today) is a page of its own.
 const VARIANTS = {
   page: { query: '' },
-  before: { tetStyle: { material: 'lambert', cull: false }, dynamic: false, query: '' },
-  cull: { tetStyle: { material: 'lambert', cull: true }, dynamic: false, query: '' },
-  flat: { tetStyle: { material: 'flat', cull: true }, dynamic: false, query: '' },
+  before: { tetStyle: { material: 'lambert', cull: false, wide: true }, dynamic: false, query: '' },
+  cull: { tetStyle: { material: 'lambert', cull: true, wide: true }, dynamic: false, query: '' },
+  flat: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, dynamic: false, query: '' },
   dynamic: { tetStyle: { material: 'flat', cull: true }, dynamic: true, query: '' },
-  after: { tetStyle: { material: 'flat', cull: true }, dynamic: true, query: '' },
+  after: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, dynamic: true, query: '' },
+  // the page before the shapes at rest were drawn as their surface and 16-bit indices: 'after' as it was
+  plain: { tetStyle: { material: 'flat', cull: true, tiny: 3, wide: true }, dynamic: true, query: '' },
 };
 
 // Processor seconds (user + system) of this process's descendants but `except`'s (the studio).

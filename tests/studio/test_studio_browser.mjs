@@ -4,12 +4,14 @@
 //   a panel slider dragged with the mouse and a sketched path (which the route then follows)
 //   re-run the scene; Save writes the scene, and `flockmorph run` of it writes byte for byte the
 //   frames the page received (SHA-256 of each frame's tet vertices, from the Python reader); a
-//   played cache's frame K is the reader's; a wrong token and a foreign Origin are refused.
+//   played cache's frame K is the reader's; a wrong token and a foreign Origin are refused. In a
+//   shot, a group picked in the panel shows its own path point between its shapes, and its slider
+//   edits the group's key; `flockmorph run` of the saved shot gives the page's frames again.
 // Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing,
 // or with --skip (the sanitizer build).
 //   node test_studio_browser.mjs --cli FLOCKMORPH --source REPO --tmp DIR [--python PY] [--shots DIR] [--skip WHY]
 import { spawnSync } from 'node:child_process';
-import { copyFileSync, existsSync, mkdirSync, readFileSync, rmSync } from 'node:fs';
+import { copyFileSync, existsSync, mkdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { dirname, join } from 'node:path';
 import { CHROMIUM, launchChromium, playwright, startStudio, stopStudio } from './studio_browser_lib.mjs';
 
@@ -78,14 +80,20 @@ async function drag(page, a, b, steps = 12) {
   await page.mouse.up();
 }
 
-async function dragControlPoint(page, before) {
+// Drags the first control point (of a shot's group g, or the top level's) and returns where it went.
+async function dragControlPoint(page, before, g = -1) {
   const h = await page.evaluate(() => window.studio.path.handleOnScreen(0));
   await page.mouse.click(h.x, h.y); // selects it: the gizmo appears round it
+  // drawn twice with the gizmo (its picking shapes are placed as it is drawn): on a loaded machine
+  // 200 ms may pass before the page draws at all
+  await page.waitForFunction(() => window.studio.path.gizmo.object, null, { timeout: 10000 });
+  await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   await page.waitForTimeout(200);
   await drag(page, h, { x: h.x + 60, y: h.y - 70 }); // the gizmo's centre moves it in the view plane
-  await page.waitForFunction((p) => JSON.stringify(window.studio.scene.path.points[0]) !== JSON.stringify(p), before,
-    { timeout: 10000 });
-  return page.evaluate(() => window.studio.scene.path.points[0]);
+  const first = ({ group }) => (group >= 0 ? window.studio.scene.groups[group] : window.studio.scene).path.points[0];
+  await page.waitForFunction(({ group, p }) => JSON.stringify((group >= 0 ? window.studio.scene.groups[group]
+    : window.studio.scene).path.points[0]) !== JSON.stringify(p), { group: g, p: before }, { timeout: 10000 });
+  return page.evaluate(first, { group: g });
 }
 
 // The smallest distance from any agent's centroid, over the page's frames, to p.
@@ -107,8 +115,7 @@ function nearestCentroid(page, p, frames) {
 // Drags a panel slider with the mouse across `steps` values (a drag sends edits as it goes; the
 // server cancels the runs they make stale) and returns the value it ends on.
 async function dragSlider(page, name, toFraction) {
-  const row = page.locator('.lil-controller', { has: page.locator('.lil-name', { hasText: new RegExp(`^${name}$`) }) });
-  const box = await row.locator('.lil-slider').boundingBox();
+  const box = await controller(page, name).locator('.lil-slider').boundingBox();
   const y = box.y + box.height / 2;
   await drag(page, { x: box.x + 2, y }, { x: box.x + box.width * toFraction, y }, 20);
   return page.evaluate((key) => window.studio.panel.values[key], name);
@@ -190,6 +197,71 @@ async function live(browser, studio, workdir) {
   return received;
 }
 
+// A shot of two groups, the second with its own path point. (scene keys as test_studio_server's shot)
+const SHOT = { time: { frame_rate: 24, frame_limit: 24 }, speed0: 12.0, launch_rate: 800, seed: 7, path: { points: [[0, -6, 6]] },
+  groups: [{ name: 'a', source: { mesh: 'cylinder.obj', translate: [-15, 0, 0] }, target: { mesh: 'sphere.obj', translate: [15, 0, 0] } },
+    { name: 'b', start: 0.5, source: { mesh: 'sphere.obj', translate: [-15, -12, 0] },
+      target: { mesh: 'cylinder.obj', translate: [15, -12, 0] }, path: { points: [[0, -18, 4]] } }] };
+
+// A shot: group 1 picked in the panel, the handles are its own path point between its own shapes,
+// a drag of it edits groups.1.path.points and its speed0 slider groups.1.speed0; Save, and
+// `flockmorph run` of the saved scene writes byte for byte the frames the page received.
+async function shotGroups(browser) {
+  const scene = join(tmp, 'shot.json');
+  writeFileSync(scene, JSON.stringify(SHOT));
+  const studio = await startStudio(cli, scene);
+  let received, speed;
+  try {
+    const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
+    page.on('pageerror', (e) => fail(`page error: ${e.message}`));
+    await page.goto(studio.url);
+    let run = await finishedRun(page);
+    await controller(page, 'Edit').locator('select').selectOption({ label: 'group 1: b' });
+    const path = await page.evaluate(() => ({ points: window.studio.path.points.map((p) => p.toArray()),
+      ends: window.studio.path.ends.map((e) => e.toArray()) }));
+    log('group 1 picked: handles', JSON.stringify(path.points), 'ends', JSON.stringify(path.ends.map((e) => e.map(Math.round))));
+    check(JSON.stringify(path.points) === '[[0,-18,4]]', `the handles are not group 1's own path point: ${JSON.stringify(path.points)}`);
+    check(path.ends.every((e) => Math.abs(e[1] + 12) < 1), `the path's ends are not group 1's shapes: ${JSON.stringify(path.ends)}`);
+    const moved = await dragControlPoint(page, [0, -18, 4], 1);
+    const top = await page.evaluate(() => window.studio.scene.path.points);
+    log(`group 1's control point dragged to ${JSON.stringify(moved)}; the top level's stays ${JSON.stringify(top)}`);
+    check(JSON.stringify(top) === JSON.stringify(SHOT.path.points), `the drag moved the top level's path: ${JSON.stringify(top)}`);
+    speed = await dragSlider(page, 'speed0', 0.25);
+    await page.waitForFunction((v) => window.studio.scene.groups[1].speed0 === v, speed, { timeout: 10000 });
+    run = await finishedRun(page, run.generation);
+    await showFrame(page, Math.floor(run.frames * 0.75));
+    await page.screenshot({ path: join(shots, 'studio-shot.png') });
+    await controller(page, 'Save scene').locator('button').click();
+    await page.waitForFunction(() => window.studio.note?.startsWith('saved') && !window.studio.status.dirty, null, { timeout: 10000 });
+    await receiveAll(page, run.frames);
+    received = await page.evaluate((n) => Array.from({ length: n }, (_, k) => window.studio.received.get(k)), run.frames);
+    await page.close();
+  } finally { await stopStudio(studio); }
+  const saved = JSON.parse(readFileSync(scene, 'utf8'));
+  check(saved.groups[1].speed0 === speed && saved.speed0 === SHOT.speed0 && saved.groups[0].speed0 === undefined,
+    `the saved shot does not carry groups[1].speed0 = ${speed} alone: ${JSON.stringify(saved)}`);
+  check(JSON.stringify(saved.groups[1].path.points[0]) !== JSON.stringify(SHOT.groups[1].path.points[0]) && !saved.groups[0].path,
+    `the saved shot does not carry group 1's dragged point alone: ${JSON.stringify(saved)}`);
+  sameFrames(scene, join(tmp, 'shot_out'), received, 'shot');
+}
+
+// `flockmorph run` of the saved scene writes, byte for byte, the frames the page received.
+function sameFrames(scene, out, received, what) {
+  const run = spawnSync(cli, ['run', scene, '-o', out, '--quiet'], { encoding: 'utf8' });
+  check(run.status === 0, `${what}: flockmorph run of the saved scene: ${run.stderr}`);
+  const facts = cacheFacts(join(out, 'frames.fmc'));
+  check(facts.frames === received.length, `${what}: run wrote ${facts.frames} frames, the page received ${received.length}`);
+  const differ = facts.sha256.findIndex((h, k) => h !== received[k]);
+  check(differ < 0, `${what}: frame ${differ}: flockmorph run's bytes differ from what the page received`);
+  log(`${what}: flockmorph run of the saved scene: all ${facts.frames} frames byte-identical to the page's`);
+  return facts;
+}
+
+// The panel's row of the control named `name`.
+function controller(page, name) {
+  return page.locator('.lil-controller', { has: page.locator('.lil-name', { hasText: new RegExp(`^${name}$`) }) });
+}
+
 async function playback(browser, cache, k, expected) {
   const studio = await startStudio(cli, cache);
   try {
@@ -228,16 +300,11 @@ async function main() {
       received = await live(browser, studio, tmp);
     } finally { await stopStudio(studio); }
     check(readFileSync(scene, 'utf8') !== original, 'Save did not write the scene file');
-    const run = spawnSync(cli, ['run', scene, '-o', join(tmp, 'out'), '--quiet'], { encoding: 'utf8' });
-    check(run.status === 0, `flockmorph run of the saved scene: ${run.stderr}`);
-    const facts = cacheFacts(join(tmp, 'out', 'frames.fmc'));
-    check(facts.frames === received.length, `run wrote ${facts.frames} frames, the page received ${received.length}`);
-    const differ = facts.sha256.findIndex((h, k) => h !== received[k]);
-    check(differ < 0, `frame ${differ}: flockmorph run's bytes differ from what the page received`);
-    log(`flockmorph run of the saved scene: all ${facts.frames} frames byte-identical to the page's`);
+    const facts = sameFrames(scene, join(tmp, 'out'), received, 'live');
     const k = Math.floor(facts.frames / 2);
     await playback(browser, join(tmp, 'out', 'frames.fmc'), k, cacheFacts(join(tmp, 'out', 'frames.fmc'), '--frame', String(k)).frame);
     log(`playback: frame ${k} equals the Python reader's`);
+    await shotGroups(browser);
   } finally { await browser.close(); }
   log('test_studio_browser: OK');
 }

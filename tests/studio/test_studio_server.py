@@ -13,7 +13,10 @@ An edit of the path keeps the model (TetGen's tets), one of the target's placeme
 Save writes the file atomically, and `flockmorph run` of it writes the frames the studio streamed,
 byte for byte, as does the Render button (refused before a save): the run compared is one whose
 model was kept. The same for a shape flock whose samples and match were kept, and for a shot
-(a scene with groups) edited live: a group's key changes its run, a bad one is named. That cache
+(a scene with groups) edited live: a group's key changes its run, a bad one is named, a group's
+speed0 keeps every group's model and moving one group's target builds that group alone again; a
+shape-flock shot chained from one group's formed shape keeps both, and builds both again when the
+first is sampled anew. That cache
 played back gives the reader's frames and refuses edits. The studio never crashes and exits 0 on
 SIGTERM.
 """
@@ -246,15 +249,21 @@ def check_stopped(proc, what):
           f"{what}: the studio exits 0, no sanitizer report")
 
 
+def studio_on(args, tmp, name, doc):
+    """Writes doc as tmp/name and starts a studio on it: (the scene's path, the process, its address)."""
+    scene = os.path.join(tmp, name)
+    with open(scene, "w") as f:
+        json.dump(doc, f)
+    return (scene, *start_studio(args.cli, scene))
+
+
 def check_flock_keep(args, tmp):
     """A shape flock: an edit of the boids' weights keeps the samples and the match, one of n does
     not; Save, and `flockmorph run` writes the kept run's frames byte for byte."""
-    scene = os.path.join(tmp, "flock.json")
-    with open(scene, "w") as f:
-        json.dump({"mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
-                   "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
-                   "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9}, f)
-    proc, url = start_studio(args.cli, scene)
+    scene, proc, url = studio_on(args, tmp, "flock.json", {
+        "mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+        "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
+        "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
@@ -274,14 +283,12 @@ def check_shot_edit(args, tmp):
     """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
     changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
     the file writes the edited run's frames byte for byte."""
-    scene = os.path.join(tmp, "shot.json")
-    with open(scene, "w") as f:
-        json.dump({"time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
-                   "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
-                               "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
-                              {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
-                               "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]}, f)
-    proc, url = start_studio(args.cli, scene)
+    scene, proc, url = studio_on(args, tmp, "shot.json", {
+        "time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+        "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+                    "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
+                   {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
+                    "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
@@ -291,14 +298,51 @@ def check_shot_edit(args, tmp):
         check("groups[1].speed0" in e and "out of range" in e, f"shot: an invalid group edit names the group's key: {e}")
         e = error_of(ws, {"type": "set", "key": "groups.0.target.mesh", "value": "/etc/passwd"})
         check("/etc/passwd" in e and "refused" in e, f"shot: a group's edit that names another file is refused: {e}")
+        check(first["model_kept"] is False and first["groups_kept"] == 0, "shot: the first run builds every group")
         run = edited_run(ws, "groups.1.speed0", 7.0, first["generation"])
         check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
+        check(run["model_kept"] is True and run["groups_kept"] == 2,
+              f"shot: a group's speed0 edit keeps every group's tets ({run['groups_kept']} kept, {run['build_seconds']:.3f} s)")
         after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
         check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
-        check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot")
+        check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot (every group kept)")
+        moved = edited_run(ws, "groups.1.target.translate", [16.0, 12.0, 0.0], run["generation"])
+        check(moved["stage"] == "finished" and moved["model_kept"] is False and moved["groups_kept"] == 1,
+              f"shot: moving group 1's target builds it again and keeps group 0 ({moved['groups_kept']} kept)")
         ws.close()
     finally:
         check_stopped(proc, "shot")
+
+
+def check_flock_shot_keep(args, tmp):
+    """A shape-flock shot whose second group starts from the first's formed shape: a group's speed0
+    edit keeps both groups' samples and match; a new seed for the first group samples it again and
+    so the second too (its source samples are the first's destinations), and `flockmorph run` of
+    the saved file writes that run's frames byte for byte."""
+    # a binds at about frame 53 (arrival steps quickly from 2 units): b flies the last frames
+    scene, proc, url = studio_on(args, tmp, "flock_shot.json", {
+        "mode": "shape_flock", "n": 120, "speed0": 20.0, "seed": 9, "time": {"frame_rate": 24, "frame_limit": 64},
+        "shape_flock": {"arrival": {"time": 0.1, "radius": 2.0}},
+        "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-4.0, 0.0, 0.0]}, "target": {"mesh": "sphere.obj"}},
+                   {"name": "b", "source": {"group": "a"}, "target": {"mesh": "cylinder.obj", "translate": [6.0, 0.0, 0.0]}}]})
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        first = finished(ws)
+        kept = edited_run(ws, "groups.1.speed0", 6.0, first["generation"])
+        check(kept["stage"] == "finished" and kept["groups_kept"] == 2,
+              f"shape-flock shot: a group's speed0 edit keeps both groups' samples ({kept['groups_kept']} kept)")
+        seeded = edited_run(ws, "groups.0.seed", 10, kept["generation"])
+        check(seeded["stage"] == "finished" and seeded["groups_kept"] == 0,
+              f"shape-flock shot: a new seed for the first group samples both again ({seeded['groups_kept']} kept)")
+        check_saved_run(args, ws, scene, seeded["frames"], os.path.join(tmp, "flock_shot_out"), "shape-flock shot")
+        with open(os.path.join(tmp, "flock_shot_out", "stats.json")) as f:
+            b = json.load(f)["groups"][1]
+        check(b["start_time"] is not None and b["start_time"] < 60 / 24,
+              f"shape-flock shot: the second group flies in the frames compared (starts at {b['start_time']} s)")
+        ws.close()
+    finally:
+        check_stopped(proc, "shape-flock shot")
 
 
 def check_playback(args, cache):
@@ -369,6 +413,7 @@ def main():
     check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
     check_flock_keep(args, tmp)
     check_shot_edit(args, tmp)
+    check_flock_shot_keep(args, tmp)
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
     check("AddressSanitizer" not in err and "runtime error" not in err, "no sanitizer report")
     print(f"test_studio_server: {time.time() - t0:.1f} s")

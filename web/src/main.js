@@ -4,7 +4,7 @@
 import { Connection, ATTR } from './protocol.js';
 import { View } from './view.js';
 import { PathEditor } from './path.js';
-import { Panel } from './panel.js';
+import { Panel, scopedKey } from './panel.js';
 import { Timeline } from './timeline.js';
 
 const AHEAD = 4;                   // frames asked for before they are due, to hide the round trip
@@ -14,7 +14,7 @@ class App {
   constructor() {
     this.connection = new Connection();
     this.view = new View(document.getElementById('viewport'));
-    this.path = new PathEditor(this.view, (points) => this.connection.send({ type: 'set', key: 'path.points', value: points }));
+    this.path = new PathEditor(this.view, (points) => this.connection.send({ type: 'set', key: scopedKey(this.path.editGroup, 'path.points'), value: points }));
     this.panel = new Panel(this);
     this.timeline = new Timeline(this);
     this.frames = new Map(); // k → parsed frame of this generation
@@ -45,7 +45,7 @@ class App {
     c.addEventListener('scene', (e) => this.onScene(e.detail));
     c.addEventListener('saved', (e) => this.setStatusNote(`saved ${e.detail.path}`));
     c.addEventListener('render', (e) => this.onRender(e.detail));
-    c.addEventListener('error', (e) => this.showError(e.detail.message));
+    c.addEventListener('error', (e) => this.onError(e.detail));
     c.addEventListener('frame', (e) => this.onFrame(e.detail));
     c.addEventListener('closed', () => this.setStatusNote('disconnected: the studio has stopped'));
   }
@@ -71,6 +71,13 @@ class App {
     this.panel.refresh(m.scene);
     this.status.dirty = m.dirty;
     this.renderStatus();
+  }
+
+  // A shot: the group the panel and the path's handles edit (-1: the top level).
+  selectGroup(k) {
+    this.panel.selectGroup(k, this.scene);
+    this.path.editGroup = k;
+    this.path.setScene(this.scene, this.shapes);
   }
 
   dropFrames() {
@@ -129,6 +136,7 @@ class App {
     this.last = t;
     this.advance(dt);
     for (let k = this.current; k < this.current + (this.playing ? AHEAD : 1); k++) this.ask(k);
+    this.findRestShapes();
     if (this.current !== this.shown && this.frames.has(this.current)) this.show(this.current);
     else if (!this.view.framed && !this.shapes.length && this.shown >= 0) this.frameOnFlock();
     // playing for the dynamic resolution: a frame was shown in the last half second (following a
@@ -153,6 +161,19 @@ class App {
   }
 
   redraw() { this.shown = -1; }
+
+  // The shapes the tets rest in, for the view to draw as their surface: the run's first frame (the
+  // source) and, once the run has ended, its last (the target), each found once a run.
+  findRestShapes() {
+    const s = this.status, ended = s.stage === 'finished' || s.stage === 'playback';
+    if (s.kind === 'points' || s.frames < 1) return;
+    [0, ended ? s.frames - 1 : -1].forEach((k, i) => {
+      const tag = `${this.generation}:${k}`;
+      if (k < 0 || this.view.restTags[i] === tag) return;
+      if (this.frames.has(k)) this.view.setRestShape(i, this.frames.get(k), tag);
+      else this.ask(k);
+    });
+  }
 
   // No shapes to frame (a played cache): the first and last frames, once both are here.
   frameOnFlock() {
@@ -196,6 +217,13 @@ class App {
     if (r.state === 'running') this.setStatusNote(`render: ${r.line}`);
     else if (r.state === 'finished') this.setStatusNote(`rendered: ${r.output}`);
     else { this.setStatusNote(`render failed (exit ${r.exit})`); this.showError(`render: ${r.line}`); }
+  }
+
+  // A frame asked of a run that an edit has just replaced is not there yet in the new run: the
+  // next status drops the old run's frames and asks are made again, so that is not the user's error.
+  onError(e) {
+    if (e.request === 'frame' && e.message.includes('is not simulated yet')) return;
+    this.showError(e.message);
   }
 
   showError(message) {

@@ -1,10 +1,14 @@
 // The control panel (lil-gui): the scene's main parameters, Save, the sketch mode, the colouring
 // and the playback speed. A parameter change is sent as {type: "set", key, value} (the server
-// checks it as the scene loader does, and runs the scene again from the start).
+// checks it as the scene loader does, and runs the scene again from the start). In a shot (a scene
+// with `groups`) the parameters are the top level's or, once one is picked, a group's: its keys
+// are sent as groups.K.KEY, and it shows the value the group flies with (its own, else the top
+// level's, as the loader lays a group over the top level).
 import GUI from 'lil-gui';
 
 // [key, default (docs/scene.md), min, max, step]; shown for the modes listed.
 const MORPH = 'tetra_morph', FLOCK = 'shape_flock';
+const WHOLE_SHOT = ['time.']; // keys a group may not set (the whole shot shares them: docs/scene.md)
 const NUMBERS = [
   ['n', 0, 0, 50000, 1, [MORPH, FLOCK]],
   ['speed0', 10, 0.5, 60, 0.1, [MORPH, FLOCK]],
@@ -32,6 +36,25 @@ export function getKey(doc, key) {
   return key.split('.').reduce((o, k) => (o == null ? undefined : o[k]), doc);
 }
 
+// The key an edit of group's KEY sends (group -1: the top level's).
+export function scopedKey(group, key) {
+  return group >= 0 ? `groups.${group}.${key}` : key;
+}
+
+// The value group flies with: its own, else the top level's (group -1: the top level's).
+export function groupValue(doc, group, key) {
+  const own = group >= 0 ? getKey(doc.groups?.[group], key) : undefined;
+  return own !== undefined ? own : getKey(doc, key);
+}
+
+// Whether group (-1: the top level) may set key: a group takes no `time` keys, and one that starts
+// from another group's shape takes no n (it has that group's agents).
+export function editable(doc, group, key) {
+  if (group < 0) return true;
+  if (WHOLE_SHOT.some((p) => key.startsWith(p))) return false;
+  return !(key === 'n' && doc.groups?.[group]?.source?.group !== undefined);
+}
+
 export class Panel {
   constructor(app) {
     this.app = app;
@@ -39,6 +62,8 @@ export class Panel {
     this.values = {};
     this.pending = new Map();
     this.timer = null;
+    this.group = -1;      // the group edited (-1: the top level)
+    this.folders = [];    // the parameters' folders, built again for another group
   }
 
   // Sends edits at most every 120 ms, the last value of each key (the server cancels a run an
@@ -69,9 +94,37 @@ export class Panel {
     });
     gui.add(actions, 'speed', ['scene rate', 'as fast as it can']).name('Playback').onChange((v) => { app.fastest = v !== 'scene rate'; });
     gui.add(actions, 'follow').name('Follow the run').onChange((v) => { app.follow = v; });
+    if (hello.mode === 'live' && hello.scene.groups) this.buildGroupChoice(hello.scene);
     if (hello.mode === 'live') this.buildParameters(hello.scene);
     if (hello.cache) this.buildCacheFacts(hello.cache);
   }
+
+  // A shot: which of its groups the parameters and the path's handles edit.
+  buildGroupChoice(doc) {
+    const options = { 'top level (every group)': -1 };
+    doc.groups.forEach((g, k) => { options[`group ${k}: ${g.name}`] = k; });
+    this.gui.add(this, 'group', options).name('Edit').onChange((k) => this.app.selectGroup(k));
+  }
+
+  // The parameters of another group (or the top level), from the scene as it is now.
+  selectGroup(k, doc) {
+    this.group = k;
+    for (const f of this.folders) f.destroy();
+    this.folders = [];
+    this.values = {};
+    this.buildParameters(doc);
+  }
+
+  // A folder of the parameters (destroyed when another group is picked).
+  folder(title) {
+    const f = this.gui.addFolder(this.group >= 0 ? `${title} (group ${this.group})` : title);
+    this.folders.push(f);
+    return f;
+  }
+
+  // The value the edited group flies with, and the key its edit sends.
+  value(doc, key) { return groupValue(doc, this.group, key); }
+  setScoped(key, value) { this.set(scopedKey(this.group, key), value); }
 
   // A played cache's facts and, where a stats.json lies beside it, the run's plain values.
   buildCacheFacts(cache) {
@@ -88,51 +141,58 @@ export class Panel {
 
   buildParameters(doc) {
     const mode = doc.mode ?? MORPH;
-    const folder = this.gui.addFolder('Scene');
+    const folder = this.folder('Scene');
     for (const [key, def, min, max, step, modes] of NUMBERS) {
-      if (!modes.includes(mode)) continue;
-      this.values[key] = getKey(doc, key) ?? def;
-      folder.add(this.values, key, min, max, step).name(key).onChange((v) => this.set(key, v));
+      if (!modes.includes(mode) || !editable(doc, this.group, key)) continue;
+      this.values[key] = this.value(doc, key) ?? def;
+      folder.add(this.values, key, min, max, step).name(key).onChange((v) => this.setScoped(key, v));
     }
-    this.values['path.curve'] = getKey(doc, 'path.curve') ?? 'polyline';
-    folder.add(this.values, 'path.curve', ['polyline', 'catmull_rom']).onChange((v) => this.set('path.curve', v));
+    this.values['path.curve'] = this.value(doc, 'path.curve') ?? 'polyline';
+    folder.add(this.values, 'path.curve', ['polyline', 'catmull_rom']).onChange((v) => this.setScoped('path.curve', v));
     if (mode === FLOCK) this.buildRanges(doc);
     this.buildFields(doc);
     if (mode === FLOCK) this.buildFuzzy(doc);
   }
 
   buildRanges(doc) {
-    const folder = this.gui.addFolder('Boids and limits (ranges)');
+    const folder = this.folder('Boids and limits (ranges)');
     for (const [key, def, min, max] of RANGES) {
-      const r = getKey(doc, key) ?? def, pair = { lo: r[0], hi: r[1] };
-      const send = () => this.set(key, [pair.lo, pair.hi]);
+      const r = this.value(doc, key) ?? def, pair = { lo: r[0], hi: r[1] };
+      const send = () => this.setScoped(key, [pair.lo, pair.hi]);
       folder.add(pair, 'lo', min, max).name(`${key.replace('shape_flock.', '')} lo`).onChange(send);
       folder.add(pair, 'hi', min, max).name(`${key.replace('shape_flock.', '')} hi`).onChange(send);
     }
   }
 
-  // Each style field's gain and scale where it has them (the fields' own keys: scene.md).
+  // Each style field's gain and scale where it has them (the fields' own keys: scene.md). A group
+  // that flies the top level's fields gets its own list, the whole of it, at its first edit (a
+  // list's elements cannot be set one by one where the group has no list).
   buildFields(doc) {
-    const fields = getKey(doc, 'style.fields') ?? [];
+    const fields = this.value(doc, 'style.fields') ?? [];
     if (!fields.length) return;
-    const folder = this.gui.addFolder('Style fields');
+    const folder = this.folder('Style fields');
+    const own = this.group < 0 || getKey(doc.groups[this.group], 'style.fields') !== undefined;
+    const draft = structuredClone(fields);
     fields.forEach((f, i) => {
       for (const k of ['gain', 'scale', 'speed', 'strength']) {
         if (typeof f[k] !== 'number') continue;
         const key = `style.fields.${i}.${k}`, holder = { [key]: f[k] };
-        folder.add(holder, key, 0, Math.max(10, 4 * f[k])).name(`${i} ${f.type} ${k}`).onChange((v) => this.set(key, v));
+        folder.add(holder, key, 0, Math.max(10, 4 * f[k])).name(`${i} ${f.type} ${k}`).onChange((v) => {
+          draft[i][k] = v;
+          if (own) this.setScoped(key, v); else this.setScoped('style.fields', structuredClone(draft));
+        });
       }
     });
   }
 
   // The fuzzy curves' key points as JSON text ([[d, w], ...]); empty goes back to the default.
   buildFuzzy(doc) {
-    const folder = this.gui.addFolder('Fuzzy curves [[d, w], ...]');
+    const folder = this.folder('Fuzzy curves [[d, w], ...]');
     for (const name of FUZZY) {
-      const key = `shape_flock.fuzzy.${name}`, holder = { [key]: JSON.stringify(getKey(doc, key) ?? '') };
+      const key = `shape_flock.fuzzy.${name}`, holder = { [key]: JSON.stringify(this.value(doc, key) ?? '') };
       folder.add(holder, key).name(name).onFinishChange((text) => {
-        if (!text.trim() || text === '""') return this.set(key, null);
-        try { this.set(key, JSON.parse(text)); } catch (e) { this.app.showError(`${key}: not JSON: ${e.message}`); }
+        if (!text.trim() || text === '""') return this.setScoped(key, null);
+        try { this.setScoped(key, JSON.parse(text)); } catch (e) { this.app.showError(`${key}: not JSON: ${e.message}`); }
       });
     }
   }
@@ -140,7 +200,7 @@ export class Panel {
   // Another tab's edit (or the loader's rounding): the controls show the scene as it is now.
   refresh(doc) {
     for (const key of Object.keys(this.values)) {
-      const v = getKey(doc, key);
+      const v = this.value(doc, key);
       if (v !== undefined) this.values[key] = v;
     }
     this.gui.controllersRecursive().forEach((c) => c.updateDisplay());

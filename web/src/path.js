@@ -1,6 +1,8 @@
 // The path: its control points as handles to drag (TransformControls), the curve through them, and
 // the sketch mode (FM: "specify the global path by sketching an arbitrary curve"): a freehand
 // stroke on a plane through both shapes, facing the camera, resampled by arc length to points.
+// In a shot with a group picked, the path is that group's: between its own shapes, through its own
+// points (else the top level's, which it flies), and an edit gives the group its own points.
 import * as THREE from 'three';
 import { TransformControls } from 'three/examples/jsm/controls/TransformControls.js';
 
@@ -11,6 +13,7 @@ export class PathEditor {
     this.view = view;
     this.onEdit = onEdit; // (points) => the page sends set path.points
     this.points = [];
+    this.editGroup = -1; // a shot's group whose path is edited (-1: the top level)
     this.ends = [new THREE.Vector3(), new THREE.Vector3()];
     this.curveKind = 'polyline';
     this.group = new THREE.Group();
@@ -34,9 +37,9 @@ export class PathEditor {
 
   // The scene's control points and the shapes' centres as the ends (C_S, C_T: drawn, not edited).
   setScene(doc, shapes) {
-    const path = doc.path ?? {};
+    const path = groupPath(doc, this.editGroup);
     this.curveKind = path.curve ?? 'polyline';
-    for (const s of shapes) {
+    for (const s of groupShapes(doc, shapes, this.editGroup)) {
       const end = s.name === 'source' ? this.ends[0] : s.name === 'target' ? this.ends[1] : null;
       if (end) end.copy(vertexMean(s.vertices));
     }
@@ -119,6 +122,7 @@ export class PathEditor {
       return;
     }
     if (this.gizmo.dragging || this.gizmo.axis) return; // the gizmo takes it
+    this.group.updateMatrixWorld(); // handles made since the last draw (another group picked) are placed
     const hit = this.ray(e).intersectObjects(this.group.children)[0];
     if (hit) this.gizmo.attach(hit.object);
   }
@@ -157,6 +161,22 @@ export class PathEditor {
     this.gizmo.detach();
     this.view.container.classList.toggle('sketching', on);
   }
+}
+
+// A group's path: its own path keys over the top level's, key by key, as the loader lays them.
+export function groupPath(doc, group) {
+  const own = group >= 0 ? doc.groups?.[group]?.path : undefined;
+  return { ...(doc.path ?? {}), ...(own ?? {}) };
+}
+
+// The shapes a group flies between (every shape for the top level): its own (the shapes message
+// names each shape's group), and for a group from another's formed shape that group's target as
+// its source.
+export function groupShapes(doc, shapes, group) {
+  if (group < 0) return shapes;
+  const from = doc.groups?.[group]?.source?.group, k = doc.groups?.findIndex((g) => g.name === from) ?? -1;
+  const formed = k >= 0 ? shapes.filter((s) => s.group === k && s.name === 'target').map((s) => ({ ...s, name: 'source' })) : [];
+  return [...formed, ...shapes.filter((s) => s.group === group && !(k >= 0 && s.name === 'source'))];
 }
 
 // Scene units to a thousandth: the saved file stays readable, and the page and the file agree.

@@ -4,7 +4,7 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { ATTR } from './protocol.js';
 import { DynamicResolution } from './resolution.js';
-import { TET_FACES, frontFaces } from './tets.js';
+import { TET_FACES, frontFaces, restingTets, sharedFaces } from './tets.js';
 
 // fm_phase: waiting, flying, homing, arrived (a shape flock's phases share the palette).
 const PHASE_COLOURS = [0x8a8f99, 0x3fa7ff, 0xffa63f, 0x5fd35f].map((c) => new THREE.Color(c));
@@ -14,12 +14,17 @@ const SHAPE_COLOURS = { source: 0x6d7380, target: 0x9aa3b5, obstacle: 0xb05050 }
 // light term from the face's own normal (screen-space derivatives), no three.js lights; cull: only
 // the faces that face the eye, chosen on the CPU each frame (tets.js): a closed tet shows only
 // those, so the eye cannot tell, and the rasterizer sets up half the triangles; tiny: a tet under
-// this many pixels is drawn as its one face that faces the eye most (a quarter). 'lambert':
-// three.js's lit material, every face on both sides, as the studio drew them first (kept for the
-// benchmark's before and after).
+// this many pixels is drawn as its one face that faces the eye most (a quarter); rest: the tets at
+// rest in the source (as in the run's first frame) or the target (as in its last) leave out the
+// faces they share, which the tets hide themselves (tets.js: the shapes are drawn as their surface,
+// the same picture with a fifth of words' triangles at its start and end); wide: 32-bit indices even
+// where 16 bits hold every vertex (a flock of at most 16,384 tets: half the index buffer's upload).
+// 'lambert': three.js's lit material, every face on both sides, as the studio drew them first, and
+// 'plain' the drawing before rest and 16-bit indices (kept for the benchmark's before and after).
 export const TET_STYLES = {
-  flat: { material: 'flat', cull: true, tiny: 3 },
-  lambert: { material: 'lambert', cull: false },
+  flat: { material: 'flat', cull: true, tiny: 3, rest: true },
+  plain: { material: 'flat', cull: true, tiny: 3, wide: true },
+  lambert: { material: 'lambert', cull: false, wide: true },
 };
 
 export class View {
@@ -48,6 +53,9 @@ export class View {
     this.shapes = new THREE.Group();
     this.scene.add(this.shapes);
     this.flock = null;
+    this.restShapes = [null, null]; // the source's and the target's tets at rest: {v, across} (setRestShape)
+    this.restTags = ['', ''];
+    this.restVersion = 0;
     this.colourBy = 'phase';
     new ResizeObserver(() => this.resize()).observe(container);
     this.resize();
@@ -102,11 +110,12 @@ export class View {
 
   // The flock object for this many agents of this kind, made again only when they change.
   ensureFlock(kind, agents) {
-    if (this.flock && this.flock.userData.kind === kind && this.flock.userData.agents === agents) return this.flock;
+    const u = this.flock?.userData, wide = !!this.tetStyle.wide;
+    if (u && u.kind === kind && u.agents === agents && (kind !== 'tets' || u.wide === wide)) return this.flock;
     if (this.flock) { this.scene.remove(this.flock); this.flock.geometry.dispose(); this.flock.material.dispose(); }
     this.flock = kind === 'tets' ? makeTets(agents, this.tetStyle) : makePoints(agents);
     this.facesFor = null;
-    this.flock.userData = { kind, agents };
+    this.flock.userData = { kind, agents, wide, resting: new Uint8Array(kind === 'tets' ? agents : 0) };
     this.flock.frustumCulled = false; // positions change every frame; no bounding sphere to keep
     this.scene.add(this.flock);
     return this.flock;
@@ -126,19 +135,32 @@ export class View {
     this.dirty = true;
   }
 
+  // A shape the tets rest in (i: 0 the source, 1 the target), from a frame where they form it
+  // (tag: which frame of which run, so that it is found once).
+  setRestShape(i, frame, tag) {
+    const v = frame.attrs[ATTR.TET_VERTICES];
+    this.restTags[i] = tag;
+    this.restShapes[i] = v ? { v, across: sharedFaces(v, frame.agents) } : null;
+    this.restVersion += 1;
+    this.facesFor = null;
+    this.dirty = true;
+  }
+
   // Only the faces that face the eye go to the index buffer (its used part uploaded), found again
   // when the flock or the camera moved; every face, once, without culling.
   cullFaces() {
     const flock = this.flock;
     if (flock?.userData.kind !== 'tets') return;
-    const g = flock.geometry, index = g.index, eye = this.camera.position;
-    const height = this.container.clientHeight || 1;
-    const key = this.tetStyle.cull ? `${this.shownFrame},${eye.x},${eye.y},${eye.z},${height}` : 'all';
+    const g = flock.geometry, index = g.index, eye = this.camera.position, style = this.tetStyle;
+    const height = this.container.clientHeight || 1, agents = flock.userData.agents;
+    const key = style.cull ? `${this.shownFrame},${eye.x},${eye.y},${eye.z},${height},${this.restVersion}` : 'all';
     if (this.facesFor === key) return;
     const perUnit = height / 2 / Math.tan((this.camera.fov * Math.PI) / 360); // a unit at distance 1, in CSS pixels
-    const count = this.tetStyle.cull
-      ? frontFaces(g.getAttribute('position').array, flock.userData.agents, eye, index.array, perUnit, this.tetStyle.tiny ?? 0)
-      : fillAllFaces(index.array, flock.userData.agents);
+    const v = g.getAttribute('position').array;
+    const rest = style.rest && this.restShapes.some(Boolean) ? restingTets(v, agents, this.restShapes, flock.userData.resting) : null;
+    const count = style.cull
+      ? frontFaces(v, agents, eye, index.array, perUnit, style.tiny ?? 0, rest)
+      : fillAllFaces(index.array, agents);
     this.facesFor = key;
     index.clearUpdateRanges();
     index.addUpdateRange(0, count);
@@ -151,6 +173,13 @@ export class View {
     this.tetStyle = style;
     this.facesFor = null;
     if (this.flock?.userData.kind !== 'tets') return;
+    if (this.flock.userData.wide !== !!style.wide) { // another index width: the flock is made again
+      const { agents } = this.flock.userData, positions = this.flock.geometry.getAttribute('position').array;
+      const colours = this.flock.geometry.getAttribute('color').array;
+      this.ensureFlock('tets', agents);
+      this.flock.geometry.getAttribute('position').array.set(positions);
+      this.flock.geometry.getAttribute('color').array.set(colours);
+    }
     this.flock.material.dispose();
     this.flock.material = tetMaterial(style);
     this.dirty = true;
@@ -210,7 +239,8 @@ function makeTets(agents, style) {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(agents * 12), 3));
   g.setAttribute('color', colourAttribute(agents * 4));
-  const index = new THREE.BufferAttribute(new Uint32Array(agents * 12), 1);
+  const Index = !style.wide && agents * 4 <= 65536 ? Uint16Array : Uint32Array; // 4 vertices a tet
+  const index = new THREE.BufferAttribute(new Index(agents * 12), 1);
   index.setUsage(THREE.DynamicDrawUsage);
   fillAllFaces(index.array, agents);
   g.setIndex(index);

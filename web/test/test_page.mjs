@@ -1,16 +1,16 @@
 // Unit tests of the page's pure parts, under node's own test runner (no browser):
 //   node --test web/test/          (ctest: test_studio_page)
 // protocol.js's frame parsing against the layout docs/studio.md gives, path.js's arc-length
-// resampling of a sketch, panel.js's dotted keys, resolution.js's dynamic resolution, tets.js's
-// choice of the faces that face the eye.
+// resampling of a sketch, panel.js's dotted keys, a shot's group keys and values and path.js's
+// group path, resolution.js's dynamic resolution, tets.js's choice of the faces that face the eye.
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 import * as THREE from 'three';
 import { ATTR, parseFrame } from '../src/protocol.js';
-import { resample } from '../src/path.js';
-import { getKey } from '../src/panel.js';
+import { groupPath, groupShapes, resample } from '../src/path.js';
+import { editable, getKey, groupValue, scopedKey } from '../src/panel.js';
 import { DynamicResolution, RATIOS } from '../src/resolution.js';
-import { frontFaces } from '../src/tets.js';
+import { TET_FACES, frontFaces, restingTets, sharedFaces } from '../src/tets.js';
 
 // A frame message as the server writes it (tools/studio_frames.c): header, entries, 16-aligned arrays.
 function frameMessage(agents, arrays) {
@@ -56,6 +56,38 @@ test('getKey reads dotted keys and tells a missing one', () => {
   assert.deepEqual(getKey(doc, 'shape_flock.cohesion.weight'), [0.1, 0.2]);
   assert.equal(getKey(doc, 'path.width'), undefined);
   assert.equal(getKey(doc, 'mde.d_min'), undefined);
+});
+
+// A shot as the loader reads it: group 1 sets its own speed0 and path points, group 2 starts from
+// group 0's formed shape.
+const SHOT = { speed0: 8, time: { frame_limit: 24 }, path: { points: [[0, 5, 0]], curve: 'catmull_rom' },
+  style: { fields: [{ type: 'curl_noise', gain: 0.5 }] },
+  groups: [{ name: 'a' }, { name: 'b', speed0: 5, path: { points: [[1, 2, 3], [4, 5, 6]] } },
+    { name: 'c', source: { group: 'a' } }] };
+
+test('a group edits its own keys and shows the top level\'s where it has none', () => {
+  assert.equal(scopedKey(-1, 'speed0'), 'speed0');
+  assert.equal(scopedKey(1, 'path.points'), 'groups.1.path.points');
+  assert.equal(groupValue(SHOT, 1, 'speed0'), 5);
+  assert.equal(groupValue(SHOT, 0, 'speed0'), 8); // the top level's, which group 0 flies with
+  assert.equal(groupValue(SHOT, -1, 'speed0'), 8);
+  assert.equal(groupValue(SHOT, 1, 'style.fields.0.gain'), 0.5);
+  assert.equal(groupValue(SHOT, 2, 'mde.d_min'), undefined);
+  assert.ok(editable(SHOT, 1, 'speed0') && editable(SHOT, 0, 'n') && editable(SHOT, -1, 'time.frame_limit'));
+  assert.ok(!editable(SHOT, 1, 'time.frame_limit'), 'the whole shot shares time');
+  assert.ok(!editable(SHOT, 2, 'n'), 'a group from another\'s shape has its agents');
+});
+
+test('a group\'s path: its own keys over the top level\'s, between its own shapes', () => {
+  assert.deepEqual(groupPath(SHOT, 1), { points: [[1, 2, 3], [4, 5, 6]], curve: 'catmull_rom' });
+  assert.deepEqual(groupPath(SHOT, 0), SHOT.path);
+  const shape = (name, group) => ({ name, group, vertices: [group, 0, 0] });
+  const shapes = [shape('source', 0), shape('target', 0), shape('source', 1), shape('target', 1), shape('obstacle', 1),
+    shape('target', 2)];
+  assert.deepEqual(groupShapes(SHOT, shapes, 1).map((s) => `${s.name} ${s.group}`), ['source 1', 'target 1', 'obstacle 1']);
+  assert.deepEqual(groupShapes(SHOT, shapes, 2).map((s) => `${s.name} ${s.group}`), ['source 0', 'target 2'],
+    'a group from another\'s shape starts where that group formed it');
+  assert.equal(groupShapes(SHOT, shapes, -1).length, shapes.length);
 });
 
 // Feeds frames of cost(ratio) ms, one every 50 ms of page time, and returns the ratios it chose.
@@ -144,4 +176,63 @@ test('dynamic resolution: a page that shows the frame rate keeps its resolution,
   const d = new DynamicResolution();
   for (let i = 0, now = 0; i < 200; i++, now += 50) d.measure(60, now, 24, 24); // slow ticks, every frame shown
   assert.equal(d.ratio, 1);
+});
+
+// A unit cube as six positively oriented tets (Kuhn's: each along one path from corner 0 to 7).
+function cubeTets() {
+  const corner = (c) => [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+  const paths = [[1, 2, 4], [1, 4, 2], [2, 1, 4], [2, 4, 1], [4, 1, 2], [4, 2, 1]];
+  const v = new Float32Array(12 * paths.length);
+  paths.forEach((p, a) => {
+    const c = [0, p[0], p[0] + p[1], 7].map(corner);
+    const d = (i, k) => c[i][k] - c[0][k];
+    const det = d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1)) - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
+      + d(1, 2) * (d(2, 0) * d(3, 1) - d(2, 1) * d(3, 0));
+    if (det < 0) [c[1], c[2]] = [c[2], c[1]];
+    c.flat().forEach((x, i) => { v[12 * a + i] = x; });
+  });
+  return v;
+}
+
+// The drawn faces as sorted corner coordinates (one string a face).
+function drawnFaces(v, index, count) {
+  const out = [];
+  for (let i = 0; i < count; i += 3) out.push([0, 1, 2].map((j) => Array.from(v.slice(3 * index[i + j], 3 * index[i + j] + 3)).join(',')).sort().join(' '));
+  return out.sort();
+}
+
+test('sharedFaces finds the tet across each inner face of a shape, none on its surface', () => {
+  const v = cubeTets(), across = sharedFaces(v, 6);
+  const seen = new Map(); // each face's corners, counted over every tet: 2 inside the cube, 1 on its surface
+  for (let a = 0; a < 6; a++) for (let f = 0; f < 4; f++) {
+    const k = drawnFaces(v, TET_FACES.slice(3 * f, 3 * f + 3).map((c) => 4 * a + c), 3)[0];
+    seen.set(k, [...(seen.get(k) ?? []), [a, f]]);
+  }
+  for (const owners of seen.values()) {
+    if (owners.length === 1) assert.equal(across[4 * owners[0][0] + owners[0][1]], -1);
+    else assert.deepEqual(owners.map(([a, f]) => across[4 * a + f]), [owners[1][0], owners[0][0]]);
+  }
+  assert.equal([...seen.values()].filter((o) => o.length === 1).length, 12, 'a cube: 6 faces of 2 triangles');
+});
+
+test('frontFaces draws a shape at rest as its surface, and a tet that moved whole', () => {
+  const v = cubeTets(), eye = { x: 5, y: -7, z: 9 }, index = new Uint32Array(72);
+  const shape = { v: v.slice(), across: sharedFaces(v, 6) }, resting = new Uint8Array(6);
+  const all = drawnFaces(v, index, frontFaces(v, 6, eye, index));
+  const surface = drawnFaces(v, index, frontFaces(v, 6, eye, index, 0, 0, restingTets(v, 6, [shape, null], resting)));
+  assert.deepEqual([...resting], [1, 1, 1, 1, 1, 1]);
+  assert.equal(surface.length, 6, 'three faces of the cube face the eye: two triangles each');
+  const inner = new Set(all.filter((k, i) => all.indexOf(k) !== i || all.lastIndexOf(k) !== i));
+  assert.ok(surface.every((k) => all.includes(k) && !inner.has(k)), 'only faces drawn before, none between two tets');
+  for (let i = 0; i < 12; i++) v[i] += 0.25; // tet 0 has moved: it is drawn whole, and so are the faces it left
+  const moved = drawnFaces(v, index, frontFaces(v, 6, eye, index, 0, 0, restingTets(v, 6, [shape, null], resting)));
+  assert.deepEqual([...resting], [0, 1, 1, 1, 1, 1]);
+  const between = new Map(); // the faces of the tets that stay, counted: 2 where two of them share one
+  for (let a = 1; a < 6; a++) for (let f = 0; f < 4; f++) {
+    const k = drawnFaces(v, TET_FACES.slice(3 * f, 3 * f + 3).map((c) => 4 * a + c), 3)[0];
+    between.set(k, (between.get(k) ?? 0) + 1);
+  }
+  const expected = drawnFaces(v, index, frontFaces(v, 6, eye, index)).filter((k) => between.get(k) !== 2);
+  assert.deepEqual(moved, expected);
+  assert.ok(moved.length > surface.length, 'the faces tet 0 left are drawn again');
 });
