@@ -45,6 +45,7 @@ if [ "$(id -u)" = 0 ]; then export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_RO
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 results=$tmp/results.tsv # workload, threads or ranks, agent-steps/s
+: > "$results"
 
 lmp=$(command -v lmp || command -v lmp_serial || true)
 blender=$(command -v blender || true)
@@ -74,19 +75,20 @@ lammps() { # RANKS
 boids() {
     "$blender" -b --factory-startup --python bench/blender_boids.py -- "$flock_agents" 5 > "$tmp/boids.out" 2>&1 \
         || { tail -20 "$tmp/boids.out" >&2; die "Blender's boids failed" 2; }
-    /usr/bin/python3 -c '
+    /usr/bin/python3 - "$tmp/boids.out" >> "$results" <<'EOF'
 import json, sys
 for line in open(sys.argv[1]):
-    if line.startswith("{\"peer\""):
+    if line.startswith('{"peer"'):
         r = json.loads(line)
-        print(f"Blender {r[\"blender\"]} boids, {r[\"agents\"]:,}\tauto\t{r[\"agent_steps_per_second\"]:.4g}")' "$tmp/boids.out" >> "$results"
+        print(f"Blender {r['blender']} boids, {r['agents']:,}\tauto\t{r['agent_steps_per_second']:.4g}")
+EOF
 }
 
 cp bench/in.lj "$tmp/in.lj"
 echo "bench-peers: $(date -u '+%Y-%m-%d %H:%M UTC'), $rounds round(s)"
 echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) CPUs; load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 for ((r = 1; r <= rounds; r++)); do
-    before=$(wc -l < "$results" 2>/dev/null || echo 0)
+    before=$(wc -l < "$results")
     suite "tetra morph, $agents agents" --agents "$agents" --steps "$steps" --threads 2
     if [ -n "$lmp" ]; then lammps 1; lammps 2; fi
     suite "shape flock, $flock_agents agents" --mode flock --sampling random --agents "$flock_agents" --steps "$steps" --threads 2
