@@ -31,7 +31,8 @@
 
 static const char USAGE[] =
     "usage: bench_suite [--mode morph|flock] [--agents N[,N...]] [--steps S] [--threads T] [--scene FILE]\n"
-    "                   [--sampling random|mosaic|stratified] [--scenarios 0|1] [--machine 0|1]\n"
+    "                   [--sampling random|mosaic|stratified] [--density-sweep 0|1] [--scenarios 0|1]\n"
+    "                   [--machine 0|1]\n"
     "\n"
     "Times S steps at each agent count N with 1 and T threads and prints one JSON document on\n"
     "stdout (docs/performance.md); progress goes to stderr.\n"
@@ -46,6 +47,8 @@ static const char USAGE[] =
     "  --scene FILE     the scene, with n set to each N (a morph scene for morph, shape_flock for flock)\n"
     "  --sampling M     flock only: sample the surfaces this way instead of the scene's\n"
     "                   shape_flock.sampling (random prepares 10^6 agents fastest)\n"
+    "  --density-sweep 1  flock only: throughput at the first N against the mean neighbour\n"
+    "                   count, the radii scaled 0.7 to 3.2 times, T threads (docs/performance.md)\n"
     "  --scenarios 1    morph only: also run the four FM examples (Table I)\n"
     "  --machine 0      skip measuring the STREAM triad and the FMA peak\n"
     "  -h, --help       this text\n";
@@ -53,7 +56,7 @@ static const char USAGE[] =
 static void parse(int argc, char **argv, suite_options *o)
 {
     o->mode = SUITE_MORPH, o->agent_count = 0, o->steps = 10, o->threads = omp_get_max_threads();
-    o->scenarios = 0, o->machine = 1, o->sampling = -1, o->scene[0] = 0;
+    o->scenarios = 0, o->machine = 1, o->sampling = -1, o->density_sweep = 0, o->scene[0] = 0;
     static const char *const modes[] = {"morph", "flock"}, *const samplings[] = {"random", "mosaic", "stratified"};
     static const char *const flags[] = {"0", "1"};
     bench_args a = bench_args_begin("bench_suite", USAGE, argc, argv);
@@ -74,6 +77,7 @@ static void parse(int argc, char **argv, suite_options *o)
         else if (bench_is(&a, "--threads")) o->threads = bench_long(&a, 1, 1024);
         else if (bench_is(&a, "--scenarios")) o->scenarios = bench_choice(&a, flags, 2);
         else if (bench_is(&a, "--machine")) o->machine = bench_choice(&a, flags, 2);
+        else if (bench_is(&a, "--density-sweep")) o->density_sweep = bench_choice(&a, flags, 2);
         else if (bench_is(&a, "--mode")) o->mode = (suite_mode)bench_choice(&a, modes, 2);
         else if (bench_is(&a, "--sampling")) o->sampling = bench_choice(&a, samplings, 3);
         else if (bench_is(&a, "--scene")) snprintf(o->scene, sizeof o->scene, "%s", bench_value(&a));
@@ -81,6 +85,7 @@ static void parse(int argc, char **argv, suite_options *o)
     }
     if (o->mode == SUITE_FLOCK && o->scenarios) bench_usage_error(&a, "--scenarios is for --mode morph");
     if (o->mode == SUITE_MORPH && o->sampling >= 0) bench_usage_error(&a, "--sampling is for --mode flock");
+    if (o->mode == SUITE_MORPH && o->density_sweep) bench_usage_error(&a, "--density-sweep is for --mode flock");
     if (o->agent_count == 0) o->agents[o->agent_count++] = 100000;
     if (!o->scene[0])
         snprintf(o->scene, sizeof o->scene, "%s/examples/%s", FM_SOURCE_DIR,

@@ -21,6 +21,7 @@ typedef struct suite_options {
     long steps, threads;
     int scenarios, machine;
     int sampling;             /* flock: an fm_flock_sampling, or -1 for the scene's own */
+    int density_sweep;        /* flock: throughput against the mean neighbour count (suite_flock.h) */
     char scene[4096];
 } suite_options;
 

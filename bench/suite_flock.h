@@ -18,8 +18,10 @@
 
 #include "flockmorph/flockmorph.h"
 #include "fm_internal.h"
+#include "grid.h"
 #include "suite.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -172,8 +174,90 @@ static int flock_bench_size(const suite_options *o, long agents, int first)
     return rc;
 }
 
+/* The density sweep (--density-sweep 1, issue 40), after FLAME GPU 2's "circles" benchmark: the
+ * step's throughput at N agents against the mean number of neighbours. The flock's radii are in
+ * spacings (shape-flock.md), so scaling the shapes' volume leaves every agent's neighbour count as
+ * it was; the sweep scales the three rules' radii instead (radius, or radius_j where the scene
+ * gives the paper's J), which is the same density of agents per perception volume. */
+static const double SWEEP_FACTORS[] = {0.7, 1.0, 1.5, 2.2, 3.2};
+
+static void scale_radii(fm_scene_def *def, double f)
+{
+    fm_boid_rule_def *rules[3] = {&def->flock.separation, &def->flock.cohesion, &def->flock.alignment};
+    for (int r = 0; r < 3; r++)
+        for (int k = 0; k < 2; k++) rules[r]->radius[k] *= f, rules[r]->radius_j[k] *= f;
+}
+
+/* The mean number of other agents within `radius` of each of up to 10^4 agents spread over the
+ * frame (positions xyz xyz ...), counted on a grid of that cell independently of the engine's. */
+static double mean_neighbours(const float *xyz, int64_t n, double radius)
+{
+    float *p[3] = {fm_alloc(sizeof(float) * (size_t)n), fm_alloc(sizeof(float) * (size_t)n),
+                   fm_alloc(sizeof(float) * (size_t)n)};
+    fm_grid g;
+    double mean = NAN;
+    if (p[0] && p[1] && p[2] && fm_grid_init(&g, n, NULL) == FM_OK) {
+        for (int64_t a = 0; a < n; a++) p[0][a] = xyz[3 * a], p[1][a] = xyz[3 * a + 1], p[2][a] = xyz[3 * a + 2];
+        fm_grid_build(&g, (const float *const *)p, NULL, n, (float)radius, 1);
+        const int64_t stride = n > 10000 ? n / 10000 : 1;
+        int64_t sampled = 0, found = 0;
+        for (int64_t a = 0; a < n; a += stride, sampled++) {
+            int32_t rk[2 * FM_GRID_MAX_RANGES];
+            const int nr = fm_grid_ranges(&g, p[0][a], p[1][a], p[2][a], rk);
+            for (int r = 0; r < nr; r++)
+                for (int32_t k = rk[2 * r]; k < rk[2 * r + 1]; k++) {
+                    const fm_grid_quad *e = &g.quad[k >> 2];
+                    const double dx = e->x[k & 3] - p[0][a], dy = e->y[k & 3] - p[1][a], dz = e->z[k & 3] - p[2][a];
+                    found += e->i[k & 3] != a && dx * dx + dy * dy + dz * dz < radius * radius;
+                }
+        }
+        mean = (double)found / (double)sampled;
+        fm_grid_free(&g);
+    }
+    fm_free(p[0]), fm_free(p[1]), fm_free(p[2]);
+    return mean;
+}
+
+/* One point of the sweep: the radii times f, T threads only (a point at 200 neighbours costs ten
+ * times one at 15). */
+static int sweep_point(const suite_options *o, long agents, double f, int first)
+{
+    fm_scene_def def;
+    fm_error err = {0};
+    if (fm_scene_load(o->scene, &def, &err) != FM_OK) return fprintf(stderr, "bench_suite: %s\n", err.message), -1;
+    def.n = agents;
+    if (o->sampling >= 0) def.flock.sampling = (fm_flock_sampling)o->sampling;
+    scale_radii(&def, f);
+    fprintf(stderr, "bench_suite: density sweep, n = %ld, radii x %.2f\n", agents, f);
+    fm_flock_model *m = fm_flock_model_build(&def, NULL, NULL, &err);
+    if (!m) return fprintf(stderr, "bench_suite: %s\n", err.message), -1;
+    const double radius = fm_flock_model_get_info(m).max_radius;
+    const size_t n = (size_t)agents;
+    flock_run run = {m, agents, 1, o->steps, fm_alloc(sizeof(float) * 3 * n), fm_alloc(sizeof(float) * 3 * n),
+                     fm_alloc(sizeof(float) * 4 * n), fm_alloc(n)};
+    flock_result r = {0};
+    int rc = run.p && run.v && run.q && run.phase ? flock_run_steps(&run, (int)o->threads, &r)
+                                                  : (fprintf(stderr, "bench_suite: out of memory\n"), -1);
+    if (rc == 0) {
+        printf("%s\n    {\"radius_factor\": %.2f, \"max_perception_radius\": %.5g, \"mean_neighbours\": %.1f, "
+               "\"agents\": %ld, \"threads\": %ld, \"steps\": %ld, \"agent_steps_per_second\": %.4g, "
+               "\"ns_per_agent_step\": %.2f}",
+               first ? "" : ",", f, radius, mean_neighbours(run.p, agents, radius), agents, o->threads, o->steps,
+               r.agent_steps_per_second, r.ns_per_agent_step);
+        fflush(stdout);
+    }
+    fm_free(run.p), fm_free(run.v), fm_free(run.q), fm_free(run.phase);
+    fm_flock_model_destroy(m);
+    return rc;
+}
+
 static int suite_flock(const suite_options *o)
 {
+    if (o->density_sweep) {
+        for (int i = 0; i < (int)(sizeof SWEEP_FACTORS / sizeof *SWEEP_FACTORS); i++)
+            if (sweep_point(o, o->agents[0], SWEEP_FACTORS[i], i == 0)) return -1;
+        return 0;
+    }
     for (int i = 0; i < o->agent_count; i++)
         if (flock_bench_size(o, o->agents[i], i == 0)) return -1;
     return 0;

@@ -98,10 +98,7 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
     const fm_grid gl = *g; /* locals: the stores below cannot alias them */
     const int log2_fine = gl.log2_fine;
     for (int64_t a = lo; a < hi; a++) {
-        int32_t cx = fm_grid_coord(fm_grid_scaled(&gl, px[a]));
-        int32_t cy = fm_grid_coord(fm_grid_scaled(&gl, py[a]));
-        int32_t cz = fm_grid_coord(fm_grid_scaled(&gl, pz[a]));
-        uint32_t s = fm_grid_slot(&gl, cx, cy, cz);
+        uint32_t s = fm_grid_slot_of(&gl, px[a], py[a], pz[a]);
         if (!member || member[a]) {
             slot[a] = s;
             h[s >> log2_fine]++;
@@ -109,6 +106,23 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
             slot[a] = FM_GRID_NONE;
         }
     }
+}
+
+/* The table and scale a build over `agents` agents with edge `cell` uses. */
+static void set_placement(fm_grid *g, int64_t agents, float cell)
+{
+    g->cell = cell;
+    g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
+    size_table(g, g->table_agents > 0 ? g->table_agents : agents);
+}
+
+fm_grid fm_grid_placement(const fm_grid *g, int64_t agents, float cell)
+{
+    fm_grid p = *g;
+    p.start = NULL, p.quad = NULL, p.slot = NULL, p.vel = NULL, p.tmp_vel = NULL, p.hist = NULL, p.tmp = NULL,
+    p.tmp_slot = NULL;
+    set_placement(&p, agents, cell);
+    return p;
 }
 
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
@@ -123,10 +137,8 @@ void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *cons
     assert(!v || g->vel);
     assert(n >= 0 && n <= g->capacity);
     assert(cell > 0);
-    g->cell = cell;
-    g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
+    set_placement(g, n, cell);
     if (threads < 1) threads = 1;
-    size_table(g, g->table_agents > 0 ? g->table_agents : n);
 
     const int32_t coarse = g->coarse;
     const int log2_fine = g->log2_fine;

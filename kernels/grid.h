@@ -132,6 +132,19 @@ static inline uint32_t fm_grid_slot(const fm_grid *g, int32_t cx, int32_t cy, in
     return ((uint32_t)cx + fm_grid_row(g, cy, cz)) & g->mask;
 }
 
+/* The slot of the cell holding (x, y, z), as a build places it. */
+static inline uint32_t fm_grid_slot_of(const fm_grid *g, float x, float y, float z)
+{
+    return fm_grid_slot(g, fm_grid_coord(fm_grid_scaled(g, x)), fm_grid_coord(fm_grid_scaled(g, y)),
+                        fm_grid_coord(fm_grid_scaled(g, z)));
+}
+
+/* A copy of g's placement as a build over `agents` agents with edge `cell` would lay it out (the
+ * table's size and rows, the scale), with no arrays: fm_grid_slot_of on it gives the slots that
+ * build will give, for a caller that orders its agents by slot beforehand (the morph's re-sort),
+ * so that the build lists them in the caller's order. g is unchanged. */
+fm_grid fm_grid_placement(const fm_grid *g, int64_t agents, float cell);
+
 /* The listed entries of the 27 cells around the cell of (x, y, z): up to 27 ranges
  * [rk[2r], rk[2r + 1]) of the sorted entries (g->quad), each slot once even when hashing maps two
  * of the cells to it; runs of consecutive slots are merged. Returns the number of ranges. Distinct

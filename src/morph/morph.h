@@ -170,8 +170,9 @@ extern const char *const fm_stage_names[FM_STAGE_COUNT];
 
 /* Everything the step mutates. Arrays are 64-byte aligned and indexed by store slot; id[slot] is
  * the agent's id (its launch rank, the index of the model's per-agent arrays). Every
- * FM_RESORT_INTERVAL steps the in-flight agents are re-sorted by the Morton code of their position
- * (morph_resort.c), so neighbours in space are neighbours in memory. The slots are laid out as
+ * FM_RESORT_INTERVAL steps the in-flight agents are re-sorted by position (morph_resort.c: with MDE
+ * by the slot of their cell in the MDE grid, so the grid lists them in store order; without, by the
+ * Morton code of their position), so neighbours in space are neighbours in memory. The slots are laid out as
  *
  *     [0, active_begin)            arrived before the last re-sort
  *     [active_begin, active_end)   in flight (and agents that arrived since the last re-sort)
@@ -213,6 +214,8 @@ struct fm_morph_state {
     uint32_t *sort_keys;     /* scratch: 2 × capacity keys and 2 × capacity slots */
     int32_t *sort_slots;
     int64_t launched;        /* agents with id < launched have left the source */
+    int64_t sorted_end;      /* active_end right after the last re-sort: the agents launched since
+                                sit unsorted after it (fm_morph_step re-sorts early when they are many) */
     int64_t next_slot;       /* target slots handed out so far */
     int64_t count[4];        /* agents per phase */
     int64_t morph_fallbacks;
@@ -328,9 +331,12 @@ static inline void fm_morph_state_rest_tet(const fm_morph_state *s, int64_t a, f
     for (int j = 0; j < 12; j++) out[j] = s->rest_rel[j][a];
 }
 
-/* morph_resort.c: re-sorts the active range by Morton code (arrivals first, then in flight); keeps every
- * agent's id and state. */
+/* morph_resort.c: re-sorts the active range by position (arrivals first, then in flight: by MDE grid
+ * slot, or by Morton code when d_min is 0); keeps every agent's id and state. */
 void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s);
+
+/* morph_step.c: the MDE grid's cell edge (d_min > 0). */
+float fm_morph_mde_cell(const fm_morph_model *m);
 
 /* Slots of scheduler block b of the active range. */
 static inline int64_t fm_active_blocks(const fm_morph_state *s)

@@ -3,11 +3,17 @@
  * Agents are launched in D1 order (FM eq 4), which is spatially coherent in the source but not after
  * a few seconds of flight; the MDE neighbour walk (kernel_mde.c), the field and distance-grid
  * samples then touch memory at random. Every FM_RESORT_INTERVAL steps the active range is sorted by
- * the Morton code of each agent's position on a 1024^3 lattice over the scene bounds, so agents close
- * in space are close in memory. Agents that arrived since the last sort go first and leave the active
- * range. The sort is a stable LSD radix sort on (key, slot), so the order, like everything else in the
- * step, does not depend on the thread count. Every per-slot array moves with its agent; id[] says who
- * is where. */
+ * position, so agents close in space are close in memory. With MDE the key is the slot of the
+ * agent's cell in the MDE grid as the next build lays it out (grid.h: rows by position), so that
+ * build lists the agents in store order and the MDE walk reads the grid's table and entries in
+ * step with the store instead of hopping between rows (issue 40). A flock translating as a whole
+ * keeps that order (a translation by whole cells adds a constant to every slot), which a Morton
+ * order does not. Without MDE the key is the Morton code of the position on a 1024^3 lattice over
+ * the scene bounds. Agents that arrived since the last sort go first and leave the active range.
+ * The sort is a stable LSD radix sort on (key, slot), so the order, like everything else in the
+ * step, does not depend on the thread count; no result depends on the store's order (MDE sums by
+ * id), so neither key changes a cache. Every per-slot array moves with its agent; id[] says who is
+ * where. */
 #include "morph.h"
 
 #include <assert.h>
@@ -35,7 +41,8 @@ static uint32_t lattice(float x, double lo, double scale)
     return q >= (1 << MORTON_BITS) - 1 ? (1u << MORTON_BITS) - 1 : (uint32_t)q;
 }
 
-static void compute_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t *key)
+/* Morton keys on the scene lattice; returns the key's bit count. */
+static int morton_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t *key)
 {
     double scale[3];
     for (int k = 0; k < 3; k++) {
@@ -53,28 +60,63 @@ static void compute_keys(const fm_morph_model *m, const fm_morph_state *s, uint3
         uint32_t z = lattice(s->p[2][a], m->scene_lo[2], scale[2]);
         key[a] = FLIGHT_KEY | spread3(x) | spread3(y) << 1 | spread3(z) << 2;
     }
+    return 3 * MORTON_BITS + 1;
 }
 
-/* Stable LSD radix sort of slots 0..count-1 by key; returns the slots in sorted order (in one of
- * the two halves of s->sort_slots). */
-static const int32_t *radix_sort(fm_morph_state *s, int64_t count)
+/* Keys by MDE grid slot: 0 for an arrival, 1 + the slot of its cell for an agent in flight (the
+ * table of the next build, over about the agents active now); returns the key's bit count. */
+static int slot_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t *key)
+{
+    const fm_grid g = fm_grid_placement(&s->grid, s->active_end, fm_morph_mde_cell(m));
+    const float *px = s->p[0], *py = s->p[1], *pz = s->p[2];
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->active_end; a++)
+        key[a] = s->phase[a] == FM_PHASE_ARRIVED ? ARRIVED_KEY : 1 + fm_grid_slot_of(&g, px[a], py[a], pz[a]);
+    return g.log2_table + 1;
+}
+
+enum { SORT_MAX_BLOCKS = 8 }; /* the sort's agent blocks: one per thread, at most this many */
+
+/* One stable counting pass by digit (key >> shift) & (RADIX - 1), over `blocks` agent blocks on
+ * as many threads: per-block counts, offsets digit-major and block-minor, then each block
+ * scatters its agents in order. The result is that of one block: it does not depend on blocks. */
+static void radix_pass(const uint32_t *key, const int32_t *slot, uint32_t *key_to, int32_t *slot_to, int64_t count,
+                       int shift, int blocks, int32_t (*hist)[RADIX])
+{
+#pragma omp parallel for num_threads(blocks) schedule(static, 1)
+    for (int b = 0; b < blocks; b++) {
+        int32_t *h = hist[b];
+        memset(h, 0, sizeof(int32_t) * RADIX);
+        for (int64_t a = count * b / blocks; a < count * (b + 1) / blocks; a++) h[(key[a] >> shift) & (RADIX - 1)]++;
+    }
+    int32_t sum = 0;
+    for (int d = 0; d < RADIX; d++)
+        for (int b = 0; b < blocks; b++) {
+            const int32_t c = hist[b][d];
+            hist[b][d] = sum, sum += c;
+        }
+#pragma omp parallel for num_threads(blocks) schedule(static, 1)
+    for (int b = 0; b < blocks; b++) {
+        int32_t *h = hist[b];
+        for (int64_t a = count * b / blocks; a < count * (b + 1) / blocks; a++) {
+            const int32_t to = h[(key[a] >> shift) & (RADIX - 1)]++;
+            key_to[to] = key[a], slot_to[to] = slot[a];
+        }
+    }
+}
+
+/* Stable LSD radix sort of slots 0..count-1 by their keys of `bits` bits; returns the slots in
+ * sorted order (in one of the two halves of s->sort_slots). */
+static const int32_t *radix_sort(fm_morph_state *s, int64_t count, int bits)
 {
     uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->capacity;
     int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->capacity;
+    int32_t hist[SORT_MAX_BLOCKS][RADIX];
+    const int64_t fit = count / 65536 + 1; /* blocks of at least 64 Ki agents */
+    const int blocks = (int)FM_MIN(FM_MIN((int64_t)s->threads, (int64_t)SORT_MAX_BLOCKS), fit);
     for (int64_t a = 0; a < count; a++) slot[a] = (int32_t)a;
-    static_assert(3 * RADIX_BITS >= 3 * MORTON_BITS + 1, "three passes cover the key");
-    for (int shift = 0; shift < 3 * RADIX_BITS; shift += RADIX_BITS) {
-        int64_t offset[RADIX] = {0};
-        for (int64_t a = 0; a < count; a++) offset[(key[a] >> shift) & (RADIX - 1)]++;
-        int64_t sum = 0;
-        for (int d = 0; d < RADIX; d++) {
-            int64_t c = offset[d];
-            offset[d] = sum, sum += c;
-        }
-        for (int64_t a = 0; a < count; a++) {
-            int64_t to = offset[(key[a] >> shift) & (RADIX - 1)]++;
-            key_tmp[to] = key[a], slot_tmp[to] = slot[a];
-        }
+    for (int shift = 0; shift < bits; shift += RADIX_BITS) {
+        radix_pass(key, slot, key_tmp, slot_tmp, count, shift, blocks, hist);
         uint32_t *kt = key; key = key_tmp, key_tmp = kt;
         int32_t *st = slot; slot = slot_tmp, slot_tmp = st;
     }
@@ -101,8 +143,8 @@ void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)
 {
     const int64_t count = s->active_end;
     if (count == 0) return;
-    compute_keys(m, s, s->sort_keys);
-    const int32_t *order = radix_sort(s, count);
+    const int bits = m->def.d_min > 0 && s->grid_ready ? slot_keys(m, s, s->sort_keys) : morton_keys(m, s, s->sort_keys);
+    const int32_t *order = radix_sort(s, count, bits);
     void *tmp = s->sort_scratch;
     for (int k = 0; k < 3; k++) {
         permute(s->p[k], sizeof(float), order, count, tmp, s->threads);
@@ -127,4 +169,5 @@ void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)
     int64_t arrived = 0;
     while (arrived < count && s->phase[arrived] == FM_PHASE_ARRIVED) arrived++;
     s->active_begin = arrived;
+    s->sorted_end = s->active_end;
 }

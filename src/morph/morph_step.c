@@ -97,7 +97,7 @@ static fm_detour_store detour_store(const fm_morph_state *s)
  * every cell holds one agent or none and each of an agent's 9 rows is a random place in the table:
  * a cache miss each, whatever the store's order. With cells about the spacing, agents next to each
  * other in the (re-sorted) store share rows, and the walk trims the rows to those within d_min. */
-static float mde_cell(const fm_morph_model *m)
+float fm_morph_mde_cell(const fm_morph_model *m)
 {
     double spacing = cbrt(m->info.source_volume / (double)m->n);
     return (float)fmax(m->def.d_min, spacing);
@@ -109,7 +109,7 @@ static void build_neighbour_grid(const fm_morph_model *m, fm_morph_state *s, int
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->active_end; a++) s->member[a] = s->phase[a] == FM_PHASE_FLYING;
-    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end + ghosts, mde_cell(m), s->threads);
+    fm_grid_build(&s->grid, (const float *const *)s->p, s->member, s->active_end + ghosts, fm_morph_mde_cell(m), s->threads);
 }
 
 /* Avoidance leaves d_t and R_X per agent for the contact step. The store borrows the re-sort's
@@ -386,13 +386,23 @@ static fm_status distribute(const fm_morph_model *m, fm_morph_state *s)
     return fm_morph_dist_migrate(m, s, &s->dist_error);
 }
 
+/* Every FM_RESORT_INTERVAL steps, and sooner when the agents launched since the last re-sort (in
+ * launch order, appended to the active range) are more than an eighth of it: a launch of many
+ * agents at once is then sorted at the next step instead of up to 7 steps later. No result depends
+ * on the store's order, so neither does any on when it is sorted. */
+static int resort_due(const fm_morph_state *s)
+{
+    const int64_t active = s->active_end - s->active_begin, unsorted = s->active_end - s->sorted_end;
+    return s->step % FM_RESORT_INTERVAL == 0 || 8 * unsorted > active;
+}
+
 void fm_morph_step(const fm_morph_model *m, fm_morph_state *s)
 {
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
     double t = fm_seconds();
     if (s->dist && (s->dist_status = distribute(m, s)) != FM_OK) return;
-    if (s->step % FM_RESORT_INTERVAL == 0) fm_morph_state_resort(m, s);
+    if (resort_due(s)) fm_morph_state_resort(m, s);
     lap(s, FM_STAGE_RESORT, &t);
     if ((s->dist_status = launch_due_agents(m, s)) != FM_OK) return;
     const int64_t blocks = fm_active_blocks(s);

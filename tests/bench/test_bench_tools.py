@@ -8,6 +8,9 @@
   JSON is printed.
 - bench_suite --mode flock at 2000 agents: one JSON document with the tetra mode's figures, every
   agent counted, and 1 and 2 threads in the same bits (deterministic true).
+- bench_suite --mode flock --density-sweep 1 at 2000 agents: five points whose radius and mean
+  neighbour count (the benchmark's own count) grow with the radius factor; refused for the morph.
+- tools/bench-peers.sh: --help, and a bad value or an unknown option exit 1 naming it.
 - tools/bench_compare.py: the medians, spreads and per-round ratios of made-up documents.
 - tools/bench-compare.sh with this build on both sides (--base-build, --build, --no-rebuild): one
   round prints the header and the summary table; an option the base's sources do not name is
@@ -86,6 +89,42 @@ def test_flock_mode(build, source):
     check(r.returncode == 2 and "needs a shape_flock scene" in r.stderr, "--mode flock refuses a morph scene", r.stderr)
 
 
+def test_density_sweep(build, source):
+    r = run([os.path.join(build, "bench_suite"), "--mode", "flock", "--density-sweep", "1", "--agents", "2000",
+             "--steps", "1", "--threads", "1", "--sampling", "random", "--machine", "0"])
+    check(r.returncode == 0, "bench_suite --density-sweep 1: exit 0", f"exit {r.returncode}: {r.stderr[-300:]}")
+    try:
+        runs = json.loads(r.stdout).get("runs", [])
+    except ValueError as e:
+        check(False, f"bench_suite --density-sweep 1: one JSON document ({e})")
+        return
+    factors = [p.get("radius_factor") for p in runs]
+    check(factors == [0.7, 1.0, 1.5, 2.2, 3.2], "the sweep's five radius factors", str(factors))
+    if len(runs) != 5:
+        return
+    # the radii scale with the factor, and so does the neighbour count the benchmark counts itself
+    radius = [p["max_perception_radius"] for p in runs]
+    check(all(abs(radius[i] / radius[0] - factors[i] / factors[0]) < 1e-3 for i in range(5)),
+          "the largest perception radius scales with the factor", str(radius))
+    neighbours = [p["mean_neighbours"] for p in runs]
+    check(all(a < b for a, b in zip(neighbours, neighbours[1:])) and neighbours[-1] > 10 * neighbours[0],
+          "the mean neighbour count grows with the radius (more than tenfold from 0.7 to 3.2)", str(neighbours))
+    check(all(p.get("agent_steps_per_second", 0) > 0 and p.get("agents") == 2000 for p in runs), "every point timed")
+    r = run([os.path.join(build, "bench_suite"), "--density-sweep", "1"])
+    check(r.returncode == 1 and "--density-sweep is for --mode flock" in r.stderr, "bench_suite --density-sweep 1 (morph)")
+
+
+def test_peers_command_line(source):
+    script = os.path.join(source, "tools/bench-peers.sh")
+    r = run([script, "--help"])
+    check(r.returncode == 0 and "bench-peers.sh [--build DIR]" in r.stdout, "bench-peers.sh --help", r.stdout[:200])
+    r = run([script, "--rounds", "two"])
+    check(r.returncode == 1 and "--rounds takes a positive integer, not 'two'" in r.stderr, "bench-peers.sh --rounds two",
+          r.stderr)
+    r = run([script, "--bogus"])
+    check(r.returncode == 1 and "unknown option --bogus" in r.stderr, "bench-peers.sh --bogus", r.stderr)
+
+
 def test_summary(source, tmp):
     docs = [({"agent_steps_per_second": 100.0, "ns_per_agent_step": 10.0, "stage_ns_per_agent": {"grid": 0}},
              {"agent_steps_per_second": 150.0, "ns_per_agent_step": 8.0, "stage_ns_per_agent": {"grid": 0}}),
@@ -142,6 +181,8 @@ def main():
     a = ap.parse_args()
     test_command_lines(a.build)
     test_flock_mode(a.build, a.source)
+    test_density_sweep(a.build, a.source)
+    test_peers_command_line(a.source)
     with tempfile.TemporaryDirectory() as tmp:
         test_summary(a.source, tmp)
     test_compare_script(a.build, a.source)

@@ -103,17 +103,72 @@ static double neighbour_gap(const fm_morph_state *s)
     return sum / (double)(s->active_end - s->active_begin - 1);
 }
 
+/* Without MDE the key is the Morton code of the position (with MDE, the MDE grid's slot: the test
+ * below). Every agent launched at the first step, in launch order (D1, FM eq 4). */
 static void test_resort_brings_neighbours_together(void)
 {
     fm_error err = {0};
+    const double d_min = model->def.d_min, rate = model->launch_rate;
+    model->def.d_min = 0, model->launch_rate = 1e12;
     fm_morph_state *s = fm_morph_state_create(model, 1, &err);
-    for (int i = 0; i < 6 * FM_RESORT_INTERVAL - 1; i++) fm_morph_step(model, s);
+    fm_morph_step(model, s), fm_morph_step(model, s); /* agent 0 at t = 0, the others at the next step */
     double gap_before = neighbour_gap(s);
     fm_morph_state_resort(model, s);
     double gap_after = neighbour_gap(s);
     printf("  mean gap between store neighbours: %.4f before, %.4f after the re-sort\n", gap_before, gap_after);
     ENSURE(gap_after < 0.5 * gap_before);
     fm_morph_state_destroy(s);
+    model->def.d_min = d_min, model->launch_rate = rate;
+}
+
+/* A launch of many agents at once is re-sorted at the next step, not up to FM_RESORT_INTERVAL - 1
+ * steps later; after that, every FM_RESORT_INTERVAL steps. */
+static void test_a_large_launch_is_resorted_at_the_next_step(void)
+{
+    fm_error err = {0};
+    const double rate = model->launch_rate;
+    model->launch_rate = 1e12;
+    fm_morph_state *s = fm_morph_state_create(model, 1, &err);
+    fm_morph_step(model, s); /* step 0 launches agent 0 (at t = 0), step 1 everyone else */
+    fm_morph_step(model, s);
+    ENSURE(s->active_end == s->n && s->sorted_end <= 1);
+    fm_morph_step(model, s);
+    ENSURE_MSG(s->sorted_end == s->n, "step 2 did not re-sort the launch: sorted_end %lld", (long long)s->sorted_end);
+    fm_morph_state_destroy(s);
+    model->launch_rate = rate;
+}
+
+/* Entries of the MDE grid whose agent comes before the previous entry's in the store. */
+static int64_t grid_descents(const fm_grid *g)
+{
+    int64_t descents = 0;
+    for (int64_t k = 1; k < g->count; k++) descents += g->quad[k >> 2].i[k & 3] < g->quad[(k - 1) >> 2].i[(k - 1) & 3];
+    return descents;
+}
+
+/* Issue 40: the re-sort orders the store by MDE grid slot, so the build that follows it lists the
+ * flying agents in store order (the walk then reads the table and the entries in step with the
+ * store), and most of that order holds until the next re-sort (entries in a random order would
+ * descend half the time). */
+static void test_grid_lists_agents_in_store_order_after_a_resort(void)
+{
+    fm_error err = {0};
+    const double rate = model->launch_rate;
+    model->launch_rate = 1e12; /* everyone launched at the first step, as in bench_suite */
+    fm_morph_state *s = fm_morph_state_create(model, 2, &err);
+    ENSURE(s);
+    for (int i = 0; i < 3 * FM_RESORT_INTERVAL; i++) fm_morph_step(model, s);
+    int64_t stale = grid_descents(&s->grid); /* built FM_RESORT_INTERVAL - 1 steps after a re-sort */
+    fm_morph_step(model, s);                 /* re-sorts, then builds */
+    ENSURE(s->grid.count > 1000);
+    int64_t fresh = grid_descents(&s->grid);
+    printf("  grid entries out of store order: %lld of %lld right after a re-sort, %lld seven steps later\n",
+           (long long)fresh, (long long)s->grid.count, (long long)stale);
+    ENSURE_MSG(fresh == 0, "%lld entries out of store order right after a re-sort", (long long)fresh);
+    ENSURE_MSG(stale < s->grid.count / 3, "%lld of %lld entries out of store order before the re-sort", (long long)stale,
+               (long long)s->grid.count);
+    fm_morph_state_destroy(s);
+    model->launch_rate = rate;
 }
 
 static size_t run_cache(int threads, const char *path)
@@ -174,6 +229,8 @@ int main(void)
     if (!model) return 1;
     RUN_TEST(test_resort_keeps_ids_state_and_frame);
     RUN_TEST(test_resort_brings_neighbours_together);
+    RUN_TEST(test_a_large_launch_is_resorted_at_the_next_step);
+    RUN_TEST(test_grid_lists_agents_in_store_order_after_a_resort);
     RUN_TEST(test_threads_and_simd_levels_give_the_same_cache);
     fm_morph_model_destroy(model);
     return fm_test_failures != 0;
