@@ -705,6 +705,20 @@ class Threads(unittest.TestCase):
         self.assertEqual(threads, 2)
 
 
+class TimedResult(unittest.TextTestResult):
+    """Prints each case's wall time after its verdict, so that a CI log shows where test_mpi's
+    minutes go (docs/testing.md)."""
+
+    def startTest(self, test):
+        self.started = time.monotonic()
+        super().startTest(test)
+
+    def stopTest(self, test):
+        super().stopTest(test)
+        self.stream.writeln(f"    {time.monotonic() - self.started:.1f} s  {test.id().split('.', 1)[1]}")
+        self.stream.flush()
+
+
 def main():
     global ARGS, fmc
     p = argparse.ArgumentParser()
@@ -716,7 +730,8 @@ def main():
     sys.path.insert(0, os.path.join(ARGS.source, "python"))
     import flockmorph_cache
     fmc = flockmorph_cache
-    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2,
+                  testRunner=unittest.TextTestRunner(resultclass=TimedResult, verbosity=2))
 
 
 if __name__ == "__main__":
