@@ -755,9 +755,11 @@ static void test_second_run_into_same_outdir_refused(void)
     ENSURE_MSG(a && b && strcmp(a, b) == 0, "the first run's stats.json differs:\n%s\nvs\n%s", a ? a : "", b ? b : "");
     free(a), free(b);
     ENSURE(!exists(in(c.out, "checkpoint.fmck")) && !exists(in(c.out, "frames.fmc.partial")));
-    /* the lock went with the first run (and its file): the next run takes the directory */
+    /* the lock went with the first run (and its file): the next run takes the directory (exit 0, not
+     * 1); frame 0 shows that, so it stops there rather than run the 20000 agents a third time */
     ENSURE(!exists(in(c.out, FM_OUTPUT_LOCK)));
-    ENSURE(wait_status(start_scene(c.scene, c.out, "--checkpoint-every 0 --overwrite")) == 0);
+    ENSURE(wait_status(start_scene(c.scene, c.out, "--stop-after-frame 0 --overwrite")) == 0);
+    ENSURE(exists(in(c.out, "checkpoint.fmck")) && exists(in(c.out, "frames.fmc.partial")));
 }
 
 /* ---------------------------------------------------------------- the shape flock */
