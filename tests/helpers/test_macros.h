@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <time.h>
 
 static int fm_test_failures = 0;
 
@@ -38,11 +39,24 @@ static int fm_test_failures = 0;
         }                                                                                  \
     } while (0)
 
+/* Seconds of wall time since an arbitrary start (C11's timespec_get). */
+static inline double test_wall_seconds(void)
+{
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Runs one test function and prints its verdict and wall time (where a suite's time goes,
+ * docs/testing.md). */
 #define RUN_TEST(fn)                                                                       \
     do {                                                                                   \
         int fm_before_ = fm_test_failures;                                                 \
+        double fm_start_ = test_wall_seconds();                                            \
         fn();                                                                              \
-        printf("%-40s %s\n", #fn, fm_test_failures == fm_before_ ? "ok" : "FAILED");       \
+        printf("%-40s %s %7.2f s\n", #fn, fm_test_failures == fm_before_ ? "ok" : "FAILED",  \
+               test_wall_seconds() - fm_start_);                                           \
+        fflush(stdout);                                                                    \
     } while (0)
 
 /* splitmix64: deterministic, so a failure reproduces. */

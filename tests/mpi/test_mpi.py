@@ -99,12 +99,26 @@ def pieces(agents):
     return ("--set", f"output.piece_agents={agents}")
 
 
+PLAIN_RUNS = {}  # (scene, extra) -> the plain run's (cache digest, stats.json without VARYING)
+
+
+def plain_run(case, scene, extra=()):
+    """The plain run (no mpirun, 2 threads) of `scene` with `extra`, as (the cache's SHA-256,
+    stats(out)). Many cases compare their ranks with the same plain run (castling's rook in pieces of
+    1000 seven times): it runs once for the whole file, since its bytes are the same for any thread
+    count and any run (test_examples and test_example_caches check that)."""
+    key = (scene, tuple(extra))
+    if key not in PLAIN_RUNS:
+        done, out = run(scene, "plain", threads=2, extra=extra)
+        case.assertEqual(done.returncode, 0, done.stderr)
+        PLAIN_RUNS[key] = (sha256(os.path.join(out, "frames.fmc")), stats(out))
+    return PLAIN_RUNS[key]
+
+
 class SameBytes(unittest.TestCase):
     def check_scene(self, scene, runs, extra=(), machine_ranks=None):
         """Returns each run's stats.json, by (ranks, threads)."""
-        plain, out = run(scene, "plain", threads=2, extra=extra)
-        self.assertEqual(plain.returncode, 0, plain.stderr)
-        want, want_stats = sha256(os.path.join(out, "frames.fmc")), stats(out)
+        want, want_stats = plain_run(self, scene, extra)
         every = {}
         for ranks, threads in runs:
             done, got = run(scene, f"p{ranks}t{threads}", ranks, threads, extra, machine_ranks=machine_ranks)
@@ -121,8 +135,18 @@ class SameBytes(unittest.TestCase):
         return every
 
     def test_castling(self):
-        """9038 agents in pieces of 1000: every rank encodes its share of each frame."""
-        self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1000))
+        """9038 agents in pieces of 1000: every rank encodes its share of each frame. And a stress
+        case: castling's flock sweeps along the slab axis from the source to the target, so on 4
+        ranks every agent is handed on at least once, halos carry MDE neighbours, the bytes still
+        match."""
+        every = self.check_scene("examples/castling/rook.json", [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1000))
+        j = every[(4, 1)]
+        s = j["scale_out"]
+        self.assertGreaterEqual(s["migrations"], j["agents"], s)
+        self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
+        self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
+        self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)  # the busiest rank's work over the mean
+        self.assertLessEqual(s["busy_imbalance"], 4.0, s)
 
     def test_castling_on_two_machines(self):
         """Ranks 0-1 and 2-3 as two machines: each machine's first rank builds the model and its
@@ -211,37 +235,19 @@ class SameBytes(unittest.TestCase):
         self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)
 
 
-class Stress(unittest.TestCase):
-    def test_every_agent_changes_rank(self):
-        """castling's flock sweeps along the slab axis from the source to the target: on 4 ranks
-        every agent is handed on at least once, halos carry MDE neighbours, the bytes still match."""
-        plain, out = run("examples/castling/rook.json", "stress_plain", extra=pieces(1000))
-        self.assertEqual(plain.returncode, 0, plain.stderr)
-        done, got = run("examples/castling/rook.json", "stress4", 4, extra=pieces(1000))
-        self.assertEqual(done.returncode, 0, done.stderr)
-        self.assertEqual(sha256(os.path.join(got, "frames.fmc")), sha256(os.path.join(out, "frames.fmc")))
-        with open(os.path.join(got, "stats.json")) as f:
-            j = json.load(f)
-        s = j["scale_out"]
-        self.assertGreaterEqual(s["migrations"], j["agents"], s)
-        self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
-        self.assertLess(s["load_imbalance"], 2.0, s)  # rebalanced: not all on one rank
-        self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)  # the busiest rank's work over the mean
-        self.assertLessEqual(s["busy_imbalance"], 4.0, s)
-
-
 def peak_rss(cmd):
     """The largest resident memory, in bytes, of any process `cmd` starts (under mpirun: the largest
     rank), measured from outside the engine: a child Python runs it and reads RUSAGE_CHILDREN, which
     takes the peak of every process it and its children waited for. Returns (completed, bytes)."""
     probe = ("import resource, subprocess, sys\n"
-             "r = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)\n"
+             "r = subprocess.run(sys.argv[1:], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)\n"
              "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024)\n"
+             "sys.stdout.write(r.stdout)\n"
              "sys.stderr.write(r.stderr)\n"
              "sys.exit(r.returncode)\n")
     done = subprocess.run([sys.executable, "-c", probe, *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True, timeout=600, env=env())
-    return done, int(done.stdout.strip() or 0)
+    return done, int((done.stdout.split() or ["0"])[0])
 
 
 def machine_peak(cmd):
@@ -252,8 +258,23 @@ def machine_peak(cmd):
     tool = os.path.join(ARGS.source, "tools", "machine-memory.py")
     done = subprocess.run([sys.executable, tool, *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                           timeout=600, env=env())
-    peak = [word.split("=")[1] for word in done.stdout.split() if word.startswith("sum_pss_peak_MiB=")]
-    return done, int(peak[0]) * 2**20 if peak else 0
+    return done, summed_pss(done.stdout)
+
+
+def summed_pss(report):
+    """The summed Pss peak, in bytes, from tools/machine-memory.py's report (0 when it has none)."""
+    peak = [word.split("=")[1] for word in report.split() if word.startswith("sum_pss_peak_MiB=")]
+    return int(peak[0]) * 2**20 if peak else 0
+
+
+def both_peaks(cmd):
+    """peak_rss and machine_peak of one run: tools/machine-memory.py run under peak_rss's probe (the
+    tool's own Python is far smaller than a rank). Returns (completed, (largest RSS, summed Pss))."""
+    done, largest = peak_rss([sys.executable, os.path.join(ARGS.source, "tools", "machine-memory.py"), *cmd])
+    return done, (largest, summed_pss(done.stdout))
+
+
+ROOK_PEAKS = {}  # castling's rook at 3·10^5 agents: the peaks of one process and of 4 ranks, measured once
 
 
 class Memory(unittest.TestCase):
@@ -263,8 +284,7 @@ class Memory(unittest.TestCase):
         share its arrays (132 bytes an agent), so the machine's memory (the ranks' summed Pss)
         peaks well below four processes' worth. It measured 1.54 times the one process (1.99 when
         every rank built its own model); the bytes are the plain run's."""
-        sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, machine = self.one_and_four("examples/castling/rook.json", "pss", sets, machine_peak)
+        (_, alone), (_, machine) = self.rook_peaks()
         self.assertLess(machine, 1.75 * alone,
                         f"4 ranks together {machine / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
 
@@ -273,14 +293,22 @@ class Memory(unittest.TestCase):
         agents and its share of the frame, so the largest rank peaks well below the one process
         (docs/limits.md, "On P ranks"), measured from outside; the same bytes; and stats.json's
         max_rank_peak_rss_bytes is that peak."""
-        sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
-        alone, ranks = self.one_and_four("examples/castling/rook.json", "mem", sets)
+        (alone, _), (ranks, _) = self.rook_peaks()
         four = os.path.join(ARGS.tmp, "mem4")
         self.assertLess(ranks, 0.8 * alone, f"largest of 4 ranks {ranks / 2**20:.0f} MiB, one process {alone / 2**20:.0f} MiB")
         with open(os.path.join(four, "stats.json")) as f:
             reported = json.load(f)["scale_out"]["max_rank_peak_rss_bytes"]
         self.assertGreater(reported, 0.9 * ranks)  # mpirun's own peak is far below a rank's
         self.assertLessEqual(reported, ranks)
+
+    def rook_peaks(self):
+        """The two cases above measure the same runs (castling's rook at 3·10^5 agents, all launched at
+        once, on one process and on 4 ranks of one machine): run once, for both, each measure taken
+        from outside as before. Returns ((largest RSS, summed Pss) of the one process, of the 4 ranks)."""
+        if not ROOK_PEAKS:
+            sets = ("--set", "n=300000", "--set", "launch_rate=1e9", "--set", "time.frame_limit=4") + pieces(16384)
+            ROOK_PEAKS["peaks"] = self.one_and_four("examples/castling/rook.json", "mem", sets, both_peaks)
+        return ROOK_PEAKS["peaks"]
 
     def one_and_four(self, scene, name, sets, measure=peak_rss):
         """(one process's peak, 4 ranks' peak) as `measure` takes them (peak_rss: the largest rank's;
@@ -374,12 +402,11 @@ class Segments(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(out, "checkpoint.fmck")))
         self.assertEqual(frames_in(os.path.join(out, "frames.fmc.partial")), stop + 1)
         self.segment(scene, name, then, sets, resume=True, fresh=False)
-        plain, whole = run(scene, name + "_whole", threads=2, extra=sets)
-        self.assertEqual(plain.returncode, 0, plain.stderr)
-        self.assertEqual(sha256(os.path.join(out, "frames.fmc")), sha256(os.path.join(whole, "frames.fmc")), name)
-        self.assertEqual(stats(out)["frames"], stats(whole)["frames"])
+        whole, whole_stats = plain_run(self, scene, sets)
+        self.assertEqual(sha256(os.path.join(out, "frames.fmc")), whole, name)
+        self.assertEqual(stats(out)["frames"], whole_stats["frames"])
         # the look's history travels in the checkpoint: a resumed run measures what the plain one did
-        self.assertEqual(stats(out).get("flock_measures_per_frame"), stats(whole).get("flock_measures_per_frame"))
+        self.assertEqual(stats(out).get("flock_measures_per_frame"), whole_stats.get("flock_measures_per_frame"))
         self.assertFalse(os.path.exists(os.path.join(out, "checkpoint.fmck")))
 
     def test_shape_flock_checkpoint_is_the_plain_runs(self):
@@ -705,6 +732,28 @@ class Threads(unittest.TestCase):
         self.assertEqual(threads, 2)
 
 
+def children_cpu():
+    """CPU seconds (user and system) of the processes this one started and waited for, theirs included."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+class TimedResult(unittest.TextTestResult):
+    """Prints each case's wall time and its processes' CPU time after its verdict, so that a CI log
+    shows where test_mpi's minutes go; the CPU time does not grow with the machine's load as the wall
+    time does (docs/testing.md)."""
+
+    def startTest(self, test):
+        self.started, self.cpu = time.monotonic(), children_cpu()
+        super().startTest(test)
+
+    def stopTest(self, test):
+        super().stopTest(test)
+        self.stream.writeln(f"    {time.monotonic() - self.started:.1f} s wall, {children_cpu() - self.cpu:.1f} s CPU"
+                            f"  {test.id().split('.', 1)[1]}")
+        self.stream.flush()
+
+
 def main():
     global ARGS, fmc
     p = argparse.ArgumentParser()
@@ -716,7 +765,8 @@ def main():
     sys.path.insert(0, os.path.join(ARGS.source, "python"))
     import flockmorph_cache
     fmc = flockmorph_cache
-    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2,
+                  testRunner=unittest.TextTestRunner(resultclass=TimedResult, verbosity=2))
 
 
 if __name__ == "__main__":
