@@ -192,7 +192,7 @@ static void test_successful_run(void)
 static int same_file(const char *a, const char *b)
 {
     FILE *f = fopen(a, "rb"), *g = fopen(b, "rb");
-    int same = f && g, c;
+    int same = f && g, c = EOF;
     while (same && (c = fgetc(f)) == fgetc(g))
         if (c == EOF) break;
     same = same && c == EOF;
