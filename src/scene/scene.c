@@ -1222,7 +1222,6 @@ static fm_status check_r_scale(where *w, const json_t *root, const fm_scene_def 
     }
     if (!v && def->flock.kalman_r_over == FM_KALMAN_R_OVER_LEADER_SPEED) {
         st = lookup(w, root, "shape_flock.kalman.r_scale.over", &v);
-        w->at_key = 1;
         if (st == FM_OK) st = fail_at(w, "shape_flock.kalman.r_scale.over", "\"leader_speed\" needs "
                                       "shape_flock.kalman.r_scale.points: the default points are distances");
     }

@@ -260,8 +260,11 @@ static const flock_value_case FLOCK_VALUE_CASES[] = {
      "expected \"none\", \"distance\" or \"leader_speed\""},
     {"\"kalman\": {\"r_scale\": {\"over\": \"distance\", \"points\": [[0, 1], [2, @]]}}", "0",
      "shape_flock.kalman.r_scale.points", "0 is out of range: must be > 0"},
-    {"\"kalman\": {\"r_scale\": {@: [[0, 2]]}}", "\"points\"", "shape_flock.kalman.r_scale.points",
+    {"\"kalman\": {\"r_scale\": {\"over\": \"none\", @: [[0, 2]]}}", "\"points\"", "shape_flock.kalman.r_scale.points",
      "set shape_flock.kalman.r_scale.over to \"distance\" or \"leader_speed\": the curve's x is one of them"},
+    {"\"kalman\": {\"r_scale\": {\"over\": @}}", "\"leader_speed\"", "shape_flock.kalman.r_scale.over",
+     "\"leader_speed\" needs shape_flock.kalman.r_scale.points: the default points are distances"},
+    {"\"fuzzy\": {\"strategy\": @}", "\"dynamic\"", "shape_flock.fuzzy.strategy", "expected \"auto\", \"static\" or \"tracking\""},
     {"\"separation\": {\"radius\": [1, 2], @: [20, 40]}", "\"radius_j\"", "shape_flock.separation.radius_j",
      "give shape_flock.separation.radius (in spacings) or shape_flock.separation.radius_j (SCF's J), not both"},
     {"\"kalman\": {@: 1}", "\"qq\"", "shape_flock.kalman.qq", "unknown key"}, /* '@' at the key */
