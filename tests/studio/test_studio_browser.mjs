@@ -226,7 +226,13 @@ async function shotGroups(browser) {
     const top = await page.evaluate(() => window.studio.scene.path.points);
     log(`group 1's control point dragged to ${JSON.stringify(moved)}; the top level's stays ${JSON.stringify(top)}`);
     check(JSON.stringify(top) === JSON.stringify(SHOT.path.points), `the drag moved the top level's path: ${JSON.stringify(top)}`);
-    speed = await dragSlider(page, 'speed0', 0.25);
+    await dragSlider(page, 'speed0', 0.25);
+    // under load the slider's last input may land after the drag returns: the value is the one the
+    // panel holds once it has sent every edit (twice the 120 ms throttle with nothing pending)
+    await page.waitForFunction(() => !window.studio.panel.timer && window.studio.panel.pending.size === 0, null, { timeout: 10000 });
+    await page.waitForTimeout(300);
+    await page.waitForFunction(() => !window.studio.panel.timer && window.studio.panel.pending.size === 0, null, { timeout: 10000 });
+    speed = await page.evaluate(() => window.studio.panel.values.speed0);
     await page.waitForFunction((v) => window.studio.scene.groups[1].speed0 === v, speed, { timeout: 10000 });
     run = await finishedRun(page, run.generation);
     await showFrame(page, Math.floor(run.frames * 0.75));
