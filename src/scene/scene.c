@@ -1192,18 +1192,18 @@ static const char *strategy_reason(const fm_flock_def *f)
 static fm_status check_fuzzy_strategy(where *w, const json_t *root, const fm_scene_def *def)
 {
     static const char *const names[FM_FUZZY_FORCES] = {"steering", "homing", "damping", "external"};
-    const int deforming = fm_flock_tracking_strategy(&def->flock);
+    const int tracking = fm_flock_tracking_strategy(&def->flock);
     for (int f = 0; f < FM_FUZZY_FORCES; f++) {
         char key[64], other[64];
-        snprintf(key, sizeof key, deforming ? "shape_flock.fuzzy.%s" : "shape_flock.fuzzy.tracking.%s", names[f]);
-        snprintf(other, sizeof other, deforming ? "shape_flock.fuzzy.tracking.%s" : "shape_flock.fuzzy.%s", names[f]);
+        snprintf(key, sizeof key, tracking ? "shape_flock.fuzzy.%s" : "shape_flock.fuzzy.tracking.%s", names[f]);
+        snprintf(other, sizeof other, tracking ? "shape_flock.fuzzy.tracking.%s" : "shape_flock.fuzzy.%s", names[f]);
         const json_t *v;
         fm_status st = lookup(w, root, key, &v);
         if (st != FM_OK) return st;
         w->at_key = 1;
         if (v)
             return fail_at(w, key, "the %s, so the %s strategy's curve %s applies (docs/scene.md)",
-                           strategy_reason(&def->flock), deforming ? "tracking" : "static", other);
+                           strategy_reason(&def->flock), tracking ? "tracking" : "static", other);
         w->at_key = 0;
     }
     return FM_OK;
