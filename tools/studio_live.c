@@ -90,6 +90,7 @@ static void on_cache(fm_cache_writer *cache, void *user)
     for (int i = 0; i < t->attr_count; i++) t->attrs[i] = fm_cache_writer_attr_at(cache, i);
     pthread_mutex_lock(&t->s->lock);
     t->s->model_kept = t->s->keep.reused, t->s->groups_kept = t->s->keep.groups_reused;
+    t->s->grids_kept = t->s->keep.grids_reused, t->s->routes_kept = t->s->keep.routes_reused;
     t->s->build_seconds = t->s->keep.build_seconds;
     t->s->agents = t->agents;
     snprintf(t->s->kind, sizeof t->s->kind, "%s", studio_kind(t->attr_count, t->attrs));
@@ -203,6 +204,7 @@ static void *worker_main(void *arg)
         uint32_t generation = ++s->generation;
         drop_frames(s);
         s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->groups_kept = 0;
+        s->grids_kept = s->routes_kept = 0;
         s->build_seconds = 0;
         tell_pages(s, 1);
         pthread_mutex_unlock(&s->lock);

@@ -282,9 +282,12 @@ def check_flock_keep(args, tmp):
 def check_shot_edit(args, tmp):
     """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
     changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
-    the file writes the edited run's frames byte for byte."""
+    the file writes the edited run's frames byte for byte. A small sphere on group a's way is an
+    obstacle to both: the speed0 edit keeps both groups' distance grids and routed paths, and moving
+    group 1's target keeps both grids (the same meshes and reach) and group 0's route alone."""
     scene, proc, url = studio_on(args, tmp, "shot.json", {
         "time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3}], "k_a": 1.0},
         "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
                     "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
                    {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
@@ -298,17 +301,23 @@ def check_shot_edit(args, tmp):
         check("groups[1].speed0" in e and "out of range" in e, f"shot: an invalid group edit names the group's key: {e}")
         e = error_of(ws, {"type": "set", "key": "groups.0.target.mesh", "value": "/etc/passwd"})
         check("/etc/passwd" in e and "refused" in e, f"shot: a group's edit that names another file is refused: {e}")
-        check(first["model_kept"] is False and first["groups_kept"] == 0, "shot: the first run builds every group")
+        check(first["model_kept"] is False and first["groups_kept"] == 0 and first["grids_kept"] == 0
+              and first["routes_kept"] == 0, "shot: the first run builds every group, its grids and routes")
         run = edited_run(ws, "groups.1.speed0", 7.0, first["generation"])
         check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
         check(run["model_kept"] is True and run["groups_kept"] == 2,
               f"shot: a group's speed0 edit keeps every group's tets ({run['groups_kept']} kept, {run['build_seconds']:.3f} s)")
+        check(run["grids_kept"] == 2 and run["routes_kept"] == 2,
+              f"shot: ... and every group's obstacle grid ({run['grids_kept']}) and routed path ({run['routes_kept']})")
         after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
         check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
         check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot (every group kept)")
         moved = edited_run(ws, "groups.1.target.translate", [16.0, 12.0, 0.0], run["generation"])
         check(moved["stage"] == "finished" and moved["model_kept"] is False and moved["groups_kept"] == 1,
               f"shot: moving group 1's target builds it again and keeps group 0 ({moved['groups_kept']} kept)")
+        check(moved["grids_kept"] == 2 and moved["routes_kept"] == 1,
+              f"shot: ... both grids kept ({moved['grids_kept']}), group 1's path routed again ({moved['routes_kept']} kept)")
+        check_saved_run(args, ws, scene, moved["frames"], os.path.join(tmp, "shot_moved_out"), "shot (grids kept, a route made)")
         ws.close()
     finally:
         check_stopped(proc, "shot")
