@@ -152,6 +152,37 @@ def check_model_keep(url):
     ws.close()
 
 
+def current_status(url):
+    """The status a page that connects now is sent."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    status = ws.wait_status(lambda m: True, timeout=10)
+    ws.close()
+    return status
+
+
+def check_unrun_edits(url):
+    """An edit that leaves what the run simulates as it was (a value set to the one it has, only the
+    cache's compression) starts no run: the finished run and its frames stand. (check_truth then
+    runs the saved scene, compression edited, against the frames streamed.) An edit after it runs."""
+    ws = WebSocket(url)
+    hello = ws.recv_json("hello")
+    done = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)
+    last = hashlib.sha256(ws.frame(done["frames"] - 1)[1][1]).hexdigest()
+    for i, (key, value) in enumerate((("speed0", hello["scene"]["speed0"]), ("output.compression_level", 5))):
+        ws.send({"type": "set", "key": key, "value": value})
+        told = ws.wait_status(lambda m: True, timeout=10)  # the accepted edit's status
+        time.sleep(0.3)  # past the 50 ms the worker waits for edits to settle: a run would have started
+        now = current_status(url)
+        check(told["generation"] == now["generation"] == done["generation"] and now["stage"] == "finished"
+              and now["frames"] == done["frames"] and now["unrun_edits"] == done["unrun_edits"] + i + 1,
+              f"set {key}={value} leaves the run as it was: no run (generation {now['generation']}, {now['stage']})")
+    check(hashlib.sha256(ws.frame(done["frames"] - 1)[1][1]).hexdigest() == last, "the unrun edits' frames stand")
+    ran = edited_run(ws, "speed0", hello["scene"]["speed0"] + 0.5, done["generation"])
+    check(ran["stage"] == "finished" and ran["unrun_edits"] == done["unrun_edits"] + 2, "an edit that changes the scene runs it")
+    ws.close()
+
+
 def check_two_editors(url, ws):
     a, b = WebSocket(url), WebSocket(url)
     a.recv_json("hello"), b.recv_json("hello")
@@ -287,11 +318,12 @@ def check_shot_edit(args, tmp):
     group 1's target keeps both grids (the same meshes and reach) and group 0's route alone."""
     scene, proc, url = studio_on(args, tmp, "shot.json", {
         "time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
-        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3}], "k_a": 1.0},
+        # a coarse grid, and detours (their navigation function: 0.8 s a build) for group a alone
+        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3}], "k_a": 1.0, "voxel": 0.5},
         "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
                     "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
                    {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
-                    "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]})
+                    "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}, "obstacles": {"detour_time": -1}}]})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
@@ -405,6 +437,7 @@ def main():
         check_bad_messages(ws)
         check_failed_run(url)
         check_model_keep(url)
+        check_unrun_edits(url)
         check_burst(url)
         speed = check_two_editors(url, ws)
         check_vanishing_clients(url)
