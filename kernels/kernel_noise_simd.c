@@ -1,7 +1,8 @@
 /* The direct style velocity, SIMD: FM_WD agents at once in double (simd.h's dv lanes), the
  * reference's operations (kernel_noise.h: lattice_at, perlin, noise_curl_add, curl_add_agent) in
- * the same order, so the same bits. The permutation and gradient lookups are gathers from tables
- * that stay in L1. Compiled three times (simd.h). */
+ * the same order, so the same bits. The permutation lookups are gathers from tables that stay in L1,
+ * one 32-bit gather giving both P[i] and P[i + 1]; the gradients' 16-entry tables are permutes
+ * across two registers with AVX-512 (dv_lookup16). Compiled three times (simd.h). */
 #include "kernel_noise.h"
 #include "simd.h"
 
@@ -36,17 +37,22 @@ static inline dv trilerp_v(const dv c[8], const dv s[3])
 /* perlin's gradient (the value is not needed for the curl). */
 static inline void perlin_v(const uint8_t *P, const lattice_v *L, dv g[3])
 {
-    const di one = di_set1(1), X = L->c[0], Y = L->c[1], Z = L->c[2];
-    const di A = di_add(di_gather_u8(P, X), Y), B = di_add(di_gather_u8(P, di_add(X, one)), Y);
-    const di AA = di_add(di_gather_u8(P, A), Z), AB = di_add(di_gather_u8(P, di_add(A, one)), Z);
-    const di BA = di_add(di_gather_u8(P, B), Z), BB = di_add(di_gather_u8(P, di_add(B, one)), Z);
-    const di corner[8] = {AA, BA, AB, BB, di_add(AA, one), di_add(BA, one), di_add(AB, one), di_add(BB, one)};
+    const di X = L->c[0], Y = L->c[1], Z = L->c[2];
+    di A, B, AA, AB, BA, BB; /* P[i] and P[i + 1] of each pair from one gather */
+    di_gather_u8_pair(P, X, &A, &B);
+    A = di_add(A, Y), B = di_add(B, Y);
+    di_gather_u8_pair(P, A, &AA, &AB);
+    di_gather_u8_pair(P, B, &BA, &BB);
+    AA = di_add(AA, Z), AB = di_add(AB, Z), BA = di_add(BA, Z), BB = di_add(BB, Z);
+    const di corner[4] = {AA, BA, AB, BB}; /* corners c and c + 4 are P[corner] and P[corner + 1] */
+    di hash[8];
+    for (int c = 0; c < 4; c++) di_gather_u8_pair(P, corner[c], &hash[c], &hash[c + 4]);
     const dv dx[2] = {L->f[0], dv_sub(L->f[0], dv_set1(1))}, dy[2] = {L->f[1], dv_sub(L->f[1], dv_set1(1))};
     const dv dz[2] = {L->f[2], dv_sub(L->f[2], dv_set1(1))};
     dv gx[8], gy[8], gz[8], val[8];
     for (int c = 0; c < 8; c++) {
-        const di h = di_and(di_gather_u8(P, corner[c]), 15);
-        gx[c] = dv_gather(GX, h), gy[c] = dv_gather(GY, h), gz[c] = dv_gather(GZ, h);
+        const di h = di_and(hash[c], 15);
+        gx[c] = dv_lookup16(GX, h), gy[c] = dv_lookup16(GY, h), gz[c] = dv_lookup16(GZ, h);
         val[c] = dv_add(dv_add(dv_mul(gx[c], dx[c & 1]), dv_mul(gy[c], dy[(c >> 1) & 1])), dv_mul(gz[c], dz[c >> 2]));
     }
     const dv s0 = L->s[0], s1 = L->s[1], s2 = L->s[2];

@@ -183,7 +183,19 @@ static inline di di_gather_u8(const uint8_t *table, di idx)
 {
     return di_and(_mm256_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
 }
+/* table[idx] and table[idx + 1] from one gather (its 32 bits hold both) */
+static inline void di_gather_u8_pair(const uint8_t *table, di idx, di *at, di *next)
+{
+    const di w = _mm256_i32gather_epi32((const int *)(const void *)table, idx, 1);
+    *at = di_and(w, 0xff), *next = di_and(_mm256_srli_epi32(w, 8), 0xff);
+}
 static inline dv dv_gather(const double *table, di idx) { return _mm512_i32gather_pd(idx, table, 8); }
+/* table[idx] of a 16-entry table, idx in [0, 16): two registers and a permute, not a gather (a
+ * gather of 8 doubles costs several times a permute on this machine's Zen) */
+static inline dv dv_lookup16(const double table[16], di idx)
+{
+    return _mm512_permutex2var_pd(_mm512_loadu_pd(table), _mm512_cvtepi32_epi64(idx), _mm512_loadu_pd(table + 8));
+}
 static inline dv dv_div(dv a, dv b) { return _mm512_div_pd(a, b); }
 static inline dv dv_from_ints(const int32_t *p) { return _mm512_cvtepi32_pd(_mm256_loadu_si256((const __m256i *)p)); }
 /* rounds to float as a C cast does (to nearest) */
@@ -213,7 +225,13 @@ static inline di di_gather_u8(const uint8_t *table, di idx)
 {
     return di_and(_mm_i32gather_epi32((const int *)(const void *)table, idx, 1), 0xff);
 }
+static inline void di_gather_u8_pair(const uint8_t *table, di idx, di *at, di *next)
+{
+    const di w = _mm_i32gather_epi32((const int *)(const void *)table, idx, 1);
+    *at = di_and(w, 0xff), *next = di_and(_mm_srli_epi32(w, 8), 0xff);
+}
 static inline dv dv_gather(const double *table, di idx) { return _mm256_i32gather_pd(table, idx, 8); }
+static inline dv dv_lookup16(const double table[16], di idx) { return dv_gather(table, idx); }
 static inline dv dv_div(dv a, dv b) { return _mm256_div_pd(a, b); }
 static inline dv dv_from_ints(const int32_t *p) { return _mm256_cvtepi32_pd(_mm_loadu_si128((const __m128i *)p)); }
 static inline void dv_store_floats(float *p, dv x) { _mm_storeu_ps(p, _mm256_cvtpd_ps(x)); }
@@ -250,7 +268,12 @@ static inline di di_add(di a, di b) { FM_DI_MAP(a.l[k] + b.l[k]); }
 static inline di di_and(di a, int32_t m) { FM_DI_MAP(a.l[k] & m); }
 static inline di di_set1(int32_t x) { FM_DI_MAP(x); }
 static inline di di_gather_u8(const uint8_t *table, di idx) { FM_DI_MAP(table[idx.l[k]]); }
+static inline void di_gather_u8_pair(const uint8_t *table, di idx, di *at, di *next)
+{
+    *at = di_gather_u8(table, idx), *next = di_gather_u8(table, di_add(idx, di_set1(1)));
+}
 static inline dv dv_gather(const double *table, di idx) { FM_DV_MAP(table[idx.l[k]]); }
+static inline dv dv_lookup16(const double table[16], di idx) { return dv_gather(table, idx); }
 static inline dv dv_div(dv a, dv b) { FM_DV_MAP(a.l[k] / b.l[k]); }
 static inline dv dv_from_ints(const int32_t *p) { FM_DV_MAP((double)p[k]); }
 static inline void dv_store_floats(float *p, dv x)
