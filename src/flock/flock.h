@@ -230,13 +230,17 @@ static inline int64_t fm_flock_slot_in_id_order(const fm_flock_state *s, int64_t
 static inline float fm_flock_cell(const fm_flock_model *m) { return m->max_radius > 0 ? m->max_radius : 1.0f; }
 
 /* flock_resort.c: the store sorted in space (slots by their cell's slot in the next grid build, bound
- * agents last), every per-slot array carried along; and back in id order (a checkpoint's save and
- * load). One process only. */
+ * agents last), every per-slot array carried along; back in id order for good (a checkpoint's load);
+ * in id order for a moment (a checkpoint's save: begin returns whether it moved them, for end, which
+ * puts every agent back in its slot, so a run's order, and its bytes, do not depend on when it saves).
+ * One process only. */
 enum { FM_FLOCK_RESORT_INTERVAL = 8 };
 /* FM_FLOCK_RESORT, else FM_FLOCK_RESORT_INTERVAL; -1 (err set) for a value that is no interval */
 int fm_flock_resort_interval(fm_error *err);
 void fm_flock_state_resort(const fm_flock_model *m, fm_flock_state *s);
 void fm_flock_state_in_id_order(fm_flock_state *s);
+int fm_flock_state_id_order_begin(fm_flock_state *s);
+void fm_flock_state_id_order_end(fm_flock_state *s, int begun);
 
 /* flock_state.c: the store without its agents, for `slots` agents (dist: a rank's, with ids and
  * parameters by slot, which the caller fills); room for `slots` (a quarter more, at most n); the

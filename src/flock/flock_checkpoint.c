@@ -72,21 +72,24 @@ static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *
                            .frames = frames, .piece_agents = m->def.cache_piece_agents};
 }
 
-/* A checkpoint holds the agents in id order (docs/resume.md: the file does not depend on the store's
- * order): a re-sorted store on one process is put back in id order first. The order of the slots is
- * no part of the state (the next re-sort sorts them again), so the state is unchanged, and a run
- * resumed from the file continues from the same order as the run that wrote it. */
-static void in_id_order(const fm_flock_state *s)
+/* The store's members as a checkpoint saves them, in id order (docs/resume.md: the file does not
+ * depend on the store's order): a re-sorted store on one process is put in id order for the save
+ * and back in its order after it, so the state (const) is as it was and the run goes on as one
+ * that did not save. */
+static fm_status save_in_id_order(const char *path, const fm_ckpt_store *c, const fm_flock_state *s, fm_error *err)
 {
-    if (s->sorted) fm_flock_state_in_id_order((fm_flock_state *)s);
+    fm_flock_state *moved = (fm_flock_state *)s; /* the slots move and come back */
+    const int begun = fm_flock_state_id_order_begin(moved);
+    const fm_status st = fm_ckpt_save(path, c, err);
+    fm_flock_state_id_order_end(moved, begun);
+    return st;
 }
 
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
                                    const fm_flock_run_stats *stats, fm_error *err)
 {
-    in_id_order(s);
     const fm_ckpt_store c = flock_store(m, s, stats, stats->run.frames);
-    return fm_ckpt_save(path, &c, err);
+    return save_in_id_order(path, &c, s, err);
 }
 
 /* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
@@ -121,7 +124,7 @@ static fm_status load_into(fm_flock_state *s, const fm_ckpt_part *part, void *ar
 static fm_status load(fm_flock_state *s, flock_load *l)
 {
     if (s->dist) return fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->path, l->err);
-    in_id_order(s); /* the file's agents in id order, into slots in id order with their parameters */
+    fm_flock_state_in_id_order(s); /* the file's agents in id order, into slots in id order with their parameters */
     return load_into(s, NULL, l);
 }
 
@@ -139,9 +142,8 @@ fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model 
                                          fm_error *err)
 {
     if (s->dist) return fm_flock_dist_checkpoint_save(path, m, s, NULL, frames, err);
-    in_id_order(s);
     const fm_ckpt_store c = flock_store(m, s, NULL, frames);
-    return fm_ckpt_save(path, &c, err);
+    return save_in_id_order(path, &c, s, err);
 }
 
 fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,

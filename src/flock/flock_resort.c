@@ -64,13 +64,37 @@ void fm_flock_state_resort(const fm_flock_model *m, fm_flock_state *s)
     s->grid_current = 0; /* a frame's grid lists the old slots */
 }
 
-/* Back in id order: new slot k holds agent k, from its slot now. */
+/* Agent k to slot k, from its slot in slot_by_id, which is left as it was. */
+static void move_to_id_order(fm_flock_state *s)
+{
+    memcpy(s->move_from, s->slot_by_id, sizeof(int32_t) * (size_t)s->slots);
+    fm_flock_state_move_slots(s, s->move_from, s->slots);
+}
+
+/* Back in id order for good (a checkpoint's load): the order is the identity. */
 void fm_flock_state_in_id_order(fm_flock_state *s)
 {
     if (!s->sorted) return;
-    memcpy(s->move_from, s->slot_by_id, sizeof(int32_t) * (size_t)s->slots);
-    fm_flock_state_move_slots(s, s->move_from, s->slots);
+    move_to_id_order(s);
     index_slots(s);
     s->sorted = 0;
     s->grid_current = 0;
+}
+
+int fm_flock_state_id_order_begin(fm_flock_state *s)
+{
+    if (!s->sorted) return 0;
+    move_to_id_order(s);
+    s->sorted = 0;
+    return 1;
+}
+
+/* Every agent back to its slot in slot_by_id (agent k is in slot k): new slot slot_by_id[k] from k. */
+void fm_flock_state_id_order_end(fm_flock_state *s, int begun)
+{
+    if (!begun) return;
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t k = 0; k < s->slots; k++) s->move_from[s->slot_by_id[k]] = (int32_t)k;
+    fm_flock_state_move_slots(s, s->move_from, s->slots);
+    s->sorted = 1; /* the grid, if current, lists these slots again */
 }

@@ -328,7 +328,12 @@ static void test_resorted_store_changes_no_frame(void)
             fm_flock_run_stats stats = {.run = {.frames = 1}}, got;
             fm_error err = {0};
             ENSURE_MSG(sorted->sorted, "the store is in id order before the checkpoint");
+            int32_t *order = malloc(sizeof(int32_t) * (size_t)n);
+            memcpy(order, sorted->id, sizeof(int32_t) * (size_t)n);
             ENSURE(fm_flock_checkpoint_save(p1, m, sorted, &stats, &err) == FM_OK);
+            ENSURE_MSG(sorted->sorted && !memcmp(order, sorted->id, sizeof(int32_t) * (size_t)n),
+                       "the save changed the store's order");
+            free(order);
             ENSURE(fm_flock_checkpoint_save(p2, m, plain, &stats, &err) == FM_OK);
             long n1 = 0, n2 = 0;
             char *f1 = slurp(p1, &n1), *f2 = slurp(p2, &n2);
