@@ -12,6 +12,7 @@
 
 #include <assert.h>
 #include <math.h>
+#include <string.h>
 
 static void grid_zero(fm_grid *g)
 {
@@ -71,16 +72,18 @@ fm_status fm_grid_init_table(fm_grid *g, int64_t capacity, int64_t table_agents,
 fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err)
 {
     const size_t cap = (size_t)(g->capacity > 0 ? g->capacity : 1);
-    g->vel = fm_alloc(sizeof(fm_grid_quad) * ((cap + FM_GRID_PAD + 3) / 4));
-    g->tmp_vel = fm_alloc(sizeof(float) * 3 * cap);
-    if (!g->vel || !g->tmp_vel)
-        return fm_fail(err, FM_ERR_MEMORY, "out of memory for a grid of %lld agents", (long long)g->capacity);
+    int ok = (g->tmp_vel = fm_alloc(sizeof(float) * 3 * cap)) != NULL;
+    for (int c = 0; c < 6; c++) {
+        ok = ok && (g->soa[c] = fm_alloc(sizeof(float) * (cap + FM_GRID_SOA_PAD))) != NULL;
+        if (ok) memset(g->soa[c] + cap, 0, sizeof(float) * FM_GRID_SOA_PAD); /* tails a walk may load */
+    }
+    if (!ok) return fm_fail(err, FM_ERR_MEMORY, "out of memory for a grid of %lld agents", (long long)g->capacity);
     return FM_OK;
 }
 
 void fm_grid_free(fm_grid *g)
 {
-    fm_free(g->vel);
+    for (int c = 0; c < 6; c++) fm_free(g->soa[c]);
     fm_free(g->tmp_vel);
     fm_free(g->start);
     fm_free(g->quad);
@@ -119,7 +122,8 @@ static void set_placement(fm_grid *g, int64_t agents, float cell)
 fm_grid fm_grid_placement(const fm_grid *g, int64_t agents, float cell)
 {
     fm_grid p = *g;
-    p.start = NULL, p.quad = NULL, p.slot = NULL, p.vel = NULL, p.tmp_vel = NULL, p.hist = NULL, p.tmp = NULL,
+    for (int c = 0; c < 6; c++) p.soa[c] = NULL;
+    p.start = NULL, p.quad = NULL, p.slot = NULL, p.tmp_vel = NULL, p.hist = NULL, p.tmp = NULL,
     p.tmp_slot = NULL;
     set_placement(&p, agents, cell);
     return p;
@@ -134,7 +138,7 @@ void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, i
 void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *const v[3], const uint8_t *member,
                           int64_t n, float cell, int threads)
 {
-    assert(!v || g->vel);
+    assert(!v || g->soa[0]);
     assert(n >= 0 && n <= g->capacity);
     assert(cell > 0);
     set_placement(g, n, cell);
@@ -221,8 +225,9 @@ void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *cons
             fm_grid_quad *q = &quad[d >> 2];
             q->x[d & 3] = tmp[k].x, q->y[d & 3] = tmp[k].y, q->z[d & 3] = tmp[k].z, q->i[d & 3] = tmp[k].i;
             if (v) {
-                fm_grid_quad *w = &g->vel[d >> 2];
-                w->x[d & 3] = tmp_vel[3 * k], w->y[d & 3] = tmp_vel[3 * k + 1], w->z[d & 3] = tmp_vel[3 * k + 2];
+                float *const *c = g->soa;
+                c[0][d] = tmp[k].x, c[1][d] = tmp[k].y, c[2][d] = tmp[k].z;
+                c[3][d] = tmp_vel[3 * k], c[4][d] = tmp_vel[3 * k + 1], c[5][d] = tmp_vel[3 * k + 2];
             }
         }
         /* now cnt[j] = end of slot s0 + j = start of slot s0 + j + 1 */

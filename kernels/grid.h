@@ -27,6 +27,7 @@
 #define FM_GRID_MAX_CAPACITY (INT64_C(1) << 29)
 #define FM_GRID_MAX_BLOCKS 64        /* agent blocks of the parallel build (more threads: idle) */
 #define FM_GRID_PAD 12               /* quad holds capacity + FM_GRID_PAD entries (SIMD tails) */
+#define FM_GRID_SOA_PAD 16           /* soa[] hold capacity + this many floats (16-lane tails), zeroed */
 #define FM_GRID_COORD_LIMIT 1073741824.0 /* 2^30 */
 
 /* The listed agents, 4 to a 64-byte line: entry k is lane k & 3 of quad k >> 2 (a copy of its
@@ -57,10 +58,11 @@ typedef struct fm_grid {
     int32_t *start;        /* table size + 1: slot s lists entries start[s] .. start[s+1]-1 */
     fm_grid_quad *quad;    /* (capacity + FM_GRID_PAD) / 4: entries by slot, then by agent index */
     uint32_t *slot;        /* capacity: each agent's slot, FM_GRID_NONE if it was not listed */
-    fm_grid_quad *vel;     /* NULL, or (fm_grid_init_velocities) the listed agents' velocities in entry
-                              order, as quad holds their positions (x, y, z; i unused): a walk reads a
-                              neighbour's velocity next to its position instead of gathering it by index */
-    float *tmp_vel;        /* build scratch for vel: 3 per agent */
+    float *soa[6];         /* NULL, or (fm_grid_init_velocities) the listed agents' positions x, y, z and
+                              velocities vx, vy, vz in entry order, one plain array each (capacity +
+                              FM_GRID_SOA_PAD floats): a SIMD walk loads FM_W candidates' coordinates at
+                              once and reads a neighbour's velocity without gathering it by agent */
+    float *tmp_vel;        /* build scratch for the velocities: 3 per agent */
 
     /* build scratch: a two-level counting sort (coarse buckets of 1 << log2_fine slots, then slots) */
     int log2_fine;
@@ -76,7 +78,8 @@ void fm_grid_free(fm_grid *g);                                       /* g may be
  * listing its share of n agents gets the cells' slots, so the order of a walk over the 27 cells, of
  * one process listing all n (grid.h's walks merge cells that share a slot). */
 fm_status fm_grid_init_table(fm_grid *g, int64_t capacity, int64_t table_agents, fm_error *err);
-/* Makes the builds keep velocities (vel) too: 28 more bytes per agent of capacity. */
+/* Makes the builds keep entry-order copies of the positions and velocities (soa) too: 36 more bytes
+ * per agent of capacity. */
 fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err);
 
 /* Lists the agents a < n (n <= capacity) with member[a] != 0 (all of them if member is NULL); the
@@ -84,7 +87,7 @@ fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err);
  * cell > 0. threads: OpenMP threads for the parallel passes; the result does not depend on it. */
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
                    int threads);
-/* The same, copying v into vel (g initialised with fm_grid_init_velocities). */
+/* The same, copying p and v into soa (g initialised with fm_grid_init_velocities). */
 void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *const v[3], const uint8_t *member,
                           int64_t n, float cell, int threads);
 

@@ -31,15 +31,19 @@
 
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 enum { FM_BOIDS_SEPARATION = 0, FM_BOIDS_COHESION = 1, FM_BOIDS_ALIGNMENT = 2, FM_BOIDS_RULES = 3 };
 
-/* Per-agent parameters, SoA, indexed by agent. */
+/* Per-agent parameters, SoA, indexed by agent; and two bounds of the whole flock that set the fixed
+ * point of the sums (below). */
 typedef struct fm_boids_view {
     const float *radius[FM_BOIDS_RULES];   /* perception radius r = J / sqrt(N) (SCF eq 6) */
     const float *cos_half[FM_BOIDS_RULES]; /* cos(angle / 2); -1 sees all round */
     const float *weight[FM_BOIDS_RULES];
     const float *max_speed, *max_force;
+    float reach;                           /* >= every radius (0: taken as 1) */
+    float top_speed;                       /* >= every neighbour's speed (0: taken as 1) */
 } fm_boids_view;
 
 /* Half the width, in cosine, of the band over which a rule's view cone fades out. */
@@ -48,12 +52,53 @@ typedef struct fm_boids_view {
 /* W = max(FM_BOIDS_WEIGHT_FLOOR, sum w): below it a rule fades with its neighbours' weight. */
 #define FM_BOIDS_WEIGHT_FLOOR 0.25
 
-/* Sums over one agent's perceived neighbours, in float: every agent meets its neighbours in the grid's
- * order, which is the same for any thread and rank count (cells list their agents by id), so the
- * sums' bits do not depend on either. */
+/* The sums over an agent's neighbours are exact: each neighbour's term is computed in float, scaled
+ * by a power of two and rounded to a 64-bit integer (round to nearest even), and the integers are
+ * added. Integer addition is associative, so the sums, and the forces, are the same bits whatever
+ * order the neighbours come in: the store's order, the grid's cells, the SIMD lanes that add them,
+ * the thread and rank counts. A term as large as its bound (1 for the separation's unit push and the
+ * weights, the reach for the cohesion offsets, the top speed for the velocities) is 2^31 units
+ * (FM_BOIDS_FIXED_BITS), so a sum holds 2^32 such terms, and its resolution is 2^-31 of the bound
+ * (float's own is 2^-24). A term beyond 2^19 times its bound (bad input) is clamped, not undefined. */
+#define FM_BOIDS_FIXED_BITS 31
+#define FM_BOIDS_FIXED_CLAMP 0x1p50f
+
+/* 2^FM_BOIDS_FIXED_BITS / the power of two above `bound` (2^e with bound < 2^e <= 2 bound; a bound
+ * that is <= 0, not finite or outside [2^-90, 2^100): 1), from the float's exponent bits (no libm:
+ * every viewer computes it). */
+static inline float fm_boids_fixed_scale(float bound)
+{
+    int e = 1;
+    if (bound >= 0x1p-90f && bound < 0x1p100f) {
+        uint32_t bits;
+        memcpy(&bits, &bound, sizeof bits);
+        e = (int)((bits >> 23) & 0xffu) - 126; /* bound = m 2^e, 0.5 <= m < 1 */
+    }
+    const uint32_t out = (uint32_t)(FM_BOIDS_FIXED_BITS - e + 127) << 23;
+    float scale;
+    memcpy(&scale, &out, sizeof scale);
+    return scale;
+}
+
+/* x scaled (a power of two: exact), clamped and rounded to the nearest integer, ties to even: the
+ * double's mantissa rounds it when 1.5 * 2^52 is added (|x| < 2^51), the same rounding the SIMD
+ * conversions do. NaN counts as the lower clamp, as the SIMD max does. */
+static inline int64_t fm_boids_fixed(float x)
+{
+    x = x > -FM_BOIDS_FIXED_CLAMP ? x : -FM_BOIDS_FIXED_CLAMP;
+    x = x < FM_BOIDS_FIXED_CLAMP ? x : FM_BOIDS_FIXED_CLAMP;
+    const double y = (double)x + 0x1.8p52;
+    int64_t bits;
+    memcpy(&bits, &y, sizeof bits);
+    return bits - INT64_C(0x4338000000000000);
+}
+
+/* Sums over one agent's perceived neighbours, in fixed point (above; unsigned, so that even a
+ * clamped overflow wraps instead of being undefined). */
 typedef struct fm_boids_sums {
-    float rule[FM_BOIDS_RULES][3]; /* separation push, weighted cohesion offsets, weighted velocities */
-    float weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
+    uint64_t rule[FM_BOIDS_RULES][3]; /* separation's pushes toward the neighbours, weighted cohesion
+                                         offsets, weighted velocities */
+    uint64_t weight[FM_BOIDS_RULES];  /* sum w of cohesion and alignment (separation's is unused) */
 } fm_boids_sums;
 
 /* One agent as it perceives, prepared once for all its neighbours (fm_boids_viewer_init). */
@@ -61,6 +106,8 @@ typedef struct fm_boids_viewer {
     float unit[3];                 /* its heading, unit (0 at rest) */
     float inv_r[FM_BOIDS_RULES];   /* 1 / r of each rule; infinite for a radius of 0, which sees no one */
     float lo[FM_BOIDS_RULES];      /* where the cone's band starts, in cosine (below -1: sees all round) */
+    float scale[FM_BOIDS_RULES];   /* the fixed point of each rule's vector terms (the weights': unit_scale) */
+    float unit_scale;              /* of a term bounded by 1 */
 } fm_boids_viewer;
 
 /* Agent a heading h; r2_max = the widest r^2. */
@@ -76,13 +123,19 @@ static inline void fm_boids_viewer_init(const fm_boids_view *b, int64_t a, const
         w->lo[r] = cos_half <= -1.0f || hlen == 0 ? -3.0f : cos_half - FM_BOIDS_CONE_BAND;
         if (radius * radius > *r2_max) *r2_max = radius * radius;
     }
+    w->unit_scale = fm_boids_fixed_scale(1.0f);
+    w->scale[FM_BOIDS_SEPARATION] = w->unit_scale;
+    w->scale[FM_BOIDS_COHESION] = fm_boids_fixed_scale(b->reach);
+    w->scale[FM_BOIDS_ALIGNMENT] = fm_boids_fixed_scale(b->top_speed);
 }
 
-/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules of viewer w; the bearing weight g is the smoothstep of t = (c - lo) / (2 band),
- * clamped to [0, 1] (a viewer that sees all round has t >= 1 for any c >= -1). */
+/* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules of viewer w; the bearing weight g
+ * is the smoothstep of t = (c - lo) / (2 band), clamped to [0, 1] (a viewer that sees all round has
+ * t >= 1 for any c >= -1). The SIMD walk (kernel_boids_simd.c) does these float operations in this
+ * order, lane by lane. */
 static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, const float vb[3], const fm_boids_viewer *w)
 {
-    if (d2 == 0) return;
+    if (!(d2 > 0)) return; /* itself, or an agent on the same spot */
     const float dist = sqrtf(d2), inv_dist = 1.0f / dist;
     const float c = (w->unit[0] * d[0] + w->unit[1] * d[1] + w->unit[2] * d[2]) * inv_dist;
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
@@ -94,19 +147,20 @@ static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, co
         const float g = t * t * (3 - 2 * t);
         if (r == FM_BOIDS_SEPARATION) {
             const float push = g * (1 - rho) * (1 - rho) * (1 + 2 * rho) * inv_dist;
-            for (int k = 0; k < 3; k++) s->rule[r][k] -= push * d[k];
+            for (int k = 0; k < 3; k++) s->rule[r][k] += (uint64_t)fm_boids_fixed(push * d[k] * w->scale[r]);
             continue;
         }
         const float q = 1 - rho * rho;
         const float weight = g * q * q;
         const float *x = r == FM_BOIDS_COHESION ? d : vb;
-        for (int k = 0; k < 3; k++) s->rule[r][k] += weight * x[k];
-        s->weight[r] += weight;
+        for (int k = 0; k < 3; k++) s->rule[r][k] += (uint64_t)fm_boids_fixed(weight * x[k] * w->scale[r]);
+        s->weight[r] += (uint64_t)fm_boids_fixed(weight * w->unit_scale);
     }
 }
 
-/* The steering force of agent a from its sums (see the top of this file). */
-void fm_boids_steer(const fm_boids_sums *s, const fm_boids_view *b, int64_t a, const float v[3], float f[3]);
+/* The steering force of agent a (viewer w, velocity v) from its sums (see the top of this file). */
+void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_boids_view *b, int64_t a,
+                    const float v[3], float f[3]);
 
 /* For agents a in [begin, end) with phase[a] == phase_sel: f(a) = the steering force from the
  * agents listed in g (built from these p with cell >= every radius; any agent, whatever its phase,
@@ -115,12 +169,18 @@ void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *cons
                      const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end, float *const f[3]);
 
 /* The same forces, bit for bit, for the agents listed in g at entries [first, last) (0 <= first <=
- * last <= g->count) with phase[a] == phase_sel: in the grid's order, so that agents of one cell
- * follow each other and walk the same cells while they are in cache (an unsorted store, walked by
- * agent, meets every neighbourhood cold). Each agent writes only its own f entries, so any split of
- * the entries over threads gives the same bits. A selected agent that is not listed is not computed. */
-void fm_kernel_boids_listed(const fm_grid *g, const fm_boids_view *b, const float *const v[3], const uint8_t *phase,
-                            uint8_t phase_sel, int64_t first, int64_t last, float *const f[3]);
+ * last <= g->count) with phase[a] == phase_sel, from the grid's entry-order copies of positions and
+ * velocities (g built by fm_grid_build_moving): in the grid's order, so that agents of one cell follow
+ * each other and walk the same cells while they are in cache, FM_W candidates at a time in the SIMD
+ * variants (kernel_boids_simd.c; fm_kernel_boids_listed_ref is the scalar twin). Each agent writes
+ * only its own f entries, so any split of the entries over threads gives the same bits. A selected
+ * agent that is not listed is not computed. */
+void fm_kernel_boids_listed(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase, uint8_t phase_sel,
+                            int64_t first, int64_t last, float *const f[3]);
+void fm_kernel_boids_listed_ref(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase, uint8_t phase_sel,
+                                int64_t first, int64_t last, float *const f[3]);
+typedef void fm_boids_listed_fn(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase, uint8_t phase_sel,
+                                int64_t first, int64_t last, float *const f[3]);
 
 /* The reference twin for tests: the same forces from every pair of the n agents (O(n^2)), every
  * agent a neighbour. */

@@ -181,6 +181,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     r->model = keep ? fm_morph_model_build_keeping(def, keep->morph, cli_prep_progress, show, &err)
                     : fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (keep) keep->reused = keep->groups_reused = keep->morph->reused;
+    if (keep) keep->grids_reused = keep->morph->grid_reused, keep->routes_reused = keep->morph->route_reused;
     if (!r->model) return cli_report(&err);
     r->mi = fm_morph_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};

@@ -72,6 +72,9 @@ typedef struct studio {
     cli_model_keep keep;            /* the worker's: the model's costly part, for the next edit's run */
     int model_kept;                 /* this run's model build reused it (0 until the build is done) */
     int groups_kept;                /* ... a shot: of how many groups (a scene: 0 or 1) */
+    int grids_kept, routes_kept;    /* of how many groups the obstacles' grid, and the routed path, were kept */
+    char *run_text;                 /* what the current generation's run simulates (studio_live.c's run_text) */
+    int64_t unrun_edits;            /* edits accepted that left it so: no run started for them */
     double build_seconds;           /* this run's model build time (0 until it is done) */
     int quit;
     volatile sig_atomic_t stop;     /* cancels the worker's run at the next frame boundary */

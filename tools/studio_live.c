@@ -28,6 +28,38 @@ char *studio_scene_text(const json_t *doc)
     return text;
 }
 
+/* The output keys that change only how the cache encodes the frames it is handed: not the frames
+ * the page is streamed, nor those the reader decodes from `flockmorph run` of the saved scene. */
+static const char *const ENCODING_KEYS[] = {"compression_level", "delta", "key_interval"};
+
+/* What a run of doc simulates, as text to compare: doc without the encoding keys, keys sorted,
+ * numbers as the run reads them. NULL: out of memory. */
+static char *run_text(const json_t *doc)
+{
+    json_t *copy = json_deep_copy(doc), *out = copy ? json_object_get(copy, "output") : NULL;
+    for (size_t i = 0; out && i < sizeof ENCODING_KEYS / sizeof ENCODING_KEYS[0]; i++) json_object_del(out, ENCODING_KEYS[i]);
+    if (out && json_object_size(out) == 0) json_object_del(copy, "output"); /* as a scene without one */
+    char *text = copy ? json_dumps(copy, JSON_COMPACT | JSON_SORT_KEYS | JSON_REAL_PRECISION(17)) : NULL;
+    json_decref(copy);
+    return text;
+}
+
+/* Whether the run of the current generation, building, running or finished (not cancelled, not
+ * failed: an edit retries a failed run) with no edit's run due, runs what s->doc says: an edit that
+ * left it so (a value set to the one it has, a handle let go where it was, only the cache's
+ * encoding) needs no run. With lock held. */
+static int runs_doc_already(const studio *s)
+{
+    static const char *const live[] = {"building", "running", "finished"};
+    int going = 0;
+    for (size_t i = 0; i < sizeof live / sizeof live[0]; i++) going |= s->stage && !strcmp(s->stage, live[i]);
+    if (s->run_wanted || s->stop || !s->run_text || !going) return 0;
+    char *text = run_text(s->doc);
+    int same = text && !strcmp(text, s->run_text);
+    free(text);
+    return same;
+}
+
 /* Drops the kept frames (a new run starts); with lock held. */
 static void drop_frames(studio *s)
 {
@@ -90,6 +122,7 @@ static void on_cache(fm_cache_writer *cache, void *user)
     for (int i = 0; i < t->attr_count; i++) t->attrs[i] = fm_cache_writer_attr_at(cache, i);
     pthread_mutex_lock(&t->s->lock);
     t->s->model_kept = t->s->keep.reused, t->s->groups_kept = t->s->keep.groups_reused;
+    t->s->grids_kept = t->s->keep.grids_reused, t->s->routes_kept = t->s->keep.routes_reused;
     t->s->build_seconds = t->s->keep.build_seconds;
     t->s->agents = t->agents;
     snprintf(t->s->kind, sizeof t->s->kind, "%s", studio_kind(t->attr_count, t->attrs));
@@ -199,10 +232,12 @@ static void *worker_main(void *arg)
         if (s->quit) break;
         *def = *s->def;
         char *text = studio_scene_text(s->doc); /* a shot's groups are read from it */
+        free(s->run_text), s->run_text = run_text(s->doc);
         s->run_wanted = 0, s->stop = 0;
         uint32_t generation = ++s->generation;
         drop_frames(s);
         s->stage = "building", s->failure[0] = 0, s->agents = 0, s->model_kept = 0, s->groups_kept = 0;
+        s->grids_kept = s->routes_kept = 0;
         s->build_seconds = 0;
         tell_pages(s, 1);
         pthread_mutex_unlock(&s->lock);
@@ -269,6 +304,7 @@ void studio_live_close(studio *s)
     drop_frames(s);
     free(s->frames);
     free(s->shapes);
+    free(s->run_text);
     free(s->first);
     free(s->def);
     json_decref(s->doc);
@@ -380,12 +416,17 @@ static int edit_here(studio *s, const char *key, const json_t *value, char *msg,
         json_decref(s->doc), s->doc = cand, cand = NULL;
         *s->def = *def;
         s->frame_rate = def->frame_rate;
-        s->dirty = 1, s->run_wanted = 1, s->stop = 1; /* cancels the run in progress */
-        s->last_edit = cli_seconds();
-        s->stage = "building"; /* the edit's run, due once the edits settle: no page takes the run before it for it */
-        tell_pages(s, 1);
-        pthread_cond_signal(&s->wake);
-        rc = 0;
+        s->dirty = 1, rc = 0;
+        if (runs_doc_already(s)) { /* the run shown is the edited scene's: its frames stand */
+            s->unrun_edits++;
+            tell_pages(s, 1);
+        } else {
+            s->run_wanted = 1, s->stop = 1; /* cancels the run in progress */
+            s->last_edit = cli_seconds();
+            s->stage = "building"; /* the edit's run, due once the edits settle: no page takes the run before it for it */
+            tell_pages(s, 1);
+            pthread_cond_signal(&s->wake);
+        }
     }
     pthread_mutex_unlock(&s->lock);
     json_decref(cand);

@@ -14,11 +14,13 @@
 
 char *studio_status_text(studio *s)
 {
-    json_t *j = json_pack("{sssIsssIsIsssfsbsbsssbsisf}", "type", "status", "generation", (json_int_t)s->generation,
+    json_t *j = json_pack("{sssIsssIsIsssfsbsbsssbsisfsisisI}", "type", "status", "generation", (json_int_t)s->generation,
                           "stage", s->stage ? s->stage : "starting", "frames", (json_int_t)s->frame_count, "agents",
                           (json_int_t)s->agents, "kind", s->kind, "frame_rate", s->frame_rate, "dirty", s->dirty,
                           "frames_dropped", s->frames_dropped, "failure", s->failure, "model_kept", s->model_kept,
-                          "groups_kept", s->groups_kept, "build_seconds", s->build_seconds);
+                          "groups_kept", s->groups_kept, "build_seconds", s->build_seconds,
+                          "grids_kept", s->grids_kept, "routes_kept", s->routes_kept,
+                          "unrun_edits", (json_int_t)s->unrun_edits);
     char *text = j ? json_dumps(j, JSON_COMPACT) : NULL;
     json_decref(j);
     return text;

@@ -160,19 +160,21 @@ static void combine_forces(fm_flock_state *s, int64_t a)
 }
 
 /* Stage 4a: the boids steering F_steer of every agent under forces, into s->steer, in the grid's
- * order (fm_kernel_boids_listed: the same bits as by agent, without meeting every neighbourhood
- * cold). Every agent under forces is listed; each writes only its own entries, so the chunks may go
- * to the threads in any order. */
-static void boids_pass(fm_flock_state *s)
+ * order (fm_kernel_boids_listed: SIMD over the candidates, without meeting every neighbourhood cold;
+ * its sums are exact, so the order gives the same bits). Every agent under forces is listed; each
+ * writes only its own entries, so the chunks may go to the threads in any order. */
+static void boids_pass(const fm_flock_model *m, fm_flock_state *s)
 {
     const fm_flock_params *q = &s->prm;
+    const float top_speed = (float)fmax(m->def.flock.max_speed[0], m->def.flock.max_speed[1]);
     const fm_boids_view boids = {{q->radius[0], q->radius[1], q->radius[2]}, {q->cos_half[0], q->cos_half[1], q->cos_half[2]},
-                                 {q->weight[0], q->weight[1], q->weight[2]}, q->max_speed, q->max_force};
+                                 {q->weight[0], q->weight[1], q->weight[2]}, q->max_speed, q->max_force, m->max_radius,
+                                 top_speed};
     const int64_t entries = s->grid.count, chunks = (entries + FM_BLOCK - 1) / FM_BLOCK;
 #pragma omp parallel for num_threads(s->threads) schedule(dynamic, 1)
     for (int64_t c = 0; c < chunks; c++)
-        fm_kernel_boids_listed(&s->grid, &boids, (const float *const *)s->v, s->phase, FM_PHASE_FLYING, c * FM_BLOCK,
-                               FM_MIN((c + 1) * FM_BLOCK, entries), s->steer);
+        fm_kernel_boids_listed(&s->grid, &boids, s->phase, FM_PHASE_FLYING, c * FM_BLOCK, FM_MIN((c + 1) * FM_BLOCK, entries),
+                               s->steer);
 }
 
 /* Stage 4b for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
@@ -356,7 +358,7 @@ void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
     s->grid_current = 0;
     const double busy_from = s->dist ? fm_seconds() : 0;
     const int64_t blocks = (s->slots + FM_BLOCK - 1) / FM_BLOCK; /* after the migration */
-    boids_pass(s);
+    boids_pass(m, s);
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = 0; b < blocks; b++) {
         const int64_t begin = b * FM_BLOCK, end = FM_MIN((b + 1) * FM_BLOCK, s->slots);

@@ -118,7 +118,7 @@ void fm_morph_model_drop_targets(fm_morph_model *m);
  * inputs each was made from. A build given a keep makes neither again where those inputs are the
  * same (the placed mesh byte for byte, tetgen.quality and tetgen.max_volume; then
  * tetgen.subdivision and n), which is what a path, speed, style or MDE edit leaves; everything
- * after (obstacles, path, orders, fields) is built as always. The model is the same bytes either
+ * after it is built as always except the obstacles' grid and the routed path (fm_kept_route). The model is the same bytes either
  * way: TetGen and the subdivision are functions of those inputs alone. */
 typedef struct fm_kept_tets {
     int has_tetgen, has_at_n;
@@ -131,9 +131,39 @@ typedef struct fm_kept_tets {
     int64_t refined;            /* the refined count (fm_morph_model_info) */
 } fm_kept_tets;
 
+/* What the path is made from where it is routed round obstacles (fm_path_build_routed): the
+ * centroids, the route's inputs (its obstacles pointer and counts cleared; the grid is the keep's
+ * when this is compared) and the scene's path keys; built zeroed, so that it compares byte for byte. */
+typedef struct fm_route_key {
+    double cs[3], ct[3];
+    fm_path_route route;
+    int32_t curve, key_points, point_count, pad;
+    double points[FM_MAX_PATH_POINTS][3];
+} fm_route_key;
+
+/* The obstacles' distance grid with the placed meshes, reach and obstacles.voxel it was made from
+ * (fm_obstacles_grid), and the routed path and its navigation function with the key they were made
+ * from and the grid. A build makes the grid again only where a mesh, the reach (k_a plus the largest
+ * tet radius) or the voxel changed, and the route only where that or its key changed: a speed0,
+ * style, MDE or launch edit keeps both. */
+typedef struct fm_kept_route {
+    int has_grid, has_path, has_nav;
+    int meshes;
+    fm_mesh mesh[FM_MAX_OBSTACLES]; /* placed */
+    double reach, voxel;
+    fm_obstacles *grid;             /* shared with the models built from it (fm_obstacles_share) */
+    fm_route_key key;
+    fm_path path;
+    int routed, unroutable;
+    fm_nav nav;                     /* detours on: the model's copy */
+} fm_kept_route;
+
 typedef struct fm_morph_keep {
     fm_kept_tets shape[2]; /* source, target */
+    fm_kept_route route;
     int reused;            /* the last build made none of them again (TetGen nor subdivision) */
+    int grid_reused;       /* ... the obstacles' grid was the keep's (0 without obstacles) */
+    int route_reused;      /* ... the routed path and navigation function were the keep's */
 } fm_morph_keep;
 
 /* fm_morph_model_build, keeping in *keep (zeroed at first) what it makes and reusing what fits. */

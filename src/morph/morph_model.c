@@ -25,6 +25,7 @@ typedef struct prep_scratch {
     int keep_targets;           /* keep the model's target tets in double (m->tgt) for a later group */
     fm_morph_keep *keep;        /* the studio's: the tets of the build before (NULL: none) */
     int made;                   /* TetGen runs and subdivisions this build made (none: all kept) */
+    int path_in_keep;           /* the keep's route is this build's path (route_kept): its nav may be kept */
 } prep_scratch;
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
@@ -331,10 +332,50 @@ static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, int check_pa
     return st;
 }
 
-static fm_status build_obstacles(fm_morph_model *m, const prep_scratch *s, float max_radius, fm_error *err)
+/* Whether the keep's grid was made from these placed meshes, reach and voxel. */
+static int grid_fits(const fm_kept_route *k, const fm_scene_def *def, const fm_mesh *meshes, double reach)
 {
-    m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, m->def.k_a + max_radius, err);
-    return m->obstacles ? FM_OK : (err ? err->status : FM_ERR_INPUT);
+    if (!k->has_grid || k->meshes != def->obstacle_count || k->reach != reach || k->voxel != def->obstacle_voxel) return 0;
+    for (int i = 0; i < k->meshes; i++)
+        if (!fm_mesh_same(&k->mesh[i], &meshes[i])) return 0;
+    return 1;
+}
+
+static void forget_route(fm_kept_route *k)
+{
+    fm_path_free(&k->path), fm_free(k->nav.u), fm_free(k->nav.g);
+    memset(&k->nav, 0, sizeof k->nav);
+    k->has_path = k->has_nav = 0;
+}
+
+/* The keep holds the model's grid, with what it was made from; the route made from the grid
+ * before is forgotten. */
+static fm_status keep_grid(fm_kept_route *k, const fm_morph_model *m, const fm_mesh *meshes, double reach, fm_error *err)
+{
+    forget_route(k);
+    fm_obstacles_destroy(k->grid), k->grid = NULL, k->has_grid = 0;
+    for (int i = 0; i < k->meshes; i++) fm_mesh_free(&k->mesh[i]);
+    k->meshes = 0;
+    for (int i = 0; i < m->def.obstacle_count; i++, k->meshes++) {
+        fm_status st = fm_mesh_copy(&meshes[i], &k->mesh[i], err);
+        if (st != FM_OK) return st;
+    }
+    k->reach = reach, k->voxel = m->def.obstacle_voxel, k->grid = fm_obstacles_share(m->obstacles), k->has_grid = 1;
+    return FM_OK;
+}
+
+static fm_status build_obstacles(fm_morph_model *m, prep_scratch *s, float max_radius, fm_error *err)
+{
+    const double reach = m->def.k_a + max_radius;
+    fm_kept_route *kept = s->keep ? &s->keep->route : NULL;
+    if (kept && grid_fits(kept, &m->def, s->obstacles, reach)) {
+        m->obstacles = fm_obstacles_share(kept->grid);
+        s->keep->grid_reused = 1;
+        return FM_OK;
+    }
+    m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, reach, err);
+    if (!m->obstacles) return err ? err->status : FM_ERR_INPUT;
+    return kept ? keep_grid(kept, m, s->obstacles, reach, err) : FM_OK;
 }
 
 /* The largest R_X of the source tets (tet_radii's, before the tets are stored in launch order):
@@ -370,6 +411,51 @@ static void path_route_of(const fm_morph_model *m, const prep_scratch *s, float 
     }
 }
 
+/* What the routed path is made from (fm_route_key), zeroed first so that it compares byte for byte. */
+static void route_key_of(const fm_scene_def *def, const double cs[3], const double ct[3], const fm_path_route *r,
+                         fm_route_key *key)
+{
+    memset(key, 0, sizeof *key);
+    memcpy(key->cs, cs, sizeof key->cs), memcpy(key->ct, ct, sizeof key->ct);
+    memcpy(&key->route, r, sizeof key->route);
+    key->route.obstacles = NULL, key->route.routed = key->route.unroutable = 0;
+    key->curve = (int32_t)def->path_curve, key->key_points = def->path_key_points;
+    key->point_count = def->path_point_count;
+    memcpy(key->points, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
+}
+
+static fm_status path_copy(const fm_path *from, fm_path *to, fm_error *err)
+{
+    to->q = malloc(sizeof(double) * 3 * (size_t)from->count);
+    if (!to->q) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the path");
+    memcpy(to->q, from->q, sizeof(double) * 3 * (size_t)from->count);
+    to->count = from->count;
+    return FM_OK;
+}
+
+/* The path routed round the obstacles (fm_path_build_routed), the keep's where its grid is this
+ * build's (kept) and its key the same; else made, and kept. */
+static fm_status route_kept(const fm_morph_model *m, prep_scratch *s, fm_path_route *r, fm_error *err)
+{
+    const fm_scene_def *def = &m->def;
+    fm_kept_route *kept = s->keep && s->keep->grid_reused ? &s->keep->route : NULL;
+    fm_route_key key;
+    route_key_of(def, m->info.source_centroid, m->info.target_centroid, r, &key);
+    if (kept && kept->has_path && memcmp(&kept->key, &key, sizeof key) == 0) {
+        r->routed = kept->routed, r->unroutable = kept->unroutable;
+        s->keep->route_reused = s->path_in_keep = 1;
+        return path_copy(&kept->path, &s->path, err);
+    }
+    fm_status st = fm_path_build_routed(def, m->info.source_centroid, m->info.target_centroid, r, &s->path, err);
+    if (st != FM_OK || !s->keep) return st;
+    kept = &s->keep->route;
+    forget_route(kept);
+    if ((st = path_copy(&s->path, &kept->path, err)) != FM_OK) return st;
+    kept->key = key, kept->routed = r->routed, kept->unroutable = r->unroutable, kept->has_path = 1;
+    s->path_in_keep = 1;
+    return FM_OK;
+}
+
 static void warn_route(fm_morph_model *m, const fm_path_route *r)
 {
     m->info.path_routed = r->routed;
@@ -384,13 +470,28 @@ static void warn_route(fm_morph_model *m, const fm_path_route *r)
  * slides round an obstacle gains a grid cell of u well within it (the shipped castling rook: no
  * detour at 1.5 s, where 0.9 s sent tets that were sliding on detours), a stuck one never does. */
 #define DETOUR_CROSSINGS 8
+
+static fm_status nav_copy(const fm_nav *from, fm_nav *to, fm_error *err)
+{
+    const size_t nodes = (size_t)from->n[0] * (size_t)from->n[1] * (size_t)from->n[2];
+    *to = *from;
+    to->u = fm_alloc(sizeof(float) * nodes), to->g = fm_alloc(sizeof(float) * nodes);
+    if (!to->u || !to->g) return fm_fail(err, FM_ERR_MEMORY, "out of memory for the navigation function");
+    memcpy(to->u, from->u, sizeof(float) * nodes), memcpy(to->g, from->g, sizeof(float) * nodes);
+    return FM_OK;
+}
 static fm_status build_detour(fm_morph_model *m, const prep_scratch *s, const fm_path_route *r, fm_error *err)
 {
     const double t = m->def.detour_time, guide = m->def.omega1 * m->def.speed0;
     m->detour_time = t < 0 ? 0 : t > 0 ? t : guide > 0 ? DETOUR_CROSSINGS * m->def.k_a / guide : 0;
     m->info.detour_time = m->detour_time;
     if (!(m->detour_time > 0)) return FM_OK;
-    return fm_nav_build(r, s->path.q, s->path.count, &m->nav, err);
+    fm_kept_route *kept = s->keep ? &s->keep->route : NULL;
+    if (kept && s->keep->route_reused && kept->has_nav) return nav_copy(&kept->nav, &m->nav, err);
+    fm_status st = fm_nav_build(r, s->path.q, s->path.count, &m->nav, err);
+    if (st != FM_OK || !kept || !s->path_in_keep) return st;
+    if ((st = nav_copy(&m->nav, &kept->nav, err)) == FM_OK) kept->has_nav = 1;
+    return st;
 }
 
 /* Beyond the paper (FM §8): the target's own signed distance decides the phase switch. */
@@ -613,8 +714,9 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     report(progress, user, "order", 0.8);
     fm_path_route route;
     if (m->obstacles) path_route_of(m, s, radius, &route);
-    st = fm_path_build_routed(def, m->info.source_centroid, m->info.target_centroid,
-                              m->obstacles && def->path_route ? &route : NULL, &s->path, err);
+    st = m->obstacles && def->path_route
+             ? route_kept(m, s, &route, err)
+             : fm_path_build_routed(def, m->info.source_centroid, m->info.target_centroid, NULL, &s->path, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, def->path_point_count > 0 ? "path.points" : "target.translate", err);
     m->info.key_points = s->path.count;
     if (m->obstacles && def->path_route) warn_route(m, &route);
@@ -685,7 +787,7 @@ fm_morph_model *fm_morph_model_build_group_keeping(const fm_scene_def *def, cons
                                                    fm_morph_keep *keep, fm_progress_fn progress, void *user,
                                                    fm_error *err)
 {
-    keep->reused = 0;
+    keep->reused = keep->grid_reused = keep->route_reused = 0;
     return build_model(def, from, keep_targets, keep, progress, user, err);
 }
 
@@ -696,6 +798,12 @@ void fm_morph_keep_clear(fm_morph_keep *keep)
         fm_mesh_free(&k->mesh), fm_tets_free(&k->tetgen), fm_tets_free(&k->at_n);
         memset(k, 0, sizeof *k);
     }
+    if (!keep) return;
+    fm_kept_route *r = &keep->route;
+    forget_route(r);
+    fm_obstacles_destroy(r->grid);
+    for (int i = 0; i < r->meshes; i++) fm_mesh_free(&r->mesh[i]);
+    memset(r, 0, sizeof *r);
 }
 
 void fm_morph_model_drop_targets(fm_morph_model *m)

@@ -40,7 +40,11 @@ typedef struct fm_sdf_names {
 } fm_sdf_names;
 fm_obstacles *fm_obstacles_build_named(const fm_mesh *meshes, int count, double voxel, double band,
                                        const fm_sdf_names *name, fm_error *err);
-void fm_obstacles_destroy(fm_obstacles *o); /* NULL is fine */
+/* Another owner of o (not thread-safe: one thread shares and destroys): each owner calls
+   fm_obstacles_destroy, and the last one frees it. The studio's keep shares a model's grid with the
+   next model built from the same meshes (morph_model.c). */
+fm_obstacles *fm_obstacles_share(fm_obstacles *o);
+void fm_obstacles_destroy(fm_obstacles *o); /* NULL is fine; frees o once its last owner destroys it */
 /* The grid; valid until fm_obstacles_destroy. */
 fm_sdf_view fm_obstacles_sdf(const fm_obstacles *o);
 

@@ -12,6 +12,7 @@ struct fm_obstacles {
     fm_closest *mesh;   /* the union of the obstacles, with pseudo-normals for the sign */
     float *sdf;
     fm_sdf_view view;
+    int owners;         /* fm_obstacles_share: a model and the studio's keep (morph_model.c) */
 };
 
 double fm_obstacles_closest(const fm_obstacles *o, const double p[3], double closest[3], double normal[3])
@@ -31,9 +32,15 @@ double fm_obstacles_distance_within(const fm_obstacles *o, const double p[3], do
     return fm_closest_within(o ? o->mesh : NULL, p, radius);
 }
 
+fm_obstacles *fm_obstacles_share(fm_obstacles *o)
+{
+    if (o) o->owners++;
+    return o;
+}
+
 void fm_obstacles_destroy(fm_obstacles *o)
 {
-    if (!o) return;
+    if (!o || --o->owners > 0) return;
     fm_closest_destroy(o->mesh);
     fm_free(o->sdf);
     fm_free(o);
@@ -94,6 +101,7 @@ fm_obstacles *fm_obstacles_build_named(const fm_mesh *meshes, int count, double 
         fm_fail(err, FM_ERR_MEMORY, "out of memory for the obstacles");
         return NULL;
     }
+    o->owners = 1;
     o->mesh = fm_closest_build(meshes, count, "obstacle", 1, err);
     fm_status st = o->mesh ? FM_OK : (err ? err->status : FM_ERR_INPUT);
     if (st == FM_OK) {

@@ -3,6 +3,7 @@
  * outside a rule's perception angle or radius is ignored; each rule steers the way it should;
  * MaxForce bounds the result. */
 #include "kernel_boids.h"
+#include "simd.h"
 #include "test_macros.h"
 
 #include <stdlib.h>
@@ -77,8 +78,8 @@ static void run_both(flock *f)
     for (int k = 0; k < 3; k++)
         for (int64_t a = 0; a < f->n; a++) copy[k][a] = f->phase[a] == 1 ? NAN : f->f[k][a];
     const int64_t split = g.count / 3 + 1;
-    fm_kernel_boids_listed(&g, &b, (const float *const *)f->v, f->phase, 1, split, g.count, copy);
-    fm_kernel_boids_listed(&g, &b, (const float *const *)f->v, f->phase, 1, 0, split, copy);
+    fm_kernel_boids_listed(&g, &b, f->phase, 1, split, g.count, copy);
+    fm_kernel_boids_listed(&g, &b, f->phase, 1, 0, split, copy);
     for (int k = 0; k < 3; k++) {
         ENSURE_MSG(memcmp(copy[k], f->f[k], sizeof(float) * (size_t)f->n) == 0, "grid order changed force axis %d", k);
         free(copy[k]);
@@ -264,6 +265,101 @@ static void test_max_force_bounds_the_steering(void)
     free_flock(&f);
 }
 
+
+/* The listed walk (grid order, FM_W candidates at a time) of flock f into out, at the current SIMD
+ * level, with a grid of edge `cell`. */
+static void listed(const flock *f, float cell, float *const out[3])
+{
+    fm_grid g;
+    memset(&g, 0, sizeof g);
+    ENSURE(fm_grid_init(&g, f->n, NULL) == FM_OK && fm_grid_init_velocities(&g, NULL) == FM_OK);
+    fm_grid_build_moving(&g, (const float *const *)f->p, (const float *const *)f->v, NULL, f->n, cell, 2);
+    fm_boids_view b = view(f);
+    b.reach = 1.0f, b.top_speed = 3.5f;
+    for (int k = 0; k < 3; k++)
+        for (int64_t a = 0; a < f->n; a++) out[k][a] = -12345;
+    fm_kernel_boids_listed(&g, &b, f->phase, 1, 0, g.count, out);
+    fm_grid_free(&g);
+}
+
+static int same_floats(const float *a, const float *b, int64_t n) { return memcmp(a, b, sizeof(float) * (size_t)n) == 0; }
+
+/* Every SIMD level's walk gives the scalar twin's bits, whatever the grid's cell (a wider cell
+ * brings more candidates, which the radius test drops: the same neighbours). */
+static void test_every_simd_level_gives_the_same_bits(void)
+{
+    flock f = random_flock(MAX_AGENTS, 3.0f, 41);
+    float *want[3], *got[3];
+    for (int k = 0; k < 3; k++) want[k] = floats(f.n), got[k] = floats(f.n);
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+    fm_simd_set_level(FM_SIMD_SCALAR);
+    listed(&f, 1.0f, want);
+    int levels = 0;
+    for (int level = FM_SIMD_SCALAR; level <= (int)best; level++) {
+        fm_simd_set_level((fm_simd)level);
+        for (int wide = 0; wide < 2; wide++) {
+            listed(&f, wide ? 1.7f : 1.0f, got);
+            for (int k = 0; k < 3; k++)
+                ENSURE_MSG(same_floats(got[k], want[k], f.n), "level %s, cell %s: force axis %d differs",
+                           fm_simd_name((fm_simd)level), wide ? "1.7" : "1", k);
+        }
+        levels++;
+    }
+    fm_simd_set_level(best);
+    ENSURE(levels >= 2); /* scalar and at least SSE2 */
+    for (int k = 0; k < 3; k++) free(want[k]), free(got[k]);
+    free_flock(&f);
+}
+
+/* The sums are exact: the same agents stored in another order feel the same forces, bit for bit
+ * (what lets the store be sorted in space and split over ranks). */
+static void test_agents_order_does_not_change_the_bits(void)
+{
+    flock f = random_flock(MAX_AGENTS, 3.0f, 43), g = make_flock(MAX_AGENTS);
+    int64_t *to = malloc(sizeof(int64_t) * (size_t)f.n);
+    for (int64_t a = 0; a < f.n; a++) to[a] = a;
+    uint64_t seed = 5;
+    for (int64_t a = f.n - 1; a > 0; a--) { /* Fisher-Yates */
+        const int64_t b = (int64_t)(test_uniform(&seed) * (double)(a + 1)) % (a + 1), t = to[a];
+        to[a] = to[b], to[b] = t;
+    }
+    for (int64_t a = 0; a < f.n; a++) {
+        const int64_t b = to[a];
+        for (int k = 0; k < 3; k++) {
+            g.p[k][b] = f.p[k][a], g.v[k][b] = f.v[k][a];
+            g.radius[k][b] = f.radius[k][a], g.cos_half[k][b] = f.cos_half[k][a], g.weight[k][b] = f.weight[k][a];
+        }
+        g.max_speed[b] = f.max_speed[a], g.max_force[b] = f.max_force[a], g.phase[b] = f.phase[a];
+    }
+    listed(&f, 1.0f, f.f);
+    listed(&g, 1.0f, g.f);
+    int64_t differ = 0, felt = 0;
+    for (int64_t a = 0; a < f.n; a++)
+        for (int k = 0; k < 3; k++) {
+            differ += memcmp(&f.f[k][a], &g.f[k][to[a]], sizeof(float)) != 0;
+            felt += f.phase[a] == 1 && k == 0 && f.f[0][a] != 0;
+        }
+    ENSURE_MSG(differ == 0, "%lld force components changed with the agents' order", (long long)differ);
+    ENSURE(felt > f.n / 2);
+    free(to);
+    free_flock(&f), free_flock(&g);
+}
+
+/* The fixed point: a term's bound is 2^31 units, rounding to nearest with ties to even, clamped, NaN
+ * to the lower clamp. */
+static void test_fixed_point_rounds_and_clamps(void)
+{
+    ENSURE(fm_boids_fixed_scale(1.0f) == 0x1p30f);    /* 1 = 2^0: 2^31 / 2^1 */
+    ENSURE(fm_boids_fixed_scale(0.75f) == 0x1p31f);   /* 0.75 < 2^0 */
+    ENSURE(fm_boids_fixed_scale(3.5f) == 0x1p29f);    /* 3.5 < 2^2 */
+    ENSURE(fm_boids_fixed_scale(0.0f) == 0x1p30f && fm_boids_fixed_scale(NAN) == 0x1p30f);
+    ENSURE(fm_boids_fixed(2.5f) == 2 && fm_boids_fixed(3.5f) == 4 && fm_boids_fixed(-2.5f) == -2);
+    ENSURE(fm_boids_fixed(0.49999997f) == 0 && fm_boids_fixed(-7.75f) == -8);
+    ENSURE(fm_boids_fixed(0x1p40f) == INT64_C(1) << 40);
+    ENSURE(fm_boids_fixed(1e30f) == INT64_C(1) << 50 && fm_boids_fixed(-1e30f) == -(INT64_C(1) << 50));
+    ENSURE(fm_boids_fixed(NAN) == -(INT64_C(1) << 50));
+}
+
 int main(void)
 {
     RUN_TEST(test_kernel_equals_reference);
@@ -273,5 +369,8 @@ int main(void)
     RUN_TEST(test_rules_fade_at_the_edges);
     RUN_TEST(test_uniform_flock_feels_nothing);
     RUN_TEST(test_max_force_bounds_the_steering);
+    RUN_TEST(test_every_simd_level_gives_the_same_bits);
+    RUN_TEST(test_agents_order_does_not_change_the_bits);
+    RUN_TEST(test_fixed_point_rounds_and_clamps);
     return test_result();
 }

@@ -39,7 +39,8 @@ def one_edit(ws, key, value, generation):
     t1 = time.time()
     end = ws.wait_status(lambda m: m["generation"] > generation and m["stage"] in ("finished", "failed"), timeout=600)
     return {"first_frame": t1 - t0, "finished": time.time() - t0, "model_kept": end.get("model_kept"),
-            "build_seconds": end.get("build_seconds"), "generation": end["generation"], "stage": end["stage"]}
+            "build_seconds": end.get("build_seconds"),
+            "grids_kept": end.get("grids_kept"), "routes_kept": end.get("routes_kept"), "generation": end["generation"], "stage": end["stage"]}
 
 
 def main():
@@ -79,6 +80,7 @@ def main():
                         "finished_median": round(statistics.median(r["finished"] for r in tr), 2),
                         "first_frame": [round(r["first_frame"], 2) for r in tr],
                         "model_kept": [r["model_kept"] for r in tr],
+                        "grids_kept": [r["grids_kept"] for r in tr], "routes_kept": [r["routes_kept"] for r in tr],
                         "build_seconds": [None if r["build_seconds"] is None else round(r["build_seconds"], 2) for r in tr]}
     print(json.dumps(result))
 

@@ -6,7 +6,8 @@
 //   frames the page received (SHA-256 of each frame's tet vertices, from the Python reader); a
 //   played cache's frame K is the reader's; a wrong token and a foreign Origin are refused. In a
 //   shot, a group picked in the panel shows its own path point between its shapes, and its slider
-//   edits the group's key; `flockmorph run` of the saved shot gives the page's frames again.
+//   edits the group's key; `flockmorph run` of the saved shot gives the page's frames again; an
+//   edit of the groups list itself makes the panel's "Edit" list and the handles follow.
 // Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing,
 // or with --skip (the sanitizer build).
 //   node test_studio_browser.mjs --cli FLOCKMORPH --source REPO --tmp DIR [--python PY] [--shots DIR] [--skip WHY]
@@ -241,6 +242,7 @@ async function shotGroups(browser) {
     await page.waitForFunction(() => window.studio.note?.startsWith('saved') && !window.studio.status.dirty, null, { timeout: 10000 });
     await receiveAll(page, run.frames);
     received = await page.evaluate((n) => Array.from({ length: n }, (_, k) => window.studio.received.get(k)), run.frames);
+    await followGroups(page);
     await page.close();
   } finally { await stopStudio(studio); }
   const saved = JSON.parse(readFileSync(scene, 'utf8'));
@@ -249,6 +251,32 @@ async function shotGroups(browser) {
   check(JSON.stringify(saved.groups[1].path.points[0]) !== JSON.stringify(SHOT.groups[1].path.points[0]) && !saved.groups[0].path,
     `the saved shot does not carry group 1's dragged point alone: ${JSON.stringify(saved)}`);
   sameFrames(scene, join(tmp, 'shot_out'), received, 'shot');
+}
+
+// An edit of the `groups` list itself (sent on the page's socket, as another tab's edit comes): the
+// "Edit" list offers the groups as they are now, a new group picked shows its own handle between its
+// own shapes, and a picked group that is removed gives way to the top level and its handle.
+async function followGroups(page) {
+  const select = controller(page, 'Edit').locator('select');
+  const shown = () => select.evaluate((s) => ({ options: [...s.options].map((o) => o.text), picked: s.options[s.selectedIndex]?.text }));
+  const edit = (groups) => page.evaluate((g) => window.studio.connection.send({ type: 'set', key: 'groups', value: g }), groups);
+  const handles = () => page.evaluate(() => JSON.stringify(window.studio.path.points.map((p) => p.toArray())));
+  const two = await page.evaluate(() => window.studio.scene.groups);
+  await edit([...two, { name: 'c', start: 0.5, source: { mesh: 'sphere.obj', translate: [-15, 12, 0] },
+    target: { mesh: 'cylinder.obj', translate: [15, 12, 0] }, path: { points: [[0, 18, 4]] } }]);
+  await page.waitForFunction(() => window.studio.scene.groups.length === 3, null, { timeout: 10000 });
+  const three = await shown();
+  check(three.options.length === 4 && three.options[3] === 'group 2: c' && three.picked === 'group 1: b',
+    `the Edit list does not follow a third group (group 1 still picked): ${JSON.stringify(three)}`);
+  await select.selectOption({ label: 'group 2: c' });
+  check(await handles() === '[[0,18,4]]', `group 2's handle is not its own path point: ${await handles()}`);
+  await page.waitForFunction(() => window.studio.path.ends.every((e) => Math.abs(e.y - 12) < 1), null, { timeout: 20000 });
+  await edit(two);
+  await page.waitForFunction(() => window.studio.scene.groups.length === 2, null, { timeout: 10000 });
+  const back = await shown();
+  check(back.options.length === 3 && back.picked === 'top level (every group)' && await handles() === JSON.stringify(SHOT.path.points),
+    `group 2 removed: the Edit list and handles do not give way to the top level: ${JSON.stringify(back)} ${await handles()}`);
+  log('an edit of groups: the Edit list followed (3 groups, then 2), the handles with it');
 }
 
 // `flockmorph run` of the saved scene writes, byte for byte, the frames the page received.

@@ -152,6 +152,37 @@ def check_model_keep(url):
     ws.close()
 
 
+def current_status(url):
+    """The status a page that connects now is sent."""
+    ws = WebSocket(url)
+    ws.recv_json("hello")
+    status = ws.wait_status(lambda m: True, timeout=10)
+    ws.close()
+    return status
+
+
+def check_unrun_edits(url):
+    """An edit that leaves what the run simulates as it was (a value set to the one it has, only the
+    cache's compression) starts no run: the finished run and its frames stand. (check_truth then
+    runs the saved scene, compression edited, against the frames streamed.) An edit after it runs."""
+    ws = WebSocket(url)
+    hello = ws.recv_json("hello")
+    done = ws.wait_status(lambda m: m["stage"] == "finished", timeout=60)
+    last = hashlib.sha256(ws.frame(done["frames"] - 1)[1][1]).hexdigest()
+    for i, (key, value) in enumerate((("speed0", hello["scene"]["speed0"]), ("output.compression_level", 5))):
+        ws.send({"type": "set", "key": key, "value": value})
+        told = ws.wait_status(lambda m: True, timeout=10)  # the accepted edit's status
+        time.sleep(0.3)  # past the 50 ms the worker waits for edits to settle: a run would have started
+        now = current_status(url)
+        check(told["generation"] == now["generation"] == done["generation"] and now["stage"] == "finished"
+              and now["frames"] == done["frames"] and now["unrun_edits"] == done["unrun_edits"] + i + 1,
+              f"set {key}={value} leaves the run as it was: no run (generation {now['generation']}, {now['stage']})")
+    check(hashlib.sha256(ws.frame(done["frames"] - 1)[1][1]).hexdigest() == last, "the unrun edits' frames stand")
+    ran = edited_run(ws, "speed0", hello["scene"]["speed0"] + 0.5, done["generation"])
+    check(ran["stage"] == "finished" and ran["unrun_edits"] == done["unrun_edits"] + 2, "an edit that changes the scene runs it")
+    ws.close()
+
+
 def check_two_editors(url, ws):
     a, b = WebSocket(url), WebSocket(url)
     a.recv_json("hello"), b.recv_json("hello")
@@ -282,13 +313,17 @@ def check_flock_keep(args, tmp):
 def check_shot_edit(args, tmp):
     """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
     changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
-    the file writes the edited run's frames byte for byte."""
+    the file writes the edited run's frames byte for byte. A small sphere on group a's way is an
+    obstacle to both: the speed0 edit keeps both groups' distance grids and routed paths, and moving
+    group 1's target keeps both grids (the same meshes and reach) and group 0's route alone."""
     scene, proc, url = studio_on(args, tmp, "shot.json", {
         "time": {"frame_rate": 24, "frame_limit": 24}, "speed0": 12.0, "launch_rate": 800, "seed": 7,
+        # a coarse grid, and detours (their navigation function: 0.8 s a build) for group a alone
+        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3}], "k_a": 1.0, "voxel": 0.5},
         "groups": [{"name": "a", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
                     "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}},
                    {"name": "b", "start": 0.5, "source": {"mesh": "sphere.obj", "translate": [-15.0, 12.0, 0.0]},
-                    "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}}]})
+                    "target": {"mesh": "cylinder.obj", "translate": [15.0, 12.0, 0.0]}, "obstacles": {"detour_time": -1}}]})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
@@ -298,17 +333,23 @@ def check_shot_edit(args, tmp):
         check("groups[1].speed0" in e and "out of range" in e, f"shot: an invalid group edit names the group's key: {e}")
         e = error_of(ws, {"type": "set", "key": "groups.0.target.mesh", "value": "/etc/passwd"})
         check("/etc/passwd" in e and "refused" in e, f"shot: a group's edit that names another file is refused: {e}")
-        check(first["model_kept"] is False and first["groups_kept"] == 0, "shot: the first run builds every group")
+        check(first["model_kept"] is False and first["groups_kept"] == 0 and first["grids_kept"] == 0
+              and first["routes_kept"] == 0, "shot: the first run builds every group, its grids and routes")
         run = edited_run(ws, "groups.1.speed0", 7.0, first["generation"])
         check(run["stage"] == "finished", f"shot: a group's edit runs the shot again ({run['stage']} {run['failure']})")
         check(run["model_kept"] is True and run["groups_kept"] == 2,
               f"shot: a group's speed0 edit keeps every group's tets ({run['groups_kept']} kept, {run['build_seconds']:.3f} s)")
+        check(run["grids_kept"] == 2 and run["routes_kept"] == 2,
+              f"shot: ... and every group's obstacle grid ({run['grids_kept']}) and routed path ({run['routes_kept']})")
         after = hashlib.sha256(ws.frame(run["frames"] - 1)[1][1]).hexdigest()
         check(after != before, "shot: the edit changed the run (its groups come from the edited scene)")
         check_saved_run(args, ws, scene, run["frames"], os.path.join(tmp, "shot_out"), "shot (every group kept)")
         moved = edited_run(ws, "groups.1.target.translate", [16.0, 12.0, 0.0], run["generation"])
         check(moved["stage"] == "finished" and moved["model_kept"] is False and moved["groups_kept"] == 1,
               f"shot: moving group 1's target builds it again and keeps group 0 ({moved['groups_kept']} kept)")
+        check(moved["grids_kept"] == 2 and moved["routes_kept"] == 1,
+              f"shot: ... both grids kept ({moved['grids_kept']}), group 1's path routed again ({moved['routes_kept']} kept)")
+        check_saved_run(args, ws, scene, moved["frames"], os.path.join(tmp, "shot_moved_out"), "shot (grids kept, a route made)")
         ws.close()
     finally:
         check_stopped(proc, "shot")
@@ -396,6 +437,7 @@ def main():
         check_bad_messages(ws)
         check_failed_run(url)
         check_model_keep(url)
+        check_unrun_edits(url)
         check_burst(url)
         speed = check_two_editors(url, ws)
         check_vanishing_clients(url)

@@ -67,6 +67,7 @@ class App {
 
   onScene(m) {
     this.scene = m.scene;
+    if (this.panel.followGroups(m.scene)) this.path.editGroup = this.panel.group; // `groups` edited
     this.path.setScene(m.scene, this.shapes);
     this.panel.refresh(m.scene);
     this.status.dirty = m.dirty;

@@ -55,6 +55,11 @@ export function editable(doc, group, key) {
   return !(key === 'n' && doc.groups?.[group]?.source?.group !== undefined);
 }
 
+// A shot's group names, in order ([] for a scene without groups).
+export function groupNames(doc) {
+  return Array.isArray(doc?.groups) ? doc.groups.map((g) => g?.name ?? '') : [];
+}
+
 export class Panel {
   constructor(app) {
     this.app = app;
@@ -64,6 +69,8 @@ export class Panel {
     this.timer = null;
     this.group = -1;      // the group edited (-1: the top level)
     this.folders = [];    // the parameters' folders, built again for another group
+    this.groupChoice = null; // the shot's "Edit" list, and the group names it offers
+    this.groupNames = [];
   }
 
   // Sends edits at most every 120 ms, the last value of each key (the server cancels a run an
@@ -94,16 +101,34 @@ export class Panel {
     });
     gui.add(actions, 'speed', ['scene rate', 'as fast as it can']).name('Playback').onChange((v) => { app.fastest = v !== 'scene rate'; });
     gui.add(actions, 'follow').name('Follow the run').onChange((v) => { app.follow = v; });
-    if (hello.mode === 'live' && hello.scene.groups) this.buildGroupChoice(hello.scene);
+    if (hello.mode === 'live') this.buildGroupChoice(hello.scene);
     if (hello.mode === 'live') this.buildParameters(hello.scene);
     if (hello.cache) this.buildCacheFacts(hello.cache);
   }
 
-  // A shot: which of its groups the parameters and the path's handles edit.
+  // A shot: which of its groups the parameters and the path's handles edit (none for a scene).
   buildGroupChoice(doc) {
+    this.groupNames = groupNames(doc);
+    if (!this.groupNames.length) return;
     const options = { 'top level (every group)': -1 };
-    doc.groups.forEach((g, k) => { options[`group ${k}: ${g.name}`] = k; });
-    this.gui.add(this, 'group', options).name('Edit').onChange((k) => this.app.selectGroup(k));
+    this.groupNames.forEach((name, k) => { options[`group ${k}: ${name}`] = k; });
+    this.groupChoice = this.gui.add(this, 'group', options).name('Edit').onChange((k) => this.app.selectGroup(k));
+  }
+
+  // An edit of `groups` (added, removed or renamed; this tab's or another's): the "Edit" list offers
+  // the groups as they are now, and the parameters follow; a picked group that is gone gives way to
+  // the top level. Rebuilt in place of the old list, before the parameters' folders. Returns whether
+  // it changed.
+  followGroups(doc) {
+    if (JSON.stringify(groupNames(doc)) === JSON.stringify(this.groupNames)) return false;
+    this.groupChoice?.destroy();
+    this.groupChoice = null;
+    for (const f of this.folders) f.destroy();
+    this.folders = [];
+    if (this.group >= (doc.groups?.length ?? 0)) this.group = -1;
+    this.buildGroupChoice(doc);
+    this.selectGroup(this.group, doc);
+    return true;
   }
 
   // The parameters of another group (or the top level), from the scene as it is now.

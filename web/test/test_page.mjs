@@ -8,7 +8,7 @@ import { test } from 'node:test';
 import * as THREE from 'three';
 import { ATTR, parseFrame } from '../src/protocol.js';
 import { groupPath, groupShapes, resample } from '../src/path.js';
-import { editable, getKey, groupValue, scopedKey } from '../src/panel.js';
+import { editable, getKey, groupNames, groupValue, scopedKey } from '../src/panel.js';
 import { DynamicResolution, RATIOS } from '../src/resolution.js';
 import { TET_FACES, frontFaces, restingTets, sharedFaces } from '../src/tets.js';
 
@@ -76,6 +76,13 @@ test('a group edits its own keys and shows the top level\'s where it has none', 
   assert.ok(editable(SHOT, 1, 'speed0') && editable(SHOT, 0, 'n') && editable(SHOT, -1, 'time.frame_limit'));
   assert.ok(!editable(SHOT, 1, 'time.frame_limit'), 'the whole shot shares time');
   assert.ok(!editable(SHOT, 2, 'n'), 'a group from another\'s shape has its agents');
+});
+
+test('the "Edit" list follows the groups a scene has now (the panel rebuilds it when these change)', () => {
+  assert.deepEqual(groupNames(SHOT), ['a', 'b', 'c']);
+  assert.deepEqual(groupNames({ ...SHOT, groups: SHOT.groups.slice(0, 2) }), ['a', 'b']);
+  assert.deepEqual(groupNames({ speed0: 8 }), [], 'a scene without groups offers none');
+  assert.deepEqual(groupNames({ groups: null }), []);
 });
 
 test('a group\'s path: its own keys over the top level\'s, between its own shapes', () => {

@@ -1,0 +1,261 @@
+/* The boids' walk over the grid in its order, SIMD (kernel_boids.h): per agent, FM_W candidates at a
+ * time are tested against its widest radius and the hits packed into a short list; the list is then
+ * taken FM_W neighbours at a time through fm_boids_add's float operations, lane by lane in the same
+ * order, and each term, rounded to fixed point, is added in 64-bit integer lanes. Integer sums do not
+ * depend on which lane or in which order a neighbour was added, so every variant gives the scalar
+ * twin's bits. Compiled three times (simd.h). */
+#include "kernel_boids.h"
+#include "simd.h"
+
+/* Fixed-point lanes: `qv` holds 64-bit integer sums, qv_add adds the FM_W lanes of a float vector
+ * (scaled, clamped: fixed() below) rounded to nearest even, as fm_boids_fixed does. */
+#if FM_W == 16
+typedef __m512i qv;
+static inline qv qv_zero(void) { return _mm512_setzero_si512(); }
+static inline qv qv_add(qv acc, fv x)
+{
+    const __m512i lo = _mm512_cvtps_epi64(_mm512_castps512_ps256(x)); /* MXCSR's rounding: to nearest even */
+    const __m512i hi = _mm512_cvtps_epi64(_mm512_extractf32x8_ps(x, 1));
+    return _mm512_add_epi64(acc, _mm512_add_epi64(lo, hi));
+}
+static inline uint64_t qv_total(qv a) { return (uint64_t)_mm512_reduce_add_epi64(a); }
+static inline fv fv_max(fv a, fv b) { return _mm512_max_ps(a, b); }
+static inline fv fv_min(fv a, fv b) { return _mm512_min_ps(a, b); }
+static inline fv fv_and(fv a, fv b) { return _mm512_and_ps(a, b); }
+#elif FM_W == 8 || FM_W == 4
+#if FM_W == 8
+typedef __m256i qv;
+static inline qv qv_zero(void) { return _mm256_setzero_si256(); }
+/* 4 floats to 4 int64: the double's mantissa rounds x + 1.5 2^52 (|x| < 2^51), as fm_boids_fixed */
+static inline __m256i fixed4(__m128 x)
+{
+    const __m256d y = _mm256_add_pd(_mm256_cvtps_pd(x), _mm256_set1_pd(0x1.8p52));
+    return _mm256_sub_epi64(_mm256_castpd_si256(y), _mm256_set1_epi64x(INT64_C(0x4338000000000000)));
+}
+static inline qv qv_add(qv acc, fv x)
+{
+    return _mm256_add_epi64(acc, _mm256_add_epi64(fixed4(_mm256_castps256_ps128(x)), fixed4(_mm256_extractf128_ps(x, 1))));
+}
+static inline uint64_t qv_total(qv a)
+{
+    uint64_t l[4];
+    _mm256_storeu_si256((__m256i *)l, a);
+    return l[0] + l[1] + l[2] + l[3];
+}
+static inline fv fv_max(fv a, fv b) { return _mm256_max_ps(a, b); }
+static inline fv fv_min(fv a, fv b) { return _mm256_min_ps(a, b); }
+static inline fv fv_and(fv a, fv b) { return _mm256_and_ps(a, b); }
+#else
+typedef __m128i qv;
+static inline qv qv_zero(void) { return _mm_setzero_si128(); }
+/* the two low floats of x to 2 int64, as fixed4 */
+static inline __m128i fixed2(__m128 x)
+{
+    const __m128d y = _mm_add_pd(_mm_cvtps_pd(x), _mm_set1_pd(0x1.8p52));
+    return _mm_sub_epi64(_mm_castpd_si128(y), _mm_set1_epi64x(INT64_C(0x4338000000000000)));
+}
+static inline qv qv_add(qv acc, fv x) { return _mm_add_epi64(acc, _mm_add_epi64(fixed2(x), fixed2(_mm_movehl_ps(x, x)))); }
+static inline uint64_t qv_total(qv a)
+{
+    uint64_t l[2];
+    _mm_storeu_si128((__m128i *)l, a);
+    return l[0] + l[1];
+}
+static inline fv fv_max(fv a, fv b) { return _mm_max_ps(a, b); }
+static inline fv fv_min(fv a, fv b) { return _mm_min_ps(a, b); }
+static inline fv fv_and(fv a, fv b) { return _mm_and_ps(a, b); }
+#endif
+#else
+typedef uint64_t qv;
+static inline qv qv_zero(void) { return 0; }
+static inline qv qv_add(qv acc, fv x) { return acc + (uint64_t)fm_boids_fixed(x); }
+static inline uint64_t qv_total(qv a) { return a; }
+static inline fv fv_max(fv a, fv b) { return a > b ? a : b; }
+static inline fv fv_min(fv a, fv b) { return a < b ? a : b; }
+static inline fv fv_and(fv a, fv b)
+{
+    uint32_t x, y;
+    memcpy(&x, &a, 4), memcpy(&y, &b, 4), x &= y;
+    memcpy(&a, &x, 4);
+    return a;
+}
+#endif
+
+/* x * scale clamped to +-FM_BOIDS_FIXED_CLAMP (NaN to the lower bound: max's second operand), in
+ * lanes where `in`, else 0: ready for qv_add. */
+static inline fv fixed(fv in, fv x, fv scale)
+{
+    const fv clamp = fv_set1(FM_BOIDS_FIXED_CLAMP), zero = fv_set1(0.0f);
+    return fv_select(in, fv_min(fv_max(fv_mul(x, scale), fv_sub(zero, clamp)), clamp), zero);
+}
+
+/* The packed hits of one agent: offsets, squared distances and entries (for the velocities), with
+ * room for one more vector past HIT_FLUSH. */
+enum { HIT_FLUSH = 128, HIT_ROOM = HIT_FLUSH + 2 * FM_W };
+typedef struct hits {
+    float dx[HIT_ROOM], dy[HIT_ROOM], dz[HIT_ROOM], d2[HIT_ROOM];
+    int32_t entry[HIT_ROOM];
+    int n;
+} hits;
+
+/* The agent's fixed-point sums in lanes. */
+typedef struct lane_sums {
+    qv rule[FM_BOIDS_RULES][3], weight[2];
+} lane_sums;
+
+/* The viewer's scalars in every lane. */
+typedef struct lane_viewer {
+    fv unit[3], inv_r[FM_BOIDS_RULES], lo[FM_BOIDS_RULES], scale[FM_BOIDS_RULES], unit_scale;
+} lane_viewer;
+
+static lane_viewer lanes_of(const fm_boids_viewer *w)
+{
+    lane_viewer l;
+    for (int k = 0; k < 3; k++) l.unit[k] = fv_set1(w->unit[k]);
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        l.inv_r[r] = fv_set1(w->inv_r[r]), l.lo[r] = fv_set1(w->lo[r]), l.scale[r] = fv_set1(w->scale[r]);
+    l.unit_scale = fv_set1(w->unit_scale);
+    return l;
+}
+
+/* fm_boids_add for the hits h[o .. o + FM_W) of which the first `count` are real. */
+static inline void add_lanes(lane_sums *s, const hits *h, int o, int count, const float *const c[6],
+                             const lane_viewer *w)
+{
+    static const float lane_number[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+    const fv one = fv_set1(1.0f), zero = fv_set1(0.0f), two = fv_set1(2.0f), three = fv_set1(3.0f);
+    const fv valid = fv_lt(fv_load(lane_number), fv_set1((float)count));
+    const fv d[3] = {fv_load(h->dx + o), fv_load(h->dy + o), fv_load(h->dz + o)};
+    const fv d2 = fv_select(valid, fv_load(h->d2 + o), one);
+    const fv dist = fv_sqrt(d2), inv_dist = fv_div(one, dist);
+    const fv cosine = fv_mul(fv_add(fv_add(fv_mul(w->unit[0], d[0]), fv_mul(w->unit[1], d[1])), fv_mul(w->unit[2], d[2])),
+                             inv_dist);
+    iv at; /* past the hits: earlier agents' entries, or the zeros the walk started with: in bounds */
+    memcpy(&at, h->entry + o, sizeof at);
+    const fv vb[3] = {fv_gather(c[3], at), fv_gather(c[4], at), fv_gather(c[5], at)};
+    const fv band = fv_set1(0.5f / FM_BOIDS_CONE_BAND);
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        const fv rho = fv_mul(dist, w->inv_r[r]);
+        fv t = fv_mul(fv_sub(cosine, w->lo[r]), band);
+        const fv in = fv_and(valid, fv_and(fv_lt(rho, one), fv_gt(t, zero)));
+        t = fv_min(t, one);
+        const fv g = fv_mul(fv_mul(t, t), fv_sub(three, fv_mul(two, t)));
+        if (r == FM_BOIDS_SEPARATION) {
+            const fv near = fv_sub(one, rho);
+            const fv push = fv_mul(fv_mul(fv_mul(fv_mul(g, near), near), fv_add(one, fv_mul(two, rho))), inv_dist);
+            for (int k = 0; k < 3; k++) s->rule[r][k] = qv_add(s->rule[r][k], fixed(in, fv_mul(push, d[k]), w->scale[r]));
+            continue;
+        }
+        const fv q = fv_sub(one, fv_mul(rho, rho));
+        const fv weight = fv_mul(fv_mul(g, q), q);
+        const fv *x = r == FM_BOIDS_COHESION ? d : vb;
+        for (int k = 0; k < 3; k++) s->rule[r][k] = qv_add(s->rule[r][k], fixed(in, fv_mul(weight, x[k]), w->scale[r]));
+        s->weight[r - 1] = qv_add(s->weight[r - 1], fixed(in, weight, w->unit_scale));
+    }
+}
+
+/* The hits h[0 .. n) through add_lanes: whole vectors only (the rest moved to the front), or all of
+ * them when `all`. */
+static void flush(hits *h, lane_sums *s, const float *const c[6], const lane_viewer *w, int all)
+{
+    int o = 0;
+    for (; o + FM_W <= h->n; o += FM_W) add_lanes(s, h, o, FM_W, c, w);
+    const int rest = h->n - o;
+    if (all && rest > 0) {
+        add_lanes(s, h, o, rest, c, w);
+        h->n = 0;
+        return;
+    }
+    for (int l = 0; l < rest; l++)
+        h->dx[l] = h->dx[o + l], h->dy[l] = h->dy[o + l], h->dz[l] = h->dz[o + l], h->d2[l] = h->d2[o + l],
+        h->entry[l] = h->entry[o + l];
+    h->n = rest;
+}
+
+/* Appends the lanes of bit mask m (candidates at entries j, j + 1, ...) to the hits. */
+static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, int32_t j)
+{
+#if FM_W == 16
+    const __mmask16 k = (__mmask16)m;
+    const int n = h->n;
+    _mm512_storeu_ps(h->dx + n, _mm512_maskz_compress_ps(k, dx)); /* to a register, then stored: a */
+    _mm512_storeu_ps(h->dy + n, _mm512_maskz_compress_ps(k, dy)); /* compress straight to memory is */
+    _mm512_storeu_ps(h->dz + n, _mm512_maskz_compress_ps(k, dz)); /* slow on AMD's Zen 4 */
+    _mm512_storeu_ps(h->d2 + n, _mm512_maskz_compress_ps(k, d2));
+    const __m512i entries = _mm512_add_epi32(_mm512_set1_epi32(j), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10,
+                                                                                       11, 12, 13, 14, 15));
+    _mm512_storeu_si512((void *)(h->entry + n), _mm512_maskz_compress_epi32(k, entries));
+    h->n = n + __builtin_popcount(m);
+#else
+    float t[4][FM_W];
+    fv_store(t[0], dx), fv_store(t[1], dy), fv_store(t[2], dz), fv_store(t[3], d2);
+    while (m) {
+        const int l = __builtin_ctz(m);
+        m &= m - 1;
+        const int n = h->n++;
+        h->dx[n] = t[0][l], h->dy[n] = t[1][l], h->dz[n] = t[2][l], h->d2[n] = t[3][l], h->entry[n] = j + l;
+    }
+#endif
+}
+
+/* The candidates at entries [b, e) within r2_max of x (and not on it), FM_W at a time, into the
+ * hits, which are added whenever HIT_FLUSH of them wait. */
+static void scan_range(hits *h, lane_sums *s, const float *const c[6], int32_t b, int32_t e, const float x[3],
+                       fv r2_max, const lane_viewer *w)
+{
+    const fv px = fv_set1(x[0]), py = fv_set1(x[1]), pz = fv_set1(x[2]), zero = fv_set1(0.0f);
+    for (int32_t j = b; j < e; j += FM_W) {
+        const fv dx = fv_sub(fv_load(c[0] + j), px), dy = fv_sub(fv_load(c[1] + j), py), dz = fv_sub(fv_load(c[2] + j), pz);
+        const fv d2 = fv_add(fv_add(fv_mul(dx, dx), fv_mul(dy, dy)), fv_mul(dz, dz));
+        unsigned m = fv_mask(fv_and(fv_lt(d2, r2_max), fv_gt(d2, zero)));
+        if (e - j < FM_W) m &= (1u << (e - j)) - 1; /* past the range: the next range's or padding */
+        if (!m) continue;
+        pack(h, m, dx, dy, dz, d2, j);
+        if (h->n >= HIT_FLUSH) flush(h, s, c, w, 0);
+    }
+}
+
+/* Agent a at entry k: its sums over the `count` ranges, then its force. */
+static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const int32_t *ranges,
+                        int count, hits *h, float *const f[3])
+{
+    const float *const *c = (const float *const *)g->soa;
+    const float x[3] = {c[0][k], c[1][k], c[2][k]}, v[3] = {c[3][k], c[4][k], c[5][k]};
+    fm_boids_viewer viewer;
+    float r2_max;
+    fm_boids_viewer_init(b, a, v, &viewer, &r2_max);
+    const lane_viewer w = lanes_of(&viewer);
+    lane_sums s;
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        for (int q = 0; q < 3; q++) s.rule[r][q] = qv_zero();
+    s.weight[0] = s.weight[1] = qv_zero();
+    h->n = 0;
+    for (int ri = 0; ri < count; ri++) scan_range(h, &s, c, ranges[2 * ri], ranges[2 * ri + 1], x, fv_set1(r2_max), &w);
+    flush(h, &s, c, &w, 1);
+    fm_boids_sums sums = {{{0}}, {0}};
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        for (int q = 0; q < 3; q++) sums.rule[r][q] = qv_total(s.rule[r][q]);
+    sums.weight[FM_BOIDS_COHESION] = qv_total(s.weight[0]), sums.weight[FM_BOIDS_ALIGNMENT] = qv_total(s.weight[1]);
+    float out[3];
+    fm_boids_steer(&sums, &viewer, b, a, v, out);
+    for (int q = 0; q < 3; q++) f[q][a] = out[q];
+}
+
+void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase,
+                                             uint8_t phase_sel, int64_t first, int64_t last, float *const f[3])
+{
+    hits h;
+    memset(&h, 0, sizeof h); /* lanes past the hits are loaded (and not used): defined, entries in bounds */
+    int32_t ranges[2 * FM_GRID_MAX_RANGES], cell[3] = {0, 0, 0};
+    int count = -1; /* the ranges of `cell`, which the agents of one cell, walked in a row, share */
+    for (int64_t k = first; k < last; k++) {
+        const int32_t a = g->quad[k >> 2].i[k & 3];
+        if (phase[a] != phase_sel) continue;
+        const float x[3] = {g->soa[0][k], g->soa[1][k], g->soa[2][k]};
+        const int32_t at[3] = {fm_grid_coord(fm_grid_scaled(g, x[0])), fm_grid_coord(fm_grid_scaled(g, x[1])),
+                               fm_grid_coord(fm_grid_scaled(g, x[2]))}; /* as fm_grid_ranges places x */
+        if (count < 0 || at[0] != cell[0] || at[1] != cell[1] || at[2] != cell[2])
+            count = fm_grid_ranges(g, x[0], x[1], x[2], ranges), memcpy(cell, at, sizeof cell);
+        boids_entry(g, b, k, a, ranges, count, &h, f);
+    }
+}
