@@ -357,21 +357,34 @@ void fm_flock_frame(const fm_flock_state *s, float *position, float *velocity, f
     fm_flock_frame_range(s, 0, s->slots, position, velocity, orientation, phase);
 }
 
-/* In id order: a re-sorted store's slots are gathered through slot_by_id (the cache's frames stay in
- * id order). */
+/* Agent id's values from slot a into element o of the frame's arrays. */
+static inline void frame_agent(const fm_flock_state *s, int64_t a, int64_t o, float *position, float *velocity,
+                               float *orientation, uint8_t *phase)
+{
+    for (int k = 0; k < 3; k++) {
+        if (position) position[3 * o + k] = s->p[k][a];
+        if (velocity) velocity[3 * o + k] = s->v[k][a];
+    }
+    if (orientation) memcpy(orientation + 4 * o, s->orient + 4 * a, sizeof(float) * 4);
+    if (phase) phase[o] = s->phase[a];
+}
+
+/* In id order (the cache's frames are): a re-sorted store's slots are read in store order and each
+ * agent written at its id (a scatter touches each agent's 4 output runs, where a gather through
+ * slot_by_id would touch its 8 input arrays at random). */
 void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,
                           float *orientation, uint8_t *phase)
 {
+    if (s->sorted) {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t i = begin; i < end; i++) {
-        const int64_t a = fm_flock_slot_in_id_order(s, i), o = i - begin;
-        for (int k = 0; k < 3; k++) {
-            if (position) position[3 * o + k] = s->p[k][a];
-            if (velocity) velocity[3 * o + k] = s->v[k][a];
+        for (int64_t a = 0; a < s->slots; a++) {
+            const int64_t i = s->id[a];
+            if (i >= begin && i < end) frame_agent(s, a, i - begin, position, velocity, orientation, phase);
         }
-        if (orientation) memcpy(orientation + 4 * o, s->orient + 4 * a, sizeof(float) * 4);
-        if (phase) phase[o] = s->phase[a];
+        return;
     }
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t i = begin; i < end; i++) frame_agent(s, i, i - begin, position, velocity, orientation, phase);
 }
 
 void fm_flock_destinations(const fm_flock_state *s, float *out)
