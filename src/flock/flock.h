@@ -1,7 +1,8 @@
 /* The shape-constrained flock (SCF): the internal layout of fm_flock_model and fm_flock_state.
  *
  * It shares the machinery of the wings below (docs/architecture.md): SoA arrays from fm_alloc indexed by slot (on
- * one process the agent id; on P ranks a rank's agents in id order, flock_dist.c), FM_BLOCK blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
+ * one process re-sorted in space every few steps, flock_resort.c, id[] naming each slot's agent; on P ranks a
+ * rank's agents in id order, flock_dist.c), FM_BLOCK blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
  * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
  * fm_morph_state: docs/architecture.md, "What the two modes share". */
@@ -207,7 +208,7 @@ struct fm_flock_state {
     fm_status dist_status;         /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
     void *scratch;                 /* the slots' moves: one array's worth (cap entries of the largest) */
-    int32_t *move_from;            /* the slots' moves: each new slot's old one (flock_dist.c merge_slots) */
+    int32_t *move_from;            /* the slots' moves: each new slot's old one (flock_dist.c merge_slots, flock_resort.c) */
     void *merge_buf;               /* merge_slots' incoming agents, kept between steps */
     size_t merge_bytes;
     struct fm_flock_state *view;   /* a frame's or a checkpoint's share of the ids, complete (flock_dist.c) */

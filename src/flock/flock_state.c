@@ -32,7 +32,8 @@ const fm_store_member fm_flock_state_members[] = {
 const int fm_flock_state_member_count = (int)(sizeof fm_flock_state_members / sizeof fm_flock_state_members[0]);
 
 /* Every per-slot array, with its bytes a slot, whether it carries the agent from one step to the
- * next (moved with it when a rank's slots are rebuilt; the others are each step's scratch) and
+ * next (moved with it when a rank's slots are rebuilt or the store is re-sorted: flock_resort.c;
+ * the others are each step's scratch) and
  * which stores have it: allocated, resized and freed together (a new array is one line here). */
 enum { IN_ALL, IN_STEPPED, IN_OWN_KALMAN, IN_STEPPED_OWN_KALMAN, IN_DEFORMING, IN_OWN_SLOTS };
 typedef struct slot_array {
