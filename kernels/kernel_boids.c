@@ -3,19 +3,20 @@
 #include "kernel_boids.h"
 #include "simd.h"
 
-/* A fixed-point sum back in the units of its terms. */
-static double unfixed(uint64_t sum, float scale) { return (double)(int64_t)sum / (double)scale; }
+/* A fixed-point sum back in the units of its terms (1 / scale, a power of two, is exact: the same
+ * bits as dividing by it, at a multiplication's cost). */
+static double unfixed(uint64_t sum, double inv_scale) { return (double)(int64_t)sum * inv_scale; }
 
 void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_boids_view *b, int64_t a,
                     const float v[3], float f[3])
 {
-    const double max_speed = b->max_speed[a], max_force = b->max_force[a];
+    const double max_speed = b->max_speed[a], max_force = b->max_force[a], inv_unit = 1.0 / (double)w->unit_scale;
     double force[3] = {0, 0, 0};
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const double weight = b->weight[r][a], total = unfixed(s->weight[r], w->unit_scale);
-        const double norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total);
+        const double weight = b->weight[r][a], total = unfixed(s->weight[r], inv_unit);
+        const double norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total), inv_scale = 1.0 / (double)w->scale[r];
         double sum[3];
-        for (int k = 0; k < 3; k++) sum[k] = unfixed(s->rule[r][k], w->scale[r]);
+        for (int k = 0; k < 3; k++) sum[k] = unfixed(s->rule[r][k], inv_scale);
         if (r == FM_BOIDS_SEPARATION) {
             for (int k = 0; k < 3; k++) force[k] -= weight * max_speed * sum[k]; /* away from them */
         } else if (r == FM_BOIDS_COHESION) {

@@ -81,12 +81,12 @@ static inline fv fv_and(fv a, fv b)
 }
 #endif
 
-/* x * scale clamped to +-FM_BOIDS_FIXED_CLAMP (NaN to the lower bound: max's second operand), in
- * lanes where `in`, else 0: ready for qv_add. */
-static inline fv fixed(fv in, fv x, fv scale)
+/* x * scale clamped to +-FM_BOIDS_FIXED_CLAMP (NaN to the lower bound: max's second operand): ready
+ * for qv_add. */
+static inline fv fixed(fv x, fv scale)
 {
-    const fv clamp = fv_set1(FM_BOIDS_FIXED_CLAMP), zero = fv_set1(0.0f);
-    return fv_select(in, fv_min(fv_max(fv_mul(x, scale), fv_sub(zero, clamp)), clamp), zero);
+    const fv clamp = fv_set1(FM_BOIDS_FIXED_CLAMP);
+    return fv_min(fv_max(fv_mul(x, scale), fv_sub(fv_set1(0.0f), clamp)), clamp);
 }
 
 /* The packed hits of one agent: offsets, squared distances and entries (for the velocities), with
@@ -140,17 +140,22 @@ static inline void add_lanes(lane_sums *s, const hits *h, int o, int count, cons
         const fv in = fv_and(valid, fv_and(fv_lt(rho, one), fv_gt(t, zero)));
         t = fv_min(t, one);
         const fv g = fv_mul(fv_mul(t, t), fv_sub(three, fv_mul(two, t)));
+        /* a rule's weight is 0 in the lanes it does not see: its terms over the offsets, finite in
+         * every lane (the hits' and earlier hits'), are then 0 as the scalar walk's skip; a
+         * neighbour's velocity may not be finite, so those terms are 0 by selection */
         if (r == FM_BOIDS_SEPARATION) {
             const fv near = fv_sub(one, rho);
-            const fv push = fv_mul(fv_mul(fv_mul(fv_mul(g, near), near), fv_add(one, fv_mul(two, rho))), inv_dist);
-            for (int k = 0; k < 3; k++) s->rule[r][k] = qv_add(s->rule[r][k], fixed(in, fv_mul(push, d[k]), w->scale[r]));
+            const fv push = fv_select(in, fv_mul(fv_mul(fv_mul(fv_mul(g, near), near), fv_add(one, fv_mul(two, rho))), inv_dist), zero);
+            for (int k = 0; k < 3; k++) s->rule[r][k] = qv_add(s->rule[r][k], fixed(fv_mul(push, d[k]), w->scale[r]));
             continue;
         }
         const fv q = fv_sub(one, fv_mul(rho, rho));
-        const fv weight = fv_mul(fv_mul(g, q), q);
-        const fv *x = r == FM_BOIDS_COHESION ? d : vb;
-        for (int k = 0; k < 3; k++) s->rule[r][k] = qv_add(s->rule[r][k], fixed(in, fv_mul(weight, x[k]), w->scale[r]));
-        s->weight[r - 1] = qv_add(s->weight[r - 1], fixed(in, weight, w->unit_scale));
+        const fv weight = fv_select(in, fv_mul(fv_mul(g, q), q), zero);
+        for (int k = 0; k < 3; k++) {
+            const fv term = r == FM_BOIDS_COHESION ? fv_mul(weight, d[k]) : fv_select(in, fv_mul(weight, vb[k]), zero);
+            s->rule[r][k] = qv_add(s->rule[r][k], fixed(term, w->scale[r]));
+        }
+        s->weight[r - 1] = qv_add(s->weight[r - 1], fixed(weight, w->unit_scale));
     }
 }
 

@@ -8,6 +8,8 @@
 #include "flockmorph/flockmorph.h"
 #include "flock.h"  /* the store's layout: the re-sort's test reads its slots */
 #include "sample.h" /* the sampler's defaults and fm_points_nn_stats */
+#include "flock.h"   /* fm_flock_update_orientation */
+#include "fm_math.h" /* fm_quat_from_rotation */
 #include "test_macros.h"
 
 #include <stdlib.h>
@@ -381,6 +383,35 @@ static void test_orientation_follows_velocity(void)
     fm_flock_model_destroy(m);
 }
 
+
+/* The frame's closed form (fm_flock_update_orientation) is the rotation with columns x = unit(v),
+ * y = unit(Z x x), z = x cross y, as Shepperd's conversion of that matrix gives it (w >= 0), in every
+ * direction that is not within 0.06 degrees of vertical; y stays horizontal (the agent upright). */
+static void test_orientation_is_the_upright_frame(void)
+{
+    uint64_t seed = 11;
+    double worst = 0;
+    for (int trial = 0; trial < 20000; trial++) {
+        float v[3];
+        for (int k = 0; k < 3; k++) v[k] = (float)(20 * test_uniform(&seed) - 10);
+        if (trial < 8) v[0] = (float)(trial & 1 ? -3 : 3), v[1] = trial & 2 ? -0.0f : 0.0f, v[2] = (float)(trial & 4 ? 2 : -2); /* psi 0 or pi */
+        const double len = sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
+        const double x[3] = {v[0] / len, v[1] / len, v[2] / len}, h = sqrt(x[0] * x[0] + x[1] * x[1]);
+        if (h < 1e-3) continue;
+        const double y[3] = {-x[1] / h, x[0] / h, 0};
+        const double z[3] = {x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]};
+        fm_mat3 r;
+        for (int c = 0; c < 3; c++) r.m[c][0] = x[c], r.m[c][1] = y[c], r.m[c][2] = z[c];
+        double want[4];
+        fm_quat_from_rotation(r, want);
+        float q[4] = {1, 0, 0, 0};
+        fm_flock_update_orientation(q, v);
+        const double sign = want[0] == 0 && (want[1] * q[1] + want[2] * q[2] + want[3] * q[3]) < 0 ? -1 : 1; /* w = 0: q or -q */
+        for (int c = 0; c < 4; c++) worst = fmax(worst, fabs(sign * want[c] - q[c]));
+    }
+    ENSURE_MSG(worst < 3e-7, "closed form and Shepperd differ by %g", worst);
+}
+
 /* A pulsing target: destinations breathe with it (each one's distance to the centre scales by
  * 1 + A sin(2 pi t / period)), and once the path is done the flock stays close (the Kalman homing
  * tracks the moving leaders), closer with a small R (position variance) than with a large one. */
@@ -710,6 +741,7 @@ int main(void)
     RUN_TEST(test_resorted_store_changes_no_frame);
     RUN_TEST(test_resort_switch_is_checked);
     RUN_TEST(test_orientation_follows_velocity);
+    RUN_TEST(test_orientation_is_the_upright_frame);
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
     RUN_TEST(test_mesh_sequence_matches_vertices_as_listed);
