@@ -1,7 +1,8 @@
 /* The shape-constrained flock (SCF): the internal layout of fm_flock_model and fm_flock_state.
  *
  * It shares the machinery of the wings below (docs/architecture.md): SoA arrays from fm_alloc indexed by slot (on
- * one process the agent id; on P ranks a rank's agents in id order, flock_dist.c), FM_BLOCK blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
+ * one process re-sorted in space every few steps, flock_resort.c, id[] naming each slot's agent; on P ranks a
+ * rank's agents in id order, flock_dist.c), FM_BLOCK blocks on OpenMP threads with per-block counts combined in block order, the counting-sort
  * neighbour grid (grid.h), the style fields (fields.h: SCF eqs 7-8's vortex, wind), the obstacle
  * distance field (obstacles.h), the cache and the frame loop (frame_loop.h). Why its store is not
  * fm_morph_state: docs/architecture.md, "What the two modes share". */
@@ -151,9 +152,10 @@ typedef struct flock_block {
     int64_t count[4];  /* agents per fm_phase after the step */
 } flock_block;
 
-/* Each agent's parameters drawn by the model, by slot (flock_state.c): on one process the model's
- * own arrays (a slot is an agent id); on P ranks copies for this rank's slots, which move with their
- * agents, so the step and the kernels read them as they read the store. */
+/* Each agent's parameters drawn by the model, by slot (flock_state.c): copies for the store's slots,
+ * which move with their agents (the re-sort on one process, the migration on P ranks), so the step
+ * and the kernels read them as they read the store; with the re-sort off (FM_FLOCK_RESORT=0) on one
+ * process the model's own arrays (a slot is an agent id). */
 typedef struct fm_flock_params {
     float *radius[FM_BOIDS_RULES], *cos_half[FM_BOIDS_RULES], *weight[FM_BOIDS_RULES];
     float *max_speed, *max_force, *max_accel;
@@ -165,7 +167,11 @@ struct fm_flock_state {
     int64_t slots;                 /* entries of the per-slot arrays in use: n on one process */
     int64_t cap;                   /* entries the per-slot arrays hold */
     int64_t first;                 /* a share's view (flock_dist.c): the id of slot 0; else 0 */
-    int32_t *id;                   /* on P ranks each slot's agent, increasing; NULL: slot a is agent first + a */
+    int32_t *id;                   /* each slot's agent (on P ranks increasing); NULL: slot a is agent first + a */
+    int resort_every;              /* one process: the store re-sorted in space every this many steps
+                                      (flock_resort.c; FM_FLOCK_RESORT); 0: in id order, id NULL */
+    int sorted;                    /* the slots are not in id order (since the last re-sort) */
+    int32_t *slot_by_id;           /* one process with the re-sort: each agent's slot (n entries) */
     int64_t step;
     double time;
     int threads;
@@ -202,7 +208,7 @@ struct fm_flock_state {
     fm_status dist_status;         /* a failed exchange (agreed by every rank): the step stops, the frame reports it */
     fm_error dist_error;
     void *scratch;                 /* the slots' moves: one array's worth (cap entries of the largest) */
-    int32_t *move_from;            /* the slots' moves: each new slot's old one (flock_dist.c merge_slots) */
+    int32_t *move_from;            /* the slots' moves: each new slot's old one (flock_dist.c merge_slots, flock_resort.c) */
     void *merge_buf;               /* merge_slots' incoming agents, kept between steps */
     size_t merge_bytes;
     struct fm_flock_state *view;   /* a frame's or a checkpoint's share of the ids, complete (flock_dist.c) */
@@ -213,6 +219,29 @@ struct fm_flock_state {
 
 /* The agent in slot a. */
 static inline int64_t fm_flock_id(const fm_flock_state *s, int64_t a) { return s->id ? s->id[a] : s->first + a; }
+
+/* The slot of the store's i-th agent in id order (agent first + i): the frames, the measures' block
+ * sums and the destinations read a re-sorted store through it, so they see one in id order. */
+static inline int64_t fm_flock_slot_in_id_order(const fm_flock_state *s, int64_t i)
+{
+    return s->sorted ? s->slot_by_id[i] : i;
+}
+
+/* The neighbour grid's cell: the largest perception radius (1 without boids). */
+static inline float fm_flock_cell(const fm_flock_model *m) { return m->max_radius > 0 ? m->max_radius : 1.0f; }
+
+/* flock_resort.c: the store sorted in space (slots by their cell's slot in the next grid build, bound
+ * agents last), every per-slot array carried along; back in id order for good (a checkpoint's load);
+ * in id order for a moment (a checkpoint's save: begin returns whether it moved them, for end, which
+ * puts every agent back in its slot, so a run's order, and its bytes, do not depend on when it saves).
+ * One process only. */
+enum { FM_FLOCK_RESORT_INTERVAL = 8 };
+/* FM_FLOCK_RESORT, else FM_FLOCK_RESORT_INTERVAL; -1 (err set) for a value that is no interval */
+int fm_flock_resort_interval(fm_error *err);
+void fm_flock_state_resort(const fm_flock_model *m, fm_flock_state *s);
+void fm_flock_state_in_id_order(fm_flock_state *s);
+int fm_flock_state_id_order_begin(fm_flock_state *s);
+void fm_flock_state_id_order_end(fm_flock_state *s, int begun);
 
 /* flock_state.c: the store without its agents, for `slots` agents (dist: a rank's, with ids and
  * parameters by slot, which the caller fills); room for `slots` (a quarter more, at most n); the

@@ -72,11 +72,24 @@ static fm_ckpt_store flock_store(const fm_flock_model *m, const fm_flock_state *
                            .frames = frames, .piece_agents = m->def.cache_piece_agents};
 }
 
+/* The store's members as a checkpoint saves them, in id order (docs/resume.md: the file does not
+ * depend on the store's order): a re-sorted store on one process is put in id order for the save
+ * and back in its order after it, so the state (const) is as it was and the run goes on as one
+ * that did not save. */
+static fm_status save_in_id_order(const char *path, const fm_ckpt_store *c, const fm_flock_state *s, fm_error *err)
+{
+    fm_flock_state *moved = (fm_flock_state *)s; /* the slots move and come back */
+    const int begun = fm_flock_state_id_order_begin(moved);
+    const fm_status st = fm_ckpt_save(path, c, err);
+    fm_flock_state_id_order_end(moved, begun);
+    return st;
+}
+
 fm_status fm_flock_checkpoint_save(const char *path, const fm_flock_model *m, const fm_flock_state *s,
                                    const fm_flock_run_stats *stats, fm_error *err)
 {
     const fm_ckpt_store c = flock_store(m, s, stats, stats->run.frames);
-    return fm_ckpt_save(path, &c, err);
+    return save_in_id_order(path, &c, s, err);
 }
 
 /* On P ranks (every rank calls it): this rank writes its agents' parts, rank 0 the rest. */
@@ -110,7 +123,9 @@ static fm_status load_into(fm_flock_state *s, const fm_ckpt_part *part, void *ar
  * (flock_dist.c). */
 static fm_status load(fm_flock_state *s, flock_load *l)
 {
-    return s->dist ? fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->path, l->err) : load_into(s, NULL, l);
+    if (s->dist) return fm_flock_dist_checkpoint_load(s, l->m, load_into, l, l->path, l->err);
+    fm_flock_state_in_id_order(s); /* the file's agents in id order, into slots in id order with their parameters */
+    return load_into(s, NULL, l);
 }
 
 fm_status fm_flock_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s,
@@ -128,7 +143,7 @@ fm_status fm_flock_group_checkpoint_save(const char *path, const fm_flock_model 
 {
     if (s->dist) return fm_flock_dist_checkpoint_save(path, m, s, NULL, frames, err);
     const fm_ckpt_store c = flock_store(m, s, NULL, frames);
-    return fm_ckpt_save(path, &c, err);
+    return save_in_id_order(path, &c, s, err);
 }
 
 fm_status fm_flock_group_checkpoint_load(const char *path, const fm_flock_model *m, fm_flock_state *s, int64_t *frames,

@@ -451,9 +451,11 @@ void fm_flock_dist_own_in_flight(fm_flock_state *s)
  * own agents and the ghosts). */
 void fm_flock_dist_release(fm_flock_state *s) { s->grid_current = 0; }
 
-/* The slot of agent id here, or −1 (slots by increasing id). */
+/* The slot of agent id here, or −1 (on P ranks slots by increasing id; one process re-sorted: its
+ * slot_by_id). */
 int64_t fm_flock_slot_of(const fm_flock_state *s, int64_t id)
 {
+    if (s->slot_by_id) return id >= 0 && id < s->n ? s->slot_by_id[id] : -1;
     if (!s->id) return id >= s->first && id < s->first + s->slots ? id - s->first : -1;
     int64_t lo = 0, hi = s->slots;
     while (lo < hi) {

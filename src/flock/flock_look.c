@@ -151,7 +151,7 @@ static fm_status neighbours(const fm_flock_model *m, fm_flock_state *s, const fm
     int64_t left = 0;
     for (int64_t j = 0; j < count; j++) pending[j] = x->flying[j] > 0, left += pending[j];
     for (int64_t j = 0; st == FM_OK && j < count; j++) clear(best + FM_LOOK_K * j);
-    float cell = grid_fresh ? s->grid.cell : m->max_radius > 0 ? m->max_radius : 1.0f;
+    float cell = grid_fresh ? s->grid.cell : fm_flock_cell(m);
     /* pass 0: REACH cells on the fresh grid; 1: FAR cells on it; then wider grids */
     for (int pass = 0; st == FM_OK && left > 0 && pass <= 16; pass++) {
         if (pass >= 2 || !grid_fresh) {

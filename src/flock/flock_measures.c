@@ -60,7 +60,7 @@ typedef struct nn_query {
 static double mean_nn(const fm_flock_model *m, fm_flock_state *s, const fm_dist *d, const nn_query *query,
                       int64_t count, double *nn, double *best, int64_t *self)
 {
-    float cell = m->max_radius > 0 ? m->max_radius : 1.0f;
+    float cell = fm_flock_cell(m);
     int64_t pending = count;
     for (int64_t q = 0; q < count; q++) nn[q] = NAN, self[q] = fm_flock_slot_of(s, query[q].id); /* −1: not here */
     int passes = 0;
@@ -110,18 +110,20 @@ static void combine(const measure_block *blocks, int64_t count, int64_t n, doubl
     for (int k = 0; k < 3; k++) mean_v[k] = n > 0 ? t.velocity[k] / (double)n : NAN;
 }
 
-/* Blocks [b0, b1): s->member of their agents (in flight) and their in-flight counts. */
+/* Blocks [b0, b1) of the agents in id order (a re-sorted store through fm_flock_slot_in_id_order):
+ * s->member of their agents (in flight) and their in-flight counts. */
 static void mark_blocks(fm_flock_state *s, int64_t b0, int64_t b1, measure_block *b)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t i = b0; i < b1; i++)
-        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->slots); a++) {
+        for (int64_t j = i * FM_BLOCK; j < FM_MIN((i + 1) * FM_BLOCK, s->slots); j++) {
+            const int64_t a = fm_flock_slot_in_id_order(s, j);
             s->member[a] = s->phase[a] != FM_PHASE_ARRIVED;
             b[i - b0].in_flight += s->member[a];
         }
 }
 
-/* Blocks [b0, b1), with `before` agents in flight ahead of them in id order: each block's sums, and
+/* Blocks [b0, b1) in id order, with `before` agents in flight ahead of them: each block's sums, and
  * every stride-th agent in flight, counted in id order from the first, asks for its nearest
  * neighbour: query[k − first_query] for its number k. */
 static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int64_t before, int64_t stride,
@@ -133,7 +135,8 @@ static fm_status sum_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, int
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t i = b0; i < b1; i++) {
         int64_t rank = first[i - b0];
-        for (int64_t a = i * FM_BLOCK; a < FM_MIN((i + 1) * FM_BLOCK, s->slots); a++) {
+        for (int64_t j = i * FM_BLOCK; j < FM_MIN((i + 1) * FM_BLOCK, s->slots); j++) {
+            const int64_t a = fm_flock_slot_in_id_order(s, j);
             measure_agent(s, a, &b[i - b0]);
             if (s->member[a] && rank % stride == 0)
                 query[rank / stride - first_query] = (nn_query){(int32_t)fm_flock_id(s, a), {s->p[0][a], s->p[1][a], s->p[2][a]}};

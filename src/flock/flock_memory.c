@@ -28,6 +28,9 @@ static const double FLOCK_SHARE_RECORD = 72;
  * slot, 4). */
 static const double HELD_PER_SHARE = 1.7;
 static const double FLOCK_SLOT_EXTRA = 2 * sizeof(int32_t) + sizeof(float) * (3 * FM_BOIDS_RULES + 3 + 3) + 24;
+/* One process with the store re-sorted in space (flock_resort.c, the default) has the same per-slot
+ * arrays, and each agent's slot (slot_by_id). */
+static const double FLOCK_RESORT_EXTRA = FLOCK_SLOT_EXTRA + sizeof(int32_t);
 /* The view of a frame's or a checkpoint's share (fm_flock_state_view): position, velocity,
  * destination, leader, orientation, bind time, phase, in-flight flag (and the own Kalman covariance). */
 static const double FLOCK_VIEW = sizeof(float) * (4 * 3 + 4 + 1) + 2;
@@ -65,7 +68,7 @@ fm_memory_estimate fm_flock_memory_estimate(const fm_scene_def *def, int64_t n)
     e.model = shared ? 0 : FLOCK_MODEL_PER_AGENT;
     e.shared = shared ? FLOCK_MODEL_PER_AGENT : 0;
     e.state = (FLOCK_STATE_PER_AGENT + (fm_flock_target_moves(&def->flock) ? FLOCK_DEFORM_PER_AGENT : 0) +
-               (own_kalman ? FLOCK_OWN_KALMAN_PER_AGENT : 0) + (ranks > 1 ? FLOCK_SLOT_EXTRA : 0)) * held;
+               (own_kalman ? FLOCK_OWN_KALMAN_PER_AGENT : 0) + (ranks > 1 ? FLOCK_SLOT_EXTRA : FLOCK_RESORT_EXTRA)) * held;
     /* On P ranks the frame is the rank's share n / P (frame_share.h): its arrays and view, its
      * encoder's stored and previous words and blocks (the frame with ids), and the exchange of the
      * share's agents (a record sent and one received). Rank 0's writer makes no frame buffers. */

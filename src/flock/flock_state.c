@@ -32,9 +32,10 @@ const fm_store_member fm_flock_state_members[] = {
 const int fm_flock_state_member_count = (int)(sizeof fm_flock_state_members / sizeof fm_flock_state_members[0]);
 
 /* Every per-slot array, with its bytes a slot, whether it carries the agent from one step to the
- * next (moved with it when a rank's slots are rebuilt; the others are each step's scratch) and
+ * next (moved with it when a rank's slots are rebuilt or the store is re-sorted: flock_resort.c;
+ * the others are each step's scratch) and
  * which stores have it: allocated, resized and freed together (a new array is one line here). */
-enum { IN_ALL, IN_STEPPED, IN_OWN_KALMAN, IN_STEPPED_OWN_KALMAN, IN_DEFORMING, IN_RANKS };
+enum { IN_ALL, IN_STEPPED, IN_OWN_KALMAN, IN_STEPPED_OWN_KALMAN, IN_DEFORMING, IN_OWN_SLOTS };
 typedef struct slot_array {
     size_t offset; /* of the array's pointer in fm_flock_state */
     size_t bytes;  /* per slot */
@@ -48,16 +49,20 @@ static const slot_array SLOT_ARRAYS[] = {
     SLOTS(kalman_p, 24, 1, IN_OWN_KALMAN), SLOTS(member, 1, 0, IN_ALL),
     XYZ(dest_v, 0, IN_STEPPED), XYZ(leader_v, 0, IN_STEPPED), XYZ(acc, 0, IN_STEPPED), XYZ(steer, 0, IN_STEPPED),
     XYZ(ext, 0, IN_STEPPED), SLOTS(w_homing, 4, 0, IN_STEPPED), SLOTS(r_scale, 4, 0, IN_STEPPED_OWN_KALMAN),
-    SLOTS(eval, 12, 0, IN_DEFORMING), SLOTS(id, 4, 1, IN_RANKS), SLOTS(move_from, 4, 0, IN_RANKS),
-    XYZ(prm.radius, 1, IN_RANKS), XYZ(prm.cos_half, 1, IN_RANKS), XYZ(prm.weight, 1, IN_RANKS),
-    SLOTS(prm.max_speed, 4, 1, IN_RANKS), SLOTS(prm.max_force, 4, 1, IN_RANKS), SLOTS(prm.max_accel, 4, 1, IN_RANKS),
-    XYZ(prm.start, 1, IN_RANKS),
+    SLOTS(eval, 12, 0, IN_DEFORMING), SLOTS(id, 4, 1, IN_OWN_SLOTS), SLOTS(move_from, 4, 0, IN_OWN_SLOTS),
+    XYZ(prm.radius, 1, IN_OWN_SLOTS), XYZ(prm.cos_half, 1, IN_OWN_SLOTS), XYZ(prm.weight, 1, IN_OWN_SLOTS),
+    SLOTS(prm.max_speed, 4, 1, IN_OWN_SLOTS), SLOTS(prm.max_force, 4, 1, IN_OWN_SLOTS), SLOTS(prm.max_accel, 4, 1, IN_OWN_SLOTS),
+    XYZ(prm.start, 1, IN_OWN_SLOTS),
 };
 #undef SLOTS
 #undef XYZ
 enum { SLOT_ARRAY_COUNT = sizeof SLOT_ARRAYS / sizeof SLOT_ARRAYS[0], SLOT_BYTES_MAX = 24 };
 
 static void **slot_array_at(fm_flock_state *s, int i) { return (void **)((char *)s + SLOT_ARRAYS[i].offset); }
+
+/* Whether the store has ids and parameters of its own by slot, and the slots' moves' scratch: on P
+ * ranks, and on one process with the re-sort. */
+static int has_own_slots(const fm_flock_state *s) { return s->dist != NULL || s->resort_every > 0; }
 
 /* Whether store s has array i. A share's view (flock_dist.c) has only what a frame, its measures and
  * a checkpoint read. */
@@ -69,7 +74,7 @@ static int has_array(const fm_flock_state *s, int view, int i)
     case IN_OWN_KALMAN: return s->own_kalman;
     case IN_STEPPED_OWN_KALMAN: return !view && s->own_kalman;
     case IN_DEFORMING: return !view && s->deforming;
-    default: return !view && s->dist != NULL;
+    default: return !view && has_own_slots(s);
     }
 }
 
@@ -84,7 +89,7 @@ static fm_status resize_arrays(fm_flock_state *s, int view, int64_t capacity, in
         if (!blocks) return s->cap = least, FM_ERR_MEMORY;
         fm_free(s->blocks), s->blocks = blocks;
     }
-    if (s->dist && !view) {
+    if (has_own_slots(s) && !view) {
         void *scratch = fm_alloc(SLOT_BYTES_MAX * (size_t)FM_MAX(capacity, 1));
         if (!scratch) return s->cap = least, FM_ERR_MEMORY;
         fm_free(s->scratch), s->scratch = scratch;
@@ -100,7 +105,7 @@ static fm_status resize_arrays(fm_flock_state *s, int view, int64_t capacity, in
     return FM_OK;
 }
 
-/* On one process the model's parameters are the slots' (a slot is an agent). */
+/* With the re-sort off, on one process the model's parameters are the slots' (a slot is an agent). */
 static void params_of_model(const fm_flock_model *m, fm_flock_params *prm)
 {
     for (int r = 0; r < FM_BOIDS_RULES; r++)
@@ -160,6 +165,19 @@ void fm_flock_state_start(const fm_flock_model *m, fm_flock_state *s)
     s->count[FM_PHASE_FLYING] = s->n;
 }
 
+/* On one process with the re-sort: slot a holds agent a, with its parameters. */
+static fm_status own_slots_in_id_order(const fm_flock_model *m, fm_flock_state *s, fm_error *err)
+{
+    if (!(s->slot_by_id = fm_alloc(sizeof(int32_t) * (size_t)FM_MAX(s->n, 1))))
+        return fm_fail(err, FM_ERR_MEMORY, "out of memory for the store's order of %lld agents", (long long)s->n);
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t a = 0; a < s->n; a++) {
+        s->id[a] = s->slot_by_id[a] = (int32_t)a;
+        fm_flock_params_copy(m, &s->prm, a, a);
+    }
+    return FM_OK;
+}
+
 /* The store without its agents: slots for `slots` agents (ids: on P ranks filled by the caller),
  * the fields, the grid (its table one process's for n agents on P ranks: grid.h). */
 fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const fm_dist *dist, int64_t slots,
@@ -170,11 +188,13 @@ fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const
     const fm_scene_def *def = &m->def;
     s->n = m->n, s->slots = slots, s->dist = dist;
     s->threads = fm_threads(threads);
+    if ((s->resort_every = dist ? 0 : fm_flock_resort_interval(err)) < 0) return free(s), NULL;
     s->own_kalman = def->flock.kalman_r_over != FM_KALMAN_R_FIXED, s->deforming = m->info.deforming;
     fm_status st = resize_arrays(s, 0, slots, 0) == FM_OK
                        ? FM_OK
                        : fm_fail(err, FM_ERR_MEMORY, "out of memory for the store of %lld agents", (long long)slots);
-    if (!dist) params_of_model(m, &s->prm);
+    if (!has_own_slots(s)) params_of_model(m, &s->prm);
+    else if (st == FM_OK && !dist) st = own_slots_in_id_order(m, s, err);
     if (st == FM_OK && s->deforming && !(s->mesh_v = fm_alloc(sizeof(double) * 3 * (size_t)m->target.mesh.nv)))
         st = fm_fail(err, FM_ERR_MEMORY, "out of memory for the target's vertices");
     if (st == FM_OK && def->field_count > 0) {
@@ -289,10 +309,10 @@ void fm_flock_state_destroy(fm_flock_state *s)
 {
     if (!s) return;
     for (int i = 0; i < SLOT_ARRAY_COUNT; i++) {
-        if (!s->dist && SLOT_ARRAYS[i].in == IN_RANKS) continue; /* the model's own, on one process */
+        if (!has_own_slots(s) && SLOT_ARRAYS[i].in == IN_OWN_SLOTS) continue; /* the model's own, on one process */
         fm_free(*slot_array_at(s, i));
     }
-    fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->scratch), free(s->merge_buf);
+    fm_free(s->slot_by_id), fm_free(s->blocks), fm_free(s->mesh_v), fm_free(s->scratch), free(s->merge_buf);
     if (s->fields) fm_fields_destroy(s->fields);
     if (s->grid_ready) fm_grid_free(&s->grid);
     fm_slabs_free(s->slabs);
@@ -351,33 +371,51 @@ void fm_flock_frame(const fm_flock_state *s, float *position, float *velocity, f
     fm_flock_frame_range(s, 0, s->slots, position, velocity, orientation, phase);
 }
 
+/* Agent id's values from slot a into element o of the frame's arrays. */
+static inline void frame_agent(const fm_flock_state *s, int64_t a, int64_t o, float *position, float *velocity,
+                               float *orientation, uint8_t *phase)
+{
+    for (int k = 0; k < 3; k++) {
+        if (position) position[3 * o + k] = s->p[k][a];
+        if (velocity) velocity[3 * o + k] = s->v[k][a];
+    }
+    if (orientation) memcpy(orientation + 4 * o, s->orient + 4 * a, sizeof(float) * 4);
+    if (phase) phase[o] = s->phase[a];
+}
+
+/* In id order (the cache's frames are): a re-sorted store's slots are read in store order and each
+ * agent written at its id (a scatter touches each agent's 4 output runs, where a gather through
+ * slot_by_id would touch its 8 input arrays at random). */
 void fm_flock_frame_range(const fm_flock_state *s, int64_t begin, int64_t end, float *position, float *velocity,
                           float *orientation, uint8_t *phase)
 {
+    if (s->sorted) {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
-    for (int64_t a = begin; a < end; a++)
-        for (int k = 0; k < 3; k++) {
-            if (position) position[3 * (a - begin) + k] = s->p[k][a];
-            if (velocity) velocity[3 * (a - begin) + k] = s->v[k][a];
+        for (int64_t a = 0; a < s->slots; a++) {
+            const int64_t i = s->id[a];
+            if (i >= begin && i < end) frame_agent(s, a, i - begin, position, velocity, orientation, phase);
         }
-    if (orientation) memcpy(orientation, s->orient + 4 * begin, sizeof(float) * 4 * (size_t)(end - begin));
-    if (phase) memcpy(phase, s->phase + begin, (size_t)(end - begin));
+        return;
+    }
+#pragma omp parallel for num_threads(s->threads) schedule(static)
+    for (int64_t i = begin; i < end; i++) frame_agent(s, i, i - begin, position, velocity, orientation, phase);
 }
 
 void fm_flock_destinations(const fm_flock_state *s, float *out)
 {
-    for (int64_t a = 0; a < s->slots; a++)
-        for (int k = 0; k < 3; k++) out[3 * a + k] = s->dest[k][a];
+    for (int64_t i = 0; i < s->slots; i++)
+        for (int k = 0; k < 3; k++) out[3 * i + k] = s->dest[k][fm_flock_slot_in_id_order(s, i)];
 }
 
-/* Blocks [b0, b1): each one's sum and largest of the agents' distances to their destinations, in
- * pairs. */
+/* Blocks [b0, b1) of the agents in id order: each one's sum and largest of the agents' distances to
+ * their destinations, in pairs. */
 static void distance_blocks(const fm_flock_state *s, int64_t b0, int64_t b1, double *pairs)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t b = b0; b < b1; b++) {
         double sum = 0, big = 0;
-        for (int64_t a = b * FM_BLOCK; a < FM_MIN((b + 1) * FM_BLOCK, s->slots); a++) {
+        for (int64_t i = b * FM_BLOCK; i < FM_MIN((b + 1) * FM_BLOCK, s->slots); i++) {
+            const int64_t a = fm_flock_slot_in_id_order(s, i);
             double d2 = 0;
             for (int k = 0; k < 3; k++) d2 += ((double)s->p[k][a] - s->dest[k][a]) * ((double)s->p[k][a] - s->dest[k][a]);
             sum += sqrt(d2), big = fmax(big, sqrt(d2));

@@ -342,13 +342,14 @@ static void build_grid(const fm_flock_model *m, fm_flock_state *s)
     if (s->grid_current) return; /* the frame's measures built this very grid (flock_measures.c) */
     mark_flock(s);
     fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->slots,
-                         m->max_radius > 0 ? m->max_radius : 1.0f, s->threads);
+                         fm_flock_cell(m), s->threads);
 }
 
 void fm_flock_step(const fm_flock_model *m, fm_flock_state *s)
 {
     if (s->dist_status != FM_OK) return; /* every rank knows: the frame reports it */
     if (s->dist && (s->dist_status = fm_flock_dist_exchange(m, s, &s->dist_error)) != FM_OK) return;
+    if (s->resort_every > 0 && s->step % s->resort_every == 0) fm_flock_state_resort(m, s); /* one process */
     const double t_end = (double)(s->step + 1) * m->dt; /* no drift from summing dt */
     if (m->info.deforming) update_destinations(m, s, t_end);
     fm_kalman_advance(&s->kalman);

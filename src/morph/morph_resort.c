@@ -14,12 +14,13 @@
  * step, does not depend on the thread count; no result depends on the store's order (MDE sums by
  * id), so neither key changes a cache. Every per-slot array moves with its agent; id[] says who is
  * where. */
+#include "fm_sort.h"
 #include "morph.h"
 
 #include <assert.h>
 #include <string.h>
 
-enum { MORTON_BITS = 10, RADIX_BITS = 11, RADIX = 1 << RADIX_BITS };
+enum { MORTON_BITS = 10 };
 #define ARRIVED_KEY 0u
 #define FLIGHT_KEY (1u << (3 * MORTON_BITS))
 
@@ -75,52 +76,12 @@ static int slot_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t 
     return g.log2_table + 1;
 }
 
-enum { SORT_MAX_BLOCKS = 8 }; /* the sort's agent blocks: one per thread, at most this many */
-
-/* One stable counting pass by digit (key >> shift) & (RADIX - 1), over `blocks` agent blocks on
- * as many threads: per-block counts, offsets digit-major and block-minor, then each block
- * scatters its agents in order. The result is that of one block: it does not depend on blocks. */
-static void radix_pass(const uint32_t *key, const int32_t *slot, uint32_t *key_to, int32_t *slot_to, int64_t count,
-                       int shift, int blocks, int32_t (*hist)[RADIX])
-{
-#pragma omp parallel for num_threads(blocks) schedule(static, 1)
-    for (int b = 0; b < blocks; b++) {
-        int32_t *h = hist[b];
-        memset(h, 0, sizeof(int32_t) * RADIX);
-        for (int64_t a = count * b / blocks; a < count * (b + 1) / blocks; a++) h[(key[a] >> shift) & (RADIX - 1)]++;
-    }
-    int32_t sum = 0;
-    for (int d = 0; d < RADIX; d++)
-        for (int b = 0; b < blocks; b++) {
-            const int32_t c = hist[b][d];
-            hist[b][d] = sum, sum += c;
-        }
-#pragma omp parallel for num_threads(blocks) schedule(static, 1)
-    for (int b = 0; b < blocks; b++) {
-        int32_t *h = hist[b];
-        for (int64_t a = count * b / blocks; a < count * (b + 1) / blocks; a++) {
-            const int32_t to = h[(key[a] >> shift) & (RADIX - 1)]++;
-            key_to[to] = key[a], slot_to[to] = slot[a];
-        }
-    }
-}
-
-/* Stable LSD radix sort of slots 0..count-1 by their keys of `bits` bits; returns the slots in
- * sorted order (in one of the two halves of s->sort_slots). */
+/* Stable LSD radix sort of slots 0..count-1 by their keys of `bits` bits (fm_sort.h); returns the
+ * slots in sorted order (in one of the two halves of s->sort_slots). */
 static const int32_t *radix_sort(fm_morph_state *s, int64_t count, int bits)
 {
-    uint32_t *key = s->sort_keys, *key_tmp = s->sort_keys + s->capacity;
-    int32_t *slot = s->sort_slots, *slot_tmp = s->sort_slots + s->capacity;
-    int32_t hist[SORT_MAX_BLOCKS][RADIX];
-    const int64_t fit = count / 65536 + 1; /* blocks of at least 64 Ki agents */
-    const int blocks = (int)FM_MIN(FM_MIN((int64_t)s->threads, (int64_t)SORT_MAX_BLOCKS), fit);
-    for (int64_t a = 0; a < count; a++) slot[a] = (int32_t)a;
-    for (int shift = 0; shift < bits; shift += RADIX_BITS) {
-        radix_pass(key, slot, key_tmp, slot_tmp, count, shift, blocks, hist);
-        uint32_t *kt = key; key = key_tmp, key_tmp = kt;
-        int32_t *st = slot; slot = slot_tmp, slot_tmp = st;
-    }
-    return slot;
+    return fm_radix_sort(s->sort_keys, s->sort_keys + s->capacity, s->sort_slots, s->sort_slots + s->capacity, count,
+                         bits, s->threads);
 }
 
 /* array[k] = old array[order[k]] for k < count, through the scratch buffer. */

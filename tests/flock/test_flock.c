@@ -2,8 +2,11 @@
  * agent bound exactly on its destination (or floating within its amplitude); the run is the same
  * for 1 and 2 threads and for the same seed; orientations follow the velocity; destinations follow
  * a deforming target (procedural and mesh sequence) and the flock tracks it; scene keys of the
- * other mode are refused. */
+ * other mode are refused; the store re-sorted in space is a permutation that carries every agent's
+ * parameters and changes no frame, measure or checkpoint. */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include "flockmorph/flockmorph.h"
+#include "flock.h"  /* the store's layout: the re-sort's test reads its slots */
 #include "sample.h" /* the sampler's defaults and fm_points_nn_stats */
 #include "flock.h"   /* fm_flock_update_orientation */
 #include "fm_math.h" /* fm_quat_from_rotation */
@@ -212,6 +215,145 @@ static void test_caches_are_identical_for_threads_and_runs(void)
     }
     fm_flock_model_destroy(m);
     fm_flock_run_stats_free(&r1), fm_flock_run_stats_free(&r2), fm_flock_run_stats_free(&r3);
+}
+
+/* A state with the re-sort every `every` steps (FM_FLOCK_RESORT, read when the state is made). */
+static fm_flock_state *state_resorted_every(const fm_flock_model *m, int every)
+{
+    char value[16];
+    snprintf(value, sizeof value, "%d", every);
+    setenv("FM_FLOCK_RESORT", value, 1);
+    fm_flock_state *s = fm_flock_state_create(m, 2, NULL);
+    unsetenv("FM_FLOCK_RESORT");
+    ENSURE(s != NULL && s->resort_every == every);
+    return s;
+}
+
+/* FM_FLOCK_RESORT that is no interval: the state is refused, naming the variable (docs/errors.md). */
+static void test_resort_switch_is_checked(void)
+{
+    fm_scene_def def = flock_def(200);
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_error err = {0};
+    setenv("FM_FLOCK_RESORT", "8x", 1);
+    fm_flock_state *s = fm_flock_state_create(m, 1, &err);
+    unsetenv("FM_FLOCK_RESORT");
+    ENSURE(s == NULL && err.status == FM_ERR_INPUT && strstr(err.message, "FM_FLOCK_RESORT=8x") != NULL);
+    fm_flock_state_destroy(s);
+    fm_flock_model_destroy(m);
+}
+
+/* id[] holds every agent once, slot_by_id is its inverse, and every slot's parameters are the model's
+ * for its agent; returns whether the slots are out of id order. */
+static int check_slots(const fm_flock_model *m, const fm_flock_state *s)
+{
+    const int64_t n = s->n;
+    int32_t *seen = calloc((size_t)n, sizeof *seen);
+    int moved = 0, ok = 1;
+    for (int64_t a = 0; a < n; a++) {
+        const int64_t id = s->id[a];
+        ok &= id >= 0 && id < n && s->slot_by_id[id] == a;
+        if (!(id >= 0 && id < n)) continue;
+        seen[id]++, moved |= id != a;
+        for (int r = 0; r < FM_BOIDS_RULES; r++)
+            ok &= s->prm.radius[r][a] == m->radius[r][id] && s->prm.cos_half[r][a] == m->cos_half[r][id] &&
+                  s->prm.weight[r][a] == m->weight[r][id];
+        for (int k = 0; k < 3; k++) ok &= s->prm.start[k][a] == m->start[k][id];
+        ok &= s->prm.max_speed[a] == m->max_speed[id] && s->prm.max_force[a] == m->max_force[id] &&
+              s->prm.max_accel[a] == m->max_accel[id];
+    }
+    for (int64_t id = 0; id < n; id++) ok &= seen[id] == 1;
+    ENSURE_MSG(ok, "the re-sorted store is not a permutation of the agents with their parameters (step %lld)",
+               (long long)s->step);
+    free(seen);
+    return moved;
+}
+
+/* Right after a re-sort: the agents in the grid by their cell's slot in the next build (computed
+ * here from grid.h's placement), the bound ones after them. */
+static void check_sorted_in_space(const fm_flock_model *m, fm_flock_state *s)
+{
+    fm_flock_state_resort(m, s);
+    const fm_grid g = fm_grid_placement(&s->grid, s->slots, m->max_radius);
+    int ok = 1, bound_seen = 0;
+    uint32_t last = 0;
+    for (int64_t a = 0; a < s->slots; a++) {
+        if (s->phase[a] == FM_PHASE_ARRIVED) {
+            bound_seen = 1;
+            continue;
+        }
+        const uint32_t slot = fm_grid_slot_of(&g, s->p[0][a], s->p[1][a], s->p[2][a]);
+        ok &= !bound_seen && slot >= last;
+        last = slot;
+    }
+    ENSURE_MSG(ok, "the store is not in grid-slot order with the bound agents last (step %lld)", (long long)s->step);
+}
+
+/* The store re-sorted in space every 8 steps (issue 40) against one left in id order, the boids on
+ * (their per-neighbour sums are exact, kernel_boids.h, so the order changes no bit): a permutation of the agents carrying
+ * their parameters, and the same frames, destinations, distances and measures until 95 % are bound,
+ * sorted by grid slot with the bound last while some are bound and others fly; a checkpoint of either is the same bytes,
+ * and a run resumed from it continues as the uninterrupted one. */
+static void test_resorted_store_changes_no_frame(void)
+{
+    const int64_t n = 4200; /* two blocks of 4096 */
+    fm_scene_def def = flock_def(n);
+    def.source.translate[0] = -6, def.target.translate[0] = 6, def.speed0 = 16; /* a shorter flight */
+    fm_flock_model *m = build(&def);
+    if (!m) return;
+    fm_flock_state *sorted = state_resorted_every(m, 8), *plain = state_resorted_every(m, 0);
+    fm_flock_state *resumed = fm_flock_state_create(m, 1, NULL);
+    ENSURE(plain->id == NULL && plain->prm.radius[0] == m->radius[0]); /* the switch leaves the old store */
+    int moved = 0, mixed = 0, resumed_at = 0;
+    float *d1 = malloc(sizeof(float) * 3 * (size_t)n), *d2 = malloc(sizeof(float) * 3 * (size_t)n);
+    for (int chunk = 0; chunk < 200 && plain->count[FM_PHASE_ARRIVED] < n - n / 20; chunk++) {
+        for (int k = 0; k < 12; k++) fm_flock_step(m, sorted), fm_flock_step(m, plain);
+        moved |= check_slots(m, sorted);
+        frame a = frame_of(sorted, n), b = frame_of(plain, n);
+        ENSURE_MSG(frames_equal(&a, &b), "the re-sort changes the frame after %lld steps", (long long)plain->step);
+        frame_free(&a), frame_free(&b);
+        double ma[FM_FLOCK_MEASURES], mb[FM_FLOCK_MEASURES], mean[2], max[2];
+        fm_flock_measure_frame(m, sorted, ma), fm_flock_measure_frame(m, plain, mb);
+        ENSURE_MSG(!memcmp(ma, mb, sizeof ma), "the re-sort changes the measures after %lld steps", (long long)plain->step);
+        fm_flock_distance(sorted, &mean[0], &max[0]), fm_flock_distance(plain, &mean[1], &max[1]);
+        ENSURE(mean[0] == mean[1] && max[0] == max[1]);
+        fm_flock_destinations(sorted, d1), fm_flock_destinations(plain, d2);
+        ENSURE(!memcmp(d1, d2, sizeof(float) * 3 * (size_t)n));
+        if (!mixed && sorted->count[FM_PHASE_ARRIVED] > n / 10 && sorted->count[FM_PHASE_ARRIVED] < n - n / 10)
+            mixed = 1, check_sorted_in_space(m, sorted);
+        if (chunk == 10) { /* the checkpoint: the same file from either store; resumed into a fresh state */
+            const char *p1 = FM_TEST_TMP "/flock_sorted.fmck", *p2 = FM_TEST_TMP "/flock_plain.fmck";
+            fm_flock_run_stats stats = {.run = {.frames = 1}}, got;
+            fm_error err = {0};
+            ENSURE_MSG(sorted->sorted, "the store is in id order before the checkpoint");
+            int32_t *order = malloc(sizeof(int32_t) * (size_t)n);
+            memcpy(order, sorted->id, sizeof(int32_t) * (size_t)n);
+            ENSURE(fm_flock_checkpoint_save(p1, m, sorted, &stats, &err) == FM_OK);
+            ENSURE_MSG(sorted->sorted && !memcmp(order, sorted->id, sizeof(int32_t) * (size_t)n),
+                       "the save changed the store's order");
+            free(order);
+            ENSURE(fm_flock_checkpoint_save(p2, m, plain, &stats, &err) == FM_OK);
+            long n1 = 0, n2 = 0;
+            char *f1 = slurp(p1, &n1), *f2 = slurp(p2, &n2);
+            ENSURE_MSG(f1 && f2 && n1 == n2 && !memcmp(f1, f2, (size_t)n1), "the checkpoints of the two stores differ");
+            free(f1), free(f2);
+            ENSURE_MSG(fm_flock_checkpoint_load(p1, m, resumed, &got, &err) == FM_OK, "%s", err.message);
+            fm_flock_run_stats_free(&got);
+            resumed_at = 1;
+        } else if (resumed_at && resumed_at++ <= 3) { /* three chunks on: the re-sort went on in both */
+            for (int k = 0; k < 12; k++) fm_flock_step(m, resumed);
+            frame a2 = frame_of(sorted, n), c = frame_of(resumed, n);
+            ENSURE_MSG(frames_equal(&a2, &c), "the resumed run differs after %lld steps", (long long)resumed->step);
+            frame_free(&a2), frame_free(&c);
+        }
+    }
+    ENSURE_MSG(moved, "the re-sort never moved an agent");
+    ENSURE_MSG(mixed, "no frame had both bound and flying agents");
+    ENSURE(plain->count[FM_PHASE_ARRIVED] >= n - n / 20 && sorted->count[FM_PHASE_ARRIVED] == plain->count[FM_PHASE_ARRIVED]);
+    free(d1), free(d2);
+    fm_flock_state_destroy(sorted), fm_flock_state_destroy(plain), fm_flock_state_destroy(resumed);
+    fm_flock_model_destroy(m);
 }
 
 /* Each flying agent's frame has its x axis along its velocity and stays upright (z has no part
@@ -596,6 +738,8 @@ int main(void)
     RUN_TEST(test_floating_agents_stay_near);
     RUN_TEST(test_threads_and_seeds_agree);
     RUN_TEST(test_caches_are_identical_for_threads_and_runs);
+    RUN_TEST(test_resorted_store_changes_no_frame);
+    RUN_TEST(test_resort_switch_is_checked);
     RUN_TEST(test_orientation_follows_velocity);
     RUN_TEST(test_orientation_is_the_upright_frame);
     RUN_TEST(test_deforming_target_is_tracked);
