@@ -8,7 +8,7 @@
 static double unfixed(uint64_t sum, double inv_scale) { return (double)(int64_t)sum * inv_scale; }
 
 void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_boids_view *b, int64_t a,
-                    const float v[3], float f[3])
+                    const float v[3], float *const f[3])
 {
     const double max_speed = b->max_speed[a], max_force = b->max_force[a], inv_unit = 1.0 / (double)w->unit_scale;
     double force[3] = {0, 0, 0};
@@ -29,18 +29,18 @@ void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_b
     }
     double len = sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
     double scale = len > max_force ? max_force / len : 1.0;
-    for (int k = 0; k < 3; k++) f[k] = (float)(force[k] * scale);
+    for (int k = 0; k < 3; k++) f[k][a] = (float)(force[k] * scale);
 }
 
-/* Agent a at x heading h: its steering force from the listed agents in the `count` ranges of its
- * 27 cells (fm_grid_ranges), into f; neighbour k's position from the grid's quads, its velocity from
- * v by agent (any order of the neighbours gives the same sums). */
+/* Agent a at x heading h (viewer w, its scales set): its steering force from the listed agents in
+ * the `count` ranges of its 27 cells (fm_grid_ranges), into f; neighbour k's position from the
+ * grid's quads, its velocity from v by agent, or with v NULL from the grid's entry-order copy (any
+ * order of the neighbours gives the same sums). */
 static void boids_agent(const fm_grid *g, const fm_boids_view *b, const float *const v[3], int64_t a, const float x[3],
-                        const float h[3], const int32_t *ranges, int count, float *const f[3])
+                        const float h[3], const int32_t *ranges, int count, fm_boids_viewer *w, float *const f[3])
 {
-    fm_boids_viewer viewer;
     float r2_max;
-    fm_boids_viewer_init(b, a, h, &viewer, &r2_max);
+    fm_boids_viewer_init(b, a, h, w, &r2_max);
     fm_boids_sums sums = {{{0}}, {0}};
     for (int ri = 0; ri < count; ri++)
         for (int32_t k = ranges[2 * ri]; k < ranges[2 * ri + 1]; k++) {
@@ -50,50 +50,39 @@ static void boids_agent(const fm_grid *g, const fm_boids_view *b, const float *c
             const float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
             if (!(d2 < r2_max)) continue;
             const int32_t nb = q->i[lane];
-            const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
-            fm_boids_add(&sums, d, d2, vb, &viewer);
+            const float vb[3] = {v ? v[0][nb] : g->soa[3][k], v ? v[1][nb] : g->soa[4][k], v ? v[2][nb] : g->soa[5][k]};
+            fm_boids_add(&sums, d, d2, vb, w);
         }
-    float out[3];
-    fm_boids_steer(&sums, &viewer, b, a, h, out);
-    for (int k = 0; k < 3; k++) f[k][a] = out[k];
+    fm_boids_steer(&sums, w, b, a, h, f);
 }
 
 void fm_kernel_boids(const fm_grid *g, const fm_boids_view *b, const float *const p[3], const float *const v[3],
                      const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end, float *const f[3])
 {
+    fm_boids_viewer viewer;
+    fm_boids_viewer_scales(b, &viewer);
+    int32_t ranges[2 * FM_GRID_MAX_RANGES];
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         const float x[3] = {p[0][a], p[1][a], p[2][a]}, h[3] = {v[0][a], v[1][a], v[2][a]};
-        int32_t ranges[2 * FM_GRID_MAX_RANGES];
         const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
-        boids_agent(g, b, v, a, x, h, ranges, count, f);
+        boids_agent(g, b, v, a, x, h, ranges, count, &viewer, f);
     }
 }
 
 void fm_kernel_boids_listed_ref(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase, uint8_t phase_sel,
                                 int64_t first, int64_t last, float *const f[3])
 {
-    const float *const *c = (const float *const *)g->soa; /* x, y, z, vx, vy, vz by entry */
+    fm_boids_viewer viewer;
+    fm_boids_viewer_scales(b, &viewer);
     int32_t ranges[2 * FM_GRID_MAX_RANGES];
     for (int64_t k = first; k < last; k++) {
         const int32_t a = g->quad[k >> 2].i[k & 3];
         if (phase[a] != phase_sel) continue;
+        const float *const *c = (const float *const *)g->soa; /* x, y, z, vx, vy, vz by entry */
         const float x[3] = {c[0][k], c[1][k], c[2][k]}, h[3] = {c[3][k], c[4][k], c[5][k]};
         const int count = fm_grid_ranges(g, x[0], x[1], x[2], ranges);
-        fm_boids_viewer viewer;
-        float r2_max;
-        fm_boids_viewer_init(b, a, h, &viewer, &r2_max);
-        fm_boids_sums sums = {{{0}}, {0}};
-        for (int ri = 0; ri < count; ri++)
-            for (int32_t j = ranges[2 * ri]; j < ranges[2 * ri + 1]; j++) {
-                const float d[3] = {c[0][j] - x[0], c[1][j] - x[1], c[2][j] - x[2]};
-                const float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                const float vb[3] = {c[3][j], c[4][j], c[5][j]};
-                if (d2 < r2_max) fm_boids_add(&sums, d, d2, vb, &viewer);
-            }
-        float out[3];
-        fm_boids_steer(&sums, &viewer, b, a, h, out);
-        for (int r = 0; r < 3; r++) f[r][a] = out[r];
+        boids_agent(g, b, NULL, a, x, h, ranges, count, &viewer, f);
     }
 }
 
@@ -110,10 +99,11 @@ void fm_kernel_boids_reference(const fm_boids_view *b, const float *const p[3], 
                                int64_t n, const uint8_t *phase, uint8_t phase_sel, int64_t begin, int64_t end,
                                float *const f[3])
 {
+    fm_boids_viewer viewer;
+    fm_boids_viewer_scales(b, &viewer);
     for (int64_t a = begin; a < end; a++) {
         if (phase[a] != phase_sel) continue;
         const float h[3] = {v[0][a], v[1][a], v[2][a]};
-        fm_boids_viewer viewer;
         float r2_max;
         fm_boids_viewer_init(b, a, h, &viewer, &r2_max);
         fm_boids_sums sums = {{{0}}, {0}};
@@ -122,8 +112,6 @@ void fm_kernel_boids_reference(const fm_boids_view *b, const float *const p[3], 
             const float vb[3] = {v[0][nb], v[1][nb], v[2][nb]};
             fm_boids_add(&sums, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], vb, &viewer);
         }
-        float out[3];
-        fm_boids_steer(&sums, &viewer, b, a, h, out);
-        for (int k = 0; k < 3; k++) f[k][a] = out[k];
+        fm_boids_steer(&sums, &viewer, b, a, h, f);
     }
 }

@@ -110,7 +110,17 @@ typedef struct fm_boids_viewer {
     float unit_scale;              /* of a term bounded by 1 */
 } fm_boids_viewer;
 
-/* Agent a heading h; r2_max = the widest r^2. */
+/* The fixed point of the view's sums, the same for every agent: set once per walk, before
+ * fm_boids_viewer_init, which leaves it. */
+static inline void fm_boids_viewer_scales(const fm_boids_view *b, fm_boids_viewer *w)
+{
+    w->unit_scale = fm_boids_fixed_scale(1.0f);
+    w->scale[FM_BOIDS_SEPARATION] = w->unit_scale;
+    w->scale[FM_BOIDS_COHESION] = fm_boids_fixed_scale(b->reach);
+    w->scale[FM_BOIDS_ALIGNMENT] = fm_boids_fixed_scale(b->top_speed);
+}
+
+/* Agent a heading h (w's scales already set); r2_max = the widest r^2. */
 static inline void fm_boids_viewer_init(const fm_boids_view *b, int64_t a, const float h[3], fm_boids_viewer *w,
                                         float *r2_max)
 {
@@ -123,10 +133,6 @@ static inline void fm_boids_viewer_init(const fm_boids_view *b, int64_t a, const
         w->lo[r] = cos_half <= -1.0f || hlen == 0 ? -3.0f : cos_half - FM_BOIDS_CONE_BAND;
         if (radius * radius > *r2_max) *r2_max = radius * radius;
     }
-    w->unit_scale = fm_boids_fixed_scale(1.0f);
-    w->scale[FM_BOIDS_SEPARATION] = w->unit_scale;
-    w->scale[FM_BOIDS_COHESION] = fm_boids_fixed_scale(b->reach);
-    w->scale[FM_BOIDS_ALIGNMENT] = fm_boids_fixed_scale(b->top_speed);
 }
 
 /* Adds neighbour b (offset d, d2 = |d|^2, velocity vb) to the rules of viewer w; the bearing weight g
@@ -158,9 +164,10 @@ static inline void fm_boids_add(fm_boids_sums *s, const float d[3], float d2, co
     }
 }
 
-/* The steering force of agent a (viewer w, velocity v) from its sums (see the top of this file). */
+/* The steering force of agent a (viewer w, velocity v) from its sums (see the top of this file),
+ * into f[k][a]. */
 void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_boids_view *b, int64_t a,
-                    const float v[3], float f[3]);
+                    const float v[3], float *const f[3]);
 
 /* For agents a in [begin, end) with phase[a] == phase_sel: f(a) = the steering force from the
  * agents listed in g (built from these p with cell >= every radius; any agent, whatever its phase,

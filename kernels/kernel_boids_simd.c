@@ -220,16 +220,15 @@ static void scan_range(hits *h, lane_sums *s, const float *const c[6], int32_t b
     }
 }
 
-/* Agent a at entry k: its sums over the `count` ranges, then its force. */
+/* Agent a at entry k (viewer's scales set): its sums over the `count` ranges, then its force. */
 static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const int32_t *ranges,
-                        int count, hits *h, float *const f[3])
+                        int count, hits *h, fm_boids_viewer *viewer, float *const f[3])
 {
     const float *const *c = (const float *const *)g->soa;
     const float x[3] = {c[0][k], c[1][k], c[2][k]}, v[3] = {c[3][k], c[4][k], c[5][k]};
-    fm_boids_viewer viewer;
     float r2_max;
-    fm_boids_viewer_init(b, a, v, &viewer, &r2_max);
-    const lane_viewer w = lanes_of(&viewer);
+    fm_boids_viewer_init(b, a, v, viewer, &r2_max);
+    const lane_viewer w = lanes_of(viewer);
     lane_sums s;
     for (int r = 0; r < FM_BOIDS_RULES; r++)
         for (int q = 0; q < 3; q++) s.rule[r][q] = qv_zero();
@@ -241,9 +240,7 @@ static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int
     for (int r = 0; r < FM_BOIDS_RULES; r++)
         for (int q = 0; q < 3; q++) sums.rule[r][q] = qv_total(s.rule[r][q]);
     sums.weight[FM_BOIDS_COHESION] = qv_total(s.weight[0]), sums.weight[FM_BOIDS_ALIGNMENT] = qv_total(s.weight[1]);
-    float out[3];
-    fm_boids_steer(&sums, &viewer, b, a, v, out);
-    for (int q = 0; q < 3; q++) f[q][a] = out[q];
+    fm_boids_steer(&sums, viewer, b, a, v, f);
 }
 
 void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase,
@@ -253,6 +250,8 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
     memset(&h, 0, sizeof h); /* lanes past the hits are loaded (and not used): defined, entries in bounds */
     int32_t ranges[2 * FM_GRID_MAX_RANGES], cell[3] = {0, 0, 0};
     int count = -1; /* the ranges of `cell`, which the agents of one cell, walked in a row, share */
+    fm_boids_viewer viewer;
+    fm_boids_viewer_scales(b, &viewer);
     for (int64_t k = first; k < last; k++) {
         const int32_t a = g->quad[k >> 2].i[k & 3];
         if (phase[a] != phase_sel) continue;
@@ -261,6 +260,6 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
                                fm_grid_coord(fm_grid_scaled(g, x[2]))}; /* as fm_grid_ranges places x */
         if (count < 0 || at[0] != cell[0] || at[1] != cell[1] || at[2] != cell[2])
             count = fm_grid_ranges(g, x[0], x[1], x[2], ranges), memcpy(cell, at, sizeof cell);
-        boids_entry(g, b, k, a, ranges, count, &h, f);
+        boids_entry(g, b, k, a, ranges, count, &h, &viewer, f);
     }
 }
