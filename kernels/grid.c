@@ -111,22 +111,59 @@ static void slots_block(const fm_grid *g, const float *px, const float *py, cons
     }
 }
 
-/* The table and scale a build over `agents` agents with edge `cell` uses. */
-static void set_placement(fm_grid *g, int64_t agents, float cell)
+/* Bits to count `span` cells: the least b with 2^b >= span (span >= 1). */
+static int bits_for(double span)
+{
+    int b = 0;
+    while (b < 40 && (double)(INT64_C(1) << b) < span) b++;
+    return b;
+}
+
+/* FM_GRID_ROWS_FITTED: shift_y and shift_z from the box of the listed agents (grid.h); the table's
+ * bits go to the widest axes first where the box does not fit. */
+static void fit_rows(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, int threads)
+{
+    float lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
+    const float *px = p[0], *py = p[1], *pz = p[2];
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
+    for (int64_t a = 0; a < n; a++) {
+        if (member && !member[a]) continue;
+        lo0 = fminf(lo0, px[a]), lo1 = fminf(lo1, py[a]), lo2 = fminf(lo2, pz[a]);
+        hi0 = fmaxf(hi0, px[a]), hi1 = fmaxf(hi1, py[a]), hi2 = fmaxf(hi2, pz[a]);
+    }
+    const float lo[3] = {lo0, lo1, lo2}, hi[3] = {hi0, hi1, hi2};
+    int bits[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++)
+        if (lo[k] <= hi[k]) /* cells from one before the box's first to one after its last */
+            bits[k] = bits_for((double)fm_grid_coord(fm_grid_scaled(g, hi[k])) - fm_grid_coord(fm_grid_scaled(g, lo[k])) + 3);
+    while (bits[0] + bits[1] + bits[2] > g->log2_table) {
+        int widest = bits[1] > bits[0] ? 1 : 0;
+        widest = bits[2] > bits[widest] ? 2 : widest;
+        bits[widest]--;
+    }
+    g->shift_y = bits[0], g->shift_z = bits[0] + bits[1];
+}
+
+/* The table and scale a build over `agents` agents with edge `cell` uses; p and member (with fitted
+ * rows) the agents it lists. */
+static void set_placement(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t agents, float cell,
+                          int threads)
 {
     g->cell = cell;
     g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
     size_table(g, g->table_agents > 0 ? g->table_agents : agents);
+    if (g->linear_rows == FM_GRID_ROWS_FITTED) fit_rows(g, p, member, agents, threads);
 }
 
-fm_grid fm_grid_placement(const fm_grid *g, int64_t agents, float cell)
+fm_grid fm_grid_placement(const fm_grid *g, const float *const p[3], const uint8_t *member, int64_t agents, float cell,
+                          int threads)
 {
-    fm_grid p = *g;
-    for (int c = 0; c < 6; c++) p.soa[c] = NULL;
-    p.start = NULL, p.quad = NULL, p.slot = NULL, p.tmp_vel = NULL, p.hist = NULL, p.tmp = NULL,
-    p.tmp_slot = NULL;
-    set_placement(&p, agents, cell);
-    return p;
+    fm_grid out = *g;
+    for (int c = 0; c < 6; c++) out.soa[c] = NULL;
+    out.start = NULL, out.quad = NULL, out.slot = NULL, out.tmp_vel = NULL, out.hist = NULL, out.tmp = NULL,
+    out.tmp_slot = NULL;
+    set_placement(&out, p, member, agents, cell, threads);
+    return out;
 }
 
 void fm_grid_build(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t n, float cell,
@@ -141,8 +178,8 @@ void fm_grid_build_moving(fm_grid *g, const float *const p[3], const float *cons
     assert(!v || g->soa[0]);
     assert(n >= 0 && n <= g->capacity);
     assert(cell > 0);
-    set_placement(g, n, cell);
     if (threads < 1) threads = 1;
+    set_placement(g, p, member, n, cell, threads);
 
     const int32_t coarse = g->coarse;
     const int log2_fine = g->log2_fine;

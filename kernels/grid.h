@@ -51,7 +51,8 @@ typedef struct fm_grid {
     uint32_t mask;         /* table size - 1 */
     int log2_table;        /* table size = 1 << log2_table, 6 .. 31 */
     int64_t table_agents;  /* > 0: every build's table is the one for this many agents (fm_grid_init_table) */
-    int linear_rows;       /* rows by position, not hashed (set after fm_grid_init; see fm_grid_row) */
+    int linear_rows;       /* rows by position, not hashed (set after fm_grid_init; see fm_grid_row):
+                              FM_GRID_ROWS_THIRDS or FM_GRID_ROWS_FITTED */
     int shift_y, shift_z;  /* linear rows: row(cy, cz) = cy << shift_y + cz << shift_z (mod the table) */
     float cell;            /* cell edge of the last build (as requested) */
     double inv_cell;       /* 1 / (cell * (1 + 2^-20)): see fm_grid_scaled */
@@ -81,6 +82,14 @@ fm_status fm_grid_init_table(fm_grid *g, int64_t capacity, int64_t table_agents,
 /* Makes the builds keep entry-order copies of the positions and velocities (soa) too: 36 more bytes
  * per agent of capacity. */
 fm_status fm_grid_init_velocities(fm_grid *g, fm_error *err);
+
+/* linear_rows: 0 hashes the rows; FM_GRID_ROWS_THIRDS gives cx, cy and cz a third of the table's bits
+ * each; FM_GRID_ROWS_FITTED fits the bits to the box of the agents a build lists (each axis the
+ * bits its cells span, with a cell of margin on each side), so that no two cells of the box share
+ * a slot while the box fits the table: a flock that flies as one keeps its cells' order (and a
+ * store sorted by slot stays nearly in the grid's order), and its walks meet no other cell's agents.
+ * The box is a min/max over the listed agents: the same for any thread count. */
+enum { FM_GRID_ROWS_THIRDS = 1, FM_GRID_ROWS_FITTED = 2 };
 
 /* Lists the agents a < n (n <= capacity) with member[a] != 0 (all of them if member is NULL); the
  * others get slot FM_GRID_NONE.
@@ -145,8 +154,11 @@ static inline uint32_t fm_grid_slot_of(const fm_grid *g, float x, float y, float
 /* A copy of g's placement as a build over `agents` agents with edge `cell` would lay it out (the
  * table's size and rows, the scale), with no arrays: fm_grid_slot_of on it gives the slots that
  * build will give, for a caller that orders its agents by slot beforehand (the morph's re-sort),
- * so that the build lists them in the caller's order. g is unchanged. */
-fm_grid fm_grid_placement(const fm_grid *g, int64_t agents, float cell);
+ * so that the build lists them in the caller's order. g is unchanged. With FM_GRID_ROWS_FITTED the
+ * rows are fitted to the agents a < agents of p with member[a] != 0 (member may be NULL: all), as
+ * that build will fit them; p is unused otherwise (may be NULL). */
+fm_grid fm_grid_placement(const fm_grid *g, const float *const p[3], const uint8_t *member, int64_t agents, float cell,
+                          int threads);
 
 /* The listed entries of the 27 cells around the cell of (x, y, z): up to 27 ranges
  * [rk[2r], rk[2r + 1]) of the sorted entries (g->quad), each slot once even when hashing maps two

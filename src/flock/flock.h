@@ -242,6 +242,9 @@ void fm_flock_state_resort(const fm_flock_model *m, fm_flock_state *s);
 void fm_flock_state_in_id_order(fm_flock_state *s);
 int fm_flock_state_id_order_begin(fm_flock_state *s);
 void fm_flock_state_id_order_end(fm_flock_state *s, int begun);
+/* flock_step.c: s->member[a] = agent a is listed by the step's neighbour grid (on its way: flying or
+ * homing; on P ranks the ghosts too). */
+void fm_flock_mark_members(fm_flock_state *s);
 
 /* flock_state.c: the store without its agents, for `slots` agents (dist: a rank's, with ids and
  * parameters by slot, which the caller fills); room for `slots` (a quarter more, at most n); the

@@ -31,9 +31,11 @@ int fm_flock_resort_interval(fm_error *err)
 
 /* Keys by grid slot: the slot of the agent's cell for an agent in the grid (flying or homing),
  * 2^log2_table (after every slot) for a bound one; returns the key's bit count. */
-static int slot_keys(const fm_flock_model *m, const fm_flock_state *s, uint32_t *key)
+static int slot_keys(const fm_flock_model *m, fm_flock_state *s, uint32_t *key)
 {
-    const fm_grid g = fm_grid_placement(&s->grid, s->slots, fm_flock_cell(m));
+    fm_flock_mark_members(s); /* the agents the next build lists, whose box it fits its rows to */
+    const fm_grid g = fm_grid_placement(&s->grid, (const float *const *)s->p, s->member, s->slots, fm_flock_cell(m),
+                                        s->threads);
     const uint32_t bound = 1u << g.log2_table;
     const float *px = s->p[0], *py = s->p[1], *pz = s->p[2];
 #pragma omp parallel for num_threads(s->threads) schedule(static)

@@ -178,6 +178,20 @@ static fm_status own_slots_in_id_order(const fm_flock_model *m, fm_flock_state *
     return FM_OK;
 }
 
+/* The neighbour grid for `capacity` agents, with the entry-order copies the boids read (positions and
+ * velocities). Its rows are laid out by position (grid.h), not hashed: a flock moves as one, so a
+ * store sorted by the grid's slot (flock_resort.c) stays in nearly the grid's order while it flies,
+ * where hashed rows shuffle it as soon as it crosses a cell (y or z); the boids then read each agent's
+ * parameters in order instead of at random. Fitted to the flock's box, no two of its cells share a
+ * slot. The slots change only the walk's order, never a sum's bits (kernel_boids.h). */
+static fm_status flock_grid_init(fm_flock_state *s, int64_t capacity, fm_error *err)
+{
+    fm_status st = fm_grid_init_table(&s->grid, capacity, s->dist ? s->n : 0, err);
+    if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err);
+    s->grid.linear_rows = FM_GRID_ROWS_FITTED;
+    return st;
+}
+
 /* The store without its agents: slots for `slots` agents (ids: on P ranks filled by the caller),
  * the fields, the grid (its table one process's for n agents on P ranks: grid.h). */
 fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const fm_dist *dist, int64_t slots,
@@ -202,8 +216,7 @@ fm_flock_state *fm_flock_state_alloc(const fm_flock_model *m, int threads, const
                                      m->scene_lo, m->scene_hi, err);
         if (!s->fields) st = err ? err->status : FM_ERR_INPUT;
     }
-    if (st == FM_OK) st = fm_grid_init_table(&s->grid, s->cap, dist ? s->n : 0, err);
-    if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err); /* the boids read neighbours' velocities */
+    if (st == FM_OK) st = flock_grid_init(s, s->cap, err);
     s->grid_ready = st == FM_OK;
     if (st != FM_OK) {
         fm_flock_state_destroy(s);
@@ -235,8 +248,7 @@ fm_status fm_flock_state_reserve(fm_flock_state *s, int64_t slots, fm_error *err
     /* The grid is rebuilt every step: the old one goes first, so the two are never held together (a
      * failure stops the run, every rank agreeing: flock_dist.c). */
     if (s->grid_ready) fm_grid_free(&s->grid), s->grid_ready = 0;
-    fm_status st = fm_grid_init_table(&s->grid, capacity, s->dist ? s->n : 0, err);
-    if (st == FM_OK) st = fm_grid_init_velocities(&s->grid, err);
+    fm_status st = flock_grid_init(s, capacity, err);
     if (st != FM_OK) fm_grid_free(&s->grid);
     s->grid_ready = st == FM_OK;
     return st;

@@ -329,7 +329,7 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
  * of the flock, and one that arrives late must not be held off its destination by the separation
  * from those already there. On P ranks, this rank's and the ghosts (phase FM_FLOCK_ELSEWHERE, which
  * only ghosts have in the step). */
-static void mark_flock(fm_flock_state *s)
+void fm_flock_mark_members(fm_flock_state *s)
 {
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->slots; a++)
@@ -340,7 +340,7 @@ static void mark_flock(fm_flock_state *s)
 static void build_grid(const fm_flock_model *m, fm_flock_state *s)
 {
     if (s->grid_current) return; /* the frame's measures built this very grid (flock_measures.c) */
-    mark_flock(s);
+    fm_flock_mark_members(s);
     fm_grid_build_moving(&s->grid, (const float *const *)s->p, (const float *const *)s->v, s->member, s->slots,
                          fm_flock_cell(m), s->threads);
 }

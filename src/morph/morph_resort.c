@@ -68,7 +68,7 @@ static int morton_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_
  * table of the next build, over about the agents active now); returns the key's bit count. */
 static int slot_keys(const fm_morph_model *m, const fm_morph_state *s, uint32_t *key)
 {
-    const fm_grid g = fm_grid_placement(&s->grid, s->active_end, fm_morph_mde_cell(m));
+    const fm_grid g = fm_grid_placement(&s->grid, NULL, NULL, s->active_end, fm_morph_mde_cell(m), 1);
     const float *px = s->p[0], *py = s->p[1], *pz = s->p[2];
 #pragma omp parallel for num_threads(s->threads) schedule(static)
     for (int64_t a = 0; a < s->active_end; a++)

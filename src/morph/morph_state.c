@@ -93,7 +93,7 @@ static fm_status size_grid(fm_morph_state *s, int64_t capacity, fm_error *err)
     s->grid = fresh, s->grid_ready = 1;
     /* The store is Morton-sorted and MDE sums by id, not in the grid's order: rows by position
      * keep the walk's lookups near each other in memory and change no result. */
-    s->grid.linear_rows = 1;
+    s->grid.linear_rows = FM_GRID_ROWS_THIRDS;
     return FM_OK;
 }
 

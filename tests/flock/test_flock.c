@@ -275,7 +275,7 @@ static int check_slots(const fm_flock_model *m, const fm_flock_state *s)
 static void check_sorted_in_space(const fm_flock_model *m, fm_flock_state *s)
 {
     fm_flock_state_resort(m, s);
-    const fm_grid g = fm_grid_placement(&s->grid, s->slots, m->max_radius);
+    const fm_grid g = fm_grid_placement(&s->grid, (const float *const *)s->p, s->member, s->slots, m->max_radius, 1);
     int ok = 1, bound_seen = 0;
     uint32_t last = 0;
     for (int64_t a = 0; a < s->slots; a++) {

@@ -682,6 +682,47 @@ static void test_layout_does_not_change_v_la(void)
     pts_free(&s);
 }
 
+/* Fitted rows (FM_GRID_ROWS_FITTED): the cells of the listed agents' box, and one around it, get
+ * distinct slots while the box fits the table, wherever the box lies (here far from the origin, so
+ * the wrap is exercised); a box too large for the table still gives every axis its bits and builds
+ * a grid that lists every agent once (check_grid); fm_grid_placement fits the same rows. */
+static void test_fitted_rows(void)
+{
+    uint64_t rng = 41;
+    pts s = pts_new(4000);
+    fill_uniform(&s, &rng, 1000.25, 5.5); /* cells 1000 .. 1005 on every axis, 1000 cells from the origin */
+    drop_members(&s, &rng, 0.1);
+    for (int k = 0; k < 3; k++) s.p[0][k] = 1000.5f + 40.0f * (float)k, s.member[k] = 1; /* x: cells 1000 .. 1080 */
+    const float *p[3] = {s.p[0], s.p[1], s.p[2]};
+    fm_grid g;
+    ENSURE(fm_grid_init(&g, s.n, NULL) == FM_OK);
+    g.linear_rows = FM_GRID_ROWS_FITTED;
+    const fm_grid before = fm_grid_placement(&g, p, s.member, s.n, 1.0f, 1);
+    fm_grid_build(&g, p, s.member, s.n, 1.0f, 2);
+    check_grid(&g, &s);
+    ENSURE_MSG(before.shift_y == g.shift_y && before.shift_z == g.shift_z, "placement (%d, %d), build (%d, %d)",
+               before.shift_y, before.shift_z, g.shift_y, g.shift_z);
+    ENSURE_MSG(g.shift_y == 7 && g.shift_z == 7 + 3, "shifts %d %d: x spans 83 cells with its margin (7 bits), y 8 (3)",
+               g.shift_y, g.shift_z);
+    /* every cell of the box and its margin: a distinct slot */
+    const int32_t lo[3] = {999, 999, 999}, hi[3] = {1081, 1006, 1006};
+    const int64_t cells = (int64_t)(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
+    uint8_t *seen = calloc((size_t)g.mask + 1, 1);
+    int64_t shared = 0;
+    for (int32_t z = lo[2]; z <= hi[2]; z++)
+        for (int32_t y = lo[1]; y <= hi[1]; y++)
+            for (int32_t x = lo[0]; x <= hi[0]; x++) shared += seen[fm_grid_slot(&g, x, y, z)]++ > 0;
+    ENSURE_MSG(shared == 0, "%lld of %lld cells share a slot", (long long)shared, (long long)cells);
+    free(seen);
+    /* a box wider than the table: the bits are shared out, the grid still lists everyone once */
+    s.p[1][5] = 1e7f, s.p[2][6] = -1e7f, s.member[5] = s.member[6] = 1;
+    fm_grid_build(&g, p, s.member, s.n, 1.0f, 1);
+    check_grid(&g, &s);
+    ENSURE(g.shift_z <= g.log2_table && g.shift_y <= g.shift_z && g.shift_y > 0);
+    fm_grid_free(&g);
+    pts_free(&s);
+}
+
 int main(void)
 {
     RUN_TEST(test_hand_made_pairs);
@@ -693,10 +734,13 @@ int main(void)
     RUN_TEST(test_threads_bitwise);
     RUN_TEST(test_capacity_reuse);
     RUN_TEST(test_layout_does_not_change_v_la);
-    linear_rows = 1; /* the brute-force checks again, rows by position */
-    RUN_TEST(test_uniform_sets);
-    RUN_TEST(test_clustered_and_duplicates);
-    RUN_TEST(test_cell_borders);
+    RUN_TEST(test_fitted_rows);
+    for (linear_rows = FM_GRID_ROWS_THIRDS; linear_rows <= FM_GRID_ROWS_FITTED; linear_rows++) {
+        /* the brute-force checks again, rows by position */
+        RUN_TEST(test_uniform_sets);
+        RUN_TEST(test_clustered_and_duplicates);
+        RUN_TEST(test_cell_borders);
+    }
 #if defined(__SANITIZE_ADDRESS__)
     printf("    (timings skipped under AddressSanitizer)\n");
     (void)bench;
