@@ -4,17 +4,17 @@
 #include "simd.h"
 
 /* A fixed-point sum back in the units of its terms (1 / scale, a power of two, is exact: the same
- * bits as dividing by it, at a multiplication's cost). */
+ * bits as dividing by it, at a multiplication's cost; the inverses are the viewer's, once per walk). */
 static double unfixed(uint64_t sum, double inv_scale) { return (double)(int64_t)sum * inv_scale; }
 
 void fm_boids_steer(const fm_boids_sums *s, const fm_boids_viewer *w, const fm_boids_view *b, int64_t a,
                     const float v[3], float *const f[3])
 {
-    const double max_speed = b->max_speed[a], max_force = b->max_force[a], inv_unit = 1.0 / (double)w->unit_scale;
+    const double max_speed = b->max_speed[a], max_force = b->max_force[a], inv_unit = w->inv_unit_scale;
     double force[3] = {0, 0, 0};
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
         const double weight = b->weight[r][a], total = unfixed(s->weight[r], inv_unit);
-        const double norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total), inv_scale = 1.0 / (double)w->scale[r];
+        const double norm = 1.0 / fmax(FM_BOIDS_WEIGHT_FLOOR, total), inv_scale = w->inv_scale[r];
         double sum[3];
         for (int k = 0; k < 3; k++) sum[k] = unfixed(s->rule[r][k], inv_scale);
         if (r == FM_BOIDS_SEPARATION) {

@@ -108,6 +108,7 @@ typedef struct fm_boids_viewer {
     float lo[FM_BOIDS_RULES];      /* where the cone's band starts, in cosine (below -1: sees all round) */
     float scale[FM_BOIDS_RULES];   /* the fixed point of each rule's vector terms (the weights': unit_scale) */
     float unit_scale;              /* of a term bounded by 1 */
+    double inv_scale[FM_BOIDS_RULES], inv_unit_scale; /* their inverses (powers of two: exact) */
 } fm_boids_viewer;
 
 /* The fixed point of the view's sums, the same for every agent: set once per walk, before
@@ -118,6 +119,8 @@ static inline void fm_boids_viewer_scales(const fm_boids_view *b, fm_boids_viewe
     w->scale[FM_BOIDS_SEPARATION] = w->unit_scale;
     w->scale[FM_BOIDS_COHESION] = fm_boids_fixed_scale(b->reach);
     w->scale[FM_BOIDS_ALIGNMENT] = fm_boids_fixed_scale(b->top_speed);
+    for (int r = 0; r < FM_BOIDS_RULES; r++) w->inv_scale[r] = 1.0 / (double)w->scale[r];
+    w->inv_unit_scale = 1.0 / (double)w->unit_scale;
 }
 
 /* Agent a heading h (w's scales already set); r2_max = the widest r^2. */

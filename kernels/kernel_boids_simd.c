@@ -177,8 +177,9 @@ static void flush(hits *h, lane_sums *s, const float *const c[6], const lane_vie
     h->n = rest;
 }
 
-/* Appends the lanes of bit mask m (candidates at entries j, j + 1, ...) to the hits. */
-static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, int32_t j)
+/* Appends the lanes of bit mask m to the hits: candidates at entries entry[0 .. FM_W), or with entry
+ * NULL at entries j, j + 1, .... */
+static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, const int32_t *entry, int32_t j)
 {
 #if FM_W == 16
     const __mmask16 k = (__mmask16)m;
@@ -187,8 +188,9 @@ static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, int32_t
     _mm512_storeu_ps(h->dy + n, _mm512_maskz_compress_ps(k, dy)); /* compress straight to memory is */
     _mm512_storeu_ps(h->dz + n, _mm512_maskz_compress_ps(k, dz)); /* slow on AMD's Zen 4 */
     _mm512_storeu_ps(h->d2 + n, _mm512_maskz_compress_ps(k, d2));
-    const __m512i entries = _mm512_add_epi32(_mm512_set1_epi32(j), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10,
-                                                                                       11, 12, 13, 14, 15));
+    const __m512i entries = entry ? _mm512_loadu_si512((const void *)entry)
+                                  : _mm512_add_epi32(_mm512_set1_epi32(j), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9,
+                                                                                             10, 11, 12, 13, 14, 15));
     _mm512_storeu_si512((void *)(h->entry + n), _mm512_maskz_compress_epi32(k, entries));
     h->n = n + __builtin_popcount(m);
 #else
@@ -198,7 +200,7 @@ static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, int32_t
         const int l = __builtin_ctz(m);
         m &= m - 1;
         const int n = h->n++;
-        h->dx[n] = t[0][l], h->dy[n] = t[1][l], h->dz[n] = t[2][l], h->d2[n] = t[3][l], h->entry[n] = j + l;
+        h->dx[n] = t[0][l], h->dy[n] = t[1][l], h->dz[n] = t[2][l], h->d2[n] = t[3][l], h->entry[n] = entry ? entry[l] : j + l;
     }
 #endif
 }
@@ -215,14 +217,65 @@ static void scan_range(hits *h, lane_sums *s, const float *const c[6], int32_t b
         unsigned m = fv_mask(fv_and(fv_lt(d2, r2_max), fv_gt(d2, zero)));
         if (e - j < FM_W) m &= (1u << (e - j)) - 1; /* past the range: the next range's or padding */
         if (!m) continue;
-        pack(h, m, dx, dy, dz, d2, j);
+        pack(h, m, dx, dy, dz, d2, NULL, j);
         if (h->n >= HIT_FLUSH) flush(h, s, c, w, 0);
     }
 }
 
-/* Agent a at entry k (viewer's scales set): its sums over the `count` ranges, then its force. */
-static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const int32_t *ranges,
-                        int count, hits *h, fm_boids_viewer *viewer, float *const f[3])
+/* The candidates of one cell's 27 cells in one run: the agents of a cell, walked in a row, share
+ * them, and an agent scans ~5 full vectors instead of 9 ranges' partial ones. Past n: earlier
+ * copies (finite, in the grid), masked off. */
+enum { RUN_MAX = 512 };
+typedef struct candidates {
+    float x[RUN_MAX + FM_W], y[RUN_MAX + FM_W], z[RUN_MAX + FM_W];
+    int32_t entry[RUN_MAX + FM_W];
+    int n;
+} candidates;
+
+/* The `count` ranges' entries into run; 0 (run unchanged) where they are more than RUN_MAX. Whole
+ * vectors are copied (the grid's soa has FM_GRID_SOA_PAD floats past its capacity), each range's
+ * over the tail of the one before. */
+static int gather_run(const fm_grid *g, const int32_t *ranges, int count, candidates *run)
+{
+    int n = 0;
+    for (int ri = 0; ri < count; ri++) n += ranges[2 * ri + 1] - ranges[2 * ri];
+    if (n > RUN_MAX) return 0;
+    n = 0;
+    for (int ri = 0; ri < count; ri++) {
+        const int32_t b = ranges[2 * ri], len = ranges[2 * ri + 1] - b;
+        for (int32_t o = 0; o < len; o += FM_W) {
+            fv_store(run->x + n + o, fv_load(g->soa[0] + b + o));
+            fv_store(run->y + n + o, fv_load(g->soa[1] + b + o));
+            fv_store(run->z + n + o, fv_load(g->soa[2] + b + o));
+        }
+        for (int32_t o = 0; o < len; o++) run->entry[n + o] = b + o;
+        n += len;
+    }
+    run->n = n;
+    return 1;
+}
+
+/* scan_range over a run of candidates. */
+static void scan_run(hits *h, lane_sums *s, const float *const c[6], const candidates *run, const float x[3], fv r2_max,
+                     const lane_viewer *w)
+{
+    const fv px = fv_set1(x[0]), py = fv_set1(x[1]), pz = fv_set1(x[2]), zero = fv_set1(0.0f);
+    const int n = run->n;
+    for (int j = 0; j < n; j += FM_W) {
+        const fv dx = fv_sub(fv_load(run->x + j), px), dy = fv_sub(fv_load(run->y + j), py), dz = fv_sub(fv_load(run->z + j), pz);
+        const fv d2 = fv_add(fv_add(fv_mul(dx, dx), fv_mul(dy, dy)), fv_mul(dz, dz));
+        unsigned m = fv_mask(fv_and(fv_lt(d2, r2_max), fv_gt(d2, zero)));
+        if (n - j < FM_W) m &= (1u << (n - j)) - 1;
+        if (!m) continue;
+        pack(h, m, dx, dy, dz, d2, run->entry + j, 0);
+        if (h->n >= HIT_FLUSH) flush(h, s, c, w, 0);
+    }
+}
+
+/* Agent a at entry k (viewer's scales set): its sums over the run of its cell's candidates, or
+ * with run NULL over the `count` ranges, then its force. */
+static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const candidates *run,
+                        const int32_t *ranges, int count, hits *h, fm_boids_viewer *viewer, float *const f[3])
 {
     const float *const *c = (const float *const *)g->soa;
     const float x[3] = {c[0][k], c[1][k], c[2][k]}, v[3] = {c[3][k], c[4][k], c[5][k]};
@@ -234,7 +287,9 @@ static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int
         for (int q = 0; q < 3; q++) s.rule[r][q] = qv_zero();
     s.weight[0] = s.weight[1] = qv_zero();
     h->n = 0;
-    for (int ri = 0; ri < count; ri++) scan_range(h, &s, c, ranges[2 * ri], ranges[2 * ri + 1], x, fv_set1(r2_max), &w);
+    if (run) scan_run(h, &s, c, run, x, fv_set1(r2_max), &w);
+    else
+        for (int ri = 0; ri < count; ri++) scan_range(h, &s, c, ranges[2 * ri], ranges[2 * ri + 1], x, fv_set1(r2_max), &w);
     flush(h, &s, c, &w, 1);
     fm_boids_sums sums = {{{0}}, {0}};
     for (int r = 0; r < FM_BOIDS_RULES; r++)
@@ -248,8 +303,11 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
 {
     hits h;
     memset(&h, 0, sizeof h); /* lanes past the hits are loaded (and not used): defined, entries in bounds */
+    static _Thread_local candidates run; /* 8 KB: off the stack */
+    memset(run.entry + RUN_MAX, 0, sizeof(int32_t) * FM_W); /* lanes past a full run: entries in bounds */
     int32_t ranges[2 * FM_GRID_MAX_RANGES], cell[3] = {0, 0, 0};
-    int count = -1; /* the ranges of `cell`, which the agents of one cell, walked in a row, share */
+    int count = -1, in_run = 0; /* the ranges of `cell` (and their run), which the agents of one cell, walked
+                                   in a row, share */
     fm_boids_viewer viewer;
     fm_boids_viewer_scales(b, &viewer);
     for (int64_t k = first; k < last; k++) {
@@ -258,8 +316,10 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
         const float x[3] = {g->soa[0][k], g->soa[1][k], g->soa[2][k]};
         const int32_t at[3] = {fm_grid_coord(fm_grid_scaled(g, x[0])), fm_grid_coord(fm_grid_scaled(g, x[1])),
                                fm_grid_coord(fm_grid_scaled(g, x[2]))}; /* as fm_grid_ranges places x */
-        if (count < 0 || at[0] != cell[0] || at[1] != cell[1] || at[2] != cell[2])
+        if (count < 0 || at[0] != cell[0] || at[1] != cell[1] || at[2] != cell[2]) {
             count = fm_grid_ranges(g, x[0], x[1], x[2], ranges), memcpy(cell, at, sizeof cell);
-        boids_entry(g, b, k, a, ranges, count, &h, &viewer, f);
+            in_run = gather_run(g, ranges, count, &run);
+        }
+        boids_entry(g, b, k, a, in_run ? &run : NULL, ranges, count, &h, &viewer, f);
     }
 }

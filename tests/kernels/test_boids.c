@@ -286,9 +286,19 @@ static int same_floats(const float *a, const float *b, int64_t n) { return memcm
 
 /* Every SIMD level's walk gives the scalar twin's bits, whatever the grid's cell (a wider cell
  * brings more candidates, which the radius test drops: the same neighbours). */
+static void simd_levels_agree(float box);
+
 static void test_every_simd_level_gives_the_same_bits(void)
 {
-    flock f = random_flock(MAX_AGENTS, 3.0f, 41);
+    for (int dense = 0; dense < 2; dense++) simd_levels_agree(dense ? 3.0f : 12.0f);
+}
+
+/* In a box of side 3 every cell's neighbourhood holds far more than the walk's run of candidates
+ * (kernel_boids_simd.c: RUN_MAX, 512), so it scans the grid's ranges; in one of side 12 (about 60
+ * candidates a cell) it gathers each cell's run. */
+static void simd_levels_agree(float box)
+{
+    flock f = random_flock(MAX_AGENTS, box, 41);
     float *want[3], *got[3];
     for (int k = 0; k < 3; k++) want[k] = floats(f.n), got[k] = floats(f.n);
     const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
@@ -300,7 +310,7 @@ static void test_every_simd_level_gives_the_same_bits(void)
         for (int wide = 0; wide < 2; wide++) {
             listed(&f, wide ? 1.7f : 1.0f, got);
             for (int k = 0; k < 3; k++)
-                ENSURE_MSG(same_floats(got[k], want[k], f.n), "level %s, cell %s: force axis %d differs",
+                ENSURE_MSG(same_floats(got[k], want[k], f.n), "box %g, level %s, cell %s: force axis %d differs", box,
                            fm_simd_name((fm_simd)level), wide ? "1.7" : "1", k);
         }
         levels++;
