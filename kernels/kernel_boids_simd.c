@@ -89,6 +89,67 @@ static inline fv fixed(fv x, fv scale)
     return fv_min(fv_max(fv_mul(x, scale), fv_sub(fv_set1(0.0f), clamp)), clamp);
 }
 
+/* Agents waiting for their steering, FM_WD at a time: their sums as integers in double (not yet
+ * scaled), velocities and parameters, by lane. */
+typedef struct steer_batch {
+    double weight_sum[FM_BOIDS_RULES][FM_WD], sum[FM_BOIDS_RULES][3][FM_WD], v[3][FM_WD];
+    double weight[FM_BOIDS_RULES][FM_WD], max_speed[FM_WD], max_force[FM_WD], radius[FM_WD];
+    int32_t agent[FM_WD];
+    int n;
+} steer_batch;
+
+/* fm_boids_steer for the batch's agents (lanes past n repeat earlier ones, whose results are not
+ * written): the same double operations in the same order, lane by lane, so the same bits. A
+ * cohesion radius that is not > 0 adds nothing (its term selected away: the force, never -0, is
+ * unchanged by the +0 added instead). */
+static void steer_lanes(steer_batch *t, const fm_boids_viewer *w, float *const f[3])
+{
+    const dv max_speed = dv_load(t->max_speed), inv_unit = dv_set1(w->inv_unit_scale), floor = dv_set1(FM_BOIDS_WEIGHT_FLOOR);
+    const dv zero = dv_set1(0.0);
+    dv force[3] = {zero, zero, zero};
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        const dv weight = dv_load(t->weight[r]), total = dv_mul(dv_load(t->weight_sum[r]), inv_unit);
+        const dv norm = dv_div(dv_set1(1.0), dv_max(total, floor)), inv_scale = dv_set1(w->inv_scale[r]); /* total: finite */
+        for (int k = 0; k < 3; k++) {
+            const dv sum = dv_mul(dv_load(t->sum[r][k]), inv_scale);
+            if (r == FM_BOIDS_SEPARATION) {
+                force[k] = dv_sub(force[k], dv_mul(dv_mul(weight, max_speed), sum));
+            } else if (r == FM_BOIDS_COHESION) {
+                const dv radius = dv_load(t->radius);
+                const dv term = dv_div(dv_mul(dv_mul(dv_mul(weight, max_speed), sum), norm), radius);
+                force[k] = dv_add(force[k], dv_blend(dv_gt(radius, zero), term, zero));
+            } else {
+                const dv v = dv_load(t->v[k]);
+                force[k] = dv_add(force[k], dv_mul(dv_mul(weight, dv_sub(sum, dv_mul(total, v))), norm));
+            }
+        }
+    }
+    const dv len = dv_sqrt(dv_add(dv_add(dv_mul(force[0], force[0]), dv_mul(force[1], force[1])), dv_mul(force[2], force[2])));
+    const dv max_force = dv_load(t->max_force);
+    const dv scale = dv_blend(dv_gt(len, max_force), dv_div(max_force, len), dv_set1(1.0));
+    double out[3][FM_WD];
+    for (int k = 0; k < 3; k++) dv_store(out[k], dv_mul(force[k], scale));
+    for (int l = 0; l < t->n; l++)
+        for (int k = 0; k < 3; k++) f[k][t->agent[l]] = (float)out[k][l];
+    t->n = 0;
+}
+
+/* Agent a's sums, velocity and parameters into the batch, which is steered when full. */
+static void steer_later(steer_batch *t, const fm_boids_sums *sums, const fm_boids_view *b, int32_t a, const float v[3],
+                        const fm_boids_viewer *w, float *const f[3])
+{
+    const int l = t->n++;
+    for (int r = 0; r < FM_BOIDS_RULES; r++) {
+        t->weight_sum[r][l] = (double)(int64_t)sums->weight[r];
+        for (int k = 0; k < 3; k++) t->sum[r][k][l] = (double)(int64_t)sums->rule[r][k];
+        t->weight[r][l] = b->weight[r][a];
+    }
+    for (int k = 0; k < 3; k++) t->v[k][l] = v[k];
+    t->max_speed[l] = b->max_speed[a], t->max_force[l] = b->max_force[a], t->radius[l] = b->radius[FM_BOIDS_COHESION][a];
+    t->agent[l] = a;
+    if (t->n == FM_WD) steer_lanes(t, w, f);
+}
+
 /* The packed hits of one agent: offsets, squared distances and entries (for the velocities), with
  * room for one more vector past HIT_FLUSH. */
 enum { HIT_FLUSH = 128, HIT_ROOM = HIT_FLUSH + 2 * FM_W };
@@ -275,7 +336,8 @@ static void scan_run(hits *h, lane_sums *s, const float *const c[6], const candi
 /* Agent a at entry k (viewer's scales set): its sums over the run of its cell's candidates, or
  * with run NULL over the `count` ranges, then its force. */
 static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const candidates *run,
-                        const int32_t *ranges, int count, hits *h, fm_boids_viewer *viewer, float *const f[3])
+                        const int32_t *ranges, int count, hits *h, fm_boids_viewer *viewer, steer_batch *later,
+                        float *const f[3])
 {
     const float *const *c = (const float *const *)g->soa;
     const float x[3] = {c[0][k], c[1][k], c[2][k]}, v[3] = {c[3][k], c[4][k], c[5][k]};
@@ -295,7 +357,7 @@ static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int
     for (int r = 0; r < FM_BOIDS_RULES; r++)
         for (int q = 0; q < 3; q++) sums.rule[r][q] = qv_total(s.rule[r][q]);
     sums.weight[FM_BOIDS_COHESION] = qv_total(s.weight[0]), sums.weight[FM_BOIDS_ALIGNMENT] = qv_total(s.weight[1]);
-    fm_boids_steer(&sums, viewer, b, a, v, f);
+    steer_later(later, &sums, b, a, v, viewer, f);
 }
 
 void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase,
@@ -310,6 +372,8 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
                                    in a row, share */
     fm_boids_viewer viewer;
     fm_boids_viewer_scales(b, &viewer);
+    steer_batch later;
+    memset(&later, 0, sizeof later); /* lanes past a last, partial batch: defined */
     for (int64_t k = first; k < last; k++) {
         const int32_t a = g->quad[k >> 2].i[k & 3];
         if (phase[a] != phase_sel) continue;
@@ -320,6 +384,7 @@ void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_vi
             count = fm_grid_ranges(g, x[0], x[1], x[2], ranges), memcpy(cell, at, sizeof cell);
             in_run = gather_run(g, ranges, count, &run);
         }
-        boids_entry(g, b, k, a, in_run ? &run : NULL, ranges, count, &h, &viewer, f);
+        boids_entry(g, b, k, a, in_run ? &run : NULL, ranges, count, &h, &viewer, &later, f);
     }
+    if (later.n > 0) steer_lanes(&later, &viewer, f);
 }

@@ -15,6 +15,7 @@
 #define FM_SIMD_H
 
 #include <stdint.h>
+#include <math.h>
 #include <string.h>
 
 typedef enum fm_simd { FM_SIMD_SCALAR = 0, FM_SIMD_SSE2 = 1, FM_SIMD_AVX2 = 2, FM_SIMD_AVX512 = 3 } fm_simd;
@@ -158,8 +159,9 @@ static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { retur
 #endif
 
 /* Doubles: FM_WD lanes (AVX-512: 8, AVX2: 4, SSE2: 2, otherwise 1), with int32 index lanes `di`
- * beside them, for kernels whose reference works in double (the curl noise). Only what they use:
- * arithmetic, floor, min/max, conversion from floats, gathers from small tables. */
+ * beside them, for kernels whose reference works in double (the curl noise, the boids' steering). Only
+ * what they use: arithmetic, square root, floor, min/max, conversion from floats, gathers from small
+ * tables. */
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
 #define FM_WD 8
 typedef __m512d dv;
@@ -174,6 +176,8 @@ static inline dv dv_min(dv a, dv b) { return _mm512_min_pd(a, b); }
 static inline dv dv_floor(dv a) { return _mm512_roundscale_pd(a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC); }
 static inline dv dv_from_floats(const float *p) { return _mm512_cvtps_pd(_mm256_loadu_ps(p)); }
 static inline void dv_store(double *p, dv x) { _mm512_storeu_pd(p, x); }
+static inline dv dv_load(const double *p) { return _mm512_loadu_pd(p); }
+static inline dv dv_sqrt(dv a) { return _mm512_sqrt_pd(a); }
 static inline di di_from_dv(dv a) { return _mm512_cvttpd_epi32(a); } /* truncates */
 static inline di di_add(di a, di b) { return _mm256_add_epi32(a, b); }
 static inline di di_and(di a, int32_t m) { return _mm256_and_si256(a, _mm256_set1_epi32(m)); }
@@ -217,6 +221,8 @@ static inline dv dv_min(dv a, dv b) { return _mm256_min_pd(a, b); }
 static inline dv dv_floor(dv a) { return _mm256_floor_pd(a); }
 static inline dv dv_from_floats(const float *p) { return _mm256_cvtps_pd(_mm_loadu_ps(p)); }
 static inline void dv_store(double *p, dv x) { _mm256_storeu_pd(p, x); }
+static inline dv dv_load(const double *p) { return _mm256_loadu_pd(p); }
+static inline dv dv_sqrt(dv a) { return _mm256_sqrt_pd(a); }
 static inline di di_from_dv(dv a) { return _mm256_cvttpd_epi32(a); }
 static inline di di_add(di a, di b) { return _mm_add_epi32(a, b); }
 static inline di di_and(di a, int32_t m) { return _mm_and_si128(a, _mm_set1_epi32(m)); }
@@ -263,6 +269,8 @@ static inline dv dv_min(dv a, dv b) { FM_DV_MAP(a.l[k] < b.l[k] ? a.l[k] : b.l[k
 static inline dv dv_floor(dv a) { FM_DV_MAP((double)(int64_t)a.l[k] - (a.l[k] < (double)(int64_t)a.l[k])); }
 static inline dv dv_from_floats(const float *p) { FM_DV_MAP((double)p[k]); }
 static inline void dv_store(double *p, dv x) { memcpy(p, x.l, sizeof x.l); }
+static inline dv dv_load(const double *p) { FM_DV_MAP(p[k]); }
+static inline dv dv_sqrt(dv a) { FM_DV_MAP(sqrt(a.l[k])); }
 static inline di di_from_dv(dv a) { FM_DI_MAP((int32_t)a.l[k]); }
 static inline di di_add(di a, di b) { FM_DI_MAP(a.l[k] + b.l[k]); }
 static inline di di_and(di a, int32_t m) { FM_DI_MAP(a.l[k] & m); }

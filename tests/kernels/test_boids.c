@@ -105,6 +105,7 @@ static flock random_flock(int64_t n, float box, uint64_t seed)
             f.cos_half[r][a] = (float)cos(PI * test_uniform(&seed)); /* angles 0 .. 360 degrees */
             f.weight[r][a] = (float)(0.5 + test_uniform(&seed));
         }
+        if (a % 83 == 7) f.radius[FM_BOIDS_COHESION][a] = 0; /* no cohesion: the steering skips its term */
         f.max_speed[a] = (float)(5 + 5 * test_uniform(&seed));
         f.max_force[a] = a % 3 == 0 ? 1e9f : (float)(2 + 10 * test_uniform(&seed)); /* some never truncate */
         f.phase[a] = a % 11 == 0 ? 3 : 1; /* a few in another phase: not computed, still neighbours */
