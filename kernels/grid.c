@@ -126,10 +126,11 @@ static void fit_rows(fm_grid *g, const float *const p[3], const uint8_t *member,
     float lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
     const float *px = p[0], *py = p[1], *pz = p[2];
 #pragma omp parallel for num_threads(threads) schedule(static) reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
-    for (int64_t a = 0; a < n; a++) {
-        if (member && !member[a]) continue;
-        lo0 = fminf(lo0, px[a]), lo1 = fminf(lo1, py[a]), lo2 = fminf(lo2, pz[a]);
-        hi0 = fmaxf(hi0, px[a]), hi1 = fmaxf(hi1, py[a]), hi2 = fmaxf(hi2, pz[a]);
+    for (int64_t a = 0; a < n; a++) { /* branch-free, so that it vectorizes; NaN compares false: skipped */
+        const int in = !member || member[a];
+        const float x = px[a], y = py[a], z = pz[a];
+        lo0 = in && x < lo0 ? x : lo0, lo1 = in && y < lo1 ? y : lo1, lo2 = in && z < lo2 ? z : lo2;
+        hi0 = in && x > hi0 ? x : hi0, hi1 = in && y > hi1 ? y : hi1, hi2 = in && z > hi2 ? z : hi2;
     }
     const float lo[3] = {lo0, lo1, lo2}, hi[3] = {hi0, hi1, hi2};
     int bits[3] = {0, 0, 0};
@@ -144,6 +145,14 @@ static void fit_rows(fm_grid *g, const float *const p[3], const uint8_t *member,
     g->shift_y = bits[0], g->shift_z = bits[0] + bits[1];
 }
 
+/* Linear rows 8 slots or more apart, planes 8 rows apart and 8 planes in the table: two of a
+ * neighbourhood's 9 runs of 3 slots (rows cy - 1 .. cy + 1, cz - 1 .. cz + 1) are then at least 8
+ * slots apart, never wrapping onto each other, so fm_grid_ranges need not compare them. */
+static int runs_apart(const fm_grid *g)
+{
+    return g->linear_rows && g->shift_y >= 3 && g->shift_z >= g->shift_y + 3 && g->log2_table >= g->shift_z + 3;
+}
+
 /* The table and scale a build over `agents` agents with edge `cell` uses; p and member (with fitted
  * rows) the agents it lists. */
 static void set_placement(fm_grid *g, const float *const p[3], const uint8_t *member, int64_t agents, float cell,
@@ -153,6 +162,7 @@ static void set_placement(fm_grid *g, const float *const p[3], const uint8_t *me
     g->inv_cell = 1.0 / ((double)cell * (1.0 + 0x1p-20));
     size_table(g, g->table_agents > 0 ? g->table_agents : agents);
     if (g->linear_rows == FM_GRID_ROWS_FITTED) fit_rows(g, p, member, agents, threads);
+    g->runs_apart = runs_apart(g);
 }
 
 fm_grid fm_grid_placement(const fm_grid *g, const float *const p[3], const uint8_t *member, int64_t agents, float cell,
@@ -288,7 +298,7 @@ int fm_grid_ranges(const fm_grid *g, float x, float y, float z, int32_t rk[2 * F
     for (int dz = -1, r = 0; dz <= 1; dz++)
         for (int dy = -1; dy <= 1; dy++, r++) base[r] = ((uint32_t)(cx - 1) + fm_grid_row(g, cy + dy, cz + dz)) & g->mask;
     int nr = 0;
-    if (!runs_share_slots(base, g->mask)) { /* the usual case: 9 runs of 3 slots, split where they wrap */
+    if (g->runs_apart || !runs_share_slots(base, g->mask)) { /* the usual case: 9 runs of 3 slots, split at a wrap */
         for (int r = 0; r < 9; r++) {
             const uint32_t s0 = base[r], s3 = s0 + 3;
             if (s3 <= g->mask + 1) {

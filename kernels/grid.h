@@ -54,6 +54,7 @@ typedef struct fm_grid {
     int linear_rows;       /* rows by position, not hashed (set after fm_grid_init; see fm_grid_row):
                               FM_GRID_ROWS_THIRDS or FM_GRID_ROWS_FITTED */
     int shift_y, shift_z;  /* linear rows: row(cy, cz) = cy << shift_y + cz << shift_z (mod the table) */
+    int runs_apart;        /* the placement keeps a neighbourhood's 9 runs of 3 slots apart (grid.c) */
     float cell;            /* cell edge of the last build (as requested) */
     double inv_cell;       /* 1 / (cell * (1 + 2^-20)): see fm_grid_scaled */
     int32_t *start;        /* table size + 1: slot s lists entries start[s] .. start[s+1]-1 */
