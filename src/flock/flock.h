@@ -17,6 +17,7 @@
 #include "flock_kalman.h"
 #include "grid.h"
 #include "kernel_boids.h"
+#include "kernel_orient.h"
 #include "memory.h"
 #include "obstacles.h"
 #include "sample.h"
@@ -361,8 +362,5 @@ fm_status fm_flock_shot_distribute(fm_flock_shot *s, const fm_dist *dist, fm_err
 fm_flock_shot *fm_flock_shot_build_keeping(const fm_scene_def *defs, int count, fm_flock_keep *keeps,
                                            fm_progress_fn progress, void *user, fm_error *err);
 const fm_flock_state *fm_flock_shot_state(const fm_flock_shot *s, int g);
-
-/* flock_state.c */
-void fm_flock_update_orientation(float *q, const float v[3]);
 
 #endif
