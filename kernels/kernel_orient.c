@@ -42,3 +42,18 @@ void fm_flock_update_orientation(float *q, const float v[3])
     fm_quat_from_rotation(r, out);
     for (int c = 0; c < 4; c++) q[c] = (float)out[c];
 }
+
+void fm_kernel_orient_along(float *q, const float *const v[3], const uint8_t *phase, uint8_t skip, int64_t begin,
+                            int64_t end)
+{
+    fm_orient_along_fn *variant = FM_SIMD_PICK(fm_kernel_orient_along);
+    if (variant) {
+        variant(q, v, phase, skip, begin, end);
+        return;
+    }
+    for (int64_t a = begin; a < end; a++)
+        if (phase[a] != skip) {
+            const float va[3] = {v[0][a], v[1][a], v[2][a]};
+            fm_flock_update_orientation(q + 4 * a, va);
+        }
+}

@@ -159,9 +159,9 @@ static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { retur
 #endif
 
 /* Doubles: FM_WD lanes (AVX-512: 8, AVX2: 4, SSE2: 2, otherwise 1), with int32 index lanes `di`
- * beside them, for kernels whose reference works in double (the curl noise, the boids' steering). Only
- * what they use: arithmetic, square root, floor, min/max, conversion from floats, gathers from small
- * tables. */
+ * beside them, for kernels whose reference works in double (the curl noise, the boids' steering, the
+ * flock's frames). Only what they use: arithmetic, square root, sign, floor, min/max, conversion from
+ * floats, gathers from small tables. */
 #if defined(__AVX512F__) && defined(__AVX512DQ__)
 #define FM_WD 8
 typedef __m512d dv;
@@ -178,6 +178,13 @@ static inline dv dv_from_floats(const float *p) { return _mm512_cvtps_pd(_mm256_
 static inline void dv_store(double *p, dv x) { _mm512_storeu_pd(p, x); }
 static inline dv dv_load(const double *p) { return _mm512_loadu_pd(p); }
 static inline dv dv_sqrt(dv a) { return _mm512_sqrt_pd(a); }
+/* |x| with the sign of s, as copysign */
+static inline dv dv_copysign(dv x, dv s)
+{
+    const __m512d sign = _mm512_set1_pd(-0.0);
+    return _mm512_or_pd(_mm512_andnot_pd(sign, x), _mm512_and_pd(sign, s));
+}
+static inline dv dv_neg(dv x) { return _mm512_xor_pd(x, _mm512_set1_pd(-0.0)); }
 static inline di di_from_dv(dv a) { return _mm512_cvttpd_epi32(a); } /* truncates */
 static inline di di_add(di a, di b) { return _mm256_add_epi32(a, b); }
 static inline di di_and(di a, int32_t m) { return _mm256_and_si256(a, _mm256_set1_epi32(m)); }
@@ -223,6 +230,12 @@ static inline dv dv_from_floats(const float *p) { return _mm256_cvtps_pd(_mm_loa
 static inline void dv_store(double *p, dv x) { _mm256_storeu_pd(p, x); }
 static inline dv dv_load(const double *p) { return _mm256_loadu_pd(p); }
 static inline dv dv_sqrt(dv a) { return _mm256_sqrt_pd(a); }
+static inline dv dv_copysign(dv x, dv s)
+{
+    const __m256d sign = _mm256_set1_pd(-0.0);
+    return _mm256_or_pd(_mm256_andnot_pd(sign, x), _mm256_and_pd(sign, s));
+}
+static inline dv dv_neg(dv x) { return _mm256_xor_pd(x, _mm256_set1_pd(-0.0)); }
 static inline di di_from_dv(dv a) { return _mm256_cvttpd_epi32(a); }
 static inline di di_add(di a, di b) { return _mm_add_epi32(a, b); }
 static inline di di_and(di a, int32_t m) { return _mm_and_si128(a, _mm_set1_epi32(m)); }
@@ -271,6 +284,8 @@ static inline dv dv_from_floats(const float *p) { FM_DV_MAP((double)p[k]); }
 static inline void dv_store(double *p, dv x) { memcpy(p, x.l, sizeof x.l); }
 static inline dv dv_load(const double *p) { FM_DV_MAP(p[k]); }
 static inline dv dv_sqrt(dv a) { FM_DV_MAP(sqrt(a.l[k])); }
+static inline dv dv_copysign(dv x, dv s) { FM_DV_MAP(copysign(x.l[k], s.l[k])); }
+static inline dv dv_neg(dv x) { FM_DV_MAP(-x.l[k]); }
 static inline di di_from_dv(dv a) { FM_DI_MAP((int32_t)a.l[k]); }
 static inline di di_add(di a, di b) { FM_DI_MAP(a.l[k] + b.l[k]); }
 static inline di di_and(di a, int32_t m) { FM_DI_MAP(a.l[k] & m); }

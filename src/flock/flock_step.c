@@ -320,9 +320,8 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
         else move_bound(m, s, a, dt);
         s->phase[a] = phase;
         bc->count[phase]++;
-        const float v[3] = {s->v[0][a], s->v[1][a], s->v[2][a]};
-        fm_flock_update_orientation(s->orient + 4 * a, v);
     }
+    fm_kernel_orient_along(s->orient, (const float *const *)s->v, s->phase, FM_FLOCK_ELSEWHERE, begin, end);
 }
 
 /* The neighbour grid lists the agents still on their way: a bound agent is part of the shape, not

@@ -412,6 +412,44 @@ static void test_orientation_is_the_upright_frame(void)
     ENSURE_MSG(worst < 3e-7, "closed form and Shepperd differ by %g", worst);
 }
 
+/* The frames of a block in lanes (fm_kernel_orient_along) are the scalar function's, bit for bit,
+ * at every SIMD level: random headings, agents at rest, vertical and near-vertical ones (the scalar
+ * fallback, from their previous frame), a tail shorter than the lanes, and skipped agents left as
+ * they were. */
+static void test_orientation_lanes_are_the_scalar_frames(void)
+{
+    enum { N = 4099 };
+    float *v[3], *q0 = malloc(sizeof(float) * 4 * N), *want = malloc(sizeof(float) * 4 * N), *got = malloc(sizeof(float) * 4 * N);
+    uint8_t *phase = malloc(N);
+    uint64_t seed = 29;
+    for (int k = 0; k < 3; k++) v[k] = malloc(sizeof(float) * N);
+    for (int a = 0; a < N; a++) {
+        for (int k = 0; k < 3; k++) v[k][a] = (float)(20 * test_uniform(&seed) - 10);
+        if (a % 17 == 3) v[0][a] = v[1][a] = v[2][a] = 0;                   /* at rest */
+        if (a % 19 == 4) v[0][a] = v[1][a] = 0;                             /* vertical */
+        if (a % 23 == 5) v[0][a] = 1e-4f, v[1][a] = -2e-4f, v[2][a] = -3.0f; /* within 1e-3 of it */
+        phase[a] = a % 13 == 7 ? 0xFF : 1;
+        for (int c = 0; c < 4; c++) q0[4 * a + c] = (float)(test_uniform(&seed) - 0.5);
+    }
+    memcpy(want, q0, sizeof(float) * 4 * N);
+    for (int a = 0; a < N; a++)
+        if (phase[a] != 0xFF) {
+            const float va[3] = {v[0][a], v[1][a], v[2][a]};
+            fm_flock_update_orientation(want + 4 * a, va);
+        }
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+    for (int level = FM_SIMD_SCALAR; level <= (int)best; level++) {
+        fm_simd_set_level((fm_simd)level);
+        memcpy(got, q0, sizeof(float) * 4 * N);
+        fm_kernel_orient_along(got, (const float *const *)v, phase, 0xFF, 0, 1000);
+        fm_kernel_orient_along(got, (const float *const *)v, phase, 0xFF, 1000, N);
+        ENSURE_MSG(memcmp(got, want, sizeof(float) * 4 * N) == 0, "level %s: frames differ", fm_simd_name((fm_simd)level));
+    }
+    fm_simd_set_level(best);
+    for (int k = 0; k < 3; k++) free(v[k]);
+    free(q0), free(want), free(got), free(phase);
+}
+
 /* A pulsing target: destinations breathe with it (each one's distance to the centre scales by
  * 1 + A sin(2 pi t / period)), and once the path is done the flock stays close (the Kalman homing
  * tracks the moving leaders), closer with a small R (position variance) than with a large one. */
@@ -742,6 +780,7 @@ int main(void)
     RUN_TEST(test_resort_switch_is_checked);
     RUN_TEST(test_orientation_follows_velocity);
     RUN_TEST(test_orientation_is_the_upright_frame);
+    RUN_TEST(test_orientation_lanes_are_the_scalar_frames);
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
     RUN_TEST(test_mesh_sequence_matches_vertices_as_listed);
