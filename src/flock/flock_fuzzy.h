@@ -23,10 +23,8 @@ fm_status fm_fuzzy_init(fm_fuzzy *c, const fm_fuzzy_def *def, const char *key, f
 static inline float fm_fuzzy_eval(const fm_fuzzy *c, float d)
 {
     if (!(d > c->d[0])) return c->w[0];
-    /* the piece: how many points past the first lie below d (d increases: a prefix of them), counted
-     * without a branch per point, which the agents' distances would mispredict */
     int32_t i = 0;
-    for (int32_t j = 1; j < c->count; j++) i += d > c->d[j];
+    while (i + 1 < c->count && d > c->d[i + 1]) i++;
     if (i + 1 >= c->count) return c->w[c->count - 1];
     return c->w[i] + c->slope[i] * (d - c->d[i]);
 }

@@ -40,35 +40,6 @@ static void test_curve_is_continuous_and_through_its_points(void)
     ensure_continuous(&c, -1, 12, "five points");
 }
 
-/* The piece found by walking the points one by one, as the evaluation did before it counted them
- * without branches: the same weights, bit for bit, at every point, between them and beyond. */
-static float walked_eval(const fm_fuzzy *c, float d)
-{
-    if (!(d > c->d[0])) return c->w[0];
-    int32_t i = 0;
-    while (i + 1 < c->count && d > c->d[i + 1]) i++;
-    if (i + 1 >= c->count) return c->w[c->count - 1];
-    return c->w[i] + c->slope[i] * (d - c->d[i]);
-}
-
-static void test_counted_piece_is_the_walked_one(void)
-{
-    const double pts[5][2] = {{0.5, 1}, {1, 0.2}, {1.001, 0.9}, {4, 0.9}, {9, 0}};
-    fm_fuzzy_def def = curve(5, pts);
-    fm_fuzzy c;
-    ENSURE(fm_fuzzy_init(&c, &def, "test", NULL) == FM_OK);
-    int64_t differ = 0;
-    for (float d = -1; d <= 12; d += 1e-3f) {
-        const float got = fm_fuzzy_eval(&c, d), want = walked_eval(&c, d);
-        differ += memcmp(&got, &want, sizeof got) != 0;
-    }
-    for (int i = 0; i < 5; i++) {
-        const float at = (float)pts[i][0], got = fm_fuzzy_eval(&c, at), want = walked_eval(&c, at);
-        differ += memcmp(&got, &want, sizeof got) != 0;
-    }
-    ENSURE_MSG(differ == 0, "%lld weights differ from the walked curve's", (long long)differ);
-}
-
 /* A steep piece (700 per unit) is still continuous: the check is against its slope, and a real
  * jump (a step function sampled the same way) would be caught. */
 static void test_a_step_would_be_caught(void)
@@ -115,7 +86,6 @@ int main(void)
 {
     RUN_TEST(test_curve_is_continuous_and_through_its_points);
     RUN_TEST(test_a_step_would_be_caught);
-    RUN_TEST(test_counted_piece_is_the_walked_one);
     RUN_TEST(test_bad_curves_are_refused);
     RUN_TEST(test_scene_defaults_are_valid_continuous_curves);
     return test_result();
