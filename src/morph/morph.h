@@ -131,16 +131,6 @@ typedef struct fm_kept_tets {
     int64_t refined;            /* the refined count (fm_morph_model_info) */
 } fm_kept_tets;
 
-/* What the path is made from where it is routed round obstacles (fm_path_build_routed): the
- * centroids, the route's inputs (its obstacles pointer and counts cleared; the grid is the keep's
- * when this is compared) and the scene's path keys; built zeroed, so that it compares byte for byte. */
-typedef struct fm_route_key {
-    double cs[3], ct[3];
-    fm_path_route route;
-    int32_t curve, key_points, point_count, pad;
-    double points[FM_MAX_PATH_POINTS][3];
-} fm_route_key;
-
 /* The obstacles' distance grid with the placed meshes, reach and obstacles.voxel it was made from
  * (fm_obstacles_grid), and the routed path and its navigation function with the key they were made
  * from and the grid. A build makes the grid again only where a mesh, the reach (k_a plus the largest

@@ -411,19 +411,6 @@ static void path_route_of(const fm_morph_model *m, const prep_scratch *s, float 
     }
 }
 
-/* What the routed path is made from (fm_route_key), zeroed first so that it compares byte for byte. */
-static void route_key_of(const fm_scene_def *def, const double cs[3], const double ct[3], const fm_path_route *r,
-                         fm_route_key *key)
-{
-    memset(key, 0, sizeof *key);
-    memcpy(key->cs, cs, sizeof key->cs), memcpy(key->ct, ct, sizeof key->ct);
-    memcpy(&key->route, r, sizeof key->route);
-    key->route.obstacles = NULL, key->route.routed = key->route.unroutable = 0;
-    key->curve = (int32_t)def->path_curve, key->key_points = def->path_key_points;
-    key->point_count = def->path_point_count;
-    memcpy(key->points, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
-}
-
 static fm_status path_copy(const fm_path *from, fm_path *to, fm_error *err)
 {
     to->q = malloc(sizeof(double) * 3 * (size_t)from->count);
@@ -440,7 +427,7 @@ static fm_status route_kept(const fm_morph_model *m, prep_scratch *s, fm_path_ro
     const fm_scene_def *def = &m->def;
     fm_kept_route *kept = s->keep && s->keep->grid_reused ? &s->keep->route : NULL;
     fm_route_key key;
-    route_key_of(def, m->info.source_centroid, m->info.target_centroid, r, &key);
+    fm_route_key_of(def, m->info.source_centroid, m->info.target_centroid, r, &key);
     if (kept && kept->has_path && memcmp(&kept->key, &key, sizeof key) == 0) {
         r->routed = kept->routed, r->unroutable = kept->unroutable;
         s->keep->route_reused = s->path_in_keep = 1;
