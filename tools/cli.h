@@ -149,14 +149,14 @@ typedef struct cli_run_hooks {
  * shape flock's samples and match) for the next run of an edited scene, which reuses it where its
  * inputs are unchanged (fm_morph_model_build_keeping, fm_flock_model_build_keeping; docs/studio.md,
  * "An edit and the model"); a shot keeps each group's the same way (fm_shot_build_keeping,
- * fm_flock_shot_build_keeping). The tetra morph keeps its obstacles' grid and routed path too. */
+ * fm_flock_shot_build_keeping). Both modes keep their obstacles' grids and routed paths too. */
 struct cli_model_keep {
     struct fm_morph_keep *morph; /* FM_MAX_GROUPS of each, made at the first build of its mode: a scene's */
     struct fm_flock_keep *flock; /* in [0], a shot's group g's in [g] */
     int reused;                  /* the last build reused the costly part (a shot: of every group) */
     int groups_reused;           /* ... of how many groups (a scene: 0 or 1) */
-    int grids_reused;            /* of how many groups the obstacles' distance grid was kept (tetra morph) */
-    int routes_reused;           /* ... and the routed path with its navigation function */
+    int grids_reused;            /* of how many groups the obstacles' distance grid was kept */
+    int routes_reused;           /* ... and the routed path (the tetra morph: with its navigation function) */
     double build_seconds;        /* the last build's wall time */
 };
 void cli_model_keep_free(cli_model_keep *keep);

@@ -102,6 +102,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
     r->model = keep ? fm_flock_model_build_keeping(def, keep->flock, cli_prep_progress, show, &err)
                     : fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (keep) keep->reused = keep->groups_reused = keep->flock->reused;
+    if (keep) keep->grids_reused = keep->flock->grid_reused, keep->routes_reused = keep->flock->route_reused;
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
     if (!r->model) return cli_report(&err);
     r->mi = fm_flock_model_get_info(r->model);

@@ -83,8 +83,8 @@ static void count_kept(cli_model_keep *keep, int count, int flock)
     keep->groups_reused = keep->grids_reused = keep->routes_reused = 0;
     for (int g = 0; g < count; g++) {
         keep->groups_reused += flock ? keep->flock[g].reused : keep->morph[g].reused;
-        keep->grids_reused += !flock && keep->morph[g].grid_reused;
-        keep->routes_reused += !flock && keep->morph[g].route_reused;
+        keep->grids_reused += flock ? keep->flock[g].grid_reused : keep->morph[g].grid_reused;
+        keep->routes_reused += flock ? keep->flock[g].route_reused : keep->morph[g].route_reused;
     }
     keep->reused = keep->groups_reused == count;
 }

@@ -131,8 +131,10 @@ static double spread_of(float *const p[3], int64_t n, const double centre[3])
 
 /* The route's distance grid: the flock's own (m->obstacles) has a band of k_a, too narrow to tell
  * k_a + margin of clearance, and its voxel follows its band, so a wider one here would change the
- * push's bytes; this one is built for the route alone and freed with it. */
-static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obstacles **grid, fm_error *err)
+ * push's bytes; this one is built for the route alone (or is the keep's, kept: may be NULL) and
+ * freed with it. */
+static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obstacles **grid, fm_kept_grid *kept,
+                             int *grid_kept, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     memset(r, 0, sizeof *r);
@@ -155,7 +157,7 @@ static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obsta
         fm_grow_bounds(r->obstacle_lo, r->obstacle_hi, meshes[i].v, meshes[i].nv);
     }
     r->meshes = def->obstacle_count;
-    *grid = st == FM_OK ? fm_obstacles_grid(def, meshes, r->r_infl + r->r_soft, err) : NULL;
+    *grid = st == FM_OK ? fm_obstacles_grid_keeping(def, meshes, r->r_infl + r->r_soft, kept, grid_kept, err) : NULL;
     if (st == FM_OK && !*grid) st = err ? err->status : FM_ERR_INPUT;
     r->obstacles = *grid;
     for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
@@ -190,39 +192,79 @@ static void set_route_margin(fm_flock_model *m)
     m->route_margin = ROUTE_MARGIN_OF_RADIUS * fmax(spread_of(m->start, m->n, m->o1), spread_of(m->dest0, m->n, m->o2));
 }
 
-static fm_status route_path(fm_flock_model *m, fm_error *err)
+/* R through count points (the routed polyline resampled) in place of the user's. */
+static fm_status rebuild_path(fm_flock_model *m, const double *pts, int32_t count, fm_error *err)
 {
-    fm_path_route r;
-    fm_obstacles *grid = NULL;
-    fm_status st = route_setup(m, &r, &grid, err);
+    fm_bspline_free(&m->path);
+    return fm_bspline_build(pts, count, &m->path, err);
+}
+
+/* R rerouted round the obstacles (fm_path_route_dense on R's dense samples), then resampled by arc
+ * length; pts and count: the points R was rebuilt through (NULL where no stretch was rerouted). */
+static fm_status route_dense(fm_flock_model *m, fm_path_route *r, double **pts, int32_t *count, fm_error *err)
+{
     int64_t n = (int64_t)ROUTE_SAMPLES_PER_SEGMENT * (m->path.count - 1) + 1;
-    double *dense = st == FM_OK ? malloc(sizeof(double) * 3 * (size_t)n) : NULL;
-    if (st == FM_OK && !dense) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    double *dense = malloc(sizeof(double) * 3 * (size_t)n);
+    fm_status st = dense ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
     for (int64_t i = 0; st == FM_OK && i < n; i++)
         fm_bspline_eval_arc(&m->path, (double)i / (double)(n - 1), dense + 3 * i, NULL);
     if (st == FM_OK) memcpy(dense, m->o1, sizeof m->o1), memcpy(dense + 3 * (n - 1), m->o2, sizeof m->o2);
-    if (st == FM_OK) st = fm_path_route_dense(&r, &dense, &n, err);
-    double *pts = NULL;
-    if (st == FM_OK && r.routed) {
+    if (st == FM_OK) st = fm_path_route_dense(r, &dense, &n, err);
+    if (st == FM_OK && r->routed) {
         double total = 0;
         for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
-        const double spacing = ROUTE_SPACING_OF_INFLATION * r.r_infl;
-        const int32_t count = (int32_t)fmin(ceil(total / spacing) + 1, ROUTE_POINTS_MAX);
-        if (!(pts = malloc(sizeof(double) * 3 * (size_t)count)))
+        const double spacing = ROUTE_SPACING_OF_INFLATION * r->r_infl;
+        *count = (int32_t)fmin(ceil(total / spacing) + 1, ROUTE_POINTS_MAX);
+        if (!(*pts = malloc(sizeof(double) * 3 * (size_t)*count)))
             st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
-        if (st == FM_OK) {
-            resample(dense, n, count, m->o1, m->o2, pts);
-            fm_bspline_free(&m->path);
-            st = fm_bspline_build(pts, count, &m->path, err);
-        }
+        if (st == FM_OK) resample(dense, n, *count, m->o1, m->o2, *pts);
+        if (st == FM_OK) st = rebuild_path(m, *pts, *count, err);
     }
-    free(pts), free(dense);
+    free(dense);
+    return st;
+}
+
+static void forget_route(fm_flock_keep *k)
+{
+    free(k->route_points);
+    k->route_points = NULL, k->route_count = 0, k->has_route = k->routed = 0;
+}
+
+/* The keep's routed R, where its route grid was this build's and its key is this route's. */
+static int route_fits(const fm_flock_keep *k, int grid_kept, const fm_route_key *key)
+{
+    return k && grid_kept && k->has_route && memcmp(&k->route_key, key, sizeof *key) == 0;
+}
+
+static fm_status route_path(fm_flock_model *m, fm_flock_keep *keep, fm_error *err)
+{
+    fm_path_route r;
+    fm_obstacles *grid = NULL;
+    int grid_kept = 0;
+    fm_status st = route_setup(m, &r, &grid, keep ? &keep->route_grid : NULL, &grid_kept, err);
+    fm_route_key *key = st == FM_OK && keep ? malloc(sizeof *key) : NULL; /* 7 KiB: off the loader's deep stack */
+    if (st == FM_OK && keep && !key) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    if (key) fm_route_key_of(&m->def, m->o1, m->o2, &r, key);
+    double *pts = NULL;
+    int32_t count = 0;
+    if (st == FM_OK && route_fits(keep, grid_kept, key)) {
+        keep->route_reused = 1;
+        if (keep->routed) st = rebuild_path(m, keep->route_points, keep->route_count, err);
+    } else if (st == FM_OK) {
+        if (keep) forget_route(keep);
+        st = route_dense(m, &r, &pts, &count, err);
+    }
+    if (st == FM_OK && key && !keep->route_reused) { /* the keep takes the points */
+        keep->route_key = *key, keep->route_points = pts, keep->route_count = count;
+        keep->routed = r.routed, keep->has_route = 1, pts = NULL;
+    }
+    free(pts), free(key);
     fm_obstacles_destroy(grid);
     return st;
 }
 
 /* SCF "Global Path Control": R from O1 (the source's centre) through path.points to O2. */
-static fm_status build_path(fm_flock_model *m, fm_error *err)
+static fm_status build_path(fm_flock_model *m, fm_flock_keep *keep, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     int32_t count = def->path_point_count + 2;
@@ -235,7 +277,7 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
     for (int32_t i = 1; i < count; i++) distinct |= memcmp(pts, pts + 3 * i, sizeof m->o1) != 0;
     fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
     free(pts);
-    if (st == FM_OK && distinct && m->obstacles && def->path_route) st = route_path(m, err);
+    if (st == FM_OK && distinct && m->obstacles && def->path_route) st = route_path(m, keep, err);
     /* speed0 is the leaders' cruise: the ramps of set_ease take half their length more */
     const double ramps = 0.5 * (def->flock.ease_in + def->flock.ease_out);
     m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 + ramps : 0;
@@ -479,17 +521,27 @@ static fm_status from_keep(const fm_flock_keep *k, fm_samples *src, fm_samples *
     return st;
 }
 
+/* The keep's samples and match dropped; its grids and route stay. */
+static void forget_samples(fm_flock_keep *k)
+{
+    fm_mesh_free(&k->source), fm_mesh_free(&k->target);
+    fm_samples_free(&k->src), fm_samples_free(&k->tgt);
+    fm_free(k->match);
+    k->match = NULL, k->has = 0, k->n = 0, k->seed = 0;
+    memset(&k->flock, 0, sizeof k->flock);
+}
+
 static fm_status into_keep(fm_flock_keep *k, const fm_flock_model *m, const fm_mesh *source, const fm_samples *src,
                            const fm_samples *tgt, const int64_t *match, fm_error *err)
 {
-    fm_flock_keep_clear(k);
+    forget_samples(k);
     int ok = 1;
     k->match = copy_array(match, sizeof(int64_t) * (size_t)m->n, &ok);
     fm_status st = ok ? fm_mesh_copy(source, &k->source, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (st == FM_OK) st = fm_mesh_copy(&m->target.mesh, &k->target, err);
     if (st == FM_OK) st = copy_samples(src, &k->src, err);
     if (st == FM_OK) st = copy_samples(tgt, &k->tgt, err);
-    if (st != FM_OK) return fm_flock_keep_clear(k), st;
+    if (st != FM_OK) return forget_samples(k), st;
     k->n = m->n, k->seed = m->def.seed, k->flock = m->def.flock, k->has = 1;
     return FM_OK;
 }
@@ -497,9 +549,9 @@ static fm_status into_keep(fm_flock_keep *k, const fm_flock_model *m, const fm_m
 void fm_flock_keep_clear(fm_flock_keep *keep)
 {
     if (!keep) return;
-    fm_mesh_free(&keep->source), fm_mesh_free(&keep->target);
-    fm_samples_free(&keep->src), fm_samples_free(&keep->tgt);
-    fm_free(keep->match);
+    forget_samples(keep);
+    fm_kept_grid_clear(&keep->grid), fm_kept_grid_clear(&keep->route_grid);
+    forget_route(keep);
     memset(keep, 0, sizeof *keep);
 }
 
@@ -532,10 +584,11 @@ static fm_status load_source(const fm_scene_def *def, fm_mesh *source, fm_error 
 }
 
 /* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
-static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_error *err)
+static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, fm_error *err)
 {
     if (m->def.obstacle_count == 0) return FM_OK;
-    m->obstacles = fm_obstacles_from_scene(&m->def, m->def.k_a, source, &m->target.mesh, err);
+    m->obstacles = fm_obstacles_from_scene_keeping(&m->def, m->def.k_a, source, &m->target.mesh, keep ? &keep->grid : NULL,
+                                                   keep ? &keep->grid_reused : NULL, err);
     return m->obstacles ? FM_OK : err ? err->status : FM_ERR_INPUT;
 }
 
@@ -547,9 +600,9 @@ static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn pr
     if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
     if (st == FM_OK) st = place_agents(m, &source, keep, progress, user, err);
-    if (st == FM_OK) st = build_obstacles(m, &source, err); /* before the path, routed round them */
+    if (st == FM_OK) st = build_obstacles(m, &source, keep, err); /* before the path, routed round them */
     if (st == FM_OK) set_route_margin(m);
-    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) st = build_path(m, keep, err);
     if (st == FM_OK) set_ease(m), fm_flock_target_set_start(&m->target, &def->flock, fm_flock_leaders_end(m));
     if (st == FM_OK) st = init_fuzzy(m, err);
     if (st == FM_OK) {
@@ -581,9 +634,9 @@ static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model
     m->def = *def;
     m->n = from ? from->n : def->n;
     m->from = from;
-    if (keep) keep->reused = 0;
+    if (keep) keep->reused = keep->grid_reused = keep->route_reused = 0;
     fm_status st = build(m, keep, progress, user, err);
-    if (keep && st != FM_OK) keep->reused = 0;
+    if (keep && st != FM_OK) keep->reused = keep->grid_reused = keep->route_reused = 0;
     m->from = NULL;
     if (st != FM_OK) {
         fm_flock_model_destroy(m);
@@ -669,9 +722,9 @@ static fm_status build_replicated(void *model, fm_error *err)
     m->target.dest = dest;
     fm_mesh source = {0};
     if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
-    if (st == FM_OK) st = build_obstacles(m, &source, err); /* route_margin came with the scalars */
+    if (st == FM_OK) st = build_obstacles(m, &source, NULL, err); /* route_margin came with the scalars */
     fm_mesh_free(&source);
-    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) st = build_path(m, NULL, err);
     if (st == FM_OK) fm_flock_target_set_start(&m->target, &m->def.flock, fm_flock_leaders_end(m));
     return st;
 }

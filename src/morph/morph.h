@@ -137,11 +137,8 @@ typedef struct fm_kept_tets {
  * tet radius) or the voxel changed, and the route only where that or its key changed: a speed0,
  * style, MDE or launch edit keeps both. */
 typedef struct fm_kept_route {
-    int has_grid, has_path, has_nav;
-    int meshes;
-    fm_mesh mesh[FM_MAX_OBSTACLES]; /* placed */
-    double reach, voxel;
-    fm_obstacles *grid;             /* shared with the models built from it (fm_obstacles_share) */
+    fm_kept_grid grid;              /* reach: k_a plus the largest tet radius */
+    int has_path, has_nav;
     fm_route_key key;
     fm_path path;
     int routed, unroutable;

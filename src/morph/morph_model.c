@@ -332,15 +332,6 @@ static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, int check_pa
     return st;
 }
 
-/* Whether the keep's grid was made from these placed meshes, reach and voxel. */
-static int grid_fits(const fm_kept_route *k, const fm_scene_def *def, const fm_mesh *meshes, double reach)
-{
-    if (!k->has_grid || k->meshes != def->obstacle_count || k->reach != reach || k->voxel != def->obstacle_voxel) return 0;
-    for (int i = 0; i < k->meshes; i++)
-        if (!fm_mesh_same(&k->mesh[i], &meshes[i])) return 0;
-    return 1;
-}
-
 static void forget_route(fm_kept_route *k)
 {
     fm_path_free(&k->path), fm_free(k->nav.u), fm_free(k->nav.g);
@@ -348,34 +339,18 @@ static void forget_route(fm_kept_route *k)
     k->has_path = k->has_nav = 0;
 }
 
-/* The keep holds the model's grid, with what it was made from; the route made from the grid
- * before is forgotten. */
-static fm_status keep_grid(fm_kept_route *k, const fm_morph_model *m, const fm_mesh *meshes, double reach, fm_error *err)
-{
-    forget_route(k);
-    fm_obstacles_destroy(k->grid), k->grid = NULL, k->has_grid = 0;
-    for (int i = 0; i < k->meshes; i++) fm_mesh_free(&k->mesh[i]);
-    k->meshes = 0;
-    for (int i = 0; i < m->def.obstacle_count; i++, k->meshes++) {
-        fm_status st = fm_mesh_copy(&meshes[i], &k->mesh[i], err);
-        if (st != FM_OK) return st;
-    }
-    k->reach = reach, k->voxel = m->def.obstacle_voxel, k->grid = fm_obstacles_share(m->obstacles), k->has_grid = 1;
-    return FM_OK;
-}
-
+/* The obstacles' grid, the keep's where it fits; a route the keep holds is forgotten with the grid
+ * it was routed on. */
 static fm_status build_obstacles(fm_morph_model *m, prep_scratch *s, float max_radius, fm_error *err)
 {
-    const double reach = m->def.k_a + max_radius;
     fm_kept_route *kept = s->keep ? &s->keep->route : NULL;
-    if (kept && grid_fits(kept, &m->def, s->obstacles, reach)) {
-        m->obstacles = fm_obstacles_share(kept->grid);
-        s->keep->grid_reused = 1;
-        return FM_OK;
-    }
-    m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, reach, err);
+    int reused = 0;
+    m->obstacles = fm_obstacles_grid_keeping(&m->def, s->obstacles, m->def.k_a + max_radius, kept ? &kept->grid : NULL,
+                                             &reused, err);
     if (!m->obstacles) return err ? err->status : FM_ERR_INPUT;
-    return kept ? keep_grid(kept, m, s->obstacles, reach, err) : FM_OK;
+    if (kept && !reused) forget_route(kept);
+    if (kept) s->keep->grid_reused = reused;
+    return FM_OK;
 }
 
 /* The largest R_X of the source tets (tet_radii's, before the tets are stored in launch order):
@@ -788,8 +763,7 @@ void fm_morph_keep_clear(fm_morph_keep *keep)
     if (!keep) return;
     fm_kept_route *r = &keep->route;
     forget_route(r);
-    fm_obstacles_destroy(r->grid);
-    for (int i = 0; i < r->meshes; i++) fm_mesh_free(&r->mesh[i]);
+    fm_kept_grid_clear(&r->grid);
     memset(r, 0, sizeof *r);
 }
 

@@ -289,22 +289,40 @@ def studio_on(args, tmp, name, doc):
 
 
 def check_flock_keep(args, tmp):
-    """A shape flock: an edit of the boids' weights keeps the samples and the match, one of n does
-    not; Save, and `flockmorph run` writes the kept run's frames byte for byte."""
+    """A shape flock routed round a small sphere: an edit of n samples again and keeps the obstacles'
+    grid (its meshes, reach k_a and voxel are as they were) but routes R again (its margin, the flock's
+    radius, changed); one of the path's point routes again on the kept route grid; one of the boids'
+    weights keeps the samples, the match, the grid and the route. Save, and `flockmorph run` writes the
+    kept run's frames byte for byte (a route made on the kept route grid, kept since)."""
     scene, proc, url = studio_on(args, tmp, "flock.json", {
         "mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
         "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
-        "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9})
+        "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9,
+        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3, "translate": [0.0, -3.0, 3.5]}], "k_a": 1.0, "voxel": 0.5}})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
         first = finished(ws)
+        check(first["grids_kept"] == 0 and first["routes_kept"] == 0, "shape flock: the first run makes the grid and the route")
         more = edited_run(ws, "n", 320, first["generation"])
         check(more["stage"] == "finished" and more["model_kept"] is False, "shape flock: an edit of n samples again")
-        kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], more["generation"])
+        check(more["grids_kept"] == 1 and more["routes_kept"] == 0,
+              f"shape flock: ... keeps the obstacles' grid ({more['grids_kept']}) and routes R again ({more['routes_kept']})")
+        moved = edited_run(ws, "path.points", [[0.0, -6.5, 7.0]], more["generation"])
+        check(moved["stage"] == "finished" and moved["model_kept"] is True and moved["grids_kept"] == 1
+              and moved["routes_kept"] == 0, "shape flock: a path edit keeps the samples and the grid and routes R again")
+        kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], moved["generation"])
         check(kept["stage"] == "finished" and kept["model_kept"] is True,
               f"shape flock: a boids edit keeps the samples and the match (built in {kept['build_seconds']:.3f} s)")
-        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (samples kept)")
+        check(kept["grids_kept"] == 1 and kept["routes_kept"] == 1,
+              f"shape flock: ... and the obstacles' grid ({kept['grids_kept']}) and routed R ({kept['routes_kept']})")
+        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (all kept)")
+        plain = os.path.join(tmp, "flock_plain")  # the same scene, R as the user drew it: a frame is enough
+        subprocess.run([args.cli, "run", scene, "-o", plain, "--quiet", "--set", "obstacles.route=false",
+                        "--set", "time.frame_limit=1"], check=True, capture_output=True)
+        lengths = [json.load(open(os.path.join(d, "stats.json")))["shape_flock"]["path_length"] for d in (os.path.join(tmp, "flock_out"), plain)]
+        check(lengths[0] > lengths[1] + 1, f"shape flock: R was routed round the sphere (length {lengths[0]:.2f}, "
+                                           f"{lengths[1]:.2f} unrouted)")
         ws.close()
     finally:
         check_stopped(proc, "shape flock")
