@@ -26,6 +26,9 @@ double cli_seconds(void);
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
+/* A model build's failure: cli_report, but a build the studio cancelled (FM_STOPPED: an edit
+ * supersedes its run) returns FM_STOPPED and prints nothing. */
+int cli_report_build(const fm_error *err);
 /* The message cli_report last printed on this thread ("" before any): the studio's worker shows a
  * failed run's reason on the page. */
 extern _Thread_local char cli_last_error[2048];
@@ -157,6 +160,7 @@ struct cli_model_keep {
     int groups_reused;           /* ... of how many groups (a scene: 0 or 1) */
     int grids_reused;            /* of how many groups the obstacles' distance grid was kept */
     int routes_reused;           /* ... and the routed path (the tetra morph: with its navigation function) */
+    volatile sig_atomic_t *cancel; /* the studio's stop flag: every keep's (cli_morph_keeps, cli_flock_keeps) */
     double build_seconds;        /* the last build's wall time */
 };
 void cli_model_keep_free(cli_model_keep *keep);

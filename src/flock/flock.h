@@ -127,6 +127,9 @@ typedef struct fm_flock_keep {
     int reused;                 /* the last build did not sample or match again */
     int grid_reused;            /* ... m->obstacles was the keep's (0 without obstacles) */
     int route_reused;           /* ... R routed round the obstacles was the keep's */
+    const volatile sig_atomic_t *cancel; /* the studio's flag (NULL: none): where an edit sets it, the
+                                            build stops at its next stage boundary with FM_STOPPED,
+                                            nothing kept half-made (flock_model.c build) */
 } fm_flock_keep;
 
 /* fm_flock_model_build, keeping in *keep (zeroed at first) the samples and the match it makes, and

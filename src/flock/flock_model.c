@@ -14,9 +14,23 @@
 /* Random streams of the scene seed (fm_random_unit), one per use. */
 enum { STREAM_SOURCE = 1, STREAM_TARGET, STREAM_MATCH, STREAM_PARAMS = 16 };
 
-static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream)
+/* The build's progress report and the studio's cancel flag (the keep's; NULL: none), checked at
+ * the stage boundaries (fm_build_stage) and between the mosaic's iterations. */
+typedef struct build_ctx {
+    fm_progress_fn progress;
+    void *user;
+    const volatile sig_atomic_t *cancel;
+} build_ctx;
+
+static fm_status stage(const build_ctx *b, const char *name, double fraction, fm_error *err)
+{
+    return fm_build_stage(b->progress, b->user, name, fraction, b->cancel, err);
+}
+
+static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream, const build_ctx *b)
 {
     fm_sample_opts opts = fm_default_sample_opts();
+    opts.cancel = b->cancel;
     opts.method = (fm_sample_method)m->def.flock.sampling;
     opts.seed = fm_random_bits(m->def.seed, stream, 0);
     const fm_flock_def *f = &m->def.flock;
@@ -26,19 +40,20 @@ static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream)
     return opts;
 }
 
-static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
+static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, const build_ctx *b, fm_samples *out,
+                        fm_error *err)
 {
-    const fm_sample_opts opts = sample_opts(m, stream);
+    const fm_sample_opts opts = sample_opts(m, stream, b);
     return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
 }
 
 /* match "projected" (SCF "Point Correspondence"): the target's points are the source samples
  * projected onto it and relaxed by the mosaic's energy (the shape_flock.mosaic keys), agent a keeping
  * its own: match[a] = a. */
-static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, const fm_samples *src, fm_samples *out,
-                                  int64_t *match, fm_error *err)
+static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, const build_ctx *b, const fm_samples *src,
+                                  fm_samples *out, int64_t *match, fm_error *err)
 {
-    const fm_sample_opts opts = sample_opts(m, STREAM_TARGET);
+    const fm_sample_opts opts = sample_opts(m, STREAM_TARGET, b);
     fm_status st = fm_name_key(fm_sample_projected(mesh, src->p, m->n, &opts, out, err), "shape_flock.match", err);
     for (int64_t a = 0; st == FM_OK && a < m->n; a++) match[a] = a;
     return st;
@@ -242,6 +257,7 @@ static fm_status route_path(fm_flock_model *m, fm_flock_keep *keep, fm_error *er
     fm_obstacles *grid = NULL;
     int grid_kept = 0;
     fm_status st = route_setup(m, &r, &grid, keep ? &keep->route_grid : NULL, &grid_kept, err);
+    if (st == FM_OK && keep) st = fm_build_stage(NULL, NULL, NULL, 0, keep->cancel, err); /* before the search */
     fm_route_key *key = st == FM_OK && keep ? malloc(sizeof *key) : NULL; /* 7 KiB: off the loader's deep stack */
     if (st == FM_OK && keep && !key) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
     if (key) fm_route_key_of(&m->def, m->o1, m->o2, &r, key);
@@ -453,15 +469,15 @@ static void set_info(fm_flock_model *m)
 
 /* Samples both surfaces and matches them: agent a starts on src's sample a and flies to tgt's match[a]. */
 static fm_status sample_and_match(const fm_flock_model *m, const fm_mesh *source, fm_samples *src, fm_samples *tgt,
-                                  int64_t *match, fm_progress_fn progress, void *user, fm_error *err)
+                                  int64_t *match, const build_ctx *b, fm_error *err)
 {
-    if (progress) progress("sample source", 0.1, user);
-    fm_status st = m->from ? formed_shape(m->from, src, err) : sample(source, m, STREAM_SOURCE, src, err);
-    if (progress && st == FM_OK) progress("sample target", 0.4, user);
+    fm_status st = stage(b, "sample source", 0.1, err);
+    if (st == FM_OK) st = m->from ? formed_shape(m->from, src, err) : sample(source, m, STREAM_SOURCE, b, src, err);
+    if (st == FM_OK) st = stage(b, "sample target", 0.4, err);
     const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
-    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, src, tgt, match, err);
-    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, tgt, err);
-    if (progress && st == FM_OK) progress("match", 0.7, user);
+    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, b, src, tgt, match, err);
+    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, b, tgt, err);
+    if (st == FM_OK) st = stage(b, "match", 0.7, err);
     if (st == FM_OK && !projected)
         st = fm_name_key(fm_match_agents(src->p, tgt->p, m->n, (fm_match_method)m->def.flock.match,
                                       fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
@@ -557,15 +573,15 @@ void fm_flock_keep_clear(fm_flock_keep *keep)
 
 /* Samples both surfaces (or takes the keep's samples, where they fit) and assigns each agent its
  * start and destination. */
-static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, fm_progress_fn progress,
-                              void *user, fm_error *err)
+static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, const build_ctx *b,
+                              fm_error *err)
 {
     fm_samples src = {0}, tgt = {0};
     int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
     const int kept = keep && keep_fits(keep, m, source);
     fm_status st = !match ? fm_fail(err, FM_ERR_MEMORY, "out of memory")
                    : kept ? from_keep(keep, &src, &tgt, match, err)
-                          : sample_and_match(m, source, &src, &tgt, match, progress, user, err);
+                          : sample_and_match(m, source, &src, &tgt, match, b, err);
     if (st == FM_OK && keep && !kept) st = into_keep(keep, m, source, &src, &tgt, match, err);
     if (keep) keep->reused = kept;
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
@@ -592,16 +608,22 @@ static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_fl
     return m->obstacles ? FM_OK : err ? err->status : FM_ERR_INPUT;
 }
 
-static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn progress, void *user, fm_error *err)
+/* The studio may cancel a build at every stage boundary (stage): before it starts (a shot's group
+ * after another's), between the samplings and the match, between the mosaic's iterations, before
+ * each obstacle grid and before the route's search. */
+static fm_status build(fm_flock_model *m, fm_flock_keep *keep, const build_ctx *b, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
-    fm_status st = fm_flock_target_build(&m->target, def, err);
+    fm_status st = stage(b, NULL, 0, err);
+    if (st == FM_OK) st = fm_flock_target_build(&m->target, def, err);
     if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
-    if (st == FM_OK) st = place_agents(m, &source, keep, progress, user, err);
+    if (st == FM_OK) st = place_agents(m, &source, keep, b, err);
+    if (st == FM_OK) st = stage(b, NULL, 0, err);
     if (st == FM_OK) st = build_obstacles(m, &source, keep, err); /* before the path, routed round them */
     if (st == FM_OK) set_route_margin(m);
+    if (st == FM_OK) st = stage(b, NULL, 0, err);
     if (st == FM_OK) st = build_path(m, keep, err);
     if (st == FM_OK) set_ease(m), fm_flock_target_set_start(&m->target, &def->flock, fm_flock_leaders_end(m));
     if (st == FM_OK) st = init_fuzzy(m, err);
@@ -610,10 +632,11 @@ static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn pr
         draw_parameters(m, 0.5 * (fm_mesh_area(start) + fm_mesh_area(&m->target.mesh)));
         scene_bounds(m, &source);
         set_info(m);
-        st = plan_fields(m, err);
+        st = stage(b, NULL, 0, err);
     }
+    if (st == FM_OK) st = plan_fields(m, err);
     fm_mesh_free(&source);
-    if (progress && st == FM_OK) progress("ready", 1.0, user);
+    if (st == FM_OK) st = stage(b, "ready", 1.0, err);
     return st;
 }
 
@@ -635,7 +658,8 @@ static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model
     m->n = from ? from->n : def->n;
     m->from = from;
     if (keep) keep->reused = keep->grid_reused = keep->route_reused = 0;
-    fm_status st = build(m, keep, progress, user, err);
+    const build_ctx b = {progress, user, keep ? keep->cancel : NULL};
+    fm_status st = build(m, keep, &b, err);
     if (keep && st != FM_OK) keep->reused = keep->grid_reused = keep->route_reused = 0;
     m->from = NULL;
     if (st != FM_OK) {

@@ -151,6 +151,9 @@ typedef struct fm_morph_keep {
     int reused;            /* the last build made none of them again (TetGen nor subdivision) */
     int grid_reused;       /* ... the obstacles' grid was the keep's (0 without obstacles) */
     int route_reused;      /* ... the routed path and navigation function were the keep's */
+    const volatile sig_atomic_t *cancel; /* the studio's flag (NULL: none): where an edit sets it, the build
+                                            stops at its next stage boundary with FM_STOPPED, nothing kept
+                                            half-made (morph_model.c build) */
 } fm_morph_keep;
 
 /* fm_morph_model_build, keeping in *keep (zeroed at first) what it makes and reusing what fits. */

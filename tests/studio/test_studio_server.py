@@ -21,6 +21,7 @@ played back gives the reader's frames and refuses edits. The studio never crashe
 SIGTERM.
 """
 import argparse
+import glob
 import hashlib
 import json
 import os
@@ -328,6 +329,41 @@ def check_flock_keep(args, tmp):
         check_stopped(proc, "shape flock")
 
 
+def check_cancelled_build(args, tmp):
+    """An edit made while the model is built (a shape flock of 4000 points: the mosaic's sampling is
+    most of a build of seconds) stops the build at its next stage boundary, so that the edit's run
+    starts at once, not when the build would have ended: the edit's own build, which samples again
+    (nothing of the cancelled one was kept), measures what the wait would have been. The cancelled run
+    streamed no frame and left no partial file in the studio's scratch folder."""
+    before = set(glob.glob("/tmp/flockmorph-studio-*"))
+    scene, proc, url = studio_on(args, tmp, "long_build.json", {
+        "mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+        "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 4000, "speed0": 8.0,
+        "time": {"frame_rate": 24, "frame_limit": 1}, "seed": 9})
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        building = ws.recv_json("status")  # sent on connecting, then the shapes as the first run's build starts
+        while (m := ws.recv_json(timeout=30))["type"] != "shapes":
+            building = m if m["type"] == "status" else building
+        t0 = time.time()
+        ws.send({"type": "set", "key": "speed0", "value": 9.0})
+        ws.wait_status(lambda m: m["generation"] > building["generation"], timeout=120)
+        waited = time.time() - t0
+        end = finished(ws, building["generation"])
+        check(building["stage"] == "building" and building["frames"] == 0, "cancelled build: the edit came during the build")
+        check(end["stage"] == "finished" and end["model_kept"] is False,
+              f"cancelled build: the edit's run built the model afresh ({end['stage']}, kept {end['model_kept']})")
+        check(waited < 0.5 * end["build_seconds"], f"cancelled build: the edit's run started {waited:.2f} s after it, "
+                                                   f"under half the {end['build_seconds']:.2f} s a build takes")
+        scratch = sorted(set(glob.glob("/tmp/flockmorph-studio-*")) - before)
+        partial = [f for d in scratch for f in os.listdir(d) if "partial" in f]
+        check(len(scratch) == 1 and not partial, f"cancelled build: no partial file in the scratch folder ({scratch}: {partial})")
+        ws.close()
+    finally:
+        check_stopped(proc, "cancelled build")
+
+
 def check_shot_edit(args, tmp):
     """A shot: its groups are read from the edited scene, not the file. An edit of one group's key
     changes the run's frames; an invalid one names the group's key; Save, and `flockmorph run` of
@@ -472,6 +508,7 @@ def main():
         code, err = stop_studio(proc)
     check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
     check_flock_keep(args, tmp)
+    check_cancelled_build(args, tmp)
     check_shot_edit(args, tmp)
     check_flock_shot_keep(args, tmp)
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
