@@ -26,6 +26,9 @@ double cli_seconds(void);
 int cli_usage_error(const char *usage, const char *fmt, const char *arg);
 /* Prints the error; returns its status as the exit code. */
 int cli_report(const fm_error *err);
+/* A model build's failure: cli_report, but a build the studio cancelled (FM_STOPPED: an edit
+ * supersedes its run) returns FM_STOPPED and prints nothing. */
+int cli_report_build(const fm_error *err);
 /* The message cli_report last printed on this thread ("" before any): the studio's worker shows a
  * failed run's reason on the page. */
 extern _Thread_local char cli_last_error[2048];
@@ -149,14 +152,15 @@ typedef struct cli_run_hooks {
  * shape flock's samples and match) for the next run of an edited scene, which reuses it where its
  * inputs are unchanged (fm_morph_model_build_keeping, fm_flock_model_build_keeping; docs/studio.md,
  * "An edit and the model"); a shot keeps each group's the same way (fm_shot_build_keeping,
- * fm_flock_shot_build_keeping). The tetra morph keeps its obstacles' grid and routed path too. */
+ * fm_flock_shot_build_keeping). Both modes keep their obstacles' grids and routed paths too. */
 struct cli_model_keep {
     struct fm_morph_keep *morph; /* FM_MAX_GROUPS of each, made at the first build of its mode: a scene's */
     struct fm_flock_keep *flock; /* in [0], a shot's group g's in [g] */
     int reused;                  /* the last build reused the costly part (a shot: of every group) */
     int groups_reused;           /* ... of how many groups (a scene: 0 or 1) */
-    int grids_reused;            /* of how many groups the obstacles' distance grid was kept (tetra morph) */
-    int routes_reused;           /* ... and the routed path with its navigation function */
+    int grids_reused;            /* of how many groups the obstacles' distance grid was kept */
+    int routes_reused;           /* ... and the routed path (the tetra morph: with its navigation function) */
+    volatile sig_atomic_t *cancel; /* the studio's stop flag: every keep's (cli_morph_keeps, cli_flock_keeps) */
     double build_seconds;        /* the last build's wall time */
 };
 void cli_model_keep_free(cli_model_keep *keep);

@@ -58,6 +58,11 @@ int cli_report(const fm_error *err)
     return err->status ? (int)err->status : FM_ERR_INTERNAL;
 }
 
+int cli_report_build(const fm_error *err)
+{
+    return err->status == FM_STOPPED ? FM_STOPPED : cli_report(err);
+}
+
 /* The length of a scene key at the start of msg followed by ": " ("source.mesh",
  * "obstacles.meshes[0]"; not a file name such as "wave_000.obj"), or 0; the key in key. */
 static size_t leading_key(const char *msg, char *key, size_t size)

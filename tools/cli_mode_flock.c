@@ -102,8 +102,9 @@ static int build(void *run, const fm_scene_def *def, int *show)
     r->model = keep ? fm_flock_model_build_keeping(def, keep->flock, cli_prep_progress, show, &err)
                     : fm_flock_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (keep) keep->reused = keep->groups_reused = keep->flock->reused;
+    if (keep) keep->grids_reused = keep->flock->grid_reused, keep->routes_reused = keep->flock->route_reused;
     if (!r->model) cli_locate_key(def, &err); /* the flock names its meshes' keys without their lines */
-    if (!r->model) return cli_report(&err);
+    if (!r->model) return cli_report_build(&err);
     r->mi = fm_flock_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_flock_model_warning_count(r->model); i++)
@@ -115,6 +116,7 @@ fm_flock_keep *cli_flock_keeps(cli_model_keep *keep)
 {
     if (!keep->flock && !(keep->flock = calloc(FM_MAX_GROUPS, sizeof *keep->flock)))
         fprintf(stderr, "flockmorph: out of memory\n");
+    for (int g = 0; keep->flock && g < FM_MAX_GROUPS; g++) keep->flock[g].cancel = keep->cancel;
     return keep->flock;
 }
 

@@ -182,7 +182,7 @@ static int build(void *run, const fm_scene_def *def, int *show)
                     : fm_morph_model_build_shared(def, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (keep) keep->reused = keep->groups_reused = keep->morph->reused;
     if (keep) keep->grids_reused = keep->morph->grid_reused, keep->routes_reused = keep->morph->route_reused;
-    if (!r->model) return cli_report(&err);
+    if (!r->model) return cli_report_build(&err);
     r->mi = fm_morph_model_get_info(r->model);
     r->common = (cli_mode_run){r->mi.agents, r->mi.time_step, &r->rs.run, keep, NULL};
     for (int i = 0; i < fm_morph_model_warning_count(r->model); i++) add_warning(r, fm_morph_model_warning(r->model, i));
@@ -193,6 +193,7 @@ fm_morph_keep *cli_morph_keeps(cli_model_keep *keep)
 {
     if (!keep->morph && !(keep->morph = calloc(FM_MAX_GROUPS, sizeof *keep->morph)))
         fprintf(stderr, "flockmorph: out of memory\n");
+    for (int g = 0; keep->morph && g < FM_MAX_GROUPS; g++) keep->morph[g].cancel = keep->cancel;
     return keep->morph;
 }
 

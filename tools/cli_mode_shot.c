@@ -83,8 +83,8 @@ static void count_kept(cli_model_keep *keep, int count, int flock)
     keep->groups_reused = keep->grids_reused = keep->routes_reused = 0;
     for (int g = 0; g < count; g++) {
         keep->groups_reused += flock ? keep->flock[g].reused : keep->morph[g].reused;
-        keep->grids_reused += !flock && keep->morph[g].grid_reused;
-        keep->routes_reused += !flock && keep->morph[g].route_reused;
+        keep->grids_reused += flock ? keep->flock[g].grid_reused : keep->morph[g].grid_reused;
+        keep->routes_reused += flock ? keep->flock[g].route_reused : keep->morph[g].route_reused;
     }
     keep->reused = keep->groups_reused == count;
 }
@@ -97,7 +97,7 @@ static int build_morphs(shot_run *r, int *show)
     r->shot = keep ? fm_shot_build_keeping(r->defs, r->count, 0, keep->morph, cli_prep_progress, show, &err)
                    : fm_shot_build_on(r->defs, r->count, 0, cli_dist, cli_prep_progress, show, &err); /* one model a machine */
     if (keep && r->shot) count_kept(keep, r->count, 0);
-    if (!r->shot) return cli_report(&err);
+    if (!r->shot) return cli_report_build(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_morph_model *m = fm_shot_model(r->shot, g);
         for (int i = 0; i < fm_morph_model_warning_count(m); i++)
@@ -115,7 +115,7 @@ static int build_flocks(shot_run *r, int *show)
     r->flock_shot = keep ? fm_flock_shot_build_keeping(r->defs, r->count, keep->flock, cli_prep_progress, show, &err)
                          : fm_flock_shot_build_on(r->defs, r->count, cli_dist, cli_prep_progress, show, &err); /* one a machine */
     if (keep && r->flock_shot) count_kept(keep, r->count, 1);
-    if (!r->flock_shot) return cli_report(&err);
+    if (!r->flock_shot) return cli_report_build(&err);
     for (int g = 0; g < r->count; g++) {
         const fm_flock_model *m = fm_flock_shot_model(r->flock_shot, g);
         for (int i = 0; i < fm_flock_model_warning_count(m); i++)

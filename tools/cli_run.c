@@ -329,6 +329,7 @@ static int run_scene(const cli_run_options *o, const fm_scene_def *def, const cl
     ((cli_mode_run *)run)->keep = keep;
     ((cli_mode_run *)run)->scene_text = hooks ? hooks->scene_text : NULL;
     if (keep) keep->reused = keep->groups_reused = keep->grids_reused = keep->routes_reused = 0;
+    if (keep) keep->cancel = hooks->stop; /* an edit stops the build at its next stage boundary */
     double t0 = cli_seconds();
     if (!hooks) cli_end_on_stop_signals(1); /* the build cannot stop halfway; a signal ends it, saying so */
     int rc = mode->build(run, def, &show);

@@ -1,7 +1,8 @@
 /* The studio's live scene (docs/studio.md): the scene document and its edits, Save, and the
  * worker thread that runs the scene through `run`'s own path (cli_run_scene_hooked), keeping every
  * frame the cache writer is handed (its tap) for the timeline. An edit cancels the run at its next
- * frame boundary and the worker starts over with the latest document: a slider drag that sends
+ * frame boundary, or its model build at the build's next stage boundary (the keep carries the stop
+ * flag: cli_run.c), and the worker starts over with the latest document: a slider drag that sends
  * twenty edits runs at most the one in progress and the last. */
 #define _POSIX_C_SOURCE 200809L
 #include "studio.h"

@@ -22,7 +22,8 @@ typedef enum fm_status {
     FM_ERR_INTERNAL = 5, /* a library failed in a way the input does not explain */
     FM_STOPPED = 6       /* not an error: fm_morph_run_controlled stopped on request after its checkpoint,
                             or fm_flock_run_controlled at a frame boundary (the CLI then exits 128
-                            + the signal's number) */
+                            + the signal's number); or a model build the studio cancelled (a keep's
+                            cancel flag) at a stage boundary */
 } fm_status;
 
 typedef struct fm_error {

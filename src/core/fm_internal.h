@@ -4,6 +4,7 @@
 
 #include "flockmorph/flockmorph.h"
 
+#include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -23,6 +24,12 @@ fm_status fm_fail(fm_error *err, fm_status status, const char *fmt, ...)
 /* On failure (st != FM_OK) prefixes err's message with "<key>: " (the scene key that named the
  * failing input); returns st. */
 fm_status fm_name_key(fm_status st, const char *key, fm_error *err);
+
+/* A model build's stage boundary: reports stage (NULL: none) to progress (NULL: none), then stops the
+ * build where cancel (the studio's flag, set by an edit that supersedes the run; NULL: none) is set:
+ * FM_STOPPED, with a message no one is shown (docs/studio.md, "An edit and the model"). */
+fm_status fm_build_stage(fm_progress_fn progress, void *user, const char *stage, double fraction,
+                         const volatile sig_atomic_t *cancel, fm_error *err);
 
 /* 64-byte aligned, zero-filled; size rounded up to a multiple of 64. NULL on failure. */
 void *fm_alloc(size_t bytes);

@@ -48,6 +48,13 @@ fm_status fm_name_key(fm_status st, const char *key, fm_error *err)
     return st;
 }
 
+fm_status fm_build_stage(fm_progress_fn progress, void *user, const char *stage, double fraction,
+                         const volatile sig_atomic_t *cancel, fm_error *err)
+{
+    if (progress && stage) progress(stage, fraction, user);
+    return cancel && *cancel ? fm_fail(err, FM_STOPPED, "the model build was cancelled by an edit") : FM_OK;
+}
+
 void *fm_alloc(size_t bytes)
 {
     size_t rounded = (bytes + FM_ALIGN - 1) / FM_ALIGN * FM_ALIGN;

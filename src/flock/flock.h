@@ -20,6 +20,7 @@
 #include "kernel_orient.h"
 #include "memory.h"
 #include "obstacles.h"
+#include "path_route.h"
 #include "sample.h"
 #include "scene_internal.h"
 #include "slabs.h"
@@ -102,11 +103,14 @@ fm_flock_model *fm_flock_model_build_from_shape_shared(const fm_scene_def *def, 
                                                        fm_error *err);
 
 /* What a build keeps for the next build of an edited scene (flockmorph studio: docs/studio.md, "An
- * edit and the model"): the samples of both surfaces and the match, with what they were made from.
- * A build given a keep samples and matches again only where those inputs differ (the placed source
- * and target meshes byte for byte, n, seed and the keys of shape_flock's sampling and match), which
- * a path, speed, boids, fuzzy or style edit leaves; everything after is built as always, and the
- * model is the same bytes either way. */
+ * edit and the model"): the samples of both surfaces and the match, the obstacles' distance grids and
+ * the path routed round them, each with what it was made from. A build given a keep samples and
+ * matches again only where those inputs differ (the placed source and target meshes byte for byte,
+ * n, seed and the keys of shape_flock's sampling and match), which a path, speed, boids, fuzzy or
+ * style edit leaves; makes a grid again only where the placed obstacle meshes, its reach or
+ * obstacles.voxel differ (fm_kept_grid), and routes R again only where its route grid or its key
+ * (fm_route_key: O1, O2, the route's box, margin and obstacle boxes, the path keys) differ. Everything
+ * else is built as always, and the model is the same bytes either way. */
 typedef struct fm_flock_keep {
     int has;
     fm_mesh source, target;     /* the placed source mesh and the target at time 0, sampled */
@@ -115,7 +119,18 @@ typedef struct fm_flock_keep {
     fm_flock_def flock;         /* the shape_flock keys it was made with (sampling, mosaic, match, uncross) */
     fm_samples src, tgt;        /* the samples */
     int64_t *match;             /* agent a's target sample */
+    fm_kept_grid grid;          /* m->obstacles (reach k_a: eq 7's push) */
+    fm_kept_grid route_grid;    /* the route's own (reach 2 k_a + the margin: route_setup) */
+    int has_route, routed;      /* R was routed on route_grid from route_key; routed: through these points */
+    fm_route_key route_key;
+    double *route_points;
+    int32_t route_count;
     int reused;                 /* the last build did not sample or match again */
+    int grid_reused;            /* ... m->obstacles was the keep's (0 without obstacles) */
+    int route_reused;           /* ... R routed round the obstacles was the keep's */
+    const volatile sig_atomic_t *cancel; /* the studio's flag (NULL: none): where an edit sets it, the
+                                            build stops at its next stage boundary with FM_STOPPED,
+                                            nothing kept half-made (flock_model.c build) */
 } fm_flock_keep;
 
 /* fm_flock_model_build, keeping in *keep (zeroed at first) the samples and the match it makes, and

@@ -14,9 +14,23 @@
 /* Random streams of the scene seed (fm_random_unit), one per use. */
 enum { STREAM_SOURCE = 1, STREAM_TARGET, STREAM_MATCH, STREAM_PARAMS = 16 };
 
-static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream)
+/* The build's progress report and the studio's cancel flag (the keep's; NULL: none), checked at
+ * the stage boundaries (fm_build_stage) and between the mosaic's iterations. */
+typedef struct build_ctx {
+    fm_progress_fn progress;
+    void *user;
+    const volatile sig_atomic_t *cancel;
+} build_ctx;
+
+static fm_status stage(const build_ctx *b, const char *name, double fraction, fm_error *err)
+{
+    return fm_build_stage(b->progress, b->user, name, fraction, b->cancel, err);
+}
+
+static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream, const build_ctx *b)
 {
     fm_sample_opts opts = fm_default_sample_opts();
+    opts.cancel = b->cancel;
     opts.method = (fm_sample_method)m->def.flock.sampling;
     opts.seed = fm_random_bits(m->def.seed, stream, 0);
     const fm_flock_def *f = &m->def.flock;
@@ -26,19 +40,20 @@ static fm_sample_opts sample_opts(const fm_flock_model *m, uint64_t stream)
     return opts;
 }
 
-static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, fm_samples *out, fm_error *err)
+static fm_status sample(const fm_mesh *mesh, const fm_flock_model *m, uint64_t stream, const build_ctx *b, fm_samples *out,
+                        fm_error *err)
 {
-    const fm_sample_opts opts = sample_opts(m, stream);
+    const fm_sample_opts opts = sample_opts(m, stream, b);
     return fm_name_key(fm_sample_surface(mesh, m->n, &opts, out, err), "shape_flock.sampling", err);
 }
 
 /* match "projected" (SCF "Point Correspondence"): the target's points are the source samples
  * projected onto it and relaxed by the mosaic's energy (the shape_flock.mosaic keys), agent a keeping
  * its own: match[a] = a. */
-static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, const fm_samples *src, fm_samples *out,
-                                  int64_t *match, fm_error *err)
+static fm_status sample_projected(const fm_mesh *mesh, const fm_flock_model *m, const build_ctx *b, const fm_samples *src,
+                                  fm_samples *out, int64_t *match, fm_error *err)
 {
-    const fm_sample_opts opts = sample_opts(m, STREAM_TARGET);
+    const fm_sample_opts opts = sample_opts(m, STREAM_TARGET, b);
     fm_status st = fm_name_key(fm_sample_projected(mesh, src->p, m->n, &opts, out, err), "shape_flock.match", err);
     for (int64_t a = 0; st == FM_OK && a < m->n; a++) match[a] = a;
     return st;
@@ -131,8 +146,10 @@ static double spread_of(float *const p[3], int64_t n, const double centre[3])
 
 /* The route's distance grid: the flock's own (m->obstacles) has a band of k_a, too narrow to tell
  * k_a + margin of clearance, and its voxel follows its band, so a wider one here would change the
- * push's bytes; this one is built for the route alone and freed with it. */
-static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obstacles **grid, fm_error *err)
+ * push's bytes; this one is built for the route alone (or is the keep's, kept: may be NULL) and
+ * freed with it. */
+static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obstacles **grid, fm_kept_grid *kept,
+                             int *grid_kept, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     memset(r, 0, sizeof *r);
@@ -155,7 +172,7 @@ static fm_status route_setup(const fm_flock_model *m, fm_path_route *r, fm_obsta
         fm_grow_bounds(r->obstacle_lo, r->obstacle_hi, meshes[i].v, meshes[i].nv);
     }
     r->meshes = def->obstacle_count;
-    *grid = st == FM_OK ? fm_obstacles_grid(def, meshes, r->r_infl + r->r_soft, err) : NULL;
+    *grid = st == FM_OK ? fm_obstacles_grid_keeping(def, meshes, r->r_infl + r->r_soft, kept, grid_kept, err) : NULL;
     if (st == FM_OK && !*grid) st = err ? err->status : FM_ERR_INPUT;
     r->obstacles = *grid;
     for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
@@ -190,39 +207,80 @@ static void set_route_margin(fm_flock_model *m)
     m->route_margin = ROUTE_MARGIN_OF_RADIUS * fmax(spread_of(m->start, m->n, m->o1), spread_of(m->dest0, m->n, m->o2));
 }
 
-static fm_status route_path(fm_flock_model *m, fm_error *err)
+/* R through count points (the routed polyline resampled) in place of the user's. */
+static fm_status rebuild_path(fm_flock_model *m, const double *pts, int32_t count, fm_error *err)
 {
-    fm_path_route r;
-    fm_obstacles *grid = NULL;
-    fm_status st = route_setup(m, &r, &grid, err);
+    fm_bspline_free(&m->path);
+    return fm_bspline_build(pts, count, &m->path, err);
+}
+
+/* R rerouted round the obstacles (fm_path_route_dense on R's dense samples), then resampled by arc
+ * length; pts and count: the points R was rebuilt through (NULL where no stretch was rerouted). */
+static fm_status route_dense(fm_flock_model *m, fm_path_route *r, double **pts, int32_t *count, fm_error *err)
+{
     int64_t n = (int64_t)ROUTE_SAMPLES_PER_SEGMENT * (m->path.count - 1) + 1;
-    double *dense = st == FM_OK ? malloc(sizeof(double) * 3 * (size_t)n) : NULL;
-    if (st == FM_OK && !dense) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    double *dense = malloc(sizeof(double) * 3 * (size_t)n);
+    fm_status st = dense ? FM_OK : fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
     for (int64_t i = 0; st == FM_OK && i < n; i++)
         fm_bspline_eval_arc(&m->path, (double)i / (double)(n - 1), dense + 3 * i, NULL);
     if (st == FM_OK) memcpy(dense, m->o1, sizeof m->o1), memcpy(dense + 3 * (n - 1), m->o2, sizeof m->o2);
-    if (st == FM_OK) st = fm_path_route_dense(&r, &dense, &n, err);
-    double *pts = NULL;
-    if (st == FM_OK && r.routed) {
+    if (st == FM_OK) st = fm_path_route_dense(r, &dense, &n, err);
+    if (st == FM_OK && r->routed) {
         double total = 0;
         for (int64_t i = 0; i + 1 < n; i++) total += dist3(dense + 3 * i, dense + 3 * (i + 1));
-        const double spacing = ROUTE_SPACING_OF_INFLATION * r.r_infl;
-        const int32_t count = (int32_t)fmin(ceil(total / spacing) + 1, ROUTE_POINTS_MAX);
-        if (!(pts = malloc(sizeof(double) * 3 * (size_t)count)))
+        const double spacing = ROUTE_SPACING_OF_INFLATION * r->r_infl;
+        *count = (int32_t)fmin(ceil(total / spacing) + 1, ROUTE_POINTS_MAX);
+        if (!(*pts = malloc(sizeof(double) * 3 * (size_t)*count)))
             st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
-        if (st == FM_OK) {
-            resample(dense, n, count, m->o1, m->o2, pts);
-            fm_bspline_free(&m->path);
-            st = fm_bspline_build(pts, count, &m->path, err);
-        }
+        if (st == FM_OK) resample(dense, n, *count, m->o1, m->o2, *pts);
+        if (st == FM_OK) st = rebuild_path(m, *pts, *count, err);
     }
-    free(pts), free(dense);
+    free(dense);
+    return st;
+}
+
+static void forget_route(fm_flock_keep *k)
+{
+    free(k->route_points);
+    k->route_points = NULL, k->route_count = 0, k->has_route = k->routed = 0;
+}
+
+/* The keep's routed R, where its route grid was this build's and its key is this route's. */
+static int route_fits(const fm_flock_keep *k, int grid_kept, const fm_route_key *key)
+{
+    return k && grid_kept && k->has_route && memcmp(&k->route_key, key, sizeof *key) == 0;
+}
+
+static fm_status route_path(fm_flock_model *m, fm_flock_keep *keep, fm_error *err)
+{
+    fm_path_route r;
+    fm_obstacles *grid = NULL;
+    int grid_kept = 0;
+    fm_status st = route_setup(m, &r, &grid, keep ? &keep->route_grid : NULL, &grid_kept, err);
+    if (st == FM_OK && keep) st = fm_build_stage(NULL, NULL, NULL, 0, keep->cancel, err); /* before the search */
+    fm_route_key *key = st == FM_OK && keep ? malloc(sizeof *key) : NULL; /* 7 KiB: off the loader's deep stack */
+    if (st == FM_OK && keep && !key) st = fm_fail(err, FM_ERR_MEMORY, "out of memory routing the path");
+    if (key) fm_route_key_of(&m->def, m->o1, m->o2, &r, key);
+    double *pts = NULL;
+    int32_t count = 0;
+    if (st == FM_OK && route_fits(keep, grid_kept, key)) {
+        keep->route_reused = 1;
+        if (keep->routed) st = rebuild_path(m, keep->route_points, keep->route_count, err);
+    } else if (st == FM_OK) {
+        if (keep) forget_route(keep);
+        st = route_dense(m, &r, &pts, &count, err);
+    }
+    if (st == FM_OK && key && !keep->route_reused) { /* the keep takes the points */
+        keep->route_key = *key, keep->route_points = pts, keep->route_count = count;
+        keep->routed = r.routed, keep->has_route = 1, pts = NULL;
+    }
+    free(pts), free(key);
     fm_obstacles_destroy(grid);
     return st;
 }
 
 /* SCF "Global Path Control": R from O1 (the source's centre) through path.points to O2. */
-static fm_status build_path(fm_flock_model *m, fm_error *err)
+static fm_status build_path(fm_flock_model *m, fm_flock_keep *keep, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     int32_t count = def->path_point_count + 2;
@@ -235,7 +293,7 @@ static fm_status build_path(fm_flock_model *m, fm_error *err)
     for (int32_t i = 1; i < count; i++) distinct |= memcmp(pts, pts + 3 * i, sizeof m->o1) != 0;
     fm_status st = distinct ? fm_bspline_build(pts, count, &m->path, err) : FM_OK; /* in place: no path */
     free(pts);
-    if (st == FM_OK && distinct && m->obstacles && def->path_route) st = route_path(m, err);
+    if (st == FM_OK && distinct && m->obstacles && def->path_route) st = route_path(m, keep, err);
     /* speed0 is the leaders' cruise: the ramps of set_ease take half their length more */
     const double ramps = 0.5 * (def->flock.ease_in + def->flock.ease_out);
     m->path_time = def->flock.path_time > 0 ? def->flock.path_time : distinct ? m->path.length / def->speed0 + ramps : 0;
@@ -411,15 +469,15 @@ static void set_info(fm_flock_model *m)
 
 /* Samples both surfaces and matches them: agent a starts on src's sample a and flies to tgt's match[a]. */
 static fm_status sample_and_match(const fm_flock_model *m, const fm_mesh *source, fm_samples *src, fm_samples *tgt,
-                                  int64_t *match, fm_progress_fn progress, void *user, fm_error *err)
+                                  int64_t *match, const build_ctx *b, fm_error *err)
 {
-    if (progress) progress("sample source", 0.1, user);
-    fm_status st = m->from ? formed_shape(m->from, src, err) : sample(source, m, STREAM_SOURCE, src, err);
-    if (progress && st == FM_OK) progress("sample target", 0.4, user);
+    fm_status st = stage(b, "sample source", 0.1, err);
+    if (st == FM_OK) st = m->from ? formed_shape(m->from, src, err) : sample(source, m, STREAM_SOURCE, b, src, err);
+    if (st == FM_OK) st = stage(b, "sample target", 0.4, err);
     const int projected = m->def.flock.match == FM_FLOCK_MATCH_PROJECTED;
-    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, src, tgt, match, err);
-    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, tgt, err);
-    if (progress && st == FM_OK) progress("match", 0.7, user);
+    if (st == FM_OK && projected) st = sample_projected(&m->target.mesh, m, b, src, tgt, match, err);
+    else if (st == FM_OK) st = sample(&m->target.mesh, m, STREAM_TARGET, b, tgt, err);
+    if (st == FM_OK) st = stage(b, "match", 0.7, err);
     if (st == FM_OK && !projected)
         st = fm_name_key(fm_match_agents(src->p, tgt->p, m->n, (fm_match_method)m->def.flock.match,
                                       fm_random_bits(m->def.seed, STREAM_MATCH, 0), match, err), "shape_flock.match", err);
@@ -479,17 +537,27 @@ static fm_status from_keep(const fm_flock_keep *k, fm_samples *src, fm_samples *
     return st;
 }
 
+/* The keep's samples and match dropped; its grids and route stay. */
+static void forget_samples(fm_flock_keep *k)
+{
+    fm_mesh_free(&k->source), fm_mesh_free(&k->target);
+    fm_samples_free(&k->src), fm_samples_free(&k->tgt);
+    fm_free(k->match);
+    k->match = NULL, k->has = 0, k->n = 0, k->seed = 0;
+    memset(&k->flock, 0, sizeof k->flock);
+}
+
 static fm_status into_keep(fm_flock_keep *k, const fm_flock_model *m, const fm_mesh *source, const fm_samples *src,
                            const fm_samples *tgt, const int64_t *match, fm_error *err)
 {
-    fm_flock_keep_clear(k);
+    forget_samples(k);
     int ok = 1;
     k->match = copy_array(match, sizeof(int64_t) * (size_t)m->n, &ok);
     fm_status st = ok ? fm_mesh_copy(source, &k->source, err) : fm_fail(err, FM_ERR_MEMORY, "out of memory");
     if (st == FM_OK) st = fm_mesh_copy(&m->target.mesh, &k->target, err);
     if (st == FM_OK) st = copy_samples(src, &k->src, err);
     if (st == FM_OK) st = copy_samples(tgt, &k->tgt, err);
-    if (st != FM_OK) return fm_flock_keep_clear(k), st;
+    if (st != FM_OK) return forget_samples(k), st;
     k->n = m->n, k->seed = m->def.seed, k->flock = m->def.flock, k->has = 1;
     return FM_OK;
 }
@@ -497,23 +565,23 @@ static fm_status into_keep(fm_flock_keep *k, const fm_flock_model *m, const fm_m
 void fm_flock_keep_clear(fm_flock_keep *keep)
 {
     if (!keep) return;
-    fm_mesh_free(&keep->source), fm_mesh_free(&keep->target);
-    fm_samples_free(&keep->src), fm_samples_free(&keep->tgt);
-    fm_free(keep->match);
+    forget_samples(keep);
+    fm_kept_grid_clear(&keep->grid), fm_kept_grid_clear(&keep->route_grid);
+    forget_route(keep);
     memset(keep, 0, sizeof *keep);
 }
 
 /* Samples both surfaces (or takes the keep's samples, where they fit) and assigns each agent its
  * start and destination. */
-static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, fm_progress_fn progress,
-                              void *user, fm_error *err)
+static fm_status place_agents(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, const build_ctx *b,
+                              fm_error *err)
 {
     fm_samples src = {0}, tgt = {0};
     int64_t *match = malloc(sizeof(int64_t) * (size_t)m->n);
     const int kept = keep && keep_fits(keep, m, source);
     fm_status st = !match ? fm_fail(err, FM_ERR_MEMORY, "out of memory")
                    : kept ? from_keep(keep, &src, &tgt, match, err)
-                          : sample_and_match(m, source, &src, &tgt, match, progress, user, err);
+                          : sample_and_match(m, source, &src, &tgt, match, b, err);
     if (st == FM_OK && keep && !kept) st = into_keep(keep, m, source, &src, &tgt, match, err);
     if (keep) keep->reused = kept;
     if (st == FM_OK) st = assign(m, &src, &tgt, match, err);
@@ -532,24 +600,31 @@ static fm_status load_source(const fm_scene_def *def, fm_mesh *source, fm_error 
 }
 
 /* agents start and end on the surfaces: an obstacle may overlap neither (the target at rest) */
-static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_error *err)
+static fm_status build_obstacles(fm_flock_model *m, const fm_mesh *source, fm_flock_keep *keep, fm_error *err)
 {
     if (m->def.obstacle_count == 0) return FM_OK;
-    m->obstacles = fm_obstacles_from_scene(&m->def, m->def.k_a, source, &m->target.mesh, err);
+    m->obstacles = fm_obstacles_from_scene_keeping(&m->def, m->def.k_a, source, &m->target.mesh, keep ? &keep->grid : NULL,
+                                                   keep ? &keep->grid_reused : NULL, err);
     return m->obstacles ? FM_OK : err ? err->status : FM_ERR_INPUT;
 }
 
-static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn progress, void *user, fm_error *err)
+/* The studio may cancel a build at every stage boundary (stage): before it starts (a shot's group
+ * after another's), between the samplings and the match, between the mosaic's iterations, before
+ * each obstacle grid and before the route's search. */
+static fm_status build(fm_flock_model *m, fm_flock_keep *keep, const build_ctx *b, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
     fm_mesh source = {0};
-    fm_status st = fm_flock_target_build(&m->target, def, err);
+    fm_status st = stage(b, NULL, 0, err);
+    if (st == FM_OK) st = fm_flock_target_build(&m->target, def, err);
     if (st == FM_OK) st = load_source(def, &source, err);
     if (st == FM_OK) st = alloc_agent_arrays(m, err);
-    if (st == FM_OK) st = place_agents(m, &source, keep, progress, user, err);
-    if (st == FM_OK) st = build_obstacles(m, &source, err); /* before the path, routed round them */
+    if (st == FM_OK) st = place_agents(m, &source, keep, b, err);
+    if (st == FM_OK) st = stage(b, NULL, 0, err);
+    if (st == FM_OK) st = build_obstacles(m, &source, keep, err); /* before the path, routed round them */
     if (st == FM_OK) set_route_margin(m);
-    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) st = stage(b, NULL, 0, err);
+    if (st == FM_OK) st = build_path(m, keep, err);
     if (st == FM_OK) set_ease(m), fm_flock_target_set_start(&m->target, &def->flock, fm_flock_leaders_end(m));
     if (st == FM_OK) st = init_fuzzy(m, err);
     if (st == FM_OK) {
@@ -557,10 +632,11 @@ static fm_status build(fm_flock_model *m, fm_flock_keep *keep, fm_progress_fn pr
         draw_parameters(m, 0.5 * (fm_mesh_area(start) + fm_mesh_area(&m->target.mesh)));
         scene_bounds(m, &source);
         set_info(m);
-        st = plan_fields(m, err);
+        st = stage(b, NULL, 0, err);
     }
+    if (st == FM_OK) st = plan_fields(m, err);
     fm_mesh_free(&source);
-    if (progress && st == FM_OK) progress("ready", 1.0, user);
+    if (st == FM_OK) st = stage(b, "ready", 1.0, err);
     return st;
 }
 
@@ -581,9 +657,10 @@ static fm_flock_model *build_model(const fm_scene_def *def, const fm_flock_model
     m->def = *def;
     m->n = from ? from->n : def->n;
     m->from = from;
-    if (keep) keep->reused = 0;
-    fm_status st = build(m, keep, progress, user, err);
-    if (keep && st != FM_OK) keep->reused = 0;
+    if (keep) keep->reused = keep->grid_reused = keep->route_reused = 0;
+    const build_ctx b = {progress, user, keep ? keep->cancel : NULL};
+    fm_status st = build(m, keep, &b, err);
+    if (keep && st != FM_OK) keep->reused = keep->grid_reused = keep->route_reused = 0;
     m->from = NULL;
     if (st != FM_OK) {
         fm_flock_model_destroy(m);
@@ -669,9 +746,9 @@ static fm_status build_replicated(void *model, fm_error *err)
     m->target.dest = dest;
     fm_mesh source = {0};
     if (st == FM_OK && m->def.obstacle_count > 0) st = load_source(&m->def, &source, err);
-    if (st == FM_OK) st = build_obstacles(m, &source, err); /* route_margin came with the scalars */
+    if (st == FM_OK) st = build_obstacles(m, &source, NULL, err); /* route_margin came with the scalars */
     fm_mesh_free(&source);
-    if (st == FM_OK) st = build_path(m, err);
+    if (st == FM_OK) st = build_path(m, NULL, err);
     if (st == FM_OK) fm_flock_target_set_start(&m->target, &m->def.flock, fm_flock_leaders_end(m));
     return st;
 }

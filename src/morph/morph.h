@@ -131,27 +131,14 @@ typedef struct fm_kept_tets {
     int64_t refined;            /* the refined count (fm_morph_model_info) */
 } fm_kept_tets;
 
-/* What the path is made from where it is routed round obstacles (fm_path_build_routed): the
- * centroids, the route's inputs (its obstacles pointer and counts cleared; the grid is the keep's
- * when this is compared) and the scene's path keys; built zeroed, so that it compares byte for byte. */
-typedef struct fm_route_key {
-    double cs[3], ct[3];
-    fm_path_route route;
-    int32_t curve, key_points, point_count, pad;
-    double points[FM_MAX_PATH_POINTS][3];
-} fm_route_key;
-
 /* The obstacles' distance grid with the placed meshes, reach and obstacles.voxel it was made from
  * (fm_obstacles_grid), and the routed path and its navigation function with the key they were made
  * from and the grid. A build makes the grid again only where a mesh, the reach (k_a plus the largest
  * tet radius) or the voxel changed, and the route only where that or its key changed: a speed0,
  * style, MDE or launch edit keeps both. */
 typedef struct fm_kept_route {
-    int has_grid, has_path, has_nav;
-    int meshes;
-    fm_mesh mesh[FM_MAX_OBSTACLES]; /* placed */
-    double reach, voxel;
-    fm_obstacles *grid;             /* shared with the models built from it (fm_obstacles_share) */
+    fm_kept_grid grid;              /* reach: k_a plus the largest tet radius */
+    int has_path, has_nav;
     fm_route_key key;
     fm_path path;
     int routed, unroutable;
@@ -164,6 +151,9 @@ typedef struct fm_morph_keep {
     int reused;            /* the last build made none of them again (TetGen nor subdivision) */
     int grid_reused;       /* ... the obstacles' grid was the keep's (0 without obstacles) */
     int route_reused;      /* ... the routed path and navigation function were the keep's */
+    const volatile sig_atomic_t *cancel; /* the studio's flag (NULL: none): where an edit sets it, the build
+                                            stops at its next stage boundary with FM_STOPPED, nothing kept
+                                            half-made (morph_model.c build) */
 } fm_morph_keep;
 
 /* fm_morph_model_build, keeping in *keep (zeroed at first) what it makes and reusing what fits. */

@@ -10,10 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static void report(fm_progress_fn progress, void *user, const char *stage, double fraction)
-{
-    if (progress) progress(stage, fraction, user);
-}
 
 typedef struct prep_scratch {
     fm_mesh src_mesh, dst_mesh;
@@ -26,7 +22,15 @@ typedef struct prep_scratch {
     fm_morph_keep *keep;        /* the studio's: the tets of the build before (NULL: none) */
     int made;                   /* TetGen runs and subdivisions this build made (none: all kept) */
     int path_in_keep;           /* the keep's route is this build's path (route_kept): its nav may be kept */
+    fm_progress_fn progress;    /* the build's report, */
+    void *user;
 } prep_scratch;
+
+/* A stage boundary: reported, and where the studio cancelled the build (its keep's flag), FM_STOPPED. */
+static fm_status stage(const prep_scratch *s, const char *name, double fraction, fm_error *err)
+{
+    return fm_build_stage(s->progress, s->user, name, fraction, s->keep ? s->keep->cancel : NULL, err);
+}
 
 /* Records a warning ("FILE:LINE:COL: key: what") on the model. */
 static void warn(fm_morph_model *m, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -332,15 +336,6 @@ static fm_status load_obstacles(fm_morph_model *m, prep_scratch *s, int check_pa
     return st;
 }
 
-/* Whether the keep's grid was made from these placed meshes, reach and voxel. */
-static int grid_fits(const fm_kept_route *k, const fm_scene_def *def, const fm_mesh *meshes, double reach)
-{
-    if (!k->has_grid || k->meshes != def->obstacle_count || k->reach != reach || k->voxel != def->obstacle_voxel) return 0;
-    for (int i = 0; i < k->meshes; i++)
-        if (!fm_mesh_same(&k->mesh[i], &meshes[i])) return 0;
-    return 1;
-}
-
 static void forget_route(fm_kept_route *k)
 {
     fm_path_free(&k->path), fm_free(k->nav.u), fm_free(k->nav.g);
@@ -348,34 +343,18 @@ static void forget_route(fm_kept_route *k)
     k->has_path = k->has_nav = 0;
 }
 
-/* The keep holds the model's grid, with what it was made from; the route made from the grid
- * before is forgotten. */
-static fm_status keep_grid(fm_kept_route *k, const fm_morph_model *m, const fm_mesh *meshes, double reach, fm_error *err)
-{
-    forget_route(k);
-    fm_obstacles_destroy(k->grid), k->grid = NULL, k->has_grid = 0;
-    for (int i = 0; i < k->meshes; i++) fm_mesh_free(&k->mesh[i]);
-    k->meshes = 0;
-    for (int i = 0; i < m->def.obstacle_count; i++, k->meshes++) {
-        fm_status st = fm_mesh_copy(&meshes[i], &k->mesh[i], err);
-        if (st != FM_OK) return st;
-    }
-    k->reach = reach, k->voxel = m->def.obstacle_voxel, k->grid = fm_obstacles_share(m->obstacles), k->has_grid = 1;
-    return FM_OK;
-}
-
+/* The obstacles' grid, the keep's where it fits; a route the keep holds is forgotten with the grid
+ * it was routed on. */
 static fm_status build_obstacles(fm_morph_model *m, prep_scratch *s, float max_radius, fm_error *err)
 {
-    const double reach = m->def.k_a + max_radius;
     fm_kept_route *kept = s->keep ? &s->keep->route : NULL;
-    if (kept && grid_fits(kept, &m->def, s->obstacles, reach)) {
-        m->obstacles = fm_obstacles_share(kept->grid);
-        s->keep->grid_reused = 1;
-        return FM_OK;
-    }
-    m->obstacles = fm_obstacles_grid(&m->def, s->obstacles, reach, err);
+    int reused = 0;
+    m->obstacles = fm_obstacles_grid_keeping(&m->def, s->obstacles, m->def.k_a + max_radius, kept ? &kept->grid : NULL,
+                                             &reused, err);
     if (!m->obstacles) return err ? err->status : FM_ERR_INPUT;
-    return kept ? keep_grid(kept, m, s->obstacles, reach, err) : FM_OK;
+    if (kept && !reused) forget_route(kept);
+    if (kept) s->keep->grid_reused = reused;
+    return FM_OK;
 }
 
 /* The largest R_X of the source tets (tet_radii's, before the tets are stored in launch order):
@@ -411,19 +390,6 @@ static void path_route_of(const fm_morph_model *m, const prep_scratch *s, float 
     }
 }
 
-/* What the routed path is made from (fm_route_key), zeroed first so that it compares byte for byte. */
-static void route_key_of(const fm_scene_def *def, const double cs[3], const double ct[3], const fm_path_route *r,
-                         fm_route_key *key)
-{
-    memset(key, 0, sizeof *key);
-    memcpy(key->cs, cs, sizeof key->cs), memcpy(key->ct, ct, sizeof key->ct);
-    memcpy(&key->route, r, sizeof key->route);
-    key->route.obstacles = NULL, key->route.routed = key->route.unroutable = 0;
-    key->curve = (int32_t)def->path_curve, key->key_points = def->path_key_points;
-    key->point_count = def->path_point_count;
-    memcpy(key->points, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
-}
-
 static fm_status path_copy(const fm_path *from, fm_path *to, fm_error *err)
 {
     to->q = malloc(sizeof(double) * 3 * (size_t)from->count);
@@ -440,7 +406,7 @@ static fm_status route_kept(const fm_morph_model *m, prep_scratch *s, fm_path_ro
     const fm_scene_def *def = &m->def;
     fm_kept_route *kept = s->keep && s->keep->grid_reused ? &s->keep->route : NULL;
     fm_route_key key;
-    route_key_of(def, m->info.source_centroid, m->info.target_centroid, r, &key);
+    fm_route_key_of(def, m->info.source_centroid, m->info.target_centroid, r, &key);
     if (kept && kept->has_path && memcmp(&kept->key, &key, sizeof key) == 0) {
         r->routed = kept->routed, r->unroutable = kept->unroutable;
         s->keep->route_reused = s->path_in_keep = 1;
@@ -665,15 +631,15 @@ static fm_status tets_to_n_kept(const fm_morph_model *m, const fm_mesh *mesh, co
 }
 
 /* Everything checked before n-sized arrays exist: the meshes and their tets, overlaps, obstacles, n. */
-static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
-    report(progress, user, "tetrahedralize source", 0.0);
-    fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
-    fm_status st = s->from ? source_from_targets(def, s->from, &s->src_mesh, &s->src, err)
-                           : prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, kept, &s->made, err);
+    fm_status st = stage(s, "tetrahedralize source", 0.0, err);
     if (st != FM_OK) return st;
-    report(progress, user, "tetrahedralize target", 0.3);
+    fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
+    st = s->from ? source_from_targets(def, s->from, &s->src_mesh, &s->src, err)
+                 : prepare_mesh(def, &def->source, "source.mesh", &s->src_mesh, &s->src, kept, &s->made, err);
+    if (st != FM_OK || (st = stage(s, "tetrahedralize target", 0.3, err)) != FM_OK) return st;
     st = prepare_mesh(def, &def->target, "target.mesh", &s->dst_mesh, &s->dst, kept ? kept + 1 : NULL, &s->made, err);
     if (st != FM_OK) return st;
     m->info.source_tets = s->src.n;
@@ -685,12 +651,14 @@ static fm_status prepare_inputs(fm_morph_model *m, prep_scratch *s, fm_progress_
     return choose_n(m, &s->src, &s->dst, err);
 }
 
-static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progress, void *user, fm_error *err)
+/* The studio may cancel a build at every stage boundary (stage): before TetGen runs (a shot's group
+ * after another's), between the shapes' TetGen runs and subdivisions, before the obstacles' grid,
+ * the route, the detours' navigation function, the fields' plan and the target's distance grid. */
+static fm_status build(fm_morph_model *m, prep_scratch *s, fm_error *err)
 {
     const fm_scene_def *def = &m->def;
-    fm_status st = prepare_inputs(m, s, progress, user, err);
-    if (st != FM_OK) return st;
-    report(progress, user, "subdivide", 0.6);
+    fm_status st = prepare_inputs(m, s, err);
+    if (st != FM_OK || (st = stage(s, "subdivide", 0.6, err)) != FM_OK) return st;
     /* a group from another's shape has as many source tets as agents: its source is never refined */
     fm_kept_tets *kept = s->keep ? s->keep->shape : NULL;
     /* a group from another's shape: its source tets are that group's (already n), never the keep's */
@@ -698,6 +666,7 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
                  : tets_to_n_kept(m, &s->src_mesh, def->source.path, &s->src, &m->info.source_refined_tets, kept,
                                   &s->made, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, "source.mesh", err);
+    if ((st = stage(s, NULL, 0, err)) != FM_OK) return st;
     st = tets_to_n_kept(m, &s->dst_mesh, def->target.path, &s->dst, &m->info.target_refined_tets, kept ? kept + 1 : NULL,
                         &s->made, err);
     if (st != FM_OK) return fm_scene_name_key(def, st, "target.mesh", err);
@@ -708,10 +677,10 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     m->info.source_volume = total_volume(&s->src, m->info.source_centroid);
     m->info.target_volume = total_volume(&s->dst, m->info.target_centroid);
     /* the obstacles before the path, which is routed round them (issue 38) */
-    report(progress, user, "obstacles", 0.7);
+    if ((st = stage(s, "obstacles", 0.7, err)) != FM_OK) return st;
     const float radius = def->obstacle_count > 0 ? largest_radius(&s->src) : 0; /* tet_radii's max_radius */
     if (def->obstacle_count > 0 && (st = build_obstacles(m, s, radius, err)) != FM_OK) return st;
-    report(progress, user, "order", 0.8);
+    if ((st = stage(s, "order", 0.8, err)) != FM_OK) return st;
     fm_path_route route;
     if (m->obstacles) path_route_of(m, s, radius, &route);
     st = m->obstacles && def->path_route
@@ -722,18 +691,19 @@ static fm_status build(fm_morph_model *m, prep_scratch *s, fm_progress_fn progre
     if (m->obstacles && def->path_route) warn_route(m, &route);
     if ((st = store_sources(m, s, err)) != FM_OK || (st = store_targets(m, s, err)) != FM_OK) return st;
     if ((st = store_path(m, &s->path, err)) != FM_OK) return st;
+    if ((st = stage(s, NULL, 0, err)) != FM_OK) return st;
     if (m->obstacles && (st = build_detour(m, s, &route, err)) != FM_OK) return st;
     if ((st = bounding_sphere(m, &s->dst_mesh, err)) != FM_OK) return st;
     scene_bounds(m, s);
-    if ((st = plan_fields(m, err)) != FM_OK) return st;
+    if ((st = stage(s, NULL, 0, err)) != FM_OK || (st = plan_fields(m, err)) != FM_OK) return st;
     float max_radius = 0;
     if ((st = tet_radii(m, &max_radius, err)) != FM_OK) return st;
     m->max_radius = max_radius;
+    if ((st = stage(s, NULL, 0, err)) != FM_OK) return st;
     if (def->phase_switch == FM_SWITCH_DISTANCE && (st = build_target_sdf(m, &s->dst_mesh, err)) != FM_OK) return st;
     if ((st = fm_morph_motion_build(m, err)) != FM_OK) return st;
     set_timing(m);
-    report(progress, user, "ready", 1.0);
-    return FM_OK;
+    return stage(s, "ready", 1.0, err);
 }
 
 static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model *from, int keep_targets,
@@ -755,8 +725,8 @@ static fm_morph_model *build_model(const fm_scene_def *def, const fm_morph_model
     prep_scratch scratch;
     memset(&scratch, 0, sizeof scratch);
     scratch.from = from, scratch.keep_targets = keep_targets; /* else no tgt: the run reads tgt_f */
-    scratch.keep = keep;
-    fm_status st = build(m, &scratch, progress, user, err);
+    scratch.keep = keep, scratch.progress = progress, scratch.user = user;
+    fm_status st = build(m, &scratch, err);
     if (keep) keep->reused = st == FM_OK && scratch.made == 0;
     free_scratch(&scratch, def->obstacle_count);
     if (st != FM_OK) {
@@ -801,8 +771,7 @@ void fm_morph_keep_clear(fm_morph_keep *keep)
     if (!keep) return;
     fm_kept_route *r = &keep->route;
     forget_route(r);
-    fm_obstacles_destroy(r->grid);
-    for (int i = 0; i < r->meshes; i++) fm_mesh_free(&r->mesh[i]);
+    fm_kept_grid_clear(&r->grid);
     memset(r, 0, sizeof *r);
 }
 

@@ -39,6 +39,8 @@ typedef struct fm_sample_opts {
     double step;        /* mosaic: eq 5's delta t in units of sqrt(M/N) */
     double oversample;  /* stratified: occupied voxels (candidates) aimed for per sample, >= 1 */
     int threads;        /* OpenMP threads; 0 = omp_get_max_threads(). Results do not depend on it */
+    const volatile sig_atomic_t *cancel; /* the studio's (NULL: none): where it is set, the mosaic stops
+                           before its next iteration with FM_STOPPED (fm_build_stage) */
 } fm_sample_opts;
 
 fm_sample_opts fm_default_sample_opts(void);

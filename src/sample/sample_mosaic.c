@@ -246,7 +246,8 @@ static fm_status relax(mosaic *m, const fm_sample_ctx *c, double *x, int32_t *tr
     for (int it = 0; it < c->opts.iterations; it++) {
         grid_points(m, c, x);
         if (it == 0) now = iteration_candidates(m, c->n, c->threads);
-        fm_status st = check_work(c, it, done, now, err);
+        fm_status st = fm_build_stage(NULL, NULL, NULL, 0, c->opts.cancel, err);
+        if (st == FM_OK) st = check_work(c, it, done, now, err);
         if (st != FM_OK) return st;
         now = 0;
 #pragma omp parallel for num_threads(c->threads) schedule(dynamic, 256) reduction(+ : now)

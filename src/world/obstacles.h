@@ -81,6 +81,25 @@ fm_obstacles *fm_obstacles_grid(const fm_scene_def *def, const fm_mesh *meshes, 
 fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
                                       fm_error *err);
 
+/* A distance grid kept for the next build of an edited scene (flockmorph studio: docs/studio.md, "An
+   edit and the model"), with the placed meshes, reach and obstacles.voxel it was made from. Zeroed at
+   first; fm_kept_grid_clear frees it. */
+typedef struct fm_kept_grid {
+    int has, meshes;
+    fm_mesh mesh[FM_MAX_OBSTACLES]; /* placed */
+    double reach, voxel;
+    fm_obstacles *grid;             /* shared with the models built from it (fm_obstacles_share) */
+} fm_kept_grid;
+/* fm_obstacles_grid; or, where keep (NULL: none) holds a grid made from the same placed meshes (byte
+   for byte), reach and voxel, that grid, shared, with *reused set (reused may be NULL). A grid made
+   here takes the keep's place. The grid is a function of those inputs alone: the same bytes either way. */
+fm_obstacles *fm_obstacles_grid_keeping(const fm_scene_def *def, const fm_mesh *meshes, double reach, fm_kept_grid *keep,
+                                        int *reused, fm_error *err);
+/* fm_obstacles_from_scene, its grid kept the same way. */
+fm_obstacles *fm_obstacles_from_scene_keeping(const fm_scene_def *def, double reach, const fm_mesh *source,
+                                              const fm_mesh *target, fm_kept_grid *keep, int *reused, fm_error *err);
+void fm_kept_grid_clear(fm_kept_grid *keep);
+
 /* Internal: obstacles_vdb.cpp, OpenVDB behind extern "C" (never throws). Builds the clamped dense
    grid of the closed triangle soup (v: 3 doubles per vertex; tri: 3 indices per triangle) and
    stores it in *d (allocated with fm_alloc; the caller frees it with fm_free), n and origin.

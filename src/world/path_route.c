@@ -529,3 +529,16 @@ fm_status fm_nav_build(const fm_path_route *r, const double *q, int32_t keys, fm
     free(cost), free(road), free(dist), free(open.a), fm_free(g.d);
     return st;
 }
+
+/* What the routed path is made from (fm_route_key), zeroed first so that it compares byte for byte. */
+void fm_route_key_of(const fm_scene_def *def, const double cs[3], const double ct[3], const fm_path_route *r,
+                     fm_route_key *key)
+{
+    memset(key, 0, sizeof *key);
+    memcpy(key->cs, cs, sizeof key->cs), memcpy(key->ct, ct, sizeof key->ct);
+    memcpy(&key->route, r, sizeof key->route);
+    key->route.obstacles = NULL, key->route.routed = key->route.unroutable = 0;
+    key->curve = (int32_t)def->path_curve, key->key_points = def->path_key_points;
+    key->point_count = def->path_point_count;
+    memcpy(key->points, def->path_points, sizeof(double) * 3 * (size_t)def->path_point_count);
+}

@@ -39,4 +39,18 @@ typedef struct fm_nav {
 } fm_nav;
 fm_status fm_nav_build(const fm_path_route *r, const double *q, int32_t keys, fm_nav *nav, fm_error *err);
 
+/* What a path routed round obstacles is made from (the tetra morph's fm_path_build_routed; the
+ * shape flock's R, flock_model.c): the centroids (the flock's O1 and O2), the route's inputs (its
+ * obstacles pointer and counts cleared; the grid is the keep's when this is compared) and the
+ * scene's path keys; built zeroed (fm_route_key_of), so that it compares byte for byte. */
+typedef struct fm_route_key {
+    double cs[3], ct[3];
+    fm_path_route route;
+    int32_t curve, key_points, point_count, pad;
+    double points[FM_MAX_PATH_POINTS][3];
+} fm_route_key;
+
+void fm_route_key_of(const fm_scene_def *def, const double cs[3], const double ct[3], const fm_path_route *r,
+                     fm_route_key *key);
+
 #endif

@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Loads, checks and places one mesh. */
 fm_status fm_scene_mesh_load(const fm_scene_def *def, const fm_mesh_ref *ref, const char *key, fm_mesh *mesh,
@@ -64,17 +65,65 @@ fm_obstacles *fm_obstacles_grid(const fm_scene_def *def, const fm_mesh *meshes, 
     return o;
 }
 
-fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
-                                      fm_error *err)
+/* Whether the keep's grid was made from these placed meshes, reach and voxel. */
+static int kept_grid_fits(const fm_kept_grid *k, const fm_scene_def *def, const fm_mesh *meshes, double reach)
 {
+    if (!k->has || k->meshes != def->obstacle_count || k->reach != reach || k->voxel != def->obstacle_voxel) return 0;
+    for (int i = 0; i < k->meshes; i++)
+        if (!fm_mesh_same(&k->mesh[i], &meshes[i])) return 0;
+    return 1;
+}
+
+void fm_kept_grid_clear(fm_kept_grid *keep)
+{
+    if (!keep) return;
+    fm_obstacles_destroy(keep->grid);
+    for (int i = 0; i < keep->meshes; i++) fm_mesh_free(&keep->mesh[i]);
+    memset(keep, 0, sizeof *keep);
+}
+
+/* The keep holds grid, with what it was made from. */
+static fm_status keep_grid(fm_kept_grid *k, fm_obstacles *grid, const fm_scene_def *def, const fm_mesh *meshes,
+                           double reach, fm_error *err)
+{
+    fm_kept_grid_clear(k);
+    for (; k->meshes < def->obstacle_count; k->meshes++) {
+        fm_status st = fm_mesh_copy(&meshes[k->meshes], &k->mesh[k->meshes], err);
+        if (st != FM_OK) return fm_kept_grid_clear(k), st;
+    }
+    k->reach = reach, k->voxel = def->obstacle_voxel, k->grid = fm_obstacles_share(grid), k->has = 1;
+    return FM_OK;
+}
+
+fm_obstacles *fm_obstacles_grid_keeping(const fm_scene_def *def, const fm_mesh *meshes, double reach, fm_kept_grid *keep,
+                                        int *reused, fm_error *err)
+{
+    const int fits = keep && kept_grid_fits(keep, def, meshes, reach);
+    if (reused) *reused = fits;
+    if (fits) return fm_obstacles_share(keep->grid);
+    fm_obstacles *o = fm_obstacles_grid(def, meshes, reach, err);
+    if (o && keep && keep_grid(keep, o, def, meshes, reach, err) != FM_OK) fm_obstacles_destroy(o), o = NULL;
+    return o;
+}
+
+fm_obstacles *fm_obstacles_from_scene_keeping(const fm_scene_def *def, double reach, const fm_mesh *source,
+                                              const fm_mesh *target, fm_kept_grid *keep, int *reused, fm_error *err)
+{
+    if (reused) *reused = 0;
     fm_mesh *meshes = calloc((size_t)def->obstacle_count, sizeof *meshes);
     if (!meshes) return fm_fail(err, FM_ERR_MEMORY, "out of memory for obstacles"), NULL;
     fm_status st = FM_OK;
     for (int i = 0; i < def->obstacle_count && st == FM_OK; i++) {
         st = fm_obstacle_mesh_load(def, i, source, target, &meshes[i], err);
     }
-    fm_obstacles *out = st == FM_OK ? fm_obstacles_grid(def, meshes, reach, err) : NULL;
+    fm_obstacles *out = st == FM_OK ? fm_obstacles_grid_keeping(def, meshes, reach, keep, reused, err) : NULL;
     for (int i = 0; i < def->obstacle_count; i++) fm_mesh_free(&meshes[i]);
     free(meshes);
     return out;
+}
+
+fm_obstacles *fm_obstacles_from_scene(const fm_scene_def *def, double reach, const fm_mesh *source, const fm_mesh *target,
+                                      fm_error *err)
+{
+    return fm_obstacles_from_scene_keeping(def, reach, source, target, NULL, NULL, err);
 }

@@ -43,36 +43,56 @@ def one_edit(ws, key, value, generation):
             "grids_kept": end.get("grids_kept"), "routes_kept": end.get("routes_kept"), "generation": end["generation"], "stage": end["stage"]}
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cli", required=True)
-    ap.add_argument("--before")
-    ap.add_argument("--trials", type=int, default=4)
-    ap.add_argument("--key", default="speed0")
-    ap.add_argument("scene")
-    args = ap.parse_args()
-    builds = {"after": args.cli, **({"before": args.before} if args.before else {})}
+def run_alternating(builds, scene, trials, one_trial):
+    """Starts a studio of each build ({name: cli}) on scene, waits for the first runs, then runs the
+    trials, the studios in turn so that the machine's load falls on them alike: one_trial(studio, t)
+    returns trial t's record (a studio: its "ws", the "scene" its hello sent, the last "generation").
+    Returns {name: studio}, each with its "trials"."""
     studios = {}
     try:
         for name, cli in builds.items():
-            proc, url = start_studio(cli, args.scene)
+            proc, url = start_studio(cli, scene)
             ws = WebSocket(url)
             ws.sock.settimeout(600)  # a shot's model build sends nothing for minutes on a loaded machine
             hello = ws.recv_json("hello")
-            studios[name] = {"proc": proc, "ws": ws, "value": dotted(hello["scene"], args.key), "trials": []}
+            studios[name] = {"proc": proc, "ws": ws, "scene": hello["scene"], "trials": []}
         for s in studios.values():
             s["generation"] = s["ws"].wait_status(lambda m: m["stage"] == "finished", timeout=600)["generation"]
-        for t in range(args.trials):
+        for t in range(trials):
             for name, s in studios.items():
-                value = round(s["value"] * (1.01 if t % 2 == 0 else 1.0), 12)
-                r = one_edit(s["ws"], args.key, value, s["generation"])
-                s["generation"] = r["generation"]
-                s["trials"].append(r)
-                print(f"{name} trial {t}: {json.dumps(r)}", file=sys.stderr)
+                s["trials"].append(one_trial(s, t))
+                print(f"{name} trial {t}: {json.dumps(s['trials'][-1])}", file=sys.stderr)
     finally:
         for s in studios.values():
             s["ws"].close()
             stop_studio(s["proc"])
+    return studios
+
+
+def bench_args(trials, *options):
+    """The benchmarks' command line: --cli, --before, --trials, SCENE and options ((name, kwargs)):
+    (args, {name: cli} of the builds compared)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cli", required=True)
+    ap.add_argument("--before")
+    ap.add_argument("--trials", type=int, default=trials)
+    for name, kwargs in options:
+        ap.add_argument(name, **kwargs)
+    ap.add_argument("scene")
+    args = ap.parse_args()
+    return args, {"after": args.cli, **({"before": args.before} if args.before else {})}
+
+
+def main():
+    args, builds = bench_args(4, ("--key", {"default": "speed0"}))
+
+    def trial(s, t):
+        value = round(dotted(s["scene"], args.key) * (1.01 if t % 2 == 0 else 1.0), 12)
+        r = one_edit(s["ws"], args.key, value, s["generation"])
+        s["generation"] = r["generation"]
+        return r
+
+    studios = run_alternating(builds, args.scene, args.trials, trial)
     result = {"scene": args.scene, "key": args.key}
     for name, s in studios.items():
         tr = s["trials"]

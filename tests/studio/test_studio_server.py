@@ -21,6 +21,7 @@ played back gives the reader's frames and refuses edits. The studio never crashe
 SIGTERM.
 """
 import argparse
+import glob
 import hashlib
 import json
 import os
@@ -289,25 +290,79 @@ def studio_on(args, tmp, name, doc):
 
 
 def check_flock_keep(args, tmp):
-    """A shape flock: an edit of the boids' weights keeps the samples and the match, one of n does
-    not; Save, and `flockmorph run` writes the kept run's frames byte for byte."""
+    """A shape flock routed round a small sphere: an edit of n samples again and keeps the obstacles'
+    grid (its meshes, reach k_a and voxel are as they were) but routes R again (its margin, the flock's
+    radius, changed); one of the path's point routes again on the kept route grid; one of the boids'
+    weights keeps the samples, the match, the grid and the route. Save, and `flockmorph run` writes the
+    kept run's frames byte for byte (a route made on the kept route grid, kept since)."""
     scene, proc, url = studio_on(args, tmp, "flock.json", {
         "mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
         "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 300, "speed0": 8.0,
-        "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9})
+        "time": {"frame_rate": 24, "frame_limit": 24}, "path": {"points": [[0.0, -6.0, 7.0]]}, "seed": 9,
+        "obstacles": {"meshes": [{"mesh": "sphere.obj", "scale": 0.3, "translate": [0.0, -3.0, 3.5]}], "k_a": 1.0, "voxel": 0.5}})
     try:
         ws = WebSocket(url)
         ws.recv_json("hello")
         first = finished(ws)
+        check(first["grids_kept"] == 0 and first["routes_kept"] == 0, "shape flock: the first run makes the grid and the route")
         more = edited_run(ws, "n", 320, first["generation"])
         check(more["stage"] == "finished" and more["model_kept"] is False, "shape flock: an edit of n samples again")
-        kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], more["generation"])
+        check(more["grids_kept"] == 1 and more["routes_kept"] == 0,
+              f"shape flock: ... keeps the obstacles' grid ({more['grids_kept']}) and routes R again ({more['routes_kept']})")
+        moved = edited_run(ws, "path.points", [[0.0, -6.5, 7.0]], more["generation"])
+        check(moved["stage"] == "finished" and moved["model_kept"] is True and moved["grids_kept"] == 1
+              and moved["routes_kept"] == 0, "shape flock: a path edit keeps the samples and the grid and routes R again")
+        kept = edited_run(ws, "shape_flock.cohesion.weight", [0.2, 0.4], moved["generation"])
         check(kept["stage"] == "finished" and kept["model_kept"] is True,
               f"shape flock: a boids edit keeps the samples and the match (built in {kept['build_seconds']:.3f} s)")
-        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (samples kept)")
+        check(kept["grids_kept"] == 1 and kept["routes_kept"] == 1,
+              f"shape flock: ... and the obstacles' grid ({kept['grids_kept']}) and routed R ({kept['routes_kept']})")
+        check_saved_run(args, ws, scene, kept["frames"], os.path.join(tmp, "flock_out"), "shape flock (all kept)")
+        plain = os.path.join(tmp, "flock_plain")  # the same scene, R as the user drew it: a frame is enough
+        subprocess.run([args.cli, "run", scene, "-o", plain, "--quiet", "--set", "obstacles.route=false",
+                        "--set", "time.frame_limit=1"], check=True, capture_output=True)
+        lengths = [json.load(open(os.path.join(d, "stats.json")))["shape_flock"]["path_length"] for d in (os.path.join(tmp, "flock_out"), plain)]
+        check(lengths[0] > lengths[1] + 1, f"shape flock: R was routed round the sphere (length {lengths[0]:.2f}, "
+                                           f"{lengths[1]:.2f} unrouted)")
         ws.close()
     finally:
         check_stopped(proc, "shape flock")
+
+
+def check_cancelled_build(args, tmp):
+    """An edit made while the model is built (a shape flock of 4000 points: the mosaic's sampling is
+    most of a build of seconds) stops the build at its next stage boundary, so that the edit's run
+    starts at once, not when the build would have ended: the edit's own build, which samples again
+    (nothing of the cancelled one was kept), measures what the wait would have been. The cancelled run
+    streamed no frame and left no partial file in the studio's scratch folder."""
+    before = set(glob.glob("/tmp/flockmorph-studio-*"))
+    scene, proc, url = studio_on(args, tmp, "long_build.json", {
+        "mode": "shape_flock", "source": {"mesh": "cylinder.obj", "translate": [-15.0, 0.0, 0.0]},
+        "target": {"mesh": "sphere.obj", "translate": [15.0, 0.0, 0.0]}, "n": 4000, "speed0": 8.0,
+        "time": {"frame_rate": 24, "frame_limit": 1}, "seed": 9})
+    try:
+        ws = WebSocket(url)
+        ws.recv_json("hello")
+        building = ws.recv_json("status")  # sent on connecting, then the shapes as the first run's build starts
+        while (m := ws.recv_json(timeout=30))["type"] != "shapes":
+            building = m if m["type"] == "status" else building
+        t0 = time.time()
+        ws.send({"type": "set", "key": "speed0", "value": 9.0})
+        ws.wait_status(lambda m: m["generation"] > building["generation"], timeout=120)
+        waited = time.time() - t0
+        end = finished(ws, building["generation"])
+        check(building["stage"] == "building" and building["frames"] == 0, "cancelled build: the edit came during the build")
+        check(end["stage"] == "finished" and end["model_kept"] is False,
+              f"cancelled build: the edit's run built the model afresh ({end['stage']}, kept {end['model_kept']})")
+        check(waited < 0.5 * end["build_seconds"], f"cancelled build: the edit's run started {waited:.2f} s after it, "
+                                                   f"under half the {end['build_seconds']:.2f} s a build takes")
+        scratch = sorted(set(glob.glob("/tmp/flockmorph-studio-*")) - before)
+        if len(scratch) == 1:  # else another test's studio started beside it: which folder is this one's?
+            partial = [f for f in os.listdir(scratch[0]) if "partial" in f]
+            check(not partial, f"cancelled build: no partial file in the scratch folder ({scratch[0]}: {partial})")
+        ws.close()
+    finally:
+        check_stopped(proc, "cancelled build")
 
 
 def check_shot_edit(args, tmp):
@@ -454,6 +509,7 @@ def main():
         code, err = stop_studio(proc)
     check_playback(args, os.path.join(tmp, "out", "frames.fmc"))
     check_flock_keep(args, tmp)
+    check_cancelled_build(args, tmp)
     check_shot_edit(args, tmp)
     check_flock_shot_keep(args, tmp)
     check(code == 0, f"the studio exits 0 on SIGTERM ({code})")
