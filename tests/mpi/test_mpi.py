@@ -3,7 +3,7 @@
 
 - the same cache bytes, and the same stats.json but for timings and the rank count, as the plain
   run (no mpirun) for P = 1, 2, 3, 4 ranks of one thread and 2 ranks of two, on castling (with
-  obstacles, curl noise and MDE), on words and on a shape flock (tests/data/mpi/flock_stress.json:
+  obstacles, curl noise and MDE), on words (3 ranks) and on a shape flock (tests/data/mpi/flock_stress.json:
   boids, a deforming target, the vortex, an obstacle, R over the run, stepped homing, floating);
 - a stress case: on 4 ranks every agent changes rank (castling's flock, and the shape flock, sweep
   the slab axis), halos are exchanged, and the bytes still match;
