@@ -377,12 +377,13 @@ def frames_in(path):
         return fmc.open(path).frames
 
 
-# Runs long enough to be stopped by a signal after their first checkpoint (every 5 frames), well
-# before their end, and to outgrow a file-size limit of 8 MiB: the rook launches for 7.5 s of its
-# time (180 frames) at 30000 agents, the flock flies its 100 frames at 20000. 60000 and 30000 agents
-# (20 s and 15 s on two cores) made the interrupted-and-resumed cases, which run the scene twice whole,
-# 3.5 and 4 minutes of a loaded CI.
-LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=30000") + pieces(4096)
+LONG_SCENE, LONG_SETS = "examples/castling/rook.json", ("--set", "n=60000") + pieces(4096)  # about 20 s on two cores
+# The interrupted-and-resumed cases run their scene twice whole (the resumed run and the plain one):
+# at 30000 rook agents and 20000 flock agents, not 60000 and 30000 (3.5 and 4 minutes of a loaded
+# CI), they still run long enough to be stopped by a signal after their first checkpoint (every 5
+# frames), well before their end: the rook launches for 7.5 s of its time (180 frames), the flock
+# flies its 100 frames; and the flock's cache outgrows the disk-full case's 8 MiB limit.
+RESUMED_SETS = ("--set", "n=30000") + pieces(4096)
 FLOCK_STRESS = "tests/data/mpi/flock_stress.json"
 SHORT_ROOK = ("--set", "time.frame_limit=60")  # castling's rook launched and flying (all launched by frame 54)
 LONG_FLOCK_SETS = ("--set", "n=20000") + pieces(4096)
@@ -704,7 +705,7 @@ class Failure(unittest.TestCase):
         self.assertEqual(stats(out)["frames"], stats(whole)["frames"])
 
     def test_interrupted_on_2_resumed_on_3(self):
-        self.interrupt_and_resume("resume", LONG_SCENE, LONG_SETS)
+        self.interrupt_and_resume("resume", LONG_SCENE, RESUMED_SETS)
 
     def test_shape_flock_interrupted_on_2_resumed_on_3(self):
         self.interrupt_and_resume("flock_resume", FLOCK_STRESS, LONG_FLOCK_SETS)
