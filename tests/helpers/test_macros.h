@@ -6,6 +6,8 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 static int fm_test_failures = 0;
@@ -47,10 +49,24 @@ static inline double test_wall_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* Runs one test function and prints its verdict and wall time (where a suite's time goes,
- * docs/testing.md). */
+/* 1 unless FM_TEST_ONLY, a comma-separated list of case names, is set and does not name `name`:
+ * FM_TEST_ONLY=test_shot_run build/tests/test_cli runs that case alone, while working on it (a
+ * case may need files an earlier one wrote). */
+static inline int fm_test_selected(const char *name)
+{
+    const char *only = getenv("FM_TEST_ONLY");
+    if (!only || !*only) return 1;
+    const size_t len = strlen(name);
+    for (const char *at = strstr(only, name); at; at = strstr(at + 1, name))
+        if ((at == only || at[-1] == ',') && (at[len] == ',' || at[len] == 0)) return 1;
+    return 0;
+}
+
+/* Runs one test function, unless FM_TEST_ONLY leaves it out, and prints its verdict and wall time
+ * (where a suite's time goes, docs/testing.md). */
 #define RUN_TEST(fn)                                                                       \
     do {                                                                                   \
+        if (!fm_test_selected(#fn)) break;                                                 \
         int fm_before_ = fm_test_failures;                                                 \
         double fm_start_ = test_wall_seconds();                                            \
         fn();                                                                              \
