@@ -266,19 +266,28 @@ static inline void pack(hits *h, unsigned m, fv dx, fv dy, fv dz, fv d2, const i
 #endif
 }
 
-/* The candidates at entries [b, e) within r2_max of x (and not on it), FM_W at a time, into the
- * hits, which are added whenever HIT_FLUSH of them wait. */
-static void scan_range(hits *h, lane_sums *s, const float *const c[6], int32_t b, int32_t e, const float x[3],
-                       fv r2_max, const lane_viewer *w)
+/* Candidates l = 0 .. n - 1 at x[l], y[l], z[l], grid entry entry[l] (or, with entry NULL, first + l):
+ * a range of the grid's entries in place, or a cell's run (below). */
+typedef struct span {
+    const float *x, *y, *z;
+    const int32_t *entry;
+    int32_t first, n;
+} span;
+
+/* The candidates within r2_max of p (and not on it), FM_W at a time, into the hits, which are added
+ * whenever HIT_FLUSH of them wait. Lanes past n (the next range's, padding, or a run's earlier
+ * copies: finite) are masked off. */
+static void scan_span(hits *h, lane_sums *s, const float *const c[6], span q, const float p[3], fv r2_max,
+                      const lane_viewer *w)
 {
-    const fv px = fv_set1(x[0]), py = fv_set1(x[1]), pz = fv_set1(x[2]), zero = fv_set1(0.0f);
-    for (int32_t j = b; j < e; j += FM_W) {
-        const fv dx = fv_sub(fv_load(c[0] + j), px), dy = fv_sub(fv_load(c[1] + j), py), dz = fv_sub(fv_load(c[2] + j), pz);
+    const fv px = fv_set1(p[0]), py = fv_set1(p[1]), pz = fv_set1(p[2]), zero = fv_set1(0.0f);
+    for (int32_t j = 0; j < q.n; j += FM_W) {
+        const fv dx = fv_sub(fv_load(q.x + j), px), dy = fv_sub(fv_load(q.y + j), py), dz = fv_sub(fv_load(q.z + j), pz);
         const fv d2 = fv_add(fv_add(fv_mul(dx, dx), fv_mul(dy, dy)), fv_mul(dz, dz));
         unsigned m = fv_mask(fv_and(fv_lt(d2, r2_max), fv_gt(d2, zero)));
-        if (e - j < FM_W) m &= (1u << (e - j)) - 1; /* past the range: the next range's or padding */
+        if (q.n - j < FM_W) m &= (1u << (q.n - j)) - 1;
         if (!m) continue;
-        pack(h, m, dx, dy, dz, d2, NULL, j);
+        pack(h, m, dx, dy, dz, d2, q.entry ? q.entry + j : NULL, q.first + j);
         if (h->n >= HIT_FLUSH) flush(h, s, c, w, 0);
     }
 }
@@ -316,23 +325,6 @@ static int gather_run(const fm_grid *g, const int32_t *ranges, int count, candid
     return 1;
 }
 
-/* scan_range over a run of candidates. */
-static void scan_run(hits *h, lane_sums *s, const float *const c[6], const candidates *run, const float x[3], fv r2_max,
-                     const lane_viewer *w)
-{
-    const fv px = fv_set1(x[0]), py = fv_set1(x[1]), pz = fv_set1(x[2]), zero = fv_set1(0.0f);
-    const int n = run->n;
-    for (int j = 0; j < n; j += FM_W) {
-        const fv dx = fv_sub(fv_load(run->x + j), px), dy = fv_sub(fv_load(run->y + j), py), dz = fv_sub(fv_load(run->z + j), pz);
-        const fv d2 = fv_add(fv_add(fv_mul(dx, dx), fv_mul(dy, dy)), fv_mul(dz, dz));
-        unsigned m = fv_mask(fv_and(fv_lt(d2, r2_max), fv_gt(d2, zero)));
-        if (n - j < FM_W) m &= (1u << (n - j)) - 1;
-        if (!m) continue;
-        pack(h, m, dx, dy, dz, d2, run->entry + j, 0);
-        if (h->n >= HIT_FLUSH) flush(h, s, c, w, 0);
-    }
-}
-
 /* Agent a at entry k (viewer's scales set): its sums over the run of its cell's candidates, or
  * with run NULL over the `count` ranges, then its force. */
 static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int32_t a, const candidates *run,
@@ -349,9 +341,14 @@ static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int
         for (int q = 0; q < 3; q++) s.rule[r][q] = qv_zero();
     s.weight[0] = s.weight[1] = qv_zero();
     h->n = 0;
-    if (run) scan_run(h, &s, c, run, x, fv_set1(r2_max), &w);
-    else
-        for (int ri = 0; ri < count; ri++) scan_range(h, &s, c, ranges[2 * ri], ranges[2 * ri + 1], x, fv_set1(r2_max), &w);
+    if (run) {
+        scan_span(h, &s, c, (span){run->x, run->y, run->z, run->entry, 0, run->n}, x, fv_set1(r2_max), &w);
+    } else {
+        for (int ri = 0; ri < count; ri++) {
+            const int32_t b = ranges[2 * ri], e = ranges[2 * ri + 1];
+            scan_span(h, &s, c, (span){c[0] + b, c[1] + b, c[2] + b, NULL, b, e - b}, x, fv_set1(r2_max), &w);
+        }
+    }
     flush(h, &s, c, &w, 1);
     fm_boids_sums sums = {{{0}}, {0}};
     for (int r = 0; r < FM_BOIDS_RULES; r++)
