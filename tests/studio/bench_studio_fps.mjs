@@ -23,11 +23,13 @@ const scene = process.argv[process.argv.length - 1];
 // query (none today) is a page of its own.
 const VARIANTS = {
   page: { query: '' },
-  before: { tetStyle: { material: 'lambert', cull: false, wide: true }, dynamic: false, query: '' },
+  before: { tetStyle: { material: 'lambert', cull: false, wide: true }, pointStyle: 'sprite', dynamic: false, query: '' },
   cull: { tetStyle: { material: 'lambert', cull: true, wide: true }, dynamic: false, query: '' },
   flat: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, dynamic: false, query: '' },
   dynamic: { tetStyle: { material: 'flat', cull: true }, dynamic: true, query: '' },
-  after: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, dynamic: true, query: '' },
+  after: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, pointStyle: 'disc', dynamic: true, query: '' },
+  // the points as three.js's textured sprites (the page before the disc shader), the rest as 'after'
+  sprite: { tetStyle: { material: 'flat', cull: true, tiny: 3, rest: true }, pointStyle: 'sprite', dynamic: true, query: '' },
   // the page before the shapes at rest were drawn as their surface and 16-bit indices: 'after' as it was
   plain: { tetStyle: { material: 'flat', cull: true, tiny: 3, wide: true }, dynamic: true, query: '' },
 };
@@ -101,7 +103,14 @@ try {
     for (const name of chosen) {
       const v = VARIANTS[name], page = pages[v.query];
       await page.bringToFront();
-      if (v.tetStyle) await page.evaluate((x) => { const view = window.studio.view; view.setTetStyle(x.tetStyle); view.dynamicResolution = x.dynamic; }, v);
+      if (v.tetStyle) {
+        await page.evaluate((x) => {
+          const view = window.studio.view;
+          view.setTetStyle(x.tetStyle);
+          if (x.pointStyle && view.setPointStyle) view.setPointStyle(x.pointStyle);
+          view.dynamicResolution = x.dynamic;
+        }, v);
+      }
       const a = await rate(page, false, studio.proc.pid), b = await rate(page, true, studio.proc.pid);
       await page.evaluate(() => { window.studio.playing = false; });
       measured[name].scene_rate.push(a.fps), measured[name].fastest.push(b.fps), measured[name].ratio.push((a.ratio + b.ratio) / 2);

@@ -7,7 +7,8 @@
 //   played cache's frame K is the reader's; a wrong token and a foreign Origin are refused. In a
 //   shot, a group picked in the panel shows its own path point between its shapes, and its slider
 //   edits the group's key; `flockmorph run` of the saved shot gives the page's frames again; an
-//   edit of the groups list itself makes the panel's "Edit" list and the handles follow.
+//   edit of the groups list itself makes the panel's "Edit" list and the handles follow. A point
+//   flock's cache plays with its dots where the agents are, as large as three.js's sprites drew them.
 // Exit 77 (ctest SKIP) only when chromium, node's playwright-core or the built page is missing,
 // or with --skip (the sanitizer build).
 //   node test_studio_browser.mjs --cli FLOCKMORPH --source REPO --tmp DIR [--python PY] [--shots DIR] [--skip WHY]
@@ -311,6 +312,33 @@ async function playback(browser, cache, k, expected) {
   } finally { await stopStudio(studio); }
 }
 
+// A point flock's playback: the dots (disc shader) show where the agents are, and cover about the
+// pixels three.js's textured sprites (the page's first drawing) covered, and nothing outside the
+// agents' box changes between the two.
+async function pointFlock(browser) {
+  const out = join(tmp, 'points');
+  const scene = join(source, 'examples', 'flock_cylinder_sphere', 'scene.json');
+  const r = spawnSync(cli, ['run', scene, '-o', out, '--set', 'n=600', '--set', 'time.frame_limit=48'], { encoding: 'utf8' });
+  check(r.status === 0, `flockmorph run of the point flock: ${r.stderr}`);
+  const studio = await startStudio(cli, join(out, 'frames.fmc'));
+  try {
+    const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
+    await page.goto(studio.url);
+    await page.waitForFunction(() => window.studio.status.stage === 'playback', null, { timeout: 20000 });
+    await showFrame(page, 40);
+    const disc = await flockPixels(page, join(tmp, 'points-disc.png'));
+    await page.evaluate(() => window.studio.view.setPointStyle('sprite'));
+    await page.waitForTimeout(300);
+    const sprite = await flockPixels(page, join(tmp, 'points-sprite.png'));
+    log('point flock pixels: disc', JSON.stringify(disc), 'sprite', JSON.stringify(sprite));
+    // outside the agents' box: the timeline's and the panel's blue, the same in both pictures
+    check(disc.inside > 1000 && disc.outside === sprite.outside, `the dots are not where the agents are: ${JSON.stringify(disc)}`);
+    check(Math.abs(disc.inside - sprite.inside) < 0.1 * sprite.inside,
+      `the dots cover ${disc.inside} pixels, the sprites ${sprite.inside}`);
+    await page.close();
+  } finally { await stopStudio(studio); }
+}
+
 async function main() {
   if (arg('--skip')) skip(arg('--skip'));
   if (!existsSync(CHROMIUM)) skip(`no ${CHROMIUM} (Debian's chromium: tools/setup.sh installs it)`);
@@ -339,6 +367,7 @@ async function main() {
     await playback(browser, join(tmp, 'out', 'frames.fmc'), k, cacheFacts(join(tmp, 'out', 'frames.fmc'), '--frame', String(k)).frame);
     log(`playback: frame ${k} equals the Python reader's`);
     await shotGroups(browser);
+    await pointFlock(browser);
   } finally { await browser.close(); }
   log('test_studio_browser: OK');
 }

@@ -35,6 +35,7 @@ export class View {
     this.resolution = new DynamicResolution();
     this.dynamicResolution = true; // off: always the device's pixel ratio (the benchmark's before)
     this.tetStyle = TET_STYLES.flat;
+    this.pointStyle = 'disc'; // 'sprite': three.js's PointsMaterial with a disc texture (the first drawing)
     container.appendChild(this.renderer.domElement);
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0x15171c);
@@ -113,7 +114,7 @@ export class View {
     const u = this.flock?.userData, wide = !!this.tetStyle.wide;
     if (u && u.kind === kind && u.agents === agents && (kind !== 'tets' || u.wide === wide)) return this.flock;
     if (this.flock) { this.scene.remove(this.flock); this.flock.geometry.dispose(); this.flock.material.dispose(); }
-    this.flock = kind === 'tets' ? makeTets(agents, this.tetStyle) : makePoints(agents);
+    this.flock = kind === 'tets' ? makeTets(agents, this.tetStyle) : makePoints(agents, this.pointStyle);
     this.facesFor = null;
     this.flock.userData = { kind, agents, wide, resting: new Uint8Array(kind === 'tets' ? agents : 0) };
     this.flock.frustumCulled = false; // positions change every frame; no bounding sphere to keep
@@ -185,6 +186,15 @@ export class View {
     this.dirty = true;
   }
 
+  // The points' drawing: 'disc' (pointMaterial) or 'sprite' (the first drawing, for the benchmark).
+  setPointStyle(style) {
+    this.pointStyle = style;
+    if (this.flock?.userData.kind !== 'points') return;
+    this.flock.material.dispose();
+    this.flock.material = pointMaterial(style);
+    this.dirty = true;
+  }
+
   // Draws if something changed. playing: the timeline runs (the dynamic resolution applies); rate:
   // the frames per second it plays at (the budget); shown: the frames a second it shows.
   // The cost of a drawn frame is the time from its draw to the next animation frame (the browser's
@@ -252,13 +262,52 @@ function fillAllFaces(index, agents) {
   return 12 * agents;
 }
 
-function makePoints(agents) {
+// A point flock's agents as round dots of `POINT_SIZE` scene units, smaller with the distance as
+// three.js's PointsMaterial draws them (sizeAttenuation). The disc is cut from the point's square in
+// the fragment shader: no texture, so no filtered lookup per pixel, which is most of a software
+// rasterizer's (SwiftShader's) time for 10^5 points.
+const POINT_SIZE = 0.45;
+const POINT_VERTEX = `
+uniform float size;
+uniform float scale;
+varying vec3 vColour;
+void main() {
+  vColour = color;
+  vec4 mv = modelViewMatrix * vec4(position, 1.0);
+  gl_PointSize = size * scale / -mv.z;
+  gl_Position = projectionMatrix * mv;
+}`;
+const POINT_FRAGMENT = `
+varying vec3 vColour;
+void main() {
+  vec2 c = gl_PointCoord - 0.5;
+  if (dot(c, c) > 0.235) discard; /* as large as the sprite's disc (15 of 32 texels, filtered) */
+  gl_FragColor = vec4(vColour, 1.0);
+  #include <colorspace_fragment>
+}`;
+
+function pointMaterial(style) {
+  if (style === 'sprite') {
+    return new THREE.PointsMaterial({ size: POINT_SIZE, vertexColors: true, map: discSprite(), alphaTest: 0.5,
+      sizeAttenuation: true });
+  }
+  return new THREE.ShaderMaterial({ vertexShader: POINT_VERTEX, fragmentShader: POINT_FRAGMENT, vertexColors: true,
+    uniforms: { size: { value: POINT_SIZE }, scale: { value: 1 } } });
+}
+
+const _buffer = new THREE.Vector2();
+
+function makePoints(agents, style) {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(agents * 3), 3));
   g.setAttribute('color', colourAttribute(agents));
-  const material = new THREE.PointsMaterial({ size: 0.45, vertexColors: true, map: discSprite(), alphaTest: 0.5,
-    sizeAttenuation: true });
-  return new THREE.Points(g, material);
+  const points = new THREE.Points(g, pointMaterial(style));
+  // half the drawing buffer's height in pixels: PointsMaterial's scale (pixel ratio included)
+  points.onBeforeRender = (renderer) => {
+    const u = points.material.uniforms;
+    if (u?.scale) u.scale.value = renderer.getDrawingBufferSize(_buffer).y * 0.5;
+  };
+  return points;
 }
 
 function discSprite() {
