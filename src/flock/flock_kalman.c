@@ -1,5 +1,6 @@
 /* Per-agent Kalman homing (SCF eq 9); see flock_kalman.h. */
 #include "flock_kalman.h"
+#include "kernel_kalman.h"
 
 #include <math.h>
 
@@ -42,7 +43,12 @@ void fm_kalman_homing(const fm_kalman *kf, const fm_kalman_agents *own, int64_t 
 {
     const double dt = kf->dt, gain = 2.0 / (dt * dt);
     double k_pp = kf->k[0], k_pv = kf->k[1];
-    for (int64_t a = begin; a < end; a++) {
+    /* whole groups of agents in SIMD lanes (the same bits), the rest here */
+    const fm_kalman_lanes lanes = {dt, gain, kf->q * dt * dt * dt / 3, kf->q * dt * dt / 2, kf->q * dt, kf->r_pos,
+                                   kf->r_vel, kf->scale_velocity, k_pp, k_pv, own ? own->p : NULL,
+                                   own ? own->r_scale : NULL};
+    for (int64_t a = fm_kernel_kalman_homing(&lanes, begin, end, phase, phase_sel, p, v, z_p, z_v, weight, max_accel, u, h);
+         a < end; a++) {
         if (phase[a] != phase_sel) continue;
         if (own) {
             double k[4];

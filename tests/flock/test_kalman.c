@@ -2,9 +2,11 @@
  * constant velocity; the tracking lag shrinks as R falls, vanishes in the steady state, and R -> 0
  * puts the agent on its leader. */
 #include "flock_kalman.h"
+#include "simd.h"
 #include "test_macros.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 enum { AGENTS = 3 };
@@ -173,6 +175,70 @@ static void test_scale_loosens_the_position_only(void)
     ENSURE_MSG(kb[1] < 0.8 * kt[1], "with scale_velocity the velocity gain %g against %g", kb[1], kt[1]);
 }
 
+/* The homing in SIMD lanes (kernel_kalman.h) gives the scalar code's bits at every level: shared
+ * and own filters (R scaled on the position, and on both), agents not under forces untouched (their
+ * covariance too), some bounded by MaxForce, h written over u, a range that is not whole groups. */
+static void test_lanes_match_scalar(void)
+{
+    enum { N = 1003, FIRST = 2 };
+    uint64_t seed = 11;
+    float *st[5][3], *w = malloc(sizeof(float) * N), *m = malloc(sizeof(float) * N), *scale = malloc(sizeof(float) * N);
+    float *h_want[3], *h_got[3];
+    double *cov0 = malloc(sizeof(double) * 3 * N), *want = malloc(sizeof(double) * 3 * N), *got = malloc(sizeof(double) * 3 * N);
+    uint8_t *phase = malloc(N);
+    for (int i = 0; i < 5; i++)
+        for (int k = 0; k < 3; k++) st[i][k] = malloc(sizeof(float) * N); /* p, v, z_p, z_v, u */
+    for (int k = 0; k < 3; k++) h_want[k] = malloc(sizeof(float) * N), h_got[k] = malloc(sizeof(float) * N);
+    for (int a = 0; a < N; a++) {
+        for (int i = 0; i < 5; i++)
+            for (int k = 0; k < 3; k++) st[i][k][a] = (float)(40 * test_uniform(&seed) - 20);
+        w[a] = (float)test_uniform(&seed), m[a] = (float)(100 * test_uniform(&seed)), scale[a] = (float)(1 + 30 * test_uniform(&seed));
+        for (int c = 0; c < 3; c++) cov0[3 * a + c] = c == 1 ? 0.01 * test_uniform(&seed) : 0.2 * test_uniform(&seed);
+        phase[a] = a % 7 == 3 ? 2 : 1;
+    }
+    fm_kalman kf;
+    fm_kalman_init(&kf, 1.0 / 48, 1.5, 0.3, 0.7);
+    fm_kalman_advance(&kf);
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+    for (int variant = 0; variant < 4; variant++) { /* shared; own; own scaling both; shared unbounded */
+        kf.scale_velocity = variant == 2;
+        const fm_kalman_agents own = {NULL, scale};
+        const float *bound = variant == 3 ? NULL : m;
+        for (int level = FM_SIMD_SCALAR; level <= (int)best; level++) {
+            fm_simd_set_level((fm_simd)level);
+            double *cov = level == FM_SIMD_SCALAR ? want : got;
+            float **h = level == FM_SIMD_SCALAR ? h_want : h_got;
+            memcpy(cov, cov0, sizeof(double) * 3 * N);
+            for (int k = 0; k < 3; k++) memcpy(h[k], st[4][k], sizeof(float) * N); /* h over u */
+            const fm_kalman_agents mine = {cov, own.r_scale};
+            fm_kalman_homing(&kf, variant == 1 || variant == 2 ? &mine : NULL, FIRST, N, phase, 1, (const float *const *)st[0],
+                             (const float *const *)st[1], (const float *const *)st[2], (const float *const *)st[3], w, bound,
+                             (const float *const *)h, h);
+            if (level == FM_SIMD_SCALAR) continue;
+            ENSURE_MSG(memcmp(cov, want, sizeof(double) * 3 * N) == 0, "variant %d, level %s: covariances differ", variant,
+                       fm_simd_name((fm_simd)level));
+            for (int k = 0; k < 3; k++)
+                ENSURE_MSG(memcmp(h_got[k], h_want[k], sizeof(float) * N) == 0, "variant %d, level %s: homing differs", variant,
+                           fm_simd_name((fm_simd)level));
+        }
+    }
+    fm_simd_set_level(best);
+    int bounded = 0, untouched = 1;
+    for (int a = 0; a < N; a++)
+        if (phase[a] != 1 || a < FIRST) untouched &= h_want[0][a] == st[4][0][a] && memcmp(want + 3 * a, cov0 + 3 * a, 24) == 0;
+    fm_kalman_homing(&kf, NULL, FIRST, N, phase, 1, (const float *const *)st[0], (const float *const *)st[1],
+                     (const float *const *)st[2], (const float *const *)st[3], w, m, (const float *const *)st[4], h_got);
+    for (int a = FIRST; a < N; a++) bounded += phase[a] == 1 && sqrtf(h_got[0][a] * h_got[0][a] + h_got[1][a] * h_got[1][a] +
+                                                                      h_got[2][a] * h_got[2][a]) > 0.999f * m[a];
+    printf("  %d of %d agents at MaxForce\n", bounded, N);
+    ENSURE(untouched);
+    ENSURE_MSG(bounded > N / 10 && bounded < N - N / 5, "%d agents bounded: the test does not reach both sides", bounded);
+    for (int i = 0; i < 5; i++)
+        for (int k = 0; k < 3; k++) free(st[i][k]);
+    for (int k = 0; k < 3; k++) free(h_want[k]), free(h_got[k]);
+    free(w), free(m), free(scale), free(cov0), free(want), free(got), free(phase);
+}
+
 int main(void)
 {
     RUN_TEST(test_lag_shrinks_as_r_falls);
@@ -182,5 +248,6 @@ int main(void)
     RUN_TEST(test_phase_and_weight);
     RUN_TEST(test_own_filters);
     RUN_TEST(test_scale_loosens_the_position_only);
+    RUN_TEST(test_lanes_match_scalar);
     return test_result();
 }
