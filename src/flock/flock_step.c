@@ -25,6 +25,7 @@
  * stage 4 only reads positions and velocities, stage 5 only moves an agent itself, so every agent
  * sees the same neighbours whatever the thread count; per-block counts are combined in block order. */
 #include "flock.h"
+#include "kernel_leader.h"
 #include "kernel_sdf.h"
 
 #include <math.h>
@@ -51,30 +52,56 @@ static void update_destinations(const fm_flock_model *m, fm_flock_state *s, doub
     }
 }
 
-/* Stage 2 for one block: each agent's leader at time t, on its own eased path fraction u
- * (fm_flock_leader; r = R(u)), and its velocity by difference. */
-static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, int64_t begin, int64_t end)
+/* Stage 2 for agent a: its leader at time t, on its own eased path fraction u (fm_flock_leader;
+ * r = R(u)), and its velocity by difference. */
+static void leader_of(const fm_flock_model *m, fm_flock_state *s, double t, int64_t a)
 {
     const double inv_dt = 1.0 / m->dt;
-    for (int64_t a = begin; a < end; a++) {
-        if (s->phase[a] == FM_FLOCK_ELSEWHERE) continue; /* another rank's (flock_dist.c) */
-        double f;
-        const double u = fm_flock_leader(m, (const float *const *)s->prm.start, a, t, &f);
-        double z[3];
-        if (u >= 1) {
-            for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
-        } else {
-            double r[3];
-            const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
-            const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
-            fm_bspline_eval_table(&m->path, u, r);
-            fm_path_map_blend(r, m->o1, m->o2, c1, c2, u, f, z);
-        }
-        for (int k = 0; k < 3; k++) {
-            s->leader_v[k][a] = (float)((z[k] - s->leader[k][a]) * inv_dt);
-            s->leader[k][a] = (float)z[k];
-        }
+    double f;
+    const double u = fm_flock_leader(m, (const float *const *)s->prm.start, a, t, &f);
+    double z[3];
+    if (u >= 1) {
+        for (int k = 0; k < 3; k++) z[k] = s->dest[k][a];
+    } else {
+        double r[3];
+        const double c1[3] = {s->prm.start[0][a], s->prm.start[1][a], s->prm.start[2][a]};
+        const double c2[3] = {s->dest[0][a], s->dest[1][a], s->dest[2][a]};
+        fm_bspline_eval_table(&m->path, u, r);
+        fm_path_map_blend(r, m->o1, m->o2, c1, c2, u, f, z);
     }
+    for (int k = 0; k < 3; k++) {
+        s->leader_v[k][a] = (float)((z[k] - s->leader[k][a]) * inv_dt);
+        s->leader[k][a] = (float)z[k];
+    }
+}
+
+/* What the leaders' lanes (kernel_leader.h) need of the model at time t. */
+static fm_leader_view leader_view(const fm_flock_model *m, double t)
+{
+    fm_leader_view w = {t, 1.0 / m->dt, m->path_time, {m->ease_axis[0], m->ease_axis[1], m->ease_axis[2]}, m->ease_lo,
+                        m->ease_inv_range, m->ease_spread, m->ease_in, m->ease_out,
+                        1.0 / (1.0 - 0.5 * (m->ease_in + m->ease_out)), m->def.flock.reform, m->path.arc,
+                        FM_BSPLINE_ARC_SAMPLES, {0}, {0}, 0};
+    for (int k = 0; k < 3; k++) {
+        w.o1[k] = m->o1[k], w.o2[k] = m->o2[k];
+        w.oo += (m->o2[k] - m->o1[k]) * (m->o2[k] - m->o1[k]); /* as fm_path_map_blend sums it */
+    }
+    return w;
+}
+
+/* Stage 2 for one block: whole groups of agents in SIMD lanes where there is a path (the same bits),
+ * the agents on an ease ramp and the rest one by one. */
+static void leaders_block(const fm_flock_model *m, fm_flock_state *s, double t, int64_t begin, int64_t end)
+{
+    int64_t a = begin, left[FM_BLOCK], left_count = 0;
+    if (m->path_time > 0 && end - begin <= FM_BLOCK) {
+        const fm_leader_view w = leader_view(m, t);
+        a = fm_kernel_leaders(&w, s->phase, FM_FLOCK_ELSEWHERE, (const float *const *)s->prm.start,
+                              (const float *const *)s->dest, s->leader, s->leader_v, begin, end, left, &left_count);
+    }
+    for (int64_t i = 0; i < left_count; i++) leader_of(m, s, t, left[i]);
+    for (; a < end; a++)
+        if (s->phase[a] != FM_FLOCK_ELSEWHERE) leader_of(m, s, t, a); /* another rank's (flock_dist.c) */
 }
 
 static float distance_to_destination(const fm_flock_state *s, int64_t a)

@@ -450,6 +450,68 @@ static void test_orientation_lanes_are_the_scalar_frames(void)
     free(q0), free(want), free(got), free(phase);
 }
 
+/* The flock's step at every SIMD level gives the scalar code's bytes (the leaders', Kalman's,
+ * boids' and frames' lanes), through the ease's ramps and delays, the cruise and the arrivals, with
+ * and without the layout's reform. */
+/* Agents whose leader has not started at time t (the ease's delay), and those on its path. */
+static void leaders_started(const fm_flock_model *m, const fm_flock_state *s, double t, int64_t *waiting, int64_t *flying)
+{
+    for (int64_t a = 0; a < s->slots; a++) {
+        double f;
+        const double u = fm_flock_leader(m, (const float *const *)s->prm.start, a, t, &f);
+        *waiting += u == 0, *flying += u > 0 && u < 1;
+    }
+}
+
+static int64_t leaders_on_destination(const fm_flock_state *s)
+{
+    int64_t n = 0;
+    for (int64_t a = 0; a < s->slots; a++)
+        n += s->leader[0][a] == s->dest[0][a] && s->leader[1][a] == s->dest[1][a] && s->leader[2][a] == s->dest[2][a];
+    return n;
+}
+
+static void test_simd_levels_give_the_same_flock(void)
+{
+    for (int reform = 0; reform < 2; reform++) {
+        fm_scene_def def = flock_def(400);
+        def.flock.ease_in = 0.4, def.flock.ease_out = 0.5, def.flock.ease_spread = 0.6;
+        def.flock.reform = reform ? 0.3 : 0;
+        def.speed0 = 20; /* the leaders' path in about a second: every leader arrives within the run */
+        fm_flock_model *m = build(&def);
+        if (!m) return;
+        const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+        frame want[3] = {{0}};
+        for (int level = FM_SIMD_SCALAR; level <= (int)best; level++) {
+            fm_simd_set_level((fm_simd)level);
+            fm_flock_state *s = fm_flock_state_create(m, 1, NULL);
+            int64_t waiting = 0, flying = 0;
+            leaders_started(m, s, 8 * m->dt, &waiting, &flying);
+            for (int chunk = 0; chunk < 3; chunk++) {
+                for (int k = 0; k < 40; k++) fm_flock_step(m, s);
+                frame got = frame_of(s, 400);
+                if (level == FM_SIMD_SCALAR) {
+                    want[chunk] = got;
+                    continue;
+                }
+                ENSURE_MSG(frames_equal(&got, &want[chunk]), "reform %d, level %s: the flock differs after %d steps", reform,
+                           fm_simd_name((fm_simd)level), 40 * (chunk + 1));
+                frame_free(&got);
+            }
+            if (level == FM_SIMD_SCALAR) {
+                const int64_t done = leaders_on_destination(s);
+                printf("  reform %d: at step 8 %lld leaders waiting and %lld on their way; at the end %lld on their destination\n",
+                       reform, (long long)waiting, (long long)flying, (long long)done);
+                ENSURE(waiting > 0 && flying > 0 && done == 400);
+            }
+            fm_flock_state_destroy(s);
+        }
+        fm_simd_set_level(best);
+        for (int c = 0; c < 3; c++) frame_free(&want[c]);
+        fm_flock_model_destroy(m);
+    }
+}
+
 /* A pulsing target: destinations breathe with it (each one's distance to the centre scales by
  * 1 + A sin(2 pi t / period)), and once the path is done the flock stays close (the Kalman homing
  * tracks the moving leaders), closer with a small R (position variance) than with a large one. */
@@ -781,6 +843,7 @@ int main(void)
     RUN_TEST(test_orientation_follows_velocity);
     RUN_TEST(test_orientation_is_the_upright_frame);
     RUN_TEST(test_orientation_lanes_are_the_scalar_frames);
+    RUN_TEST(test_simd_levels_give_the_same_flock);
     RUN_TEST(test_deforming_target_is_tracked);
     RUN_TEST(test_mesh_sequence_moves_the_destinations);
     RUN_TEST(test_mesh_sequence_matches_vertices_as_listed);
