@@ -25,6 +25,7 @@
  * stage 4 only reads positions and velocities, stage 5 only moves an agent itself, so every agent
  * sees the same neighbours whatever the thread count; per-block counts are combined in block order. */
 #include "flock.h"
+#include "kernel_forces.h"
 #include "kernel_leader.h"
 #include "kernel_sdf.h"
 
@@ -204,7 +205,35 @@ static void boids_pass(const fm_flock_model *m, fm_flock_state *s)
                                s->steer);
 }
 
-/* Stage 4b for one block: the acceleration of every agent under forces (FM_PHASE_FLYING). */
+static fm_weight_curve curve_of(const fm_fuzzy *c) { return (fm_weight_curve){c->count, c->d, c->w, c->slope}; }
+
+/* What the forces' lanes (kernel_forces.h) need of the model and the store. */
+static void forces_lanes(const fm_flock_model *m, fm_flock_state *s, fm_forces_view *w, fm_forces_arrays *x)
+{
+    const fm_flock_def *f = &m->def.flock;
+    *w = (fm_forces_view){curve_of(&m->fuzzy[FM_FUZZY_STEERING]), curve_of(&m->fuzzy[FM_FUZZY_DAMPING]),
+                          curve_of(&m->fuzzy[FM_FUZZY_EXTERNAL]), curve_of(&m->fuzzy[FM_FUZZY_HOMING]), curve_of(&m->r_scale),
+                          f->kalman_r_over == FM_KALMAN_R_OVER_DISTANCE, m->tracking, s->fields != NULL,
+                          (float)(1.0 / f->mass), (float)f->damping, (float)f->external_gain};
+    *x = (fm_forces_arrays){.phase = s->phase, .sel = FM_PHASE_FLYING, .max_accel = s->prm.max_accel,
+                            .w_homing = s->w_homing, .r_scale = s->r_scale};
+    for (int k = 0; k < 3; k++) {
+        x->p[k] = s->p[k], x->v[k] = s->v[k], x->dest[k] = s->dest[k], x->dest_v[k] = s->dest_v[k];
+        x->leader[k] = s->leader[k], x->leader_v[k] = s->leader_v[k];
+        x->steer[k] = s->steer[k], x->ext[k] = s->ext[k], x->acc[k] = s->acc[k];
+    }
+}
+
+/* The obstacles' push on an agent whose other forces the lanes gave (other_forces adds it last). */
+static void push_from_obstacles(const fm_flock_model *m, fm_flock_state *s, int64_t a)
+{
+    float acc[3] = {s->acc[0][a], s->acc[1][a], s->acc[2][a]};
+    add_obstacle_push(m, s, a, acc);
+    for (int k = 0; k < 3; k++) s->acc[k][a] = acc[k];
+}
+
+/* Stage 4b for one block: the acceleration of every agent under forces (FM_PHASE_FLYING); whole
+ * groups of agents in SIMD lanes (the same bits), the rest one by one. */
 static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end)
 {
     const float *const *p = (const float *const *)s->p, *const *v = (const float *const *)s->v;
@@ -212,14 +241,21 @@ static void forces_block(const fm_flock_model *m, fm_flock_state *s, int64_t beg
         for (int k = 0; k < 3; k++) memset(s->ext[k] + begin, 0, sizeof(float) * (size_t)(end - begin));
         fm_fields_add_block(s->fields, p, s->phase, begin, end, s->time, 1.0f, s->ext);
     }
-    for (int64_t a = begin; a < end; a++)
+    fm_forces_view w;
+    fm_forces_arrays x;
+    forces_lanes(m, s, &w, &x);
+    int64_t a = fm_kernel_other_forces(&w, &x, begin, end);
+    if (m->obstacles)
+        for (int64_t b = begin; b < a; b++)
+            if (s->phase[b] == FM_PHASE_FLYING) push_from_obstacles(m, s, b);
+    for (; a < end; a++)
         if (s->phase[a] == FM_PHASE_FLYING) other_forces(m, s, a);
     /* w_homing F_h / m (eq 9) into ext (read above): the Kalman filter predicts with u = acc and
      * updates with the leader */
     const fm_kalman_agents own = {s->kalman_p, s->r_scale};
     fm_kalman_homing(&s->kalman, s->kalman_p ? &own : NULL, begin, end, s->phase, FM_PHASE_FLYING, p, v, (const float *const *)s->leader,
                      (const float *const *)s->leader_v, s->w_homing, s->prm.max_accel, (const float *const *)s->acc, s->ext);
-    for (int64_t a = begin; a < end; a++)
+    for (a = fm_kernel_combine_forces(&x, begin, end); a < end; a++)
         if (s->phase[a] == FM_PHASE_FLYING) combine_forces(s, a);
 }
 

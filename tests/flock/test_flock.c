@@ -450,9 +450,10 @@ static void test_orientation_lanes_are_the_scalar_frames(void)
     free(q0), free(want), free(got), free(phase);
 }
 
-/* The flock's step at every SIMD level gives the scalar code's bytes (the leaders', Kalman's,
- * boids' and frames' lanes), through the ease's ramps and delays, the cruise and the arrivals, with
- * and without the layout's reform. */
+/* The flock's step at every SIMD level gives the scalar code's bytes (the leaders', the forces',
+ * Kalman's, the boids' and the frames' lanes), through the ease's ramps and delays, the cruise and
+ * the arrivals; with R over the distance, and with the layout's reform, a field and R over the
+ * leader's speed. */
 /* Agents whose leader has not started at time t (the ease's delay), and those on its path. */
 static void leaders_started(const fm_flock_model *m, const fm_flock_state *s, double t, int64_t *waiting, int64_t *flying)
 {
@@ -478,6 +479,12 @@ static void test_simd_levels_give_the_same_flock(void)
         def.flock.ease_in = 0.4, def.flock.ease_out = 0.5, def.flock.ease_spread = 0.6;
         def.flock.reform = reform ? 0.3 : 0;
         def.speed0 = 20; /* the leaders' path in about a second: every leader arrives within the run */
+        if (reform) { /* the external fields' forces too, and R over the leader's speed */
+            def.field_count = 1;
+            def.fields[0] = fm_default_field_def(FM_FIELD_VORTEX);
+            def.fields[0].center[0] = 0, def.fields[0].strength = 0.5;
+            def.flock.kalman_r_over = FM_KALMAN_R_OVER_LEADER_SPEED;
+        }
         fm_flock_model *m = build(&def);
         if (!m) return;
         const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
