@@ -38,9 +38,20 @@ int64_t fm_kernel_other_forces(const fm_forces_view *w, const fm_forces_arrays *
 /* Its last part (combine_forces: homing first, the boids with what it leaves of MaxForce). */
 int64_t fm_kernel_combine_forces(const fm_forces_arrays *x, int64_t begin, int64_t end);
 
+/* Stage 5 for the agents under forces in whole groups of FM_W from begin (move_flying: v' = v + a dt
+ * bounded by MaxSpeed, x += (v + v') dt / 2; phase homing = sel + 1 within arrival_radius when it is
+ * > 0); returns the first agent it did not do. */
+int64_t fm_kernel_move_flying(const fm_forces_arrays *x, float *const p[3], float *const v[3], uint8_t *phase,
+                              const float *max_speed, float dt, float arrival_radius, uint8_t homing, int64_t begin,
+                              int64_t end);
+
 typedef int64_t fm_other_forces_fn(const fm_forces_view *w, const fm_forces_arrays *x, int64_t begin, int64_t end);
 typedef int64_t fm_combine_forces_fn(const fm_forces_arrays *x, int64_t begin, int64_t end);
 FM_SIMD_DECLARE(fm_other_forces_fn, fm_kernel_other_forces);
 FM_SIMD_DECLARE(fm_combine_forces_fn, fm_kernel_combine_forces);
+typedef int64_t fm_move_flying_fn(const fm_forces_arrays *x, float *const p[3], float *const v[3], uint8_t *phase,
+                                  const float *max_speed, float dt, float arrival_radius, uint8_t homing, int64_t begin,
+                                  int64_t end);
+FM_SIMD_DECLARE(fm_move_flying_fn, fm_kernel_move_flying);
 
 #endif

@@ -108,3 +108,27 @@ int64_t FM_SIMD_VARIANT(fm_kernel_combine_forces)(const fm_forces_arrays *x, int
     }
     return a;
 }
+
+int64_t FM_SIMD_VARIANT(fm_kernel_move_flying)(const fm_forces_arrays *x, float *const p[3], float *const v[3],
+                                               uint8_t *phase, const float *max_speed, float dt, float arrival_radius,
+                                               uint8_t homing, int64_t begin, int64_t end)
+{
+    const fv step = fv_set1(dt), half = fv_set1(0.5f), radius = fv_set1(arrival_radius);
+    int64_t a = begin;
+    for (; a + FM_W <= end; a += FM_W) {
+        const unsigned bits = chosen_lanes(x, a);
+        if (!bits) continue;
+        fv v0[3], v1[3], to[3];
+        for (int k = 0; k < 3; k++) v0[k] = fv_load(v[k] + a), v1[k] = fv_add(v0[k], fv_mul(fv_load(x->acc[k] + a), step));
+        truncate_lanes(v1, fv_load(max_speed + a));
+        for (int k = 0; k < 3; k++) {
+            const fv moved = fv_add(fv_load(p[k] + a), fv_mul(fv_mul(half, fv_add(v0[k], v1[k])), step));
+            store_chosen(p[k], a, moved, bits), store_chosen(v[k], a, v1[k], bits);
+            to[k] = fv_sub(fv_load(x->dest[k] + a), moved);
+        }
+        const unsigned near = arrival_radius > 0 ? fv_mask(fv_lt(length3(to), radius)) : 0;
+        for (int l = 0; l < FM_W; l++)
+            if ((bits & near) >> l & 1) phase[a + l] = homing;
+    }
+    return a;
+}

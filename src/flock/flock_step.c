@@ -370,20 +370,26 @@ static void move_bound(const fm_flock_model *m, fm_flock_state *s, int64_t a, fl
     }
 }
 
-/* Stage 5 for one block: each agent moves only itself. */
+/* Stage 5 for one block: each agent moves only itself; those under forces in whole groups of SIMD
+ * lanes (the same bits). An agent homing or bound never comes back under forces, so they move first. */
 static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin, int64_t end, flock_block *bc)
 {
     const float dt = (float)m->dt;
     memset(bc, 0, sizeof *bc);
     for (int64_t a = begin; a < end; a++) {
-        uint8_t phase = s->phase[a];
-        if (phase == FM_FLOCK_ELSEWHERE) continue;
-        if (phase == FM_PHASE_FLYING) phase = move_flying(m, s, a, dt);
-        else if (phase == FM_PHASE_HOMING) phase = move_stepped(m, s, a, dt);
-        else move_bound(m, s, a, dt);
-        s->phase[a] = phase;
-        bc->count[phase]++;
+        const uint8_t phase = s->phase[a];
+        if (phase == FM_PHASE_HOMING) s->phase[a] = move_stepped(m, s, a, dt);
+        else if (phase == FM_PHASE_ARRIVED || phase == FM_PHASE_WAITING) move_bound(m, s, a, dt);
     }
+    fm_forces_view w;
+    fm_forces_arrays x;
+    forces_lanes(m, s, &w, &x);
+    for (int64_t a = fm_kernel_move_flying(&x, s->p, s->v, s->phase, s->prm.max_speed, dt, (float)m->def.flock.arrival_radius,
+                                           FM_PHASE_HOMING, begin, end);
+         a < end; a++)
+        if (s->phase[a] == FM_PHASE_FLYING) s->phase[a] = move_flying(m, s, a, dt);
+    for (int64_t a = begin; a < end; a++)
+        if (s->phase[a] != FM_FLOCK_ELSEWHERE) bc->count[s->phase[a]]++;
     fm_kernel_orient_along(s->orient, (const float *const *)s->v, s->phase, FM_FLOCK_ELSEWHERE, begin, end);
 }
 

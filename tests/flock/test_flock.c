@@ -495,21 +495,25 @@ static void test_simd_levels_give_the_same_flock(void)
             int64_t waiting = 0, flying = 0;
             leaders_started(m, s, 8 * m->dt, &waiting, &flying);
             for (int chunk = 0; chunk < 3; chunk++) {
-                for (int k = 0; k < 40; k++) fm_flock_step(m, s);
+                for (int k = 0; k < 80; k++) fm_flock_step(m, s);
                 frame got = frame_of(s, 400);
                 if (level == FM_SIMD_SCALAR) {
                     want[chunk] = got;
                     continue;
                 }
                 ENSURE_MSG(frames_equal(&got, &want[chunk]), "reform %d, level %s: the flock differs after %d steps", reform,
-                           fm_simd_name((fm_simd)level), 40 * (chunk + 1));
+                           fm_simd_name((fm_simd)level), 80 * (chunk + 1));
                 frame_free(&got);
             }
             if (level == FM_SIMD_SCALAR) {
                 const int64_t done = leaders_on_destination(s);
-                printf("  reform %d: at step 8 %lld leaders waiting and %lld on their way; at the end %lld on their destination\n",
-                       reform, (long long)waiting, (long long)flying, (long long)done);
+                const fm_run_info info = fm_flock_get_info(s);
+                printf("  reform %d: at step 8 %lld leaders waiting and %lld on their way; at the end %lld on their destination,"
+                       " %lld agents flying, %lld homing, %lld bound\n", reform, (long long)waiting, (long long)flying, (long long)done,
+                       (long long)info.count[FM_PHASE_FLYING], (long long)info.count[FM_PHASE_HOMING],
+                       (long long)info.count[FM_PHASE_ARRIVED]);
                 ENSURE(waiting > 0 && flying > 0 && done == 400);
+                ENSURE(info.count[FM_PHASE_HOMING] + info.count[FM_PHASE_ARRIVED] > 0);
             }
             fm_flock_state_destroy(s);
         }
