@@ -51,15 +51,6 @@ typedef struct mde_query {
 
 static inline int32_t id_of(const mde_ctx *c, int64_t j) { return c->id ? c->id[j] : (int32_t)j; }
 
-/* -1, 0 or 1 cells either side along one axis: those whose face is nearer than reach. */
-static inline void axis_span(double q, int32_t cell, double reach, int *lo, int *hi)
-{
-    const double f = q - (double)cell;
-    *lo = f < reach ? -1 : 0;
-    *hi = 1 - f < reach ? 1 : 0;
-    if (!(f == f)) *lo = -1, *hi = 1; /* NaN: everything (such agents sit in the clamp cell) */
-}
-
 /* Do runs i and j (n slots from s[.], mod the table) share a slot? */
 static int runs_share(const uint32_t *s, const int *n, int runs, uint32_t mask)
 {
@@ -76,9 +67,9 @@ static void plan_ranges(const mde_ctx *c, mde_query *q)
     const double sx = fm_grid_scaled(g, q->x), sy = fm_grid_scaled(g, q->y), sz = fm_grid_scaled(g, q->z);
     const int32_t cx = fm_grid_coord(sx), cy = fm_grid_coord(sy), cz = fm_grid_coord(sz);
     int lo[3], hi[3];
-    axis_span(sx, cx, c->reach, &lo[0], &hi[0]);
-    axis_span(sy, cy, c->reach, &lo[1], &hi[1]);
-    axis_span(sz, cz, c->reach, &lo[2], &hi[2]);
+    fm_mde_axis_span(sx, cx, c->reach, &lo[0], &hi[0]);
+    fm_mde_axis_span(sy, cy, c->reach, &lo[1], &hi[1]);
+    fm_mde_axis_span(sz, cz, c->reach, &lo[2], &hi[2]);
     const uint32_t mask = g->mask, table = mask + 1;
     const int n = hi[0] - lo[0] + 1;
     uint32_t s0[MDE_RUNS];

@@ -45,4 +45,13 @@ static inline void fm_mde_coincident_dir(int32_t lo, int32_t hi, float d[3])
     d[0] = (float)dx * s, d[1] = (float)dy * s, d[2] = (float)dz * s;
 }
 
+/* -1, 0 or 1 cells either side along one axis: those whose face is nearer than reach. */
+static inline void fm_mde_axis_span(double q, int32_t cell, double reach, int *lo, int *hi)
+{
+    const double f = q - (double)cell;
+    *lo = f < reach ? -1 : 0;
+    *hi = 1 - f < reach ? 1 : 0;
+    if (!(f == f)) *lo = -1, *hi = 1; /* NaN: everything (such agents sit in the clamp cell) */
+}
+
 #endif
