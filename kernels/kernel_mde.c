@@ -28,8 +28,7 @@
 enum {
     MDE_RUNS = 9,    /* rows of the 3 x 3 x 3 box */
     MDE_RANGES = 27, /* at most one per slot */
-    MDE_BATCH = 64,  /* hits sorted and summed at a time */
-    MDE_AHEAD = 32   /* agents ahead whose slot table entry is prefetched */
+    MDE_BATCH = 64   /* hits sorted and summed at a time */
 };
 
 typedef struct mde_ctx {
@@ -51,15 +50,6 @@ typedef struct mde_query {
 
 static inline int32_t id_of(const mde_ctx *c, int64_t j) { return c->id ? c->id[j] : (int32_t)j; }
 
-/* -1, 0 or 1 cells either side along one axis: those whose face is nearer than reach. */
-static inline void axis_span(double q, int32_t cell, double reach, int *lo, int *hi)
-{
-    const double f = q - (double)cell;
-    *lo = f < reach ? -1 : 0;
-    *hi = 1 - f < reach ? 1 : 0;
-    if (!(f == f)) *lo = -1, *hi = 1; /* NaN: everything (such agents sit in the clamp cell) */
-}
-
 /* Do runs i and j (n slots from s[.], mod the table) share a slot? */
 static int runs_share(const uint32_t *s, const int *n, int runs, uint32_t mask)
 {
@@ -76,9 +66,9 @@ static void plan_ranges(const mde_ctx *c, mde_query *q)
     const double sx = fm_grid_scaled(g, q->x), sy = fm_grid_scaled(g, q->y), sz = fm_grid_scaled(g, q->z);
     const int32_t cx = fm_grid_coord(sx), cy = fm_grid_coord(sy), cz = fm_grid_coord(sz);
     int lo[3], hi[3];
-    axis_span(sx, cx, c->reach, &lo[0], &hi[0]);
-    axis_span(sy, cy, c->reach, &lo[1], &hi[1]);
-    axis_span(sz, cz, c->reach, &lo[2], &hi[2]);
+    fm_mde_axis_span(sx, cx, c->reach, &lo[0], &hi[0]);
+    fm_mde_axis_span(sy, cy, c->reach, &lo[1], &hi[1]);
+    fm_mde_axis_span(sz, cz, c->reach, &lo[2], &hi[2]);
     const uint32_t mask = g->mask, table = mask + 1;
     const int n = hi[0] - lo[0] + 1;
     uint32_t s0[MDE_RUNS];
@@ -225,27 +215,47 @@ static int64_t mde_agent(const mde_ctx *c, const float *const p[3], int64_t a, f
     return pairs;
 }
 
-int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *member, const int32_t *id,
-                      int64_t begin, int64_t end, float d_min, float push, float *const v_la[3], uint8_t *needed)
+/* d_min in cell units, rounded up: the planned box never misses a cell the float test can reach. */
+static double reach_of(const fm_grid *g, float d_min) { return (double)d_min * g->inv_cell * (1.0 + 0x1p-16) + 0x1p-20; }
+
+int64_t fm_kernel_mde_ref(const fm_grid *g, const float *const p[3], const uint8_t *member, const int32_t *id,
+                          int64_t begin, int64_t end, float d_min, float push, float *const v_la[3], uint8_t *needed)
 {
     assert(!(d_min > g->cell));
     assert(end <= g->n);
     const int active = d_min > 0 && g->count > 0;
-    mde_ctx c = {g, p[0], p[1], p[2], id, g->quad, (double)d_min * g->inv_cell * (1.0 + 0x1p-16) + 0x1p-20,
-                 d_min * d_min, d_min, push};
-    const uint32_t *slot = g->slot;
+    mde_ctx c = {g, p[0], p[1], p[2], id, g->quad, reach_of(g, d_min), d_min * d_min, d_min, push};
     int64_t count = 0;
     for (int64_t a = begin; a < end; a++) {
-        /* the slot table entry of an agent further on, then the first entries of a nearer one */
-        if (a + MDE_AHEAD < end && slot[a + MDE_AHEAD] != FM_GRID_NONE) __builtin_prefetch(g->start + slot[a + MDE_AHEAD]);
-        if (a + MDE_AHEAD / 2 < end && slot[a + MDE_AHEAD / 2] != FM_GRID_NONE)
-            __builtin_prefetch(g->quad + (g->start[slot[a + MDE_AHEAD / 2]] >> 2));
+        fm_mde_prefetch(g, a, end);
         float out[3] = {0, 0, 0};
         int64_t pairs = 0;
         if (active && member[a]) pairs = mde_agent(&c, p, a, out);
         v_la[0][a] = out[0], v_la[1][a] = out[1], v_la[2][a] = out[2];
         needed[a] = pairs > 0;
         count += pairs > 0;
+    }
+    return count;
+}
+
+/* Two passes: the SIMD screen marks the agents with a neighbour closer than d_min in needed[] (almost
+ * none of them), then the reference's walk sums the pushes of those alone; the others get 0. */
+int64_t fm_kernel_mde(const fm_grid *g, const float *const p[3], const uint8_t *member, const int32_t *id,
+                      int64_t begin, int64_t end, float d_min, float push, float *const v_la[3], uint8_t *needed)
+{
+    fm_mde_screen_fn *screen = FM_SIMD_PICK(fm_mde_screen);
+    if (!screen || !(d_min > 0 && g->count > 0))
+        return fm_kernel_mde_ref(g, p, member, id, begin, end, d_min, push, v_la, needed);
+    assert(!(d_min > g->cell));
+    assert(end <= g->n);
+    const mde_ctx c = {g, p[0], p[1], p[2], id, g->quad, reach_of(g, d_min), d_min * d_min, d_min, push};
+    screen(g, p, member, begin, end, d_min, c.reach, needed);
+    int64_t count = 0;
+    for (int64_t a = begin; a < end; a++) {
+        float out[3] = {0, 0, 0};
+        if (needed[a]) needed[a] = mde_agent(&c, p, a, out) > 0;
+        v_la[0][a] = out[0], v_la[1][a] = out[1], v_la[2][a] = out[2];
+        count += needed[a];
     }
     return count;
 }

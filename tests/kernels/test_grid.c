@@ -4,6 +4,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "grid.h"
 #include "kernel_mde.h"
+#include "simd.h"
 #include "test_macros.h"
 
 #include <stdlib.h>
@@ -150,17 +151,48 @@ static void out_free(mde_out *o)
     fm_free(o->needed);
 }
 
-/* The kernel over [0, n) in blocks of 4096 on `threads` threads; returns its count. */
-static int64_t run_kernel(const fm_grid *g, const pts *s, float d_min, float push, mde_out *o, int threads)
+typedef int64_t mde_kernel(const fm_grid *g, const float *const p[3], const uint8_t *member, const int32_t *id,
+                           int64_t begin, int64_t end, float d_min, float push, float *const v_la[3], uint8_t *needed);
+
+/* A kernel over [0, n) in blocks of 4093 (odd: ranges off every vector width) on `threads` threads;
+ * returns its count. */
+static int64_t run_kernel_with(mde_kernel *kernel, const fm_grid *g, const pts *s, float d_min, float push, mde_out *o,
+                               int threads)
 {
-    int64_t count = 0, blocks = (s->n + 4095) / 4096;
+    int64_t count = 0, blocks = (s->n + 4092) / 4093;
     const float *p[3] = {s->p[0], s->p[1], s->p[2]};
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : count)
     for (int64_t b = 0; b < blocks; b++) {
-        int64_t lo = b * 4096, hi = FM_MIN(s->n, lo + 4096);
-        count += fm_kernel_mde(g, p, s->member, NULL, lo, hi, d_min, push, o->v, o->needed);
+        int64_t lo = b * 4093, hi = FM_MIN(s->n, lo + 4093);
+        count += kernel(g, p, s->member, NULL, lo, hi, d_min, push, o->v, o->needed);
     }
     return count;
+}
+
+static int64_t run_kernel(const fm_grid *g, const pts *s, float d_min, float push, mde_out *o, int threads)
+{
+    return run_kernel_with(fm_kernel_mde, g, s, d_min, push, o, threads);
+}
+
+/* fm_kernel_mde at every SIMD level (its screen FM_W entries at a time, then the sums) against the
+ * scalar twin fm_kernel_mde_ref: the same count, v_la and needed, bit for bit. */
+static void check_levels_match_ref(const char *what, const fm_grid *g, const pts *s, float d_min, float push)
+{
+    const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
+    mde_out ref = out_new(s->n), o = out_new(s->n);
+    const int64_t c_ref = run_kernel_with(fm_kernel_mde_ref, g, s, d_min, push, &ref, 1);
+    for (int level = FM_SIMD_SSE2; level <= (int)best; level++) { /* the scalar level runs the twin itself */
+        fm_simd_set_level((fm_simd)level);
+        const int64_t c = run_kernel(g, s, d_min, push, &o, 1);
+        int64_t differ = 0;
+        for (int k = 0; k < 3; k++)
+            for (int64_t a = 0; a < s->n; a++) differ += memcmp(&o.v[k][a], &ref.v[k][a], sizeof(float)) != 0;
+        for (int64_t a = 0; a < s->n; a++) differ += o.needed[a] != ref.needed[a];
+        ENSURE_MSG(c == c_ref && differ == 0, "%s, %s: count %lld against the twin's %lld, %lld values differ", what,
+                   fm_simd_name((fm_simd)level), (long long)c, (long long)c_ref, (long long)differ);
+    }
+    fm_simd_set_level(best);
+    out_free(&ref), out_free(&o);
 }
 
 /* Rows by position instead of hashed (fm_grid.linear_rows) in the brute-force checks: main runs
@@ -183,6 +215,7 @@ static int64_t check_against_brute_force(const char *what, const pts *s, float d
     check_grid(&g, s);
     mde_out o = out_new(s->n);
     int64_t count = run_kernel(&g, s, d_min, push, &o, threads);
+    check_levels_match_ref(what, &g, s, d_min, push);
 
     double *ref = malloc(sizeof(double) * 3 * (size_t)s->n), *mag = malloc(sizeof(double) * (size_t)s->n);
     uint8_t *needed = malloc((size_t)s->n);
@@ -354,6 +387,30 @@ static void test_clustered_and_duplicates(void)
     int64_t needed = check_against_brute_force("dense ball", &d, 1.0f, 1.0f, 1.0f, 2);
     ENSURE(needed == 600 - 55);
     pts_free(&d);
+}
+
+/* The engine's case: most agents have no neighbour within d_min (the SIMD screen answers alone),
+ * cells several times d_min (the walk trims the rows), and pairs placed about d_min apart, one float
+ * either side of it, so that the screen's float test must give the twin's answer at the edge. */
+static void test_sparse_near_misses(void)
+{
+    uint64_t rng = 19;
+    const float d_min = 0.2f;
+    pts s = pts_new(4000);
+    fill_uniform(&s, &rng, -3.0, side_for(s.n, 0.3, d_min));
+    drop_members(&s, &rng, 0.05);
+    for (int64_t a = 0; a + 1 < s.n; a += 8) { /* agent a + 1 at d_min from a, give or take a float */
+        float u[3], len = 0;
+        for (int k = 0; k < 3; k++) u[k] = (float)(2 * test_uniform(&rng) - 1), len += u[k] * u[k];
+        const float scale = d_min / sqrtf(len) * (a % 24 == 0 ? 1 - 0x1p-23f : a % 24 == 8 ? 1 : 1 + 0x1p-23f);
+        for (int k = 0; k < 3; k++) s.p[k][a + 1] = s.p[k][a] + u[k] * scale;
+    }
+    const int64_t in_cells = check_against_brute_force("sparse, near misses, cell 7.5 d_min", &s, d_min, 1.5f, 1.0f, 2);
+    const int64_t in_dmin = check_against_brute_force("sparse, near misses, cell d_min", &s, d_min, d_min, 1.0f, 1);
+    ENSURE(in_cells == in_dmin);
+    ENSURE_MSG(in_cells > s.n / 20 && in_cells < s.n / 2, "%lld of %lld agents pushed: both paths tested",
+               (long long)in_cells, (long long)s.n);
+    pts_free(&s);
 }
 
 static void test_cell_borders(void)
@@ -729,6 +786,7 @@ int main(void)
     RUN_TEST(test_three_in_a_row);
     RUN_TEST(test_uniform_sets);
     RUN_TEST(test_clustered_and_duplicates);
+    RUN_TEST(test_sparse_near_misses);
     RUN_TEST(test_cell_borders);
     RUN_TEST(test_hash_collisions);
     RUN_TEST(test_threads_bitwise);
@@ -739,6 +797,7 @@ int main(void)
         /* the brute-force checks again, rows by position */
         RUN_TEST(test_uniform_sets);
         RUN_TEST(test_clustered_and_duplicates);
+        RUN_TEST(test_sparse_near_misses);
         RUN_TEST(test_cell_borders);
     }
 #if defined(__SANITIZE_ADDRESS__)
