@@ -52,6 +52,7 @@ static inline fv iv_as_mask(iv m) { return _mm512_castsi512_ps(m); }
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm512_mask_blend_ps(fv_to_mask(mask), b, a); }
 static inline unsigned fv_mask(fv m) { return (unsigned)fv_to_mask(m); }
 static inline iv iv_set1(int32_t x) { return _mm512_set1_epi32(x); }
+static inline iv iv_iota(int32_t x) { return _mm512_add_epi32(_mm512_set1_epi32(x), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)); }
 static inline iv iv_select(fv mask, iv a, iv b) { return _mm512_mask_blend_epi32(fv_to_mask(mask), b, a); }
 static inline void iv_store(int32_t *p, iv x) { _mm512_storeu_si512((void *)p, x); }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
@@ -83,6 +84,7 @@ static inline fv fv_select(fv mask, fv a, fv b) { return _mm256_blendv_ps(b, a, 
 /* Lane k of a compare result as bit k. */
 static inline unsigned fv_mask(fv m) { return (unsigned)_mm256_movemask_ps(m); }
 static inline iv iv_set1(int32_t x) { return _mm256_set1_epi32(x); }
+static inline iv iv_iota(int32_t x) { return _mm256_add_epi32(_mm256_set1_epi32(x), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)); }
 static inline iv iv_select(fv mask, iv a, iv b)
 {
     return _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(b), _mm256_castsi256_ps(a), mask));
@@ -120,6 +122,7 @@ static inline fv iv_as_mask(iv m) { return _mm_castsi128_ps(m); }
 static inline fv fv_select(fv mask, fv a, fv b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
 static inline unsigned fv_mask(fv m) { return (unsigned)_mm_movemask_ps(m); }
 static inline iv iv_set1(int32_t x) { return _mm_set1_epi32(x); }
+static inline iv iv_iota(int32_t x) { return _mm_add_epi32(_mm_set1_epi32(x), _mm_setr_epi32(0, 1, 2, 3)); }
 static inline iv iv_select(fv mask, iv a, iv b)
 {
     __m128i m = _mm_castps_si128(mask);
@@ -153,6 +156,7 @@ static inline fv iv_as_mask(iv m) { fv r; memcpy(&r, &m, 4); return r; }
 static inline fv fv_select(fv mask, fv a, fv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
 static inline unsigned fv_mask(fv m) { uint32_t b; memcpy(&b, &m, 4); return b != 0; }
 static inline iv iv_set1(int32_t x) { return x; }
+static inline iv iv_iota(int32_t x) { return x; } /* x, x + 1, ... in the lanes */
 static inline iv iv_select(fv mask, iv a, iv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
 static inline void iv_store(int32_t *p, iv x) { *p = x; }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { return *p == value; }
