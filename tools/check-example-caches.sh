@@ -7,7 +7,8 @@
 #   tools/check-example-caches.sh [BUILD_DIR] --update         rewrite the file from this build
 #   tools/check-example-caches.sh [BUILD_DIR] --runs-from DIR  hash the runs other tests left in DIR
 # --runs-from: a run of an example that another test already made, exactly as this script makes it
-# (`run SCENE -o OUT --threads T --quiet`, nothing else, as its stats.json's command_line says), with
+# (`run SCENE -o OUT --threads T --quiet`, nothing else, as its stats.json's command_line says, on one
+# rank), with
 # a complete cache newer than BUILD_DIR's CLI, somewhere under DIR, is hashed instead of run again.
 # ctest passes build/tests/tmp, where test_examples and the look tests leave their runs
 # (tests/CMakeLists.txt orders them before this one); any run not found there is made here.
@@ -36,8 +37,9 @@ trap 'rm -rf "$tmp"' EXIT
 identity() { stat -c '%i:%s:%Y' "$1" 2>/dev/null || true; }
 
 # Lines "SCENE_ABSOLUTE<TAB>THREADS<TAB>OUTDIR<TAB>IDENTITY" for the finished plain runs under
-# $runs_from: the command line, once "-o OUT" is taken out, is "run SCENE --threads T --quiet" (either
-# order), the cache is complete (no .partial beside it) and newer than the CLI.
+# $runs_from: one rank (not a rank of an mpirun job, whose command line is the same), the command
+# line, once "-o OUT" is taken out, is "run SCENE --threads T --quiet" (either order), the cache is
+# complete (no .partial beside it) and newer than the CLI.
 index_runs() {
   [ -n "$runs_from" ] && [ -d "$runs_from" ] || return 0
   find "$runs_from" -maxdepth 4 -name stats.json -newer "$cli" -print0 |
@@ -47,7 +49,7 @@ index_runs() {
       jq -r --arg dir "$dir" --arg id "$(identity "$dir/frames.fmc")" '
         (.command_line[1:]) as $a | ($a | index("-o")) as $o
         | select($o != null) | ($a[:$o] + $a[$o + 2:]) as $r
-        | select(($r | length) == 5 and $r[0] == "run")
+        | select(($r | length) == 5 and $r[0] == "run" and .ranks == 1)
         | select($r[2:] == ["--threads", ($r[3]), "--quiet"] or $r[2:] == ["--quiet", "--threads", ($r[4])])
         | [.scene_absolute, (if $r[2] == "--threads" then $r[3] else $r[4] end), $dir, $id] | @tsv' "$stats" 2>/dev/null || true
     done
