@@ -27,9 +27,10 @@
 - threads: 3 ranks on one machine without --threads share its cores (stats.json's threads) and a
   short run stays short; --threads wins.
 
-    test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR
+    test_mpi.py --cli build/flockmorph --mpiexec /usr/bin/mpiexec --source REPO --tmp DIR [--part PART] [CASES]
 """
 import argparse
+import collections
 import hashlib
 import json
 import os
@@ -769,6 +770,49 @@ class TimedResult(unittest.TextTestResult):
         self.stream.flush()
 
 
+# The ctest tests that run this file side by side (tests/CMakeLists.txt: test_mpi_PART runs --part PART
+# with a --tmp of its own), each about a third of its CPU time: beside the rest of the suite under
+# ctest -j no one of them is near its timeout, as the whole file was (docs/testing.md). A part names
+# classes, or cases of a class that is split; every case of the file is in exactly one part.
+PARTS = {
+    "tetra": tuple(f"SameBytes.test_{c}" for c in (
+        "castling", "castling_on_two_machines", "castling_one_piece", "more_ranks_than_pieces", "words",
+        "moving_target", "castling_shot", "shot_chain")),
+    "flock": tuple(f"SameBytes.test_{c}" for c in (
+        "shape_flock", "shape_flock_on_two_machines", "shape_flock_gathered", "shape_flock_shot",
+        "travelling_target", "flock_routed_round_an_obstacle")) + ("Segments",),
+    "failure": ("Failure", "Memory", "Threads"),
+}
+
+
+def case_ids(names):
+    """The ids (module.Class.test_case) of the cases that unittest names `names` select."""
+    module = sys.modules[__name__]
+    suites = [unittest.defaultTestLoader.loadTestsFromName(n, module) for n in names]
+    ids = []
+    while suites:
+        s = suites.pop()
+        if isinstance(s, unittest.TestSuite):
+            suites.extend(s)
+        else:
+            ids.append(s.id())
+    return ids
+
+
+def part_names(part, all_parts):
+    """The unittest names of `part`, once every case of this file is known to be in exactly one part
+    and `all_parts` (the parts the caller runs, comma-separated) to be PARTS, so that no case is left
+    out of the suite and none runs twice."""
+    placed = collections.Counter(i for names in PARTS.values() for i in case_ids(names))
+    every = case_ids([n for n, c in globals().items() if isinstance(c, type) and issubclass(c, unittest.TestCase)])
+    wrong = sorted(i for i in set(every) | set(placed) if placed[i] != 1)
+    if wrong:
+        sys.exit(f"test_mpi: PARTS does not place these cases exactly once: {', '.join(wrong)}")
+    if all_parts is not None and sorted(all_parts.split(",")) != sorted(PARTS):
+        sys.exit(f"test_mpi: the caller runs the parts {all_parts}, the file has {','.join(PARTS)}")
+    return list(PARTS[part])
+
+
 def main():
     global ARGS, fmc
     p = argparse.ArgumentParser()
@@ -776,7 +820,14 @@ def main():
     p.add_argument("--mpiexec", required=True)
     p.add_argument("--source", required=True)
     p.add_argument("--tmp", required=True)
+    p.add_argument("--part", choices=sorted(PARTS), help="run only this part's cases (PARTS)")
+    p.add_argument("--all-parts", help="the parts the caller runs, comma-separated: checked to be PARTS")
     ARGS, rest = p.parse_known_args()
+    if ARGS.part:
+        if any(not r.startswith("-") for r in rest):
+            p.error("--part runs its own cases: give either --part or the cases to run")
+        rest = part_names(ARGS.part, ARGS.all_parts) + rest
+    os.makedirs(ARGS.tmp, exist_ok=True)
     sys.path.insert(0, os.path.join(ARGS.source, "python"))
     import flockmorph_cache
     fmc = flockmorph_cache
