@@ -379,7 +379,7 @@ static void move_block(const fm_flock_model *m, fm_flock_state *s, int64_t begin
     for (int64_t a = begin; a < end; a++) {
         const uint8_t phase = s->phase[a];
         if (phase == FM_PHASE_HOMING) s->phase[a] = move_stepped(m, s, a, dt);
-        else if (phase == FM_PHASE_ARRIVED || phase == FM_PHASE_WAITING) move_bound(m, s, a, dt);
+        else if (phase != FM_PHASE_FLYING && phase != FM_FLOCK_ELSEWHERE) move_bound(m, s, a, dt);
     }
     fm_forces_view w;
     fm_forces_arrays x;
