@@ -31,16 +31,16 @@ static inline void load3(const float *const src[3], int64_t a, fv out[3])
     for (int k = 0; k < 3; k++) out[k] = fv_load(src[k] + a);
 }
 
-/* Lanes of agents under forces, as bits; stores lane l of `v` at dst[a + l] only there. */
-static inline unsigned chosen_lanes(const fm_forces_arrays *x, int64_t a)
-{
-    unsigned bits = 0;
-    for (int l = 0; l < FM_W; l++) bits |= (unsigned)(x->phase[a + l] == x->sel) << l;
-    return bits;
-}
+/* Lanes of agents under forces, as bits; stores lane l of `v` at dst[a + l] only there (a whole
+ * vector where every lane is chosen, the usual case). */
+static inline unsigned chosen_lanes(const fm_forces_arrays *x, int64_t a) { return byte_lanes_equal(x->phase + a, x->sel); }
 
 static inline void store_chosen(float *dst, int64_t a, fv v, unsigned bits)
 {
+    if (bits == (unsigned)((1ull << FM_W) - 1)) {
+        fv_store(dst + a, v);
+        return;
+    }
     float t[FM_W];
     fv_store(t, v);
     for (int l = 0; l < FM_W; l++)
