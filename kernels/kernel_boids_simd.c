@@ -18,7 +18,6 @@ static inline qv qv_add(qv acc, fv x)
     const __m512i hi = _mm512_cvtps_epi64(_mm512_extractf32x8_ps(x, 1));
     return _mm512_add_epi64(acc, _mm512_add_epi64(lo, hi));
 }
-static inline uint64_t qv_total(qv a) { return (uint64_t)_mm512_reduce_add_epi64(a); }
 static inline fv fv_max(fv a, fv b) { return _mm512_max_ps(a, b); }
 static inline fv fv_min(fv a, fv b) { return _mm512_min_ps(a, b); }
 static inline fv fv_and(fv a, fv b) { return _mm512_and_ps(a, b); }
@@ -36,12 +35,6 @@ static inline qv qv_add(qv acc, fv x)
 {
     return _mm256_add_epi64(acc, _mm256_add_epi64(fixed4(_mm256_castps256_ps128(x)), fixed4(_mm256_extractf128_ps(x, 1))));
 }
-static inline uint64_t qv_total(qv a)
-{
-    uint64_t l[4];
-    _mm256_storeu_si256((__m256i *)l, a);
-    return l[0] + l[1] + l[2] + l[3];
-}
 static inline fv fv_max(fv a, fv b) { return _mm256_max_ps(a, b); }
 static inline fv fv_min(fv a, fv b) { return _mm256_min_ps(a, b); }
 static inline fv fv_and(fv a, fv b) { return _mm256_and_ps(a, b); }
@@ -55,12 +48,6 @@ static inline __m128i fixed2(__m128 x)
     return _mm_sub_epi64(_mm_castpd_si128(y), _mm_set1_epi64x(INT64_C(0x4338000000000000)));
 }
 static inline qv qv_add(qv acc, fv x) { return _mm_add_epi64(acc, _mm_add_epi64(fixed2(x), fixed2(_mm_movehl_ps(x, x)))); }
-static inline uint64_t qv_total(qv a)
-{
-    uint64_t l[2];
-    _mm_storeu_si128((__m128i *)l, a);
-    return l[0] + l[1];
-}
 static inline fv fv_max(fv a, fv b) { return _mm_max_ps(a, b); }
 static inline fv fv_min(fv a, fv b) { return _mm_min_ps(a, b); }
 static inline fv fv_and(fv a, fv b) { return _mm_and_ps(a, b); }
@@ -69,7 +56,6 @@ static inline fv fv_and(fv a, fv b) { return _mm_and_ps(a, b); }
 typedef uint64_t qv;
 static inline qv qv_zero(void) { return 0; }
 static inline qv qv_add(qv acc, fv x) { return acc + (uint64_t)fm_boids_fixed(x); }
-static inline uint64_t qv_total(qv a) { return a; }
 static inline fv fv_max(fv a, fv b) { return a > b ? a : b; }
 static inline fv fv_min(fv a, fv b) { return a < b ? a : b; }
 static inline fv fv_and(fv a, fv b)
@@ -89,14 +75,58 @@ static inline fv fixed(fv x, fv scale)
     return fv_min(fv_max(fv_mul(x, scale), fv_sub(fv_set1(0.0f), clamp)), clamp);
 }
 
-/* Agents waiting for their steering, FM_WD at a time: their sums as integers in double (not yet
- * scaled), velocities and parameters, by lane. */
+/* The agent's fixed-point sums in lanes. */
+typedef struct lane_sums {
+    qv rule[FM_BOIDS_RULES][3], weight[2];
+} lane_sums;
+
+/* Agents waiting for their steering, FM_WD at a time: their sums in lanes (sums[l]: agent l's),
+ * velocities and parameters, by lane. */
 typedef struct steer_batch {
-    double weight_sum[FM_BOIDS_RULES][FM_WD], sum[FM_BOIDS_RULES][3][FM_WD], v[3][FM_WD];
-    double weight[FM_BOIDS_RULES][FM_WD], max_speed[FM_WD], max_force[FM_WD], radius[FM_WD];
+    lane_sums sums[FM_WD];
+    double v[3][FM_WD], weight[FM_BOIDS_RULES][FM_WD], max_speed[FM_WD], max_force[FM_WD], radius[FM_WD];
     int32_t agent[FM_WD];
     int n;
 } steer_batch;
+
+/* Lane l: the total of the lanes of a[l], as (double)(int64_t), the scalar steering's conversion.
+ * Where a qv has FM_WD lanes, the FM_WD agents' sums are added side by side (a transposed
+ * reduction: pairs of lanes, then pairs of pairs), instead of each reduced across its own lanes;
+ * integer sums, so the same totals in any order. */
+static inline dv totals_of(const qv a[FM_WD])
+{
+#if FM_W == 16
+    __m512i pair[4], quad[2];
+    for (int i = 0; i < 4; i++) /* lanes 2j, 2j+1: a[2i]'s and a[2i+1]'s sums of their 128-bit chunk j */
+        pair[i] = _mm512_add_epi64(_mm512_unpacklo_epi64(a[2 * i], a[2 * i + 1]), _mm512_unpackhi_epi64(a[2 * i], a[2 * i + 1]));
+    for (int i = 0; i < 2; i++) /* chunks of a[4i .. 4i+3], the chunk pairs (0, 1) and (2, 3) added */
+        quad[i] = _mm512_add_epi64(_mm512_shuffle_i64x2(pair[2 * i], pair[2 * i + 1], 0x88),
+                                   _mm512_shuffle_i64x2(pair[2 * i], pair[2 * i + 1], 0xdd));
+    const __m512i total = _mm512_add_epi64(_mm512_shuffle_i64x2(quad[0], quad[1], 0x88), _mm512_shuffle_i64x2(quad[0], quad[1], 0xdd));
+    return _mm512_cvtepi64_pd(total);
+#else
+    int64_t total[FM_WD];
+#if FM_W == 8
+    const __m256i p01 = _mm256_add_epi64(_mm256_unpacklo_epi64(a[0], a[1]), _mm256_unpackhi_epi64(a[0], a[1]));
+    const __m256i p23 = _mm256_add_epi64(_mm256_unpacklo_epi64(a[2], a[3]), _mm256_unpackhi_epi64(a[2], a[3]));
+    const __m256i sum = _mm256_add_epi64(_mm256_permute2x128_si256(p01, p23, 0x20), _mm256_permute2x128_si256(p01, p23, 0x31));
+    /* |sum| < 2^51 (always, but for a flock of millions of neighbours): the double's mantissa takes
+     * it exactly, as fixed4 rounds the other way; otherwise converted one by one */
+    const __m256i shifted = _mm256_srli_epi64(_mm256_add_epi64(sum, _mm256_set1_epi64x(INT64_C(1) << 51)), 52);
+    if (_mm256_testz_si256(shifted, shifted))
+        return _mm256_sub_pd(_mm256_castsi256_pd(_mm256_add_epi64(sum, _mm256_set1_epi64x(INT64_C(0x4338000000000000)))),
+                             _mm256_set1_pd(0x1.8p52));
+    _mm256_storeu_si256((__m256i *)(void *)total, sum);
+#elif FM_W == 4
+    _mm_storeu_si128((__m128i *)(void *)total, _mm_add_epi64(_mm_unpacklo_epi64(a[0], a[1]), _mm_unpackhi_epi64(a[0], a[1])));
+#else
+    for (int l = 0; l < FM_WD; l++) total[l] = (int64_t)a[l]; /* one lane each */
+#endif
+    double d[FM_WD];
+    for (int l = 0; l < FM_WD; l++) d[l] = (double)total[l];
+    return dv_load(d);
+#endif
+}
 
 /* fm_boids_steer for the batch's agents (lanes past n repeat earlier ones, whose results are not
  * written): the same double operations in the same order, lane by lane, so the same bits. A
@@ -107,11 +137,18 @@ static void steer_lanes(steer_batch *t, const fm_boids_viewer *w, float *const f
     const dv max_speed = dv_load(t->max_speed), inv_unit = dv_set1(w->inv_unit_scale), floor = dv_set1(FM_BOIDS_WEIGHT_FLOOR);
     const dv zero = dv_set1(0.0);
     dv force[3] = {zero, zero, zero};
+    qv column[FM_WD];
     for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        const dv weight = dv_load(t->weight[r]), total = dv_mul(dv_load(t->weight_sum[r]), inv_unit);
+        dv total = zero;
+        if (r != FM_BOIDS_SEPARATION) { /* the separation's sum w is not used */
+            for (int l = 0; l < FM_WD; l++) column[l] = t->sums[l].weight[r - 1];
+            total = dv_mul(totals_of(column), inv_unit);
+        }
+        const dv weight = dv_load(t->weight[r]);
         const dv norm = dv_div(dv_set1(1.0), dv_max(total, floor)), inv_scale = dv_set1(w->inv_scale[r]); /* total: finite */
         for (int k = 0; k < 3; k++) {
-            const dv sum = dv_mul(dv_load(t->sum[r][k]), inv_scale);
+            for (int l = 0; l < FM_WD; l++) column[l] = t->sums[l].rule[r][k];
+            const dv sum = dv_mul(totals_of(column), inv_scale);
             if (r == FM_BOIDS_SEPARATION) {
                 force[k] = dv_sub(force[k], dv_mul(dv_mul(weight, max_speed), sum));
             } else if (r == FM_BOIDS_COHESION) {
@@ -134,16 +171,23 @@ static void steer_lanes(steer_batch *t, const fm_boids_viewer *w, float *const f
     t->n = 0;
 }
 
-/* Agent a's sums, velocity and parameters into the batch, which is steered when full. */
-static void steer_later(steer_batch *t, const fm_boids_sums *sums, const fm_boids_view *b, int32_t a, const float v[3],
-                        const fm_boids_viewer *w, float *const f[3])
+/* The next agent's sums in the batch, zeroed. */
+static lane_sums *next_sums(steer_batch *t)
+{
+    lane_sums *s = &t->sums[t->n];
+    for (int r = 0; r < FM_BOIDS_RULES; r++)
+        for (int q = 0; q < 3; q++) s->rule[r][q] = qv_zero();
+    s->weight[0] = s->weight[1] = qv_zero();
+    return s;
+}
+
+/* Agent a (its sums in next_sums), velocity and parameters into the batch, which is steered when
+ * full. */
+static void steer_later(steer_batch *t, const fm_boids_view *b, int32_t a, const float v[3], const fm_boids_viewer *w,
+                        float *const f[3])
 {
     const int l = t->n++;
-    for (int r = 0; r < FM_BOIDS_RULES; r++) {
-        t->weight_sum[r][l] = (double)(int64_t)sums->weight[r];
-        for (int k = 0; k < 3; k++) t->sum[r][k][l] = (double)(int64_t)sums->rule[r][k];
-        t->weight[r][l] = b->weight[r][a];
-    }
+    for (int r = 0; r < FM_BOIDS_RULES; r++) t->weight[r][l] = b->weight[r][a];
     for (int k = 0; k < 3; k++) t->v[k][l] = v[k];
     t->max_speed[l] = b->max_speed[a], t->max_force[l] = b->max_force[a], t->radius[l] = b->radius[FM_BOIDS_COHESION][a];
     t->agent[l] = a;
@@ -158,11 +202,6 @@ typedef struct hits {
     int32_t entry[HIT_ROOM];
     int n;
 } hits;
-
-/* The agent's fixed-point sums in lanes. */
-typedef struct lane_sums {
-    qv rule[FM_BOIDS_RULES][3], weight[2];
-} lane_sums;
 
 /* The viewer's scalars in every lane. */
 typedef struct lane_viewer {
@@ -388,25 +427,18 @@ static void boids_entry(const fm_grid *g, const fm_boids_view *b, int64_t k, int
     float r2_max;
     fm_boids_viewer_init(b, a, v, viewer, &r2_max);
     const lane_viewer w = lanes_of(viewer);
-    lane_sums s;
-    for (int r = 0; r < FM_BOIDS_RULES; r++)
-        for (int q = 0; q < 3; q++) s.rule[r][q] = qv_zero();
-    s.weight[0] = s.weight[1] = qv_zero();
+    lane_sums *s = next_sums(later);
     h->n = 0;
     if (run) {
-        scan_span(h, &s, c, (span){run->x, run->y, run->z, run->entry, 0, run->n}, x, fv_set1(r2_max), &w);
+        scan_span(h, s, c, (span){run->x, run->y, run->z, run->entry, 0, run->n}, x, fv_set1(r2_max), &w);
     } else {
         for (int ri = 0; ri < count; ri++) {
             const int32_t b = ranges[2 * ri], e = ranges[2 * ri + 1];
-            scan_span(h, &s, c, (span){c[0] + b, c[1] + b, c[2] + b, NULL, b, e - b}, x, fv_set1(r2_max), &w);
+            scan_span(h, s, c, (span){c[0] + b, c[1] + b, c[2] + b, NULL, b, e - b}, x, fv_set1(r2_max), &w);
         }
     }
-    flush(h, &s, c, &w, 1);
-    fm_boids_sums sums = {{{0}}, {0}};
-    for (int r = 0; r < FM_BOIDS_RULES; r++)
-        for (int q = 0; q < 3; q++) sums.rule[r][q] = qv_total(s.rule[r][q]);
-    sums.weight[FM_BOIDS_COHESION] = qv_total(s.weight[0]), sums.weight[FM_BOIDS_ALIGNMENT] = qv_total(s.weight[1]);
-    steer_later(later, &sums, b, a, v, viewer, f);
+    flush(h, s, c, &w, 1);
+    steer_later(later, b, a, v, viewer, f);
 }
 
 void FM_SIMD_VARIANT(fm_kernel_boids_listed)(const fm_grid *g, const fm_boids_view *b, const uint8_t *phase,
