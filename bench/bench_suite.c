@@ -305,12 +305,12 @@ int main(int argc, char **argv)
     parse(argc, argv, &o);
     fm_machine mc = {0};
     if (o.machine) {
-        fprintf(stderr, "bench_suite: measuring the machine (STREAM triad, FMA peak)\n");
+        fprintf(stderr, "bench_suite: measuring the machine (STREAM triad, FMA peak, clock)\n");
         mc = fm_measure_machine((int)o.threads);
     }
     printf("{\n  \"machine\": {\"cpu\": \"%s\", \"threads\": %ld, \"simd\": \"%s\", \"stream_triad_gbps\": %.2f, "
-           "\"peak_gflops\": %.1f},\n  \"runs\": [",
-           mc.cpu, o.threads, fm_simd_name(fm_simd_level()), mc.triad_gbps, mc.peak_gflops);
+           "\"peak_gflops\": %.1f, \"clock_ghz\": %.2f},\n  \"runs\": [",
+           mc.cpu, o.threads, fm_simd_name(fm_simd_level()), mc.triad_gbps, mc.peak_gflops, mc.clock_ghz);
     if (o.mode == SUITE_FLOCK) {
         if (suite_flock(&o)) return 2;
     } else {

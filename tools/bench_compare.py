@@ -20,9 +20,9 @@ import statistics
 import sys
 
 # The figures shown by default: throughput, time per agent-step and per stage, speedups, memory,
-# and the machine's measured bandwidth and peak (they show a loaded machine).
+# and the machine's measured bandwidth, peak and clock (they show a loaded machine).
 DEFAULT_FIGURES = (r"(^|\.)(agent_steps_per_second|steps_per_second|ns_per_agent_step|cpu_ns_per_agent_step"
-                   r"|thread_speedup|bytes_per_agent|idle_ns_per_agent|roofline_fraction|stream_triad_gbps|peak_gflops)$"
+                   r"|thread_speedup|bytes_per_agent|idle_ns_per_agent|roofline_fraction|stream_triad_gbps|peak_gflops|clock_ghz)$"
                    r"|stage_ns_per_agent\.")
 ROUND_FIGURES = r"(^|\.)agent_steps_per_second$"
 LABELS = ("agents", "scenario", "name")
