@@ -43,6 +43,31 @@ static void make_path_case(path_case *c, uint64_t seed)
     }
 }
 
+/* Key points along an arc (as a scene's path: the SIMD kernel skips the groups of key points far from
+ * a whole vector of agents) and agents in runs of 16 around points of it, the store's sorted order;
+ * key point 30 repeats key point 3 (a tie across groups: 3 must win), and runs sit midway between
+ * key points 7 and 8 (a tie on a group's border) and on the duplicate. */
+static void make_arc_case(path_case *c, uint64_t seed)
+{
+    uint64_t rng = seed;
+    for (int i = 0; i < KEYS; i++) {
+        const double u = 3.0 * i / (KEYS - 1);
+        c->q[0][i] = (float)(12 * cos(u)), c->q[1][i] = (float)(6 * sin(u)), c->q[2][i] = (float)(0.1 * i);
+        for (int k = 0; k < 3; k++) c->f[k][i] = (float)(2 * test_uniform(&rng) - 1);
+    }
+    for (int k = 0; k < 3; k++) c->q[k][30] = c->q[k][3];
+    for (int a = 0; a < AGENTS; a++) {
+        const int run = a / 16, near = (int)((uint64_t)run * 7919 % KEYS);
+        const float jitter = run % 3 == 0 ? 0.05f : run % 3 == 1 ? 0.6f : 3.0f;
+        for (int k = 0; k < 3; k++) c->p[k][a] = c->q[k][near] + jitter * (float)(2 * test_uniform(&rng) - 1);
+        if (run % 8 == 5) /* midway between key points 7 and 8 */
+            for (int k = 0; k < 3; k++) c->p[k][a] = 0.5f * (c->q[k][7] + c->q[k][8]);
+        if (run % 8 == 6) /* on key point 3 and its duplicate 30 */
+            for (int k = 0; k < 3; k++) c->p[k][a] = c->q[k][3];
+        c->phase[a] = test_next_u64(&rng) % 5 ? 1 : (uint8_t)(test_next_u64(&rng) % 4);
+    }
+}
+
 static void run_path(const path_case *c, float half_width, int64_t begin, int64_t end, float out[3][AGENTS])
 {
     fm_path_view path = {{c->q[0], c->q[1], c->q[2]}, {c->f[0], c->f[1], c->f[2]}, KEYS, half_width, 2.0f};
@@ -60,8 +85,9 @@ static void test_path_kernel_matches_reference(void)
     static float want[3][AGENTS], got[3][AGENTS];
     const fm_simd best = fm_simd_set_level(FM_SIMD_BEST);
     printf("  cpu best: %s\n", fm_simd_name(best));
-    for (uint64_t seed = 1; seed <= 4; seed++) {
-        make_path_case(&c, seed);
+    for (uint64_t seed = 1; seed <= 7; seed++) { /* 1-4 random key points and agents, 5-7 an arc */
+        if (seed <= 4) make_path_case(&c, seed);
+        else make_arc_case(&c, seed);
         for (int w = 0; w < 2; w++) {
             const int64_t begin = (int64_t)(seed % 5), end = AGENTS - (int64_t)(seed % 3);
             fm_simd_set_level(FM_SIMD_SCALAR);
