@@ -1,8 +1,8 @@
 /* Perlin's improved gradient noise and the curl of three of them (FM eq 5): the scalar inline
  * functions the style fields (src/world/fields.c) evaluate and bake with, and the kernel that adds
  * the direct (unbaked) style velocity to a range of agents, with its SIMD variants
- * (kernel_noise_simd.c: FM_WD agents at once in double, the same operations in the same order, so
- * the same bits). */
+ * (kernel_noise_simd.c: FM_W agents at once, the noise in float after the lattice point, the
+ * same operations in the same order, so the same bits). */
 #ifndef FM_KERNEL_NOISE_H
 #define FM_KERNEL_NOISE_H
 
@@ -64,37 +64,41 @@ FM_HOT double trilerp(const double c[8], const double s[3])
                 lerp(s[1], lerp(s[0], c[4], c[5]), lerp(s[0], c[6], c[7])));
 }
 
-/* One improved-Perlin noise N and its analytic gradient (in lattice units) at L. */
-FM_HOT void perlin(const uint8_t *P, const lattice *L, double *value, double g[3])
-{
-    const int X = L->c[0], Y = L->c[1], Z = L->c[2];
-    const int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;
-    const int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;
-    const int h[8] = {P[AA] & 15,     P[BA] & 15,     P[AB] & 15,     P[BB] & 15,
-                      P[AA + 1] & 15, P[BA + 1] & 15, P[AB + 1] & 15, P[BB + 1] & 15};
-    const double fx = L->f[0], fy = L->f[1], fz = L->f[2];
-    const double dx[2] = {fx, fx - 1}, dy[2] = {fy, fy - 1}, dz[2] = {fz, fz - 1};
-    double gx[8], gy[8], gz[8], val[8];
-#define FM_CORNER(c)                                                                         \
-    gx[c] = GX[h[c]], gy[c] = GY[h[c]], gz[c] = GZ[h[c]];                                    \
-    val[c] = gx[c] * dx[(c) & 1] + gy[c] * dy[((c) >> 1) & 1] + gz[c] * dz[(c) >> 2]
-    FM_CORNER(0); FM_CORNER(1); FM_CORNER(2); FM_CORNER(3);
-    FM_CORNER(4); FM_CORNER(5); FM_CORNER(6); FM_CORNER(7);
-#undef FM_CORNER
-    const double s0 = L->s[0], s1 = L->s[1], s2 = L->s[2];
-    const double x00 = lerp(s0, val[0], val[1]), x10 = lerp(s0, val[2], val[3]);
-    const double x01 = lerp(s0, val[4], val[5]), x11 = lerp(s0, val[6], val[7]);
-    const double y0 = lerp(s1, x00, x10), y1 = lerp(s1, x01, x11);
-    *value = lerp(s2, y0, y1);
-    /* dn/ds_d of the trilinear form */
-    const double dn0 = lerp(s2, lerp(s1, val[1] - val[0], val[3] - val[2]),
-                            lerp(s1, val[5] - val[4], val[7] - val[6]));
-    const double dn1 = lerp(s2, x10 - x00, x11 - x01);
-    const double dn2 = y1 - y0;
-    g[0] = trilerp(gx, L->s) + L->ds[0] * dn0;
-    g[1] = trilerp(gy, L->s) + L->ds[1] * dn1;
-    g[2] = trilerp(gz, L->s) + L->ds[2] * dn2;
-}
+/* One improved-Perlin noise N and its analytic gradient (in lattice units) at L, defined for a
+   scalar type T (double here, float below for the direct kernel) with its lattice, lerp, trilerp and
+   gradient tables: the same operations in the same order for both. */
+#define FM_DEFINE_PERLIN(name, T, LATTICE, LERP, TRILERP, GXT, GYT, GZT)                                   \
+    FM_HOT void name(const uint8_t *P, const LATTICE *L, T *value, T g[3])                                \
+    {                                                                                                      \
+        const int X = L->c[0], Y = L->c[1], Z = L->c[2];                                                   \
+        const int A = P[X] + Y, AA = P[A] + Z, AB = P[A + 1] + Z;                                          \
+        const int B = P[X + 1] + Y, BA = P[B] + Z, BB = P[B + 1] + Z;                                      \
+        const int h[8] = {P[AA] & 15,     P[BA] & 15,     P[AB] & 15,     P[BB] & 15,                      \
+                          P[AA + 1] & 15, P[BA + 1] & 15, P[AB + 1] & 15, P[BB + 1] & 15};                 \
+        const T dx[2] = {L->f[0], L->f[0] - (T)1}, dy[2] = {L->f[1], L->f[1] - (T)1};                     \
+        const T dz[2] = {L->f[2], L->f[2] - (T)1};                                                         \
+        T gx[8], gy[8], gz[8], val[8];                                                                     \
+        FM_UNROLL                                                                                          \
+        for (int c = 0; c < 8; c++) {                                                                      \
+            gx[c] = GXT[h[c]], gy[c] = GYT[h[c]], gz[c] = GZT[h[c]];                                       \
+            val[c] = gx[c] * dx[c & 1] + gy[c] * dy[(c >> 1) & 1] + gz[c] * dz[c >> 2];                    \
+        }                                                                                                  \
+        const T s0 = L->s[0], s1 = L->s[1], s2 = L->s[2];                                                  \
+        const T x00 = LERP(s0, val[0], val[1]), x10 = LERP(s0, val[2], val[3]);                            \
+        const T x01 = LERP(s0, val[4], val[5]), x11 = LERP(s0, val[6], val[7]);                            \
+        const T y0 = LERP(s1, x00, x10), y1 = LERP(s1, x01, x11);                                          \
+        *value = LERP(s2, y0, y1);                                                                         \
+        /* dn/ds_d of the trilinear form */                                                                \
+        const T dn0 = LERP(s2, LERP(s1, val[1] - val[0], val[3] - val[2]),                                 \
+                           LERP(s1, val[5] - val[4], val[7] - val[6]));                                    \
+        const T dn1 = LERP(s2, x10 - x00, x11 - x01);                                                      \
+        const T dn2 = y1 - y0;                                                                             \
+        g[0] = TRILERP(gx, L->s) + L->ds[0] * dn0;                                                         \
+        g[1] = TRILERP(gy, L->s) + L->ds[1] * dn1;                                                         \
+        g[2] = TRILERP(gz, L->s) + L->ds[2] * dn2;                                                         \
+    }
+
+FM_DEFINE_PERLIN(perlin, double, lattice, lerp, trilerp, GX, GY, GZ)
 
 /* The lattice point of a noise field: q = x / scale - (t / period) unit(direction). */
 FM_HOT void noise_point(const noise_field *n, const double x[3], double t, double q[3])
@@ -119,6 +123,64 @@ FM_HOT void noise_curl_add(const noise_field *n, const double x[3], double t, do
     v[2] += n->amp * (g2[0] - g1[1]);
 }
 
+/* The direct kernel's noise in float (issue 40): the lattice point, its cell and its offset in
+   double as above (so the cell is exact for any position and time), the offset then rounded to
+   float and Perlin's gradient, the curl and its sum over the fields in float, which the SIMD
+   variants run in FM_W float lanes (16 with AVX-512) instead of FM_WD doubles. The baked grid, the
+   potential and fm_fields_velocity keep the double functions above. Error against them over the
+   rook's agents: docs/performance.md, "Fourth pass". */
+static const float GXF[16] = {1, -1, 1, -1, 1, -1, 1, -1, 0, 0, 0, 0, 1, 0, -1, 0};
+static const float GYF[16] = {1, 1, -1, -1, 0, 0, 0, 0, 1, -1, 1, -1, 1, -1, 1, -1};
+static const float GZF[16] = {0, 0, 0, 0, 1, 1, -1, -1, 1, 1, -1, -1, 0, 1, 0, -1};
+
+typedef struct lattice_f {
+    int c[3];
+    float f[3], s[3], ds[3];
+} lattice_f;
+
+/* s(f) and s'(f) in float, the operations of lattice_at. */
+FM_HOT float fade_f(float f) { return f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f); }
+FM_HOT float fade_df(float f) { return 30.0f * f * f * (f * (f - 2.0f) + 1.0f); }
+
+FM_HOT void lattice_f_at(const double q[3], lattice_f *L)
+{
+    lattice D;
+    lattice_at(q, &D); /* its s and ds are dead code here: the compiler drops them */
+    FM_UNROLL
+    for (int d = 0; d < 3; d++) {
+        const float f = (float)D.f[d];
+        L->c[d] = D.c[d], L->f[d] = f, L->s[d] = fade_f(f), L->ds[d] = fade_df(f);
+    }
+}
+
+FM_HOT float lerp_f(float t, float a, float b) { return a + t * (b - a); }
+
+FM_HOT float trilerp_f(const float c[8], const float s[3])
+{
+    return lerp_f(s[2], lerp_f(s[1], lerp_f(s[0], c[0], c[1]), lerp_f(s[0], c[2], c[3])),
+                  lerp_f(s[1], lerp_f(s[0], c[4], c[5]), lerp_f(s[0], c[6], c[7])));
+}
+
+/* perlin in float (the curl needs only the gradient: the value is dead code once inlined). */
+FM_DEFINE_PERLIN(perlin_f, float, lattice_f, lerp_f, trilerp_f, GXF, GYF, GZF)
+
+/* noise_curl_add in float after the lattice point. */
+FM_HOT void noise_curl_add_f(const noise_field *n, const double x[3], double t, float v[3])
+{
+    double q[3];
+    float g1[3], g2[3], g3[3], unused;
+    lattice_f L;
+    noise_point(n, x, t, q);
+    lattice_f_at(q, &L);
+    perlin_f(n->perm[0], &L, &unused, g1);
+    perlin_f(n->perm[1], &L, &unused, g2);
+    perlin_f(n->perm[2], &L, &unused, g3);
+    const float amp = (float)n->amp;
+    v[0] += amp * (g3[1] - g2[2]);
+    v[1] += amp * (g1[2] - g3[0]);
+    v[2] += amp * (g2[0] - g1[1]);
+}
+
 /* The direct style velocity of fields.c for the kernel: omega2 * (m x + b + the curl noises). */
 typedef struct fm_curl_view {
     const noise_field *noise;
@@ -130,7 +192,8 @@ typedef struct fm_curl_view {
 
 /* For agents a in [begin, end) with phase[a] == flying:
  *     v[k][a] += (float)(w * ((m x)_k + b_k + sum of the curl noises_k)),  x = (double)p[.][a],
- * in double, the fields' own order of operations. Other agents untouched. */
+ * the affine part in double, the fields' own order of operations, and the sum of the curl noises in
+ * float (noise_curl_add_f). Other agents untouched. */
 void fm_kernel_curl_add(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
                         int64_t begin, int64_t end, float *const v[3]);
 void fm_kernel_curl_add_ref(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,
@@ -149,9 +212,10 @@ FM_HOT void fm_style_add(const double m[9], const double b[3], double w, const d
 FM_HOT void curl_add_agent(const fm_curl_view *f, const float *const p[3], int64_t a, float *const v[3])
 {
     const double x[3] = {p[0][a], p[1][a], p[2][a]};
-    double s[3] = {0, 0, 0};
-    for (int i = 0; i < f->count; i++) noise_curl_add(&f->noise[i], x, f->t, s);
-    fm_style_add(f->m, f->b, f->w, x, s, v, a);
+    float s[3] = {0, 0, 0};
+    for (int i = 0; i < f->count; i++) noise_curl_add_f(&f->noise[i], x, f->t, s);
+    const double sd[3] = {s[0], s[1], s[2]};
+    fm_style_add(f->m, f->b, f->w, x, sd, v, a);
 }
 
 typedef void fm_curl_add_fn(const fm_curl_view *f, const float *const p[3], const uint8_t *phase, uint8_t flying,

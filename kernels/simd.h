@@ -55,6 +55,17 @@ static inline iv iv_set1(int32_t x) { return _mm512_set1_epi32(x); }
 static inline iv iv_iota(int32_t x) { return _mm512_add_epi32(_mm512_set1_epi32(x), _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)); }
 static inline iv iv_select(fv mask, iv a, iv b) { return _mm512_mask_blend_epi32(fv_to_mask(mask), b, a); }
 static inline void iv_store(int32_t *p, iv x) { _mm512_storeu_si512((void *)p, x); }
+static inline iv iv_add(iv a, iv b) { return _mm512_add_epi32(a, b); }
+static inline iv iv_and(iv a, int32_t m) { return _mm512_and_si512(a, _mm512_set1_epi32(m)); }
+static inline iv iv_from_fv(fv a) { return _mm512_cvttps_epi32(a); } /* truncates */
+/* table[idx] and table[idx + 1] of a byte table readable 3 bytes past idx + 1, from one gather */
+static inline void iv_gather_u8_pair(const uint8_t *table, iv idx, iv *at, iv *next)
+{
+    const iv w = _mm512_i32gather_epi32(idx, (const void *)table, 1);
+    *at = iv_and(w, 0xff), *next = iv_and(_mm512_srli_epi32(w, 8), 0xff);
+}
+/* table[idx] of a 16-entry table, idx in [0, 16): one register and a permute */
+static inline fv fv_lookup16(const float table[16], iv idx) { return _mm512_permutexvar_ps(idx, _mm512_loadu_ps(table)); }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
 {
     __m128i b = _mm_loadu_si128((const __m128i *)p);
@@ -90,6 +101,21 @@ static inline iv iv_select(fv mask, iv a, iv b)
     return _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(b), _mm256_castsi256_ps(a), mask));
 }
 static inline void iv_store(int32_t *p, iv x) { _mm256_storeu_si256((__m256i *)p, x); }
+static inline iv iv_add(iv a, iv b) { return _mm256_add_epi32(a, b); }
+static inline iv iv_and(iv a, int32_t m) { return _mm256_and_si256(a, _mm256_set1_epi32(m)); }
+static inline iv iv_from_fv(fv a) { return _mm256_cvttps_epi32(a); }
+static inline void iv_gather_u8_pair(const uint8_t *table, iv idx, iv *at, iv *next)
+{
+    const iv w = _mm256_i32gather_epi32((const int *)(const void *)table, idx, 1);
+    *at = iv_and(w, 0xff), *next = iv_and(_mm256_srli_epi32(w, 8), 0xff);
+}
+/* two 8-entry permutes and a blend on idx > 7 */
+static inline fv fv_lookup16(const float table[16], iv idx)
+{
+    const fv lo = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table), idx);
+    const fv hi = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table + 8), idx);
+    return _mm256_blendv_ps(lo, hi, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(7))));
+}
 /* Lanes whose byte equals `value`, as a bit mask (lane k = bit k). */
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
 {
@@ -129,6 +155,17 @@ static inline iv iv_select(fv mask, iv a, iv b)
     return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b));
 }
 static inline void iv_store(int32_t *p, iv x) { _mm_storeu_si128((__m128i *)p, x); }
+static inline iv iv_add(iv a, iv b) { return _mm_add_epi32(a, b); }
+static inline iv iv_and(iv a, int32_t m) { return _mm_and_si128(a, _mm_set1_epi32(m)); }
+static inline iv iv_from_fv(fv a) { return _mm_cvttps_epi32(a); }
+static inline void iv_gather_u8_pair(const uint8_t *table, iv idx, iv *at, iv *next)
+{
+    int32_t i[4];
+    _mm_storeu_si128((__m128i *)i, idx);
+    *at = _mm_setr_epi32(table[i[0]], table[i[1]], table[i[2]], table[i[3]]);
+    *next = _mm_setr_epi32(table[i[0] + 1], table[i[1] + 1], table[i[2] + 1], table[i[3] + 1]);
+}
+static inline fv fv_lookup16(const float table[16], iv idx) { return fv_gather(table, idx); }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value)
 {
     int32_t word;
@@ -159,6 +196,14 @@ static inline iv iv_set1(int32_t x) { return x; }
 static inline iv iv_iota(int32_t x) { return x; } /* x, x + 1, ... in the lanes */
 static inline iv iv_select(fv mask, iv a, iv b) { uint32_t m; memcpy(&m, &mask, 4); return m ? a : b; }
 static inline void iv_store(int32_t *p, iv x) { *p = x; }
+static inline iv iv_add(iv a, iv b) { return a + b; }
+static inline iv iv_and(iv a, int32_t m) { return a & m; }
+static inline iv iv_from_fv(fv a) { return (int32_t)a; }
+static inline void iv_gather_u8_pair(const uint8_t *table, iv idx, iv *at, iv *next)
+{
+    *at = table[idx], *next = table[idx + 1];
+}
+static inline fv fv_lookup16(const float table[16], iv idx) { return table[idx]; }
 static inline unsigned byte_lanes_equal(const uint8_t *p, uint8_t value) { return *p == value; }
 #endif
 

@@ -54,8 +54,9 @@ void fm_fields_prepare(fm_fields *f, double t, int threads);
 
 /* The step kernel (FM eq 6's omega2 * V_l term): for agents a in [begin, end) with
    phase[a] == FM_PHASE_FLYING, v[k][a] += w * V_l(p(a), t), the noise parts from the grid
-   (trilinear, after fm_fields_prepare(f, t, ...)) or directly (the same double code as
-   fm_fields_eval); other agents untouched. No allocation; safe to call from many threads. */
+   (trilinear, after fm_fields_prepare(f, t, ...)) or directly (the affine parts in the double code
+   of fm_fields_eval, the curl noise in float after the lattice point: kernel_noise.h); other
+   agents untouched. No allocation; safe to call from many threads. */
 void fm_fields_add_block(const fm_fields *f, const float *const p[3], const uint8_t *phase,
                          int64_t begin, int64_t end, double t, float w, float *const v[3]);
 
