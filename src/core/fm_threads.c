@@ -5,6 +5,7 @@
 #include <omp.h>
 #include <pthread.h>
 #include <stdlib.h>
+#include <string.h>
 
 int fm_threads(int requested)
 {
@@ -29,4 +30,18 @@ int fm_threads_start_team(int threads)
 #pragma omp parallel num_threads(threads)
     (void)0; /* the team, kept for later regions */
     return 0;
+}
+
+void fm_copy_parallel(void *dst, const void *src, size_t bytes, int threads)
+{
+    if (threads <= 1 || bytes < ((size_t)1 << 16)) {
+        memcpy(dst, src, bytes);
+        return;
+    }
+#pragma omp parallel num_threads(threads)
+    {
+        const size_t parts = (size_t)omp_get_num_threads(), part = (size_t)omp_get_thread_num();
+        const size_t lines = (bytes + 63) / 64, lo = lines * part / parts * 64, hi = lines * (part + 1) / parts * 64;
+        if (lo < bytes) memcpy((char *)dst + lo, (const char *)src + lo, (hi < bytes ? hi : bytes) - lo);
+    }
 }

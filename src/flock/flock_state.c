@@ -292,7 +292,7 @@ void fm_flock_state_move_slots(fm_flock_state *s, const int32_t *from, int64_t s
         const size_t bytes = SLOT_ARRAYS[i].bytes;
         char *a = *slot_array_at(s, i);
         gather_slots(s->scratch, a, bytes, from, slots, s->threads);
-        memcpy(a, s->scratch, bytes * (size_t)slots);
+        fm_copy_parallel(a, s->scratch, bytes * (size_t)slots, s->threads);
     }
     s->slots = slots;
 }

@@ -97,7 +97,7 @@ static void permute(void *array, size_t size, const int32_t *order, int64_t coun
         default: memcpy(t + size * (size_t)k, a + size * (size_t)order[k], size);
         }
     }
-    memcpy(array, scratch, size * (size_t)count);
+    fm_copy_parallel(array, scratch, size * (size_t)count, threads);
 }
 
 void fm_morph_state_resort(const fm_morph_model *m, fm_morph_state *s)

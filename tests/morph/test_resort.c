@@ -223,10 +223,32 @@ static void test_threads_and_simd_levels_give_the_same_cache(void)
     fm_simd_set_level(best);
 }
 
+/* fm_copy_parallel, the re-sorts' copy back: every byte of every size (under and over its one-thread
+ * threshold, off whole lines), for thread counts that split it unevenly, and nothing past the end. */
+static void test_parallel_copy_is_memcpy(void)
+{
+    const size_t sizes[] = {0, 1, 65535, 65536 + 13, (1u << 20) + 7};
+    const int threads[] = {1, 2, 3, 7};
+    const size_t most = (1u << 20) + 7 + 64;
+    unsigned char *src = malloc(most), *dst = malloc(most);
+    ENSURE(src && dst);
+    for (size_t k = 0; k < most; k++) src[k] = (unsigned char)(k * 2654435761u >> 13);
+    for (size_t i = 0; i < sizeof sizes / sizeof *sizes; i++)
+        for (size_t t = 0; t < sizeof threads / sizeof *threads; t++) {
+            memset(dst, 0xA5, most);
+            fm_copy_parallel(dst, src, sizes[i], threads[t]);
+            ENSURE_MSG(memcmp(dst, src, sizes[i]) == 0, "%zu bytes on %d threads differ", sizes[i], threads[t]);
+            for (size_t k = sizes[i]; k < sizes[i] + 64; k++)
+                ENSURE_MSG(dst[k] == 0xA5, "%zu bytes on %d threads wrote byte %zu", sizes[i], threads[t], k);
+        }
+    free(src), free(dst);
+}
+
 int main(void)
 {
     model = castling();
     if (!model) return 1;
+    RUN_TEST(test_parallel_copy_is_memcpy);
     RUN_TEST(test_resort_keeps_ids_state_and_frame);
     RUN_TEST(test_resort_brings_neighbours_together);
     RUN_TEST(test_a_large_launch_is_resorted_at_the_next_step);
