@@ -28,10 +28,12 @@ typedef struct noise_field {
     uint8_t perm[3][2 * PERM + 4]; /* P1, P2, P3; 4 zero bytes after each, read by 32-bit gathers */
 } noise_field;
 
-/* Perlin's gradients (h & 15): the 12 cube edges, 4 of them repeated. */
-static const double GX[16] = {1, -1, 1, -1, 1, -1, 1, -1, 0, 0, 0, 0, 1, 0, -1, 0};
-static const double GY[16] = {1, 1, -1, -1, 0, 0, 0, 0, 1, -1, 1, -1, 1, -1, 1, -1};
-static const double GZ[16] = {0, 0, 0, 0, 1, 1, -1, -1, 1, 1, -1, -1, 0, 1, 0, -1};
+/* Perlin's gradients (h & 15): the 12 cube edges, 4 of them repeated; in double here and in float
+ * for the direct kernel below. */
+#define FM_PERLIN_GX {1, -1, 1, -1, 1, -1, 1, -1, 0, 0, 0, 0, 1, 0, -1, 0}
+#define FM_PERLIN_GY {1, 1, -1, -1, 0, 0, 0, 0, 1, -1, 1, -1, 1, -1, 1, -1}
+#define FM_PERLIN_GZ {0, 0, 0, 0, 1, 1, -1, -1, 1, 1, -1, -1, 0, 1, 0, -1}
+static const double GX[16] = FM_PERLIN_GX, GY[16] = FM_PERLIN_GY, GZ[16] = FM_PERLIN_GZ;
 
 /* A point in lattice units: its cell (mod 256), offset f in [0, 1), fade s(f) and s'(f). */
 typedef struct lattice {
@@ -129,9 +131,7 @@ FM_HOT void noise_curl_add(const noise_field *n, const double x[3], double t, do
    variants run in FM_W float lanes (16 with AVX-512) instead of FM_WD doubles. The baked grid, the
    potential and fm_fields_velocity keep the double functions above. Error against them over the
    rook's agents: docs/performance.md, "Fourth pass". */
-static const float GXF[16] = {1, -1, 1, -1, 1, -1, 1, -1, 0, 0, 0, 0, 1, 0, -1, 0};
-static const float GYF[16] = {1, 1, -1, -1, 0, 0, 0, 0, 1, -1, 1, -1, 1, -1, 1, -1};
-static const float GZF[16] = {0, 0, 0, 0, 1, 1, -1, -1, 1, 1, -1, -1, 0, 1, 0, -1};
+static const float GXF[16] = FM_PERLIN_GX, GYF[16] = FM_PERLIN_GY, GZF[16] = FM_PERLIN_GZ;
 
 typedef struct lattice_f {
     int c[3];
