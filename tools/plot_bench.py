@@ -4,7 +4,8 @@
     build/bench_suite --agents 10000,100000,1000000 > bench.json
     tools/plot_bench.py bench.json docs/images/throughput.png
 
-Needs matplotlib (Debian: apt-get install python3-matplotlib); uses Debian's /usr/bin/python3.
+Needs matplotlib (Debian's python3-matplotlib: FM_WITH_PEERS=1 tools/setup.sh installs it); uses Debian's
+/usr/bin/python3.
 """
 import json
 import sys

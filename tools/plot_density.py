@@ -18,7 +18,8 @@ its radius number density * 4/3 pi r^3 = 33.5 per unit of density; agent-steps/s
 s_step_mean. Richmond et al., "FLAME GPU 2: A framework for flexible and performant agent based
 simulation on GPUs", Software: Practice and Experience 53(8), 2023, doi:10.1002/spe.3207.
 
-Needs matplotlib (Debian: apt-get install python3-matplotlib); uses Debian's /usr/bin/python3.
+Needs matplotlib (Debian's python3-matplotlib: FM_WITH_PEERS=1 tools/setup.sh installs it); uses Debian's
+/usr/bin/python3.
 """
 import json
 import math

@@ -56,9 +56,10 @@ if [ "${FM_WITH_VTK:-0}" = 1 ]; then
   packages+=(python3-vtk9)
 fi
 # The peers tools/bench-peers.sh runs beside bench_suite (docs/performance.md, "Peers"): LAMMPS
-# (its LJ benchmark) and Blender (its boids). Only on request, FM_WITH_PEERS=1: CI needs neither.
+# (its LJ benchmark) and Blender (its boids); and matplotlib for the benchmark plots
+# (tools/plot_bench.py, tools/plot_density.py). Only on request, FM_WITH_PEERS=1: CI needs none.
 if [ "${FM_WITH_PEERS:-0}" = 1 ]; then
-  packages+=(lammps blender)
+  packages+=(lammps blender python3-matplotlib)
 fi
 # Packages a calling script needs besides these (tools/fuzz.sh and tools/run-tsan.sh: clang).
 read -r -a extra_packages <<< "${FM_EXTRA_PACKAGES:-}"
