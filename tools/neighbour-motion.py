@@ -51,6 +51,15 @@ def main():
     args = ap.parse_args()
     if not args.radius > 0:
         sys.exit("neighbour-motion: RADIUS must be > 0")
+    try:
+        report(args)
+    except BrokenPipeError:  # the reader stopped early (| head)
+        sys.stderr.close()
+    except (OSError, ValueError, KeyError) as e:  # the reader's messages name the file
+        sys.exit(f"neighbour-motion: {e}")
+
+
+def report(args):
     with flockmorph_cache.open(args.cache) as cache:
         previous = None
         for index in range(len(cache)):

@@ -23,6 +23,7 @@ Needs matplotlib (Debian's python3-matplotlib: FM_WITH_PEERS=1 tools/setup.sh in
 """
 import json
 import math
+import os
 import sys
 
 # (GPU, mean neighbours within the radius, agents, s per step) from the CSVs named above
@@ -50,14 +51,17 @@ def flame_points():
 
 def sweep_points(path):
     """[(mean neighbours, agent-steps/s)] of a bench_suite --density-sweep JSON, and its machine"""
-    with open(path) as f:
-        bench = json.load(f)
-    runs = bench.get("runs", bench if isinstance(bench, list) else [])
-    points = sorted((r["mean_neighbours"], r["agent_steps_per_second"]) for r in runs)
+    try:
+        with open(path) as f:
+            bench = json.load(f)
+        runs = bench.get("runs", []) if isinstance(bench, dict) else []
+        points = sorted((r["mean_neighbours"], r["agent_steps_per_second"]) for r in runs)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        sys.exit(f"plot_density: {path}: not a bench_suite --density-sweep JSON ({e})")
     if not points:
         sys.exit(f"plot_density: {path} holds no density sweep (bench_suite --density-sweep 1)")
     threads = runs[0]["threads"]
-    machine = bench.get("machine", {}).get("cpu", "") if isinstance(bench, dict) else ""
+    machine = bench.get("machine", {}).get("cpu", "")
     return points, threads, machine
 
 
@@ -82,7 +86,9 @@ def main():
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(sys.argv[2])
+    partial = sys.argv[2] + ".partial.png"  # renamed when whole: no half-written image under the name
+    fig.savefig(partial)
+    os.replace(partial, sys.argv[2])
 
 
 if __name__ == "__main__":

@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
 """tools/neighbour-motion.py's measure on positions whose answer is known: a rigid translation moves
 no pair against another (0), two agents that fly apart at a known speed give exactly that relative
-displacement over the radius, and pairs beyond the radius are not counted.
+displacement over the radius, and pairs beyond the radius are not counted; a missing or foreign
+file and a radius of 0 are a one-line error and exit status 1.
 
     test_neighbour_motion.py --source REPO
 """
 import argparse
 import importlib.util
 import os
+import subprocess
 import sys
 import unittest
 
@@ -53,6 +55,16 @@ class NeighbourMotion(unittest.TestCase):
             pairs += int(same.sum()) - 1
         self.assertLessEqual(rel.size, pairs // 2)
         self.assertGreater(rel.size, 0.9 * pairs // 2)
+
+    def test_a_bad_cache_is_a_clear_error(self):
+        tool = os.path.join(ARGS.source, "tools", "neighbour-motion.py")
+        for args, says in ((["/nonexistent/frames.fmc", "0.1"], "/nonexistent/frames.fmc"),
+                           ([__file__, "0.1"], os.path.basename(__file__)),
+                           ([__file__, "0"], "RADIUS must be > 0")):
+            run = subprocess.run([sys.executable, tool] + args, capture_output=True, text=True)
+            self.assertEqual(run.returncode, 1, run.stderr)
+            self.assertIn(says, run.stderr)
+            self.assertNotIn("Traceback", run.stderr)
 
 
 def main():
